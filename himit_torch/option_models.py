@@ -84,16 +84,43 @@ class OptionModels:
         return P, r
 
 
-def _kernel_rows(P_stack: sp.csr_matrix, policy: np.ndarray, states: np.ndarray, S: int,
-                 A: int) -> sp.csr_matrix:
-    """One-step kernel rows ``K[states, :]`` under a policy (actions [S] or probabilities [S, A])."""
+#: Absorbing chains with up to this many continuing states are solved densely (room-sized
+#: options, microseconds each); larger ones with a sparse LU.
+_DENSE_LIMIT = 1024
+
+
+def _kernel_entries(P_csr: tuple[np.ndarray, np.ndarray, np.ndarray], policy: np.ndarray,
+                    states: np.ndarray, S: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One-step kernel rows ``K[states, :]`` under a policy (actions [S] or probabilities [S, A])
+    as triplets ``(row, next_state, probability)``, ``row`` indexing ``states``; duplicates (one
+    per action of a stochastic policy) are meant to be summed.
+
+    Plain NumPy on the CSR arrays: scipy's per-call overhead dominated when this ran per option.
+    """
+    indptr, indices, data = P_csr
     if policy.ndim == 1:
-        return P_stack[policy[states] * S + states]
-    out = None
-    for a in range(A):
-        rows = sp.diags(policy[states, a]) @ P_stack[a * S + states]
-        out = rows if out is None else out + rows
-    return out.tocsr()
+        rows, owner, weight = policy[states] * S + states, np.arange(states.size), None
+    else:
+        owner, act = np.nonzero(policy[states] > 0)
+        rows, weight = act * S + states[owner], policy[states[owner], act]
+    counts = indptr[rows + 1] - indptr[rows]
+    first = np.repeat(indptr[rows] - (np.cumsum(counts) - counts), counts)
+    idx = first + np.arange(first.size)
+    prob = data[idx] if weight is None else data[idx] * np.repeat(weight, counts)
+    return np.repeat(owner, counts), indices[idx], prob
+
+
+def _dense(rows: np.ndarray, cols: np.ndarray, vals: np.ndarray, shape: tuple[int, int]
+           ) -> np.ndarray:
+    """A dense matrix from triplets, summing duplicates."""
+    flat = np.bincount(rows * shape[1] + cols, weights=vals, minlength=shape[0] * shape[1])
+    return flat.reshape(shape)
+
+
+def _sparse(rows: np.ndarray, cols: np.ndarray, vals: np.ndarray, shape: tuple[int, int]
+            ) -> sp.csr_matrix:
+    """A sparse CSR matrix from triplets, summing duplicates."""
+    return sp.csr_matrix((vals, (rows, cols)), shape=shape)
 
 
 def option_models(world, options: Options, gamma: float | None = None,
@@ -115,6 +142,8 @@ def option_models(world, options: Options, gamma: float | None = None,
         raise ValueError(f"options are over {options.num_states} states but the world has {S}")
     idx = P.indices().numpy()
     P_stack = sp.csr_matrix((P.values().numpy(), (idx[0] * S + idx[1], idx[2])), shape=(A * S, S))
+    P_stack.eliminate_zeros()
+    P_csr = (P_stack.indptr.astype(np.int64), P_stack.indices.astype(np.int64), P_stack.data)
     R = (world.reward_model() if step_reward is None else torch.as_tensor(step_reward)).double().numpy()
     if R.shape != (S, A):
         raise ValueError(f"step_reward must be [S, A] = [{S}, {A}], got {R.shape}")
@@ -122,62 +151,87 @@ def option_models(world, options: Options, gamma: float | None = None,
     init_all = options.initiation.numpy()
     beta_all = options.termination.double().numpy()
     policy_all = options.policy.numpy()
+    if options.stochastic:  # float32 rows (checked to 1e-5) would let Σ_s' P^o exceed E[γ^k]
+        policy_all = options.policy.double().numpy()
+        sums = policy_all.sum(-1, keepdims=True)
+        policy_all = np.divide(policy_all, sums, out=np.zeros_like(policy_all), where=sums > 0)
+    local = np.full(S, -1, dtype=np.int64)        # scratch: state -> index in C (reset per option)
 
-    row_state, row_option, rewards, blocks = [], [], [], []
+    row_state, row_option, rewards = [], [], []
+    out_rows, out_cols, out_vals = [], [], []      # triplets of the stacked [M, S] transition
+    offset = 0
     for o in range(options.num_options):
         policy = policy_all[o]
         stop = np.where(terminal, 1.0, beta_all[o])
         cont = 1.0 - stop
         start = np.flatnonzero(init_all[o])
-        # Continuing states reachable from the initiation set.
-        in_region = np.zeros(S, dtype=bool)
+        # Continuing states reachable from the initiation set: the transient states C.
+        in_C = np.zeros(S, dtype=bool)
         frontier = start
-        continuing = []
         while frontier.size:
-            cols = np.unique(_kernel_rows(P_stack, policy, frontier, S, A).indices)
-            new = cols[(cont[cols] > 0) & ~in_region[cols]]
-            in_region[new] = True
-            continuing.append(new)
+            _, cols, prob = _kernel_entries(P_csr, policy, frontier, S)
+            new = np.unique(cols[(prob > 0) & (cont[cols] > 0)])
+            new = new[~in_C[new]]
+            in_C[new] = True
             frontier = new
-        C = np.concatenate(continuing) if continuing else np.zeros(0, dtype=np.int64)
-        r1 = (R * (policy_all[o] if policy.ndim == 2 else np.eye(A)[policy])).sum(1)
-        K_I = _kernel_rows(P_stack, policy, start, S, A)
-        E_I = K_I @ sp.diags(stop)
-        if C.size:
-            K_C = _kernel_rows(P_stack, policy, C, S, A)
-            T_CC = (K_C[:, C] @ sp.diags(cont[C])).tocsc()
-            T_IC = K_I[:, C] @ sp.diags(cont[C])
-            E_C = (K_C @ sp.diags(stop)).tocsr()
-            exits = np.unique(np.concatenate([E_C.nonzero()[1], E_I.nonzero()[1]]))
-            rhs = np.concatenate([gamma * E_C[:, exits].toarray(), r1[C][:, None]], axis=1)
-            system = (sp.identity(C.size, format="csc") - gamma * T_CC).tocsc()
+        C = np.flatnonzero(in_C)
+        nI, nC = start.size, C.size
+        r1 = (R * policy).sum(1) if policy.ndim == 2 else R[np.arange(S), policy]
+        own, cols, prob = _kernel_entries(P_csr, policy, np.concatenate([start, C]), S)
+        go_on, ends = prob * cont[cols], prob * stop[cols]
+        # Stopping at once: gamma K[s, s'] beta(s').
+        hit = (own < nI) & (ends > 0)
+        rows_o, cols_o, vals_o = [own[hit]], [cols[hit]], [gamma * ends[hit]]
+        r = r1[start].copy()
+        if nC:
+            local[C] = np.arange(nC)
+            on_C, on_I = (own >= nI) & (go_on > 0), (own < nI) & (go_on > 0)
+            out_C = (own >= nI) & (ends > 0)
+            exits, exit_col = np.unique(cols[out_C], return_inverse=True)
+            E_C = _dense(own[out_C] - nI, exit_col, ends[out_C], (nC, exits.size))
+            rhs = np.concatenate([gamma * E_C, r1[C][:, None]], axis=1)
             try:
-                sol = spla.splu(system).solve(rhs)
-            except RuntimeError as err:  # singular: the option can run forever undiscounted
-                raise ValueError(f"option {options.names[o]!r} may never terminate from some state "
-                                 f"(its absorbing chain is singular at gamma={gamma}); use gamma < 1 "
-                                 "or make it terminate") from err
+                if nC <= _DENSE_LIMIT:
+                    T_CC = _dense(own[on_C] - nI, local[cols[on_C]], go_on[on_C], (nC, nC))
+                    sol = np.linalg.solve(np.eye(nC) - gamma * T_CC, rhs)
+                else:
+                    T_CC = _sparse(own[on_C] - nI, local[cols[on_C]], go_on[on_C], (nC, nC))
+                    sol = spla.splu((sp.identity(nC, format="csc") - gamma * T_CC).tocsc()).solve(rhs)
+            except (np.linalg.LinAlgError, RuntimeError) as err:
+                raise _never_terminates(options.names[o], gamma) from err
+            if not np.isfinite(sol).all():
+                raise _never_terminates(options.names[o], gamma)
             W, rho = sol[:, :-1], sol[:, -1]
-            M = gamma * E_I + sp.csr_matrix(gamma * (T_IC @ W), shape=(start.size, exits.size)) \
-                @ sp.csr_matrix((np.ones(exits.size), (np.arange(exits.size), exits)),
-                                shape=(exits.size, S))
-            r = r1[start] + gamma * (T_IC @ rho)
-        else:
-            M = gamma * E_I
-            r = r1[start]
-        M = sp.csr_matrix(M)
-        M.eliminate_zeros()
+            # Continuing first: gamma K[s, C] (1 - beta_C) W_C, only for starts that can continue.
+            J, j_row = np.unique(own[on_I], return_inverse=True)
+            T_JC = (_dense if nC <= _DENSE_LIMIT else _sparse)(
+                j_row, local[cols[on_I]], go_on[on_I], (J.size, nC))
+            via = np.asarray(gamma * (T_JC @ W))
+            jr, jc = np.nonzero(via)
+            rows_o.append(J[jr]); cols_o.append(exits[jc]); vals_o.append(via[jr, jc])
+            r[J] += gamma * (T_JC @ rho)
+            local[C] = -1
+        rows_o, cols_o, vals_o = (np.concatenate(x) for x in (rows_o, cols_o, vals_o))
+        out_rows.append(rows_o + offset); out_cols.append(cols_o); out_vals.append(vals_o)
         row_state.append(start)
-        row_option.append(np.full(start.size, o))
-        rewards.append(np.asarray(r).ravel())
-        blocks.append(M)
-    T = sp.vstack(blocks).tocsr()
+        row_option.append(np.full(nI, o))
+        rewards.append(r)
+        offset += nI
+    T = sp.csr_matrix((np.concatenate(out_vals), (np.concatenate(out_rows), np.concatenate(out_cols))),
+                      shape=(offset, S))
+    T.sum_duplicates()
+    T.eliminate_zeros()
     T.sort_indices()
     transition = csr_from_scipy(T)
     return OptionModels(row_state=torch.from_numpy(np.concatenate(row_state)),
                         row_option=torch.from_numpy(np.concatenate(row_option)),
                         reward=torch.from_numpy(np.concatenate(rewards)),
                         transition=transition, num_options=options.num_options)
+
+
+def _never_terminates(name: str, gamma: float) -> ValueError:
+    return ValueError(f"option {name!r} may never terminate from some state (its absorbing chain "
+                      f"is singular at gamma={gamma}); use gamma < 1 or make it terminate")
 
 
 def option_durations(world, options: Options) -> OptionModels:

@@ -114,15 +114,16 @@ def greedy_option_policy(models: OptionModels, q: torch.Tensor, values: torch.Te
 
     With ``preferred [O]`` bool and ``tolerance > 0``, a preferred option whose value is within
     ``tolerance`` of the state's best value wins over a better non-preferred one (the mentor uses
-    this to favour its extended options over primitives that are better only by a hair).
-    Remaining ties go to the lowest option index.
+    this to favour its extended options over primitives that are better only by a hair); the best
+    of those preferred options is taken. Remaining ties go to the lowest option index.
     """
     S = models.num_states
     row_state, row_option = models.row_state, models.row_option
     score = q.clone()
     if preferred is not None and tolerance > 0:
+        # Preferred options within tolerance of the best outrank the rest, and keep their order.
         ok = preferred[row_option] & (q >= values[row_state] - tolerance)
-        score = torch.where(ok, torch.full_like(q, np.inf), score)
+        score = torch.where(ok, q + 1e9, score)
     # Lexicographic argmax: highest score, then lowest option index.
     order = np.lexsort((row_option.numpy(), -score.numpy(), row_state.numpy()))
     first = np.ones(order.size, dtype=bool)
@@ -156,10 +157,13 @@ def expected_steps(durations: OptionModels, policy: torch.Tensor, start: int,
     idx = T.indices().numpy()
     Tm = sp.csr_matrix((T.values().numpy(), (idx[0], idx[1])), shape=tuple(T.shape))
     term = terminal.numpy()
+    if term[int(start)]:
+        return 0.0
     # Reachable non-terminal states under the policy.
     seen = {int(start)}
     frontier = [int(start)]
     rows = {}
+    parents: dict[int, list[int]] = {}
     while frontier:
         nxt = []
         for s in frontier:
@@ -170,10 +174,22 @@ def expected_steps(durations: OptionModels, policy: torch.Tensor, start: int,
                 return float("inf")
             rows[s] = row
             for t in Tm.indices[Tm.indptr[row]:Tm.indptr[row + 1]]:
+                parents.setdefault(int(t), []).append(s)
                 if int(t) not in seen:
                     seen.add(int(t))
                     nxt.append(int(t))
         frontier = nxt
+    # The goal is reached with probability 1 iff every reachable state can reach a terminal one;
+    # otherwise the system below is singular (a closed loop), so answer before solving it.
+    finishing = [s for s in seen if term[s]]
+    can_finish = set(finishing)
+    while finishing:
+        for p in parents.get(finishing.pop(), ()):
+            if p not in can_finish:
+                can_finish.add(p)
+                finishing.append(p)
+    if len(can_finish) < len(seen):
+        return float("inf")
     states = np.array(sorted(rows))
     pos = {s: i for i, s in enumerate(states)}
     sub = Tm[[rows[s] for s in states]].tocoo()

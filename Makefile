@@ -1,0 +1,38 @@
+# Two entry points, each doing its own set-up on a fresh machine:
+#   make demo   — the main job (a short experiment-2 run: world, mentor demonstrations, figures)
+#   make test   — the test suite
+# The virtual environment lives in .venv. torch is installed first, on its own, as the build
+# named by TORCH_SPEC (default: torch==2.13.0, the CPU wheel on a CPU-only machine), so that the
+# package's plain "torch" requirement never pulls a multi-GB CUDA stack by accident. If .venv
+# already has a torch (e.g. a CUDA build you installed), it is kept.
+
+PYTHON ?= python3
+VENV ?= .venv
+TORCH_SPEC ?= torch==2.13.0
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.himit-installed
+
+.PHONY: demo test test-all bench install clean
+
+$(STAMP): pyproject.toml
+	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/python -c "import torch" 2>/dev/null || $(BIN)/python -m pip install --quiet "$(TORCH_SPEC)"
+	$(BIN)/python -m pip install --quiet -e ".[dev]"
+	touch $(STAMP)
+
+install: $(STAMP)
+
+demo: $(STAMP)
+	$(BIN)/himit demo
+
+test: $(STAMP)
+	$(BIN)/python -m pytest -q
+
+test-all: $(STAMP)
+	$(BIN)/python -m pytest -q -m "slow or not slow"
+
+bench: $(STAMP)
+	$(BIN)/python benchmarks/bench_learner.py
+
+clean:
+	rm -rf $(VENV) runs .pytest_cache
