@@ -1,6 +1,42 @@
-"""himit_torch: hierarchical goal-based imitation from state-only demonstrations, in PyTorch."""
+"""himit_torch: hierarchical goal-based imitation learning from state-only demonstrations.
+
+A learner with its own options watches only a mentor's *states* and learns with the augmented
+Bellman equation with options (Friesen & Rao, "Imitation learning with hierarchical actions").
+``B`` independent runs advance together as tensors; see ``README.md`` for a tour.
+"""
+
+from . import backups
+from .demonstrations import DEMONSTRATIONS_FORMAT_VERSION, Demonstrations
+from .mentor import MentorPolicy, MentorRollout, mentor_policy, record_demonstrations, run_mentor
+from .gym_env import ENV_ID, MultiRoomsEnv, register_envs
+from .learner import AGENTS, Learner, LearnerConfig
+from .models import DirichletMentorModel, DirichletSMDPModel, EdgeIndex, SuccessorDirichlet
+from .option_models import OptionModels, option_durations, option_models
+from .options import (Options, corner_options, doorway_options, learner_options, mentor_options,
+                      primitive_options)
+from .planner import BlockPriorityQueue
+from .planning import (PlanResult, expected_steps, greedy_option_policy, smdp_value_iteration,
+                       value_iteration)
+from .reward import KnownReward, MentorReward
 from .world import MultiRooms, TabularWorld
-from .options import (Options, primitive_options, doorway_options, corner_options,
-                      learner_options, mentor_options)
-from .option_models import OptionModels, option_models, option_durations
-from .planning import value_iteration, smdp_value_iteration, expected_steps, PlanResult
+
+__version__ = "0.1.0"
+
+__all__ = [
+    # worlds
+    "MultiRooms", "TabularWorld", "MultiRoomsEnv", "register_envs", "ENV_ID",
+    # options and their exact models
+    "Options", "primitive_options", "doorway_options", "corner_options", "learner_options",
+    "mentor_options", "OptionModels", "option_models", "option_durations",
+    # exact planning
+    "value_iteration", "smdp_value_iteration", "greedy_option_policy", "expected_steps",
+    "PlanResult",
+    # the learner
+    "Learner", "LearnerConfig", "AGENTS", "DirichletSMDPModel", "DirichletMentorModel",
+    "SuccessorDirichlet", "EdgeIndex", "BlockPriorityQueue", "backups",
+    # mentor and demonstrations
+    "MentorPolicy", "MentorRollout", "mentor_policy", "run_mentor", "record_demonstrations",
+    "Demonstrations", "DEMONSTRATIONS_FORMAT_VERSION",
+    # mentor reward
+    "MentorReward", "KnownReward",
+]

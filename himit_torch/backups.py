@@ -147,5 +147,6 @@ def confident_mentor(mentor_mean: torch.Tensor, mentor_var: torch.Tensor,
     Returns ``[...]`` bool (True where no own option is available).
     """
     upper = torch.where(own_available, own_mean + z * own_var.sqrt(),
-                        torch.full_like(own_mean, float("-inf"))).max(-1).values
+                        torch.full_like(own_mean, float("-inf"))).amax(-1) if own_mean.shape[-1] \
+        else torch.full(own_mean.shape[:-1], float("-inf"), dtype=own_mean.dtype)
     return (mentor_mean - z * mentor_var.sqrt()) > upper

@@ -7,7 +7,7 @@ equation (the paper's eq. 2, or a baseline), and pick their next option ε-greed
 Shapes: ``B`` runs, ``S`` states, ``O`` options, ``M`` available ``(s, o)`` rows (shared by the
 batch, grouped by state: ``state_rows [S, J]``), ``E`` observed model edges.
 
-How values are kept (the fast path; :meth:`Learner.exact_values` is the slow check):
+How values are kept (the fast path; :meth:`Learner.plan` sweeps to convergence for checks):
 
 * ``q_numerator [B, M]`` holds ``Σ r + Σ_{s'} Σγ^k V(s')`` of every row, so that
   ``Q = (q_numerator + α v0) / (n + α)`` is the posterior-mean option backup
@@ -33,14 +33,18 @@ from .rng import seed_streams, uniforms
 
 __all__ = ["Learner", "LearnerConfig", "AGENTS"]
 
-#: Agent variants: which options a run may use and whether it imitates.
-#: ``imitation`` — options + mentor (eq. 2); ``options`` — options only; ``primitives`` —
-#: primitive options only; ``imitation_primitives`` — primitives + mentor (eq. 1, Price & Boutilier).
+#: Agent variants: which options a run may use, whether it imitates, and whether its mentor term
+#: is confidence-tested. ``imitation`` — options + mentor (eq. 2); ``options`` — options only;
+#: ``primitives`` — primitive options only; ``imitation_primitives`` — primitives + mentor (eq. 1,
+#: Price & Boutilier); ``…_confident`` — the same with Price & Boutilier's confidence test
+#: (:attr:`LearnerConfig.confidence_z`).
 AGENTS = {
-    "imitation": ("all", True),
-    "options": ("all", False),
-    "primitives": ("primitive", False),
-    "imitation_primitives": ("primitive", True),
+    "imitation": ("all", True, False),
+    "imitation_confident": ("all", True, True),
+    "options": ("all", False, False),
+    "primitives": ("primitive", False, False),
+    "imitation_primitives": ("primitive", True, False),
+    "imitation_primitives_confident": ("primitive", True, True),
 }
 
 
@@ -53,13 +57,16 @@ class LearnerConfig:
     """Prioritized-sweeping backups per decision (the paper: about the number of options needed to
     reach the goal). The option's start state is always backed up first, within this budget."""
     sweep_rounds: int = 2
-    """The backups of one decision run in this many rounds; the states of one round are backed up
-    together. ``backups`` rounds = classic one-at-a-time sweeping (slowest)."""
+    """The backups of one planning step run in this many rounds; the states of one round (the
+    highest priorities) are backed up together, and their changes propagate before the next
+    round. ``sweep_rounds = backups`` is classic one-at-a-time sweeping (slowest)."""
     plan_every: int = 1
     """Sweep every this many ticks, for all runs that decided since the last sweep, with
-    ``backups`` per decision they made. 1 = plan at every decision (the paper's loop). Larger values
-    trade a few ticks of planning delay for speed: a sweep after a decision at ``s`` updates ``s``
-    and the states *behind* it, not the state the next choice is made in."""
+    ``backups`` per decision they made, in ``sweep_rounds`` rounds of up to
+    ``plan_every · backups / sweep_rounds`` states. 1 = plan at every decision (the paper's loop).
+    Larger values trade a few ticks of planning delay for speed (fewer, larger tensor ops): a
+    sweep after a decision at ``s`` updates ``s`` and the states *behind* it, not the state the
+    next choice is made in. Models are still updated at every decision."""
     rng_chunk: int = 256
     """Per-run uniforms are drawn for this many ticks at once (speed only; results identical)."""
     priority_threshold: float = 1e-6
@@ -78,10 +85,10 @@ class LearnerConfig:
     maximum-likelihood model)."""
     mentor_concentration: float = 0.0
     """Same for the mentor model."""
-    confidence_z: float | None = None
-    """Price & Boutilier's confidence test: use the mentor term at ``s`` only where its lower
-    bound (mean − z·sd, from the Dirichlet variances) beats the upper bound (mean + z·sd) of every
-    own option. ``None`` = the plain mentor term."""
+    confidence_z: float = 1.0
+    """Width of Price & Boutilier's confidence test, used by the ``…_confident`` agents: the
+    mentor term at ``s`` counts only where its lower bound (mean − z·sd, from the Dirichlet
+    variances) beats the upper bound (mean + z·sd) of every own option."""
     mentor_override_after: int | None = None
     """Ignore the mentor term at ``s`` once the run has executed its own options there this many
     times (own experience overrides the mentor); ``None`` = never."""
@@ -109,8 +116,10 @@ class LearnerConfig:
         for name in ("eps_start", "eps_min", "eps_decay"):
             if not 0.0 <= getattr(self, name) <= 1.0:
                 bad(name, "must lie in [0, 1]")
-        if self.confidence_z is not None and not self.confidence_z >= 0:
-            bad("confidence_z", "must be ≥ 0 or None")
+        if self.eps_min > self.eps_start:
+            bad("eps_min", f"must not exceed eps_start={self.eps_start}")
+        if not self.confidence_z >= 0:
+            bad("confidence_z", "must be ≥ 0")
         if self.tie_break not in ("random", "first"):
             bad("tie_break", "use 'random' or 'first'")
         if self.window < 1:
@@ -229,10 +238,13 @@ class Learner:
         primitive = options.is_primitive.to(dev)
         enabled = torch.zeros(B, O, dtype=torch.bool, device=dev)
         self.use_mentor = torch.zeros(B, dtype=torch.bool, device=dev)
+        self.use_confidence = torch.zeros(B, dtype=torch.bool, device=dev)
         for b, agent in enumerate(agents):
-            which, mentor = AGENTS[agent]
+            which, mentor, confident = AGENTS[agent]
             enabled[b] = True if which == "all" else primitive
             self.use_mentor[b] = mentor
+            self.use_confidence[b] = confident
+        self._any_confidence = bool(self.use_confidence.any())
         if not bool(enabled.any(1).all()):
             raise ValueError("an agent variant has no usable option (e.g. 'primitives' with no "
                              "primitive options in the set)")
@@ -253,6 +265,7 @@ class Learner:
                                               device=dev)
         self.mentor.edges.on_grow.append(self._grow_mentor_reward)
         self.state_tries = torch.zeros(B, S + 1, dtype=torch.float64, device=dev)
+        self.visits = torch.zeros(B, S + 1, dtype=torch.int64, device=dev)
         self.queue = BlockPriorityQueue(B, S + 1, dev, typical_pop=max(1, config.backups // config.sweep_rounds))
 
         self.rewards = self._reward_modules(reward, world, B)
@@ -284,12 +297,17 @@ class Learner:
         self._pad_state = torch.tensor(S, device=dev)
         self._start_tensor = torch.tensor(self.start_state, device=dev)
         self._lanes = 5
+        # States backed up together per round: a decision's budget in sweep_rounds rounds; with
+        # plan_every > 1, the budget of plan_every decisions in as many rounds.
+        self._round_size = -(-config.plan_every * config.backups // config.sweep_rounds)
         self._zero = torch.zeros((), dtype=torch.float64, device=dev)
         self._neg_inf = torch.tensor(float("-inf"), dtype=torch.float64, device=dev)
         self._untried = torch.tensor(float(config.untried_value if config.untried_value is not None
                                            else 0.0), dtype=torch.float64, device=dev)
         self._pad_row = torch.tensor(M, device=dev)
         self._any_mentor = bool(self.use_mentor.any())
+        self._visit_base = torch.arange(B, device=dev) * (S + 1)
+        self._ones_b = torch.ones(B, dtype=torch.int64, device=dev)
         self._u_chunk, self._u_chunk_start = None, -1
         if demonstrations is not None:
             self.add_demonstrations(demonstrations)
@@ -444,11 +462,12 @@ class Learner:
         m = self._mentor_at(flat, n_m)
         if cfg.mentor_override_after is not None:
             mentor_ok = mentor_ok & (_take(self.state_tries, flat) < cfg.mentor_override_after)
-        if cfg.confidence_z is not None:
+        if self._any_confidence:
             z = cfg.confidence_z
             var = self._row_variance(flat_rows, n_rows, q)
             upper = torch.where(usable, q + z * var.sqrt(), self._neg_inf).amax(-1)
-            mentor_ok = mentor_ok & ((m - z * self._mentor_variance(flat, n_m, m).sqrt()) > upper)
+            confident = (m - z * self._mentor_variance(flat, n_m, m).sqrt()) > upper
+            mentor_ok = mentor_ok & (confident | ~self.use_confidence[runs])
         m = torch.where(mentor_ok, m, self._neg_inf)
         best = torch.maximum(own, m)
         return best, torch.isfinite(best), mentor_ok & (m > own)
@@ -486,7 +505,7 @@ class Learner:
         gd = g * d
         flat = self._row_flat(r, rows)
         self.q_numerator.view(-1).index_add_(0, flat, gd)
-        if self.config.confidence_z is not None:
+        if self._any_confidence:
             c = _take(model.edge_count, flat_e).clamp(min=1)
             v_old = old.index_select(0, owner)
             self.q_second.view(-1).index_add_(0, flat, g * g / c * ((v_old + d) ** 2 - v_old ** 2))
@@ -508,27 +527,27 @@ class Learner:
         cd = c * gd
         flat = self._state_flat(r, src)
         self.mentor_numerator.view(-1).index_add_(0, flat, cd)
-        if self.config.confidence_z is not None:
+        if self._any_confidence:
             u_old = _take(self.mentor_edge_reward, flat_e) + self.gamma * old.index_select(0, owner)
             self.mentor_second.view(-1).index_add_(0, flat, c * ((u_old + gd) ** 2 - u_old ** 2))
         prio = cd.abs() / (_take(mentor.row_count, flat) + self.config.mentor_concentration).clamp(min=1e-300)
         push = prio > self.config.priority_threshold
         self.queue.push(r[push], src[push], prio[push])
 
-    def _sweep(self, runs: torch.Tensor, budget: torch.Tensor) -> None:
-        """Prioritized sweeping for ``runs [R]``, ``budget [R]`` backups each, in rounds."""
+    def _sweep(self, runs: torch.Tensor, budget: torch.Tensor, round_size: int) -> None:
+        """Prioritized sweeping for ``runs [R]``: up to ``budget [R]`` backups each, in rounds of
+        at most ``round_size`` states per run backed up together. ``round_size`` depends on the
+        configuration only, never on the other runs, so a run's sweep is the same in any batch."""
         cfg = self.config
         most = int(budget.max())
-        # A fixed round size keeps run b's sweep independent of the other runs' budgets.
-        per_round = -(-cfg.backups // cfg.sweep_rounds)
         done = 0
         while done < most:
-            n = min(per_round, most - done)
-            states, valid = self.queue.pop(runs, n, cfg.priority_threshold, limit=budget - done)
+            states, valid = self.queue.pop(runs, round_size, cfg.priority_threshold,
+                                           limit=budget - done)
             if not bool(valid.any()):
                 break
             self._backup_and_propagate(runs, torch.where(valid, states, self._pad_state), valid)
-            done += n
+            done += round_size
 
     def plan(self, max_rounds: int = 1_000_000) -> int:
         """Sweep every run until its queue is empty (or ``max_rounds`` rounds of ``backups``
@@ -558,7 +577,7 @@ class Learner:
         model.row_count.view(-1).index_add_(0, flat_r, torch.ones_like(discount))
         model.row_reward.view(-1).index_add_(0, flat_r, returns)
         self.q_numerator.view(-1).index_add_(0, flat_r, returns + discount * v_end)
-        if self.config.confidence_z is not None:
+        if self._any_confidence:
             old_term = torch.where(c_old > 0, g_old * g_old / c_old.clamp(min=1), self._zero)
             self.q_second.view(-1).index_add_(0, flat_r, (g_new * g_new / c_new - old_term) * v_end * v_end)
         self.state_tries.view(-1).index_add_(0, self._state_flat(runs, starts), torch.ones_like(discount))
@@ -620,6 +639,7 @@ class Learner:
         at_goal = self.terminal[nxt]
         ended = at_goal | (self.termination[option * S + nxt] > stop_u)
         self.position = nxt
+        self.visits.view(-1).index_add_(0, self._visit_base + nxt, self._ones_b)
         if bool(at_goal.any()):
             self._goal_reached(at_goal)
         if bool(ended.any()):
@@ -627,7 +647,7 @@ class Learner:
             self._decide(runs, at_goal[runs], u[runs])
         if self._pending and self.t % cfg.plan_every == 0:
             runs = (self.pending_decisions > 0).nonzero()[:, 0]
-            self._sweep(runs, self.pending_decisions[runs] * cfg.backups)
+            self._sweep(runs, self.pending_decisions[runs] * cfg.backups, self._round_size)
             self.pending_decisions.zero_()
             self._pending = False
         if self.t % cfg.window == 0:
@@ -640,7 +660,7 @@ class Learner:
         self._update_model(runs, self.row[runs], self.option_start[runs], end,
                            self.duration[runs], self.discounted_return[runs])
         if cfg.plan_every == 1:
-            self._sweep(runs, torch.full_like(runs, cfg.backups))
+            self._sweep(runs, torch.full_like(runs, cfg.backups), self._round_size)
         else:
             self.pending_decisions[runs] += 1
             self._pending = True
@@ -697,6 +717,47 @@ class Learner:
             self.step()
         return self.metrics
 
+    # ============================================================================ checkpoints
+    _STATE = ("values", "q_numerator", "q_second", "mentor_numerator", "mentor_second",
+              "mentor_edge_reward", "state_tries", "position", "option_start", "row", "duration",
+              "discounted_return", "discount", "epsilon", "found_goal", "goals", "window_goals",
+              "episodes", "episode_start", "window_episode_steps", "window_episodes",
+              "backups_done", "decisions", "first_goal_step", "pending_decisions", "visits")
+
+    def state_dict(self) -> dict:
+        """Everything that changes while learning (models, values, queue, run state, metrics):
+        with the same world, options, agents, seeds and config, :meth:`load_state_dict` continues
+        exactly where this left off."""
+        state = {name: getattr(self, name).clone() for name in self._STATE}
+        state.update(t=self.t, pending=self._pending, model=self.model.state_dict(),
+                     mentor=self.mentor.state_dict(),
+                     queue={"priority": self.queue.priority.clone(),
+                            "block_max": self.queue.block_max.clone()},
+                     metrics={k: list(v) for k, v in vars(self.metrics).items()},
+                     identity={"agents": self.agents, "seeds": self.seeds,
+                               "num_states": self.num_states, "num_options": self.num_options,
+                               "num_rows": self.num_rows, "config": asdict(self.config)})
+        return state
+
+    def load_state_dict(self, state: dict) -> None:
+        """Restore a :meth:`state_dict` (refuses one from a different batch or configuration)."""
+        ident = state["identity"]
+        mine = {"agents": self.agents, "seeds": self.seeds, "num_states": self.num_states,
+                "num_options": self.num_options, "num_rows": self.num_rows,
+                "config": asdict(self.config)}
+        differ = sorted(k for k in mine if mine[k] != ident.get(k))
+        if differ:
+            raise ValueError(f"checkpoint does not match this learner: {differ} differ")
+        self.model.load_state_dict(state["model"])
+        self.mentor.load_state_dict(state["mentor"])
+        for name in self._STATE:
+            setattr(self, name, state[name].to(self.device).clone())
+        self.queue.priority = state["queue"]["priority"].to(self.device).clone()
+        self.queue.block_max = state["queue"]["block_max"].to(self.device).clone()
+        self.t, self._pending = int(state["t"]), bool(state["pending"])
+        self.metrics = RunMetrics(**{k: list(v) for k, v in state["metrics"].items()})
+        self._u_chunk, self._u_chunk_start = None, -1
+
     # =============================================================================== diagnostics
     def mentor_win_share(self) -> torch.Tensor:
         """``[B]`` share of mentor-observed states where the mentor term is the max of eq. 2
@@ -721,6 +782,48 @@ class Learner:
         best = q.argmax(-1)
         option = self.row_option[rows.expand(self.batch, -1, -1).gather(2, best[..., None])[..., 0]]
         return torch.where(usable.any(-1), option, torch.full_like(option, -1))
+
+    def visit_counts(self) -> torch.Tensor:
+        """``[B, S]`` how often each run has been in each state (after each primitive step)."""
+        return self.visits[:, :self.num_states]
+
+    def model_coverage(self) -> torch.Tensor:
+        """``[B]`` share of the run's usable ``(s, o)`` rows it has tried at least once."""
+        enabled = self.row_enabled[:, :self.num_rows]
+        tried = (self.model.row_count[:, :self.num_rows] > 0) & enabled
+        return tried.sum(1).double() / enabled.sum(1).clamp(min=1)
+
+    def greedy_trajectory(self, run: int, max_steps: int, seed: int = 0) -> torch.Tensor:
+        """States of one episode from the start following run ``run``'s greedy options (ε = 0,
+        untried options at random), with the world's slip; stops at the goal or after
+        ``max_steps``. For pictures like the paper's Fig. 2."""
+        gen = torch.Generator(device=self.device).manual_seed(seed)
+        greedy = self.greedy_options()[run]
+        S = self.num_states
+        s = torch.tensor([self.start_state], device=self.device)
+        states = [int(s)]
+        option, steps = -1, 0
+        while steps < max_steps and not bool(self.terminal[s]):
+            if option < 0:
+                option = int(greedy[s])
+                if option < 0:   # nothing tried here: any usable option
+                    rows = self.state_rows[s][0]
+                    rows = rows[self.row_enabled[run, rows]]
+                    option = int(self.row_option[rows[torch.randint(len(rows), (1,), generator=gen,
+                                                                    device=self.device)]])
+            flat = option * S + s
+            if self.policy is not None:
+                action = self.policy[flat]
+            else:
+                action = torch.multinomial(torch.diff(self.policy_cdf[flat], prepend=torch.zeros(
+                    1, 1, dtype=torch.float64, device=self.device)), 1, generator=gen)[:, 0]
+            s, _ = self.world.step(s, action, generator=gen)
+            steps += 1
+            states.append(int(s))
+            stop = torch.rand(1, generator=gen, device=self.device, dtype=torch.float64)
+            if bool(self.terminal[s]) or bool(self.termination[option * S + s] > stop):
+                option = -1
+        return torch.tensor(states)
 
     def state_values(self) -> torch.Tensor:
         """``[B, S]`` current value estimates."""

@@ -47,6 +47,18 @@ class EdgeIndex:
         self.reverse_len = torch.zeros(num_states + 1, dtype=torch.int64, device=device)
         self.on_grow = []  # callbacks(new_capacity) for per-run arrays over edges
 
+    _STATE = ("edge_row", "edge_successor", "forward", "forward_len", "reverse", "reverse_len")
+
+    def state_dict(self) -> dict:
+        out = {name: getattr(self, name).clone() for name in self._STATE}
+        out["num_edges"] = self.num_edges
+        return out
+
+    def load_state_dict(self, state: dict) -> None:
+        for name in self._STATE:
+            setattr(self, name, state[name].to(self.device).clone())
+        self.num_edges = int(state["num_edges"])
+
     @property
     def capacity(self) -> int:
         return self.edge_row.shape[0]
@@ -206,6 +218,18 @@ class _CountModel:
     def _grow(self, capacity: int) -> None:
         self.edge_count = _grow_columns(self.edge_count, capacity)
 
+    _STATE = ("edge_count", "row_count")
+
+    def state_dict(self) -> dict:
+        out = {name: getattr(self, name).clone() for name in self._STATE}
+        out["edges"] = self.edges.state_dict()
+        return out
+
+    def load_state_dict(self, state: dict) -> None:
+        self.edges.load_state_dict(state["edges"])
+        for name in self._STATE:
+            setattr(self, name, state[name].to(self.device).clone())
+
     def posterior(self, runs: torch.Tensor, rows: torch.Tensor) -> SuccessorDirichlet:
         """Posterior over the successors of ``rows`` (any shape) in ``runs`` (same shape)."""
         edge = self.edges.forward[rows]                                  # [..., K]
@@ -232,6 +256,8 @@ class DirichletSMDPModel(_CountModel):
         super().__init__(num_rows, num_states, batch, device, concentration, width, fan_in)
         self.edge_discount = torch.zeros_like(self.edge_count)
         self.row_reward = torch.zeros_like(self.row_count)
+
+    _STATE = ("edge_count", "row_count", "edge_discount", "row_reward")
 
     def _grow(self, capacity: int) -> None:
         super()._grow(capacity)

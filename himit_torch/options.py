@@ -170,7 +170,8 @@ def primitive_options(world: MultiRooms) -> Options:
 
 def target_policy(world: MultiRooms, region: Sequence[int], target: int,
                   penalized: frozenset[int] = frozenset(), penalty: float = 10.0) -> dict[int, int]:
-    """Deterministic policy from every cell of ``region`` to ``target``, staying inside ``region``.
+    """Deterministic policy from every cell of ``region`` to ``target``, staying inside ``region``
+    (cells with no path to the target inside it get no entry).
 
     Entering a cell costs 1, plus ``penalty`` if it is in ``penalized`` (how the wall-following
     style keeps off a room's middle). Among equally cheap moves it takes the one that closes the
@@ -206,10 +207,8 @@ def target_policy(world: MultiRooms, region: Sequence[int], target: int,
             key = (cost[v] + dist[v], -along, a)
             if best is None or key < best[0]:
                 best = (key, a)
-        if best is None:
-            raise ValueError(f"no path from {world.coords(s)} to {world.coords(target)} inside the "
-                             "option's region")
-        policy[s] = best[1]
+        if best is not None:      # cells cut off from the target inside the region are left out
+            policy[s] = best[1]
     return policy
 
 
@@ -247,8 +246,10 @@ def _room_target_options(world: MultiRooms, targets_of_room, style: str, kind: s
             if not region:
                 continue
             pol = target_policy(world, region, target, penalized=penalized - {target})
+            if not pol:
+                continue
             init = torch.zeros(S, dtype=torch.bool)
-            init[region] = True
+            init[list(pol)] = True
             policy = torch.zeros(S, dtype=torch.int64)
             policy[list(pol)] = torch.tensor(list(pol.values()))
             inits.append(init)

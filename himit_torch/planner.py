@@ -3,8 +3,9 @@
 Each run keeps a priority per state (``0`` = not queued) in ``priority [B, S']`` (``S'`` = states
 rounded up to whole blocks of ``G``) and the maximum of every block in ``block_max [B, S'/G]``.
 Popping the ``n`` highest-priority states of some runs looks at the top ``n`` blocks only — the
-``n`` best states always lie in them — so a pop costs ``O(S/G + n·G)``, not a scan of all ``S``
-states; with ``G ≈ √S`` that is ``O(√S)``. Pushing is a scatter-max. Nothing is ever evicted.
+``n`` best states always lie in them — so a pop costs ``O(S/G + n·G)`` (times a log for the
+sorts), not a scan of all ``S`` states; with ``G ≈ √(S/n)`` that is ``O(√(nS))``. Pushing is a
+scatter-max. Nothing is ever evicted. Ties are broken by the lowest state, the same whatever ``n``.
 """
 
 from __future__ import annotations
@@ -50,11 +51,18 @@ class BlockPriorityQueue:
         R = runs.numel()
         width = self.priority.shape[1]
         flat = self.priority.view(-1)
-        top_blocks = self.block_max.index_select(0, runs).topk(n_blocks, dim=1).indices  # [R, nb]
-        cells = (top_blocks[:, :, None] * self.block + self._offsets).view(R, -1)
+        # Stable sorts give one total order — priority descending, then state ascending — so the
+        # n popped states are a prefix of it whatever n is (topk's tie order depends on n, which
+        # would make a run's sweep depend on its batch). The best n states lie in the best n
+        # blocks under (block max descending, block ascending).
+        best_blocks = self.block_max.index_select(0, runs).sort(
+            dim=1, descending=True, stable=True).indices[:, :n_blocks]
+        top_blocks = best_blocks.sort(dim=1).values                               # [R, nb]
+        cells = (top_blocks[:, :, None] * self.block + self._offsets).view(R, -1)  # ascending
         flat_cells = (runs[:, None] * width + cells).view(-1)
         local = flat.index_select(0, flat_cells).view(R, -1)
-        values, where = local.topk(min(n, cells.shape[1]), dim=1)
+        values, where = local.sort(dim=1, descending=True, stable=True)
+        values, where = values[:, :n], where[:, :n]
         states = cells.gather(1, where)
         valid = values > threshold
         if limit is not None:

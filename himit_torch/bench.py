@@ -1,0 +1,85 @@
+"""Throughput of the batched learner (``himit bench``; ``benchmarks/bench_learner.py`` for tables)."""
+
+from __future__ import annotations
+
+import resource
+import time
+from dataclasses import dataclass
+
+import torch
+
+from .learner import AGENTS, Learner, LearnerConfig
+from .mentor import mentor_policy, record_demonstrations
+from .options import learner_options, mentor_options
+from .world import MultiRooms
+
+__all__ = ["BenchResult", "benchmark"]
+
+
+@dataclass(frozen=True)
+class BenchResult:
+    size: int
+    rooms: int
+    corner_options: bool
+    batch: int
+    steps: int
+    agent: str
+    device: str
+    seconds: float
+    decisions: int
+    peak_memory_mib: float
+
+    @property
+    def steps_per_second(self) -> float:
+        """Primitive steps per second, summed over the batch."""
+        return self.batch * self.steps / self.seconds
+
+    @property
+    def decisions_per_second(self) -> float:
+        return self.decisions / self.seconds
+
+    def line(self) -> str:
+        return (f"{self.size}x{self.size}/{self.rooms} corners={self.corner_options} B={self.batch} "
+                f"agent={self.agent} device={self.device}: {self.steps_per_second:,.0f} steps/s, "
+                f"{self.decisions_per_second:,.0f} decisions/s, peak memory "
+                f"{self.peak_memory_mib:,.0f} MiB ({self.seconds:.2f} s for {self.steps} steps)")
+
+
+def benchmark(size: int = 40, rooms: int = 10, corner_options: bool = False, batch: int = 15,
+              steps: int = 5000, agent: str = "mix", device: str = "cpu", plan_every: int = 1,
+              warmup: int = 1000, threads: int | None = 1) -> BenchResult:
+    """Time ``steps`` ticks of a batch of ``batch`` runs after ``warmup`` untimed ticks.
+
+    ``agent="mix"`` cycles imitation / options / primitives over the batch (as the experiments
+    do). Peak memory is the process's peak resident set (CPU) or peak CUDA allocation.
+    """
+    if agent != "mix" and agent not in AGENTS:
+        raise ValueError(f"agent={agent!r}: use 'mix' or one of {sorted(AGENTS)}")
+    if device.startswith("cuda") and not torch.cuda.is_available():
+        raise ValueError("device=cuda but no CUDA device is available; use device='cpu'")
+    if threads is not None:
+        torch.set_num_threads(threads)
+    world = MultiRooms(size=size, rooms=rooms)
+    options = learner_options(world, corners=corner_options)
+    demos = record_demonstrations(world, mentor_policy(world, mentor_options(world, corner_options)),
+                                  20, seed=0)
+    mix = ["imitation", "options", "primitives"]
+    agents = [mix[b % 3] if agent == "mix" else agent for b in range(batch)]
+    learner = Learner(world, options, agents, list(range(batch)), demonstrations=demos,
+                      config=LearnerConfig(plan_every=plan_every), device=device)
+    learner.run(warmup)
+    decisions0 = int(learner.decisions.sum())
+    if device.startswith("cuda"):
+        torch.cuda.synchronize()
+        torch.cuda.reset_peak_memory_stats()
+    start = time.perf_counter()
+    learner.run(steps)
+    if device.startswith("cuda"):
+        torch.cuda.synchronize()
+    seconds = time.perf_counter() - start
+    if device.startswith("cuda"):
+        peak = torch.cuda.max_memory_allocated() / 2**20
+    else:
+        peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    return BenchResult(size, rooms, corner_options, batch, steps, agent, device, seconds,
+                       int(learner.decisions.sum()) - decisions0, peak)

@@ -1,0 +1,357 @@
+"""The ``himit`` command line.
+
+Subcommands (``himit <command> --help`` for their options):
+
+* ``info``  — a world's summary: its size, option counts, and the optimal expected steps from
+  start to goal (and goals per 5000 steps) for primitives only, the learner's options and the
+  mentor, beside the paper's numbers where the world is one of the paper's.
+* ``demo``  — experiment 2's world (40×40, 10×10 rooms): compute the mentor, record its
+  state-only demonstrations, save them and a picture like the paper's Fig. 2, then a short
+  batched learning run with figures and TensorBoard logs.
+* ``run``   — reproduce experiment 1, 2 or 3 into a run directory (resumable).
+* ``plot``  — redraw a run directory's figures and ``results.md``.
+* ``bench`` — steps per second of the batched learner.
+
+User mistakes (bad arguments, invalid worlds) end with one line ``himit: error: …`` on stderr
+and exit status 2, never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Sequence
+
+import torch
+
+from .mentor import mentor_policy, run_mentor
+from .demonstrations import Demonstrations
+from .option_models import option_durations, option_models
+from .options import Options, learner_options, mentor_options, primitive_options
+from .planning import expected_steps, smdp_value_iteration
+from .world import MultiRooms
+
+__all__ = ["main", "build_parser", "COMMANDS"]
+
+#: Window over which the paper counts goals (its Figs. 3 and 4).
+GOALS_WINDOW = 5000
+
+#: The paper's optimal-policy numbers, by (size, rooms, slip): (experiment, steps, goals / 5000).
+PAPER_OPTIMUM = {
+    (80, 10, 0.1): ("experiment 1", 190.0, 26.3),
+    (40, 10, 0.1): ("experiment 2", 5000 / 53.2, 53.2),
+}
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse, but a usage error is one line on stderr (``himit: error: …``), exit status 2."""
+
+    def error(self, message: str):
+        _fail(f"{self.prog.split(' ', 1)[1] + ': ' if ' ' in self.prog else ''}{message}")
+
+
+def _fail(message: str, status: int = 2):
+    line = " ".join(str(message).split())  # one line, whatever the message held
+    print(f"himit: error: {line}", file=sys.stderr)
+    raise SystemExit(status)
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"invalid whole number: {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be ≥ 1, got {value}")
+    return value
+
+
+# ------------------------------------------------------------------------------------- info
+@dataclass(frozen=True)
+class OptimalTrip:
+    """Expected primitive steps from start to goal under an optimal policy, and goals per window."""
+
+    steps: float
+
+    @property
+    def goals_per_window(self) -> float:
+        return GOALS_WINDOW / self.steps if self.steps > 0 else float("inf")
+
+
+def optimal_trip(world: MultiRooms, options: Options, policy: torch.Tensor | None = None
+                 ) -> OptimalTrip:
+    """Steps start → goal of the optimal policy for ``options`` (or of the given ``policy [S]``):
+    exact option models → SMDP value iteration → expected steps from undiscounted durations."""
+    if policy is None:
+        policy = smdp_value_iteration(option_models(world, options)).policy
+    durations = option_durations(world, options)
+    return OptimalTrip(expected_steps(durations, policy, world.start_state, world.terminal_mask))
+
+
+def _kind_counts(options: Options) -> str:
+    counts = {}
+    for k in options.kinds:
+        counts[k] = counts.get(k, 0) + 1
+    return ", ".join(f"{n} {k}" for k, n in counts.items())
+
+
+def cmd_info(args: argparse.Namespace) -> int:
+    t0 = time.perf_counter()
+    world = MultiRooms(size=args.size, rooms=args.rooms, slip=args.slip)
+    learner = learner_options(world, doorways=not args.no_doorway_options,
+                              corners=args.corner_options)
+    mentor_opts = mentor_options(world, corners=args.corner_options)
+    free = int(world.free_mask.sum())
+    print(f"world      {world.size}×{world.size} cells, {world.rooms}×{world.rooms} rooms "
+          f"{world.room_size} cells apart (one-cell walls between), slip {world.slip}, gamma "
+          f"{world.gamma}, reward {world.step_reward} a step and {world.goal_reward} at the goal")
+    print(f"states     {world.num_states} (free cells {free}, doorways {len(world.doorway_rooms)}, "
+          f"rooms {world.num_rooms})")
+    print(f"start/goal {world.coords(world.start_state)} → {world.coords(world.goal_state)}")
+    print(f"learner    {learner.num_options} options ({_kind_counts(learner)}; doorway/corner "
+          "options head directly to their target)")
+    print(f"mentor     {mentor_opts.num_options} options ({_kind_counts(mentor_opts)}; doorway/corner "
+          "options travel along the room's walls)")
+    rows = [("primitives only", optimal_trip(world, primitive_options(world))),
+            ("learner's options", optimal_trip(world, learner))]
+    mentor = mentor_policy(world, mentor_opts)
+    rows.append((f"mentor (prefers its options within {mentor.tolerance:g})",
+                 optimal_trip(world, mentor_opts, mentor.option)))
+    width = max(len(name) for name, _ in rows) + 2
+    print(f"\n{'optimal policy':<{width}}{'steps start→goal':>18}{f'goals / {GOALS_WINDOW} steps':>22}")
+    for name, trip in rows:
+        print(f"{name:<{width}}{trip.steps:>18.1f}{trip.goals_per_window:>22.1f}")
+    paper = PAPER_OPTIMUM.get((world.size, world.rooms, world.slip))
+    if paper is not None:
+        experiment, steps, goals = paper
+        print(f"{'paper, ' + experiment:<{width}}{'≈' + format(steps, '.0f'):>18}"
+              f"{goals:>22.1f}")
+    print(f"\n({time.perf_counter() - t0:.1f} s)")
+    return 0
+
+
+def _add_info(sub: argparse.ArgumentParser) -> None:
+    sub.add_argument("--size", type=int, default=40, help="cells per side, N (default 40)")
+    sub.add_argument("--rooms", type=int, default=10, help="rooms per side, R (default 10)")
+    sub.add_argument("--slip", type=float, default=0.1,
+                     help="probability that an action fails (default 0.1)")
+    sub.add_argument("--corner-options", action="store_true",
+                     help="give the learner (and the mentor) 8 corner options per room "
+                          "(experiment 1)")
+    sub.add_argument("--no-doorway-options", action="store_true",
+                     help="the learner gets primitives only (plus corners if asked)")
+
+
+# ------------------------------------------------------------------------------------- demo
+def cmd_demo(args: argparse.Namespace) -> int:
+    """The README's main job: experiment 2's world, the mentor's demonstrations and a short
+    batched learning run with TensorBoard logs and figures (about a minute on a laptop CPU)."""
+    from dataclasses import replace
+
+    from .experiment import EXPERIMENTS, run_experiment
+    from .plotting import save_world_figure  # matplotlib only when a picture is wanted
+
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    world = MultiRooms(size=40, rooms=10)
+    options = mentor_options(world)
+    print(f"world     {world!r} (experiment 2)")
+    mentor = mentor_policy(world, options)
+    rollout = run_mentor(world, mentor, args.episodes, seed=args.seed)
+    demos = Demonstrations(list(rollout.states), world.describe())
+    lengths = demos.episode_lengths.double()
+    counts = rollout.decision_counts()
+    print(f"mentor    {options.num_options} options; {args.episodes} episodes, "
+          f"{lengths.mean():.1f} steps on average (min {int(lengths.min())}, max "
+          f"{int(lengths.max())}); decisions: "
+          + ", ".join(f"{n} {k}" for k, n in sorted(counts.items())))
+    npz = demos.save(out / "demonstrations.npz")
+    png = save_world_figure(out / "world_mentor.png", world, demos,
+                            title=f"Mentor demonstrations ({args.episodes} episodes), "
+                                  "40×40, 10×10 rooms")
+    print(f"saved     {npz}  (states only: {demos.num_transitions} transitions, "
+          f"{len(demos.visited_states())} distinct states)")
+    print(f"saved     {png}")
+    if args.steps == 0:
+        return 0
+    config = replace(EXPERIMENTS["exp2"], name="demo", agents=("imitation", "options", "primitives"),
+                     seeds=args.seeds, first_seed=args.seed, steps=args.steps,
+                     mentor_episodes=args.episodes, window=min(5000, args.steps),
+                     checkpoint_every=min(5000, args.steps))
+    print(f"learning  {len(config.agents)} agents × {config.seeds} seeds = "
+          f"{len(config.agents) * config.seeds} runs in one batch, {config.steps:,} steps each")
+    t0 = time.perf_counter()
+    results = run_experiment(config, out / "learning", force=True, progress=not args.quiet)
+    r = results[0]
+    for agent in config.agents:
+        idx = [b for b, a in enumerate(r.agents) if a == agent]
+        print(f"  {agent:<12} goals in the last {config.window} steps: "
+              + ", ".join(str(r.final_window_goals[b]) for b in idx)
+              + f"   (optimal ≈ {r.optimal_goals_per_window:.1f})")
+    print(f"saved     {out / 'learning'}/results.md, figures/, curves.csv  "
+          f"({time.perf_counter() - t0:.0f} s)")
+    print(f"watch     tensorboard --logdir {out / 'learning' / 'tb'}")
+    return 0
+
+
+def _add_demo(sub: argparse.ArgumentParser) -> None:
+    sub.add_argument("--out", default="runs/demo", help="output folder (default runs/demo)")
+    sub.add_argument("--episodes", type=_positive_int, default=20,
+                     help="mentor episodes to record (default 20)")
+    sub.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    sub.add_argument("--seeds", type=_positive_int, default=2,
+                     help="runs per agent in the learning run (default 2)")
+    sub.add_argument("--steps", type=_nonnegative_int, default=20_000,
+                     help="steps per run (default 20000; 0 = demonstrations only)")
+    sub.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def _nonnegative_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"invalid whole number: {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be ≥ 0, got {value}")
+    return value
+
+
+# -------------------------------------------------------------------------------------- run
+def cmd_run(args: argparse.Namespace) -> int:
+    from dataclasses import replace
+
+    from .experiment import EXPERIMENTS, load_config, run_experiment
+
+    if args.config:
+        config = load_config(args.config)
+        if args.experiment != config.name:
+            raise ValueError(f"--config {args.config} is for {config.name!r}, not {args.experiment!r}")
+    else:
+        config = EXPERIMENTS[args.experiment]
+    if args.quick:
+        config = config.quick()
+    changes = {}
+    if args.seeds is not None:
+        changes["seeds"] = args.seeds
+    if args.steps is not None:
+        changes["steps"] = args.steps
+        changes["checkpoint_every"] = max(config.window,
+                                          min(config.checkpoint_every, args.steps // config.window * config.window))
+    if args.device is not None:
+        changes["device"] = args.device
+    if changes:
+        config = replace(config, **changes)
+    if config.device.startswith("cuda") and not torch.cuda.is_available():
+        raise ValueError("--device cuda: no CUDA device is available here (install a CUDA build of "
+                         "torch, see README) — use --device cpu")
+    run_dir = Path(args.logdir) / config.name
+    print(f"{config.name}: worlds {list(config.sizes)}, agents {list(config.agents)}, "
+          f"{config.seeds} seeds, {config.steps:,} steps → {run_dir}")
+    t0 = time.perf_counter()
+    run_experiment(config, run_dir, resume=args.resume, force=args.force, progress=not args.quiet)
+    print(f"done in {time.perf_counter() - t0:.0f} s: {run_dir / 'results.md'}")
+    return 0
+
+
+def _add_run(sub: argparse.ArgumentParser) -> None:
+    sub.add_argument("experiment", choices=["exp1", "exp2", "exp3"], help="which experiment")
+    sub.add_argument("--seeds", type=_positive_int, help="runs per agent (default 5)")
+    sub.add_argument("--steps", type=_positive_int, help="steps per run (default: the experiment's)")
+    sub.add_argument("--quick", action="store_true", help="tiny budget (smoke test)")
+    sub.add_argument("--logdir", default="runs", help="parent folder of the run directory")
+    sub.add_argument("--device", help="cpu (default) or cuda")
+    sub.add_argument("--config", help="a config.json (as saved in a run directory) to run instead "
+                                      "of the defaults")
+    sub.add_argument("--resume", action="store_true", help="continue an interrupted run")
+    sub.add_argument("--force", action="store_true", help="overwrite a finished run")
+    sub.add_argument("--quiet", action="store_true", help="no progress bars")
+
+
+# ------------------------------------------------------------------------------------- plot
+def cmd_plot(args: argparse.Namespace) -> int:
+    import json
+
+    from .experiment import WorldResult, load_config
+    from .report import write_figures, write_results
+
+    run_dir = Path(args.run_dir)
+    config = load_config(run_dir / "config.json")
+    results = []
+    for size in config.sizes:
+        path = run_dir / "worlds" / f"world{size}.json"
+        if not path.exists():
+            raise ValueError(f"{run_dir}: world {size} has not finished ({path} is missing); "
+                             "finish it with himit run … --resume")
+        results.append(WorldResult(**json.loads(path.read_text())))
+    write_figures(run_dir, config, results)
+    write_results(run_dir, config, results)
+    print(f"wrote {run_dir / 'figures'} and {run_dir / 'results.md'}")
+    return 0
+
+
+def _add_plot(sub: argparse.ArgumentParser) -> None:
+    sub.add_argument("run_dir", help="a run directory written by himit run")
+
+
+# ------------------------------------------------------------------------------------ bench
+def cmd_bench(args: argparse.Namespace) -> int:
+    from .bench import benchmark
+
+    result = benchmark(size=args.size, rooms=args.rooms, corner_options=args.corner_options,
+                       batch=args.batch, steps=args.steps, agent=args.agent, device=args.device,
+                       plan_every=args.plan_every, warmup=args.warmup)
+    print(result.line())
+    return 0
+
+
+def _add_bench(sub: argparse.ArgumentParser) -> None:
+    sub.add_argument("--size", type=_positive_int, default=40)
+    sub.add_argument("--rooms", type=_positive_int, default=10)
+    sub.add_argument("--corner-options", action="store_true")
+    sub.add_argument("--batch", type=_positive_int, default=15, help="runs advancing together")
+    sub.add_argument("--steps", type=_positive_int, default=5000, help="timed steps per run")
+    sub.add_argument("--warmup", type=_nonnegative_int, default=1000, help="untimed steps first")
+    sub.add_argument("--agent", default="mix",
+                     help="agent variant for every run, or 'mix' (imitation/options/primitives)")
+    sub.add_argument("--plan-every", type=_positive_int, default=1)
+    sub.add_argument("--device", default="cpu")
+
+
+# ------------------------------------------------------------------------------------- main
+#: Subcommand → (function, argument adder, one-line help).
+COMMANDS: dict[str, tuple[Callable[[argparse.Namespace], int],
+                          Callable[[argparse.ArgumentParser], None], str]] = {
+    "info": (cmd_info, _add_info, "summarize a world: sizes, options, optimal steps and goals"),
+    "demo": (cmd_demo, _add_demo, "experiment 2's world: mentor demonstrations, a short batched "
+                                  "learning run, figures and TensorBoard logs"),
+    "run": (cmd_run, _add_run, "reproduce one of the paper's experiments (exp1, exp2, exp3)"),
+    "plot": (cmd_plot, _add_plot, "redraw the figures and results.md of a run directory"),
+    "bench": (cmd_bench, _add_bench, "steps per second of the batched learner"),
+}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="himit", description="Hierarchical goal-based imitation from "
+                                               "state-only demonstrations.")
+    subs = parser.add_subparsers(dest="command", metavar="command", required=True)
+    for name, (_, add_arguments, help_text) in COMMANDS.items():
+        add_arguments(subs.add_parser(name, help=help_text, description=help_text))
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run ``himit``; returns 0 on success, raises ``SystemExit(2)`` on a user mistake."""
+    args = build_parser().parse_args(argv)
+    try:
+        return COMMANDS[args.command][0](args)
+    except ValueError as err:
+        _fail(err)
+    except OSError as err:
+        _fail(err, status=1)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,444 @@
+"""The paper's experiments (Section III) as configurations and one batched runner.
+
+One :class:`ExperimentConfig` per experiment holds the paper's settings, field by field; it is
+saved as JSON in the run directory and can be loaded back (``himit run --config``). All agents
+and seeds of one world run in one :class:`~himit_torch.Learner` batch. A run directory holds::
+
+    config.json                 the configuration
+    curves.csv                  per window: world, agent, seed, step, goals, ε, episodes, …
+    tb/<world>__<agent>__seed<k>/   TensorBoard event files (scalars, images, hparams)
+    checkpoints/world<N>.pt     the whole learner state, written atomically every N steps
+    worlds/world<N>.json        what happened in one world (written when it is finished)
+    figures/*.png               the paper's Figs. 2–5, ours
+    results.md                  our numbers beside the paper's
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import time
+from dataclasses import asdict, dataclass, field, fields, replace
+from pathlib import Path
+from typing import Callable
+
+import torch
+
+from .learner import AGENTS, Learner, LearnerConfig
+from .mentor import mentor_policy, record_demonstrations
+from .option_models import option_durations, option_models
+from .options import learner_options, mentor_options, primitive_options
+from .planning import expected_steps, smdp_value_iteration
+from .world import MultiRooms
+
+__all__ = ["ExperimentConfig", "EXPERIMENTS", "run_experiment", "load_config", "WorldResult",
+           "PAPER"]
+
+#: What the paper reports (Section III, Figs. 3–5).
+PAPER = {
+    "exp1": {"optimal_goals_per_5000": 26.3, "optimal_steps": 190},
+    "exp2": {"optimal_goals_per_5000": 53.2, "optimal_steps": 94,
+             "non_imitator_failures": "4 of 5 runs never found the goal"},
+    "exp3": {"claim": "the benefit of imitation grows with the world's size (64 → 120); numbers "
+                      "only as a bar chart"},
+}
+
+
+@dataclass
+class ExperimentConfig:
+    """One experiment: which worlds, agents, seeds, budget and learner settings."""
+
+    name: str = "exp2"
+    """Experiment id (``exp1``, ``exp2``, ``exp3`` or your own)."""
+    sizes: tuple[int, ...] = (40,)
+    """World sizes N (N×N cells); each is one batch."""
+    room_size: int = 4
+    """Cells per room side, wall included: a world of size N has N / room_size rooms per side
+    (the paper: 40×40 with 10×10 rooms → 4; 80×80 with 10×10 rooms → 8)."""
+    corner_options: bool = False
+    """Give the option agents the 8 corner options per room (experiment 1's large library)."""
+    agents: tuple[str, ...] = ("imitation", "imitation_confident", "options", "primitives")
+    """Agent variants, each run with every seed (see ``himit_torch.AGENTS``)."""
+    seeds: int = 5
+    """Runs per agent."""
+    first_seed: int = 0
+    """Seeds are first_seed … first_seed + seeds − 1 (a seed also picks the mentor's episodes)."""
+    steps: int = 200_000
+    """Primitive steps per run."""
+    mentor_episodes: int = 20
+    """Mentor episodes recorded (states only) before learning, per seed."""
+    mentor_preference: float | None = None
+    """The mentor takes an extended option within this of the best value (None: one step's cost)."""
+    slip: float = 0.1
+    """Probability that an action fails (the paper: 10 %)."""
+    window: int = 5000
+    """Goals are counted per window of this many steps (the paper's 5000)."""
+    checkpoint_every: int = 25_000
+    """Save the whole state every this many steps (a multiple of ``window``)."""
+    device: str = "cpu"
+    """Where the batch runs (``cpu`` or ``cuda``)."""
+    learner: LearnerConfig = field(default_factory=LearnerConfig)
+    """Learner settings (see ``LearnerConfig``)."""
+
+    def __post_init__(self):
+        if isinstance(self.learner, dict):
+            self.learner = LearnerConfig(**self.learner)
+        self.sizes = tuple(int(s) for s in self.sizes)
+        self.agents = tuple(self.agents)
+
+        def bad(name, why):
+            raise ValueError(f"ExperimentConfig.{name}={getattr(self, name)!r}: {why}")
+        if not self.sizes:
+            bad("sizes", "needs at least one world size")
+        for s in self.sizes:
+            if s <= 0 or s % self.room_size:
+                bad("sizes", f"every size must be a positive multiple of room_size={self.room_size}")
+        unknown = sorted(set(self.agents) - set(AGENTS))
+        if unknown or not self.agents:
+            bad("agents", f"unknown or empty; use some of {sorted(AGENTS)}")
+        if self.seeds < 1:
+            bad("seeds", "needs at least one seed")
+        if self.steps < 1:
+            bad("steps", "must be ≥ 1")
+        if self.mentor_episodes < 1:
+            bad("mentor_episodes", "must be ≥ 1")
+        if self.window < 1 or self.checkpoint_every < 1 or self.checkpoint_every % self.window:
+            bad("checkpoint_every", f"must be a positive multiple of window={self.window}")
+        if self.learner.window != self.window:
+            self.learner = replace(self.learner, window=self.window)
+
+    def to_json(self) -> str:
+        return json.dumps(asdict(self), indent=2)
+
+    def world(self, size: int) -> MultiRooms:
+        return MultiRooms(size=size, rooms=size // self.room_size, slip=self.slip)
+
+    def quick(self) -> "ExperimentConfig":
+        """A tiny budget of the same experiment, for smoke tests and ``--quick``."""
+        return replace(self, seeds=min(self.seeds, 2), steps=min(self.steps, 4 * self.window),
+                       sizes=self.sizes[:2], checkpoint_every=self.window,
+                       mentor_episodes=min(self.mentor_episodes, 5))
+
+
+def _paper_learner() -> LearnerConfig:
+    return LearnerConfig()
+
+
+#: The paper's three experiments with our defaults (see ``experiments/results/results.md``).
+EXPERIMENTS: dict[str, ExperimentConfig] = {
+    "exp1": ExperimentConfig(name="exp1", sizes=(80,), room_size=8, corner_options=True,
+                             steps=300_000, learner=_paper_learner()),
+    "exp2": ExperimentConfig(name="exp2", sizes=(40,), room_size=4, corner_options=False,
+                             steps=200_000, learner=_paper_learner()),
+    "exp3": ExperimentConfig(name="exp3", sizes=(64, 80, 96, 120), room_size=8,
+                             corner_options=True, steps=130_000, learner=_paper_learner()),
+}
+
+
+def load_config(path: str | os.PathLike) -> ExperimentConfig:
+    """An :class:`ExperimentConfig` from a JSON file (as saved in a run directory)."""
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise ValueError(f"config file {path} does not exist") from None
+    except json.JSONDecodeError as err:
+        raise ValueError(f"config file {path} is not valid JSON: {err}") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"config file {path} must hold a JSON object")
+    known = {f.name for f in fields(ExperimentConfig)}
+    unknown = sorted(set(data) - known)
+    if unknown:
+        raise ValueError(f"config file {path}: unknown fields {unknown}; known: {sorted(known)}")
+    learner = data.get("learner", {})
+    if not isinstance(learner, dict):
+        raise ValueError(f"config file {path}: 'learner' must be an object")
+    lknown = {f.name for f in fields(LearnerConfig)}
+    lunknown = sorted(set(learner) - lknown)
+    if lunknown:
+        raise ValueError(f"config file {path}: unknown learner fields {lunknown}; known: {sorted(lknown)}")
+    try:
+        data["learner"] = LearnerConfig(**learner)
+        return ExperimentConfig(**data)
+    except TypeError as err:
+        raise ValueError(f"config file {path}: {err}") from None
+
+
+# =========================================================================== one world's batch
+@dataclass
+class WorldResult:
+    """What happened in one world: per-run summaries and the optimal baseline."""
+
+    size: int
+    rooms: int
+    agents: list[str]
+    seeds: list[int]
+    optimal_steps: float
+    optimal_goals_per_window: float
+    goals: list[int]
+    first_goal_step: list[int]
+    final_window_goals: list[int]
+    value_start: list[float]
+    true_value_start: float
+    mentor_term_wins: list[float]
+    wall_seconds: float
+    steps: int
+
+    def percent_of_optimal(self) -> list[float]:
+        """Total goals as a percentage of what the optimal policy reaches in the same steps."""
+        best = self.steps / self.optimal_steps
+        return [100.0 * g / best for g in self.goals]
+
+
+def _optimum(world: MultiRooms) -> tuple[float, float]:
+    """Expected steps of the optimal (primitive) policy from start to goal, and V*(start)."""
+    prims = primitive_options(world)
+    plan = smdp_value_iteration(option_models(world, prims))
+    steps = expected_steps(option_durations(world, prims), plan.policy, world.start_state,
+                           world.terminal_mask)
+    return steps, float(plan.values[world.start_state])
+
+
+class _Logger:
+    """TensorBoard writers, one per run (CleanRL-style names), created lazily."""
+
+    def __init__(self, root: Path, names: list[str], purge_step: int | None):
+        from torch.utils.tensorboard import SummaryWriter
+        self._writers = [SummaryWriter(str(root / n), purge_step=purge_step) for n in names]
+
+    def scalars(self, learner: Learner, window_index: int) -> None:
+        m = learner.metrics
+        step = m.steps[window_index]
+        for b, w in enumerate(self._writers):
+            w.add_scalar("charts/goals_in_window", float(m.goals_in_window[window_index][b]), step)
+            w.add_scalar("charts/epsilon", float(m.epsilon[window_index][b]), step)
+            w.add_scalar("charts/episodes", float(m.episodes[window_index][b]), step)
+            mean_steps = float(m.mean_episode_steps[window_index][b])
+            if math.isfinite(mean_steps):
+                w.add_scalar("charts/steps_per_episode", mean_steps, step)
+            w.add_scalar("planner/backups", float(m.backups[window_index][b]), step)
+            w.add_scalar("planner/decisions", float(m.decisions[window_index][b]), step)
+            wins = float(m.mentor_term_wins[window_index][b])
+            if math.isfinite(wins):
+                w.add_scalar("mentor/term_wins", wins, step)
+
+    def coverage(self, learner: Learner, step: int) -> None:
+        cov = learner.model_coverage()
+        v = learner.state_values()[:, learner.start_state]
+        for b, w in enumerate(self._writers):
+            w.add_scalar("model/coverage", float(cov[b]), step)
+            w.add_scalar("model/value_start", float(v[b]), step)
+
+    def images(self, learner: Learner, world: MultiRooms, mentor_visits: torch.Tensor, step: int,
+               runs: list[int]) -> None:
+        from .plotting import value_image, visitation_image, policy_image
+        values = learner.state_values()
+        greedy = learner.greedy_options()
+        visits = learner.visit_counts()
+        for b in runs:
+            w = self._writers[b]
+            w.add_image("values/V", value_image(world, values[b]), step, dataformats="HWC")
+            w.add_image("policy/greedy_option", policy_image(world, learner.options, greedy[b]), step,
+                        dataformats="HWC")
+            w.add_image("visits/learner_vs_mentor", visitation_image(world, visits[b], mentor_visits),
+                        step, dataformats="HWC")
+
+    def hparams(self, config: ExperimentConfig, result: WorldResult) -> None:
+        hp = {k: (v if isinstance(v, (int, float, str, bool)) else str(v))
+              for k, v in asdict(config.learner).items() if v is not None}
+        hp.update(experiment=config.name, size=result.size, corner_options=config.corner_options)
+        for b, w in enumerate(self._writers):
+            hp_run = dict(hp, agent=result.agents[b], seed=result.seeds[b])
+            w.add_hparams(hp_run, {"hparam/total_goals": float(result.goals[b]),
+                                   "hparam/final_window_goals": float(result.final_window_goals[b])},
+                          run_name=".")
+
+    def close(self) -> None:
+        for w in self._writers:
+            w.close()
+
+
+def _atomic_save(obj, path: Path) -> None:
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    torch.save(obj, tmp)
+    os.replace(tmp, path)
+
+
+def _atomic_write(path: Path, text: str) -> None:
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    tmp.write_text(text)
+    os.replace(tmp, path)
+
+
+def run_world(config: ExperimentConfig, size: int, run_dir: Path, resume: bool,
+              progress: bool = True, on_window: Callable | None = None) -> WorldResult:
+    """Run every agent × seed of one world in one batch (resuming from its checkpoint)."""
+    world = config.world(size)
+    options = learner_options(world, corners=config.corner_options)
+    mentor = mentor_policy(world, mentor_options(world, corners=config.corner_options),
+                           config.mentor_preference)
+    seeds = list(range(config.first_seed, config.first_seed + config.seeds))
+    agents = [a for a in config.agents for _ in seeds]
+    run_seeds = [s for _ in config.agents for s in seeds]
+    learner = Learner(world, options, agents, run_seeds, config=config.learner,
+                      device=config.device)
+    demos = {}
+    for s in seeds:  # each seed watches its own mentor episodes
+        demos[s] = record_demonstrations(world, mentor, config.mentor_episodes, seed=s)
+        learner.add_demonstrations(demos[s], runs=[b for b, rs in enumerate(run_seeds) if rs == s])
+    mentor_visits = torch.bincount(torch.cat([torch.as_tensor(e) for e in demos[seeds[0]].episodes]),
+                                   minlength=world.num_states)
+    ckpt_dir = run_dir / "checkpoints"
+    ckpt_dir.mkdir(parents=True, exist_ok=True)
+    ckpt = ckpt_dir / f"world{size}.pt"
+    elapsed = 0.0
+    if resume and ckpt.exists():
+        saved = torch.load(ckpt, weights_only=False)
+        learner.load_state_dict(saved["learner"])
+        elapsed = float(saved.get("elapsed", 0.0))
+    names = [f"world{size}__{a}__seed{s}" for a, s in zip(agents, run_seeds)]
+    logger = _Logger(run_dir / "tb", names, purge_step=learner.t if learner.t > 0 else None)
+    logged = len(learner.metrics.steps)
+    bar = None
+    if progress:
+        from tqdm.auto import tqdm
+        bar = tqdm(total=config.steps, initial=learner.t, unit="step", mininterval=1.0,
+                   desc=f"{config.name} {size}×{size} B={learner.batch}")
+    start = time.perf_counter()
+    while learner.t < config.steps:
+        chunk = min(config.window - learner.t % config.window, config.steps - learner.t)
+        learner.run(chunk)
+        if bar is not None:
+            bar.update(chunk)
+        while logged < len(learner.metrics.steps):
+            logger.scalars(learner, logged)
+            logged += 1
+            if on_window is not None:
+                on_window(learner)
+        if learner.t % config.checkpoint_every == 0 or learner.t == config.steps:
+            logger.coverage(learner, learner.t)
+            _atomic_save({"learner": learner.state_dict(),
+                          "elapsed": elapsed + time.perf_counter() - start}, ckpt)
+    if bar is not None:
+        bar.close()
+    wall = elapsed + time.perf_counter() - start
+    optimal_steps, true_v = _optimum(world)
+    m = learner.metrics
+    result = WorldResult(
+        size=size, rooms=world.rooms, agents=agents, seeds=run_seeds, optimal_steps=optimal_steps,
+        optimal_goals_per_window=config.window / optimal_steps, goals=learner.goals.tolist(),
+        first_goal_step=learner.first_goal_step.tolist(),
+        final_window_goals=(m.goals_in_window[-1].tolist() if m.goals_in_window else [0] * len(agents)),
+        value_start=learner.state_values()[:, world.start_state].tolist(), true_value_start=true_v,
+        mentor_term_wins=learner.mentor_win_share().tolist(), wall_seconds=wall, steps=learner.t)
+    imitators = [b for b, a in enumerate(agents) if run_seeds[b] == seeds[0]]
+    logger.images(learner, world, mentor_visits, learner.t, imitators)
+    logger.hparams(config, result)
+    logger.close()
+    _write_curves(run_dir / "worlds" / f"curves{size}.csv", learner, size)
+    _atomic_write(run_dir / "worlds" / f"world{size}.json", json.dumps(asdict(result), indent=1))
+    _world_figure(run_dir, config, world, demos[seeds[0]], learner, agents, run_seeds, seeds[0], size)
+    return result
+
+
+def _write_curves(path: Path, learner: Learner, size: int) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    m = learner.metrics
+    tmp = path.with_suffix(".tmp")
+    with tmp.open("w", newline="") as f:
+        out = csv.writer(f)
+        out.writerow(["world", "agent", "seed", "step", "goals_in_window", "epsilon", "episodes",
+                      "mean_episode_steps", "backups", "decisions", "mentor_term_wins"])
+        for i, step in enumerate(m.steps):
+            for b in range(learner.batch):
+                out.writerow([size, learner.agents[b], learner.seeds[b], step,
+                              int(m.goals_in_window[i][b]), f"{float(m.epsilon[i][b]):.5f}",
+                              int(m.episodes[i][b]), f"{float(m.mean_episode_steps[i][b]):.2f}",
+                              int(m.backups[i][b]), int(m.decisions[i][b]),
+                              f"{float(m.mentor_term_wins[i][b]):.4f}"])
+    os.replace(tmp, path)
+
+
+def _world_figure(run_dir, config, world, demos, learner, agents, run_seeds, seed, size):
+    from .plotting import save_world_figure
+    fig_dir = run_dir / "figures"
+    fig_dir.mkdir(parents=True, exist_ok=True)
+    imitator = next((b for b, a in enumerate(agents) if run_seeds[b] == seed and a.startswith("imitation")),
+                    None)
+    learned = None
+    if imitator is not None:
+        learned = learner.greedy_trajectory(imitator, max_steps=20 * size * size // config.room_size, seed=seed)
+    save_world_figure(fig_dir / f"fig2_world{size}.png", world, demonstrations=demos,
+                      learner_states=learned,
+                      title=f"{size}×{size}, {world.rooms}×{world.rooms} rooms: mentor (states only) "
+                            f"and the imitator's greedy path")
+
+
+# ================================================================================ the runner
+def _check_run_dir(run_dir: Path, resume: bool, force: bool) -> None:
+    finished = (run_dir / "results.md").exists()
+    started = (run_dir / "config.json").exists()
+    if force:
+        return
+    if finished and not resume:
+        raise ValueError(f"{run_dir} already holds a finished run; choose another --logdir or pass "
+                         "--force to overwrite it")
+    if started and not finished and not resume:
+        raise ValueError(f"{run_dir} holds an unfinished run; pass --resume to continue it or "
+                         "--force to start over")
+
+
+def run_experiment(config: ExperimentConfig, run_dir: str | os.PathLike, resume: bool = False,
+                   force: bool = False, progress: bool = True) -> list[WorldResult]:
+    """Run an experiment into ``run_dir``: every world in turn, then figures and ``results.md``.
+
+    ``resume=True`` continues an interrupted run from its checkpoints (the configuration must be
+    the saved one) and ends with exactly the curves an uninterrupted run gives. A directory with a
+    finished run is not overwritten unless ``force``.
+    """
+    run_dir = Path(run_dir)
+    _check_run_dir(run_dir, resume, force)
+    if force and run_dir.exists():
+        import shutil
+        for sub in ("checkpoints", "tb", "worlds", "figures"):
+            shutil.rmtree(run_dir / sub, ignore_errors=True)
+        for f in ("results.md", "curves.csv", "config.json"):
+            (run_dir / f).unlink(missing_ok=True)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    cfg_path = run_dir / "config.json"
+    if resume and cfg_path.exists():
+        saved = load_config(cfg_path)
+        if asdict(saved) != asdict(config):
+            raise ValueError(f"--resume: {cfg_path} holds a different configuration than the one "
+                             "given; resume with the saved one (--config "
+                             f"{cfg_path}) or start over with --force")
+    _atomic_write(cfg_path, config.to_json())
+    results = []
+    for size in config.sizes:
+        done = run_dir / "worlds" / f"world{size}.json"
+        if resume and done.exists():
+            results.append(WorldResult(**json.loads(done.read_text())))
+            continue
+        results.append(run_world(config, size, run_dir, resume, progress))
+    _merge_curves(run_dir, config)
+    from .report import write_figures, write_results
+    write_figures(run_dir, config, results)
+    write_results(run_dir, config, results)
+    return results
+
+
+def _merge_curves(run_dir: Path, config: ExperimentConfig) -> None:
+    rows, header = [], None
+    for size in config.sizes:
+        with (run_dir / "worlds" / f"curves{size}.csv").open() as f:
+            reader = csv.reader(f)
+            header = next(reader)
+            rows.extend(reader)
+    tmp = run_dir / "curves.csv.tmp"
+    with tmp.open("w", newline="") as f:
+        out = csv.writer(f)
+        out.writerow(header)
+        out.writerows(rows)
+    os.replace(tmp, run_dir / "curves.csv")

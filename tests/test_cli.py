@@ -1,0 +1,120 @@
+"""The ``himit`` command line, run in-process with tiny budgets."""
+
+import re
+
+import numpy as np
+import pytest
+
+from himit_torch.cli import COMMANDS, main
+from himit_torch.demonstrations import Demonstrations
+from himit_torch.option_models import option_durations, option_models
+from himit_torch.options import primitive_options
+from himit_torch.planning import expected_steps, smdp_value_iteration
+from himit_torch.world import MultiRooms
+
+
+def table_row(out: str, label: str) -> tuple[float, float]:
+    """``(steps, goals)`` from the info table's row starting with ``label``."""
+    match = re.search(rf"^{re.escape(label)}.*?≈?([\d.]+)\s+([\d.]+)\s*$", out, flags=re.M)
+    assert match, f"no row {label!r} in:\n{out}"
+    return float(match.group(1)), float(match.group(2))
+
+
+def run_ok(capsys, argv) -> str:
+    assert main(argv) == 0
+    captured = capsys.readouterr()
+    assert captured.err == ""
+    return captured.out
+
+
+def run_error(capsys, argv) -> str:
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("himit: error: "), err
+    assert "Traceback" not in err
+    return err
+
+
+# ------------------------------------------------------------------------------------ info
+def test_info_experiment_2_matches_the_paper(capsys):
+    out = run_ok(capsys, ["info", "--size", "40", "--rooms", "10"])
+    paper_steps, paper_goals = table_row(out, "paper, experiment 2")
+    assert paper_goals == 53.2
+    for label in ("primitives only", "learner's options", "mentor"):
+        steps, goals = table_row(out, label)
+        assert steps == pytest.approx(paper_steps, rel=0.10)
+        assert goals == pytest.approx(paper_goals, rel=0.10)
+        assert goals == pytest.approx(5000 / steps, abs=0.06)  # both rounded to 0.1
+    assert "states     1600" in out and "doorways 180" in out and "rooms 100" in out
+    assert re.search(r"learner\s+364 options \(4 primitive, 360 doorway", out)
+
+
+def test_info_small_world_is_exact(capsys):
+    out = run_ok(capsys, ["info", "--size", "20", "--rooms", "2", "--slip", "0.2"])
+    world = MultiRooms(size=20, rooms=2, slip=0.2)
+    prims = primitive_options(world)
+    policy = smdp_value_iteration(option_models(world, prims)).policy
+    steps = expected_steps(option_durations(world, prims), policy, world.start_state, world.terminal_mask)
+    assert table_row(out, "primitives only") == (round(steps, 1), round(5000 / steps, 1))
+    assert "slip 0.2" in out and "states     400" in out
+    assert "paper" not in out  # not one of the paper's worlds
+
+
+@pytest.mark.parametrize("flags, learner", [
+    ([], "12 options (4 primitive, 8 doorway"),
+    (["--corner-options"], "44 options (4 primitive, 8 doorway, 32 corner"),
+    (["--no-doorway-options"], "4 options (4 primitive;"),
+    (["--no-doorway-options", "--corner-options"], "36 options (4 primitive, 32 corner"),
+])
+def test_info_option_sets(capsys, flags, learner):
+    out = run_ok(capsys, ["info", "--size", "12", "--rooms", "2", *flags])
+    assert re.search(r"^learner\s+" + re.escape(learner), out, flags=re.M), out
+    steps, _ = table_row(out, "learner's options")
+    prim_steps, _ = table_row(out, "primitives only")
+    assert steps >= prim_steps - 0.05  # options never beat the flat optimum
+
+
+# ---------------------------------------------------------------------------------- errors
+@pytest.mark.parametrize("argv, what", [
+    (["info", "--size", "x"], "argument --size: invalid int value"),
+    (["info", "--size", "10", "--rooms", "3"], "size=10 is not a multiple of rooms=3"),
+    (["info", "--slip", "1.5"], "slip=1.5 must lie in [0, 1)"),
+    (["demo", "--episodes", "0"], "argument --episodes: must be ≥ 1"),
+    (["bogus"], "invalid choice: 'bogus'"),
+    ([], "the following arguments are required: command"),
+])
+def test_user_mistakes_are_one_line_and_exit_2(capsys, argv, what):
+    assert what in run_error(capsys, argv)
+
+
+def test_help_exits_0(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["--help"])
+    assert exc.value.code == 0
+    out = capsys.readouterr().out
+    assert all(name in out for name in COMMANDS)
+
+
+# ------------------------------------------------------------------------------------ demo
+def test_demo_writes_demonstrations_and_figure(capsys, tmp_path):
+    out_dir = tmp_path / "demo"
+    out = run_ok(capsys, ["demo", "--out", str(out_dir), "--episodes", "2", "--seed", "3", "--steps", "0"])
+    npz, png = out_dir / "demonstrations.npz", out_dir / "world_mentor.png"
+    assert str(npz) in out and str(png) in out
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 5000
+    demos = Demonstrations.load(npz, world=MultiRooms(size=40, rooms=10))
+    assert demos.num_episodes == 2
+    assert all(e[0] == 0 and e[-1] == 40 * 40 - 1 for e in demos.episodes)
+    with np.load(npz) as f:
+        assert sorted(f.files) == ["episode_starts", "format_version", "states", "world"]
+
+
+def test_demo_is_deterministic_per_seed(capsys, tmp_path):
+    for name, seed in (("a", "5"), ("b", "5"), ("c", "6")):
+        run_ok(capsys, ["demo", "--out", str(tmp_path / name), "--episodes", "2", "--seed", seed,
+                        "--steps", "0"])
+    a, b, c = (np.load(tmp_path / n / "demonstrations.npz")["states"] for n in "abc")
+    assert np.array_equal(a, b)
+    assert not np.array_equal(a, c)
