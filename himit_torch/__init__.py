@@ -17,8 +17,8 @@ from .options import (Options, corner_options, doorway_options, learner_options,
 from .planner import BlockPriorityQueue
 from .planning import (PlanResult, expected_steps, greedy_option_policy, smdp_value_iteration,
                        value_iteration)
-from .reward import KnownReward, MentorReward
-from .world import MultiRooms, TabularWorld
+from .reward import SALIENCE_EVENTS, KnownReward, MentorReward, SalienceReward
+from .world import STIMULUS_FEATURES, MultiRooms, TabularWorld
 
 __version__ = "0.1.0"
 
@@ -38,5 +38,5 @@ __all__ = [
     "MentorPolicy", "MentorRollout", "mentor_policy", "run_mentor", "record_demonstrations",
     "Demonstrations", "DEMONSTRATIONS_FORMAT_VERSION",
     # mentor reward
-    "MentorReward", "KnownReward",
+    "MentorReward", "KnownReward", "SalienceReward", "SALIENCE_EVENTS", "STIMULUS_FEATURES",
 ]

@@ -19,6 +19,7 @@ and exit status 2, never a traceback.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from dataclasses import dataclass
@@ -343,8 +344,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run ``himit``; returns 0 on success, raises ``SystemExit(2)`` on a user mistake."""
+    """Run ``himit``; returns 0 on success, raises ``SystemExit(2)`` on a user mistake.
+
+    Torch runs on one thread (``HIMIT_THREADS`` to change): the learner's tensors are small, and
+    on a CPU two processes use two cores far better than two threads in one."""
     args = build_parser().parse_args(argv)
+    torch.set_num_threads(int(os.environ.get("HIMIT_THREADS", "1")))
     try:
         return COMMANDS[args.command][0](args)
     except ValueError as err:

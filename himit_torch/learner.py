@@ -20,6 +20,7 @@ How values are kept (the fast path; :meth:`Learner.plan` sweeps to convergence f
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import asdict, dataclass, field
 from typing import Sequence
 
@@ -98,10 +99,22 @@ class LearnerConfig:
     """After the first goal, ε is multiplied by this at every decision…"""
     eps_min: float = 0.01
     """…down to this floor."""
+    mentor_choice: str = "greedy"
+    """How a run picks its own option (greedy choices only) in a state where the mentor term wins
+    eq. 2. ``"greedy"``: the best own option by its ``Q`` — values that the mentor term has already
+    raised downstream. ``"match"`` (Price & Boutilier's rule, for options): the own options whose
+    first action's learned one-step model best reproduces the mentor's observed move,
+    ``Σ_s' p̂(s'|s, π_o(s)) p_m(s'|s)``, best ``Q`` among those; greedy where no tried action
+    matches."""
     tie_break: str = "random"
     """Greedy ties (|ΔQ| ≤ 1e-12): ``"random"`` among the best, or ``"first"`` (lowest option)."""
     window: int = 5000
     """Steps per window of the ``goals_in_window`` metric."""
+    reward_bound_check: str = "error"
+    """What to do when a mentor-reward module's declared ``upper_bound`` exceeds the learner's
+    real best reward per step (the guarantee of eq. 2 needs ``R_m`` not to overestimate it):
+    ``"error"`` (ValueError), ``"warn"`` (a warning) or ``"off"``. Values above a module's own
+    declared bound are always an error."""
 
     def __post_init__(self):
         def bad(name, why):
@@ -120,12 +133,16 @@ class LearnerConfig:
             bad("eps_min", f"must not exceed eps_start={self.eps_start}")
         if not self.confidence_z >= 0:
             bad("confidence_z", "must be ≥ 0")
+        if self.mentor_choice not in ("greedy", "match"):
+            bad("mentor_choice", "use 'greedy' or 'match'")
         if self.tie_break not in ("random", "first"):
             bad("tie_break", "use 'random' or 'first'")
         if self.window < 1:
             bad("window", "must be ≥ 1 step")
         if self.plan_every < 1:
             bad("plan_every", "must be ≥ 1 tick")
+        if self.reward_bound_check not in ("error", "warn", "off"):
+            bad("reward_bound_check", "use 'error', 'warn' or 'off'")
         if self.rng_chunk < 1:
             bad("rng_chunk", "must be ≥ 1 tick")
         for name in ("initial_value",):
@@ -224,6 +241,18 @@ class Learner:
         pad = torch.tensor([S], device=dev)
         self.row_state = torch.cat([row_state, pad])
         self.row_option = torch.cat([row_option, torch.zeros(1, dtype=torch.int64, device=dev)])
+
+        # Row of each primitive action at each state (M where that primitive is unavailable), for
+        # mentor_choice="match".
+        prim_option = torch.full((world.num_actions,), -1, dtype=torch.int64)
+        for o, (kind, name) in enumerate(zip(options.kinds, options.names)):
+            if kind == "primitive" and options.policy.dim() == 2:
+                prim_option[int(options.policy[o][options.initiation[o]][0])] = o
+        self.primitive_rows = torch.full((S + 1, world.num_actions), M, dtype=torch.int64, device=dev)
+        for a, o in enumerate(prim_option.tolist()):
+            if o >= 0:
+                is_o = row_option == o
+                self.primitive_rows[row_state[is_o], a] = torch.arange(M, device=dev)[is_o]
 
         # ---- option execution tables -------------------------------------------------------
         self.termination = options.termination.to(dev).double().reshape(-1)
@@ -366,7 +395,17 @@ class Learner:
         caches (after demonstrations were added or a reward module changed)."""
         E = self.mentor.edges.num_edges
         src, dst = self.mentor.edges.edge_row[:E], self.mentor.edges.edge_successor[:E]
+        real_best = self._real_reward_bound()
         for b, module in enumerate(self.rewards):
+            bound = float(getattr(module, "upper_bound", float("inf")))
+            if real_best is not None and bound > real_best + 1e-12 and self.config.reward_bound_check != "off":
+                message = (f"reward module {module!r} declares upper_bound={bound:g}, above the "
+                           f"learner's best real reward per step {real_best:g}: R_m must not "
+                           "overestimate the real reward (eq. 2's guarantee); lower the module's "
+                           "scale/bound or set LearnerConfig.reward_bound_check='warn'/'off'")
+                if self.config.reward_bound_check == "error":
+                    raise ValueError(message)
+                warnings.warn(message, stacklevel=3)
             r = torch.as_tensor(module.transition_reward(src, dst), dtype=torch.float64,
                                 device=self.device)
             if r.shape != (E,):
@@ -374,8 +413,16 @@ class Learner:
                                  "transitions; it must return one reward per transition")
             if not bool(torch.isfinite(r).all()):
                 raise ValueError(f"reward module {module!r} returned NaN or infinite rewards")
+            if E and float(r.max()) > bound + 1e-12:
+                raise ValueError(f"reward module {module!r} returned {float(r.max()):g}, above its "
+                                 f"declared upper_bound={bound:g}")
             self.mentor_edge_reward[b, :E] = r
         self._rebuild_mentor_cache()
+
+    def _real_reward_bound(self) -> float | None:
+        """The learner's best real reward for one step (``None`` if the world does not say)."""
+        reward = getattr(self.world, "state_reward", None)
+        return None if reward is None else float(torch.as_tensor(reward).max())
 
     def _rebuild_mentor_cache(self) -> None:
         E = self.mentor.edges.num_edges
@@ -462,7 +509,7 @@ class Learner:
         m = self._mentor_at(flat, n_m)
         if cfg.mentor_override_after is not None:
             mentor_ok = mentor_ok & (_take(self.state_tries, flat) < cfg.mentor_override_after)
-        if self._any_confidence:
+        if self._any_confidence and bool(self.use_confidence[runs].any()):
             z = cfg.confidence_z
             var = self._row_variance(flat_rows, n_rows, q)
             upper = torch.where(usable, q + z * var.sqrt(), self._neg_inf).amax(-1)
@@ -594,6 +641,8 @@ class Learner:
         """
         rows, q, usable, enabled, _, _ = self._own_values(runs, states)
         q = torch.where(usable, q, self._neg_inf)
+        if self.config.mentor_choice == "match" and self._any_mentor:
+            q = self._match_mentor(runs, states, rows, q, usable)
         greedy = usable & (q >= q.amax(1, keepdim=True) - _TIE)
         greedy = torch.where(greedy.any(1, keepdim=True), greedy, enabled)
         explore = u[:, 0] < self.epsilon[runs]
@@ -604,6 +653,50 @@ class Learner:
             pick = torch.where(explore, pick, torch.zeros_like(pick))
         slot = ((candidates.cumsum(1) == (pick + 1)[:, None]) & candidates).long().argmax(1)
         return rows.gather(1, slot[:, None])[:, 0]
+
+    def _match_mentor(self, runs, states, rows, q, usable):
+        """``mentor_choice="match"``: where the mentor term wins, rank own options first by how
+        well their first action's learned one-step model reproduces the mentor's move, then by
+        ``Q`` (returned as a score with the same shape as ``q``)."""
+        _, _, won = self._state_backup(runs[:, None], states[:, None])
+        won = won[:, 0]
+        if not bool(won.any()):
+            return q
+        S, A = self.num_states, self.world.num_actions
+        # One-step model p̂(s'|s,a) of each primitive at s, and the mentor's p_m(s'|s).
+        prim = self.primitive_rows.index_select(0, states)                         # [R, A]
+        p_succ, p_w = self._successor_probs(self.model, runs[:, None], prim)       # [R, A, K]
+        m_succ, m_w = self._successor_probs(self.mentor, runs, states)             # [R, Km]
+        same = p_succ[..., :, None] == m_succ[:, None, None, :]                   # [R, A, K, Km]
+        score_a = (same * p_w[..., None] * m_w[:, None, None, :]).sum((-1, -2))   # [R, A]
+        flat = self.row_option.index_select(0, rows.view(-1)).view_as(rows) * S + states[:, None]
+        first = self.policy.index_select(0, flat.view(-1)).view_as(rows) if self.policy is not None \
+            else self.policy_cdf.index_select(0, flat.view(-1)).diff(
+                dim=-1, prepend=torch.zeros(flat.numel(), 1, dtype=torch.float64, device=self.device)
+            ).argmax(-1).view_as(rows)
+        score = score_a.gather(1, first.clamp(max=A - 1))                          # [R, J]
+        score = torch.where(usable, score, torch.zeros_like(score))
+        best = score.amax(1, keepdim=True)
+        use = won[:, None] & (best > 0)
+        # Matching options outrank the rest; among them, Q decides.
+        lifted = torch.where(score >= best - _TIE, q + 1e6, q)
+        return torch.where(use, lifted, q)
+
+    @staticmethod
+    def _successor_probs(model, runs, rows):
+        """Posterior-mean successor probabilities ``(successors [..., K], probs [..., K])`` of
+        ``rows`` (shape ``[...]``, ``runs`` broadcast) in a count model (maximum likelihood)."""
+        edges = model.edges
+        e = edges.forward.index_select(0, rows.reshape(-1)).view(*rows.shape, -1)
+        ok = e >= 0
+        ec = e.clamp(min=0)
+        r = runs.expand_as(rows)[..., None]
+        counts = torch.where(ok, _take(model.edge_count, r * model.edge_count.shape[1] + ec),
+                             torch.zeros((), dtype=torch.float64, device=e.device))
+        n = _take(model.row_count, runs.expand_as(rows) * model.row_count.shape[1] + rows)
+        succ = torch.where(ok, edges.edge_successor.index_select(0, ec.view(-1)).view_as(ec),
+                           torch.full_like(e, -1))
+        return succ, counts / n.clamp(min=1)[..., None]
 
     # ================================================================================ stepping
     def _tick_uniforms(self) -> torch.Tensor:

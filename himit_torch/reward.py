@@ -1,29 +1,65 @@
 """Reward the learner assigns to the mentor's observed transitions (``R_m`` of eq. 2).
 
-A reward module maps mentor transitions ``s → s'`` to rewards, batched. The mentor term at ``s``
-uses ``R_m(s) = Σ_{s'} p_m(s'|s) r_m(s, s')``. For learning to stay sound (the paper, after eq. 2),
-``R_m`` must not overestimate the learner's real reward: a module declares an ``upper_bound`` and
-the learner checks it.
+A reward module maps mentor transitions ``s → s'`` to rewards ``r_m(s, s')``, batched. The
+mentor term at ``s`` is ``R_m(s) + γ Σ_{s'} p_m(s'|s) V(s')`` with
+``R_m(s) = Σ_{s'} p_m(s'|s) r_m(s, s')`` (:class:`~himit_torch.Learner` computes it).
+
+Soundness
+    The mentor term enters a max with the learner's own option values and is never corrected by
+    the learner's own experience. It is a sound *lower bound* on what the learner can achieve by
+    repeating the mentor's moves only if ``r_m`` never overestimates the learner's real reward:
+    ``r_m(s, s') ≤ r(s, s')`` on every transition (the paper, after eq. 2). Two checks follow
+    from this, both done by the learner:
+
+    * a module declares ``upper_bound`` (the most it ever returns), and the learner compares it
+      with its best real reward for one step (``world.state_reward.max()``; +1.0 at the goal
+      of :class:`~himit_torch.MultiRooms`) — an error, a warning or nothing, as
+      :attr:`LearnerConfig.reward_bound_check <himit_torch.LearnerConfig.reward_bound_check>`
+      says;
+    * a module that returns more than its own ``upper_bound``, NaN/∞, or the wrong shape is an
+      error, always.
+
+    The declared bound is a *necessary* condition only. An intrinsic module cannot know the real
+    reward of each transition; what it can guarantee is **cycle safety**: no reward above 0 except
+    where the mentor's episodes end. A positive reward on a transition the learner can come back
+    to (a doorway it can step through and back) is a reward the learner can farm: its mentor term
+    keeps promising it on every pass while the learner pays the real step cost, so it oscillates
+    there for good. :class:`SalienceReward` is cycle-safe with its defaults
+    (:attr:`SalienceReward.cycle_safe`).
+
+Modules
+    :class:`KnownReward` — the world's own reward (the paper's experiments, ``R_m = R_obs``).
+    :class:`SalienceReward` — intrinsic reward from salient events in the mentor's states
+    alone, with no knowledge of the world's reward.
+    Any object with ``upper_bound`` and ``transition_reward`` works (:class:`MentorReward`).
 """
 
 from __future__ import annotations
 
-from typing import Protocol, runtime_checkable
+import math
+import operator
+from typing import Iterable, Mapping, Protocol, Sequence, runtime_checkable
 
 import torch
 
-__all__ = ["MentorReward", "KnownReward"]
+__all__ = ["MentorReward", "KnownReward", "SalienceReward", "SALIENCE_EVENTS"]
 
 
 @runtime_checkable
 class MentorReward(Protocol):
-    """What the learner needs from a reward module."""
+    """What the learner needs from a reward module.
 
-    #: The largest reward the module can give; must not exceed the learner's real reward.
+    Soundness condition: ``transition_reward`` must not overestimate the learner's real reward
+    (see the module docstring); ``upper_bound`` declares the most it returns, and must not
+    exceed the learner's best real reward for one step.
+    """
+
+    #: The largest reward the module can give; must not exceed the learner's real best reward.
     upper_bound: float
 
     def transition_reward(self, sources: torch.Tensor, successors: torch.Tensor) -> torch.Tensor:
-        """``[n]`` rewards for the mentor transitions ``sources[i] → successors[i]``."""
+        """``[n]`` finite rewards ``≤ upper_bound`` for the mentor transitions
+        ``sources[i] → successors[i]`` (``[n]`` int64 states each)."""
         ...
 
 
@@ -42,3 +78,315 @@ class KnownReward:
 
     def __repr__(self) -> str:
         return "KnownReward()"
+
+
+#: Salient event kinds of :class:`SalienceReward` (the keys of its ``weights``).
+SALIENCE_EVENTS = ("room", "end", "novelty", "stimulus")
+
+_DEFAULT_WEIGHTS = {"room": 1.0, "end": 1.0, "novelty": 0.25, "stimulus": 1.0}
+_NOT_STIMULI = ("room", "doorway")   # descriptive columns, not stimulus channels by default
+_SAME = 1e-9                         # feature values closer than this are "unchanged"
+
+
+class SalienceReward:
+    """Intrinsic mentor reward from salient events in the mentor's states alone (Section II).
+
+    As the mentor moves it triggers salient stimuli; the observer rewards the transitions where
+    they happen. Nothing here uses the world's reward: the goal is learned from where the
+    mentor's episodes stop.
+
+    Events of a mentor transition ``s → s'``, each in ``[0, 1]``:
+
+    * ``room`` — entering a room from outside it: ``room(s') ≠ 0`` and ``room(s') ≠ room(s)``
+      (the ``"room"`` feature column; 0 = no room, e.g. a doorway). In MultiRooms this is the
+      step from a doorway into a room.
+    * ``end`` — ``ε(s')``: the share of the mentor's arrivals at ``s'`` that ended its episode
+      (1 at the goal, 0 where it always went on).
+    * ``novelty`` — ``decay ** (n(s') − 1)``, ``n`` = how often ``s'`` occurs in the mentor's
+      episodes: a state seen once is fully novel, each further sighting multiplies by ``decay``
+      (habituation); rare states — the mentor's slips — stand out.
+    * ``stimulus`` — ``min(1, Σ_c |x_c(s') − x_c(s)|)`` over the stimulus channels ``c`` (by
+      default every feature column but ``"room"`` and ``"doorway"``: MultiRooms' ``"light"``
+      and ``"sound"``): a lamp switching on, a sound starting.
+
+    With weights ``w``, the step salience and the end weight are
+    ``σ = clip(w_room·room + w_novelty·novelty + w_stimulus·stimulus, 0, 1)`` and
+    ``e = clip(w_end·ε(s'), 0, 1)``, and the reward interpolates between a terminal reward and a
+    step reward::
+
+        r_m(s, s') = min(bound, e · bound + (1 − e) · (scale · σ − step_cost))
+
+    Defaults and soundness: ``bound = 0.5`` is the module's ``upper_bound``, the reward where the
+    mentor's episodes end — safely below MultiRooms' +1.0 goal, so the learner's bound check
+    passes; it must not exceed the learner's best real reward for one step. ``scale =
+    step_cost = 0.01``: every mentor step costs 0.01 (MultiRooms' real step cost) and a fully
+    salient one costs nothing, so no transition but an episode's end pays more than 0 — the
+    module is :attr:`cycle_safe`. With ``scale > step_cost`` salient steps pay a positive reward:
+    stronger guidance, but a learner can farm it by stepping back and forth (the module
+    docstring; ``notebooks/intrinsic_reward.ipynb`` shows it happen). The end reward is only
+    safe where episodes really end for the learner (its terminal states); demonstrations cut
+    short elsewhere make their last state look like a goal.
+
+    Args:
+        world: the world (``num_states``; ``stimulus_features()`` and ``stimulus_feature_names``
+            unless ``features`` is given; ``check_world`` of demonstrations is called with it).
+        demonstrations: mentor episodes to fit on now (see :meth:`fit`); or call :meth:`fit`.
+        features: ``[S, F]`` stimulus features of your own instead of the world's.
+        feature_names: ``F`` column names of ``features`` (``"room"`` marks the room column);
+            default for your own features: no room column, every column a stimulus channel.
+        stimulus_channels: names of the columns whose changes are ``stimulus`` events (default:
+            all but ``"room"`` and ``"doorway"``).
+        weights: per event kind (:data:`SALIENCE_EVENTS`), ``≥ 0``; missing kinds keep their
+            defaults (room 1, end 1, novelty 0.25, stimulus 1).
+        scale: reward of a fully salient step (``σ = 1``) before the step cost, ``≥ 0``.
+        step_cost: cost of every mentor step, ``≥ 0``.
+        decay: habituation factor of ``novelty`` per sighting, in ``[0, 1]``.
+        bound: reward where episodes end, and the module's ``upper_bound``, ``≥ 0``.
+
+    Raises:
+        ValueError: naming ``SalienceReward`` and the problem (features of the wrong shape,
+            unknown weights or channels, bad settings, demonstrations of another world).
+    """
+
+    def __init__(self, world, demonstrations=None, *, features: torch.Tensor | None = None,
+                 feature_names: Sequence[str] | None = None,
+                 stimulus_channels: Sequence[str] | None = None,
+                 weights: Mapping[str, float] | None = None, scale: float = 0.01,
+                 step_cost: float = 0.01, decay: float = 0.5, bound: float = 0.5):
+        self.world = world
+        S = self.num_states = _positive_int(getattr(world, "num_states", None))
+        self.features, self.feature_names = _features(world, S, features, feature_names)
+        names = list(self.feature_names)
+        if stimulus_channels is None:
+            stimulus_channels = [n for n in names if n not in _NOT_STIMULI]
+        unknown = [c for c in stimulus_channels if c not in names]
+        if unknown:
+            raise ValueError(f"SalienceReward: stimulus_channels {unknown} are not feature columns; "
+                             f"the columns are {names}")
+        self.stimulus_channels = tuple(stimulus_channels)
+        self._room_column = names.index("room") if "room" in names else None
+        self._stimulus_columns = torch.tensor([names.index(c) for c in self.stimulus_channels],
+                                              dtype=torch.int64)
+        self.weights = dict(_DEFAULT_WEIGHTS)
+        for kind, w in (weights or {}).items():
+            if kind not in SALIENCE_EVENTS:
+                raise ValueError(f"SalienceReward: unknown event kind {kind!r} in weights; use "
+                                 f"{list(SALIENCE_EVENTS)}")
+            if not (math.isfinite(float(w)) and float(w) >= 0):
+                raise ValueError(f"SalienceReward: weights[{kind!r}]={w!r} must be a finite "
+                                 "number ≥ 0")
+            self.weights[kind] = float(w)
+        for name, value in (("scale", scale), ("step_cost", step_cost), ("bound", bound)):
+            if not (math.isfinite(float(value)) and float(value) >= 0):
+                raise ValueError(f"SalienceReward: {name}={value!r} must be a finite number ≥ 0")
+        if not 0.0 <= float(decay) <= 1.0:
+            raise ValueError(f"SalienceReward: decay={decay!r} must lie in [0, 1]")
+        self.scale, self.step_cost = float(scale), float(step_cost)
+        self.decay, self.bound = float(decay), float(bound)
+        self.upper_bound = self.bound
+        self.num_episodes = 0
+        self._visits = torch.zeros(S, dtype=torch.float64)
+        self._arrivals = torch.zeros(S, dtype=torch.float64)
+        self._ends = torch.zeros(S, dtype=torch.float64)
+        empty = torch.zeros(0, dtype=torch.int64)
+        self._arrival_pairs = (empty, empty)
+        self._device_cache: dict[torch.device, tuple[torch.Tensor, ...]] = {}
+        if demonstrations is not None:
+            self.fit(demonstrations)
+
+    # ------------------------------------------------------------------------------- fitting
+    def fit(self, demonstrations) -> "SalienceReward":
+        """Estimate the mentor statistics (visits, arrivals, episode ends) from its episodes.
+
+        ``demonstrations``: a :class:`~himit_torch.Demonstrations` (checked against the world),
+        or any iterable of 1-D state sequences, one per episode. Replaces earlier fits. After
+        adding demonstrations to a learner, fit the module on the same ones and call the
+        learner's ``refresh_mentor_reward()``. Returns ``self``.
+        """
+        if hasattr(demonstrations, "check_world"):
+            try:
+                demonstrations.check_world(self.world)
+            except ValueError as err:
+                raise ValueError(f"SalienceReward.fit: {err}") from None
+        episodes = getattr(demonstrations, "episodes", demonstrations)
+        if not isinstance(episodes, Iterable):
+            raise ValueError("SalienceReward.fit: demonstrations must be Demonstrations or a list of "
+                             "1-D state sequences (one per episode)")
+        S = self.num_states
+        visits = torch.zeros(S, dtype=torch.float64)
+        arrivals, ends = torch.zeros_like(visits), torch.zeros_like(visits)
+        pairs = []
+        count = 0
+        for i, ep in enumerate(episodes):
+            ep = torch.as_tensor(ep).reshape(-1) if not isinstance(ep, torch.Tensor) else ep
+            if ep.ndim != 1 or ep.numel() == 0 or ep.is_floating_point():
+                raise ValueError(f"SalienceReward.fit: episode {i} must be a non-empty 1-D sequence "
+                                 "of integer states")
+            ep = ep.to(torch.int64).cpu()
+            if int(ep.min()) < 0 or int(ep.max()) >= S:
+                raise ValueError(f"SalienceReward.fit: episode {i} holds states outside 0…{S - 1}")
+            count += 1
+            visits += torch.bincount(ep, minlength=S).double()
+            if ep.numel() > 1:
+                arrivals += torch.bincount(ep[1:], minlength=S).double()
+                ends[ep[-1]] += 1
+                pairs.append((ep[:-1], ep[1:]))
+        if count == 0:
+            raise ValueError("SalienceReward.fit: no episodes; give at least one mentor episode")
+        self._visits, self._arrivals, self._ends = visits, arrivals, ends
+        self.num_episodes = count
+        self._device_cache.clear()
+        if pairs:
+            self._arrival_pairs = (torch.cat([p[0] for p in pairs]), torch.cat([p[1] for p in pairs]))
+        return self
+
+    @property
+    def fitted(self) -> bool:
+        """Whether :meth:`fit` has seen demonstrations."""
+        return self.num_episodes > 0
+
+    # -------------------------------------------------------------------------------- events
+    def end_rate(self) -> torch.Tensor:
+        """``[S]`` ``ε(s)``: share of the mentor's arrivals at ``s`` that ended its episode."""
+        return torch.where(self._arrivals > 0, self._ends / self._arrivals.clamp(min=1),
+                           torch.zeros_like(self._ends))
+
+    def novelty(self) -> torch.Tensor:
+        """``[S]`` ``decay ** (n(s) − 1)`` (1 where the mentor never was)."""
+        return self.decay ** (self._visits - 1).clamp(min=0)
+
+    def events(self, sources: torch.Tensor, successors: torch.Tensor) -> dict[str, torch.Tensor]:
+        """Per event kind (:data:`SALIENCE_EVENTS`) a ``[n]`` float64 tensor in ``[0, 1]`` for the
+        transitions ``sources[i] → successors[i]`` (on the CPU)."""
+        self._require_fitted()
+        src, dst = self._check_states(sources, successors)
+        src, dst = src.cpu(), dst.cpu()
+        return self._events(src, dst, self.end_rate(), self.novelty())
+
+    def _events(self, src, dst, end_rate, novelty) -> dict[str, torch.Tensor]:
+        f = self.features.to(src.device)
+        if self._room_column is None:
+            room = torch.zeros(src.shape, dtype=torch.float64, device=src.device)
+        else:
+            r_from, r_to = f[src, self._room_column], f[dst, self._room_column]
+            room = ((r_to.abs() > _SAME) & ((r_to - r_from).abs() > _SAME)).double()
+        cols = self._stimulus_columns.to(src.device)
+        change = (f[dst][:, cols] - f[src][:, cols]).abs().sum(1)
+        stimulus = torch.where(change > _SAME, change, torch.zeros_like(change)).clamp(max=1.0)
+        return {"room": room, "end": end_rate[dst], "novelty": novelty[dst], "stimulus": stimulus}
+
+    def _step_and_end(self, ev: dict[str, torch.Tensor]) -> tuple[torch.Tensor, torch.Tensor]:
+        w = self.weights
+        sigma = (w["room"] * ev["room"] + w["novelty"] * ev["novelty"]
+                 + w["stimulus"] * ev["stimulus"]).clamp(0.0, 1.0)
+        end = (w["end"] * ev["end"]).clamp(0.0, 1.0)
+        return sigma, end
+
+    # ------------------------------------------------------------------------------ rewards
+    def transition_reward(self, sources: torch.Tensor, successors: torch.Tensor) -> torch.Tensor:
+        """``[n]`` float64 ``r_m(s, s')`` (class docstring) on the inputs' device; finite and
+        ``≤ upper_bound``. Transitions the mentor never made get the same formula (their
+        ``end`` and ``novelty`` come from the states' statistics)."""
+        self._require_fitted()
+        src, dst = self._check_states(sources, successors)
+        device = dst.device
+        tables = self._device_cache.get(device)
+        if tables is None:
+            tables = (self.end_rate().to(device), self.novelty().to(device))
+            self._device_cache[device] = tables
+        sigma, end = self._step_and_end(self._events(src, dst, *tables))
+        reward = end * self.bound + (1.0 - end) * (self.scale * sigma - self.step_cost)
+        return reward.clamp(max=self.bound)
+
+    @property
+    def cycle_safe(self) -> bool:
+        """True when no transition but an episode's end can pay more than 0
+        (``scale ≤ step_cost``): a learner cannot farm the reward by stepping back and forth."""
+        return self.scale <= self.step_cost
+
+    # ----------------------------------------------------------------------------- plotting
+    def salience_map(self) -> torch.Tensor:
+        """``[S]`` float64 in ``[0, 1]``: the total salience ``clip(Σ_k w_k · event_k, 0, 1)`` of
+        the mentor's arrivals at each state, averaged over them (0 where it never arrived)."""
+        self._require_fitted()
+        S = self.num_states
+        src, dst = self._arrival_pairs
+        ev = self._events(src, dst, self.end_rate(), self.novelty())
+        total = sum(self.weights[k] * ev[k] for k in SALIENCE_EVENTS).clamp(0.0, 1.0)
+        return _mean_over_arrivals(total, dst, self._arrivals, S)
+
+    def event_maps(self) -> dict[str, torch.Tensor]:
+        """Per event kind a ``[S]`` map: the event's mean over the mentor's arrivals at each
+        state (unweighted; 0 where it never arrived)."""
+        self._require_fitted()
+        src, dst = self._arrival_pairs
+        ev = self._events(src, dst, self.end_rate(), self.novelty())
+        return {k: _mean_over_arrivals(ev[k], dst, self._arrivals, self.num_states)
+                for k in SALIENCE_EVENTS}
+
+    # ------------------------------------------------------------------------------ checking
+    def _require_fitted(self) -> None:
+        if not self.fitted:
+            raise ValueError("SalienceReward: not fitted on any mentor episodes; pass "
+                             "demonstrations=… or call fit(demonstrations) first")
+
+    def _check_states(self, sources, successors) -> tuple[torch.Tensor, torch.Tensor]:
+        src, dst = torch.as_tensor(sources), torch.as_tensor(successors)
+        if src.ndim != 1 or src.shape != dst.shape:
+            raise ValueError(f"SalienceReward.transition_reward: sources {tuple(src.shape)} and "
+                             f"successors {tuple(dst.shape)} must both be [n]")
+        if src.is_floating_point() or dst.is_floating_point():
+            raise ValueError("SalienceReward.transition_reward: states must be integer tensors")
+        src, dst = src.to(torch.int64), dst.to(device=src.device, dtype=torch.int64)
+        if src.numel() and (int(torch.minimum(src.min(), dst.min())) < 0
+                            or int(torch.maximum(src.max(), dst.max())) >= self.num_states):
+            raise ValueError(f"SalienceReward.transition_reward: states outside 0…{self.num_states - 1}")
+        return src, dst
+
+    def __repr__(self) -> str:
+        w = ", ".join(f"{k}={v:g}" for k, v in self.weights.items())
+        return (f"SalienceReward(bound={self.bound:g}, scale={self.scale:g}, "
+                f"step_cost={self.step_cost:g}, decay={self.decay:g}, weights=({w}), "
+                f"episodes={self.num_episodes})")
+
+
+def _mean_over_arrivals(values: torch.Tensor, dst: torch.Tensor, arrivals: torch.Tensor,
+                        S: int) -> torch.Tensor:
+    """``[S]``: ``values`` of the arrivals ``dst`` averaged per state (0 where none)."""
+    total = torch.zeros(S, dtype=torch.float64).index_add_(0, dst, values.double())
+    return torch.where(arrivals > 0, total / arrivals.clamp(min=1), total)
+
+
+def _positive_int(value) -> int:
+    try:
+        n = operator.index(value)
+    except TypeError:
+        n = 0
+    if isinstance(value, bool) or n < 1:
+        raise ValueError(f"SalienceReward: the world must have num_states ≥ 1, got {value!r}")
+    return n
+
+
+def _features(world, S: int, features, names) -> tuple[torch.Tensor, tuple[str, ...]]:
+    """The ``[S, F]`` float64 features and their column names, checked."""
+    if features is None:
+        if not hasattr(world, "stimulus_features"):
+            raise ValueError(f"SalienceReward: {type(world).__name__} has no stimulus_features(); "
+                             f"give features=[S={S}, F] of your own")
+        features = world.stimulus_features()
+        if names is None:
+            names = getattr(world, "stimulus_feature_names", None)
+    f = torch.as_tensor(features, dtype=torch.float64).detach().cpu()
+    if f.ndim != 2 or f.shape[0] != S or f.shape[1] < 1:
+        raise ValueError(f"SalienceReward: features have shape {tuple(f.shape)}, expected "
+                         f"[S={S}, F] (one row per state of the world, F ≥ 1 columns)")
+    if not bool(torch.isfinite(f).all()):
+        raise ValueError("SalienceReward: features hold NaN or infinite values")
+    F = f.shape[1]
+    if names is None:
+        names = tuple(f"channel{i}" for i in range(F))
+    names = tuple(str(n) for n in names)
+    if len(names) != F or len(set(names)) != F:
+        raise ValueError(f"SalienceReward: feature_names {list(names)} must be {F} distinct names, "
+                         f"one per feature column")
+    return f, names

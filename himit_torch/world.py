@@ -10,16 +10,21 @@ from __future__ import annotations
 
 from collections import deque
 from dataclasses import dataclass, field
-from typing import Iterable, Protocol, runtime_checkable
+from typing import Iterable, Mapping, Protocol, runtime_checkable
 
 import numpy as np
 import torch
 
-__all__ = ["MultiRooms", "TabularWorld", "ACTION_NAMES", "ACTION_DELTAS"]
+__all__ = ["MultiRooms", "TabularWorld", "ACTION_NAMES", "ACTION_DELTAS", "STIMULUS_FEATURES"]
 
 #: Primitive actions: 0 = north (row − 1), 1 = south, 2 = west (col − 1), 3 = east.
 ACTION_NAMES = ("N", "S", "W", "E")
 ACTION_DELTAS = ((-1, 0), (1, 0), (0, -1), (0, 1))
+
+#: Columns of :meth:`MultiRooms.stimulus_features`: the normalised room id (0 = no room: a doorway
+#: or wall cell), the doorway flag, and the user-settable "light" and "sound" channels.
+STIMULUS_FEATURES = ("room", "doorway", "light", "sound")
+_SETTABLE_STIMULI = ("light", "sound")
 
 
 @runtime_checkable
@@ -107,6 +112,13 @@ class MultiRooms:
 
     Termination
         Entering the goal ends the episode; the caller restarts at ``start``.
+
+    Stimulus features
+        :meth:`stimulus_features` gives per state what an observer perceives (columns
+        :data:`STIMULUS_FEATURES`): the room it is in, whether it is a doorway, and a "light" and a
+        "sound" channel (0 everywhere unless set with ``stimuli={"light": [S]}`` or
+        :meth:`set_stimulus`). They feed :class:`~himit_torch.SalienceReward`; the dynamics and
+        the reward never depend on them.
     """
 
     num_actions = 4
@@ -115,7 +127,8 @@ class MultiRooms:
                  start: int | tuple[int, int] | None = None,
                  goal: int | tuple[int, int] | None = None,
                  closed_doorways: Iterable[int | tuple[int, int]] = (),
-                 step_reward: float = -0.01, goal_reward: float = 1.0, gamma: float = 0.99):
+                 step_reward: float = -0.01, goal_reward: float = 1.0, gamma: float = 0.99,
+                 stimuli: Mapping[str, object] | None = None):
         size, rooms = _check_int("size", size), _check_int("rooms", rooms)
         if size % rooms != 0:
             raise ValueError(f"size={size} is not a multiple of rooms={rooms}: each of the "
@@ -155,6 +168,9 @@ class MultiRooms:
         self._check_reachable()
         self._tables: dict[torch.device, tuple[torch.Tensor, torch.Tensor]] = {}
         self._transition: torch.Tensor | None = None   # built on first use; the world is immutable
+        self._stimuli: dict[str, torch.Tensor] = {}    # perception only: never used by the dynamics
+        for name, values in (stimuli or {}).items():
+            self.set_stimulus(name, values)
 
     # ----------------------------------------------------------------------------- layout
     def _cell(self, what: str, cell, allow_wall: bool = False) -> int:
@@ -364,6 +380,47 @@ class MultiRooms:
         absorbing[self.goal_state] = True
         R[absorbing] = 0.0
         return R
+
+    # ----------------------------------------------------------------------------- stimuli
+    @property
+    def stimulus_feature_names(self) -> tuple[str, ...]:
+        """Names of the columns of :meth:`stimulus_features`: :data:`STIMULUS_FEATURES`."""
+        return STIMULUS_FEATURES
+
+    def set_stimulus(self, name: str, values) -> None:
+        """Set the ``"light"`` or ``"sound"`` channel: ``values`` is ``[S]`` finite numbers (one
+        per state, e.g. 1.0 where a lamp is on), or ``None`` to switch the channel off (all 0).
+
+        Only what an observer perceives changes; dynamics, rewards and :meth:`describe` do not.
+        """
+        if name not in _SETTABLE_STIMULI:
+            raise ValueError(f"MultiRooms.set_stimulus: unknown channel {name!r}; the settable "
+                             f"channels are {list(_SETTABLE_STIMULI)}")
+        if values is None:
+            self._stimuli.pop(name, None)
+            return
+        v = torch.as_tensor(values, dtype=torch.float64).detach().cpu().clone()
+        if v.shape != (self.num_states,):
+            raise ValueError(f"MultiRooms.set_stimulus({name!r}): got shape {tuple(v.shape)}, "
+                             f"expected [S] = [{self.num_states}] (one value per state)")
+        if not bool(torch.isfinite(v).all()):
+            raise ValueError(f"MultiRooms.set_stimulus({name!r}): values hold NaN or infinity")
+        self._stimuli[name] = v
+
+    def stimulus_features(self) -> torch.Tensor:
+        """``[S, 4]`` float64 stimulus features, columns :data:`STIMULUS_FEATURES`:
+
+        * ``room``: ``(room id + 1) / num_rooms`` in (0, 1] inside a room, 0 on doorway and wall
+          cells (no room);
+        * ``doorway``: 1.0 on open doorway cells, else 0;
+        * ``light``, ``sound``: the channels set with :meth:`set_stimulus` (0 when unset).
+        """
+        room = torch.from_numpy(self._room_of.astype(np.float64))
+        room = torch.where(room >= 0, (room + 1.0) / self.num_rooms, torch.zeros_like(room))
+        zeros = torch.zeros(self.num_states, dtype=torch.float64)
+        columns = [room, self.doorway_mask.double()]
+        columns += [self._stimuli.get(name, zeros) for name in _SETTABLE_STIMULI]
+        return torch.stack(columns, dim=1)
 
     def render_ansi(self, positions: Iterable[int] = ()) -> str:
         """Text picture: ``#`` wall, ``+`` doorway, ``S`` start, ``G`` goal, ``A`` agents."""

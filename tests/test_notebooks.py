@@ -1,0 +1,57 @@
+"""The notebooks in ``notebooks/`` run top to bottom with tiny budgets (nbclient), in a kernel of
+this very interpreter, and draw their figures."""
+
+import sys
+from pathlib import Path
+
+import nbformat
+import pytest
+
+nbclient = pytest.importorskip("nbclient")
+
+NOTEBOOKS = Path(__file__).resolve().parent.parent / "notebooks"
+
+
+def execute(name: str, workdir: Path) -> nbformat.NotebookNode:
+    """Run ``notebooks/<name>.ipynb`` in ``workdir`` and return it with its outputs; one cell is
+    appended that reports the kernel's interpreter."""
+    nb = nbformat.read(NOTEBOOKS / f"{name}.ipynb", as_version=4)
+    nb.cells.append(nbformat.v4.new_code_cell("import sys; print(sys.prefix)"))
+    # kernel.json says "python": jupyter_client runs it as sys.executable, this interpreter.
+    client = nbclient.NotebookClient(nb, timeout=120, kernel_name="python3",
+                                     resources={"metadata": {"path": str(workdir)}})
+    client.execute()
+    return nb
+
+
+def outputs(nb: nbformat.NotebookNode, kind: str) -> list:
+    return [o for c in nb.cells if c.cell_type == "code" for o in c.outputs
+            if o.output_type == kind]
+
+
+@pytest.fixture
+def tiny_budget(monkeypatch, tmp_path):
+    monkeypatch.setenv("HIMIT_NOTEBOOK_STEPS", "400")
+    monkeypatch.setenv("HIMIT_NOTEBOOK_SEEDS", "1")
+    monkeypatch.delenv("HIMIT_NOTEBOOK_LOGDIR", raising=False)
+    monkeypatch.setenv("MPLBACKEND", "module://matplotlib_inline.backend_inline")
+    return tmp_path
+
+
+@pytest.mark.parametrize("name", ["quickstart", "intrinsic_reward"])
+def test_notebook_runs_with_a_tiny_budget(name, tiny_budget):
+    nb = execute(name, tiny_budget)
+    assert not outputs(nb, "error")
+    pngs = [o for o in outputs(nb, "display_data") if "image/png" in o.get("data", {})]
+    assert pngs, f"{name}: no figure was drawn"
+    streams = outputs(nb, "stream")
+    assert streams[-1]["text"].strip() == sys.prefix, "the kernel ran another interpreter"
+    assert not [s for s in streams if s["name"] == "stderr"], \
+        f"{name} wrote to stderr: {[s['text'][:300] for s in streams if s['name'] == 'stderr']}"
+    text = "".join(s["text"] for s in streams)
+    if name == "quickstart":
+        assert "364 options" in text and "first goal at step" in text
+    else:
+        assert "5 runs × 400 steps" in text                 # 5 variants × 1 seed, the tiny budget
+        assert len(list((tiny_budget / "runs/intrinsic_reward/tb").glob("world40__*"))) == 5
+        assert "cycle-safe: True" in text
