@@ -192,7 +192,10 @@ class Learner:
         demonstrations: mentor demonstrations (anything with ``transitions()``), given to every
             run; more can be added with :meth:`add_demonstrations`.
         reward: the reward module for the mentor term, one for all runs or one per run
-            (default :class:`~himit_torch.KnownReward` of the world).
+            (default :class:`~himit_torch.KnownReward` of the world; ``None`` in a per-run list
+            for runs that do not imitate). A module fitted on demonstrations (e.g.
+            :class:`~himit_torch.SalienceReward`) is not refitted by :meth:`add_demonstrations`:
+            call its ``fit`` with all demonstrations, then :meth:`refresh_mentor_reward`.
         device: where all tensors live.
     """
 
@@ -353,8 +356,12 @@ class Learner:
         modules = list(reward) if isinstance(reward, (list, tuple)) else [reward] * B
         if len(modules) != B:
             raise ValueError(f"{len(modules)} reward modules for {B} runs: give one, or one per run")
-        for m in modules:
-            if not hasattr(m, "transition_reward"):
+        known = None
+        for b, m in enumerate(modules):
+            if m is None:  # a run without a mentor term needs none; give it the known reward
+                known = known or KnownReward(world)
+                modules[b] = known
+            elif not hasattr(m, "transition_reward"):
                 raise ValueError(f"reward module {m!r} has no transition_reward(sources, successors)")
         return modules
 

@@ -20,12 +20,20 @@ Soundness
       error, always.
 
     The declared bound is a *necessary* condition only. An intrinsic module cannot know the real
-    reward of each transition; what it can guarantee is **cycle safety**: no reward above 0 except
-    where the mentor's episodes end. A positive reward on a transition the learner can come back
-    to (a doorway it can step through and back) is a reward the learner can farm: its mentor term
-    keeps promising it on every pass while the learner pays the real step cost, so it oscillates
-    there for good. :class:`SalienceReward` is cycle-safe with its defaults
-    (:attr:`SalienceReward.cycle_safe`).
+    reward of each transition, so it must assume something; two levels:
+
+    * **cycle safety** — no reward above 0 except where the mentor's episodes end. A positive
+      reward on a transition the learner can come back to (a doorway it can step through and
+      back) is a reward it can farm: its mentor term keeps promising it on every pass while the
+      learner pays the real step cost, so it oscillates there for good.
+    * **soundness** — every step costs at least the real step cost and the end pays at most the
+      real goal reward. Then the mentor term is a pessimistic lower bound and the learner's own
+      experience corrects it. :class:`SalienceReward` is sound for MultiRooms' default rewards
+      (−0.01 a step, +1 at the goal) with its defaults, and cycle-safe
+      (:attr:`SalienceReward.cycle_safe`).
+
+    ``notebooks/intrinsic_reward.ipynb`` measures both on the 40×40 world: the more ``R_m``
+    overestimates, the worse the learner does, and a reward it can farm stops it altogether.
 
 Modules
     :class:`KnownReward` — the world's own reward (the paper's experiments, ``R_m = R_obs``).
@@ -118,14 +126,17 @@ class SalienceReward:
 
     Defaults and soundness: ``bound = 0.5`` is the module's ``upper_bound``, the reward where the
     mentor's episodes end — safely below MultiRooms' +1.0 goal, so the learner's bound check
-    passes; it must not exceed the learner's best real reward for one step. ``scale =
-    step_cost = 0.01``: every mentor step costs 0.01 (MultiRooms' real step cost) and a fully
-    salient one costs nothing, so no transition but an episode's end pays more than 0 — the
-    module is :attr:`cycle_safe`. With ``scale > step_cost`` salient steps pay a positive reward:
-    stronger guidance, but a learner can farm it by stepping back and forth (the module
-    docstring; ``notebooks/intrinsic_reward.ipynb`` shows it happen). The end reward is only
-    safe where episodes really end for the learner (its terminal states); demonstrations cut
-    short elsewhere make their last state look like a goal.
+    passes; it must not exceed the learner's best real reward for one step. ``step_cost = 0.02,
+    scale = 0.01``: an ordinary mentor step costs 0.02 and a fully salient one 0.01, never less
+    than MultiRooms' real step cost of 0.01 — so with MultiRooms' default rewards the module never
+    overestimates any transition (sound, see the module docstring), and no step but an episode's
+    end pays more than 0 (:attr:`cycle_safe`). Salience makes the mentor's salient steps *less
+    costly*, not rewarding. With ``scale = step_cost`` salient steps are free: cycle-safe, but
+    optimistic; with ``scale > step_cost`` they pay, and a learner farms them by stepping back
+    and forth (``notebooks/intrinsic_reward.ipynb`` shows both). For other worlds, choose
+    ``step_cost − scale`` ≥ the real cost of a step. The end reward is only safe where episodes
+    really end for the learner (its terminal states); demonstrations cut short elsewhere make
+    their last state look like a goal.
 
     Args:
         world: the world (``num_states``; ``stimulus_features()`` and ``stimulus_feature_names``
@@ -139,7 +150,8 @@ class SalienceReward:
         weights: per event kind (:data:`SALIENCE_EVENTS`), ``≥ 0``; missing kinds keep their
             defaults (room 1, end 1, novelty 0.25, stimulus 1).
         scale: reward of a fully salient step (``σ = 1``) before the step cost, ``≥ 0``.
-        step_cost: cost of every mentor step, ``≥ 0``.
+        step_cost: cost of every mentor step, ``≥ 0``; a step's reward lies in
+            ``[−step_cost, scale − step_cost]`` (:attr:`step_reward_range`).
         decay: habituation factor of ``novelty`` per sighting, in ``[0, 1]``.
         bound: reward where episodes end, and the module's ``upper_bound``, ``≥ 0``.
 
@@ -152,7 +164,7 @@ class SalienceReward:
                  feature_names: Sequence[str] | None = None,
                  stimulus_channels: Sequence[str] | None = None,
                  weights: Mapping[str, float] | None = None, scale: float = 0.01,
-                 step_cost: float = 0.01, decay: float = 0.5, bound: float = 0.5):
+                 step_cost: float = 0.02, decay: float = 0.5, bound: float = 0.5):
         self.world = world
         S = self.num_states = _positive_int(getattr(world, "num_states", None))
         self.features, self.feature_names = _features(world, S, features, feature_names)
@@ -172,17 +184,13 @@ class SalienceReward:
             if kind not in SALIENCE_EVENTS:
                 raise ValueError(f"SalienceReward: unknown event kind {kind!r} in weights; use "
                                  f"{list(SALIENCE_EVENTS)}")
-            if not (math.isfinite(float(w)) and float(w) >= 0):
-                raise ValueError(f"SalienceReward: weights[{kind!r}]={w!r} must be a finite "
-                                 "number ≥ 0")
-            self.weights[kind] = float(w)
-        for name, value in (("scale", scale), ("step_cost", step_cost), ("bound", bound)):
-            if not (math.isfinite(float(value)) and float(value) >= 0):
-                raise ValueError(f"SalienceReward: {name}={value!r} must be a finite number ≥ 0")
-        if not 0.0 <= float(decay) <= 1.0:
+            self.weights[kind] = _non_negative(f"weights[{kind!r}]", w)
+        self.scale = _non_negative("scale", scale)
+        self.step_cost = _non_negative("step_cost", step_cost)
+        self.bound = _non_negative("bound", bound)
+        self.decay = _non_negative("decay", decay)
+        if self.decay > 1.0:
             raise ValueError(f"SalienceReward: decay={decay!r} must lie in [0, 1]")
-        self.scale, self.step_cost = float(scale), float(step_cost)
-        self.decay, self.bound = float(decay), float(bound)
         self.upper_bound = self.bound
         self.num_episodes = 0
         self._visits = torch.zeros(S, dtype=torch.float64)
@@ -218,7 +226,7 @@ class SalienceReward:
         pairs = []
         count = 0
         for i, ep in enumerate(episodes):
-            ep = torch.as_tensor(ep).reshape(-1) if not isinstance(ep, torch.Tensor) else ep
+            ep = torch.as_tensor(ep)
             if ep.ndim != 1 or ep.numel() == 0 or ep.is_floating_point():
                 raise ValueError(f"SalienceReward.fit: episode {i} must be a non-empty 1-D sequence "
                                  "of integer states")
@@ -299,6 +307,12 @@ class SalienceReward:
         return reward.clamp(max=self.bound)
 
     @property
+    def step_reward_range(self) -> tuple[float, float]:
+        """``(least, most)`` reward of a mentor step that ends no episode: ``(−step_cost,
+        scale − step_cost)``. Sound if ``most`` ≤ the real reward of every step."""
+        return (-self.step_cost, min(self.bound, self.scale - self.step_cost))
+
+    @property
     def cycle_safe(self) -> bool:
         """True when no transition but an episode's end can pay more than 0
         (``scale ≤ step_cost``): a learner cannot farm the reward by stepping back and forth."""
@@ -355,6 +369,17 @@ def _mean_over_arrivals(values: torch.Tensor, dst: torch.Tensor, arrivals: torch
     """``[S]``: ``values`` of the arrivals ``dst`` averaged per state (0 where none)."""
     total = torch.zeros(S, dtype=torch.float64).index_add_(0, dst, values.double())
     return torch.where(arrivals > 0, total / arrivals.clamp(min=1), total)
+
+
+def _non_negative(name: str, value) -> float:
+    """``value`` as a finite float ``≥ 0``, or a ValueError naming the setting."""
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        number = float("nan")
+    if not (math.isfinite(number) and number >= 0):
+        raise ValueError(f"SalienceReward: {name}={value!r} must be a finite number ≥ 0")
+    return number
 
 
 def _positive_int(value) -> int:

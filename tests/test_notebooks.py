@@ -52,6 +52,6 @@ def test_notebook_runs_with_a_tiny_budget(name, tiny_budget):
     if name == "quickstart":
         assert "364 options" in text and "first goal at step" in text
     else:
-        assert "5 runs × 400 steps" in text                 # 5 variants × 1 seed, the tiny budget
-        assert len(list((tiny_budget / "runs/intrinsic_reward/tb").glob("world40__*"))) == 5
+        assert "6 runs × 400 steps" in text                 # 6 variants × 1 seed, the tiny budget
+        assert len(list((tiny_budget / "runs/intrinsic_reward/tb").glob("world40__*"))) == 6
         assert "cycle-safe: True" in text

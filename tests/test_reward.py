@@ -135,11 +135,16 @@ def test_salience_reward_never_reads_the_world_reward(demos6):
     a = SalienceReward(plain, list(demos6.episodes)).transition_reward(src, dst)
     b = SalienceReward(other, list(demos6.episodes)).transition_reward(src, dst)
     assert torch.equal(a, b)
-    # The defaults are cycle-safe: nothing but the episodes' end pays more than 0.
+    # The defaults are sound for MultiRooms' rewards: no step pays more than the real −0.01, the
+    # end pays 0.5 < 1; so they are cycle-safe too (only the end pays more than 0).
     module = SalienceReward(plain, demos6)
     assert module.cycle_safe and module.upper_bound == 0.5
+    assert module.step_reward_range == (-0.02, -0.01)
     r = module.transition_reward(src, dst)
-    assert (r[dst != 35] <= 0).all() and (r[dst == 35] == 0.5).all()
+    steps = r[dst != 35]
+    assert (steps <= plain.step_reward + 1e-12).all() and (steps >= -0.02).all()
+    assert (r[dst == 35] == 0.5).all()
+    assert steps.min() < steps.max()           # salience does change the cost of a step
 
 
 def test_user_features_and_channels(world6, demos6):
@@ -149,12 +154,13 @@ def test_user_features_and_channels(world6, demos6):
     module = SalienceReward(world6, demos6, features=lamp, weights={"novelty": 0.0})
     assert module.feature_names == ("channel0",) and module.stimulus_channels == ("channel0",)
     r = module.transition_reward(torch.tensor([9, 10, 0]), torch.tensor([10, 11, 1]))
-    # lamp on at 10: arriving and leaving are full stimulus events; no room column here.
-    torch.testing.assert_close(r, torch.tensor([0.0, 0.0, -0.01], dtype=torch.float64))
+    # lamp on at 10: arriving and leaving are full stimulus events (σ = 1: 0.01 − 0.02); no room
+    # column here, so 0 → 1 is a plain step (−0.02).
+    torch.testing.assert_close(r, torch.tensor([-0.01, -0.01, -0.02], dtype=torch.float64))
     named = SalienceReward(world6, demos6, stimulus_channels=["light"], weights={"novelty": 0})
     # sound no longer counts: 10 → 16 is a plain step, 23 → 29 still a room change + light.
     r = named.transition_reward(torch.tensor([10, 23]), torch.tensor([16, 29]))
-    torch.testing.assert_close(r, torch.tensor([-0.01, 0.0], dtype=torch.float64))
+    torch.testing.assert_close(r, torch.tensor([-0.02, -0.01], dtype=torch.float64))
 
 
 @pytest.mark.parametrize("features, match", [
@@ -175,6 +181,8 @@ def test_features_of_the_wrong_size_are_refused(world6, features, match):
     ({"step_cost": -0.1}, "step_cost"),
     ({"bound": -1.0}, "bound"),
     ({"decay": 1.5}, "decay"),
+    ({"decay": -0.5}, "decay"),
+    ({"bound": "high"}, "bound='high'"),
     ({"stimulus_channels": ["smell"]}, "stimulus_channels"),
     ({"feature_names": ["a", "b"]}, "feature_names"),
 ])
@@ -193,6 +201,8 @@ def test_bad_use_is_refused(world6, demos6):
         module.fit([[0, 99]])
     with pytest.raises(ValueError, match="SalienceReward.fit: no episodes"):
         module.fit([])
+    with pytest.raises(ValueError, match="SalienceReward.fit: episode 0 must be a non-empty 1-D"):
+        module.fit([[[0, 1], [6, 7]]])
     module.fit(demos6)
     with pytest.raises(ValueError, match=r"SalienceReward.transition_reward: sources \(2,\)"):
         module.transition_reward(torch.tensor([0, 1]), torch.tensor([1]))
