@@ -45,7 +45,7 @@ def reference_steps_per_second(size: int, steps: int) -> float:
                               "--agent", agent, "--steps", str(steps), "--seed", "0",
                               "--untried", "skip", "--v-init", "-1"],
                              capture_output=True, text=True, check=True).stdout
-        total_time += float(re.search(r"learn_wall=([\d.]+)s", out).group(1))
+        total_time += steps / float(re.search(r"steps/s=(\d+)", out).group(1))
     return 3 * steps / total_time
 
 
