@@ -12,16 +12,6 @@ from himit_torch.world import MultiRooms
 Z = 5.0  # tolerance in standard errors
 
 
-@pytest.fixture(autouse=True)
-def one_thread():
-    """Single-threaded torch: on these small tensors intra-op threads only add contention
-    (on a busy 2-core machine they made this file 20× slower)."""
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(threads)
-
-
 @pytest.fixture
 def generator() -> torch.Generator:
     return torch.Generator().manual_seed(2024)

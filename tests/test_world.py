@@ -11,21 +11,6 @@ from himit_torch.world import ACTION_DELTAS, MultiRooms, TabularWorld
 N, S, W, E = range(4)
 
 
-@pytest.fixture(autouse=True)
-def one_thread():
-    """Single-threaded torch: on these small tensors intra-op threads only add contention
-    (on a busy 2-core machine they made this file 20× slower)."""
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(threads)
-
-
-@pytest.fixture
-def generator() -> torch.Generator:
-    return torch.Generator().manual_seed(1234)
-
-
 @pytest.fixture
 def world6() -> MultiRooms:
     """6×6, 2×2 rooms: wall row/col 3, doorways mid-segment (hand-drawn in test_render_ansi)."""
