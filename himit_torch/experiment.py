@@ -261,6 +261,10 @@ class _Logger:
                                    "hparam/final_window_goals": float(result.final_window_goals[b])},
                           run_name=".")
 
+    def flush(self) -> None:
+        for w in self._writers:
+            w.flush()
+
     def close(self) -> None:
         for w in self._writers:
             w.close()
@@ -301,11 +305,13 @@ def run_world(config: ExperimentConfig, size: int, run_dir: Path, resume: bool,
     ckpt = ckpt_dir / f"world{size}.pt"
     elapsed = 0.0
     if resume and ckpt.exists():
-        saved = torch.load(ckpt, weights_only=False)
+        saved = torch.load(ckpt, weights_only=False, map_location=config.device)
         learner.load_state_dict(saved["learner"])
         elapsed = float(saved.get("elapsed", 0.0))
     names = [f"world{size}__{a}__seed{s}" for a, s in zip(agents, run_seeds)]
-    logger = _Logger(run_dir / "tb", names, purge_step=learner.t if learner.t > 0 else None)
+    # Events a killed run logged after its last checkpoint are purged: TensorBoard drops steps
+    # ≥ purge_step from earlier event files, and windows up to t were logged before the checkpoint.
+    logger = _Logger(run_dir / "tb", names, purge_step=learner.t + 1)
     logged = len(learner.metrics.steps)
     bar = None
     if progress:
@@ -325,6 +331,7 @@ def run_world(config: ExperimentConfig, size: int, run_dir: Path, resume: bool,
                 on_window(learner)
         if learner.t % config.checkpoint_every == 0 or learner.t == config.steps:
             logger.coverage(learner, learner.t)
+            logger.flush()  # everything logged so far is on disk before the checkpoint says so
             _atomic_save({"learner": learner.state_dict(),
                           "elapsed": elapsed + time.perf_counter() - start}, ckpt)
     if bar is not None:
@@ -339,8 +346,8 @@ def run_world(config: ExperimentConfig, size: int, run_dir: Path, resume: bool,
         final_window_goals=(m.goals_in_window[-1].tolist() if m.goals_in_window else [0] * len(agents)),
         value_start=learner.state_values()[:, world.start_state].tolist(), true_value_start=true_v,
         mentor_term_wins=learner.mentor_win_share().tolist(), wall_seconds=wall, steps=learner.t)
-    imitators = [b for b, a in enumerate(agents) if run_seeds[b] == seeds[0]]
-    logger.images(learner, world, mentor_visits, learner.t, imitators)
+    first_seed_runs = [b for b in range(len(agents)) if run_seeds[b] == seeds[0]]
+    logger.images(learner, world, mentor_visits, learner.t, first_seed_runs)
     logger.hparams(config, result)
     logger.close()
     _write_curves(run_dir / "worlds" / f"curves{size}.csv", learner, size)

@@ -7,11 +7,12 @@ equation (the paper's eq. 2, or a baseline), and pick their next option ε-greed
 Shapes: ``B`` runs, ``S`` states, ``O`` options, ``M`` available ``(s, o)`` rows (shared by the
 batch, grouped by state: ``state_rows [S, J]``), ``E`` observed model edges.
 
-How values are kept (the fast path; :meth:`Learner.plan` sweeps to convergence for checks):
+How values are kept (the fast path; :meth:`Learner.plan` sweeps to convergence for checks, and
+the pure functions of :mod:`himit_torch.backups` are the slow reference the tests compare with):
 
 * ``q_numerator [B, M]`` holds ``Σ r + Σ_{s'} Σγ^k V(s')`` of every row, so that
   ``Q = (q_numerator + α v0) / (n + α)`` is the posterior-mean option backup
-  (:func:`himit_torch.backups.option_backup`). When ``V(x)`` changes by ``δ`` in a backup, every
+  (:func:`himit_torch.backups.option_backup` on the model's means). When ``V(x)`` changes by ``δ`` in a backup, every
   row with an edge to ``x`` gets ``+ Σγ^k · δ`` — along the reverse edge lists, which also yield
   the prioritized-sweeping priorities ``|ΔQ|`` of the predecessor states.
 * ``mentor_numerator [B, S]`` likewise holds ``Σ_{s'} c(s→s') (r_m + γ V(s'))``.
@@ -85,7 +86,8 @@ class LearnerConfig:
     """Dirichlet prior mass of the option model on the unseen-successor outcome (0 = the
     maximum-likelihood model)."""
     mentor_concentration: float = 0.0
-    """Same for the mentor model."""
+    """Same for the mentor model (only in states where the mentor was seen: the prior never
+    creates a mentor term elsewhere)."""
     confidence_z: float = 1.0
     """Width of Price & Boutilier's confidence test, used by the ``…_confident`` agents: the
     mentor term at ``s`` counts only where its lower bound (mean − z·sd, from the Dirichlet
@@ -110,6 +112,9 @@ class LearnerConfig:
     """Greedy ties (|ΔQ| ≤ 1e-12): ``"random"`` among the best, or ``"first"`` (lowest option)."""
     window: int = 5000
     """Steps per window of the ``goals_in_window`` metric."""
+    max_option_steps: int = 100_000
+    """An option still running after this many primitive steps is stopped (and learned from as
+    if it had terminated there), so an option that never terminates cannot freeze its run."""
     reward_bound_check: str = "error"
     """What to do when a mentor-reward module's declared ``upper_bound`` exceeds the learner's
     real best reward per step (the guarantee of eq. 2 needs ``R_m`` not to overestimate it):
@@ -145,12 +150,28 @@ class LearnerConfig:
             bad("reward_bound_check", "use 'error', 'warn' or 'off'")
         if self.rng_chunk < 1:
             bad("rng_chunk", "must be ≥ 1 tick")
-        for name in ("initial_value",):
-            if not torch.isfinite(torch.tensor(float(getattr(self, name)))):
-                bad(name, "must be finite")
+        if self.max_option_steps < 1:
+            bad("max_option_steps", "must be ≥ 1 step")
+        if not torch.isfinite(torch.tensor(float(self.initial_value))):
+            bad("initial_value", "must be finite")
 
 
 _TIE = 1e-12
+
+
+class _NoMentorReward:
+    """The mentor reward of runs that do not imitate: never used, zero."""
+
+    upper_bound = 0.0
+
+    def transition_reward(self, sources: torch.Tensor, successors: torch.Tensor) -> torch.Tensor:
+        return torch.zeros(sources.shape, dtype=torch.float64, device=sources.device)
+
+    def __repr__(self) -> str:
+        return "no mentor reward"
+
+
+_NO_MENTOR_REWARD = _NoMentorReward()
 
 
 def _take(x: torch.Tensor, flat: torch.Tensor) -> torch.Tensor:
@@ -248,9 +269,11 @@ class Learner:
         # Row of each primitive action at each state (M where that primitive is unavailable), for
         # mentor_choice="match".
         prim_option = torch.full((world.num_actions,), -1, dtype=torch.int64)
-        for o, (kind, name) in enumerate(zip(options.kinds, options.names)):
-            if kind == "primitive" and options.policy.dim() == 2:
-                prim_option[int(options.policy[o][options.initiation[o]][0])] = o
+        first_state = options.initiation.float().argmax(1)
+        for o, kind in enumerate(options.kinds):
+            if kind == "primitive":
+                probs = options.action_probabilities(world.num_actions)[o, first_state[o]]
+                prim_option[int(probs.argmax())] = o
         self.primitive_rows = torch.full((S + 1, world.num_actions), M, dtype=torch.int64, device=dev)
         for a, o in enumerate(prim_option.tolist()):
             if o >= 0:
@@ -349,16 +372,20 @@ class Learner:
         self.row = self._choose(runs, self.position, first[:, 3:])
 
     # ==================================================================================== setup
-    @staticmethod
-    def _reward_modules(reward, world, B):
-        if reward is None:
-            reward = KnownReward(world)
+    def _reward_modules(self, reward, world, B):
         modules = list(reward) if isinstance(reward, (list, tuple)) else [reward] * B
         if len(modules) != B:
             raise ValueError(f"{len(modules)} reward modules for {B} runs: give one, or one per run")
         known = None
         for b, m in enumerate(modules):
-            if m is None:  # a run without a mentor term needs none; give it the known reward
+            if m is None:
+                if not bool(self.use_mentor[b]):
+                    modules[b] = _NO_MENTOR_REWARD   # no mentor term: its reward is never used
+                    continue
+                if getattr(world, "state_reward", None) is None:
+                    raise ValueError(f"run {b} ({self.agents[b]}) imitates but no reward module was "
+                                     "given and the world has no state_reward for KnownReward; pass "
+                                     "reward=… (e.g. a SalienceReward or your own MentorReward)")
                 known = known or KnownReward(world)
                 modules[b] = known
             elif not hasattr(m, "transition_reward"):
@@ -392,6 +419,9 @@ class Learner:
         if src.numel() and (int(src.min()) < 0 or int(max(src.max(), dst.max())) >= self.num_states):
             raise ValueError(f"demonstrations hold states outside 0…{self.num_states - 1}: they come "
                              "from another world")
+        # Episodes end at a terminal state: a "transition" out of one is not the mentor's move.
+        keep = ~self.terminal.index_select(0, src)
+        src, dst = src[keep], dst[keep]
         run_idx = torch.arange(self.batch, device=self.device) if runs is None else \
             torch.as_tensor(list(runs), dtype=torch.int64, device=self.device)
         self.mentor.observe(src, dst, run_idx)
@@ -404,6 +434,9 @@ class Learner:
         src, dst = self.mentor.edges.edge_row[:E], self.mentor.edges.edge_successor[:E]
         real_best = self._real_reward_bound()
         for b, module in enumerate(self.rewards):
+            if module is _NO_MENTOR_REWARD:   # a run without a mentor term: nothing to check
+                self.mentor_edge_reward[b, :E] = 0.0
+                continue
             bound = float(getattr(module, "upper_bound", float("inf")))
             if real_best is not None and bound > real_best + 1e-12 and self.config.reward_bound_check != "off":
                 message = (f"reward module {module!r} declares upper_bound={bound:g}, above the "
@@ -512,7 +545,8 @@ class Learner:
         own = torch.where(usable, q, self._neg_inf).amax(-1)
         flat = self._state_flat(runs, states)
         n_m = _take(self.mentor.row_count, flat)
-        mentor_ok = self.use_mentor[runs] & ((n_m > 0) if cfg.mentor_concentration == 0 else True)
+        # The mentor term exists only where the mentor was seen (a prior does not create one).
+        mentor_ok = self.use_mentor[runs] & (n_m > 0)
         m = self._mentor_at(flat, n_m)
         if cfg.mentor_override_after is not None:
             mentor_ok = mentor_ok & (_take(self.state_tries, flat) < cfg.mentor_override_after)
@@ -524,7 +558,9 @@ class Learner:
             mentor_ok = mentor_ok & (confident | ~self.use_confidence[runs])
         m = torch.where(mentor_ok, m, self._neg_inf)
         best = torch.maximum(own, m)
-        return best, torch.isfinite(best), mentor_ok & (m > own)
+        # Terminal states (and the padding state) keep V = 0.
+        has_value = torch.isfinite(best) & ~self.terminal.index_select(0, states.reshape(-1)).view_as(states)
+        return best, has_value, mentor_ok & (m > own)
 
     # ================================================================================ planning
     def _backup_and_propagate(self, runs: torch.Tensor, states: torch.Tensor, valid: torch.Tensor):
@@ -737,7 +773,8 @@ class Learner:
         self.duration += 1
         self.t += 1
         at_goal = self.terminal[nxt]
-        ended = at_goal | (self.termination[option * S + nxt] > stop_u)
+        ended = at_goal | (self.termination[option * S + nxt] > stop_u) \
+            | (self.duration >= cfg.max_option_steps)
         self.position = nxt
         self.visits.view(-1).index_add_(0, self._visit_base + nxt, self._ones_b)
         if bool(at_goal.any()):
@@ -917,7 +954,8 @@ class Learner:
             else:
                 action = torch.multinomial(torch.diff(self.policy_cdf[flat], prepend=torch.zeros(
                     1, 1, dtype=torch.float64, device=self.device)), 1, generator=gen)[:, 0]
-            s, _ = self.world.step(s, action, generator=gen)
+            u = torch.rand(s.shape, generator=gen, device=self.device)  # the world's slip draw
+            s, _ = self.world.step(s, action, u)
             steps += 1
             states.append(int(s))
             stop = torch.rand(1, generator=gen, device=self.device, dtype=torch.float64)

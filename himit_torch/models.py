@@ -187,8 +187,9 @@ class SuccessorDirichlet:
     def sample(self, generator: torch.Generator) -> torch.Tensor:
         """One draw of the probabilities per row, from ``generator`` (categories with zero
         concentration get probability 0)."""
-        seed = int(torch.randint(0, 2**62, (1,), generator=generator))
-        with torch.random.fork_rng(devices=[]):
+        seed = int(torch.randint(0, 2**62, (1,), generator=generator, device=generator.device))
+        devices = list(range(torch.cuda.device_count())) if torch.cuda.is_available() else []
+        with torch.random.fork_rng(devices=devices):   # leaves every global RNG as it was
             torch.manual_seed(seed)
             a = self.concentration.double().cpu()
             g = torch._standard_gamma(a.clamp(min=1e-300)) * (a > 0)

@@ -244,8 +244,9 @@ class SalienceReward:
         self._visits, self._arrivals, self._ends = visits, arrivals, ends
         self.num_episodes = count
         self._device_cache.clear()
-        if pairs:
-            self._arrival_pairs = (torch.cat([p[0] for p in pairs]), torch.cat([p[1] for p in pairs]))
+        empty = torch.zeros(0, dtype=torch.int64)
+        self._arrival_pairs = ((torch.cat([p[0] for p in pairs]), torch.cat([p[1] for p in pairs]))
+                               if pairs else (empty, empty))   # a refit replaces everything
         return self
 
     @property

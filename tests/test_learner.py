@@ -12,7 +12,7 @@ from himit_torch.backups import confident_mentor, dirichlet_value_moments
 from himit_torch.learner import AGENTS, Learner, LearnerConfig
 from himit_torch.mentor import mentor_policy, record_demonstrations
 from himit_torch.option_models import option_models
-from himit_torch.options import learner_options, mentor_options, primitive_options
+from himit_torch.options import Options, learner_options, mentor_options, primitive_options
 from himit_torch.planning import smdp_value_iteration
 from himit_torch.rng import seed_streams, splitmix64, uniforms
 from himit_torch.world import MultiRooms
@@ -617,3 +617,109 @@ def test_match_mentor_choice_picks_an_option_reproducing_the_mentors_move(world8
         assert scores[first_action] == pytest.approx(max(scores)), (s, scores, first_action)
         checked += 1
     assert checked > 0
+
+
+class ChainWorld:
+    """A 5-state corridor, not a MultiRooms: action 1 moves right, 0 left; the right end is the
+    goal (+1), every other step −0.1. No state_reward, no generator argument: just the
+    TabularWorld protocol."""
+
+    num_states, num_actions, start_state, gamma = 5, 2, 0, 0.9
+
+    @property
+    def terminal_mask(self):
+        return torch.tensor([False, False, False, False, True])
+
+    def step(self, positions, actions, uniforms):
+        nxt = (positions + torch.where(actions == 1, 1, -1)).clamp(0, 4)
+        return nxt, torch.where(nxt == 4, 1.0, -0.1).double()
+
+
+def chain_options() -> Options:
+    usable = torch.tensor([True, True, True, True, False])
+    return Options(initiation=usable[None].repeat(2, 1), termination=torch.ones(2, 5),
+                   policy=torch.tensor([[0] * 5, [1] * 5]), names=("left", "right"),
+                   kinds=("primitive", "primitive"))
+
+
+def test_learner_runs_on_any_tabular_world():
+    world = ChainWorld()
+    learner = Learner(world, chain_options(), ["options", "primitives"], [0, 1],
+                      config=LearnerConfig(window=100))
+    learner.run(2000)
+    assert bool((learner.goals > 50).all())
+    # the greedy option everywhere is "right" (option 1), and the values are the chain's:
+    # V(3) = 1, V(2) = −0.1 + 0.9·1, …
+    assert learner.greedy_options()[:, :4].eq(1).all()
+    expected = torch.tensor([-0.1 + 0.9 * (-0.1 + 0.9 * (-0.1 + 0.9)), -0.1 + 0.9 * (-0.1 + 0.9),
+                             -0.1 + 0.9, 1.0], dtype=torch.float64)
+    learner.plan()
+    assert torch.allclose(learner.state_values()[:, :4], expected.expand(2, -1), atol=0.05)
+    assert len(learner.greedy_trajectory(0, max_steps=50)) == 5
+    # an imitating run on this world needs a reward module (it has no state_reward)
+    with pytest.raises(ValueError, match="no state_reward"):
+        Learner(world, chain_options(), ["imitation"], [0])
+
+
+def test_terminal_states_keep_value_zero_even_with_demonstrations_through_the_goal(world8):
+    """Demonstrations fed as one continuous stream contain 'moves' out of the goal; they are
+    not the mentor's moves and must not give the goal a value."""
+    mentor = mentor_policy(world8, mentor_options(world8))
+    demos = record_demonstrations(world8, mentor, 5, seed=0)
+
+    class Stream:
+        def transitions(self):
+            states = torch.cat(list(demos.episodes))
+            return states[:-1], states[1:]
+    learner = Learner(world8, learner_options(world8), ["imitation"], [0], demonstrations=Stream())
+    learner.run(1000)
+    learner.plan()
+    assert float(learner.state_values()[0, world8.goal_state]) == 0.0
+    assert float(learner.state_values()[0].max()) <= 1.0
+
+
+def test_stochastic_policy_options_run_match_and_draw(world8, demos8):
+    """Options with [O, S, A] policies (what Options.concat makes of a mix) go through the
+    sampling path of step, mentor_choice='match' still finds the primitives, and greedy
+    trajectories sample actions."""
+    base = learner_options(world8)
+    usable = world8.free_mask & ~world8.terminal_mask
+    walk = Options.from_policy(usable, torch.full((world8.num_states, 4), 0.25),
+                               termination=torch.full((world8.num_states,), 0.5), name="random walk")
+    options = base + walk
+    assert options.stochastic
+    learner = Learner(world8, options, ["imitation", "options"], [0, 1], demonstrations=demos8,
+                      config=LearnerConfig(mentor_choice="match"))
+    assert bool((learner.primitive_rows[world8.start_state] < learner.num_rows).all())
+    learner.run(3000)
+    assert bool((learner.goals > 0).all())
+    path = learner.greedy_trajectory(0, max_steps=200)
+    assert int(path[0]) == world8.start_state and len(path) > 1
+
+
+def test_an_option_that_never_terminates_is_stopped(world8):
+    """max_option_steps: a run whose option could loop forever still makes decisions."""
+    usable = world8.free_mask & ~world8.terminal_mask
+    north = Options.from_policy(usable, torch.zeros(world8.num_states, dtype=torch.int64),
+                                termination=torch.zeros(world8.num_states), name="north forever")
+    learner = Learner(world8, north, ["options"], [0], config=LearnerConfig(max_option_steps=50))
+    learner.run(1000)
+    assert int(learner.decisions[0]) == 1000 // 50
+
+
+def test_state_dict_round_trip_in_process(world8, demos8):
+    config = LearnerConfig(plan_every=4, window=500)
+    a = Learner(world8, learner_options(world8), ["imitation", "options"], [0, 1], config=config,
+                demonstrations=demos8)
+    a.run(1700)
+    b = Learner(world8, learner_options(world8), ["imitation", "options"], [0, 1], config=config,
+                demonstrations=demos8)
+    b.run(650)
+    c = Learner(world8, learner_options(world8), ["imitation", "options"], [0, 1], config=config,
+                demonstrations=demos8)
+    c.load_state_dict(b.state_dict())
+    c.run(1050)
+    assert torch.equal(a.values, c.values) and torch.equal(a.metrics.curve(), c.metrics.curve())
+    with pytest.raises(ValueError, match="does not match"):
+        Learner(world8, learner_options(world8), ["options", "options"], [0, 1], config=config,
+                demonstrations=demos8).load_state_dict(b.state_dict())

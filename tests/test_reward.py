@@ -310,3 +310,16 @@ def test_intrinsic_reward_alone_reaches_the_goal(world8, demos8):
     # Its values are far above anything real (V* ≤ 1 everywhere), the cycle-safe ones are not.
     values = learner.state_values()
     assert (values[4:].max(1).values > 2).all() and (values[:4].max() <= 1.0)
+
+
+def test_salience_refit_replaces_the_previous_fit():
+    """A refit on a mentor that never moves leaves no arrivals from the earlier fit."""
+    from himit_torch import Demonstrations, MultiRooms, SalienceReward, mentor_options, mentor_policy
+    from himit_torch import record_demonstrations
+    world = MultiRooms(8, 2)
+    demos = record_demonstrations(world, mentor_policy(world, mentor_options(world)), 2, seed=0)
+    module = SalienceReward(world, demos)
+    assert float(module.salience_map().abs().sum()) > 0
+    still = Demonstrations([torch.tensor([world.start_state])], world)
+    module.fit(still)
+    assert float(module.salience_map().abs().sum()) == 0.0

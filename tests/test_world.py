@@ -85,10 +85,6 @@ def test_ten_rooms_have_one_doorway_per_segment():
     assert (len(corner), len(edge), len(inner)) == (2, 3, 4)
 
 
-def test_is_a_tabular_world(world6):
-    assert isinstance(world6, TabularWorld)
-
-
 def test_describe_round_trip():
     world = MultiRooms(size=8, rooms=2, slip=0.2, closed_doorways=[(2, 4)], start=(1, 1))
     again = MultiRooms.from_description(world.describe())
