@@ -350,8 +350,8 @@ differ.)*
 
 **The sound intrinsic reward did better than the known reward.** Over 100,000 steps the
 `intrinsic` runs reached the goal 965 times on average (959–968 per seed) against 891 (814–936)
-with the known reward, and ended at 51.8 goals per 5000 steps against 48.5 (the optimum is
-53.2). Their first goals came as early (mean step 3524 vs 3336; seed 0 found it at the same
+with the known reward, and ended at 51.8 goals per 5000 steps against 48.5 (the exact optimum is
+54.7; the paper says ≈ 53.2). Their first goals came as early (mean step 3524 vs 3336; seed 0 found it at the same
 step, 876). Salience is not the reason: what differs is the *level* of `R_m` against the real
 reward.
 
