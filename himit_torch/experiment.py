@@ -143,6 +143,13 @@ EXPERIMENTS: dict[str, ExperimentConfig] = {
 }
 
 
+def _refuse_unknown_fields(data: dict, cls, where: str) -> None:
+    known = {f.name for f in fields(cls)}
+    unknown = sorted(set(data) - known)
+    if unknown:
+        raise ValueError(f"{where}: unknown fields {unknown}; known: {sorted(known)}")
+
+
 def load_config(path: str | os.PathLike) -> ExperimentConfig:
     """An :class:`ExperimentConfig` from a JSON file (as saved in a run directory)."""
     path = Path(path)
@@ -154,17 +161,11 @@ def load_config(path: str | os.PathLike) -> ExperimentConfig:
         raise ValueError(f"config file {path} is not valid JSON: {err}") from None
     if not isinstance(data, dict):
         raise ValueError(f"config file {path} must hold a JSON object")
-    known = {f.name for f in fields(ExperimentConfig)}
-    unknown = sorted(set(data) - known)
-    if unknown:
-        raise ValueError(f"config file {path}: unknown fields {unknown}; known: {sorted(known)}")
+    _refuse_unknown_fields(data, ExperimentConfig, f"config file {path}")
     learner = data.get("learner", {})
     if not isinstance(learner, dict):
         raise ValueError(f"config file {path}: 'learner' must be an object")
-    lknown = {f.name for f in fields(LearnerConfig)}
-    lunknown = sorted(set(learner) - lknown)
-    if lunknown:
-        raise ValueError(f"config file {path}: unknown learner fields {lunknown}; known: {sorted(lknown)}")
+    _refuse_unknown_fields(learner, LearnerConfig, f"config file {path}: learner")
     try:
         data["learner"] = LearnerConfig(**learner)
         return ExperimentConfig(**data)
