@@ -19,11 +19,6 @@ from himit_torch.world import MultiRooms
 
 
 @pytest.fixture(scope="module")
-def world8() -> MultiRooms:
-    return MultiRooms(8, 2)
-
-
-@pytest.fixture(scope="module")
 def world12() -> MultiRooms:
     return MultiRooms(12, 2)
 

@@ -228,11 +228,6 @@ class ConstantReward:
 
 
 @pytest.fixture(scope="module")
-def world8() -> MultiRooms:
-    return MultiRooms(8, 2)
-
-
-@pytest.fixture(scope="module")
 def demos8(world8):
     return record_demonstrations(world8, mentor_options(world8), episodes=10, seed=0)
 
