@@ -10,12 +10,12 @@ from .demonstrations import DEMONSTRATIONS_FORMAT_VERSION, Demonstrations
 from .mentor import MentorPolicy, MentorRollout, mentor_policy, record_demonstrations, run_mentor
 from .gym_env import ENV_ID, MultiRoomsEnv, register_envs
 from .learner import AGENTS, Learner, LearnerConfig
-from .models import DirichletMentorModel, DirichletSMDPModel, EdgeIndex, SuccessorDirichlet
-from .option_models import OptionModels, option_durations, option_models
+from .dirichlet_models import DirichletMentorModel, DirichletSMDPModel, EdgeIndex, SuccessorDirichlet
+from .exact_option_models import OptionModels, option_durations, option_models
 from .options import (Options, corner_options, doorway_options, learner_options, mentor_options,
                       primitive_options)
-from .planner import BlockPriorityQueue
-from .planning import (PlanResult, expected_steps, greedy_option_policy, smdp_value_iteration,
+from .sweep_queue import BlockPriorityQueue
+from .exact_planning import (PlanResult, expected_steps, greedy_option_policy, smdp_value_iteration,
                        value_iteration)
 from .reward import SALIENCE_EVENTS, KnownReward, MentorReward, SalienceReward
 from .world import STIMULUS_FEATURES, MultiRooms, TabularWorld

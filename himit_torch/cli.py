@@ -30,9 +30,9 @@ import torch
 
 from .mentor import mentor_policy, run_mentor
 from .demonstrations import Demonstrations
-from .option_models import option_durations, option_models
+from .exact_option_models import option_durations, option_models
 from .options import Options, learner_options, mentor_options, primitive_options
-from .planning import expected_steps, smdp_value_iteration
+from .exact_planning import expected_steps, smdp_value_iteration
 from .world import MultiRooms
 
 __all__ = ["main", "build_parser", "COMMANDS"]

@@ -28,9 +28,9 @@ import torch
 
 from .learner import AGENTS, Learner, LearnerConfig
 from .mentor import mentor_policy, record_demonstrations
-from .option_models import option_durations, option_models
+from .exact_option_models import option_durations, option_models
 from .options import learner_options, mentor_options, primitive_options
-from .planning import expected_steps, smdp_value_iteration
+from .exact_planning import expected_steps, smdp_value_iteration
 from .world import MultiRooms
 
 __all__ = ["ExperimentConfig", "EXPERIMENTS", "run_experiment", "load_config", "WorldResult",

@@ -27,9 +27,9 @@ from typing import Sequence
 
 import torch
 
-from .models import DirichletMentorModel, DirichletSMDPModel
+from .dirichlet_models import DirichletMentorModel, DirichletSMDPModel
 from .options import Options
-from .planner import BlockPriorityQueue
+from .sweep_queue import BlockPriorityQueue
 from .reward import KnownReward
 from .rng import seed_streams, uniforms
 

@@ -13,9 +13,9 @@ from dataclasses import dataclass
 import torch
 
 from .demonstrations import Demonstrations
-from .option_models import option_models
+from .exact_option_models import option_models
 from .options import Options
-from .planning import greedy_option_policy, smdp_value_iteration
+from .exact_planning import greedy_option_policy, smdp_value_iteration
 from .world import MultiRooms
 
 __all__ = ["MentorPolicy", "MentorRollout", "mentor_policy", "run_mentor", "record_demonstrations"]

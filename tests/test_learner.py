@@ -11,9 +11,9 @@ import torch
 from himit_torch.backups import confident_mentor, dirichlet_value_moments
 from himit_torch.learner import AGENTS, Learner, LearnerConfig
 from himit_torch.mentor import mentor_policy, record_demonstrations
-from himit_torch.option_models import option_models
+from himit_torch.exact_option_models import option_models
 from himit_torch.options import Options, learner_options, mentor_options, primitive_options
-from himit_torch.planning import smdp_value_iteration
+from himit_torch.exact_planning import smdp_value_iteration
 from himit_torch.rng import seed_streams, splitmix64, uniforms
 from himit_torch.world import MultiRooms
 
@@ -449,8 +449,8 @@ def test_every_agent_converges_near_the_optimal_rate(world8, demos8):
     """After 15,000 steps every agent reaches the goal at ≥ 90 % of the optimal policy's rate
     (window / expected steps of the optimal policy, :func:`expected_steps`; the same for
     primitives-only and with doorway options in this world), mean of 3 seeds."""
-    from himit_torch.option_models import option_durations
-    from himit_torch.planning import expected_steps
+    from himit_torch.exact_option_models import option_durations
+    from himit_torch.exact_planning import expected_steps
     opts = learner_options(world8)
     plan = smdp_value_iteration(option_models(world8, opts))
     steps = expected_steps(option_durations(world8, opts), plan.policy, world8.start_state,

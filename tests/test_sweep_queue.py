@@ -3,7 +3,7 @@
 import pytest
 import torch
 
-from himit_torch.planner import BlockPriorityQueue
+from himit_torch.sweep_queue import BlockPriorityQueue
 
 CPU = torch.device("cpu")
 

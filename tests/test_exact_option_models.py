@@ -5,7 +5,7 @@ from dataclasses import dataclass
 import pytest
 import torch
 
-from himit_torch.option_models import OptionModels, option_durations, option_models
+from himit_torch.exact_option_models import OptionModels, option_durations, option_models
 from himit_torch.options import Options, doorway_options, primitive_options
 from himit_torch.world import MultiRooms
 

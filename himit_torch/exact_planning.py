@@ -17,7 +17,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 import torch
 
-from .option_models import OptionModels
+from .exact_option_models import OptionModels
 
 __all__ = ["value_iteration", "smdp_value_iteration", "PlanResult", "expected_steps",
            "greedy_option_policy"]

@@ -8,9 +8,9 @@ import pytest
 import scipy.stats
 import torch
 
-from himit_torch.models import (DirichletMentorModel, DirichletSMDPModel, EdgeIndex,
+from himit_torch.dirichlet_models import (DirichletMentorModel, DirichletSMDPModel, EdgeIndex,
                                 SuccessorDirichlet)
-from himit_torch.option_models import option_models
+from himit_torch.exact_option_models import option_models
 from himit_torch.options import learner_options
 from himit_torch.world import MultiRooms
 
