@@ -18,13 +18,13 @@ from .sweep_queue import BlockPriorityQueue
 from .exact_planning import (PlanResult, expected_steps, greedy_option_policy, smdp_value_iteration,
                        value_iteration)
 from .reward import SALIENCE_EVENTS, KnownReward, MentorReward, SalienceReward
-from .world import STIMULUS_FEATURES, MultiRooms, TabularWorld
+from .world import STIMULUS_FEATURES, DynamicsTable, MultiRooms, TabularWorld
 
 __version__ = "0.1.0"
 
 __all__ = [
     # worlds
-    "MultiRooms", "TabularWorld", "MultiRoomsEnv", "register_envs", "ENV_ID",
+    "MultiRooms", "TabularWorld", "DynamicsTable", "MultiRoomsEnv", "register_envs", "ENV_ID",
     # options and their exact models
     "Options", "primitive_options", "doorway_options", "corner_options", "learner_options",
     "mentor_options", "OptionModels", "option_models", "option_durations",

@@ -15,7 +15,8 @@ from typing import Iterable, Mapping, Protocol, runtime_checkable
 import numpy as np
 import torch
 
-__all__ = ["MultiRooms", "TabularWorld", "ACTION_NAMES", "ACTION_DELTAS", "STIMULUS_FEATURES"]
+__all__ = ["MultiRooms", "TabularWorld", "DynamicsTable", "ACTION_NAMES", "ACTION_DELTAS",
+           "STIMULUS_FEATURES"]
 
 #: Primitive actions: 0 = north (row − 1), 1 = south, 2 = west (col − 1), 3 = east.
 ACTION_NAMES = ("N", "S", "W", "E")
@@ -48,6 +49,47 @@ class TabularWorld(Protocol):
              ) -> tuple[torch.Tensor, torch.Tensor]:
         """``positions [B], actions [B], uniforms [B] in [0, 1)`` → ``(next [B], reward [B])``."""
         ...
+
+
+@dataclass(frozen=True)
+class DynamicsTable:
+    """A world's one-step dynamics as a table, the form the compiled engine reads.
+
+    Executing action ``a`` in state ``s`` with the uniform ``u`` gives successor
+    ``successors[s, a, k]`` and reward ``rewards[s, a, k]`` for the first slot ``k`` with
+    ``u < cdf[s, a, k]`` (``cdf`` non-decreasing along ``k``, its last entry 1). A world whose
+    ``dynamics_table()`` returns one must step exactly by :meth:`step` (MultiRooms does), so that
+    every engine draws the same successors from the same uniforms.
+
+    Shapes: ``successors [S, A, K]`` int64, ``cdf [S, A, K]`` float64, ``rewards [S, A, K]``
+    float64 (a reward per transition ``(s, a, s')``).
+    """
+
+    successors: torch.Tensor
+    cdf: torch.Tensor
+    rewards: torch.Tensor
+
+    def __post_init__(self):
+        if not (self.successors.shape == self.cdf.shape == self.rewards.shape) or self.cdf.dim() != 3:
+            raise ValueError(f"DynamicsTable: successors {tuple(self.successors.shape)}, cdf "
+                             f"{tuple(self.cdf.shape)} and rewards {tuple(self.rewards.shape)} must "
+                             "share one shape [S, A, K]")
+        if not bool(torch.isfinite(self.rewards).all()):
+            raise ValueError("DynamicsTable: rewards must be finite")
+        if bool((self.cdf.diff(dim=-1) < 0).any()) or not bool((self.cdf[..., -1] == 1.0).all()):
+            raise ValueError("DynamicsTable: cdf must be non-decreasing along its last axis and end at 1")
+
+    def step(self, positions: torch.Tensor, actions: torch.Tensor, uniforms: torch.Tensor
+             ) -> tuple[torch.Tensor, torch.Tensor]:
+        """``positions [B], actions [B], uniforms [B]`` → ``(next [B] int64, reward [B] float64)``."""
+        cdf = self.cdf[positions, actions]                                         # [B, K]
+        slot = (cdf <= uniforms.to(torch.float64)[:, None]).sum(1).clamp(max=cdf.shape[1] - 1)
+        flat = (positions * self.cdf.shape[1] + actions) * self.cdf.shape[2] + slot
+        return (self.successors.view(-1).index_select(0, flat),
+                self.rewards.view(-1).index_select(0, flat))
+
+    def to(self, device: torch.device | str) -> "DynamicsTable":
+        return DynamicsTable(self.successors.to(device), self.cdf.to(device), self.rewards.to(device))
 
 
 @dataclass(frozen=True)
@@ -103,7 +145,7 @@ class MultiRooms:
         is replaced by one of the *other three* directions, uniformly (so each other direction has
         probability ``slip / 3``). A move into a wall or off the grid leaves the agent in place.
         One uniform number ``u`` per step decides both: ``u < slip`` slips, to the direction
-        ``(a + 1 + ⌊3u / slip⌋) mod 4``.
+        ``(a + 1 + k) mod 4`` for ``k·slip/3 ≤ u < (k+1)·slip/3``.
 
     Rewards
         ``step_reward`` (−0.01) for entering any state but the goal, ``goal_reward`` (+1.0) for
@@ -166,7 +208,8 @@ class MultiRooms:
                              "choose two different free cells")
         self._next = self._successor_table()
         self._check_reachable()
-        self._tables: dict[torch.device, tuple[torch.Tensor, torch.Tensor]] = {}
+        self._tables: dict[torch.device, DynamicsTable] = {}
+        self._table: DynamicsTable | None = None
         self._transition: torch.Tensor | None = None   # built on first use; the world is immutable
         self._stimuli: dict[str, torch.Tensor] = {}    # perception only: never used by the dynamics
         for name, values in (stimuli or {}).items():
@@ -300,41 +343,52 @@ class MultiRooms:
                 f"closed_doorways={len(self.closed_doorways)})")
 
     # ----------------------------------------------------------------------------- dynamics
-    def _device_tables(self, device: torch.device) -> tuple[torch.Tensor, torch.Tensor]:
-        tables = self._tables.get(device)
-        if tables is None:
-            tables = (self.next_state_table.to(device), self.state_reward.to(device))
-            self._tables[device] = tables
-        return tables
-
     def slipped_actions(self, actions: torch.Tensor, uniforms: torch.Tensor) -> torch.Tensor:
-        """The action actually executed, given the chosen ``actions [B]`` and ``uniforms [B]``."""
-        if self.slip == 0.0:
-            return actions
-        offset = (uniforms * (3.0 / self.slip)).long().clamp_(max=2) + 1
-        return torch.where(uniforms < self.slip, (actions + offset) % 4, actions)
+        """The action actually executed, given the chosen ``actions [B]`` and ``uniforms [B]``
+        (the slot rule of :meth:`dynamics_table`)."""
+        cdf = self.dynamics_table().cdf[0, 0].to(uniforms.device)
+        slot = (cdf <= uniforms.to(torch.float64)[:, None]).sum(1).clamp(max=3)
+        return torch.where(slot < 3, (actions + 1 + slot) % 4, actions)
+
+    def dynamics_table(self) -> DynamicsTable:
+        """The dynamics as a :class:`DynamicsTable`: slot ``k < 3`` is the slip to direction
+        ``(a + 1 + k) mod 4`` (``cdf`` steps of ``slip / 3``), slot 3 the chosen action."""
+        if self._table is None:
+            nxt = torch.from_numpy(self._next)
+            actions = torch.arange(4)
+            dirs = torch.stack([(actions + 1 + k) % 4 for k in range(3)] + [actions], 1)  # [A, K]
+            successors = nxt[:, dirs]                                                  # [S, A, K]
+            cdf = torch.tensor([self.slip / 3, 2 * self.slip / 3, self.slip, 1.0], dtype=torch.float64)
+            self._table = DynamicsTable(successors.contiguous(),
+                                        cdf.expand_as(successors).contiguous(),
+                                        self.state_reward[successors].contiguous())
+        return self._table
+
+    def _device_table(self, device: torch.device) -> DynamicsTable:
+        table = self._tables.get(device)
+        if table is None:
+            table = self._tables[device] = self.dynamics_table().to(device)
+        return table
 
     def step(self, positions: torch.Tensor, actions: torch.Tensor,
              uniforms: torch.Tensor | None = None, generator: torch.Generator | None = None
              ) -> tuple[torch.Tensor, torch.Tensor]:
-        """Advance ``B`` agents one primitive step.
+        """Advance ``B`` agents one primitive step (by :meth:`dynamics_table`).
 
         Args:
             positions: ``[B]`` int64 current states.
             actions: ``[B]`` int64 chosen actions in ``0…3``.
-            uniforms: ``[B]`` floats in [0, 1) that decide slips; drawn from ``generator`` if
-                omitted.
+            uniforms: ``[B]`` floats in [0, 1) that decide slips (``u < slip`` slips to direction
+                ``(a + 1 + k) mod 4`` for ``k·slip/3 ≤ u < (k+1)·slip/3``); drawn from
+                ``generator`` if omitted.
             generator: a ``torch.Generator`` on the positions' device.
 
         Returns:
             ``(next_positions [B] int64, rewards [B] float64)``.
         """
-        next_table, reward = self._device_tables(positions.device)
         if uniforms is None:
             uniforms = torch.rand(positions.shape, generator=generator, device=positions.device)
-        executed = self.slipped_actions(actions, uniforms)
-        nxt = next_table[positions, executed]
-        return nxt, reward[nxt]
+        return self._device_table(positions.device).step(positions, actions, uniforms)
 
     # ----------------------------------------------------------------------------- true model
     def transition_model(self, sparse: bool = True) -> torch.Tensor:
