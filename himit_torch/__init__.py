@@ -10,7 +10,7 @@ from .demonstrations import DEMONSTRATIONS_FORMAT_VERSION, Demonstrations
 from .mentor import MentorPolicy, MentorRollout, mentor_policy, record_demonstrations, run_mentor
 from .gym_env import ENV_ID, MultiRoomsEnv, register_envs
 from .learner import AGENTS, Learner, LearnerConfig
-from .dirichlet_models import DirichletMentorModel, DirichletSMDPModel, EdgeIndex, SuccessorDirichlet
+from .dirichlet_models import DirichletMentorModel, DirichletSMDPModel, EdgeStore, SuccessorDirichlet
 from .exact_option_models import OptionModels, option_durations, option_models
 from .options import (Options, corner_options, doorway_options, learner_options, mentor_options,
                       primitive_options)
@@ -33,7 +33,7 @@ __all__ = [
     "PlanResult",
     # the learner
     "Learner", "LearnerConfig", "AGENTS", "DirichletSMDPModel", "DirichletMentorModel",
-    "SuccessorDirichlet", "EdgeIndex", "BlockPriorityQueue", "backups",
+    "SuccessorDirichlet", "EdgeStore", "BlockPriorityQueue", "backups",
     # mentor and demonstrations
     "MentorPolicy", "MentorRollout", "mentor_policy", "run_mentor", "record_demonstrations",
     "Demonstrations", "DEMONSTRATIONS_FORMAT_VERSION",

@@ -1,18 +1,19 @@
-"""Dirichlet-count models of options (SMDP) and of the mentor, for a batch of ``B`` runs.
+"""Dirichlet-count models of options (SMDP) and of the mentor, one per run of a batch of ``B``.
 
-Storage grows with the transitions actually seen, never with ``S²``:
-
-* a batch-shared **edge index**: every ``(row, successor)`` pair that *some* run has observed gets
-  one edge id ``e`` (``edge_row[e]``, ``edge_successor[e]``), listed under its row (forward table
-  ``[rows, K]``) and under its successor (reverse table ``[S, P]``);
-* **per-run statistics** over edge ids: ``count [B, E]`` (Dirichlet counts) and
-  ``discount [B, E]`` (summed ``γ^k``, the multi-time weights), plus per-row counts and rewards.
-
-``K`` (successors per row) and ``P`` (predecessor edges per state) start small and double when a
-row or state needs more (never silently dropped); ``E`` doubles likewise.
+Storage grows with the transitions each run has seen, never with ``S²``. Each run keeps a list of
+the ``(row, successor)`` **edges** it has observed — ``edge_row [B, E]``, ``edge_successor [B, E]``
+and the Dirichlet counts ``edge_count [B, E]`` (plus, for options, the summed ``γ^k`` per edge,
+the multi-time weights) — with edge ids ``0 … num_edges[b] − 1`` given in the order run ``b``
+first saw them. So a run's model, and every number computed from it, is the same in any batch.
+The capacity ``E`` doubles when a run needs more (nothing is ever dropped).
 
 A "row" is whatever is being modelled: an available ``(s, o)`` pair for the option model, a state
-for the mentor model. Rows are shared by the batch.
+for the mentor model. Rows are numbered by the learner's row table and shared by the batch.
+
+The edge lists are the state. Lookups go through an index derived from them:
+:class:`DenseEdgeIndex` (padded per-run forward and reverse tables, for batched tensor ops) here;
+the compiled engine builds linked lists of its own. An index rebuilds itself when the lists
+changed under it (``EdgeStore.version``).
 
 The posterior over a row's successors is a Dirichlet with the observed counts plus a prior
 ``concentration`` placed on one lumped "unseen successor" outcome, valued at the prior value (the
@@ -26,132 +27,199 @@ from dataclasses import dataclass
 
 import torch
 
-__all__ = ["EdgeIndex", "SuccessorDirichlet", "DirichletSMDPModel", "DirichletMentorModel"]
+__all__ = ["EdgeStore", "DenseEdgeIndex", "SuccessorDirichlet", "DirichletSMDPModel",
+           "DirichletMentorModel"]
 
 
-class EdgeIndex:
-    """Batch-shared index of observed ``(row, successor)`` edges, with growth on overflow."""
+def _grow_columns(tensor: torch.Tensor, capacity: int, fill=0) -> torch.Tensor:
+    grown = torch.full((tensor.shape[0], capacity), fill, dtype=tensor.dtype, device=tensor.device)
+    grown[:, :tensor.shape[1]] = tensor
+    return grown
 
-    def __init__(self, num_rows: int, num_states: int, device: torch.device,
-                 width: int = 8, fan_in: int = 16, capacity: int = 4096):
-        self.num_rows, self.num_states, self.device = num_rows, num_states, device
-        self.num_edges = 0
-        self.edge_row = torch.full((capacity,), -1, dtype=torch.int64, device=device)
-        self.edge_successor = torch.full((capacity,), -1, dtype=torch.int64, device=device)
-        # Forward: edges of each row (−1 = empty). One extra row (index num_rows) stays empty so
-        # that padded row ids can be gathered safely.
-        self.forward = torch.full((num_rows + 1, width), -1, dtype=torch.int64, device=device)
-        self.forward_len = torch.zeros(num_rows + 1, dtype=torch.int64, device=device)
-        # Reverse: edges ending in each state (−1 = empty); extra state for padding.
-        self.reverse = torch.full((num_states + 1, fan_in), -1, dtype=torch.int64, device=device)
-        self.reverse_len = torch.zeros(num_states + 1, dtype=torch.int64, device=device)
-        self.on_grow = []  # callbacks(new_capacity) for per-run arrays over edges
 
-    _STATE = ("edge_row", "edge_successor", "forward", "forward_len", "reverse", "reverse_len")
+class DenseEdgeIndex:
+    """Per-run forward (edges of each row) and reverse (edges into each state) tables of an
+    :class:`EdgeStore`, padded with −1: ``forward [B, R + 1, K]``, ``reverse [B, S + 1, P]``.
+    ``K`` and ``P`` double when a row or a state needs more room. Derived: never saved."""
 
-    def state_dict(self) -> dict:
-        out = {name: getattr(self, name).clone() for name in self._STATE}
-        out["num_edges"] = self.num_edges
-        return out
+    def __init__(self, store: "EdgeStore", width: int = 8, fan_in: int = 16):
+        B, dev = store.batch, store.device
+        self.store = store
+        self.forward = torch.full((B, store.num_rows + 1, width), -1, dtype=torch.int64, device=dev)
+        self.forward_len = torch.zeros(B, store.num_rows + 1, dtype=torch.int64, device=dev)
+        self.reverse = torch.full((B, store.num_states + 1, fan_in), -1, dtype=torch.int64, device=dev)
+        self.reverse_len = torch.zeros(B, store.num_states + 1, dtype=torch.int64, device=dev)
+        runs = torch.arange(B, device=dev)[:, None].expand(-1, store.capacity)
+        valid = torch.arange(store.capacity, device=dev) < store.num_edges[:, None]
+        self.append(runs[valid], torch.arange(store.capacity, device=dev).expand(B, -1)[valid])
+        self.version = store.version
 
-    def load_state_dict(self, state: dict) -> None:
-        for name in self._STATE:
-            setattr(self, name, state[name].to(self.device).clone())
-        self.num_edges = int(state["num_edges"])
+    def append(self, runs: torch.Tensor, edges: torch.Tensor) -> None:
+        """List new edges ``(runs[i], edges[i])`` (ascending ids within a run) in both tables."""
+        if edges.numel() == 0:
+            return
+        st = self.store
+        rows = st.edge_row[runs, edges]
+        succ = st.edge_successor[runs, edges]
+        self.forward = self._append(self.forward, self.forward_len, runs, rows, edges)
+        self.reverse = self._append(self.reverse, self.reverse_len, runs, succ, edges)
 
-    @property
-    def capacity(self) -> int:
-        return self.edge_row.shape[0]
+    @staticmethod
+    def _append(table, lengths, runs, owners, ids):
+        # Rank of each id within its (run, owner) group, groups in id order.
+        key = runs * table.shape[1] + owners
+        order = torch.argsort(key * (ids.max() + 1) + ids)
+        key, ids_sorted = key[order], ids[order]
+        first = torch.ones_like(key, dtype=torch.bool)
+        first[1:] = key[1:] != key[:-1]
+        idx = torch.arange(key.numel(), device=key.device)
+        rank = idx - torch.cummax(torch.where(first, idx, torch.zeros_like(idx)), 0).values
+        flat_len = lengths.view(-1)
+        pos = flat_len.index_select(0, key) + rank
+        need = int(pos.max()) + 1
+        if need > table.shape[2]:
+            width = table.shape[2]
+            while width < need:
+                width *= 2
+            grown = torch.full(table.shape[:2] + (width,), -1, dtype=table.dtype, device=table.device)
+            grown[:, :, :table.shape[2]] = table
+            table = grown
+        table.view(-1).index_put_((key * table.shape[2] + pos,), ids_sorted)
+        flat_len.index_add_(0, key, torch.ones_like(key))
+        return table
 
-    @property
-    def width(self) -> int:
-        return self.forward.shape[1]
+    def find(self, runs: torch.Tensor, rows: torch.Tensor, successors: torch.Tensor) -> torch.Tensor:
+        """Edge ids of ``(runs[i], rows[i], successors[i])``, −1 where not seen."""
+        cand = self.forward[runs, rows]                                          # [n, K]
+        succ = self.store.edge_successor[runs[:, None], cand.clamp(min=0)]
+        match = (succ == successors[:, None]) & (cand >= 0)
+        return torch.where(match.any(1), cand.gather(1, match.long().argmax(1, keepdim=True))[:, 0],
+                           torch.full_like(rows, -1))
 
-    @property
-    def fan_in(self) -> int:
-        return self.reverse.shape[1]
-
-    def incoming(self, states: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """All edges ending in ``states [n]``: ``(owner [T], edge [T])`` where ``owner`` indexes
-        ``states``. Gathers only the ``Σ fan-in`` real entries, not ``n × P`` padded ones."""
-        lengths = self.reverse_len.index_select(0, states)
+    def incoming(self, runs: torch.Tensor, states: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """All edges of ``runs[i]`` ending in ``states[i]``: ``(owner [T], edge [T])`` where
+        ``owner`` indexes the inputs, in input order and, within one input, ascending edge ids.
+        Gathers only the ``Σ fan-in`` real entries, not ``n × P`` padded ones."""
+        flat = runs * self.reverse.shape[1] + states
+        lengths = self.reverse_len.view(-1).index_select(0, flat)
         total = int(lengths.sum())
         owner = torch.repeat_interleave(torch.arange(states.numel(), device=states.device),
                                         lengths, output_size=total)
         ends = lengths.cumsum(0)
         offset = torch.arange(total, device=states.device) - (ends - lengths).index_select(0, owner)
-        flat = states.index_select(0, owner) * self.reverse.shape[1] + offset
-        return owner, self.reverse.view(-1).index_select(0, flat)
+        cells = flat.index_select(0, owner) * self.reverse.shape[2] + offset
+        return owner, self.reverse.view(-1).index_select(0, cells)
 
-    def find(self, rows: torch.Tensor, successors: torch.Tensor) -> torch.Tensor:
-        """Edge ids of ``(rows[i], successors[i])``, −1 where not indexed yet."""
-        cand = self.forward[rows]                                        # [n, K]
-        match = (self.edge_successor[cand.clamp(min=0)] == successors[:, None]) & (cand >= 0)
-        return torch.where(match.any(1), cand.gather(1, match.long().argmax(1, keepdim=True))[:, 0],
-                           torch.full_like(rows, -1))
 
-    def find_or_add(self, rows: torch.Tensor, successors: torch.Tensor) -> torch.Tensor:
-        """Edge ids of the pairs, adding the missing ones (shared by the whole batch)."""
-        ids = self.find(rows, successors)
-        missing = ids < 0
-        if bool(missing.any()):
-            self._add(rows[missing], successors[missing])
-            ids = self.find(rows, successors)
-        return ids
+class EdgeStore:
+    """Per-run lists of observed ``(row, successor)`` edges with their Dirichlet counts.
 
-    def _add(self, rows: torch.Tensor, successors: torch.Tensor) -> None:
-        S = self.num_states
-        keys = torch.unique(rows * (S + 1) + successors)                  # sorted by row
-        new_rows, new_succ = keys // (S + 1), keys % (S + 1)
-        n = keys.numel()
-        self._reserve(self.num_edges + n)
-        ids = torch.arange(self.num_edges, self.num_edges + n, device=self.device)
-        self.num_edges += n
-        self.edge_row[ids] = new_rows
-        self.edge_successor[ids] = new_succ
-        self._append(self.forward, self.forward_len, new_rows, ids, "forward")
-        order = torch.argsort(new_succ, stable=True)
-        self._append(self.reverse, self.reverse_len, new_succ[order], ids[order], "reverse")
+    Shapes: ``edge_row``, ``edge_successor`` (−1 = unused) and ``edge_count`` ``[B, E]``;
+    ``num_edges [B]``; ``row_count [B, R + 1]`` (the extra row is padding, always 0).
+    Subclasses name further per-edge arrays in ``_EDGE_FLOATS``; ``on_grow`` callbacks let
+    owners of other per-edge arrays grow with the store.
+    """
 
-    def _append(self, table, lengths, owners, ids, which):
-        # owners sorted: rank of each id within its owner group
-        first = torch.ones_like(owners, dtype=torch.bool)
-        first[1:] = owners[1:] != owners[:-1]
-        group_start = torch.cummax(torch.where(first, torch.arange(owners.numel(), device=owners.device),
-                                               torch.zeros_like(owners)), 0).values
-        rank = torch.arange(owners.numel(), device=owners.device) - group_start
-        pos = lengths[owners] + rank
-        need = int(pos.max()) + 1
-        if need > table.shape[1]:
-            width = table.shape[1]
-            while width < need:
-                width *= 2
-            grown = torch.full((table.shape[0], width), -1, dtype=table.dtype, device=table.device)
-            grown[:, :table.shape[1]] = table
-            table = grown
-            setattr(self, which, table)
-        table[owners, pos] = ids
-        lengths.index_add_(0, owners, torch.ones_like(owners))
+    _EDGE_FLOATS: tuple[str, ...] = ("edge_count",)
+    _ROW_FLOATS: tuple[str, ...] = ("row_count",)
 
-    def _reserve(self, needed: int) -> None:
+    def __init__(self, num_rows: int, num_states: int, batch: int, device, concentration: float,
+                 capacity: int = 256):
+        if batch <= 0:
+            raise ValueError(f"batch={batch}: a model needs at least one run")
+        if not concentration >= 0:
+            raise ValueError(f"concentration={concentration} must be ≥ 0 (the prior's Dirichlet mass "
+                             "on unseen successors)")
+        self.device = dev = torch.device(device)
+        self.batch, self.num_rows, self.num_states = batch, num_rows, num_states
+        self.concentration = float(concentration)
+        self.edge_row = torch.full((batch, capacity), -1, dtype=torch.int64, device=dev)
+        self.edge_successor = torch.full((batch, capacity), -1, dtype=torch.int64, device=dev)
+        for name in self._EDGE_FLOATS:
+            setattr(self, name, torch.zeros(batch, capacity, dtype=torch.float64, device=dev))
+        for name in self._ROW_FLOATS:
+            setattr(self, name, torch.zeros(batch, num_rows + 1, dtype=torch.float64, device=dev))
+        self.num_edges = torch.zeros(batch, dtype=torch.int64, device=dev)
+        self.version = 0           # bumped by every change to the edge lists
+        self.on_grow: list = []    # callbacks(new_capacity)
+        self._index: DenseEdgeIndex | None = None
+
+    @property
+    def capacity(self) -> int:
+        return self.edge_row.shape[1]
+
+    def reserve(self, needed: int) -> None:
+        """Make room for ``needed`` edges per run (capacity doubles)."""
         if needed <= self.capacity:
             return
         capacity = self.capacity
         while capacity < needed:
             capacity *= 2
-        for name in ("edge_row", "edge_successor"):
-            old = getattr(self, name)
-            new = torch.full((capacity,), -1, dtype=old.dtype, device=old.device)
-            new[:old.shape[0]] = old
-            setattr(self, name, new)
+        self.edge_row = _grow_columns(self.edge_row, capacity, -1)
+        self.edge_successor = _grow_columns(self.edge_successor, capacity, -1)
+        for name in self._EDGE_FLOATS:
+            setattr(self, name, _grow_columns(getattr(self, name), capacity))
         for callback in self.on_grow:
             callback(capacity)
 
+    def index(self) -> DenseEdgeIndex:
+        """The dense lookup tables, rebuilt if the edge lists changed without them."""
+        if self._index is None or self._index.version != self.version:
+            self._index = DenseEdgeIndex(self)
+        return self._index
 
-def _grow_columns(tensor: torch.Tensor, capacity: int) -> torch.Tensor:
-    grown = torch.zeros((tensor.shape[0], capacity), dtype=tensor.dtype, device=tensor.device)
-    grown[:, :tensor.shape[1]] = tensor
-    return grown
+    def find_or_add(self, runs: torch.Tensor, rows: torch.Tensor, successors: torch.Tensor
+                    ) -> torch.Tensor:
+        """Edge ids of ``(runs[i], rows[i], successors[i])``, adding the unseen pairs to their
+        run's list (new ids in order of first appearance within each run, by sorted key)."""
+        index = self.index()
+        ids = index.find(runs, rows, successors)
+        missing = ids < 0
+        if bool(missing.any()):
+            S1, R1 = self.num_states + 1, self.num_rows + 1
+            keys = torch.unique((runs[missing] * R1 + rows[missing]) * S1 + successors[missing])
+            new_runs, rest = keys // (R1 * S1), keys % (R1 * S1)
+            new_rows, new_succ = rest // S1, rest % S1
+            first = torch.ones_like(new_runs, dtype=torch.bool)
+            first[1:] = new_runs[1:] != new_runs[:-1]
+            idx = torch.arange(keys.numel(), device=keys.device)
+            rank = idx - torch.cummax(torch.where(first, idx, torch.zeros_like(idx)), 0).values
+            new_ids = self.num_edges.index_select(0, new_runs) + rank
+            self.reserve(int(new_ids.max()) + 1)
+            self.edge_row[new_runs, new_ids] = new_rows
+            self.edge_successor[new_runs, new_ids] = new_succ
+            self.num_edges.index_add_(0, new_runs, torch.ones_like(new_runs))
+            self.version += 1
+            index.version = self.version
+            index.append(new_runs, new_ids)
+            ids = index.find(runs, rows, successors)
+        return ids
+
+    def state_dict(self) -> dict:
+        names = ("edge_row", "edge_successor", "num_edges") + self._EDGE_FLOATS + self._ROW_FLOATS
+        return {name: getattr(self, name).clone() for name in names}
+
+    def load_state_dict(self, state: dict) -> None:
+        for name, value in state.items():
+            current = getattr(self, name)
+            if name not in ("num_edges",) and value.shape[0] != current.shape[0]:
+                raise ValueError(f"model state {name} has {value.shape[0]} runs, this model {current.shape[0]}")
+            setattr(self, name, value.to(self.device).clone())
+        self.version += 1
+        capacity = self.capacity
+        for callback in self.on_grow:
+            callback(capacity)
+
+    def posterior(self, runs: torch.Tensor, rows: torch.Tensor) -> "SuccessorDirichlet":
+        """Posterior over the successors of ``rows`` (any shape) in ``runs`` (same shape)."""
+        edge = self.index().forward[runs, rows]                              # [..., K]
+        r = runs[..., None].expand_as(edge)
+        counts = torch.where(edge >= 0, self.edge_count[r, edge.clamp(min=0)],
+                             torch.zeros((), dtype=torch.float64, device=self.device))
+        prior = torch.full(rows.shape + (1,), self.concentration, dtype=torch.float64,
+                           device=self.device)
+        succ = torch.where(edge >= 0, self.edge_successor[r, edge.clamp(min=0)], edge)
+        return SuccessorDirichlet(torch.cat([counts, prior], -1), succ)
 
 
 @dataclass(frozen=True)
@@ -198,124 +266,80 @@ class SuccessorDirichlet:
         return torch.where(total > 0, g / total.clamp(min=1e-300), torch.zeros_like(g))
 
 
-class _CountModel:
-    """Shared machinery: rows with per-run counts over a batch-shared edge index."""
-
-    def __init__(self, num_rows: int, num_states: int, batch: int, device, concentration: float,
-                 width: int, fan_in: int):
-        if batch <= 0:
-            raise ValueError(f"batch={batch}: a model needs at least one run")
-        if not concentration >= 0:
-            raise ValueError(f"concentration={concentration} must be ≥ 0 (the prior's Dirichlet mass "
-                             "on unseen successors)")
-        self.device = torch.device(device)
-        self.batch, self.num_rows, self.num_states = batch, num_rows, num_states
-        self.concentration = float(concentration)
-        self.edges = EdgeIndex(num_rows, num_states, self.device, width=width, fan_in=fan_in)
-        self.edge_count = torch.zeros(batch, self.edges.capacity, dtype=torch.float64, device=self.device)
-        self.row_count = torch.zeros(batch, num_rows + 1, dtype=torch.float64, device=self.device)
-        self.edges.on_grow.append(self._grow)
-
-    def _grow(self, capacity: int) -> None:
-        self.edge_count = _grow_columns(self.edge_count, capacity)
-
-    _STATE = ("edge_count", "row_count")
-
-    def state_dict(self) -> dict:
-        out = {name: getattr(self, name).clone() for name in self._STATE}
-        out["edges"] = self.edges.state_dict()
-        return out
-
-    def load_state_dict(self, state: dict) -> None:
-        self.edges.load_state_dict(state["edges"])
-        for name in self._STATE:
-            setattr(self, name, state[name].to(self.device).clone())
-
-    def posterior(self, runs: torch.Tensor, rows: torch.Tensor) -> SuccessorDirichlet:
-        """Posterior over the successors of ``rows`` (any shape) in ``runs`` (same shape)."""
-        edge = self.edges.forward[rows]                                  # [..., K]
-        counts = torch.where(edge >= 0, self.edge_count[runs[..., None], edge.clamp(min=0)],
-                             torch.zeros((), dtype=torch.float64, device=self.device))
-        prior = torch.full(rows.shape + (1,), self.concentration, dtype=torch.float64,
-                           device=self.device)
-        succ = torch.where(edge >= 0, self.edges.edge_successor[edge.clamp(min=0)], edge)
-        return SuccessorDirichlet(torch.cat([counts, prior], -1), succ)
-
-
-class DirichletSMDPModel(_CountModel):
+class DirichletSMDPModel(EdgeStore):
     """The learner's model of its own options, one per run: for every executed ``(s, o)`` row the
     count of each termination state, the summed ``γ^k`` per ``(s, o, s')`` and the summed
-    discounted reward (the paper's Section II, after Sutton, Precup & Singh 1999).
+    discounted reward (the paper's Section II, after Sutton, Precup & Singh 1999), and how often
+    each state started an own option (``state_tries [B, S + 1]``).
 
     Posterior means (with prior concentration ``α`` on the unseen outcome, valued ``v0``):
     ``p^o_{ss'} = Σγ^k(s,o,s') / (n + α)`` and ``r(s, o) = Σ r / n``, so that the model's value of
     an option is ``Q = (Σ r + Σ_{s'} Σγ^k V(s') + α v0) / (n + α)``.
     """
 
+    _EDGE_FLOATS = ("edge_count", "edge_discount")
+    _ROW_FLOATS = ("row_count", "row_reward")
+
     def __init__(self, num_rows: int, num_states: int, batch: int, device="cpu",
-                 concentration: float = 0.0, width: int = 8, fan_in: int = 16):
-        super().__init__(num_rows, num_states, batch, device, concentration, width, fan_in)
-        self.edge_discount = torch.zeros_like(self.edge_count)
-        self.row_reward = torch.zeros_like(self.row_count)
+                 concentration: float = 0.0, capacity: int = 256):
+        super().__init__(num_rows, num_states, batch, device, concentration, capacity)
+        self.state_tries = torch.zeros(batch, num_states + 1, dtype=torch.float64, device=self.device)
 
-    _STATE = ("edge_count", "row_count", "edge_discount", "row_reward")
+    def state_dict(self) -> dict:
+        return {**super().state_dict(), "state_tries": self.state_tries.clone()}
 
-    def _grow(self, capacity: int) -> None:
-        super()._grow(capacity)
-        self.edge_discount = _grow_columns(self.edge_discount, capacity)
-
-    def update(self, runs: torch.Tensor, rows: torch.Tensor, successors: torch.Tensor,
-               durations: torch.Tensor, discounted_rewards: torch.Tensor, gamma: float) -> torch.Tensor:
-        """Record one executed option per entry: it ran ``durations`` steps from its row and ended
-        in ``successors`` having collected ``discounted_rewards``. Returns the edge ids."""
-        edges = self.edges.find_or_add(rows, successors)
-        discount = torch.pow(torch.as_tensor(gamma, dtype=torch.float64), durations.double())
-        self.edge_count.index_put_((runs, edges), torch.ones_like(discount), accumulate=True)
-        self.edge_discount.index_put_((runs, edges), discount, accumulate=True)
-        self.row_count.index_put_((runs, rows), torch.ones_like(discount), accumulate=True)
-        self.row_reward.index_put_((runs, rows), discounted_rewards.double(), accumulate=True)
-        return edges
+    def update(self, runs: torch.Tensor, rows: torch.Tensor, starts: torch.Tensor,
+               successors: torch.Tensor, discounts: torch.Tensor, discounted_rewards: torch.Tensor
+               ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Record one executed option per run (``runs`` distinct): it started in ``starts`` from
+        ``rows``, ended in ``successors`` after ``γ^k = discounts`` having collected
+        ``discounted_rewards``. Returns ``(edge ids, counts before, summed γ^k before)``."""
+        e = self.find_or_add(runs, rows, successors)
+        c_old, g_old = self.edge_count[runs, e], self.edge_discount[runs, e]
+        self.edge_count[runs, e] = c_old + 1
+        self.edge_discount[runs, e] = g_old + discounts
+        self.row_count[runs, rows] += 1
+        self.row_reward[runs, rows] += discounted_rewards
+        self.state_tries[runs, starts] += 1
+        return e, c_old, g_old
 
     def mean(self, runs: torch.Tensor, rows: torch.Tensor):
         """``(reward [...], successors [..., K], weights [..., K])``: posterior-mean reward and
         multi-time weights ``p^o_{ss'}`` of each row (zeros for untried rows)."""
-        edge = self.edges.forward[rows]
+        edge = self.index().forward[runs, rows]
+        r = runs[..., None].expand_as(edge)
         n = self.row_count[runs, rows]
         denom = (n + self.concentration)[..., None]
-        g = torch.where(edge >= 0, self.edge_discount[runs[..., None], edge.clamp(min=0)],
+        g = torch.where(edge >= 0, self.edge_discount[r, edge.clamp(min=0)],
                         torch.zeros((), dtype=torch.float64, device=self.device))
         weights = torch.where(denom > 0, g / denom.clamp(min=1e-300), torch.zeros_like(g))
         reward = torch.where(n > 0, self.row_reward[runs, rows] / n.clamp(min=1), torch.zeros_like(n))
-        succ = torch.where(edge >= 0, self.edges.edge_successor[edge.clamp(min=0)], edge)
+        succ = torch.where(edge >= 0, self.edge_successor[r, edge.clamp(min=0)], edge)
         return reward, succ, weights
 
 
-class DirichletMentorModel(_CountModel):
+class DirichletMentorModel(EdgeStore):
     """The learner's model ``p_m(s' | s)`` of the mentor, from consecutive observed states only.
 
     Rows are states. Demonstrations can be added at any time, to all runs or to some.
     """
 
     def __init__(self, num_states: int, batch: int, device="cpu", concentration: float = 0.0,
-                 width: int = 8, fan_in: int = 8):
-        super().__init__(num_states, num_states, batch, device, concentration, width, fan_in)
+                 capacity: int = 256):
+        super().__init__(num_states, num_states, batch, device, concentration, capacity)
 
     def observe(self, sources: torch.Tensor, successors: torch.Tensor,
-                runs: torch.Tensor | None = None) -> torch.Tensor:
-        """Count the transitions ``sources[i] → successors[i]`` for ``runs`` (all by default).
-        Returns the edge ids."""
+                runs: torch.Tensor | None = None) -> None:
+        """Count the transitions ``sources[i] → successors[i]`` for ``runs`` (all by default)."""
         if sources.numel() == 0:
-            return sources
-        edges = self.edges.find_or_add(sources, successors)
+            return
         runs = torch.arange(self.batch, device=self.device) if runs is None else runs
-        R, T = runs.numel(), edges.numel()
-        self.edge_count.index_put_((runs.repeat_interleave(T), edges.repeat(R)),
-                                   torch.ones(R * T, dtype=torch.float64, device=self.device),
-                                   accumulate=True)
-        self.row_count.index_put_((runs.repeat_interleave(T), sources.repeat(R)),
-                                  torch.ones(R * T, dtype=torch.float64, device=self.device),
-                                  accumulate=True)
-        return edges
+        R, T = runs.numel(), sources.numel()
+        rr, src, dst = runs.repeat_interleave(T), sources.repeat(R), successors.repeat(R)
+        e = self.find_or_add(rr, src, dst)
+        ones = torch.ones(R * T, dtype=torch.float64, device=self.device)
+        self.edge_count.index_put_((rr, e), ones, accumulate=True)
+        self.row_count.index_put_((rr, src), ones, accumulate=True)
 
     def observed(self) -> torch.Tensor:
         """``[B, S]`` bool: states where the mentor was seen leaving (its term exists there)."""

@@ -4,50 +4,45 @@ Each run executes its current option one primitive step per tick. Runs whose opt
 tick update their Dirichlet SMDP model, plan with prioritized sweeping on the augmented Bellman
 equation (the paper's eq. 2, or a baseline), and pick their next option ε-greedily.
 
-Shapes: ``B`` runs, ``S`` states, ``O`` options, ``M`` available ``(s, o)`` rows (shared by the
-batch, grouped by state: ``state_rows [S, J]``), ``E`` observed model edges.
+The state has one owner per piece, each with its own ``state_dict``:
 
-How values are kept (the fast path; :meth:`Learner.plan` sweeps to convergence for checks, and
-the pure functions of :mod:`himit_torch.backups` are the slow reference the tests compare with):
+* :class:`~himit_torch.rows.RowTable` — the available ``(s, o)`` rows and each run's variant
+  (fixed);
+* :class:`~himit_torch.DirichletSMDPModel`, :class:`~himit_torch.DirichletMentorModel` — the
+  counts (only they write counts);
+* :class:`~himit_torch.value_cache.ValueCache` — ``V`` and the cached numerators of eq. 2 (only it
+  writes ``V``);
+* :class:`~himit_torch.sweep_queue.Sweeper` — the prioritized-sweeping queue and schedule (only it
+  touches the queue);
+* :class:`~himit_torch.run_state.RunState` — the executing options, exploration and counters;
+  :class:`~himit_torch.run_state.RunMetrics` — the per-window records.
 
-* ``q_numerator [B, M]`` holds ``Σ r + Σ_{s'} Σγ^k V(s')`` of every row, so that
-  ``Q = (q_numerator + α v0) / (n + α)`` is the posterior-mean option backup
-  (:func:`himit_torch.backups.option_backup` on the model's means). When ``V(x)`` changes by ``δ`` in a backup, every
-  row with an edge to ``x`` gets ``+ Σγ^k · δ`` — along the reverse edge lists, which also yield
-  the prioritized-sweeping priorities ``|ΔQ|`` of the predecessor states.
-* ``mentor_numerator [B, S]`` likewise holds ``Σ_{s'} c(s→s') (r_m + γ V(s'))``.
-* A backup of ``x`` is then a max over its ``J`` cached rows and the mentor term (eq. 2).
+An engine carries out the ticks on that state (:mod:`himit_torch.engines`): ``"numba"``, a
+compiled per-run loop (the default on a CPU), or ``"torch"``, batched tensor ops (any device;
+the readable reference, read :meth:`TorchEngine.tick <himit_torch.engines.TorchEngine.tick>`).
+
+Shapes: ``B`` runs, ``S`` states, ``O`` options, ``M`` rows, ``E`` model edges per run.
 """
 
 from __future__ import annotations
 
 import warnings
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 from typing import Sequence
 
 import torch
 
 from .dirichlet_models import DirichletMentorModel, DirichletSMDPModel
+from .engines import make_engine
 from .options import Options
-from .sweep_queue import BlockPriorityQueue
 from .reward import KnownReward
 from .rng import seed_streams, uniforms
+from .rows import AGENTS, RowTable
+from .run_state import RunMetrics, RunState
+from .sweep_queue import Sweeper
+from .value_cache import ValueCache
 
 __all__ = ["Learner", "LearnerConfig", "AGENTS"]
-
-#: Agent variants: which options a run may use, whether it imitates, and whether its mentor term
-#: is confidence-tested. ``imitation`` — options + mentor (eq. 2); ``options`` — options only;
-#: ``primitives`` — primitive options only; ``imitation_primitives`` — primitives + mentor (eq. 1,
-#: Price & Boutilier); ``…_confident`` — the same with Price & Boutilier's confidence test
-#: (:attr:`LearnerConfig.confidence_z`).
-AGENTS = {
-    "imitation": ("all", True, False),
-    "imitation_confident": ("all", True, True),
-    "options": ("all", False, False),
-    "primitives": ("primitive", False, False),
-    "imitation_primitives": ("primitive", True, False),
-    "imitation_primitives_confident": ("primitive", True, True),
-}
 
 
 @dataclass
@@ -156,9 +151,6 @@ class LearnerConfig:
             bad("initial_value", "must be finite")
 
 
-_TIE = 1e-12
-
-
 class _NoMentorReward:
     """The mentor reward of runs that do not imitate: never used, zero."""
 
@@ -174,38 +166,14 @@ class _NoMentorReward:
 _NO_MENTOR_REWARD = _NoMentorReward()
 
 
-def _take(x: torch.Tensor, flat: torch.Tensor) -> torch.Tensor:
-    """``x`` (contiguous) read at flat indices of any shape: one ``index_select``, far cheaper
-    than multi-tensor advanced indexing."""
-    return x.view(-1).index_select(0, flat.reshape(-1)).view(flat.shape)
-
-
-@dataclass
-class RunMetrics:
-    """Per-window metrics of every run (lists over windows of ``[B]`` tensors)."""
-
-    steps: list[int] = field(default_factory=list)
-    goals_in_window: list[torch.Tensor] = field(default_factory=list)
-    epsilon: list[torch.Tensor] = field(default_factory=list)
-    episodes: list[torch.Tensor] = field(default_factory=list)
-    mean_episode_steps: list[torch.Tensor] = field(default_factory=list)
-    backups: list[torch.Tensor] = field(default_factory=list)
-    decisions: list[torch.Tensor] = field(default_factory=list)
-    mentor_term_wins: list[torch.Tensor] = field(default_factory=list)
-
-    def curve(self) -> torch.Tensor:
-        """``[windows, B]`` goals per window."""
-        if not self.goals_in_window:
-            return torch.zeros(0, 0)
-        return torch.stack(self.goals_in_window)
-
-
 class Learner:
     """``B`` runs of the hierarchical imitation learner (or its baselines) in one batch.
 
     Args:
         world: a :class:`~himit_torch.TabularWorld` (``num_states``, ``num_actions``,
-            ``start_state``, ``gamma``, ``terminal_mask``, ``step``).
+            ``start_state``, ``gamma``, ``terminal_mask``, ``step``; optionally
+            ``dynamics_table()``, which the compiled engine needs, and ``start_distribution``
+            ``[S]``, from which each episode's start is drawn).
         options: the options of the batch (the union; :data:`AGENTS` restricts them per run).
         agents: one agent variant per run, from :data:`AGENTS`.
         seeds: one seed per run; run ``b``'s randomness depends only on ``seeds[b]``.
@@ -218,11 +186,20 @@ class Learner:
             :class:`~himit_torch.SalienceReward`) is not refitted by :meth:`add_demonstrations`:
             call its ``fit`` with all demonstrations, then :meth:`refresh_mentor_reward`.
         device: where all tensors live.
+        engine: ``"auto"`` (the compiled ``"numba"`` engine on a CPU when it can run the world,
+            else ``"torch"``), ``"numba"`` or ``"torch"``. Both give the same decisions; switch
+            with :meth:`use_engine`.
     """
+
+    #: Version of the layout of :meth:`state_dict` (1: batch-shared edge index, before engines).
+    STATE_LAYOUT_VERSION = 2
+    #: Uniforms per run and tick: 0 slip, 1 termination or action, 2 termination (stochastic
+    #: policies), 3 ε, 4 which candidate option, 5 the next episode's start state.
+    LANES = 6
 
     def __init__(self, world, options: Options, agents: Sequence[str], seeds: Sequence[int],
                  config: LearnerConfig | None = None, demonstrations=None, reward=None,
-                 device: str | torch.device = "cpu"):
+                 device: str | torch.device = "cpu", engine: str = "auto"):
         self.config = config = config or LearnerConfig()
         self.world, self.options = world, options
         self.device = dev = torch.device(device)
@@ -246,130 +223,78 @@ class Learner:
         self.terminal = torch.cat([world.terminal_mask.to(dev), torch.ones(1, dtype=torch.bool,
                                                                             device=dev)])
         self.start_state = int(world.start_state)
+        self.start_cdf = self._start_cdf(world)
 
-        # ---- rows: the available (s, o) pairs, grouped by state ---------------------------
-        init = options.initiation.to(dev)
-        opt_idx, state_idx = init.nonzero(as_tuple=True)
-        order = torch.argsort(state_idx * O + opt_idx)
-        row_state, row_option = state_idx[order], opt_idx[order]
-        M = row_state.numel()
-        self.num_rows = M
-        first = torch.ones(M, dtype=torch.bool, device=dev)
-        first[1:] = row_state[1:] != row_state[:-1]
-        starts = torch.cummax(torch.where(first, torch.arange(M, device=dev),
-                                          torch.zeros_like(row_state)), 0).values
-        rank = torch.arange(M, device=dev) - starts
-        J = int(rank.max()) + 1
-        self.state_rows = torch.full((S + 1, J), M, dtype=torch.int64, device=dev)
-        self.state_rows[row_state, rank] = torch.arange(M, device=dev)
-        pad = torch.tensor([S], device=dev)
-        self.row_state = torch.cat([row_state, pad])
-        self.row_option = torch.cat([row_option, torch.zeros(1, dtype=torch.int64, device=dev)])
-
-        # Row of each primitive action at each state (M where that primitive is unavailable), for
-        # mentor_choice="match".
-        prim_option = torch.full((world.num_actions,), -1, dtype=torch.int64)
-        first_state = options.initiation.float().argmax(1)
-        for o, kind in enumerate(options.kinds):
-            if kind == "primitive":
-                probs = options.action_probabilities(world.num_actions)[o, first_state[o]]
-                prim_option[int(probs.argmax())] = o
-        self.primitive_rows = torch.full((S + 1, world.num_actions), M, dtype=torch.int64, device=dev)
-        for a, o in enumerate(prim_option.tolist()):
-            if o >= 0:
-                is_o = row_option == o
-                self.primitive_rows[row_state[is_o], a] = torch.arange(M, device=dev)[is_o]
-
-        # ---- option execution tables -------------------------------------------------------
+        # ---- the world and the options, as tables both engines read ---------------------
+        table = getattr(world, "dynamics_table", None)
+        self.dynamics = table().to(dev) if callable(table) else None
         self.termination = options.termination.to(dev).double().reshape(-1)
         if options.stochastic:
-            self.policy_cdf = options.policy.to(dev).double().cumsum(-1).reshape(O * S, -1)
+            self.policy_cdf = options.policy.to(dev).double().cumsum(-1).reshape(O * S, -1).contiguous()
             self.policy = None
         else:
-            self.policy = options.policy.to(dev).reshape(-1)
+            self.policy = options.policy.to(dev).reshape(-1).contiguous()
             self.policy_cdf = None
 
-        # ---- per-run variant masks ----------------------------------------------------------
-        primitive = options.is_primitive.to(dev)
-        enabled = torch.zeros(B, O, dtype=torch.bool, device=dev)
-        self.use_mentor = torch.zeros(B, dtype=torch.bool, device=dev)
-        self.use_confidence = torch.zeros(B, dtype=torch.bool, device=dev)
-        for b, agent in enumerate(agents):
-            which, mentor, confident = AGENTS[agent]
-            enabled[b] = True if which == "all" else primitive
-            self.use_mentor[b] = mentor
-            self.use_confidence[b] = confident
-        self._any_confidence = bool(self.use_confidence.any())
-        if not bool(enabled.any(1).all()):
-            raise ValueError("an agent variant has no usable option (e.g. 'primitives' with no "
-                             "primitive options in the set)")
-        self.row_enabled = torch.cat([enabled[:, row_option], torch.zeros(B, 1, dtype=torch.bool,
-                                                                          device=dev)], 1)
-
-        # ---- models, values, caches -----------------------------------------------------------
+        # ---- the state, one owner per piece ------------------------------------------------
+        self.rows = RowTable(options, world.num_actions, agents, dev)
+        self.num_rows = M = self.rows.num_rows
         self.model = DirichletSMDPModel(M, S, B, dev, config.concentration)
         self.mentor = DirichletMentorModel(S, B, dev, config.mentor_concentration)
-        v0 = float(config.initial_value)
-        self.values = torch.full((B, S + 1), v0, dtype=torch.float64, device=dev)
-        self.values[:, self.terminal] = 0.0
-        self.q_numerator = torch.zeros(B, M + 1, dtype=torch.float64, device=dev)
-        self.q_second = torch.zeros_like(self.q_numerator)            # Σ (γ^k)² V² / c per row
-        self.mentor_numerator = torch.zeros(B, S + 1, dtype=torch.float64, device=dev)
-        self.mentor_second = torch.zeros_like(self.mentor_numerator)
-        self.mentor_edge_reward = torch.zeros(B, self.mentor.edges.capacity, dtype=torch.float64,
-                                              device=dev)
-        self.mentor.edges.on_grow.append(self._grow_mentor_reward)
-        self.state_tries = torch.zeros(B, S + 1, dtype=torch.float64, device=dev)
-        self.visits = torch.zeros(B, S + 1, dtype=torch.int64, device=dev)
-        self.queue = BlockPriorityQueue(B, S + 1, dev, typical_pop=max(1, config.backups // config.sweep_rounds))
+        self.cache = ValueCache(config, self.rows, self.model, self.mentor, self.terminal, self.gamma)
+        self.sweeper = Sweeper(B, S, dev, config.backups, config.sweep_rounds, config.plan_every,
+                               config.priority_threshold)
+        self.keys = seed_streams(torch.tensor(seeds, dtype=torch.int64, device=dev))
+        first = uniforms(self.keys, -1, self.LANES)       # draw −1: the first start and option
+        runs = torch.arange(B, device=dev)
+        self.run_state = RunState(B, S, self.start_states(runs, first), M, config.eps_start, dev)
+        self.metrics = RunMetrics()
+        self._visit_base = torch.arange(B, device=dev) * (S + 1)
+        self._ones_b = torch.ones(B, dtype=torch.int64, device=dev)
 
         self.rewards = self._reward_modules(reward, world, B)
         self._check_world_rewards(world)
-
-        # ---- run state -------------------------------------------------------------------------
-        self.keys = seed_streams(torch.tensor(seeds, dtype=torch.int64, device=dev))
-        self.t = 0
-        self.position = torch.full((B,), self.start_state, dtype=torch.int64, device=dev)
-        self.option_start = self.position.clone()
-        self.row = torch.full((B,), M, dtype=torch.int64, device=dev)
-        self.duration = torch.zeros(B, dtype=torch.int64, device=dev)
-        self.discounted_return = torch.zeros(B, dtype=torch.float64, device=dev)
-        self.discount = torch.ones(B, dtype=torch.float64, device=dev)
-        self.epsilon = torch.full((B,), config.eps_start, dtype=torch.float64, device=dev)
-        self.found_goal = torch.zeros(B, dtype=torch.bool, device=dev)
-        self.goals = torch.zeros(B, dtype=torch.int64, device=dev)
-        self.window_goals = torch.zeros(B, dtype=torch.int64, device=dev)
-        self.episodes = torch.zeros(B, dtype=torch.int64, device=dev)
-        self.episode_start = torch.zeros(B, dtype=torch.int64, device=dev)
-        self.window_episode_steps = torch.zeros(B, dtype=torch.int64, device=dev)
-        self.window_episodes = torch.zeros(B, dtype=torch.int64, device=dev)
-        self.backups_done = torch.zeros(B, dtype=torch.int64, device=dev)
-        self.decisions = torch.zeros(B, dtype=torch.int64, device=dev)
-        self.first_goal_step = torch.full((B,), -1, dtype=torch.int64, device=dev)
-        self.pending_decisions = torch.zeros(B, dtype=torch.int64, device=dev)
-        self._pending = False
-        self.metrics = RunMetrics()
-        self._pad_state = torch.tensor(S, device=dev)
-        self._start_tensor = torch.tensor(self.start_state, device=dev)
-        self._lanes = 5
-        # States backed up together per round: a decision's budget in sweep_rounds rounds; with
-        # plan_every > 1, the budget of plan_every decisions in as many rounds.
-        self._round_size = -(-config.plan_every * config.backups // config.sweep_rounds)
-        self._zero = torch.zeros((), dtype=torch.float64, device=dev)
-        self._neg_inf = torch.tensor(float("-inf"), dtype=torch.float64, device=dev)
-        self._untried = torch.tensor(float(config.untried_value if config.untried_value is not None
-                                           else 0.0), dtype=torch.float64, device=dev)
-        self._pad_row = torch.tensor(M, device=dev)
-        self._any_mentor = bool(self.use_mentor.any())
-        self._visit_base = torch.arange(B, device=dev) * (S + 1)
-        self._ones_b = torch.ones(B, dtype=torch.int64, device=dev)
-        self._u_chunk, self._u_chunk_start = None, -1
         if demonstrations is not None:
             self.add_demonstrations(demonstrations)
-        # First options, from draw −1 of each stream (ticks use draws 0, 1, …).
-        first = uniforms(self.keys, -1, self._lanes)
-        runs = torch.arange(B, device=dev)
-        self.row = self._choose(runs, self.position, first[:, 3:])
+        from .choice import choose_rows
+        self.run_state.row = choose_rows(self.cache, runs, self.run_state.position, first[:, 3:5],
+                                         self.run_state.epsilon, config.mentor_choice, config.tie_break)
+        self.engine = make_engine(engine, self)
+
+    # ============================================================================ engines
+    def use_engine(self, engine: str) -> None:
+        """Carry out the following ticks with ``engine`` (``"auto"``, ``"numba"``, ``"torch"``);
+        the state is shared, so runs go on exactly where they are."""
+        self.engine = make_engine(engine, self)
+
+    def step_world(self, positions: torch.Tensor, actions: torch.Tensor, u: torch.Tensor):
+        """One primitive step of the world for ``positions [B]`` (its table when it has one)."""
+        if self.dynamics is not None:
+            return self.dynamics.step(positions, actions, u)
+        return self.world.step(positions, actions, u)
+
+    def _start_cdf(self, world) -> torch.Tensor | None:
+        dist = getattr(world, "start_distribution", None)
+        if dist is None:
+            return None
+        dist = torch.as_tensor(dist, dtype=torch.float64, device=self.device)
+        if dist.shape != (self.num_states,) or not bool(torch.isfinite(dist).all()) \
+                or bool((dist < 0).any()) or abs(float(dist.sum()) - 1.0) > 1e-9:
+            raise ValueError(f"world.start_distribution must be [S={self.num_states}] probabilities "
+                             "summing to 1")
+        if bool((dist[self.terminal[:-1]] > 0).any()):
+            raise ValueError("world.start_distribution puts mass on a terminal state")
+        cdf = dist.cumsum(0)
+        cdf[-1] = 1.0
+        return cdf
+
+    def start_states(self, runs: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
+        """Start states of a new episode for ``runs [R]`` from their uniforms ``u [R, LANES]``
+        (lane 5): ``start_state``, or a draw from the world's ``start_distribution``."""
+        if self.start_cdf is None:
+            return torch.full_like(runs, self.start_state)
+        return torch.searchsorted(self.start_cdf, u[:, 5].contiguous(), right=True).clamp(
+            max=self.num_states - 1)
 
     # ==================================================================================== setup
     def _reward_modules(self, reward, world, B):
@@ -379,7 +304,7 @@ class Learner:
         known = None
         for b, m in enumerate(modules):
             if m is None:
-                if not bool(self.use_mentor[b]):
+                if not bool(self.rows.use_mentor[b]):
                     modules[b] = _NO_MENTOR_REWARD   # no mentor term: its reward is never used
                     continue
                 if getattr(world, "state_reward", None) is None:
@@ -395,15 +320,10 @@ class Learner:
     def _check_world_rewards(self, world) -> None:
         probe = torch.full((1,), self.start_state, dtype=torch.int64, device=self.device)
         for a in range(world.num_actions):
-            _, r = world.step(probe, torch.tensor([a], device=self.device),
-                              torch.full((1,), 0.5, dtype=torch.float32, device=self.device))
+            _, r = self.step_world(probe, torch.tensor([a], device=self.device),
+                                   torch.full((1,), 0.5, dtype=torch.float64, device=self.device))
             if not bool(torch.isfinite(r).all()):
                 raise ValueError("the world returned a NaN or infinite reward; rewards must be finite")
-
-    def _grow_mentor_reward(self, capacity: int) -> None:
-        grown = torch.zeros(self.batch, capacity, dtype=torch.float64, device=self.device)
-        grown[:, :self.mentor_edge_reward.shape[1]] = self.mentor_edge_reward
-        self.mentor_edge_reward = grown
 
     def add_demonstrations(self, demonstrations, runs: Sequence[int] | None = None) -> None:
         """Add mentor state sequences to the mentor model of ``runs`` (all by default).
@@ -422,7 +342,7 @@ class Learner:
         # Episodes end at a terminal state: a "transition" out of one is not the mentor's move.
         keep = ~self.terminal.index_select(0, src)
         src, dst = src[keep], dst[keep]
-        run_idx = torch.arange(self.batch, device=self.device) if runs is None else \
+        run_idx = None if runs is None else \
             torch.as_tensor(list(runs), dtype=torch.int64, device=self.device)
         self.mentor.observe(src, dst, run_idx)
         self.refresh_mentor_reward()
@@ -430,12 +350,12 @@ class Learner:
     def refresh_mentor_reward(self) -> None:
         """Recompute every run's mentor-edge rewards from its reward module and rebuild the mentor
         caches (after demonstrations were added or a reward module changed)."""
-        E = self.mentor.edges.num_edges
-        src, dst = self.mentor.edges.edge_row[:E], self.mentor.edges.edge_successor[:E]
         real_best = self._real_reward_bound()
+        mentor = self.mentor
         for b, module in enumerate(self.rewards):
+            E = int(mentor.num_edges[b])
             if module is _NO_MENTOR_REWARD:   # a run without a mentor term: nothing to check
-                self.mentor_edge_reward[b, :E] = 0.0
+                self.cache.mentor_edge_reward[b, :E] = 0.0
                 continue
             bound = float(getattr(module, "upper_bound", float("inf")))
             if real_best is not None and bound > real_best + 1e-12 and self.config.reward_bound_check != "off":
@@ -446,6 +366,7 @@ class Learner:
                 if self.config.reward_bound_check == "error":
                     raise ValueError(message)
                 warnings.warn(message, stacklevel=3)
+            src, dst = mentor.edge_row[b, :E], mentor.edge_successor[b, :E]
             r = torch.as_tensor(module.transition_reward(src, dst), dtype=torch.float64,
                                 device=self.device)
             if r.shape != (E,):
@@ -456,444 +377,130 @@ class Learner:
             if E and float(r.max()) > bound + 1e-12:
                 raise ValueError(f"reward module {module!r} returned {float(r.max()):g}, above its "
                                  f"declared upper_bound={bound:g}")
-            self.mentor_edge_reward[b, :E] = r
-        self._rebuild_mentor_cache()
+            self.cache.mentor_edge_reward[b, :E] = r
+        self.cache.rebuild_mentor()
+        # Every mentor state is worth a backup now.
+        runs, states = mentor.observed().nonzero(as_tuple=True)
+        keep = self.rows.use_mentor[runs]
+        self.sweeper.push(runs[keep], states[keep],
+                          torch.ones(int(keep.sum()), dtype=torch.float64, device=self.device))
 
     def _real_reward_bound(self) -> float | None:
         """The learner's best real reward for one step (``None`` if the world does not say)."""
         reward = getattr(self.world, "state_reward", None)
         return None if reward is None else float(torch.as_tensor(reward).max())
 
-    def _rebuild_mentor_cache(self) -> None:
-        E = self.mentor.edges.num_edges
-        src, dst = self.mentor.edges.edge_row[:E], self.mentor.edges.edge_successor[:E]
-        c = self.mentor.edge_count[:, :E]
-        u = self.mentor_edge_reward[:, :E] + self.gamma * self.values[:, dst]
-        self.mentor_numerator.zero_()
-        self.mentor_second.zero_()
-        self.mentor_numerator.index_add_(1, src, c * u)
-        self.mentor_second.index_add_(1, src, c * u * u)
-        # Every mentor state is worth a backup now.
-        observed = self.mentor.observed()
-        runs, states = observed.nonzero(as_tuple=True)
-        keep = self.use_mentor[runs]
-        self.queue.push(runs[keep], states[keep], torch.full_like(states[keep], 1.0, dtype=torch.float64))
-
-    # ============================================================================ value queries
-    def _row_flat(self, runs: torch.Tensor, rows: torch.Tensor) -> torch.Tensor:
-        return runs * (self.num_rows + 1) + rows
-
-    def _state_flat(self, runs: torch.Tensor, states: torch.Tensor) -> torch.Tensor:
-        return runs * (self.num_states + 1) + states
-
-    def row_q(self, runs: torch.Tensor, rows: torch.Tensor) -> torch.Tensor:
-        """Posterior-mean option values ``Q`` of ``rows`` (``runs`` broadcast against them), from
-        the cache; untried rows give the prior value ``v0`` if ``concentration > 0`` else ``NaN``."""
-        flat = self._row_flat(runs, rows)
-        return self._q_at(flat, _take(self.model.row_count, flat))
-
-    def _q_at(self, flat: torch.Tensor, n: torch.Tensor) -> torch.Tensor:
-        a, v0 = self.config.concentration, self.config.initial_value
-        return (_take(self.q_numerator, flat) + a * v0) / (n + a)
-
-    def mentor_term(self, runs: torch.Tensor, states: torch.Tensor) -> torch.Tensor:
-        """Posterior-mean mentor term ``R_m(s) + γ Σ p_m(s'|s) V(s')`` (NaN where not observed
-        and no prior)."""
-        flat = self._state_flat(runs, states)
-        return self._mentor_at(flat, _take(self.mentor.row_count, flat))
-
-    def _mentor_at(self, flat: torch.Tensor, n: torch.Tensor) -> torch.Tensor:
-        a, v0 = self.config.mentor_concentration, self.config.initial_value
-        return (_take(self.mentor_numerator, flat) + a * v0) / (n + a)
-
-    def _row_variance(self, flat, n, q):
-        a, v0 = self.config.concentration, self.config.initial_value
-        rsum = _take(self.model.row_reward, flat)
-        rbar = torch.where(n > 0, rsum / n.clamp(min=1), torch.zeros_like(n))
-        cont = _take(self.q_numerator, flat) - rsum
-        second = (n * rbar * rbar + 2 * rbar * cont + _take(self.q_second, flat) + a * v0 * v0) / (n + a)
-        return (second - q * q).clamp(min=0) / (n + a + 1)
-
-    def _mentor_variance(self, flat, n, m):
-        a, v0 = self.config.mentor_concentration, self.config.initial_value
-        second = (_take(self.mentor_second, flat) + a * v0 * v0) / (n + a)
-        return (second - m * m).clamp(min=0) / (n + a + 1)
-
-    def _own_values(self, runs: torch.Tensor, states: torch.Tensor):
-        """Cached ``Q`` of the rows at ``states`` (``runs`` broadcast, ``[..., J]`` out), which rows
-        the run may use (``usable``) and the flat row index and counts for further lookups."""
-        cfg = self.config
-        rows = self.state_rows.index_select(0, states.reshape(-1)).view(*states.shape, -1)
-        flat = self._row_flat(runs[..., None], rows)
-        n = _take(self.model.row_count, flat)
-        q = self._q_at(flat, n)
-        enabled = _take(self.row_enabled, flat)
-        if cfg.concentration > 0:
-            usable = enabled
-        elif cfg.untried_value is None:
-            usable = enabled & (n > 0)
-        else:
-            q = torch.where(n > 0, q, self._untried)
-            usable = enabled
-        return rows, q, usable, enabled, flat, n
-
-    def _state_backup(self, runs: torch.Tensor, states: torch.Tensor):
-        """Eq. 2 for ``states [R, n]`` of ``runs [R, 1]`` (or broadcastable): returns
-        ``(new V, has_value, mentor_won)``; ``-inf`` where nothing is known."""
-        cfg = self.config
-        _, q, usable, _, flat_rows, n_rows = self._own_values(runs, states)
-        own = torch.where(usable, q, self._neg_inf).amax(-1)
-        flat = self._state_flat(runs, states)
-        n_m = _take(self.mentor.row_count, flat)
-        # The mentor term exists only where the mentor was seen (a prior does not create one).
-        mentor_ok = self.use_mentor[runs] & (n_m > 0)
-        m = self._mentor_at(flat, n_m)
-        if cfg.mentor_override_after is not None:
-            mentor_ok = mentor_ok & (_take(self.state_tries, flat) < cfg.mentor_override_after)
-        if self._any_confidence and bool(self.use_confidence[runs].any()):
-            z = cfg.confidence_z
-            var = self._row_variance(flat_rows, n_rows, q)
-            upper = torch.where(usable, q + z * var.sqrt(), self._neg_inf).amax(-1)
-            confident = (m - z * self._mentor_variance(flat, n_m, m).sqrt()) > upper
-            mentor_ok = mentor_ok & (confident | ~self.use_confidence[runs])
-        m = torch.where(mentor_ok, m, self._neg_inf)
-        best = torch.maximum(own, m)
-        # Terminal states (and the padding state) keep V = 0.
-        has_value = torch.isfinite(best) & ~self.terminal.index_select(0, states.reshape(-1)).view_as(states)
-        return best, has_value, mentor_ok & (m > own)
-
-    # ================================================================================ planning
-    def _backup_and_propagate(self, runs: torch.Tensor, states: torch.Tensor, valid: torch.Tensor):
-        """Back up ``states [R, n]`` together, then push ``δ`` to the caches of their predecessors
-        and raise those predecessors' priorities."""
-        best, has_value, _ = self._state_backup(runs[:, None], states)
-        flat = self._state_flat(runs[:, None], states)
-        old = _take(self.values, flat)
-        keep = valid & has_value
-        delta = torch.where(keep, best - old, self._zero)
-        self.values.view(-1).index_put_((flat[keep],), best[keep])
-        self.backups_done.index_add_(0, runs, valid.sum(1))
-        changed = delta != 0
-        if not bool(changed.any()):
-            return
-        rr = runs[:, None].expand_as(states)[changed]
-        xs, dd, vo = states[changed], delta[changed], old[changed]
-        self._propagate_options(rr, xs, dd, vo)
-        if self._any_mentor:
-            self._propagate_mentor(rr, xs, dd, vo)
-
-    def _propagate_options(self, runs, states, delta, old):
-        """``V(x) += δ`` for ``states`` of ``runs``: update the ``Q`` caches of every row with an
-        edge to ``x`` and queue the rows' states with priority ``|ΔQ|``."""
-        edges, model = self.model.edges, self.model
-        owner, e = edges.incoming(states)
-        r = runs.index_select(0, owner)
-        d = delta.index_select(0, owner)
-        rows = edges.edge_row.index_select(0, e)
-        flat_e = r * model.edge_count.shape[1] + e
-        g = _take(model.edge_discount, flat_e)
-        gd = g * d
-        flat = self._row_flat(r, rows)
-        self.q_numerator.view(-1).index_add_(0, flat, gd)
-        if self._any_confidence:
-            c = _take(model.edge_count, flat_e).clamp(min=1)
-            v_old = old.index_select(0, owner)
-            self.q_second.view(-1).index_add_(0, flat, g * g / c * ((v_old + d) ** 2 - v_old ** 2))
-        prio = gd.abs() / (_take(model.row_count, flat) + self.config.concentration).clamp(min=1e-300)
-        push = (prio > self.config.priority_threshold) & _take(self.row_enabled, flat)
-        self.queue.push(r[push], self.row_state.index_select(0, rows[push]), prio[push])
-
-    def _propagate_mentor(self, runs, states, delta, old):
-        """The same for the mentor term of every state the mentor left towards ``x``."""
-        keep = self.use_mentor.index_select(0, runs)
-        runs, states, delta, old = runs[keep], states[keep], delta[keep], old[keep]
-        edges, mentor = self.mentor.edges, self.mentor
-        owner, e = edges.incoming(states)
-        r = runs.index_select(0, owner)
-        gd = self.gamma * delta.index_select(0, owner)
-        src = edges.edge_row.index_select(0, e)
-        flat_e = r * mentor.edge_count.shape[1] + e
-        c = _take(mentor.edge_count, flat_e)
-        cd = c * gd
-        flat = self._state_flat(r, src)
-        self.mentor_numerator.view(-1).index_add_(0, flat, cd)
-        if self._any_confidence:
-            u_old = _take(self.mentor_edge_reward, flat_e) + self.gamma * old.index_select(0, owner)
-            self.mentor_second.view(-1).index_add_(0, flat, c * ((u_old + gd) ** 2 - u_old ** 2))
-        prio = cd.abs() / (_take(mentor.row_count, flat) + self.config.mentor_concentration).clamp(min=1e-300)
-        push = prio > self.config.priority_threshold
-        self.queue.push(r[push], src[push], prio[push])
-
-    def _sweep(self, runs: torch.Tensor, budget: torch.Tensor, round_size: int) -> None:
-        """Prioritized sweeping for ``runs [R]``: up to ``budget [R]`` backups each, in rounds of
-        at most ``round_size`` states per run backed up together. ``round_size`` depends on the
-        configuration only, never on the other runs, so a run's sweep is the same in any batch."""
-        cfg = self.config
-        most = int(budget.max())
-        done = 0
-        while done < most:
-            states, valid = self.queue.pop(runs, round_size, cfg.priority_threshold,
-                                           limit=budget - done)
-            if not bool(valid.any()):
-                break
-            self._backup_and_propagate(runs, torch.where(valid, states, self._pad_state), valid)
-            done += round_size
-
-    def plan(self, max_rounds: int = 1_000_000) -> int:
-        """Sweep every run until its queue is empty (or ``max_rounds`` rounds of ``backups``
-        states): the exhaustive path, for checks. Returns the number of rounds."""
-        runs = torch.arange(self.batch, device=self.device)
-        for i in range(max_rounds):
-            states, valid = self.queue.pop(runs, self.config.backups, self.config.priority_threshold)
-            if not bool(valid.any()):
-                return i
-            self._backup_and_propagate(runs, torch.where(valid, states, self._pad_state), valid)
-        return max_rounds
-
-    # ============================================================================ model update
-    def _update_model(self, runs, rows, starts, ends, durations, returns):
-        """Count one executed option per run (Dirichlet update) and fold it into the ``Q`` cache."""
-        model = self.model
-        e = model.edges.find_or_add(rows, ends)
-        discount = self.gamma ** durations.double()
-        v_end = _take(self.values, self._state_flat(runs, ends))
-        flat_e = runs * model.edge_count.shape[1] + e
-        c_old = _take(model.edge_count, flat_e)
-        g_old = _take(model.edge_discount, flat_e)
-        c_new, g_new = c_old + 1, g_old + discount
-        model.edge_count.view(-1).index_put_((flat_e,), c_new)
-        model.edge_discount.view(-1).index_put_((flat_e,), g_new)
-        flat_r = self._row_flat(runs, rows)
-        model.row_count.view(-1).index_add_(0, flat_r, torch.ones_like(discount))
-        model.row_reward.view(-1).index_add_(0, flat_r, returns)
-        self.q_numerator.view(-1).index_add_(0, flat_r, returns + discount * v_end)
-        if self._any_confidence:
-            old_term = torch.where(c_old > 0, g_old * g_old / c_old.clamp(min=1), self._zero)
-            self.q_second.view(-1).index_add_(0, flat_r, (g_new * g_new / c_new - old_term) * v_end * v_end)
-        self.state_tries.view(-1).index_add_(0, self._state_flat(runs, starts), torch.ones_like(discount))
-        # The changed state goes first in this decision's sweep.
-        self.queue.push(runs, starts, torch.full_like(returns, float("inf")))
-
-    # =================================================================================== choice
-    def _choose(self, runs: torch.Tensor, states: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
-        """ε-greedy choice of a row at ``states`` for ``runs``; ``u [R, 2]`` uniforms (ε, pick).
-
-        Greedy: the best usable rows (within 1e-12), one of them uniformly (or the first, with
-        ``tie_break="first"``); if none is usable yet (nothing tried here), any enabled row.
-        Exploring: any enabled row, uniformly.
-        """
-        rows, q, usable, enabled, _, _ = self._own_values(runs, states)
-        q = torch.where(usable, q, self._neg_inf)
-        if self.config.mentor_choice == "match" and self._any_mentor:
-            q = self._match_mentor(runs, states, rows, q, usable)
-        greedy = usable & (q >= q.amax(1, keepdim=True) - _TIE)
-        greedy = torch.where(greedy.any(1, keepdim=True), greedy, enabled)
-        explore = u[:, 0] < self.epsilon[runs]
-        candidates = torch.where(explore[:, None], enabled, greedy)
-        count = candidates.sum(1)
-        pick = (u[:, 1] * count).long().clamp(max=count - 1)                # k-th candidate
-        if self.config.tie_break == "first":
-            pick = torch.where(explore, pick, torch.zeros_like(pick))
-        slot = ((candidates.cumsum(1) == (pick + 1)[:, None]) & candidates).long().argmax(1)
-        return rows.gather(1, slot[:, None])[:, 0]
-
-    def _match_mentor(self, runs, states, rows, q, usable):
-        """``mentor_choice="match"``: where the mentor term wins, rank own options first by how
-        well their first action's learned one-step model reproduces the mentor's move, then by
-        ``Q`` (returned as a score with the same shape as ``q``)."""
-        _, _, won = self._state_backup(runs[:, None], states[:, None])
-        won = won[:, 0]
-        if not bool(won.any()):
-            return q
-        S, A = self.num_states, self.world.num_actions
-        # One-step model p̂(s'|s,a) of each primitive at s, and the mentor's p_m(s'|s).
-        prim = self.primitive_rows.index_select(0, states)                         # [R, A]
-        p_succ, p_w = self._successor_probs(self.model, runs[:, None], prim)       # [R, A, K]
-        m_succ, m_w = self._successor_probs(self.mentor, runs, states)             # [R, Km]
-        same = p_succ[..., :, None] == m_succ[:, None, None, :]                   # [R, A, K, Km]
-        score_a = (same * p_w[..., None] * m_w[:, None, None, :]).sum((-1, -2))   # [R, A]
-        flat = self.row_option.index_select(0, rows.view(-1)).view_as(rows) * S + states[:, None]
-        first = self.policy.index_select(0, flat.view(-1)).view_as(rows) if self.policy is not None \
-            else self.policy_cdf.index_select(0, flat.view(-1)).diff(
-                dim=-1, prepend=torch.zeros(flat.numel(), 1, dtype=torch.float64, device=self.device)
-            ).argmax(-1).view_as(rows)
-        score = score_a.gather(1, first.clamp(max=A - 1))                          # [R, J]
-        score = torch.where(usable, score, torch.zeros_like(score))
-        best = score.amax(1, keepdim=True)
-        use = won[:, None] & (best > 0)
-        # Matching options outrank the rest; among them, Q decides.
-        lifted = torch.where(score >= best - _TIE, q + 1e6, q)
-        return torch.where(use, lifted, q)
-
-    @staticmethod
-    def _successor_probs(model, runs, rows):
-        """Posterior-mean successor probabilities ``(successors [..., K], probs [..., K])`` of
-        ``rows`` (shape ``[...]``, ``runs`` broadcast) in a count model (maximum likelihood)."""
-        edges = model.edges
-        e = edges.forward.index_select(0, rows.reshape(-1)).view(*rows.shape, -1)
-        ok = e >= 0
-        ec = e.clamp(min=0)
-        r = runs.expand_as(rows)[..., None]
-        counts = torch.where(ok, _take(model.edge_count, r * model.edge_count.shape[1] + ec),
-                             torch.zeros((), dtype=torch.float64, device=e.device))
-        n = _take(model.row_count, runs.expand_as(rows) * model.row_count.shape[1] + rows)
-        succ = torch.where(ok, edges.edge_successor.index_select(0, ec.view(-1)).view_as(ec),
-                           torch.full_like(e, -1))
-        return succ, counts / n.clamp(min=1)[..., None]
-
-    # ================================================================================ stepping
-    def _tick_uniforms(self) -> torch.Tensor:
-        """``[B, 5]`` uniforms of tick ``t``: 0 slip, 1 termination or action, 2 termination
-        (stochastic policies), 3 ε, 4 which of the candidate options."""
-        chunk = self.config.rng_chunk
-        i = self.t % chunk
-        if self._u_chunk is None or self._u_chunk_start != self.t - i:
-            self._u_chunk_start = self.t - i
-            counters = torch.arange(self._u_chunk_start, self._u_chunk_start + chunk,
-                                    device=self.device)
-            self._u_chunk = uniforms(self.keys, counters, self._lanes)
-        return self._u_chunk[i]
-
+    # ================================================================================ running
     def step(self) -> None:
         """Advance every run one primitive step (one tick)."""
-        cfg, S = self.config, self.num_states
-        u = self._tick_uniforms()
-        option = self.row_option[self.row]
-        flat = option * S + self.position
-        if self.policy is not None:
-            action = self.policy[flat]
-            stop_u = u[:, 1]
-        else:
-            action = torch.searchsorted(self.policy_cdf[flat], u[:, 1:2].contiguous()).squeeze(1)
-            action = action.clamp(max=self.policy_cdf.shape[1] - 1)
-            stop_u = u[:, 2]
-        nxt, reward = self.world.step(self.position, action, u[:, 0])
-        self.discounted_return += self.discount * reward
-        self.discount *= self.gamma
-        self.duration += 1
-        self.t += 1
-        at_goal = self.terminal[nxt]
-        ended = at_goal | (self.termination[option * S + nxt] > stop_u) \
-            | (self.duration >= cfg.max_option_steps)
-        self.position = nxt
-        self.visits.view(-1).index_add_(0, self._visit_base + nxt, self._ones_b)
-        if bool(at_goal.any()):
-            self._goal_reached(at_goal)
-        if bool(ended.any()):
-            runs = ended.nonzero()[:, 0]
-            self._decide(runs, at_goal[runs], u[runs])
-        if self._pending and self.t % cfg.plan_every == 0:
-            runs = (self.pending_decisions > 0).nonzero()[:, 0]
-            self._sweep(runs, self.pending_decisions[runs] * cfg.backups, self._round_size)
-            self.pending_decisions.zero_()
-            self._pending = False
-        if self.t % cfg.window == 0:
-            self._close_window()
-
-    def _decide(self, runs: torch.Tensor, at_goal: torch.Tensor, u: torch.Tensor) -> None:
-        """Runs whose option just ended: learn from it, plan, choose the next option."""
-        cfg = self.config
-        end = self.position[runs]
-        self._update_model(runs, self.row[runs], self.option_start[runs], end,
-                           self.duration[runs], self.discounted_return[runs])
-        if cfg.plan_every == 1:
-            self._sweep(runs, torch.full_like(runs, cfg.backups), self._round_size)
-        else:
-            self.pending_decisions[runs] += 1
-            self._pending = True
-        self.decisions[runs] += 1
-        eps = self.epsilon[runs]
-        self.epsilon[runs] = torch.where(self.found_goal[runs], (eps * cfg.eps_decay).clamp(min=cfg.eps_min), eps)
-        self.duration[runs] = 0
-        self.discounted_return[runs] = 0.0
-        self.discount[runs] = 1.0
-        here = torch.where(at_goal, self._start_tensor, end)
-        self.position[runs] = here
-        self.option_start[runs] = here
-        self.row[runs] = self._choose(runs, here, u[:, 3:])
-
-    def _goal_reached(self, at_goal: torch.Tensor) -> None:
-        self.goals += at_goal
-        self.window_goals += at_goal
-        first = at_goal & ~self.found_goal
-        self.first_goal_step = torch.where(first, torch.full_like(self.first_goal_step, self.t),
-                                           self.first_goal_step)
-        self.found_goal |= at_goal
-        self.episodes += at_goal
-        length = self.t - self.episode_start
-        self.window_episode_steps += torch.where(at_goal, length, torch.zeros_like(length))
-        self.window_episodes += at_goal
-        self.episode_start = torch.where(at_goal, torch.full_like(self.episode_start, self.t),
-                                         self.episode_start)
-
-    def _close_window(self) -> None:
-        m = self.metrics
-        m.steps.append(self.t)
-        m.goals_in_window.append(self.window_goals.cpu().clone())
-        m.epsilon.append(self.epsilon.cpu().clone())
-        m.episodes.append(self.episodes.cpu().clone())
-        m.mean_episode_steps.append(torch.where(
-            self.window_episodes > 0, self.window_episode_steps / self.window_episodes.clamp(min=1),
-            torch.full((self.batch,), float("nan"), dtype=torch.float64, device=self.device)).cpu())
-        m.backups.append(self.backups_done.cpu().clone())
-        m.decisions.append(self.decisions.cpu().clone())
-        m.mentor_term_wins.append(self.mentor_win_share().cpu())
-        self.window_goals.zero_()
-        self.window_episode_steps.zero_()
-        self.window_episodes.zero_()
+        self.run(1)
 
     def run(self, steps: int, progress: bool = False) -> RunMetrics:
         """Advance all runs ``steps`` primitive steps; returns the metrics so far."""
         if steps < 0:
             raise ValueError(f"steps={steps} must be ≥ 0")
-        iterator = range(steps)
+        window = self.config.window
+        bar = None
         if progress:
             from tqdm.auto import tqdm
-            iterator = tqdm(iterator, desc=f"{self.batch} runs", unit="step", mininterval=1.0)
-        for _ in iterator:
-            self.step()
+            bar = tqdm(total=steps, desc=f"{self.batch} runs", unit="step", mininterval=1.0)
+        left = steps
+        while left > 0:
+            ticks = min(left, window - self.t % window)
+            self.engine.advance(ticks)
+            left -= ticks
+            if bar is not None:
+                bar.update(ticks)
+            if self.t % window == 0:
+                self.metrics.record(self.t, self.run_state, self.mentor_win_share())
+        if bar is not None:
+            bar.close()
         return self.metrics
 
+    def plan(self, max_rounds: int = 1_000_000) -> int:
+        """Sweep every run until its queue is empty (or ``max_rounds`` rounds of ``backups``
+        states): the exhaustive path, for checks. Returns the number of rounds."""
+        runs = torch.arange(self.batch, device=self.device)
+        budget = torch.full((self.batch,), self.config.backups * max_rounds, device=self.device)
+        done = self.sweeper.sweep(runs, budget, self.cache.backup_and_propagate,
+                                  round_size=self.config.backups)
+        self.engine.invalidate()
+        return -(-int(done.max()) // self.config.backups) if done.numel() else 0
+
     # ============================================================================ checkpoints
-    _STATE = ("values", "q_numerator", "q_second", "mentor_numerator", "mentor_second",
-              "mentor_edge_reward", "state_tries", "position", "option_start", "row", "duration",
-              "discounted_return", "discount", "epsilon", "found_goal", "goals", "window_goals",
-              "episodes", "episode_start", "window_episode_steps", "window_episodes",
-              "backups_done", "decisions", "first_goal_step", "pending_decisions", "visits")
+    def _identity(self) -> dict:
+        return {"agents": self.agents, "seeds": self.seeds, "num_states": self.num_states,
+                "num_options": self.num_options, "num_rows": self.num_rows,
+                "config": asdict(self.config)}
 
     def state_dict(self) -> dict:
         """Everything that changes while learning (models, values, queue, run state, metrics):
         with the same world, options, agents, seeds and config, :meth:`load_state_dict` continues
-        exactly where this left off."""
-        state = {name: getattr(self, name).clone() for name in self._STATE}
-        state.update(t=self.t, pending=self._pending, model=self.model.state_dict(),
-                     mentor=self.mentor.state_dict(),
-                     queue={"priority": self.queue.priority.clone(),
-                            "block_max": self.queue.block_max.clone()},
-                     metrics={k: list(v) for k, v in vars(self.metrics).items()},
-                     identity={"agents": self.agents, "seeds": self.seeds,
-                               "num_states": self.num_states, "num_options": self.num_options,
-                               "num_rows": self.num_rows, "config": asdict(self.config)})
-        return state
+        exactly where this left off (on either engine). Plain tensors, numbers, strings, lists
+        and dicts only."""
+        return {"layout": self.STATE_LAYOUT_VERSION, "identity": self._identity(),
+                "run": self.run_state.state_dict(), "model": self.model.state_dict(),
+                "mentor": self.mentor.state_dict(), "cache": self.cache.state_dict(),
+                "sweeper": self.sweeper.state_dict(), "metrics": self.metrics.state_dict()}
 
     def load_state_dict(self, state: dict) -> None:
-        """Restore a :meth:`state_dict` (refuses one from a different batch or configuration)."""
-        ident = state["identity"]
-        mine = {"agents": self.agents, "seeds": self.seeds, "num_states": self.num_states,
-                "num_options": self.num_options, "num_rows": self.num_rows,
-                "config": asdict(self.config)}
+        """Restore a :meth:`state_dict` (refuses one of another layout, batch or configuration)."""
+        layout = state.get("layout", 1)
+        if layout != self.STATE_LAYOUT_VERSION:
+            raise ValueError(f"state layout {layout} cannot be loaded by this learner (layout "
+                             f"{self.STATE_LAYOUT_VERSION}); start the run again")
+        ident, mine = state["identity"], self._identity()
         differ = sorted(k for k in mine if mine[k] != ident.get(k))
         if differ:
             raise ValueError(f"checkpoint does not match this learner: {differ} differ")
         self.model.load_state_dict(state["model"])
         self.mentor.load_state_dict(state["mentor"])
-        for name in self._STATE:
-            setattr(self, name, state[name].to(self.device).clone())
-        self.queue.priority = state["queue"]["priority"].to(self.device).clone()
-        self.queue.block_max = state["queue"]["block_max"].to(self.device).clone()
-        self.t, self._pending = int(state["t"]), bool(state["pending"])
+        self.cache.load_state_dict(state["cache"])
+        self.sweeper.load_state_dict(state["sweeper"])
+        self.run_state.load_state_dict(state["run"])
         self.metrics = RunMetrics(**{k: list(v) for k, v in state["metrics"].items()})
-        self._u_chunk, self._u_chunk_start = None, -1
+        self.engine.invalidate()
+
+    # ========================================================================= run state views
+    @property
+    def t(self) -> int:
+        """Ticks (primitive steps per run) so far."""
+        return self.run_state.t
+
+    @property
+    def goals(self) -> torch.Tensor:
+        """``[B]`` goals reached so far."""
+        return self.run_state.goals
+
+    @property
+    def episodes(self) -> torch.Tensor:
+        return self.run_state.episodes
+
+    @property
+    def first_goal_step(self) -> torch.Tensor:
+        """``[B]`` tick of each run's first goal (−1: none yet)."""
+        return self.run_state.first_goal_step
+
+    @property
+    def decisions(self) -> torch.Tensor:
+        return self.run_state.decisions
+
+    @property
+    def backups_done(self) -> torch.Tensor:
+        return self.run_state.backups_done
+
+    @property
+    def epsilon(self) -> torch.Tensor:
+        return self.run_state.epsilon
+
+    @property
+    def found_goal(self) -> torch.Tensor:
+        return self.run_state.found_goal
+
+    @property
+    def values(self) -> torch.Tensor:
+        """``[B, S + 1]`` the value cache's ``V`` (last column: padding)."""
+        return self.cache.values
 
     # =============================================================================== diagnostics
     def mentor_win_share(self) -> torch.Tensor:
@@ -905,28 +512,28 @@ class Learner:
             return out
         states = observed.any(0).nonzero()[:, 0]
         runs = torch.arange(self.batch, device=self.device)
-        _, _, won = self._state_backup(runs[:, None], states[None].expand(self.batch, -1))
+        _, _, won = self.cache.state_backup(runs[:, None], states[None].expand(self.batch, -1))
         frac = (won & observed[:, states]).sum(1).double() / observed.sum(1).clamp(min=1)
-        return torch.where(self.use_mentor, frac, out)
+        return torch.where(self.rows.use_mentor, frac, out)
 
     def greedy_options(self) -> torch.Tensor:
         """``[B, S]`` greedy option per state (−1 where none is usable), ties to the lowest row."""
         runs = torch.arange(self.batch, device=self.device)[:, None, None]
-        rows = self.state_rows[:self.num_states][None]
-        q = self.row_q(runs, rows)
-        usable = self.row_enabled[runs, rows] & (self.model.row_count[runs, rows] > 0)
+        rows = self.rows.state_rows[:self.num_states][None]
+        q = self.cache.row_q(runs, rows)
+        usable = self.rows.row_enabled[runs, rows] & (self.model.row_count[runs, rows] > 0)
         q = torch.where(usable, q, torch.full_like(q, float("-inf")))
         best = q.argmax(-1)
-        option = self.row_option[rows.expand(self.batch, -1, -1).gather(2, best[..., None])[..., 0]]
+        option = self.rows.row_option[rows.expand(self.batch, -1, -1).gather(2, best[..., None])[..., 0]]
         return torch.where(usable.any(-1), option, torch.full_like(option, -1))
 
     def visit_counts(self) -> torch.Tensor:
         """``[B, S]`` how often each run has been in each state (after each primitive step)."""
-        return self.visits[:, :self.num_states]
+        return self.run_state.visits[:, :self.num_states]
 
     def model_coverage(self) -> torch.Tensor:
         """``[B]`` share of the run's usable ``(s, o)`` rows it has tried at least once."""
-        enabled = self.row_enabled[:, :self.num_rows]
+        enabled = self.rows.row_enabled[:, :self.num_rows]
         tried = (self.model.row_count[:, :self.num_rows] > 0) & enabled
         return tried.sum(1).double() / enabled.sum(1).clamp(min=1)
 
@@ -944,18 +551,18 @@ class Learner:
             if option < 0:
                 option = int(greedy[s])
                 if option < 0:   # nothing tried here: any usable option
-                    rows = self.state_rows[s][0]
-                    rows = rows[self.row_enabled[run, rows]]
-                    option = int(self.row_option[rows[torch.randint(len(rows), (1,), generator=gen,
-                                                                    device=self.device)]])
+                    rows = self.rows.state_rows[s][0]
+                    rows = rows[self.rows.row_enabled[run, rows]]
+                    option = int(self.rows.row_option[rows[torch.randint(
+                        len(rows), (1,), generator=gen, device=self.device)]])
             flat = option * S + s
             if self.policy is not None:
                 action = self.policy[flat]
             else:
                 action = torch.multinomial(torch.diff(self.policy_cdf[flat], prepend=torch.zeros(
                     1, 1, dtype=torch.float64, device=self.device)), 1, generator=gen)[:, 0]
-            u = torch.rand(s.shape, generator=gen, device=self.device)  # the world's slip draw
-            s, _ = self.world.step(s, action, u)
+            u = torch.rand(s.shape, generator=gen, device=self.device, dtype=torch.float64)
+            s, _ = self.step_world(s, action, u)
             steps += 1
             states.append(int(s))
             stop = torch.rand(1, generator=gen, device=self.device, dtype=torch.float64)
@@ -965,10 +572,11 @@ class Learner:
 
     def state_values(self) -> torch.Tensor:
         """``[B, S]`` current value estimates."""
-        return self.values[:, :self.num_states]
+        return self.cache.values[:, :self.num_states]
 
     def summary(self) -> dict:
-        return {"steps": self.t, "goals": self.goals.tolist(), "episodes": self.episodes.tolist(),
-                "first_goal_step": self.first_goal_step.tolist(), "epsilon": self.epsilon.tolist(),
-                "backups": self.backups_done.tolist(), "decisions": self.decisions.tolist(),
-                "config": asdict(self.config)}
+        run = self.run_state
+        return {"steps": self.t, "goals": run.goals.tolist(), "episodes": run.episodes.tolist(),
+                "first_goal_step": run.first_goal_step.tolist(), "epsilon": run.epsilon.tolist(),
+                "backups": run.backups_done.tolist(), "decisions": run.decisions.tolist(),
+                "engine": self.engine.name, "config": asdict(self.config)}

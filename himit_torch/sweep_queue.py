@@ -14,7 +14,7 @@ import math
 
 import torch
 
-__all__ = ["BlockPriorityQueue"]
+__all__ = ["BlockPriorityQueue", "Sweeper"]
 
 
 class BlockPriorityQueue:
@@ -75,6 +75,10 @@ class BlockPriorityQueue:
                                             new_max.view(-1))
         return states, valid
 
+    def refresh_block_max(self) -> None:
+        """Recompute the block maxima from the priorities (after they were written elsewhere)."""
+        self.block_max = self.priority.view(self.priority.shape[0], self.num_blocks, self.block).amax(2)
+
     def clear(self, runs: torch.Tensor | None = None) -> None:
         if runs is None:
             self.priority.zero_()
@@ -82,3 +86,61 @@ class BlockPriorityQueue:
         else:
             self.priority[runs] = 0
             self.block_max[runs] = 0
+
+
+class Sweeper:
+    """Prioritized sweeping's state and schedule for a batch: the queue (priorities over states
+    ``[B, S + 1]``) and the decisions each run made since its last sweep (``pending [B]``).
+
+    Per decision a run gets ``backups`` backups, in rounds of ``round_size`` states backed up
+    together (the highest priorities first, ties to the lowest state); with ``plan_every > 1``
+    the budget of the decisions made since the last sweep is spent every ``plan_every`` ticks.
+    ``round_size`` depends on the configuration only, never on the other runs, so a run's sweep
+    is the same in any batch. This class is the only one that touches the queue.
+    """
+
+    def __init__(self, batch: int, num_states: int, device, backups: int, sweep_rounds: int,
+                 plan_every: int, threshold: float):
+        self.backups, self.plan_every, self.threshold = backups, plan_every, threshold
+        # States backed up together per round: a decision's budget in sweep_rounds rounds; with
+        # plan_every > 1, the budget of plan_every decisions in as many rounds.
+        self.round_size = -(-plan_every * backups // sweep_rounds)
+        self.queue = BlockPriorityQueue(batch, num_states + 1, device,
+                                        typical_pop=max(1, backups // sweep_rounds))
+        self.pending = torch.zeros(batch, dtype=torch.int64, device=device)
+        self.num_states = num_states
+
+    def state_dict(self) -> dict:
+        return {"priority": self.queue.priority.clone(), "pending": self.pending.clone()}
+
+    def load_state_dict(self, state: dict) -> None:
+        priority = state["priority"].to(self.queue.priority.device)
+        if priority.shape != self.queue.priority.shape:
+            raise ValueError(f"queue state has shape {tuple(priority.shape)}, this learner's "
+                             f"{tuple(self.queue.priority.shape)}")
+        self.queue.priority = priority.clone()
+        self.queue.refresh_block_max()
+        self.pending = state["pending"].to(self.pending.device).clone()
+
+    def push(self, runs: torch.Tensor, states: torch.Tensor, priorities: torch.Tensor) -> None:
+        if runs.numel():
+            self.queue.push(runs, states, priorities)
+
+    def sweep(self, runs: torch.Tensor, budget: torch.Tensor, backup, round_size: int | None = None
+              ) -> torch.Tensor:
+        """Up to ``budget [R]`` backups for each of ``runs [R]``. ``backup(runs, states [R, n],
+        valid [R, n])`` backs the states up and returns the predecessors' new priorities
+        ``(runs, states, priorities)``. Returns the backups done per run."""
+        round_size = round_size or self.round_size
+        done = torch.zeros_like(budget)
+        spent = 0
+        most = int(budget.max()) if budget.numel() else 0
+        pad = torch.tensor(self.num_states, device=runs.device)
+        while spent < most:
+            states, valid = self.queue.pop(runs, round_size, self.threshold, limit=budget - spent)
+            if not bool(valid.any()):
+                break
+            self.push(*backup(runs, torch.where(valid, states, pad), valid))
+            done += valid.sum(1)
+            spent += round_size
+        return done

@@ -1,0 +1,567 @@
+"""The compiled tick loop (Numba): the algorithm of :class:`~himit_torch.engines.TorchEngine`,
+one run at a time, ``prange`` over the runs of a batch.
+
+Every array is allocated by the caller (:mod:`himit_torch.engines.numba_engine`) and worked on in
+place: the learner's tensors' memory, plus the engine's own derived structures — linked lists
+over each run's model edges and an indexed max-heap over its sweep priorities. Helpers take whole
+arrays and indices (never slices), so the hot loop makes no allocations and no reference-counting
+calls.
+
+The arithmetic follows the torch engine operation for operation (same formulas, same order of
+additions into each cache entry, the same uniforms), so that both engines take the same
+decisions and their values agree to rounding.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+_INF = np.inf
+_TIE = 1e-12
+_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+_MUL1 = np.uint64(0xBF58476D1CE4E5B9)
+_MUL2 = np.uint64(0x94D049BB133111EB)
+_TWO_POW_MINUS_53 = 1.0 / 9007199254740992.0
+
+# Indices of the scalar settings in ``cfg_f`` (float64) and ``cfg_i`` (int64).
+F_GAMMA, F_EPS_DECAY, F_EPS_MIN, F_THRESHOLD, F_V0, F_CONC, F_MCONC, F_UNTRIED, F_Z = range(9)
+(I_BACKUPS, I_ROUND, I_PLAN_EVERY, I_MAX_STEPS, I_UNTRIED_MODE, I_OVERRIDE, I_MATCH, I_TIE_FIRST,
+ I_ANY_CONF, I_ANY_MENTOR, I_STOCHASTIC, I_START) = range(12)
+
+
+@njit(inline="always")
+def _splitmix(x):
+    z = x + _GOLDEN
+    z = (z ^ (z >> np.uint64(30))) * _MUL1
+    z = (z ^ (z >> np.uint64(27))) * _MUL2
+    return z ^ (z >> np.uint64(31))
+
+
+@njit(inline="always")
+def _uniform(key, counter, lane):
+    """Lane ``lane`` of draw ``counter`` of the stream ``key`` (:func:`himit_torch.rng.uniforms`)."""
+    salt = _splitmix(np.uint64(counter * 1024 + lane))
+    return np.float64(_splitmix(key ^ salt) >> np.uint64(11)) * _TWO_POW_MINUS_53
+
+
+# ================================================================================ the heap
+@njit(inline="always")
+def _before(prio, b, s1, s2):
+    """Pop order: priority descending, then state ascending (the torch queue's order)."""
+    p1 = prio[b, s1]
+    p2 = prio[b, s2]
+    return p1 > p2 or (p1 == p2 and s1 < s2)
+
+
+@njit(inline="always")
+def _sift_up(heap, hpos, prio, b, i):
+    s = heap[b, i]
+    while i > 0:
+        parent = (i - 1) >> 1
+        p = heap[b, parent]
+        if not _before(prio, b, s, p):
+            break
+        heap[b, i] = p
+        hpos[b, p] = i
+        i = parent
+    heap[b, i] = s
+    hpos[b, s] = i
+
+
+@njit(inline="always")
+def _sift_down(heap, hpos, hsize, prio, b, i):
+    n = hsize[b]
+    s = heap[b, i]
+    while True:
+        child = 2 * i + 1
+        if child >= n:
+            break
+        c = heap[b, child]
+        if child + 1 < n and _before(prio, b, heap[b, child + 1], c):
+            child += 1
+            c = heap[b, child]
+        if not _before(prio, b, c, s):
+            break
+        heap[b, i] = c
+        hpos[b, c] = i
+        i = child
+    heap[b, i] = s
+    hpos[b, s] = i
+
+
+@njit(inline="always")
+def _push(heap, hpos, hsize, prio, b, s, p):
+    """Raise the priority of ``s`` to at least ``p`` (a scatter-max, as the torch queue)."""
+    if p > prio[b, s]:
+        prio[b, s] = p
+        i = hpos[b, s]
+        if i < 0:
+            i = hsize[b]
+            hsize[b] += 1
+            heap[b, i] = s
+        _sift_up(heap, hpos, prio, b, i)
+
+
+@njit(inline="always")
+def _pop(heap, hpos, hsize, prio, b):
+    s = heap[b, 0]
+    hsize[b] -= 1
+    n = hsize[b]
+    hpos[b, s] = -1
+    prio[b, s] = 0.0
+    if n > 0:
+        last = heap[b, n]
+        heap[b, 0] = last
+        hpos[b, last] = 0
+        _sift_down(heap, hpos, hsize, prio, b, 0)
+    return s
+
+
+@njit(inline="always")
+def _heapify(heap, hpos, hsize, prio, b, num):
+    n = 0
+    for s in range(num):
+        hpos[b, s] = -1
+        if prio[b, s] > 0.0:
+            heap[b, n] = s
+            hpos[b, s] = n
+            n += 1
+    hsize[b] = n
+    for i in range((n >> 1) - 1, -1, -1):
+        _sift_down(heap, hpos, hsize, prio, b, i)
+
+
+# ========================================================================== eq. 2 at a state
+@njit(inline="always")
+def _row_value(cfg_f, cfg_i, q_num, row_count, row_enabled, b, row):
+    """``(Q, usable, enabled)`` of one cached row (``ValueCache.own_values``)."""
+    conc = cfg_f[F_CONC]
+    n = row_count[b, row]
+    q = (q_num[b, row] + conc * cfg_f[F_V0]) / (n + conc)
+    enabled = row_enabled[b, row]
+    mode = cfg_i[I_UNTRIED_MODE]        # 0: prior (concentration > 0), 1: skip, 2: a value
+    if mode == 0:
+        usable = enabled
+    elif mode == 1:
+        usable = enabled and n > 0
+    else:
+        if not n > 0:
+            q = cfg_f[F_UNTRIED]
+        usable = enabled
+    return q, usable, enabled
+
+
+@njit(inline="always")
+def _state_backup(cfg_f, cfg_i, state_rows, terminal, use_mentor, use_conf, q_num, q_sec,
+                  row_count, row_reward, row_enabled, state_tries, m_num, m_sec, m_row_count, b, s):
+    """Eq. 2 at ``s`` for run ``b`` (``ValueCache.state_backup``): ``(best, has_value, won)``."""
+    M = q_num.shape[1] - 1
+    conc = cfg_f[F_CONC]
+    v0 = cfg_f[F_V0]
+    z = cfg_f[F_Z]
+    confident_run = use_conf[b]
+    own = -_INF
+    upper = -_INF
+    for j in range(state_rows.shape[1]):
+        row = state_rows[s, j]
+        if row == M:
+            break
+        q, usable, _ = _row_value(cfg_f, cfg_i, q_num, row_count, row_enabled, b, row)
+        if usable:
+            if q > own:
+                own = q
+            if confident_run:
+                n = row_count[b, row]
+                rsum = row_reward[b, row]
+                rbar = rsum / max(n, 1.0) if n > 0 else 0.0
+                cont = q_num[b, row] - rsum
+                second = (n * rbar * rbar + 2 * rbar * cont + q_sec[b, row] + conc * v0 * v0) / (n + conc)
+                var = max(second - q * q, 0.0) / (n + conc + 1)
+                up = q + z * np.sqrt(var)
+                if up > upper:
+                    upper = up
+    mconc = cfg_f[F_MCONC]
+    n_m = m_row_count[b, s]
+    ok = use_mentor[b] and n_m > 0
+    m = (m_num[b, s] + mconc * v0) / (n_m + mconc)
+    override = cfg_i[I_OVERRIDE]
+    if override >= 0 and not state_tries[b, s] < override:
+        ok = False
+    if ok and confident_run:
+        second = (m_sec[b, s] + mconc * v0 * v0) / (n_m + mconc)
+        mvar = max(second - m * m, 0.0) / (n_m + mconc + 1)
+        if not (m - z * np.sqrt(mvar)) > upper:
+            ok = False
+    if not ok:
+        m = -_INF
+    best = own if own >= m else m
+    has_value = np.isfinite(best) and not terminal[s]
+    return best, has_value, ok and m > own
+
+
+# ==================================================================== propagation and sweeping
+@njit(inline="always")
+def _propagate_options(cfg_f, cfg_i, row_state, row_enabled, q_num, q_sec, row_count, edge_row,
+                       edge_disc, edge_count, succ_head, succ_next, heap, hpos, hsize, prio,
+                       b, x, d, v_old):
+    """``V(x) += d``: every row with an edge to ``x`` gets ``Σγ^k d``; queue its state."""
+    thr = cfg_f[F_THRESHOLD]
+    conc = cfg_f[F_CONC]
+    any_conf = cfg_i[I_ANY_CONF] != 0
+    e = succ_head[b, x]
+    while e >= 0:
+        row = edge_row[b, e]
+        g = edge_disc[b, e]
+        gd = g * d
+        q_num[b, row] += gd
+        if any_conf:
+            c = max(edge_count[b, e], 1.0)
+            q_sec[b, row] += g * g / c * ((v_old + d) ** 2 - v_old ** 2)
+        p = abs(gd) / max(row_count[b, row] + conc, 1e-300)
+        if p > thr and row_enabled[b, row]:
+            _push(heap, hpos, hsize, prio, b, row_state[row], p)
+        e = succ_next[b, e]
+
+
+@njit(inline="always")
+def _propagate_mentor(cfg_f, cfg_i, m_num, m_sec, m_row_count, m_edge_row, m_edge_count,
+                      m_edge_reward, m_succ_head, m_succ_next, heap, hpos, hsize, prio,
+                      b, x, d, v_old):
+    """The same for the mentor term of every state the mentor left towards ``x``."""
+    thr = cfg_f[F_THRESHOLD]
+    gamma = cfg_f[F_GAMMA]
+    mconc = cfg_f[F_MCONC]
+    any_conf = cfg_i[I_ANY_CONF] != 0
+    gd = gamma * d
+    e = m_succ_head[b, x]
+    while e >= 0:
+        src = m_edge_row[b, e]
+        c = m_edge_count[b, e]
+        cd = c * gd
+        m_num[b, src] += cd
+        if any_conf:
+            u_old = m_edge_reward[b, e] + gamma * v_old
+            m_sec[b, src] += c * ((u_old + gd) ** 2 - u_old ** 2)
+        p = abs(cd) / max(m_row_count[b, src] + mconc, 1e-300)
+        if p > thr:
+            _push(heap, hpos, hsize, prio, b, src, p)
+        e = m_succ_next[b, e]
+
+
+@njit(cache=True)
+def _sweep(cfg_f, cfg_i, state_rows, row_state, terminal, use_mentor, use_conf, row_enabled,
+           values, q_num, q_sec, m_num, m_sec, m_edge_reward,
+           row_count, row_reward, state_tries, edge_row, edge_disc, edge_count, succ_head, succ_next,
+           m_row_count, m_edge_row, m_edge_count, m_succ_head, m_succ_next,
+           heap, hpos, hsize, prio, round_states, round_best, round_old, round_delta,
+           backups_done, b, budget, round_size):
+    """Up to ``budget`` backups for run ``b`` in rounds of ``round_size`` states, each round
+    backed up together, then propagated (``Sweeper.sweep`` + ``ValueCache.backup_and_propagate``)."""
+    thr = cfg_f[F_THRESHOLD]
+    mentor_run = cfg_i[I_ANY_MENTOR] != 0 and use_mentor[b]
+    done = 0
+    while done < budget:
+        n = min(round_size, budget - done)
+        k = 0
+        while k < n and hsize[b] > 0 and prio[b, heap[b, 0]] > thr:
+            round_states[b, k] = _pop(heap, hpos, hsize, prio, b)
+            k += 1
+        if k == 0:
+            break
+        for i in range(k):
+            s = round_states[b, i]
+            best, has_value, _ = _state_backup(cfg_f, cfg_i, state_rows, terminal, use_mentor,
+                                               use_conf, q_num, q_sec, row_count, row_reward,
+                                               row_enabled, state_tries, m_num, m_sec, m_row_count,
+                                               b, s)
+            round_old[b, i] = values[b, s]
+            round_delta[b, i] = best - values[b, s] if has_value else 0.0
+            round_best[b, i] = best if has_value else values[b, s]
+        for i in range(k):
+            values[b, round_states[b, i]] = round_best[b, i]
+        backups_done[b] += k
+        for i in range(k):
+            d = round_delta[b, i]
+            if d != 0:
+                _propagate_options(cfg_f, cfg_i, row_state, row_enabled, q_num, q_sec, row_count,
+                                   edge_row, edge_disc, edge_count, succ_head, succ_next, heap,
+                                   hpos, hsize, prio, b, round_states[b, i], d, round_old[b, i])
+        if mentor_run:
+            for i in range(k):
+                d = round_delta[b, i]
+                if d != 0:
+                    _propagate_mentor(cfg_f, cfg_i, m_num, m_sec, m_row_count, m_edge_row,
+                                      m_edge_count, m_edge_reward, m_succ_head, m_succ_next,
+                                      heap, hpos, hsize, prio, b, round_states[b, i], d,
+                                      round_old[b, i])
+        done += round_size
+
+
+# =================================================================================== choice
+@njit(cache=True)
+def _choose(cfg_f, cfg_i, state_rows, row_first_action, primitive_rows, terminal, use_mentor,
+            use_conf, row_enabled, q_num, q_sec, row_count, row_reward, state_tries, edge_count,
+            edge_succ, row_head, row_next, m_num, m_sec, m_row_count, m_edge_count, m_edge_succ,
+            m_row_head, m_row_next, epsilon, q_buf, usable_buf, enabled_buf, score_buf, b, s,
+            u_eps, u_pick):
+    """ε-greedy choice of a row at ``s`` (:func:`himit_torch.choice.choose_rows`)."""
+    M = q_num.shape[1] - 1
+    J = 0
+    for j in range(state_rows.shape[1]):
+        row = state_rows[s, j]
+        if row == M:
+            break
+        q, usable, enabled = _row_value(cfg_f, cfg_i, q_num, row_count, row_enabled, b, row)
+        q_buf[b, j] = q if usable else -_INF
+        usable_buf[b, j] = usable
+        enabled_buf[b, j] = enabled
+        J += 1
+    if cfg_i[I_MATCH] != 0 and cfg_i[I_ANY_MENTOR] != 0:
+        _, _, won = _state_backup(cfg_f, cfg_i, state_rows, terminal, use_mentor, use_conf, q_num,
+                                  q_sec, row_count, row_reward, row_enabled, state_tries, m_num,
+                                  m_sec, m_row_count, b, s)
+        if won:
+            A = primitive_rows.shape[1]
+            n_m = max(m_row_count[b, s], 1.0)
+            for a in range(A):
+                prow = primitive_rows[s, a]
+                total = 0.0
+                n_p = max(row_count[b, prow], 1.0)
+                e = row_head[b, prow]
+                while e >= 0:
+                    f = m_row_head[b, s]
+                    while f >= 0:
+                        if m_edge_succ[b, f] == edge_succ[b, e]:
+                            total += (edge_count[b, e] / n_p) * (m_edge_count[b, f] / n_m)
+                        f = m_row_next[b, f]
+                    e = row_next[b, e]
+                score_buf[b, a] = total
+            best_score = 0.0
+            for j in range(J):
+                a = min(row_first_action[state_rows[s, j]], A - 1)
+                sc = score_buf[b, a] if usable_buf[b, j] else 0.0
+                if j == 0 or sc > best_score:
+                    best_score = sc
+            if best_score > 0:
+                for j in range(J):
+                    a = min(row_first_action[state_rows[s, j]], A - 1)
+                    sc = score_buf[b, a] if usable_buf[b, j] else 0.0
+                    if sc >= best_score - _TIE:
+                        q_buf[b, j] += 1e6
+    top = -_INF
+    for j in range(J):
+        if q_buf[b, j] > top:
+            top = q_buf[b, j]
+    any_greedy = False
+    for j in range(J):
+        if usable_buf[b, j] and q_buf[b, j] >= top - _TIE:
+            any_greedy = True
+            break
+    explore = u_eps < epsilon[b]
+    count = 0
+    for j in range(J):
+        if explore or not any_greedy:
+            cand = enabled_buf[b, j]
+        else:
+            cand = usable_buf[b, j] and q_buf[b, j] >= top - _TIE
+        usable_buf[b, j] = cand          # reused as the candidate mask
+        if cand:
+            count += 1
+    pick = min(np.int64(u_pick * count), count - 1)
+    if cfg_i[I_TIE_FIRST] != 0 and not explore:
+        pick = 0
+    seen = 0
+    for j in range(J):
+        if usable_buf[b, j]:
+            if seen == pick:
+                return state_rows[s, j]
+            seen += 1
+    return state_rows[s, 0]
+
+
+# ============================================================================ the tick loop
+@njit(parallel=True, cache=True)
+def advance(t_end, t_reached, keys, cfg_f, cfg_i,
+            # the world and the options (shared, read only)
+            dyn_succ, dyn_cdf, dyn_rew, terminal, start_cdf, termination, policy, policy_cdf,
+            # the row table (shared, read only)
+            state_rows, row_state, row_option, row_first_action, primitive_rows, row_enabled,
+            use_mentor, use_conf,
+            # the value cache
+            values, q_num, q_sec, m_num, m_sec, m_edge_reward,
+            # the option model and its linked lists
+            edge_row, edge_succ, edge_count, edge_disc, num_edges, row_count, row_reward,
+            state_tries, row_head, row_next, succ_head, succ_next,
+            # the mentor model and its linked lists (read only)
+            m_edge_row, m_edge_succ, m_edge_count, m_row_count, m_row_head, m_row_next,
+            m_succ_head, m_succ_next,
+            # the sweeper
+            prio, pending, heap, hpos, hsize,
+            # the run state
+            position, option_start, row_of, duration, disc_return, discount, epsilon, found_goal,
+            goals, window_goals, episodes, episode_start, window_episode_steps, window_episodes,
+            backups_done, decisions, first_goal_step, visits,
+            # scratch
+            round_states, round_best, round_old, round_delta, q_buf, usable_buf, enabled_buf,
+            score_buf):
+    """Advance every run ``b`` from tick ``t_reached[b]`` to ``t_end``, in place.
+
+    A run stops early, at the start of a tick, when its edge list is full (``num_edges[b]`` equals
+    the capacity): the caller grows the lists and calls again. ``t_reached[b]`` says where each
+    run stopped."""
+    B = position.shape[0]
+    S = terminal.shape[0] - 1
+    capacity = edge_row.shape[1]
+    gamma = cfg_f[F_GAMMA]
+    backups = cfg_i[I_BACKUPS]
+    round_size = cfg_i[I_ROUND]
+    plan_every = cfg_i[I_PLAN_EVERY]
+    stochastic = cfg_i[I_STOCHASTIC] != 0
+    K = dyn_cdf.shape[2]
+    A = dyn_cdf.shape[1]
+    for b in prange(B):
+        _heapify(heap, hpos, hsize, prio, b, S + 1)
+        key = np.uint64(keys[b])
+        t = t_reached[b]
+        while t < t_end:
+            if num_edges[b] >= capacity:
+                break
+            u0 = _uniform(key, t, 0)
+            u1 = _uniform(key, t, 1)
+            row = row_of[b]
+            option = row_option[row]
+            pos = position[b]
+            flat = option * S + pos
+            if stochastic:
+                action = 0
+                while action < policy_cdf.shape[1] - 1 and policy_cdf[flat, action] < u1:
+                    action += 1
+                stop_u = _uniform(key, t, 2)
+            else:
+                action = policy[flat]
+                stop_u = u1
+            slot = 0
+            for k in range(K):
+                if dyn_cdf[pos, action, k] <= u0:
+                    slot += 1
+            if slot > K - 1:
+                slot = K - 1
+            nxt = dyn_succ[pos, action, slot]
+            disc_return[b] += discount[b] * dyn_rew[pos, action, slot]
+            discount[b] *= gamma
+            duration[b] += 1
+            t += 1
+            at_goal = terminal[nxt]
+            ended = at_goal or termination[option * S + nxt] > stop_u or \
+                duration[b] >= cfg_i[I_MAX_STEPS]
+            position[b] = nxt
+            visits[b, nxt] += 1
+            if at_goal:
+                goals[b] += 1
+                window_goals[b] += 1
+                if not found_goal[b]:
+                    first_goal_step[b] = t
+                found_goal[b] = True
+                episodes[b] += 1
+                window_episode_steps[b] += t - episode_start[b]
+                window_episodes[b] += 1
+                episode_start[b] = t
+            if ended:
+                # ---- learn: count the option's outcome (DirichletSMDPModel.update) ----------
+                start = option_start[b]
+                ret = disc_return[b]
+                g = discount[b]
+                e = row_head[b, row]
+                while e >= 0 and edge_succ[b, e] != nxt:
+                    e = row_next[b, e]
+                if e < 0:
+                    e = num_edges[b]
+                    num_edges[b] += 1
+                    edge_row[b, e] = row
+                    edge_succ[b, e] = nxt
+                    edge_count[b, e] = 0.0
+                    edge_disc[b, e] = 0.0
+                    row_next[b, e] = row_head[b, row]
+                    row_head[b, row] = e
+                    succ_next[b, e] = succ_head[b, nxt]
+                    succ_head[b, nxt] = e
+                c_old = edge_count[b, e]
+                g_old = edge_disc[b, e]
+                edge_count[b, e] = c_old + 1
+                edge_disc[b, e] = g_old + g
+                row_count[b, row] += 1
+                row_reward[b, row] += ret
+                state_tries[b, start] += 1
+                # ---- and fold it into the Q cache (ValueCache.add_outcome) ------------------
+                v_end = values[b, nxt]
+                q_num[b, row] += ret + g * v_end
+                if cfg_i[I_ANY_CONF] != 0:
+                    c_new = c_old + 1
+                    g_new = g_old + g
+                    old_term = g_old * g_old / max(c_old, 1.0) if c_old > 0 else 0.0
+                    q_sec[b, row] += (g_new * g_new / c_new - old_term) * v_end * v_end
+                _push(heap, hpos, hsize, prio, b, start, _INF)
+                # ---- plan ---------------------------------------------------------------------
+                if plan_every == 1:
+                    _sweep(cfg_f, cfg_i, state_rows, row_state, terminal, use_mentor, use_conf,
+                           row_enabled, values, q_num, q_sec, m_num, m_sec, m_edge_reward,
+                           row_count, row_reward, state_tries, edge_row, edge_disc, edge_count,
+                           succ_head, succ_next, m_row_count, m_edge_row, m_edge_count,
+                           m_succ_head, m_succ_next, heap, hpos, hsize, prio, round_states,
+                           round_best, round_old, round_delta, backups_done, b, backups,
+                           round_size)
+                else:
+                    pending[b] += 1
+                decisions[b] += 1
+                if found_goal[b]:
+                    epsilon[b] = max(epsilon[b] * cfg_f[F_EPS_DECAY], cfg_f[F_EPS_MIN])
+                duration[b] = 0
+                disc_return[b] = 0.0
+                discount[b] = 1.0
+                here = nxt
+                if at_goal:
+                    if cfg_i[I_START] >= 0:
+                        here = cfg_i[I_START]
+                    else:
+                        u5 = _uniform(key, t - 1, 5)
+                        here = 0
+                        while here < S - 1 and start_cdf[here] <= u5:
+                            here += 1
+                position[b] = here
+                option_start[b] = here
+                # ---- choose ---------------------------------------------------------------------
+                row_of[b] = _choose(cfg_f, cfg_i, state_rows, row_first_action, primitive_rows,
+                                    terminal, use_mentor, use_conf, row_enabled, q_num, q_sec,
+                                    row_count, row_reward, state_tries, edge_count, edge_succ,
+                                    row_head, row_next, m_num, m_sec, m_row_count, m_edge_count,
+                                    m_edge_succ, m_row_head, m_row_next, epsilon, q_buf,
+                                    usable_buf, enabled_buf, score_buf, b, here,
+                                    _uniform(key, t - 1, 3), _uniform(key, t - 1, 4))
+            if pending[b] > 0 and t % plan_every == 0:
+                _sweep(cfg_f, cfg_i, state_rows, row_state, terminal, use_mentor, use_conf,
+                       row_enabled, values, q_num, q_sec, m_num, m_sec, m_edge_reward,
+                       row_count, row_reward, state_tries, edge_row, edge_disc, edge_count,
+                       succ_head, succ_next, m_row_count, m_edge_row, m_edge_count,
+                       m_succ_head, m_succ_next, heap, hpos, hsize, prio, round_states,
+                       round_best, round_old, round_delta, backups_done, b,
+                       pending[b] * backups, round_size)
+                pending[b] = 0
+        t_reached[b] = t
+
+
+@njit(cache=True)
+def link_edges(edge_row, edge_succ, num_edges, row_head, row_next, succ_head, succ_next):
+    """Linked lists over each run's edges (by row and by successor), from the edge lists."""
+    row_head[:] = -1
+    succ_head[:] = -1
+    row_next[:] = -1
+    succ_next[:] = -1
+    for b in range(edge_row.shape[0]):
+        for e in range(num_edges[b]):
+            r = edge_row[b, e]
+            s = edge_succ[b, e]
+            row_next[b, e] = row_head[b, r]
+            row_head[b, r] = e
+            succ_next[b, e] = succ_head[b, s]
+            succ_head[b, s] = e

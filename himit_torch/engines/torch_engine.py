@@ -1,0 +1,126 @@
+"""The torch engine: one tick for all runs of a batch as a fixed sequence of tensor ops."""
+
+from __future__ import annotations
+
+import torch
+
+from ..choice import choose_rows
+from ..rng import uniforms
+
+__all__ = ["TorchEngine"]
+
+
+class TorchEngine:
+    """Batched tensor ops: the readable reference, and the engine for CUDA devices."""
+
+    name = "torch"
+
+    def __init__(self, learner):
+        self.learner = learner
+        self._u_chunk: torch.Tensor | None = None
+        self._u_chunk_start = -1
+
+    def advance(self, ticks: int) -> None:
+        """Carry out ``ticks`` ticks (no window boundary inside: the learner closes windows)."""
+        for _ in range(ticks):
+            self.tick()
+
+    def invalidate(self) -> None:
+        """The state was changed outside this engine (loaded, or advanced by another engine)."""
+        self._u_chunk, self._u_chunk_start = None, -1
+
+    def _tick_uniforms(self, t: int) -> torch.Tensor:
+        """``[B, lanes]`` uniforms of tick ``t``: 0 slip, 1 termination or action, 2 termination
+        (stochastic policies), 3 ε, 4 which of the candidate options."""
+        L = self.learner
+        chunk = L.config.rng_chunk
+        i = t % chunk
+        if self._u_chunk is None or self._u_chunk_start != t - i:
+            self._u_chunk_start = t - i
+            counters = torch.arange(t - i, t - i + chunk, device=L.device)
+            self._u_chunk = uniforms(L.keys, counters, L.LANES)
+        return self._u_chunk[i]
+
+    def tick(self) -> None:
+        """Advance every run one primitive step: act, count, and where an option ended learn,
+        plan and choose."""
+        L = self.learner
+        cfg, S, run = L.config, L.num_states, L.run_state
+        u = self._tick_uniforms(run.t)
+        option = L.rows.row_option[run.row]
+        flat = option * S + run.position
+        if L.policy is not None:
+            action = L.policy[flat]
+            stop_u = u[:, 1]
+        else:
+            action = torch.searchsorted(L.policy_cdf[flat], u[:, 1:2].contiguous()).squeeze(1)
+            action = action.clamp(max=L.policy_cdf.shape[1] - 1)
+            stop_u = u[:, 2]
+        nxt, reward = L.step_world(run.position, action, u[:, 0])
+        run.discounted_return += run.discount * reward
+        run.discount *= L.gamma
+        run.duration += 1
+        run.t += 1
+        at_goal = L.terminal[nxt]
+        ended = at_goal | (L.termination[option * S + nxt] > stop_u) \
+            | (run.duration >= cfg.max_option_steps)
+        run.position = nxt
+        run.visits.view(-1).index_add_(0, L._visit_base + nxt, L._ones_b)
+        if bool(at_goal.any()):
+            self._goal_reached(at_goal)
+        if bool(ended.any()):
+            runs = ended.nonzero()[:, 0]
+            self._decide(runs, at_goal[runs], u[runs])
+        sweeper = L.sweeper
+        if run.t % cfg.plan_every == 0 and bool((sweeper.pending > 0).any()):
+            runs = (sweeper.pending > 0).nonzero()[:, 0]
+            self._sweep(runs, sweeper.pending[runs] * cfg.backups)
+            sweeper.pending.zero_()
+
+    def _sweep(self, runs, budget) -> None:
+        L = self.learner
+        done = L.sweeper.sweep(runs, budget, L.cache.backup_and_propagate)
+        L.run_state.backups_done.index_add_(0, runs, done)
+
+    def _decide(self, runs: torch.Tensor, at_goal: torch.Tensor, u: torch.Tensor) -> None:
+        """Runs whose option just ended: learn from it, plan, choose the next option."""
+        L = self.learner
+        cfg, run = L.config, L.run_state
+        end = run.position[runs]
+        rows, starts = run.row[runs], run.option_start[runs]
+        discounts, returns = run.discount[runs], run.discounted_return[runs]
+        _, c_old, g_old = L.model.update(runs, rows, starts, end, discounts, returns)
+        L.cache.add_outcome(runs, rows, end, discounts, returns, c_old, g_old)
+        # The option's start state goes first in this decision's sweep.
+        L.sweeper.push(runs, starts, torch.full_like(returns, float("inf")))
+        if cfg.plan_every == 1:
+            self._sweep(runs, torch.full_like(runs, cfg.backups))
+        else:
+            L.sweeper.pending[runs] += 1
+        run.decisions[runs] += 1
+        eps = run.epsilon[runs]
+        run.epsilon[runs] = torch.where(run.found_goal[runs],
+                                        (eps * cfg.eps_decay).clamp(min=cfg.eps_min), eps)
+        run.duration[runs] = 0
+        run.discounted_return[runs] = 0.0
+        run.discount[runs] = 1.0
+        here = torch.where(at_goal, L.start_states(runs, u), end)
+        run.position[runs] = here
+        run.option_start[runs] = here
+        run.row[runs] = choose_rows(L.cache, runs, here, u[:, 3:5], run.epsilon[runs],
+                                    cfg.mentor_choice, cfg.tie_break)
+
+    def _goal_reached(self, at_goal: torch.Tensor) -> None:
+        run = self.learner.run_state
+        run.goals += at_goal
+        run.window_goals += at_goal
+        first = at_goal & ~run.found_goal
+        run.first_goal_step = torch.where(first, torch.full_like(run.first_goal_step, run.t),
+                                          run.first_goal_step)
+        run.found_goal |= at_goal
+        run.episodes += at_goal
+        length = run.t - run.episode_start
+        run.window_episode_steps += torch.where(at_goal, length, torch.zeros_like(length))
+        run.window_episodes += at_goal
+        run.episode_start = torch.where(at_goal, torch.full_like(run.episode_start, run.t),
+                                        run.episode_start)

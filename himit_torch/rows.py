@@ -1,0 +1,94 @@
+"""The row table: every available ``(s, o)`` pair ("row") of a batch, grouped by state, and which
+runs may use which rows (their agent variant). Built once from the options; never changes.
+
+Shapes: ``M`` rows (plus one padding row ``M``), ``J`` rows per state at most, ``A`` actions.
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import torch
+
+from .options import Options
+
+__all__ = ["RowTable", "AGENTS"]
+
+#: Agent variants: which options a run may use, whether it imitates, and whether its mentor term
+#: is confidence-tested. ``imitation`` — options + mentor (eq. 2); ``options`` — options only;
+#: ``primitives`` — primitive options only; ``imitation_primitives`` — primitives + mentor (eq. 1,
+#: Price & Boutilier); ``…_confident`` — the same with Price & Boutilier's confidence test
+#: (:attr:`LearnerConfig.confidence_z`).
+AGENTS = {
+    "imitation": ("all", True, False),
+    "imitation_confident": ("all", True, True),
+    "options": ("all", False, False),
+    "primitives": ("primitive", False, False),
+    "imitation_primitives": ("primitive", True, False),
+    "imitation_primitives_confident": ("primitive", True, True),
+}
+
+
+class RowTable:
+    """Rows of the batch and the per-run variant masks.
+
+    Attributes:
+        state_rows: ``[S + 1, J]`` the rows of each state, ascending, padded with ``M``.
+        row_state, row_option: ``[M + 1]`` state and option of each row (padding: ``S``, 0).
+        row_first_action: ``[M + 1]`` the first primitive action of each row's option at its
+            state (the most probable one for stochastic policies), for ``mentor_choice="match"``.
+        primitive_rows: ``[S + 1, A]`` the row of each primitive action at each state (``M``
+            where that primitive is not available).
+        row_enabled: ``[B, M + 1]`` whether run ``b``'s agent variant may use the row.
+        use_mentor, use_confidence: ``[B]`` the variant's mentor term and confidence test.
+    """
+
+    def __init__(self, options: Options, num_actions: int, agents: Sequence[str], device):
+        dev = torch.device(device)
+        S, O = options.num_states, options.num_options
+        init = options.initiation.to(dev)
+        opt_idx, state_idx = init.nonzero(as_tuple=True)
+        order = torch.argsort(state_idx * O + opt_idx)
+        row_state, row_option = state_idx[order], opt_idx[order]
+        M = row_state.numel()
+        self.num_rows, self.num_states, self.num_options = M, S, O
+        first = torch.ones(M, dtype=torch.bool, device=dev)
+        first[1:] = row_state[1:] != row_state[:-1]
+        starts = torch.cummax(torch.where(first, torch.arange(M, device=dev),
+                                          torch.zeros_like(row_state)), 0).values
+        rank = torch.arange(M, device=dev) - starts
+        J = int(rank.max()) + 1 if M else 1
+        self.state_rows = torch.full((S + 1, J), M, dtype=torch.int64, device=dev)
+        self.state_rows[row_state, rank] = torch.arange(M, device=dev)
+        self.row_state = torch.cat([row_state, torch.tensor([S], device=dev)])
+        self.row_option = torch.cat([row_option, torch.zeros(1, dtype=torch.int64, device=dev)])
+
+        probs = options.action_probabilities(num_actions).to(dev)               # [O, S, A]
+        first_action = probs[row_option, row_state].argmax(-1)
+        self.row_first_action = torch.cat([first_action, torch.zeros(1, dtype=torch.int64, device=dev)])
+        prim_option = torch.full((num_actions,), -1, dtype=torch.int64)
+        first_state = options.initiation.float().argmax(1)
+        for o, kind in enumerate(options.kinds):
+            if kind == "primitive":
+                prim_option[int(probs[o, first_state[o]].argmax())] = o
+        self.primitive_rows = torch.full((S + 1, num_actions), M, dtype=torch.int64, device=dev)
+        for a, o in enumerate(prim_option.tolist()):
+            if o >= 0:
+                is_o = row_option == o
+                self.primitive_rows[row_state[is_o], a] = torch.arange(M, device=dev)[is_o]
+
+        B = len(agents)
+        primitive = options.is_primitive.to(dev)
+        enabled = torch.zeros(B, O, dtype=torch.bool, device=dev)
+        self.use_mentor = torch.zeros(B, dtype=torch.bool, device=dev)
+        self.use_confidence = torch.zeros(B, dtype=torch.bool, device=dev)
+        for b, agent in enumerate(agents):
+            which, mentor, confident = AGENTS[agent]
+            enabled[b] = True if which == "all" else primitive
+            self.use_mentor[b] = mentor
+            self.use_confidence[b] = confident
+        if not bool(enabled.any(1).all()):
+            raise ValueError("an agent variant has no usable option (e.g. 'primitives' with no "
+                             "primitive options in the set)")
+        self.row_enabled = torch.cat([enabled[:, row_option],
+                                      torch.zeros(B, 1, dtype=torch.bool, device=dev)], 1)

@@ -1,0 +1,262 @@
+"""The value caches: ``V`` and the cached numerators of eq. 2, the only writer of ``V``.
+
+The paper's eq. 2 (the augmented Bellman equation with options)
+
+    V(s) = max( max_o [ r(s,o) + Σ_s' p^o_ss' V(s') ],  R_m(s) + γ Σ_s' p_m(s'|s) V(s') )
+
+is evaluated from caches rather than from the models' successor lists (the pure functions of
+:mod:`himit_torch.backups` are the slow reference the tests compare these with):
+
+* ``q_numerator [B, M + 1]`` holds ``Σ r + Σ_{s'} Σγ^k V(s')`` of every row, so that
+  ``Q = (q_numerator + α v0) / (n + α)`` is :func:`~himit_torch.backups.option_backup` on the
+  posterior mean. When ``V(x)`` changes by ``δ``, every row with an edge to ``x`` gets
+  ``+ Σγ^k · δ`` (along the reverse edges), which also yields the prioritized-sweeping priority
+  ``|ΔQ|`` of the row's state.
+* ``mentor_numerator [B, S + 1]`` likewise holds ``Σ_{s'} c(s→s') (r_m + γ V(s'))``.
+* ``q_second``/``mentor_second`` hold the second moments the confidence test needs.
+
+A backup of ``s`` is then a max over its cached rows and its mentor term. The functions here are
+the batched tensor-op path (the torch engine, diagnostics); the compiled engine computes the same
+numbers in the same order on the same arrays.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import torch
+
+from .dirichlet_models import DirichletMentorModel, DirichletSMDPModel
+from .rows import RowTable
+
+if TYPE_CHECKING:
+    from .learner import LearnerConfig
+
+__all__ = ["ValueCache", "TIE"]
+
+#: Two values within this distance are a tie (greedy choice, mentor matching).
+TIE = 1e-12
+
+
+def _take(x: torch.Tensor, flat: torch.Tensor) -> torch.Tensor:
+    """``x`` (contiguous) read at flat indices of any shape: one ``index_select``, far cheaper
+    than multi-tensor advanced indexing."""
+    return x.view(-1).index_select(0, flat.reshape(-1)).view(flat.shape)
+
+
+class ValueCache:
+    """``V [B, S + 1]`` and the caches of eq. 2 for a batch, over its models and row table."""
+
+    def __init__(self, config: "LearnerConfig", rows: RowTable, model: DirichletSMDPModel,
+                 mentor: DirichletMentorModel, terminal: torch.Tensor, gamma: float):
+        self.config, self.rows, self.model, self.mentor = config, rows, model, mentor
+        self.terminal, self.gamma = terminal, gamma
+        B, S, M = model.batch, rows.num_states, rows.num_rows
+        dev = terminal.device
+        self.batch, self.num_states, self.num_rows, self.device = B, S, M, dev
+        self.values = torch.full((B, S + 1), float(config.initial_value), dtype=torch.float64, device=dev)
+        self.values[:, terminal] = 0.0
+        self.q_numerator = torch.zeros(B, M + 1, dtype=torch.float64, device=dev)
+        self.q_second = torch.zeros_like(self.q_numerator)        # Σ (γ^k)² V² / c per row
+        self.mentor_numerator = torch.zeros(B, S + 1, dtype=torch.float64, device=dev)
+        self.mentor_second = torch.zeros_like(self.mentor_numerator)
+        self.mentor_edge_reward = torch.zeros(B, mentor.capacity, dtype=torch.float64, device=dev)
+        mentor.on_grow.append(self._grow_mentor_reward)
+        self.any_confidence = bool(rows.use_confidence.any())
+        self.any_mentor = bool(rows.use_mentor.any())
+        self._neg_inf = torch.tensor(float("-inf"), dtype=torch.float64, device=dev)
+        self._zero = torch.zeros((), dtype=torch.float64, device=dev)
+        self._untried = torch.tensor(float(config.untried_value if config.untried_value is not None
+                                           else 0.0), dtype=torch.float64, device=dev)
+
+    _STATE = ("values", "q_numerator", "q_second", "mentor_numerator", "mentor_second",
+              "mentor_edge_reward")
+
+    def state_dict(self) -> dict:
+        return {name: getattr(self, name).clone() for name in self._STATE}
+
+    def load_state_dict(self, state: dict) -> None:
+        for name in self._STATE:
+            setattr(self, name, state[name].to(self.device).clone())
+
+    def _grow_mentor_reward(self, capacity: int) -> None:
+        if capacity > self.mentor_edge_reward.shape[1]:
+            grown = torch.zeros(self.batch, capacity, dtype=torch.float64, device=self.device)
+            grown[:, :self.mentor_edge_reward.shape[1]] = self.mentor_edge_reward
+            self.mentor_edge_reward = grown
+
+    # ============================================================================ value queries
+    def _row_flat(self, runs, rows):
+        return runs * (self.num_rows + 1) + rows
+
+    def _state_flat(self, runs, states):
+        return runs * (self.num_states + 1) + states
+
+    def row_q(self, runs: torch.Tensor, rows: torch.Tensor) -> torch.Tensor:
+        """Posterior-mean option values ``Q`` of ``rows`` (``runs`` broadcast against them);
+        untried rows give the prior value ``v0`` if ``concentration > 0`` else ``NaN``."""
+        flat = self._row_flat(runs, rows)
+        return self._q_at(flat, _take(self.model.row_count, flat))
+
+    def _q_at(self, flat, n):
+        a, v0 = self.config.concentration, self.config.initial_value
+        return (_take(self.q_numerator, flat) + a * v0) / (n + a)
+
+    def mentor_term(self, runs: torch.Tensor, states: torch.Tensor) -> torch.Tensor:
+        """Posterior-mean mentor term ``R_m(s) + γ Σ p_m(s'|s) V(s')`` (NaN where not observed
+        and no prior)."""
+        flat = self._state_flat(runs, states)
+        return self._mentor_at(flat, _take(self.mentor.row_count, flat))
+
+    def _mentor_at(self, flat, n):
+        a, v0 = self.config.mentor_concentration, self.config.initial_value
+        return (_take(self.mentor_numerator, flat) + a * v0) / (n + a)
+
+    def _row_variance(self, flat, n, q):
+        a, v0 = self.config.concentration, self.config.initial_value
+        rsum = _take(self.model.row_reward, flat)
+        rbar = torch.where(n > 0, rsum / n.clamp(min=1), torch.zeros_like(n))
+        cont = _take(self.q_numerator, flat) - rsum
+        second = (n * rbar * rbar + 2 * rbar * cont + _take(self.q_second, flat) + a * v0 * v0) / (n + a)
+        return (second - q * q).clamp(min=0) / (n + a + 1)
+
+    def _mentor_variance(self, flat, n, m):
+        a, v0 = self.config.mentor_concentration, self.config.initial_value
+        second = (_take(self.mentor_second, flat) + a * v0 * v0) / (n + a)
+        return (second - m * m).clamp(min=0) / (n + a + 1)
+
+    def own_values(self, runs: torch.Tensor, states: torch.Tensor):
+        """Cached ``Q`` of the rows at ``states`` (``runs`` broadcast, ``[..., J]`` out): returns
+        ``(rows, q, usable, enabled, flat rows, counts)``; ``usable`` = the run may use the row
+        and it has a value (tried, or valued by the prior / ``untried_value``)."""
+        cfg = self.config
+        rows = self.rows.state_rows.index_select(0, states.reshape(-1)).view(*states.shape, -1)
+        flat = self._row_flat(runs[..., None], rows)
+        n = _take(self.model.row_count, flat)
+        q = self._q_at(flat, n)
+        enabled = _take(self.rows.row_enabled, flat)
+        if cfg.concentration > 0:
+            usable = enabled
+        elif cfg.untried_value is None:
+            usable = enabled & (n > 0)
+        else:
+            q = torch.where(n > 0, q, self._untried)
+            usable = enabled
+        return rows, q, usable, enabled, flat, n
+
+    def state_backup(self, runs: torch.Tensor, states: torch.Tensor):
+        """Eq. 2 for ``states [R, n]`` of ``runs [R, 1]`` (or broadcastable): returns
+        ``(new V, has_value, mentor_won)``; ``-inf`` where nothing is known."""
+        cfg = self.config
+        _, q, usable, _, flat_rows, n_rows = self.own_values(runs, states)
+        own = torch.where(usable, q, self._neg_inf).amax(-1)
+        flat = self._state_flat(runs, states)
+        n_m = _take(self.mentor.row_count, flat)
+        # The mentor term exists only where the mentor was seen (a prior does not create one).
+        mentor_ok = self.rows.use_mentor[runs] & (n_m > 0)
+        m = self._mentor_at(flat, n_m)
+        if cfg.mentor_override_after is not None:
+            mentor_ok = mentor_ok & (_take(self.model.state_tries, flat) < cfg.mentor_override_after)
+        if self.any_confidence and bool(self.rows.use_confidence[runs].any()):
+            z = cfg.confidence_z
+            var = self._row_variance(flat_rows, n_rows, q)
+            upper = torch.where(usable, q + z * var.sqrt(), self._neg_inf).amax(-1)
+            confident = (m - z * self._mentor_variance(flat, n_m, m).sqrt()) > upper
+            mentor_ok = mentor_ok & (confident | ~self.rows.use_confidence[runs])
+        m = torch.where(mentor_ok, m, self._neg_inf)
+        best = torch.maximum(own, m)
+        # Terminal states (and the padding state) keep V = 0.
+        has_value = torch.isfinite(best) & ~self.terminal.index_select(0, states.reshape(-1)).view_as(states)
+        return best, has_value, mentor_ok & (m > own)
+
+    # ================================================================================ updates
+    def backup_and_propagate(self, runs: torch.Tensor, states: torch.Tensor, valid: torch.Tensor
+                             ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Back up ``states [R, n]`` of ``runs [R]`` together (where ``valid``), then push each
+        change ``δ`` into the caches of the states' predecessors. Returns the predecessors'
+        new priorities ``(runs, states, |ΔQ|)`` for the sweeper."""
+        best, has_value, _ = self.state_backup(runs[:, None], states)
+        flat = self._state_flat(runs[:, None], states)
+        old = _take(self.values, flat)
+        keep = valid & has_value
+        delta = torch.where(keep, best - old, self._zero)
+        self.values.view(-1).index_put_((flat[keep],), best[keep])
+        changed = delta != 0
+        if not bool(changed.any()):
+            empty = runs[:0]
+            return empty, empty, torch.zeros(0, dtype=torch.float64, device=self.device)
+        rr = runs[:, None].expand_as(states)[changed]
+        xs, dd, vo = states[changed], delta[changed], old[changed]
+        pushes = [self._propagate_options(rr, xs, dd, vo)]
+        if self.any_mentor:
+            pushes.append(self._propagate_mentor(rr, xs, dd, vo))
+        return tuple(torch.cat(parts) for parts in zip(*pushes))
+
+    def _propagate_options(self, runs, states, delta, old):
+        """``V(x) += δ``: update the ``Q`` caches of every row with an edge to ``x``."""
+        model = self.model
+        owner, e = model.index().incoming(runs, states)
+        r = runs.index_select(0, owner)
+        d = delta.index_select(0, owner)
+        flat_e = r * model.capacity + e
+        rows = _take(model.edge_row, flat_e)
+        g = _take(model.edge_discount, flat_e)
+        gd = g * d
+        flat = self._row_flat(r, rows)
+        self.q_numerator.view(-1).index_add_(0, flat, gd)
+        if self.any_confidence:
+            c = _take(model.edge_count, flat_e).clamp(min=1)
+            v_old = old.index_select(0, owner)
+            self.q_second.view(-1).index_add_(0, flat, g * g / c * ((v_old + d) ** 2 - v_old ** 2))
+        prio = gd.abs() / (_take(model.row_count, flat) + self.config.concentration).clamp(min=1e-300)
+        push = (prio > self.config.priority_threshold) & _take(self.rows.row_enabled, flat)
+        return r[push], self.rows.row_state.index_select(0, rows[push]), prio[push]
+
+    def _propagate_mentor(self, runs, states, delta, old):
+        """The same for the mentor term of every state the mentor left towards ``x``."""
+        keep = self.rows.use_mentor.index_select(0, runs)
+        runs, states, delta, old = runs[keep], states[keep], delta[keep], old[keep]
+        mentor = self.mentor
+        owner, e = mentor.index().incoming(runs, states)
+        r = runs.index_select(0, owner)
+        gd = self.gamma * delta.index_select(0, owner)
+        flat_e = r * mentor.capacity + e
+        src = _take(mentor.edge_row, flat_e)
+        c = _take(mentor.edge_count, flat_e)
+        cd = c * gd
+        flat = self._state_flat(r, src)
+        self.mentor_numerator.view(-1).index_add_(0, flat, cd)
+        if self.any_confidence:
+            u_old = _take(self.mentor_edge_reward, flat_e) + self.gamma * old.index_select(0, owner)
+            self.mentor_second.view(-1).index_add_(0, flat, c * ((u_old + gd) ** 2 - u_old ** 2))
+        prio = cd.abs() / (_take(mentor.row_count, flat) + self.config.mentor_concentration).clamp(min=1e-300)
+        push = prio > self.config.priority_threshold
+        return r[push], src[push], prio[push]
+
+    def add_outcome(self, runs, rows, ends, discounts, returns, c_old, g_old) -> None:
+        """Fold one newly counted option outcome per run into the ``Q`` cache (after the model's
+        :meth:`~himit_torch.DirichletSMDPModel.update` returned the edge's old count ``c_old``
+        and summed ``γ^k`` ``g_old``)."""
+        v_end = _take(self.values, self._state_flat(runs, ends))
+        flat_r = self._row_flat(runs, rows)
+        self.q_numerator.view(-1).index_add_(0, flat_r, returns + discounts * v_end)
+        if self.any_confidence:
+            c_new, g_new = c_old + 1, g_old + discounts
+            old_term = torch.where(c_old > 0, g_old * g_old / c_old.clamp(min=1), self._zero)
+            self.q_second.view(-1).index_add_(0, flat_r, (g_new * g_new / c_new - old_term) * v_end * v_end)
+
+    def rebuild_mentor(self) -> None:
+        """Recompute the mentor caches from the mentor model's counts, its edge rewards and ``V``."""
+        mentor = self.mentor
+        self.mentor_numerator.zero_()
+        self.mentor_second.zero_()
+        E = int(mentor.num_edges.max()) if self.batch else 0
+        if E == 0:
+            return
+        valid = torch.arange(E, device=self.device) < mentor.num_edges[:, None]
+        src = mentor.edge_row[:, :E].clamp(min=0)
+        dst = mentor.edge_successor[:, :E].clamp(min=0)
+        c = torch.where(valid, mentor.edge_count[:, :E], self._zero)
+        u = self.mentor_edge_reward[:, :E] + self.gamma * self.values.gather(1, dst)
+        self.mentor_numerator.scatter_add_(1, src, c * u)
+        self.mentor_second.scatter_add_(1, src, c * u * u)
