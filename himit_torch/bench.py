@@ -28,6 +28,9 @@ class BenchResult:
     seconds: float
     decisions: int
     peak_memory_mib: float
+    engine: str = "torch"
+    first_call_seconds: float = 0.0
+    """The first (untimed) tick: for the compiled engine, loading or compiling its kernels."""
 
     @property
     def steps_per_second(self) -> float:
@@ -40,18 +43,22 @@ class BenchResult:
 
     def line(self) -> str:
         return (f"{self.size}x{self.size}/{self.rooms} corners={self.corner_options} B={self.batch} "
-                f"agent={self.agent} device={self.device}: {self.steps_per_second:,.0f} steps/s, "
-                f"{self.decisions_per_second:,.0f} decisions/s, peak memory "
-                f"{self.peak_memory_mib:,.0f} MiB ({self.seconds:.2f} s for {self.steps} steps)")
+                f"agent={self.agent} engine={self.engine} device={self.device}: "
+                f"{self.steps_per_second:,.0f} steps/s, {self.decisions_per_second:,.0f} decisions/s, "
+                f"peak memory {self.peak_memory_mib:,.0f} MiB ({self.seconds:.2f} s for "
+                f"{self.steps} steps; first call {self.first_call_seconds:.2f} s)")
 
 
 def benchmark(size: int = 40, rooms: int = 10, corner_options: bool = False, batch: int = 15,
-              steps: int = 5000, agent: str = "mix", device: str = "cpu", plan_every: int = 1,
-              warmup: int = 1000, threads: int | None = 1) -> BenchResult:
+              steps: int = 5000, agent: str = "mix", device: str = "cpu", plan_every: int = 4,
+              warmup: int = 1000, threads: int | None = 1, engine: str = "auto") -> BenchResult:
     """Time ``steps`` ticks of a batch of ``batch`` runs after ``warmup`` untimed ticks.
 
     ``agent="mix"`` cycles imitation / options / primitives over the batch (as the experiments
-    do). Peak memory is the process's peak resident set (CPU) or peak CUDA allocation.
+    do). The first tick is always untimed and reported apart (``first_call_seconds``: the
+    compiled engine loads, or on first use compiles, its kernels there). Peak memory is the
+    process's peak resident set (CPU) or peak CUDA allocation. ``threads`` sets torch's threads;
+    the compiled engine uses Numba's (``NUMBA_NUM_THREADS``, default all cores).
     """
     if agent != "mix" and agent not in AGENTS:
         raise ValueError(f"agent={agent!r}: use 'mix' or one of {sorted(AGENTS)}")
@@ -66,8 +73,12 @@ def benchmark(size: int = 40, rooms: int = 10, corner_options: bool = False, bat
     mix = ["imitation", "options", "primitives"]
     agents = [mix[b % 3] if agent == "mix" else agent for b in range(batch)]
     learner = Learner(world, options, agents, list(range(batch)), demonstrations=demos,
-                      config=LearnerConfig(plan_every=plan_every), device=device)
-    learner.run(warmup)
+                      config=LearnerConfig(plan_every=plan_every, sweep_rounds=1), device=device,
+                      engine=engine)
+    first = time.perf_counter()
+    learner.run(1)
+    first = time.perf_counter() - first
+    learner.run(max(0, warmup - 1))
     decisions0 = int(learner.decisions.sum())
     if device.startswith("cuda"):
         torch.cuda.synchronize()
@@ -82,4 +93,4 @@ def benchmark(size: int = 40, rooms: int = 10, corner_options: bool = False, bat
     else:
         peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     return BenchResult(size, rooms, corner_options, batch, steps, agent, device, seconds,
-                       int(learner.decisions.sum()) - decisions0, peak)
+                       int(learner.decisions.sum()) - decisions0, peak, learner.engine.name, first)

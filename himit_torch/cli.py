@@ -240,6 +240,8 @@ def cmd_run(args: argparse.Namespace) -> int:
                                           min(config.checkpoint_every, args.steps // config.window * config.window))
     if args.device is not None:
         changes["device"] = args.device
+    if args.engine is not None:
+        changes["engine"] = args.engine
     if changes:
         config = replace(config, **changes)
     if config.device.startswith("cuda") and not torch.cuda.is_available():
@@ -261,6 +263,8 @@ def _add_run(sub: argparse.ArgumentParser) -> None:
     sub.add_argument("--quick", action="store_true", help="tiny budget (smoke test)")
     sub.add_argument("--logdir", default="runs", help="parent folder of the run directory")
     sub.add_argument("--device", help="cpu (default) or cuda")
+    sub.add_argument("--engine", choices=["auto", "numba", "torch"],
+                     help="auto (default): the compiled loop on a CPU, torch on a GPU")
     sub.add_argument("--config", help="a config.json (as saved in a run directory) to run instead "
                                       "of the defaults")
     sub.add_argument("--resume", action="store_true", help="continue an interrupted run")
@@ -300,7 +304,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
 
     result = benchmark(size=args.size, rooms=args.rooms, corner_options=args.corner_options,
                        batch=args.batch, steps=args.steps, agent=args.agent, device=args.device,
-                       plan_every=args.plan_every, warmup=args.warmup)
+                       plan_every=args.plan_every, warmup=args.warmup, engine=args.engine)
     print(result.line())
     return 0
 
@@ -314,8 +318,11 @@ def _add_bench(sub: argparse.ArgumentParser) -> None:
     sub.add_argument("--warmup", type=_nonnegative_int, default=1000, help="untimed steps first")
     sub.add_argument("--agent", default="mix",
                      help="agent variant for every run, or 'mix' (imitation/options/primitives)")
-    sub.add_argument("--plan-every", type=_positive_int, default=1)
+    sub.add_argument("--plan-every", type=_positive_int, default=4,
+                     help="sweep every this many ticks (the experiments' 4; 1 = every decision)")
     sub.add_argument("--device", default="cpu")
+    sub.add_argument("--engine", default="auto", choices=["auto", "numba", "torch"],
+                     help="auto: the compiled loop on a CPU, torch on a GPU")
 
 
 # ------------------------------------------------------------------------------------- main

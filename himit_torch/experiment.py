@@ -79,6 +79,9 @@ class ExperimentConfig:
     """Save the whole state every this many steps (a multiple of ``window``)."""
     device: str = "cpu"
     """Where the batch runs (``cpu`` or ``cuda``)."""
+    engine: str = "auto"
+    """Which engine carries out the ticks: ``auto`` (the compiled ``numba`` loop on a CPU, the
+    ``torch`` engine on a GPU), ``numba`` or ``torch``. Both give the same curves."""
     learner: LearnerConfig = field(default_factory=LearnerConfig)
     """Learner settings (see ``LearnerConfig``)."""
 
@@ -192,6 +195,8 @@ class WorldResult:
     mentor_term_wins: list[float]
     wall_seconds: float
     steps: int
+    engine: str = "unknown"
+    commit: str = "unknown"
 
     def percent_of_optimal(self) -> list[float]:
         """Total goals as a percentage of what the optimal policy reaches in the same steps."""
@@ -294,7 +299,7 @@ def run_world(config: ExperimentConfig, size: int, run_dir: Path, resume: bool,
     agents = [a for a in config.agents for _ in seeds]
     run_seeds = [s for _ in config.agents for s in seeds]
     learner = Learner(world, options, agents, run_seeds, config=config.learner,
-                      device=config.device)
+                      device=config.device, engine=config.engine)
     demos = {}
     for s in seeds:  # each seed watches its own mentor episodes
         demos[s] = record_demonstrations(world, mentor, config.mentor_episodes, seed=s)
@@ -346,7 +351,8 @@ def run_world(config: ExperimentConfig, size: int, run_dir: Path, resume: bool,
         first_goal_step=learner.first_goal_step.tolist(),
         final_window_goals=(m.goals_in_window[-1].tolist() if m.goals_in_window else [0] * len(agents)),
         value_start=learner.state_values()[:, world.start_state].tolist(), true_value_start=true_v,
-        mentor_term_wins=learner.mentor_win_share().tolist(), wall_seconds=wall, steps=learner.t)
+        mentor_term_wins=learner.mentor_win_share().tolist(), wall_seconds=wall, steps=learner.t,
+        engine=learner.engine.name, commit=source_commit())
     first_seed_runs = [b for b in range(len(agents)) if run_seeds[b] == seeds[0]]
     logger.images(learner, world, mentor_visits, learner.t, first_seed_runs)
     logger.hparams(config, result)
@@ -391,6 +397,22 @@ def _world_figure(run_dir, config, world, demos, learner, agents, run_seeds, see
 
 
 # ================================================================================ the runner
+def source_commit() -> str:
+    """The git commit of the code that runs (``+dirty`` if it has uncommitted changes), or
+    ``"unknown"`` outside a git checkout: recorded with every result."""
+    import subprocess
+    root = Path(__file__).resolve().parent.parent
+    try:
+        commit = subprocess.run(["git", "rev-parse", "--short=12", "HEAD"], cwd=root, text=True,
+                                capture_output=True, timeout=10, check=True).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", "--",
+                                "himit_torch"], cwd=root, text=True, capture_output=True,
+                               timeout=10, check=True).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+    return commit + ("+dirty" if dirty else "")
+
+
 def _check_run_dir(run_dir: Path, resume: bool, force: bool) -> None:
     finished = (run_dir / "results.md").exists()
     started = (run_dir / "config.json").exists()

@@ -156,7 +156,8 @@ def write_results(run_dir: Path, config, results) -> None:
                 f"{_fmt([r.value_start[b] for b in idx], 3)} | {reach_txt} | "
                 f"{_fmt([r.mentor_term_wins[b] for b in idx], 2)} |")
         lines += ["", f"Wall time for this world's batch of {len(r.agents)} runs: "
-                  f"{r.wall_seconds:.0f} s.", ""]
+                  f"{r.wall_seconds:.0f} s (engine `{r.engine}`, code at "
+                  f"commit `{r.commit}`).", ""]
     if len(results) > 1:
         lines += ["## Scaling (the paper's Fig. 5)", "",
                   "| world | " + " | ".join(dict.fromkeys(results[0].agents)) + " |",

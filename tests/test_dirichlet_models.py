@@ -8,8 +8,8 @@ import pytest
 import scipy.stats
 import torch
 
-from himit_torch.dirichlet_models import (DirichletMentorModel, DirichletSMDPModel, EdgeIndex,
-                                SuccessorDirichlet)
+from himit_torch.dirichlet_models import (DenseEdgeIndex, DirichletMentorModel, DirichletSMDPModel,
+                                         EdgeStore, SuccessorDirichlet)
 from himit_torch.exact_option_models import option_models
 from himit_torch.options import learner_options
 from himit_torch.world import MultiRooms
@@ -88,94 +88,100 @@ def test_dirichlet_sample_moments_match_scipy(gen):
     assert (draws[:, 3] == 0).all()
 
 
-# =================================================================================== EdgeIndex
-def _check_index(index: EdgeIndex, expected: dict[tuple[int, int], int] | set) -> None:
-    """Every table of the index agrees with the set of (row, successor) pairs it should hold."""
+# =================================================================== EdgeStore and its index
+def _check_store(store: EdgeStore, run: int, expected: dict[tuple[int, int], int] | set) -> None:
+    """Run ``run``'s edge list and every table of the dense index agree with the set of
+    (row, successor) pairs it should hold."""
     pairs = set(expected)
-    E = index.num_edges
+    E = int(store.num_edges[run])
     assert E == len(pairs)
-    got = {(int(r), int(s)) for r, s in zip(index.edge_row[:E], index.edge_successor[:E])}
+    got = {(int(r), int(s)) for r, s in zip(store.edge_row[run, :E], store.edge_successor[run, :E])}
     assert got == pairs
+    assert (store.edge_row[run, E:] == -1).all()
+    index = store.index()
     for e in range(E):
-        r, s = int(index.edge_row[e]), int(index.edge_successor[e])
-        fwd = index.forward[r, :index.forward_len[r]].tolist()
-        rev = index.reverse[s, :index.reverse_len[s]].tolist()
+        r, s = int(store.edge_row[run, e]), int(store.edge_successor[run, e])
+        fwd = index.forward[run, r, :index.forward_len[run, r]].tolist()
+        rev = index.reverse[run, s, :index.reverse_len[run, s]].tolist()
         assert fwd.count(e) == 1 and rev.count(e) == 1
-    assert int(index.forward_len.sum()) == E and int(index.reverse_len.sum()) == E
-    assert (index.forward[index.forward >= 0] < E).all() and (index.reverse[index.reverse >= 0] < E).all()
-    # find() returns each edge's own id.
-    rows = index.edge_row[:E]
-    succ = index.edge_successor[:E]
-    assert torch.equal(index.find(rows, succ), torch.arange(E))
+    assert int(index.forward_len[run].sum()) == E and int(index.reverse_len[run].sum()) == E
+    # find() returns each edge's own id, and a rebuilt index equals the incremental one.
+    runs = torch.full((E,), run)
+    assert torch.equal(index.find(runs, store.edge_row[run, :E], store.edge_successor[run, :E]),
+                       torch.arange(E))
+    rebuilt = DenseEdgeIndex(store)
+    for name in ("forward", "forward_len", "reverse", "reverse_len"):
+        a, b = getattr(index, name), getattr(rebuilt, name)
+        w = min(a.shape[-1], b.shape[-1])
+        assert torch.equal(a[..., :w], b[..., :w]), name
 
 
-def test_edge_index_find_and_find_or_add():
-    index = EdgeIndex(num_rows=5, num_states=10, device=CPU)
-    assert index.find(long(0, 3), long(1, 2)).tolist() == [-1, -1]
-    ids = index.find_or_add(long(0, 3, 0, 0), long(1, 2, 1, 9))
-    # (0, 1) appears twice in one call: one edge, the same id both times.
-    assert ids[0] == ids[2] and len(set(ids.tolist())) == 3
-    assert index.num_edges == 3
-    assert torch.equal(index.find(long(3, 0, 0, 4), long(2, 1, 9, 2)),
-                       torch.stack([ids[1], ids[0], ids[3], torch.tensor(-1)]))
-    again = index.find_or_add(long(0, 3), long(9, 2))
-    assert again.tolist() == [ids[3].item(), ids[1].item()] and index.num_edges == 3
-    _check_index(index, {(0, 1), (3, 2), (0, 9)})
+def test_edge_store_find_or_add_is_per_run():
+    store = EdgeStore(num_rows=5, num_states=10, batch=2, device=CPU, concentration=0.0)
+    assert store.index().find(long(0, 1), long(0, 3), long(1, 2)).tolist() == [-1, -1]
+    ids = store.find_or_add(long(0, 0, 0, 1), long(0, 3, 0, 0), long(1, 2, 1, 9))
+    # (0, 1) appears twice for run 0 in one call: one edge, the same id both times; run 1's
+    # first edge gets id 0 of its own list.
+    assert ids[0] == ids[2] and ids[3] == 0 and store.num_edges.tolist() == [2, 1]
+    again = store.find_or_add(long(1, 0), long(0, 3), long(9, 2))
+    assert again.tolist() == [0, ids[1].item()] and store.num_edges.tolist() == [2, 1]
+    _check_store(store, 0, {(0, 1), (3, 2)})
+    _check_store(store, 1, {(0, 9)})
 
 
-def test_edge_index_grows_width_capacity_and_fan_in():
+def test_edge_store_grows_capacity_width_and_fan_in():
     S, R = 400, 150
-    index = EdgeIndex(num_rows=R, num_states=S, device=CPU, width=2, fan_in=2, capacity=4)
+    store = EdgeStore(num_rows=R, num_states=S, batch=2, device=CPU, concentration=0.0, capacity=4)
     grown = []
-    index.on_grow.append(grown.append)
+    store.on_grow.append(grown.append)
     expected = set()
-    # Many successors for one row, in chunks of different sizes (one call adds 37 at once).
     start = 0
-    for chunk in (1, 3, 37, 2, 60, 97):
+    for chunk in (1, 3, 37, 2, 60, 97):          # many successors of one row, in chunks
         succ = torch.arange(start, start + chunk)
-        index.find_or_add(torch.full((chunk,), 7), succ)
+        store.find_or_add(torch.ones(chunk, dtype=torch.int64), torch.full((chunk,), 7), succ)
         expected |= {(7, s) for s in range(start, start + chunk)}
         start += chunk
-    assert index.width >= 200 and index.forward_len[7] == 200
-    # Many rows into one successor.
-    rows = torch.arange(R)
-    index.find_or_add(rows, torch.full((R,), 123))
-    expected |= {(r, 123) for r in range(R)}
-    assert index.fan_in >= R and index.reverse_len[123] == R   # (7, 123) was already there
-    assert index.capacity >= len(expected)
-    assert grown and grown[-1] == index.capacity and grown == sorted(grown)
+    store.find_or_add(torch.ones(R, dtype=torch.int64), torch.arange(R), torch.full((R,), 123))
+    expected |= {(r, 123) for r in range(R)}                # many rows into one successor
+    index = store.index()
+    assert index.forward_len[1, 7] == 200 and index.reverse_len[1, 123] == R
+    assert store.capacity >= len(expected) and int(store.num_edges[0]) == 0
+    assert grown and grown[-1] == store.capacity and grown == sorted(grown)
     assert all(c & (c - 1) == 0 for c in grown), "capacity grows by doubling from 4"
-    _check_index(index, expected)
+    _check_store(store, 1, expected)
+    _check_store(store, 0, set())
 
 
-def test_edge_index_matches_dict_under_random_inserts(gen):
-    S, R = 50, 30
-    index = EdgeIndex(num_rows=R, num_states=S, device=CPU, width=1, fan_in=1, capacity=1)
-    reference: dict[tuple[int, int], int] = {}
+def test_edge_store_matches_dict_under_random_inserts(gen):
+    S, R, B = 50, 30, 3
+    store = EdgeStore(num_rows=R, num_states=S, batch=B, device=CPU, concentration=0.0, capacity=1)
+    reference: list[dict[tuple[int, int], int]] = [{} for _ in range(B)]
     for _ in range(40):
         n = int(torch.randint(1, 40, (1,), generator=gen))
+        runs = torch.randint(0, B, (n,), generator=gen)
         rows = torch.randint(0, R, (n,), generator=gen)
         succ = torch.randint(0, S, (n,), generator=gen)
-        ids = index.find_or_add(rows, succ)
-        for r, s, e in zip(rows.tolist(), succ.tolist(), ids.tolist()):
+        ids = store.find_or_add(runs, rows, succ)
+        for b, r, s, e in zip(runs.tolist(), rows.tolist(), succ.tolist(), ids.tolist()):
             # ids are stable: an edge keeps its id forever
-            assert reference.setdefault((r, s), e) == e
-    assert len(reference) > 300
-    _check_index(index, reference)
+            assert reference[b].setdefault((r, s), e) == e
+    assert sum(map(len, reference)) > 300
+    for b in range(B):
+        _check_store(store, b, reference[b])
 
 
 def test_edge_index_incoming_matches_reverse_lists(gen):
     S, R = 30, 20
-    index = EdgeIndex(num_rows=R, num_states=S, device=CPU, width=2, fan_in=2)
-    index.find_or_add(torch.randint(0, R, (200,), generator=gen), torch.randint(0, S, (200,), generator=gen))
-    states = torch.tensor([3, 0, 3, 29, 7])                 # repeats and (maybe) empty states
-    owner, edges = index.incoming(states)
+    store = EdgeStore(num_rows=R, num_states=S, batch=2, device=CPU, concentration=0.0)
+    store.find_or_add(torch.randint(0, 2, (200,), generator=gen), torch.randint(0, R, (200,), generator=gen),
+                      torch.randint(0, S, (200,), generator=gen))
+    runs, states = torch.tensor([0, 1, 0, 1, 0]), torch.tensor([3, 0, 3, 29, 7])
+    owner, edges = store.index().incoming(runs, states)
     got = sorted(zip(owner.tolist(), edges.tolist()))
-    E = index.num_edges
-    expected = sorted((i, e) for i, s in enumerate(states.tolist()) for e in range(E)
-                      if int(index.edge_successor[e]) == s)
+    expected = sorted((i, e) for i, (b, s) in enumerate(zip(runs.tolist(), states.tolist()))
+                      for e in range(int(store.num_edges[b])) if int(store.edge_successor[b, e]) == s)
     assert got == expected and len(expected) > 0
-    owner, edges = index.incoming(torch.zeros(0, dtype=torch.int64))
+    owner, edges = store.index().incoming(torch.zeros(0, dtype=torch.int64), torch.zeros(0, dtype=torch.int64))
     assert owner.numel() == 0 and edges.numel() == 0
 
 
@@ -187,8 +193,9 @@ def test_smdp_model_hand_case():
     # α = 1: weights 0.75/4 and 0.5/4 (the prior's outcome takes the rest); reward unchanged.
     for alpha, denom in ((0.0, 3.0), (1.0, 4.0)):
         model = DirichletSMDPModel(num_rows=4, num_states=10, batch=2, concentration=alpha)
-        model.update(long(0, 0, 0), long(2, 2, 2), long(5, 5, 7), long(1, 2, 1),
-                     torch.tensor([1.0, 2.0, 3.0]), gamma=0.5)
+        for run, row, end, k, r in ((0, 2, 5, 1, 1.0), (0, 2, 5, 2, 2.0), (0, 2, 7, 1, 3.0)):
+            model.update(long(run), long(row), long(0), long(end), torch.tensor([0.5 ** k]),
+                         torch.tensor([r]))
         reward, succ, w = model.mean(long(0, 1), long(2, 2))
         assert reward.tolist() == [pytest.approx(2.0), 0.0]        # run 1 saw nothing
         k5, k7 = succ[0].tolist().index(5), succ[0].tolist().index(7)
@@ -199,7 +206,7 @@ def test_smdp_model_hand_case():
         post = model.posterior(long(0, 1), long(2, 2))
         assert post.concentration[0, k5].item() == 2.0 and post.concentration[0, k7].item() == 1.0
         assert post.concentration[0, -1].item() == alpha
-        assert post.concentration[1, :-1].sum().item() == 0.0   # the edge is shared, the counts not
+        assert post.concentration[1, :-1].sum().item() == 0.0   # run 1 has no edges
         assert post.successors[0].tolist().count(5) == 1 and post.successors[0].tolist().count(7) == 1
         # An untried row: no edges, reward 0.
         r3, s3, w3 = model.mean(long(0), long(3))
@@ -208,8 +215,10 @@ def test_smdp_model_hand_case():
 
 def test_smdp_model_counts_are_per_run():
     model = DirichletSMDPModel(num_rows=3, num_states=6, batch=3)
-    model.update(long(0, 2, 2, 0), long(1, 1, 1, 1), long(4, 4, 5, 4), long(1, 1, 1, 3),
-                 torch.tensor([-1.0, 0.5, 0.5, -3.0]), gamma=0.9)
+    for run, end, k, r in ((0, 4, 1, -1.0), (2, 4, 1, 0.5), (2, 5, 1, 0.5), (0, 4, 3, -3.0)):
+        model.update(long(run), long(1), long(0), long(end), torch.tensor([0.9 ** k], dtype=torch.float64),
+                     torch.tensor([r], dtype=torch.float64))
+    assert model.state_tries[:, 0].tolist() == [2.0, 0.0, 2.0]
     assert model.row_count[:, 1].tolist() == [2.0, 0.0, 2.0]
     assert model.row_reward[:, 1].tolist() == [-4.0, 0.0, 1.0]
     reward, succ, w = model.mean(long(0, 1, 2), long(1, 1, 1))
@@ -268,8 +277,9 @@ def test_smdp_posterior_mean_converges_to_exact_option_model(gen):
     for row, (s, o) in enumerate(cases):
         assert bool(options.initiation[o, s])
         end, k, ret = _execute(world, options, o, s, n, gen)
-        model.update(torch.zeros(n, dtype=torch.int64), torch.full((n,), row), end, k, ret,
-                     gamma=world.gamma)
+        for j in range(n):              # update() takes one outcome per run at a time
+            model.update(long(0), long(row), long(s), end[j:j + 1], world.gamma ** k[j:j + 1].double(),
+                         ret[j:j + 1])
         stds.append(ret.std().item())
     reward, succ, w = model.mean(torch.zeros(len(cases), dtype=torch.int64), torch.arange(len(cases)))
     multi_step = 0
@@ -290,10 +300,10 @@ def test_smdp_posterior_mean_converges_to_exact_option_model(gen):
 
 # ================================================================== DirichletMentorModel
 def test_mentor_model_counts_and_means():
-    mentor = DirichletMentorModel(num_states=6, batch=3, width=1, fan_in=1)
+    mentor = DirichletMentorModel(num_states=6, batch=3, capacity=1)
     assert not mentor.observed().any()
-    empty = mentor.observe(long(), long())
-    assert empty.numel() == 0 and mentor.edges.num_edges == 0
+    mentor.observe(long(), long())
+    assert int(mentor.num_edges.sum()) == 0
     # 0→1 twice, 0→2 once, 3→0 once, for all runs.
     mentor.observe(long(0, 0, 0, 3), long(1, 2, 1, 0))
     assert mentor.row_count[:, 0].tolist() == [3.0] * 3
@@ -312,7 +322,8 @@ def test_mentor_model_counts_and_means():
            for b in range(3)]
     assert got[0] == got[2] == {1: round(2 / 3, 12), 2: round(1 / 3, 12)}
     assert got[1] == {1: 0.5, 2: 0.5}
-    _check_index(mentor.edges, {(0, 1), (0, 2), (3, 0), (4, 5)})
+    _check_store(mentor, 0, {(0, 1), (0, 2), (3, 0)})
+    _check_store(mentor, 1, {(0, 1), (0, 2), (3, 0), (4, 5)})
 
 
 def test_mentor_model_prior_concentration():

@@ -9,6 +9,7 @@ import pytest
 import torch
 
 from himit_torch.backups import confident_mentor, dirichlet_value_moments
+from himit_torch.choice import choose_rows
 from himit_torch.learner import AGENTS, Learner, LearnerConfig
 from himit_torch.mentor import mentor_policy, record_demonstrations
 from himit_torch.exact_option_models import option_models
@@ -48,7 +49,7 @@ def exact_rows(learner: Learner) -> dict[tuple[int, int], int]:
     """(state, option) → the learner's row index."""
     M = learner.num_rows
     return {(int(s), int(o)): m for m, (s, o) in
-            enumerate(zip(learner.row_state[:M].tolist(), learner.row_option[:M].tolist()))}
+            enumerate(zip(learner.rows.row_state[:M].tolist(), learner.rows.row_option[:M].tolist()))}
 
 
 def load_exact_model(learner: Learner, exact, runs) -> None:
@@ -60,14 +61,14 @@ def load_exact_model(learner: Learner, exact, runs) -> None:
     rows = torch.tensor([row_of[(int(s), int(o))] for s, o in zip(exact.row_state, exact.row_option)])
     m_idx, succ = P.nonzero(as_tuple=True)
     model = learner.model
-    e = model.edges.find_or_add(rows[m_idx], succ)          # may grow the per-run edge arrays
     for b in runs:
+        e = model.find_or_add(torch.full_like(succ, b), rows[m_idx], succ)   # may grow the lists
         model.edge_count[b, e] = 1.0
         model.edge_discount[b, e] = P[m_idx, succ]
         model.row_count[b, rows] = 1.0
         model.row_reward[b, rows] = exact.reward
         q = exact.reward.clone().index_add_(0, m_idx, P[m_idx, succ] * learner.values[b, succ])
-        learner.q_numerator[b, rows] = q
+        learner.cache.q_numerator[b, rows] = q
 
 
 def mentor_counts(demos) -> dict[int, Counter]:
@@ -108,24 +109,24 @@ def learned_model_value_iteration(learner: Learner, b: int, tol=1e-12) -> np.nda
     value iteration over Python dicts; states with nothing known keep the initial value."""
     model, mentor, cfg = learner.model, learner.mentor, learner.config
     S, gamma, v0 = learner.num_states, learner.gamma, cfg.initial_value
-    E = model.edges.num_edges
+    E = int(model.num_edges[b])
     rows = [[] for _ in range(S)]           # per state: (Σr, n, [(Σγ^k, s')])
     edges_of = {}
     for e in range(E):
-        edges_of.setdefault(int(model.edges.edge_row[e]), []).append(e)
+        edges_of.setdefault(int(model.edge_row[b, e]), []).append(e)
     for m in range(learner.num_rows):
         n = float(model.row_count[b, m])
-        if n > 0 and bool(learner.row_enabled[b, m]):
-            succ = [(float(model.edge_discount[b, e]), int(model.edges.edge_successor[e]))
+        if n > 0 and bool(learner.rows.row_enabled[b, m]):
+            succ = [(float(model.edge_discount[b, e]), int(model.edge_successor[b, e]))
                     for e in edges_of.get(m, []) if model.edge_count[b, e] > 0]
-            rows[int(learner.row_state[m])].append((float(model.row_reward[b, m]), n, succ))
+            rows[int(learner.rows.row_state[m])].append((float(model.row_reward[b, m]), n, succ))
     ment = {}
-    if bool(learner.use_mentor[b]):
-        for e in range(mentor.edges.num_edges):
+    if bool(learner.rows.use_mentor[b]):
+        for e in range(int(mentor.num_edges[b])):
             c = float(mentor.edge_count[b, e])
             if c > 0:
-                ment.setdefault(int(mentor.edges.edge_row[e]), []).append(
-                    (c, float(learner.mentor_edge_reward[b, e]), int(mentor.edges.edge_successor[e])))
+                ment.setdefault(int(mentor.edge_row[b, e]), []).append(
+                    (c, float(learner.cache.mentor_edge_reward[b, e]), int(mentor.edge_successor[b, e])))
     terminal = learner.terminal[:S].numpy()
     V = np.where(terminal, 0.0, v0)
     for _ in range(100_000):
@@ -147,20 +148,20 @@ def recomputed_caches(learner: Learner):
     """``q_numerator`` and ``mentor_numerator`` (and their second moments) recomputed from the
     model's counts and the current values — the slow version of the learner's incremental caches."""
     model, mentor, V, gamma = learner.model, learner.mentor, learner.values, learner.gamma
-    B = learner.batch
-    E = model.edges.num_edges
-    er, es = model.edges.edge_row[:E], model.edges.edge_successor[:E]
-    g, c = model.edge_discount[:, :E], model.edge_count[:, :E]
-    q = model.row_reward.clone()
-    q.index_add_(1, er, g * V[:, es])
-    q2 = torch.zeros_like(q).index_add_(1, er, torch.where(c > 0, g * g / c.clamp(min=1), 0 * c)
-                                        * V[:, es] ** 2)
-    Em = mentor.edges.num_edges
-    mr, ms = mentor.edges.edge_row[:Em], mentor.edges.edge_successor[:Em]
-    cm = mentor.edge_count[:, :Em]
-    u = learner.mentor_edge_reward[:, :Em] + gamma * V[:, ms]
-    m = torch.zeros(B, learner.num_states + 1, dtype=torch.float64).index_add_(1, mr, cm * u)
-    m2 = torch.zeros_like(m).index_add_(1, mr, cm * u * u)
+    q, q2 = model.row_reward.clone(), torch.zeros_like(model.row_reward)
+    m = torch.zeros(learner.batch, learner.num_states + 1, dtype=torch.float64)
+    m2 = torch.zeros_like(m)
+    for b in range(learner.batch):
+        E = int(model.num_edges[b])
+        er, es = model.edge_row[b, :E], model.edge_successor[b, :E]
+        g, c = model.edge_discount[b, :E], model.edge_count[b, :E]
+        q[b].index_add_(0, er, g * V[b, es])
+        q2[b].index_add_(0, er, torch.where(c > 0, g * g / c.clamp(min=1), 0 * c) * V[b, es] ** 2)
+        Em = int(mentor.num_edges[b])
+        mr, ms = mentor.edge_row[b, :Em], mentor.edge_successor[b, :Em]
+        u = learner.cache.mentor_edge_reward[b, :Em] + gamma * V[b, ms]
+        m[b].index_add_(0, mr, mentor.edge_count[b, :Em] * u)
+        m2[b].index_add_(0, mr, mentor.edge_count[b, :Em] * u * u)
     return q, q2, m, m2
 
 
@@ -180,7 +181,7 @@ def test_planner_with_true_model_equals_value_iteration(size):
                       config=LearnerConfig(priority_threshold=1e-13, backups=64, sweep_rounds=1))
     load_exact_model(learner, exact, range(4))
     S = world.num_states
-    learner.queue.push(torch.arange(4).repeat_interleave(S), torch.arange(S).repeat(4),
+    learner.sweeper.push(torch.arange(4).repeat_interleave(S), torch.arange(S).repeat(4),
                        torch.full((4 * S,), 1e9, dtype=torch.float64))
     rounds = learner.plan()
     assert 0 < rounds < 1_000_000
@@ -208,8 +209,8 @@ def test_planner_with_true_model_equals_value_iteration(size):
     # The caches after planning equal their recomputation from the (exact) model.
     q, _, m, _ = recomputed_caches(learner)
     M = learner.num_rows
-    torch.testing.assert_close(learner.q_numerator[:, :M], q[:, :M], atol=1e-9, rtol=0)
-    torch.testing.assert_close(learner.mentor_numerator[2:, :S], m[2:, :S], atol=1e-9, rtol=0)
+    torch.testing.assert_close(learner.cache.q_numerator[:, :M], q[:, :M], atol=1e-9, rtol=0)
+    torch.testing.assert_close(learner.cache.mentor_numerator[2:, :S], m[2:, :S], atol=1e-9, rtol=0)
 
     # The greedy option of every state is optimal under the exact model.
     greedy = learner.greedy_options()[0]
@@ -241,11 +242,11 @@ def test_same_seeds_give_identical_runs(world8, demos8):
 
 
 def _per_tick_state(learner: Learner, b: int) -> dict[str, torch.Tensor]:
-    return {"position": learner.position[b], "row": learner.row[b],
+    return {"position": learner.run_state.position[b], "row": learner.run_state.row[b],
             "decisions": learner.decisions[b], "goals": learner.goals[b],
             "epsilon": learner.epsilon[b], "backups_done": learner.backups_done[b],
-            "values": learner.state_values()[b], "q_numerator": learner.q_numerator[b],
-            "mentor_numerator": learner.mentor_numerator[b]}
+            "values": learner.state_values()[b], "q_numerator": learner.cache.q_numerator[b],
+            "mentor_numerator": learner.cache.mentor_numerator[b]}
 
 
 @pytest.mark.parametrize("agents,config", [
@@ -477,34 +478,32 @@ def test_confidence_cache_and_test_equal_slow_computation(world8, demos8):
     learner.run(1500)
     q, q2, m, m2 = recomputed_caches(learner)
     M, S = learner.num_rows, learner.num_states
-    torch.testing.assert_close(learner.q_numerator[:, :M], q[:, :M], atol=1e-9, rtol=0)
-    torch.testing.assert_close(learner.q_second[:, :M], q2[:, :M], atol=1e-9, rtol=0)
-    torch.testing.assert_close(learner.mentor_numerator[:, :S], m[:, :S], atol=1e-9, rtol=0)
-    torch.testing.assert_close(learner.mentor_second[:, :S], m2[:, :S], atol=1e-9, rtol=0)
+    torch.testing.assert_close(learner.cache.q_numerator[:, :M], q[:, :M], atol=1e-9, rtol=0)
+    torch.testing.assert_close(learner.cache.q_second[:, :M], q2[:, :M], atol=1e-9, rtol=0)
+    torch.testing.assert_close(learner.cache.mentor_numerator[:, :S], m[:, :S], atol=1e-9, rtol=0)
+    torch.testing.assert_close(learner.cache.mentor_second[:, :S], m2[:, :S], atol=1e-9, rtol=0)
 
     # Slow path: per observed state, the moments of each own row and of the mentor term.
     model, mentor, V = learner.model, learner.mentor, learner.values
-    E, Em = model.edges.num_edges, mentor.edges.num_edges
     TIE = 1e-9   # decisions this close to a tie may go either way in floating point
     low, high = [], []
     for b, agent in enumerate(agents):
         sure = maybe = observed = 0
         for s in mentor.observed()[b].nonzero()[:, 0].tolist():
             means, variances = [], []
-            for m_row in learner.state_rows[s].tolist():
+            for m_row in learner.rows.state_rows[s].tolist():
                 if m_row >= M or model.row_count[b, m_row] == 0:
                     continue
-                es = [e for e in range(E) if model.edges.edge_row[e] == m_row
-                      and model.edge_count[b, e] > 0]
+                es = [e for e in range(int(model.num_edges[b])) if model.edge_row[b, e] == m_row]
                 c = model.edge_count[b, es]
                 n = float(model.row_count[b, m_row])
                 rbar = float(model.row_reward[b, m_row]) / n
-                u = rbar + model.edge_discount[b, es] / c * V[b, model.edges.edge_successor[es]]
+                u = rbar + model.edge_discount[b, es] / c * V[b, model.edge_successor[b, es]]
                 mean, var = dirichlet_value_moments(c, u)
                 means.append(mean)
                 variances.append(var)
-            es = [e for e in range(Em) if mentor.edges.edge_row[e] == s and mentor.edge_count[b, e] > 0]
-            u = learner.mentor_edge_reward[b, es] + learner.gamma * V[b, mentor.edges.edge_successor[es]]
+            es = [e for e in range(int(mentor.num_edges[b])) if mentor.edge_row[b, e] == s]
+            u = learner.cache.mentor_edge_reward[b, es] + learner.gamma * V[b, mentor.edge_successor[b, es]]
             m_mean, m_var = dirichlet_value_moments(mentor.edge_count[b, es], u)
             # (one unavailable dummy option keeps J ≥ 1 where nothing was tried)
             own_mean = torch.stack(means + [torch.zeros((), dtype=torch.float64)])
@@ -586,28 +585,29 @@ def test_match_mentor_choice_picks_an_option_reproducing_the_mentors_move(world8
     runs = torch.zeros(1, dtype=torch.int64)
     checked = 0
     for s in learner.mentor.observed()[0].nonzero()[:, 0].tolist():
-        _, _, won = learner._state_backup(runs[:, None], torch.tensor([[s]]))
-        prim = learner.primitive_rows[s]
+        _, _, won = learner.cache.state_backup(runs[:, None], torch.tensor([[s]]))
+        prim = learner.rows.primitive_rows[s]
         if not bool(won[0, 0]) or bool((learner.model.row_count[0, prim] == 0).any()):
             continue
         # brute-force scores per action
         mentor_p = {}
-        for e in range(learner.mentor.edges.num_edges):
-            if int(learner.mentor.edges.edge_row[e]) == s:
-                mentor_p[int(learner.mentor.edges.edge_successor[e])] = \
+        for e in range(int(learner.mentor.num_edges[0])):
+            if int(learner.mentor.edge_row[0, e]) == s:
+                mentor_p[int(learner.mentor.edge_successor[0, e])] = \
                     float(learner.mentor.edge_count[0, e] / learner.mentor.row_count[0, s])
         scores = []
         for a in range(4):
             row = int(prim[a])
             total = 0.0
-            for e in range(learner.model.edges.num_edges):
-                if int(learner.model.edges.edge_row[e]) == row:
+            for e in range(int(learner.model.num_edges[0])):
+                if int(learner.model.edge_row[0, e]) == row:
                     p = float(learner.model.edge_count[0, e] / learner.model.row_count[0, row])
-                    total += p * mentor_p.get(int(learner.model.edges.edge_successor[e]), 0.0)
+                    total += p * mentor_p.get(int(learner.model.edge_successor[0, e]), 0.0)
             scores.append(total)
         u = torch.tensor([[1.0, 0.5]], dtype=torch.float64)          # ε-test fails: greedy
-        row = int(learner._choose(runs, torch.tensor([s]), u)[0])
-        option = int(learner.row_option[row])
+        row = int(choose_rows(learner.cache, runs, torch.tensor([s]), u, learner.epsilon[runs],
+                              mentor_choice="match")[0])
+        option = int(learner.rows.row_option[row])
         first_action = int(learner.options.policy[option, s])
         assert scores[first_action] == pytest.approx(max(scores)), (s, scores, first_action)
         checked += 1
@@ -685,7 +685,7 @@ def test_stochastic_policy_options_run_match_and_draw(world8, demos8):
     assert options.stochastic
     learner = Learner(world8, options, ["imitation", "options"], [0, 1], demonstrations=demos8,
                       config=LearnerConfig(mentor_choice="match"))
-    assert bool((learner.primitive_rows[world8.start_state] < learner.num_rows).all())
+    assert bool((learner.rows.primitive_rows[world8.start_state] < learner.num_rows).all())
     learner.run(3000)
     assert bool((learner.goals > 0).all())
     path = learner.greedy_trajectory(0, max_steps=200)

@@ -244,7 +244,7 @@ def test_bound_above_the_real_reward_is_an_error_or_a_warning(world8, demos8):
         make(world8, demos8, greedy)
     with pytest.warns(UserWarning, match="upper_bound=2"):
         learner = make(world8, demos8, greedy, check="warn")
-    assert learner.mentor_edge_reward.max().item() == 2.0          # used as given
+    assert learner.cache.mentor_edge_reward.max().item() == 2.0          # used as given
     make(world8, demos8, greedy, check="off")                      # no error, no warning
     make(world8, demos8, SalienceReward(world8, demos8, bound=1.0))  # equal to the real best: fine
 

@@ -249,138 +249,270 @@ def _propagate_mentor(cfg_f, cfg_i, m_num, m_sec, m_row_count, m_edge_row, m_edg
         e = m_succ_next[b, e]
 
 
-@njit(cache=True)
-def _sweep(cfg_f, cfg_i, state_rows, row_state, terminal, use_mentor, use_conf, row_enabled,
-           values, q_num, q_sec, m_num, m_sec, m_edge_reward,
-           row_count, row_reward, state_tries, edge_row, edge_disc, edge_count, succ_head, succ_next,
-           m_row_count, m_edge_row, m_edge_count, m_succ_head, m_succ_next,
-           heap, hpos, hsize, prio, round_states, round_best, round_old, round_delta,
-           backups_done, b, budget, round_size):
-    """Up to ``budget`` backups for run ``b`` in rounds of ``round_size`` states, each round
-    backed up together, then propagated (``Sweeper.sweep`` + ``ValueCache.backup_and_propagate``)."""
-    thr = cfg_f[F_THRESHOLD]
-    mentor_run = cfg_i[I_ANY_MENTOR] != 0 and use_mentor[b]
-    done = 0
-    while done < budget:
-        n = min(round_size, budget - done)
-        k = 0
-        while k < n and hsize[b] > 0 and prio[b, heap[b, 0]] > thr:
-            round_states[b, k] = _pop(heap, hpos, hsize, prio, b)
-            k += 1
-        if k == 0:
-            break
-        for i in range(k):
-            s = round_states[b, i]
-            best, has_value, _ = _state_backup(cfg_f, cfg_i, state_rows, terminal, use_mentor,
-                                               use_conf, q_num, q_sec, row_count, row_reward,
-                                               row_enabled, state_tries, m_num, m_sec, m_row_count,
-                                               b, s)
-            round_old[b, i] = values[b, s]
-            round_delta[b, i] = best - values[b, s] if has_value else 0.0
-            round_best[b, i] = best if has_value else values[b, s]
-        for i in range(k):
-            values[b, round_states[b, i]] = round_best[b, i]
-        backups_done[b] += k
-        for i in range(k):
-            d = round_delta[b, i]
-            if d != 0:
-                _propagate_options(cfg_f, cfg_i, row_state, row_enabled, q_num, q_sec, row_count,
-                                   edge_row, edge_disc, edge_count, succ_head, succ_next, heap,
-                                   hpos, hsize, prio, b, round_states[b, i], d, round_old[b, i])
-        if mentor_run:
-            for i in range(k):
-                d = round_delta[b, i]
-                if d != 0:
-                    _propagate_mentor(cfg_f, cfg_i, m_num, m_sec, m_row_count, m_edge_row,
-                                      m_edge_count, m_edge_reward, m_succ_head, m_succ_next,
-                                      heap, hpos, hsize, prio, b, round_states[b, i], d,
-                                      round_old[b, i])
-        done += round_size
-
-
-# =================================================================================== choice
-@njit(cache=True)
-def _choose(cfg_f, cfg_i, state_rows, row_first_action, primitive_rows, terminal, use_mentor,
-            use_conf, row_enabled, q_num, q_sec, row_count, row_reward, state_tries, edge_count,
-            edge_succ, row_head, row_next, m_num, m_sec, m_row_count, m_edge_count, m_edge_succ,
-            m_row_head, m_row_next, epsilon, q_buf, usable_buf, enabled_buf, score_buf, b, s,
-            u_eps, u_pick):
-    """ε-greedy choice of a row at ``s`` (:func:`himit_torch.choice.choose_rows`)."""
-    M = q_num.shape[1] - 1
-    J = 0
-    for j in range(state_rows.shape[1]):
-        row = state_rows[s, j]
-        if row == M:
-            break
-        q, usable, enabled = _row_value(cfg_f, cfg_i, q_num, row_count, row_enabled, b, row)
-        q_buf[b, j] = q if usable else -_INF
-        usable_buf[b, j] = usable
-        enabled_buf[b, j] = enabled
-        J += 1
-    if cfg_i[I_MATCH] != 0 and cfg_i[I_ANY_MENTOR] != 0:
-        _, _, won = _state_backup(cfg_f, cfg_i, state_rows, terminal, use_mentor, use_conf, q_num,
-                                  q_sec, row_count, row_reward, row_enabled, state_tries, m_num,
-                                  m_sec, m_row_count, b, s)
-        if won:
-            A = primitive_rows.shape[1]
-            n_m = max(m_row_count[b, s], 1.0)
-            for a in range(A):
-                prow = primitive_rows[s, a]
-                total = 0.0
-                n_p = max(row_count[b, prow], 1.0)
-                e = row_head[b, prow]
-                while e >= 0:
-                    f = m_row_head[b, s]
-                    while f >= 0:
-                        if m_edge_succ[b, f] == edge_succ[b, e]:
-                            total += (edge_count[b, e] / n_p) * (m_edge_count[b, f] / n_m)
-                        f = m_row_next[b, f]
-                    e = row_next[b, e]
-                score_buf[b, a] = total
-            best_score = 0.0
-            for j in range(J):
-                a = min(row_first_action[state_rows[s, j]], A - 1)
-                sc = score_buf[b, a] if usable_buf[b, j] else 0.0
-                if j == 0 or sc > best_score:
-                    best_score = sc
-            if best_score > 0:
-                for j in range(J):
-                    a = min(row_first_action[state_rows[s, j]], A - 1)
-                    sc = score_buf[b, a] if usable_buf[b, j] else 0.0
-                    if sc >= best_score - _TIE:
-                        q_buf[b, j] += 1e6
-    top = -_INF
-    for j in range(J):
-        if q_buf[b, j] > top:
-            top = q_buf[b, j]
-    any_greedy = False
-    for j in range(J):
-        if usable_buf[b, j] and q_buf[b, j] >= top - _TIE:
-            any_greedy = True
-            break
-    explore = u_eps < epsilon[b]
-    count = 0
-    for j in range(J):
-        if explore or not any_greedy:
-            cand = enabled_buf[b, j]
-        else:
-            cand = usable_buf[b, j] and q_buf[b, j] >= top - _TIE
-        usable_buf[b, j] = cand          # reused as the candidate mask
-        if cand:
-            count += 1
-    pick = min(np.int64(u_pick * count), count - 1)
-    if cfg_i[I_TIE_FIRST] != 0 and not explore:
-        pick = 0
-    seen = 0
-    for j in range(J):
-        if usable_buf[b, j]:
-            if seen == pick:
-                return state_rows[s, j]
-            seen += 1
-    return state_rows[s, 0]
-
-
 # ============================================================================ the tick loop
+@njit(cache=True)
+def _run(b, t_end, t_reached, keys, cfg_f, cfg_i,
+            # the world and the options (shared, read only)
+            dyn_succ, dyn_cdf, dyn_rew, terminal, start_cdf, termination, policy, policy_cdf,
+            # the row table (shared, read only)
+            state_rows, row_state, row_option, row_first_action, primitive_rows, row_enabled,
+            use_mentor, use_conf,
+            # the value cache
+            values, q_num, q_sec, m_num, m_sec, m_edge_reward,
+            # the option model and its linked lists
+            edge_row, edge_succ, edge_count, edge_disc, num_edges, row_count, row_reward,
+            state_tries, row_head, row_next, succ_head, succ_next,
+            # the mentor model and its linked lists (read only)
+            m_edge_row, m_edge_succ, m_edge_count, m_row_count, m_row_head, m_row_next,
+            m_succ_head, m_succ_next,
+            # the sweeper
+            prio, pending, heap, hpos, hsize,
+            # the run state
+            position, option_start, row_of, duration, disc_return, discount, epsilon, found_goal,
+            goals, window_goals, episodes, episode_start, window_episode_steps, window_episodes,
+            backups_done, decisions, first_goal_step, visits,
+            # scratch
+            round_states, round_best, round_old, round_delta, q_buf, usable_buf, enabled_buf,
+            score_buf):
+    """Run ``b``'s ticks from ``t_reached[b]`` to ``t_end`` (the body of :func:`advance`):
+    act, learn, plan, choose — :meth:`TorchEngine.tick <himit_torch.engines.TorchEngine.tick>`
+    for one run. (Sweep and choice are written out here rather than called: a call with this
+    many arrays costs more than a whole tick.)"""
+    S = terminal.shape[0] - 1
+    M = q_num.shape[1] - 1
+    J = state_rows.shape[1]
+    K = dyn_cdf.shape[2]
+    capacity = edge_row.shape[1]
+    gamma = cfg_f[F_GAMMA]
+    threshold = cfg_f[F_THRESHOLD]
+    backups = cfg_i[I_BACKUPS]
+    round_size = cfg_i[I_ROUND]
+    plan_every = cfg_i[I_PLAN_EVERY]
+    stochastic = cfg_i[I_STOCHASTIC] != 0
+    match = cfg_i[I_MATCH] != 0 and cfg_i[I_ANY_MENTOR] != 0
+    mentor_run = cfg_i[I_ANY_MENTOR] != 0 and use_mentor[b]
+    _heapify(heap, hpos, hsize, prio, b, S + 1)
+    key = np.uint64(keys[b])
+    t = t_reached[b]
+    while t < t_end:
+        if num_edges[b] >= capacity:
+            break
+        # ---- act: one primitive step of the run's option ----------------------------------
+        u0 = _uniform(key, t, 0)
+        u1 = _uniform(key, t, 1)
+        row = row_of[b]
+        option = row_option[row]
+        pos = position[b]
+        flat = option * S + pos
+        if stochastic:
+            action = 0
+            while action < policy_cdf.shape[1] - 1 and policy_cdf[flat, action] < u1:
+                action += 1
+            stop_u = _uniform(key, t, 2)
+        else:
+            action = policy[flat]
+            stop_u = u1
+        slot = 0
+        for k in range(K):
+            if dyn_cdf[pos, action, k] <= u0:
+                slot += 1
+        if slot > K - 1:
+            slot = K - 1
+        nxt = dyn_succ[pos, action, slot]
+        disc_return[b] += discount[b] * dyn_rew[pos, action, slot]
+        discount[b] *= gamma
+        duration[b] += 1
+        t += 1
+        at_goal = terminal[nxt]
+        ended = at_goal or termination[option * S + nxt] > stop_u or \
+            duration[b] >= cfg_i[I_MAX_STEPS]
+        position[b] = nxt
+        visits[b, nxt] += 1
+        if at_goal:
+            goals[b] += 1
+            window_goals[b] += 1
+            if not found_goal[b]:
+                first_goal_step[b] = t
+            found_goal[b] = True
+            episodes[b] += 1
+            window_episode_steps[b] += t - episode_start[b]
+            window_episodes[b] += 1
+            episode_start[b] = t
+        # ---- learn: count the option's outcome (DirichletSMDPModel.update) -----------------
+        if ended:
+            start = option_start[b]
+            ret = disc_return[b]
+            g = discount[b]
+            e = row_head[b, row]
+            while e >= 0 and edge_succ[b, e] != nxt:
+                e = row_next[b, e]
+            if e < 0:
+                e = num_edges[b]
+                num_edges[b] += 1
+                edge_row[b, e] = row
+                edge_succ[b, e] = nxt
+                edge_count[b, e] = 0.0
+                edge_disc[b, e] = 0.0
+                row_next[b, e] = row_head[b, row]
+                row_head[b, row] = e
+                succ_next[b, e] = succ_head[b, nxt]
+                succ_head[b, nxt] = e
+            c_old = edge_count[b, e]
+            g_old = edge_disc[b, e]
+            edge_count[b, e] = c_old + 1
+            edge_disc[b, e] = g_old + g
+            row_count[b, row] += 1
+            row_reward[b, row] += ret
+            state_tries[b, start] += 1
+            # ... and fold it into the Q cache (ValueCache.add_outcome)
+            v_end = values[b, nxt]
+            q_num[b, row] += ret + g * v_end
+            if cfg_i[I_ANY_CONF] != 0:
+                c_new = c_old + 1
+                g_new = g_old + g
+                old_term = g_old * g_old / max(c_old, 1.0) if c_old > 0 else 0.0
+                q_sec[b, row] += (g_new * g_new / c_new - old_term) * v_end * v_end
+            _push(heap, hpos, hsize, prio, b, start, _INF)      # the start state goes first
+            pending[b] += 1
+            decisions[b] += 1
+        # ---- plan: prioritized sweeping (Sweeper.sweep + ValueCache.backup_and_propagate) --
+        if pending[b] > 0 and t % plan_every == 0:
+            budget = pending[b] * backups
+            pending[b] = 0
+            done = 0
+            while done < budget:
+                n = min(round_size, budget - done)
+                k = 0
+                while k < n and hsize[b] > 0 and prio[b, heap[b, 0]] > threshold:
+                    round_states[b, k] = _pop(heap, hpos, hsize, prio, b)
+                    k += 1
+                if k == 0:
+                    break
+                for i in range(k):             # the round's states are backed up together...
+                    s = round_states[b, i]
+                    best, has_value, _ = _state_backup(
+                        cfg_f, cfg_i, state_rows, terminal, use_mentor, use_conf, q_num, q_sec,
+                        row_count, row_reward, row_enabled, state_tries, m_num, m_sec,
+                        m_row_count, b, s)
+                    round_old[b, i] = values[b, s]
+                    round_delta[b, i] = best - values[b, s] if has_value else 0.0
+                    round_best[b, i] = best if has_value else values[b, s]
+                for i in range(k):
+                    values[b, round_states[b, i]] = round_best[b, i]
+                backups_done[b] += k
+                for i in range(k):             # ...then their changes propagate
+                    d = round_delta[b, i]
+                    if d != 0:
+                        _propagate_options(cfg_f, cfg_i, row_state, row_enabled, q_num, q_sec,
+                                           row_count, edge_row, edge_disc, edge_count, succ_head,
+                                           succ_next, heap, hpos, hsize, prio, b,
+                                           round_states[b, i], d, round_old[b, i])
+                if mentor_run:
+                    for i in range(k):
+                        d = round_delta[b, i]
+                        if d != 0:
+                            _propagate_mentor(cfg_f, cfg_i, m_num, m_sec, m_row_count, m_edge_row,
+                                              m_edge_count, m_edge_reward, m_succ_head,
+                                              m_succ_next, heap, hpos, hsize, prio, b,
+                                              round_states[b, i], d, round_old[b, i])
+                done += round_size
+        if not ended:
+            continue
+        # ---- choose: ε-greedy over the run's own rows (choice.choose_rows) -------------------
+        if found_goal[b]:
+            epsilon[b] = max(epsilon[b] * cfg_f[F_EPS_DECAY], cfg_f[F_EPS_MIN])
+        duration[b] = 0
+        disc_return[b] = 0.0
+        discount[b] = 1.0
+        here = nxt
+        if at_goal:
+            if cfg_i[I_START] >= 0:
+                here = cfg_i[I_START]
+            else:
+                u5 = _uniform(key, t - 1, 5)
+                here = 0
+                while here < S - 1 and start_cdf[here] <= u5:
+                    here += 1
+        position[b] = here
+        option_start[b] = here
+        n_rows = 0
+        for j in range(J):
+            r = state_rows[here, j]
+            if r == M:
+                break
+            q, usable, enabled = _row_value(cfg_f, cfg_i, q_num, row_count, row_enabled, b, r)
+            q_buf[b, j] = q if usable else -_INF
+            usable_buf[b, j] = usable
+            enabled_buf[b, j] = enabled
+            n_rows += 1
+        if match:
+            # Where the mentor term wins, own options whose first action best reproduces the
+            # mentor's move come first (choice._match_mentor).
+            _, _, won = _state_backup(cfg_f, cfg_i, state_rows, terminal, use_mentor, use_conf,
+                                      q_num, q_sec, row_count, row_reward, row_enabled,
+                                      state_tries, m_num, m_sec, m_row_count, b, here)
+            if won:
+                n_m = max(m_row_count[b, here], 1.0)
+                for a in range(primitive_rows.shape[1]):
+                    prow = primitive_rows[here, a]
+                    total = 0.0
+                    n_p = max(row_count[b, prow], 1.0)
+                    e = row_head[b, prow]
+                    while e >= 0:
+                        f = m_row_head[b, here]
+                        while f >= 0:
+                            if m_edge_succ[b, f] == edge_succ[b, e]:
+                                total += (edge_count[b, e] / n_p) * (m_edge_count[b, f] / n_m)
+                            f = m_row_next[b, f]
+                        e = row_next[b, e]
+                    score_buf[b, a] = total
+                A_p = primitive_rows.shape[1]
+                best_score = 0.0
+                for j in range(n_rows):
+                    a = min(row_first_action[state_rows[here, j]], A_p - 1)
+                    sc = score_buf[b, a] if usable_buf[b, j] else 0.0
+                    if sc > best_score:
+                        best_score = sc
+                if best_score > 0:
+                    for j in range(n_rows):
+                        a = min(row_first_action[state_rows[here, j]], A_p - 1)
+                        sc = score_buf[b, a] if usable_buf[b, j] else 0.0
+                        if sc >= best_score - _TIE:
+                            q_buf[b, j] += 1e6
+        top = -_INF
+        for j in range(n_rows):
+            if q_buf[b, j] > top:
+                top = q_buf[b, j]
+        any_greedy = False
+        for j in range(n_rows):
+            if usable_buf[b, j] and q_buf[b, j] >= top - _TIE:
+                any_greedy = True
+                break
+        explore = _uniform(key, t - 1, 3) < epsilon[b]
+        count = 0
+        for j in range(n_rows):
+            if explore or not any_greedy:
+                cand = enabled_buf[b, j]
+            else:
+                cand = usable_buf[b, j] and q_buf[b, j] >= top - _TIE
+            usable_buf[b, j] = cand              # from here on: the candidate mask
+            if cand:
+                count += 1
+        pick = min(np.int64(_uniform(key, t - 1, 4) * count), count - 1)
+        if cfg_i[I_TIE_FIRST] != 0 and not explore:
+            pick = 0
+        chosen = state_rows[here, 0]
+        seen = 0
+        for j in range(n_rows):
+            if usable_buf[b, j]:
+                if seen == pick:
+                    chosen = state_rows[here, j]
+                    break
+                seen += 1
+        row_of[b] = chosen
+    t_reached[b] = t
+
+
 @njit(parallel=True, cache=True)
 def advance(t_end, t_reached, keys, cfg_f, cfg_i,
             # the world and the options (shared, read only)
@@ -411,143 +543,8 @@ def advance(t_end, t_reached, keys, cfg_f, cfg_i,
     the capacity): the caller grows the lists and calls again. ``t_reached[b]`` says where each
     run stopped."""
     B = position.shape[0]
-    S = terminal.shape[0] - 1
-    capacity = edge_row.shape[1]
-    gamma = cfg_f[F_GAMMA]
-    backups = cfg_i[I_BACKUPS]
-    round_size = cfg_i[I_ROUND]
-    plan_every = cfg_i[I_PLAN_EVERY]
-    stochastic = cfg_i[I_STOCHASTIC] != 0
-    K = dyn_cdf.shape[2]
-    A = dyn_cdf.shape[1]
     for b in prange(B):
-        _heapify(heap, hpos, hsize, prio, b, S + 1)
-        key = np.uint64(keys[b])
-        t = t_reached[b]
-        while t < t_end:
-            if num_edges[b] >= capacity:
-                break
-            u0 = _uniform(key, t, 0)
-            u1 = _uniform(key, t, 1)
-            row = row_of[b]
-            option = row_option[row]
-            pos = position[b]
-            flat = option * S + pos
-            if stochastic:
-                action = 0
-                while action < policy_cdf.shape[1] - 1 and policy_cdf[flat, action] < u1:
-                    action += 1
-                stop_u = _uniform(key, t, 2)
-            else:
-                action = policy[flat]
-                stop_u = u1
-            slot = 0
-            for k in range(K):
-                if dyn_cdf[pos, action, k] <= u0:
-                    slot += 1
-            if slot > K - 1:
-                slot = K - 1
-            nxt = dyn_succ[pos, action, slot]
-            disc_return[b] += discount[b] * dyn_rew[pos, action, slot]
-            discount[b] *= gamma
-            duration[b] += 1
-            t += 1
-            at_goal = terminal[nxt]
-            ended = at_goal or termination[option * S + nxt] > stop_u or \
-                duration[b] >= cfg_i[I_MAX_STEPS]
-            position[b] = nxt
-            visits[b, nxt] += 1
-            if at_goal:
-                goals[b] += 1
-                window_goals[b] += 1
-                if not found_goal[b]:
-                    first_goal_step[b] = t
-                found_goal[b] = True
-                episodes[b] += 1
-                window_episode_steps[b] += t - episode_start[b]
-                window_episodes[b] += 1
-                episode_start[b] = t
-            if ended:
-                # ---- learn: count the option's outcome (DirichletSMDPModel.update) ----------
-                start = option_start[b]
-                ret = disc_return[b]
-                g = discount[b]
-                e = row_head[b, row]
-                while e >= 0 and edge_succ[b, e] != nxt:
-                    e = row_next[b, e]
-                if e < 0:
-                    e = num_edges[b]
-                    num_edges[b] += 1
-                    edge_row[b, e] = row
-                    edge_succ[b, e] = nxt
-                    edge_count[b, e] = 0.0
-                    edge_disc[b, e] = 0.0
-                    row_next[b, e] = row_head[b, row]
-                    row_head[b, row] = e
-                    succ_next[b, e] = succ_head[b, nxt]
-                    succ_head[b, nxt] = e
-                c_old = edge_count[b, e]
-                g_old = edge_disc[b, e]
-                edge_count[b, e] = c_old + 1
-                edge_disc[b, e] = g_old + g
-                row_count[b, row] += 1
-                row_reward[b, row] += ret
-                state_tries[b, start] += 1
-                # ---- and fold it into the Q cache (ValueCache.add_outcome) ------------------
-                v_end = values[b, nxt]
-                q_num[b, row] += ret + g * v_end
-                if cfg_i[I_ANY_CONF] != 0:
-                    c_new = c_old + 1
-                    g_new = g_old + g
-                    old_term = g_old * g_old / max(c_old, 1.0) if c_old > 0 else 0.0
-                    q_sec[b, row] += (g_new * g_new / c_new - old_term) * v_end * v_end
-                _push(heap, hpos, hsize, prio, b, start, _INF)
-                # ---- plan ---------------------------------------------------------------------
-                if plan_every == 1:
-                    _sweep(cfg_f, cfg_i, state_rows, row_state, terminal, use_mentor, use_conf,
-                           row_enabled, values, q_num, q_sec, m_num, m_sec, m_edge_reward,
-                           row_count, row_reward, state_tries, edge_row, edge_disc, edge_count,
-                           succ_head, succ_next, m_row_count, m_edge_row, m_edge_count,
-                           m_succ_head, m_succ_next, heap, hpos, hsize, prio, round_states,
-                           round_best, round_old, round_delta, backups_done, b, backups,
-                           round_size)
-                else:
-                    pending[b] += 1
-                decisions[b] += 1
-                if found_goal[b]:
-                    epsilon[b] = max(epsilon[b] * cfg_f[F_EPS_DECAY], cfg_f[F_EPS_MIN])
-                duration[b] = 0
-                disc_return[b] = 0.0
-                discount[b] = 1.0
-                here = nxt
-                if at_goal:
-                    if cfg_i[I_START] >= 0:
-                        here = cfg_i[I_START]
-                    else:
-                        u5 = _uniform(key, t - 1, 5)
-                        here = 0
-                        while here < S - 1 and start_cdf[here] <= u5:
-                            here += 1
-                position[b] = here
-                option_start[b] = here
-                # ---- choose ---------------------------------------------------------------------
-                row_of[b] = _choose(cfg_f, cfg_i, state_rows, row_first_action, primitive_rows,
-                                    terminal, use_mentor, use_conf, row_enabled, q_num, q_sec,
-                                    row_count, row_reward, state_tries, edge_count, edge_succ,
-                                    row_head, row_next, m_num, m_sec, m_row_count, m_edge_count,
-                                    m_edge_succ, m_row_head, m_row_next, epsilon, q_buf,
-                                    usable_buf, enabled_buf, score_buf, b, here,
-                                    _uniform(key, t - 1, 3), _uniform(key, t - 1, 4))
-            if pending[b] > 0 and t % plan_every == 0:
-                _sweep(cfg_f, cfg_i, state_rows, row_state, terminal, use_mentor, use_conf,
-                       row_enabled, values, q_num, q_sec, m_num, m_sec, m_edge_reward,
-                       row_count, row_reward, state_tries, edge_row, edge_disc, edge_count,
-                       succ_head, succ_next, m_row_count, m_edge_row, m_edge_count,
-                       m_succ_head, m_succ_next, heap, hpos, hsize, prio, round_states,
-                       round_best, round_old, round_delta, backups_done, b,
-                       pending[b] * backups, round_size)
-                pending[b] = 0
-        t_reached[b] = t
+        _run(b, t_end, t_reached, keys, cfg_f, cfg_i, dyn_succ, dyn_cdf, dyn_rew, terminal, start_cdf, termination, policy, policy_cdf, state_rows, row_state, row_option, row_first_action, primitive_rows, row_enabled, use_mentor, use_conf, values, q_num, q_sec, m_num, m_sec, m_edge_reward, edge_row, edge_succ, edge_count, edge_disc, num_edges, row_count, row_reward, state_tries, row_head, row_next, succ_head, succ_next, m_edge_row, m_edge_succ, m_edge_count, m_row_count, m_row_head, m_row_next, m_succ_head, m_succ_next, prio, pending, heap, hpos, hsize, position, option_start, row_of, duration, disc_return, discount, epsilon, found_goal, goals, window_goals, episodes, episode_start, window_episode_steps, window_episodes, backups_done, decisions, first_goal_step, visits, round_states, round_best, round_old, round_delta, q_buf, usable_buf, enabled_buf, score_buf)
 
 
 @njit(cache=True)

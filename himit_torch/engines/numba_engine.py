@@ -9,6 +9,7 @@ on disk (Numba ``cache=True``): a second process does not compile again.
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 import torch
 
@@ -103,22 +104,25 @@ class NumbaEngine:
         while True:
             option_links = self._linked("model", model)
             mentor_links = self._linked("mentor", mentor)
-            _kernel.advance(
-                t_end, t_reached, self.keys, self.cfg_f, self.cfg_i, *self.static,
-                _np(cache.values), _np(cache.q_numerator), _np(cache.q_second),
-                _np(cache.mentor_numerator), _np(cache.mentor_second), _np(cache.mentor_edge_reward),
-                _np(model.edge_row), _np(model.edge_successor), _np(model.edge_count),
-                _np(model.edge_discount), _np(model.num_edges), _np(model.row_count),
-                _np(model.row_reward), _np(model.state_tries), *option_links,
-                _np(mentor.edge_row), _np(mentor.edge_successor), _np(mentor.edge_count),
-                _np(mentor.row_count), *mentor_links,
-                _np(sweeper.queue.priority), _np(sweeper.pending), *self.heap,
-                _np(run.position), _np(run.option_start), _np(run.row), _np(run.duration),
-                _np(run.discounted_return), _np(run.discount), _np(run.epsilon),
-                _np(run.found_goal), _np(run.goals), _np(run.window_goals), _np(run.episodes),
-                _np(run.episode_start), _np(run.window_episode_steps), _np(run.window_episodes),
-                _np(run.backups_done), _np(run.decisions), _np(run.first_goal_step),
-                _np(run.visits), *self.scratch)
+            # Runs differ in cost (an imitator plans more than a primitives-only run): hand them
+            # to the threads one at a time, not in fixed blocks.
+            with numba.parallel_chunksize(1):
+                _kernel.advance(
+                    t_end, t_reached, self.keys, self.cfg_f, self.cfg_i, *self.static,
+                    _np(cache.values), _np(cache.q_numerator), _np(cache.q_second),
+                    _np(cache.mentor_numerator), _np(cache.mentor_second), _np(cache.mentor_edge_reward),
+                    _np(model.edge_row), _np(model.edge_successor), _np(model.edge_count),
+                    _np(model.edge_discount), _np(model.num_edges), _np(model.row_count),
+                    _np(model.row_reward), _np(model.state_tries), *option_links,
+                    _np(mentor.edge_row), _np(mentor.edge_successor), _np(mentor.edge_count),
+                    _np(mentor.row_count), *mentor_links,
+                    _np(sweeper.queue.priority), _np(sweeper.pending), *self.heap,
+                    _np(run.position), _np(run.option_start), _np(run.row), _np(run.duration),
+                    _np(run.discounted_return), _np(run.discount), _np(run.epsilon),
+                    _np(run.found_goal), _np(run.goals), _np(run.window_goals), _np(run.episodes),
+                    _np(run.episode_start), _np(run.window_episode_steps), _np(run.window_episodes),
+                    _np(run.backups_done), _np(run.decisions), _np(run.first_goal_step),
+                    _np(run.visits), *self.scratch)
             # The kernel kept its linked lists in step with the edges it added.
             model.version += 1
             self._links["model"] = (model.version, option_links)

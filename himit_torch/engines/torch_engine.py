@@ -42,11 +42,24 @@ class TorchEngine:
         return self._u_chunk[i]
 
     def tick(self) -> None:
-        """Advance every run one primitive step: act, count, and where an option ended learn,
-        plan and choose."""
+        """Advance every run one primitive step: act; where an option ended, learn from it;
+        plan (prioritized sweeping, every ``plan_every`` ticks); and choose the next option."""
+        L = self.learner
+        cfg, run = L.config, L.run_state
+        u = self._tick_uniforms(run.t)
+        at_goal, ended = self._act(u)
+        runs = ended.nonzero()[:, 0] if bool(ended.any()) else None
+        if runs is not None:
+            self._learn(runs)
+        if run.t % cfg.plan_every == 0 and bool((L.sweeper.pending > 0).any()):
+            self._plan()
+        if runs is not None:
+            self._choose(runs, at_goal[runs], u[runs])
+
+    def _act(self, u: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """One primitive step of every run's option: ``(at_goal [B], option ended [B])``."""
         L = self.learner
         cfg, S, run = L.config, L.num_states, L.run_state
-        u = self._tick_uniforms(run.t)
         option = L.rows.row_option[run.row]
         flat = option * S + run.position
         if L.policy is not None:
@@ -68,43 +81,40 @@ class TorchEngine:
         run.visits.view(-1).index_add_(0, L._visit_base + nxt, L._ones_b)
         if bool(at_goal.any()):
             self._goal_reached(at_goal)
-        if bool(ended.any()):
-            runs = ended.nonzero()[:, 0]
-            self._decide(runs, at_goal[runs], u[runs])
-        sweeper = L.sweeper
-        if run.t % cfg.plan_every == 0 and bool((sweeper.pending > 0).any()):
-            runs = (sweeper.pending > 0).nonzero()[:, 0]
-            self._sweep(runs, sweeper.pending[runs] * cfg.backups)
-            sweeper.pending.zero_()
+        return at_goal, ended
 
-    def _sweep(self, runs, budget) -> None:
+    def _learn(self, runs: torch.Tensor) -> None:
+        """Runs whose option just ended count its outcome and queue its start state first."""
         L = self.learner
-        done = L.sweeper.sweep(runs, budget, L.cache.backup_and_propagate)
-        L.run_state.backups_done.index_add_(0, runs, done)
-
-    def _decide(self, runs: torch.Tensor, at_goal: torch.Tensor, u: torch.Tensor) -> None:
-        """Runs whose option just ended: learn from it, plan, choose the next option."""
-        L = self.learner
-        cfg, run = L.config, L.run_state
-        end = run.position[runs]
-        rows, starts = run.row[runs], run.option_start[runs]
+        run = L.run_state
+        end, rows, starts = run.position[runs], run.row[runs], run.option_start[runs]
         discounts, returns = run.discount[runs], run.discounted_return[runs]
         _, c_old, g_old = L.model.update(runs, rows, starts, end, discounts, returns)
         L.cache.add_outcome(runs, rows, end, discounts, returns, c_old, g_old)
-        # The option's start state goes first in this decision's sweep.
         L.sweeper.push(runs, starts, torch.full_like(returns, float("inf")))
-        if cfg.plan_every == 1:
-            self._sweep(runs, torch.full_like(runs, cfg.backups))
-        else:
-            L.sweeper.pending[runs] += 1
+        L.sweeper.pending[runs] += 1
         run.decisions[runs] += 1
+
+    def _plan(self) -> None:
+        """Runs with pending decisions sweep ``backups`` per decision."""
+        L = self.learner
+        sweeper = L.sweeper
+        runs = (sweeper.pending > 0).nonzero()[:, 0]
+        done = sweeper.sweep(runs, sweeper.pending[runs] * L.config.backups, L.cache.backup_and_propagate)
+        sweeper.pending[runs] = 0
+        L.run_state.backups_done.index_add_(0, runs, done)
+
+    def _choose(self, runs: torch.Tensor, at_goal: torch.Tensor, u: torch.Tensor) -> None:
+        """Runs whose option ended start the next one (at a new episode's start after a goal)."""
+        L = self.learner
+        cfg, run = L.config, L.run_state
         eps = run.epsilon[runs]
         run.epsilon[runs] = torch.where(run.found_goal[runs],
                                         (eps * cfg.eps_decay).clamp(min=cfg.eps_min), eps)
         run.duration[runs] = 0
         run.discounted_return[runs] = 0.0
         run.discount[runs] = 1.0
-        here = torch.where(at_goal, L.start_states(runs, u), end)
+        here = torch.where(at_goal, L.start_states(runs, u), run.position[runs])
         run.position[runs] = here
         run.option_start[runs] = here
         run.row[runs] = choose_rows(L.cache, runs, here, u[:, 3:5], run.epsilon[runs],

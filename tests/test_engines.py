@@ -1,0 +1,199 @@
+"""The two engines carry out one algorithm: same seeds → the same decisions, goals and values.
+
+The compiled engine follows the torch engine operation for operation, so equality is checked
+exactly (values to 1e-9 is what is promised; bit-for-bit is what holds on a CPU)."""
+
+import numpy as np
+import pytest
+import scipy.stats
+import torch
+
+from himit_torch import (Learner, LearnerConfig, MultiRooms, Options, learner_options,
+                         mentor_options, mentor_policy, record_demonstrations)
+from himit_torch.engines import make_engine
+
+pytest.importorskip("numba")
+
+AGENT_MIX = ["imitation", "options", "primitives", "imitation_confident", "imitation_primitives"]
+
+CONFIGS = {
+    "default": LearnerConfig(window=1000),
+    "plan_every4_one_round": LearnerConfig(window=1000, plan_every=4, sweep_rounds=1),
+    "plan_every3_rounds3": LearnerConfig(window=1000, plan_every=3, sweep_rounds=3, backups=7),
+    "priors_override_first": LearnerConfig(window=1000, concentration=0.5, mentor_concentration=1.0,
+                                           untried_value=0.0, mentor_override_after=4,
+                                           tie_break="first", confidence_z=0.5),
+    "match_optimistic": LearnerConfig(window=1000, mentor_choice="match", initial_value=0.0,
+                                      untried_value=0.0, max_option_steps=30),
+}
+
+
+@pytest.fixture(scope="module")
+def world12() -> MultiRooms:
+    return MultiRooms(12, 2)
+
+
+@pytest.fixture(scope="module")
+def demos12(world12):
+    return record_demonstrations(world12, mentor_policy(world12, mentor_options(world12)), 5, seed=0)
+
+
+def _state(learner: Learner) -> dict[str, torch.Tensor]:
+    run, cache = learner.run_state, learner.cache
+    return {"position": run.position, "row": run.row, "decisions": run.decisions,
+            "goals": run.goals, "first_goal_step": run.first_goal_step, "epsilon": run.epsilon,
+            "backups_done": run.backups_done, "visits": run.visits, "values": cache.values,
+            "q_numerator": cache.q_numerator, "q_second": cache.q_second,
+            "mentor_numerator": cache.mentor_numerator, "priority": learner.sweeper.queue.priority,
+            "row_count": learner.model.row_count, "state_tries": learner.model.state_tries}
+
+
+def assert_same_run(a: Learner, b: Learner, values_atol: float = 1e-9) -> None:
+    """Same decisions and goals exactly; values and caches to ``values_atol``."""
+    assert a.t == b.t
+    sa, sb = _state(a), _state(b)
+    for name in sa:
+        if sa[name].dtype == torch.float64 and name != "epsilon":
+            torch.testing.assert_close(sa[name], sb[name], atol=values_atol, rtol=0,
+                                       msg=lambda m, name=name: f"{name}: {m}")
+        else:
+            assert torch.equal(sa[name], sb[name]), name
+    assert torch.equal(a.metrics.curve(), b.metrics.curve())
+    for store_a, store_b in ((a.model, b.model), (a.mentor, b.mentor)):
+        assert torch.equal(store_a.num_edges, store_b.num_edges)
+        E = int(store_a.num_edges.max())
+        for name in ("edge_row", "edge_successor", "edge_count"):
+            assert torch.equal(getattr(store_a, name)[:, :E], getattr(store_b, name)[:, :E]), name
+
+
+@pytest.mark.parametrize("name", list(CONFIGS))
+def test_engines_agree_on_the_small_world(world12, demos12, name):
+    """5000 ticks of every agent variant under every setting family: identical on both engines."""
+    options = learner_options(world12)
+    seeds = list(range(len(AGENT_MIX)))
+    runs = {engine: Learner(world12, options, AGENT_MIX, seeds, config=CONFIGS[name],
+                            demonstrations=demos12, engine=engine) for engine in ("numba", "torch")}
+    for learner in runs.values():
+        learner.run(5000)
+    assert_same_run(runs["numba"], runs["torch"])
+    assert int(runs["numba"].decisions.min()) > 300 and int(runs["numba"].goals.sum()) > 0
+
+
+def test_engines_agree_with_stochastic_option_policies(world12, demos12):
+    """Options with ``[O, S, A]`` policies go through the sampling path of both engines."""
+    usable = world12.free_mask & ~world12.terminal_mask
+    walk = Options.from_policy(usable, torch.full((world12.num_states, 4), 0.25),
+                               termination=torch.full((world12.num_states,), 0.5), name="random walk")
+    options = learner_options(world12) + walk
+    config = LearnerConfig(window=1000, mentor_choice="match")
+    runs = [Learner(world12, options, ["imitation", "options"], [0, 1], config=config,
+                    demonstrations=demos12, engine=engine) for engine in ("numba", "torch")]
+    for learner in runs:
+        learner.run(3000)
+    assert_same_run(*runs)
+
+
+def test_engines_agree_on_the_paper_40x40_world():
+    """Experiment 2's world and settings: the edge lists outgrow their first capacity on the way
+    (the compiled engine stops, grows them and goes on)."""
+    world = MultiRooms(40, 10)
+    demos = record_demonstrations(world, mentor_policy(world, mentor_options(world)), 20, seed=0)
+    config = LearnerConfig(plan_every=4, sweep_rounds=1)
+    runs = [Learner(world, learner_options(world), ["imitation", "options", "primitives"], [0, 1, 2],
+                    config=config, demonstrations=demos, engine=engine) for engine in ("numba", "torch")]
+    for learner in runs:
+        learner.run(5000)
+    assert runs[0].model.capacity > 256           # grew at least once
+    assert_same_run(*runs)
+
+
+@pytest.mark.parametrize("engine", ["numba", "torch"])
+def test_run_in_a_batch_equals_run_alone(world12, demos12, engine):
+    """Run b inside a batch is bit for bit the same run alone, on each engine."""
+    config = CONFIGS["plan_every3_rounds3"]
+    options = learner_options(world12)
+    agents, seeds = ["imitation_confident", "options", "imitation"], [11, 12, 13]
+    batch = Learner(world12, options, agents, seeds, config=config, demonstrations=demos12,
+                    engine=engine)
+    batch.run(3000)
+    for b, (agent, seed) in enumerate(zip(agents, seeds)):
+        alone = Learner(world12, options, [agent], [seed], config=config, demonstrations=demos12,
+                        engine=engine)
+        alone.run(3000)
+        for name, value in _state(alone).items():
+            assert torch.equal(_state(batch)[name][b], value[0]), (b, name)
+
+
+def test_switching_engines_mid_run_changes_nothing(world12, demos12):
+    """The state is shared: numba → torch → numba gives the run that one engine gives."""
+    config = CONFIGS["plan_every4_one_round"]
+    options = learner_options(world12)
+    make = lambda: Learner(world12, options, AGENT_MIX, range(5), config=config,  # noqa: E731
+                           demonstrations=demos12, engine="numba")
+    straight, switched = make(), make()
+    straight.run(4500)
+    switched.run(1500)
+    switched.use_engine("torch")
+    switched.run(1501)
+    switched.use_engine("numba")
+    switched.run(1499)
+    assert switched.engine.name == "numba"
+    assert_same_run(straight, switched, values_atol=0.0)
+
+
+def test_state_dict_moves_between_engines(world12, demos12):
+    """A checkpoint of a numba run resumes on the torch engine to the same run."""
+    config = CONFIGS["default"]
+    options = learner_options(world12)
+    make = lambda engine: Learner(world12, options, AGENT_MIX, range(5), config=config,  # noqa: E731
+                                  demonstrations=demos12, engine=engine)
+    straight, first = make("numba"), make("numba")
+    straight.run(3000)
+    first.run(1200)
+    second = make("torch")
+    second.load_state_dict(first.state_dict())
+    second.run(1800)
+    assert_same_run(straight, second)
+
+
+def test_engine_choice_is_explained():
+    class CorridorWorld:       # the TabularWorld protocol without a dynamics table
+        num_states, num_actions, start_state, gamma = 3, 2, 0, 0.9
+        terminal_mask = torch.tensor([False, False, True])
+
+        def step(self, positions, actions, uniforms):
+            nxt = (positions + torch.where(actions == 1, 1, -1)).clamp(0, 2)
+            return nxt, torch.where(nxt == 2, 1.0, -0.1).double()
+
+    options = Options(initiation=torch.tensor([[True, True, False]] * 2), termination=torch.ones(2, 3),
+                      policy=torch.tensor([[0] * 3, [1] * 3]), names=("left", "right"),
+                      kinds=("primitive", "primitive"))
+    learner = Learner(CorridorWorld(), options, ["options"], [0])
+    assert learner.engine.name == "torch"                 # auto: no table, so the torch engine
+    with pytest.raises(ValueError, match="dynamics_table"):
+        Learner(CorridorWorld(), options, ["options"], [0], engine="numba")
+    with pytest.raises(ValueError, match="engine='fast'"):
+        make_engine("fast", learner)
+    world = MultiRooms(8, 2)
+    assert Learner(world, learner_options(world), ["options"], [0]).engine.name == "numba"
+
+
+@pytest.mark.slow
+def test_engine_curves_agree_statistically_over_20_seeds():
+    """Experiment 2 (40×40), 20 seeds × 3 agents, 30k steps: per agent, the goals of the two
+    engines' runs come from one distribution (two-sample KS test) — and in fact are equal."""
+    world = MultiRooms(40, 10)
+    demos = record_demonstrations(world, mentor_policy(world, mentor_options(world)), 20, seed=0)
+    config = LearnerConfig(plan_every=4, sweep_rounds=1)
+    agents = ["imitation", "options", "primitives"] * 20
+    seeds = [s for s in range(20) for _ in range(3)]
+    totals = {}
+    for engine in ("numba", "torch"):
+        learner = Learner(world, learner_options(world), agents, seeds, config=config,
+                          demonstrations=demos, engine=engine)
+        learner.run(30_000)
+        totals[engine] = learner.goals.numpy()
+    for k in range(3):
+        a, b = totals["numba"][k::3], totals["torch"][k::3]
+        assert scipy.stats.ks_2samp(a, b).pvalue > 0.05
+    np.testing.assert_array_equal(totals["numba"], totals["torch"])
