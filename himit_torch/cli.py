@@ -267,7 +267,8 @@ def _add_run(sub: argparse.ArgumentParser) -> None:
                      help="auto (default): the compiled loop on a CPU, torch on a GPU")
     sub.add_argument("--config", help="a config.json (as saved in a run directory) to run instead "
                                       "of the defaults")
-    sub.add_argument("--resume", action="store_true", help="continue an interrupted run")
+    sub.add_argument("--resume", action="store_true",
+                     help="continue an interrupted run from its newest good checkpoint")
     sub.add_argument("--force", action="store_true", help="overwrite a finished run")
     sub.add_argument("--quiet", action="store_true", help="no progress bars")
 

@@ -7,7 +7,8 @@ and seeds of one world run in one :class:`~himit_torch.Learner` batch. A run dir
     config.json                 the configuration
     curves.csv                  per window: world, agent, seed, step, goals, ε, episodes, …
     tb/<world>__<agent>__seed<k>/   TensorBoard event files (scalars, images, hparams)
-    checkpoints/world<N>.pt     the whole learner state, written atomically every N steps
+    checkpoints/world<N>.pt     the whole learner state every ``checkpoint_every`` steps (format:
+    checkpoints/world<N>.prev.pt  ``himit_torch.checkpoints``), and the generation before it
     worlds/world<N>.json        what happened in one world (written when it is finished)
     figures/*.png               the paper's Figs. 2–5, ours
     results.md                  our numbers beside the paper's
@@ -19,6 +20,7 @@ import csv
 import json
 import math
 import os
+import sys
 import time
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
@@ -26,6 +28,7 @@ from typing import Callable
 
 import torch
 
+from .checkpoints import BatchShape, CheckpointGenerations, NoGoodCheckpoint
 from .learner import AGENTS, Learner, LearnerConfig
 from .mentor import mentor_policy, record_demonstrations
 from .exact_option_models import option_durations, option_models
@@ -162,6 +165,8 @@ def load_config(path: str | os.PathLike) -> ExperimentConfig:
         raise ValueError(f"config file {path} does not exist") from None
     except json.JSONDecodeError as err:
         raise ValueError(f"config file {path} is not valid JSON: {err}") from None
+    except UnicodeDecodeError as err:  # e.g. a binary file (a pickle) in its place
+        raise ValueError(f"config file {path} is not valid JSON: not UTF-8 text ({err})") from None
     if not isinstance(data, dict):
         raise ValueError(f"config file {path} must hold a JSON object")
     _refuse_unknown_fields(data, ExperimentConfig, f"config file {path}")
@@ -276,16 +281,59 @@ class _Logger:
             w.close()
 
 
-def _atomic_save(obj, path: Path) -> None:
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    torch.save(obj, tmp)
-    os.replace(tmp, path)
-
-
 def _atomic_write(path: Path, text: str) -> None:
     tmp = path.with_suffix(path.suffix + ".tmp")
     tmp.write_text(text)
     os.replace(tmp, path)
+
+
+def _state_layout_version() -> int:
+    """The learner's state layout version (1 for learners from before it was declared): stored in
+    every checkpoint so that a checkpoint of another layout is refused by name."""
+    return int(getattr(Learner, "STATE_LAYOUT_VERSION", 1))
+
+
+def _resume(generations: CheckpointGenerations, learner: Learner, batch: BatchShape, layout: int,
+            config: ExperimentConfig) -> float:
+    """Restore ``learner`` from the newest good checkpoint generation; returns the wall seconds
+    the run had used. Nothing saved yet: the learner is left as it is (a run killed before its
+    first checkpoint starts over). A damaged newest file: one line on stderr, then the previous
+    generation — the learner then redoes the lost interval exactly as it first ran it.
+
+    Raises:
+        ValueError: no generation is good, or the checkpoint is for another state layout or
+            batch, or it does not fit this learner; the message names the file.
+    """
+    try:
+        resumed = generations.load(map_location=config.device, expect_batch=batch,
+                                   expect_layout=layout)
+    except NoGoodCheckpoint as err:
+        raise ValueError(f"--resume: {err}; start over with --force") from None
+    if resumed is None:
+        return 0.0
+    found = resumed.checkpoint
+    for skipped in resumed.skipped:
+        if skipped.step is not None and skipped.step > found.header.step:
+            redo = f"{skipped.step - found.header.step} steps will be redone"
+        else:
+            redo = (f"the steps after it (up to checkpoint_every={config.checkpoint_every}) will "
+                    "be redone")
+        print(f"himit: warning: {skipped.path}: {skipped.reason}; resuming from "
+              f"{found.path.name} at step {found.header.step}: {redo}", file=sys.stderr)
+    payload = found.payload
+    if not isinstance(payload, dict) or not isinstance(payload.get("learner"), dict):
+        raise ValueError(f"{found.path} holds no learner state; start over with --force")
+    try:
+        learner.load_state_dict(payload["learner"])
+    except ValueError as err:
+        raise ValueError(f"{found.path}: {err}; start over with --force") from None
+    except (KeyError, TypeError, IndexError, AttributeError, RuntimeError) as err:
+        raise ValueError(
+            f"{found.path} (step {found.header.step}) could not be restored into this learner "
+            f"({type(err).__name__}: {err}) although its state layout version {layout} is this "
+            "himit_torch's: please report it; start over with --force") from None
+    elapsed = payload.get("elapsed", 0.0)
+    return float(elapsed) if isinstance(elapsed, (int, float)) else 0.0
 
 
 def run_world(config: ExperimentConfig, size: int, run_dir: Path, resume: bool,
@@ -306,14 +354,14 @@ def run_world(config: ExperimentConfig, size: int, run_dir: Path, resume: bool,
         learner.add_demonstrations(demos[s], runs=[b for b, rs in enumerate(run_seeds) if rs == s])
     mentor_visits = torch.bincount(torch.cat([torch.as_tensor(e) for e in demos[seeds[0]].episodes]),
                                    minlength=world.num_states)
-    ckpt_dir = run_dir / "checkpoints"
-    ckpt_dir.mkdir(parents=True, exist_ok=True)
-    ckpt = ckpt_dir / f"world{size}.pt"
-    elapsed = 0.0
-    if resume and ckpt.exists():
-        saved = torch.load(ckpt, weights_only=False, map_location=config.device)
-        learner.load_state_dict(saved["learner"])
-        elapsed = float(saved.get("elapsed", 0.0))
+    generations = CheckpointGenerations(run_dir / "checkpoints" / f"world{size}.pt")
+    batch = BatchShape(agents, run_seeds, world.num_states)
+    layout = _state_layout_version()
+    if resume:
+        elapsed = _resume(generations, learner, batch, layout, config)
+    else:
+        generations.clear()  # a fresh run: stale files must never become its "previous" one
+        elapsed = 0.0
     names = [f"world{size}__{a}__seed{s}" for a, s in zip(agents, run_seeds)]
     # Events a killed run logged after its last checkpoint are purged: TensorBoard drops steps
     # ≥ purge_step from earlier event files, and windows up to t were logged before the checkpoint.
@@ -338,8 +386,9 @@ def run_world(config: ExperimentConfig, size: int, run_dir: Path, resume: bool,
         if learner.t % config.checkpoint_every == 0 or learner.t == config.steps:
             logger.coverage(learner, learner.t)
             logger.flush()  # everything logged so far is on disk before the checkpoint says so
-            _atomic_save({"learner": learner.state_dict(),
-                          "elapsed": elapsed + time.perf_counter() - start}, ckpt)
+            generations.save({"learner": learner.state_dict(),
+                              "elapsed": elapsed + time.perf_counter() - start},
+                             step=learner.t, batch=batch, state_layout_version=layout)
     if bar is not None:
         bar.close()
     wall = elapsed + time.perf_counter() - start

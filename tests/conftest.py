@@ -1,5 +1,10 @@
 """Shared test set-up: one torch thread (tiny tensors; two threads only add contention on a busy
-2-core machine) and a seeded generator fixture."""
+2-core machine), a seeded generator fixture, and a live malicious pickle for the tests that files
+are read without unpickling code."""
+import os
+import shlex
+from pathlib import Path
+
 import pytest
 import torch
 
@@ -17,3 +22,19 @@ def generator() -> torch.Generator:
 def world8() -> MultiRooms:
     """8×8 world, 2×2 rooms: small enough for learning tests that must finish in seconds."""
     return MultiRooms(8, 2)
+
+
+class _PlantsMarker:
+    """Unpickling this runs a shell command that creates ``marker`` (what a hostile file does)."""
+
+    def __init__(self, marker: Path):
+        self.marker = str(marker)
+
+    def __reduce__(self):
+        return (os.system, (f"touch {shlex.quote(self.marker)}",))
+
+
+@pytest.fixture
+def plants_marker():
+    """``plants_marker(path)``: an object whose unpickling creates ``path``."""
+    return _PlantsMarker

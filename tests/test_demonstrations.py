@@ -124,6 +124,20 @@ def test_load_not_an_npz(tmp_path):
         Demonstrations.load(path)
 
 
+def test_load_never_unpickles_an_object_array(saved, tmp_path, plants_marker):
+    """A demonstrations file whose states are a pickled object array (its unpickling would run a
+    shell command) is refused unread: ``np.load(allow_pickle=False)``."""
+    marker = tmp_path / "marker"
+    rewrite(saved, states=np.array([plants_marker(marker)], dtype=object))
+    with pytest.raises(ValueError, match=file_error(saved, "not a readable .npz",
+                                                    "Object arrays cannot be loaded")):
+        Demonstrations.load(saved)
+    assert not marker.exists()
+    with np.load(saved, allow_pickle=True) as npz:  # control: the file is live
+        npz["states"]
+    assert marker.exists()
+
+
 def test_load_unknown_format_version(saved):
     rewrite(saved, format_version=np.array(99, dtype=np.int64))
     with pytest.raises(ValueError, match=file_error(saved, "unknown format_version 99")):

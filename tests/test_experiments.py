@@ -4,6 +4,8 @@ budgets (window 1000 steps instead of 5000)."""
 import csv
 import json
 import os
+import pickle
+import random
 import signal
 import subprocess
 import sys
@@ -14,6 +16,7 @@ from pathlib import Path
 import pytest
 import torch
 
+from himit_torch.checkpoints import DamagedCheckpoint, read_header
 from himit_torch.cli import main
 from himit_torch.experiment import EXPERIMENTS, ExperimentConfig, load_config, run_experiment
 
@@ -97,51 +100,71 @@ _CHILD = """
 import sys
 from dataclasses import replace
 from himit_torch.experiment import EXPERIMENTS, run_experiment
-config = replace(EXPERIMENTS["exp2"], seeds=1, steps=12000, window=1000, checkpoint_every=1000,
-                 mentor_episodes=3, agents=("imitation", "primitives"))
+config = replace(EXPERIMENTS["exp2"], sizes=(16,), seeds=1, steps=3500, window=250,
+                 checkpoint_every=250, mentor_episodes=3, agents=("imitation", "primitives"))
 run_experiment(config, sys.argv[1], progress=False, resume=len(sys.argv) > 2)
 """
 
 
-def test_a_killed_run_resumes_to_exactly_the_uninterrupted_curve(tmp_path):
-    env = dict(os.environ, OMP_NUM_THREADS="1")
-    whole, killed = tmp_path / "whole", tmp_path / "killed"
-    subprocess.run([sys.executable, "-c", _CHILD, str(whole)], check=True, env=env)
-    child = subprocess.Popen([sys.executable, "-c", _CHILD, str(killed)], env=env)
-    ckpt = killed / "checkpoints" / "world40.pt"
+def checkpoint_step(path: Path) -> int:
+    """The step of the newest checkpoint a running child has saved (-1: none yet)."""
+    try:
+        return read_header(path).step
+    except (DamagedCheckpoint, OSError):
+        return -1
+
+
+def kill_after(child: subprocess.Popen, newest: Path, step: int, pause: float) -> None:
+    """SIGKILL ``child`` ``pause`` seconds after its newest checkpoint reached ``step``: a random
+    moment inside a window, now and then inside a save."""
     deadline = time.time() + 120
-    while time.time() < deadline and child.poll() is None:
-        if ckpt.exists():
-            try:
-                t = torch.load(ckpt, weights_only=False)["learner"]["t"]
-            except Exception:  # being replaced right now
-                t = 0
-            if t >= 3000:
-                break
-        time.sleep(0.05)
+    while child.poll() is None and checkpoint_step(newest) < step and time.time() < deadline:
+        time.sleep(0.01)
+    time.sleep(pause)
     assert child.poll() is None, "the run finished before it could be killed; lengthen it"
     child.send_signal(signal.SIGKILL)
     child.wait()
-    assert not (killed / "results.md").exists()
-    subprocess.run([sys.executable, "-c", _CHILD, str(killed), "resume"], check=True, env=env)
+
+
+def test_runs_killed_at_random_moments_resume_to_exactly_the_uninterrupted_curve(tmp_path):
+    """kill -9 at three random moments, each followed by --resume; then once more with the newest
+    checkpoint cut short: the resume falls back to the previous one, says so in one line, and
+    every curve still equals the uninterrupted run's."""
+    env = dict(os.environ, OMP_NUM_THREADS="1")
+    whole, killed = tmp_path / "whole", tmp_path / "killed"
+    child = [sys.executable, "-c", _CHILD, str(killed)]
+    uninterrupted = subprocess.Popen([sys.executable, "-c", _CHILD, str(whole)], env=env)
+    rng = random.Random(13)
+    newest = killed / "checkpoints" / "world16.pt"
+    for k, (low, high) in enumerate([(250, 750), (1000, 1500), (1750, 2250), (2500, 2750)]):
+        run = subprocess.Popen(child + (["resume"] if k else []), env=env)
+        target = max(rng.randrange(low, high + 1, 250), checkpoint_step(newest) + 250)
+        kill_after(run, newest, target, rng.uniform(0.0, 0.2))
+        assert not (killed / "results.md").exists()
+    newest.write_bytes(newest.read_bytes()[: newest.stat().st_size // 2])
+    done = subprocess.run(child + ["resume"], env=env, capture_output=True, text=True, check=True)
+    assert uninterrupted.wait() == 0
+    [warning] = [line for line in done.stderr.splitlines() if line.startswith("himit: ")]
+    assert warning.startswith(f"himit: warning: {newest}: cut short")
+    assert "resuming from world16.prev.pt at step" in warning and "will be redone" in warning
     assert read_curves(killed / "curves.csv") == read_curves(whole / "curves.csv")
-    a = json.loads((whole / "worlds" / "world40.json").read_text())
-    b = json.loads((killed / "worlds" / "world40.json").read_text())
+    a = json.loads((whole / "worlds" / "world16.json").read_text())
+    b = json.loads((killed / "worlds" / "world16.json").read_text())
     for key in ("goals", "first_goal_step", "final_window_goals", "value_start"):
         assert a[key] == b[key]
-    # TensorBoard after the resume: every window's step exactly once (nothing purged twice, no
-    # duplicates from the killed process), and the same values as the uninterrupted run.
+    # TensorBoard after the resumes: every window's step exactly once (nothing purged twice, no
+    # duplicates from the killed processes), and the same values as the uninterrupted run.
     from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
     def scalars(root):
-        acc = EventAccumulator(str(root / "tb" / "world40__imitation__seed0"))
+        acc = EventAccumulator(str(root / "tb" / "world16__imitation__seed0"))
         acc.Reload()
         return [(e.step, e.value) for e in acc.Scalars("charts/goals_in_window")]
-    assert [s for s, _ in scalars(killed)] == list(range(1000, 12001, 1000))
+    assert [s for s, _ in scalars(killed)] == list(range(250, 3501, 250))
     assert scalars(killed) == scalars(whole)
 
 
-def test_config_file_round_trip_and_errors(tmp_path):
+def test_config_file_round_trip_and_errors(tmp_path, plants_marker):
     config = tiny("exp2")
     path = tmp_path / "c.json"
     path.write_text(config.to_json())
@@ -152,6 +175,11 @@ def test_config_file_round_trip_and_errors(tmp_path):
     path.write_text("{not json")
     with pytest.raises(ValueError, match="not valid JSON"):
         load_config(path)
+    marker = tmp_path / "marker"  # configs are JSON: a pickle in their place is never unpickled
+    path.write_bytes(pickle.dumps(plants_marker(marker)))
+    with pytest.raises(ValueError, match="not valid JSON"):
+        load_config(path)
+    assert not marker.exists()
     with pytest.raises(ValueError, match="checkpoint_every"):
         replace(config, checkpoint_every=1500)
     with pytest.raises(ValueError, match="agents"):

@@ -1,0 +1,486 @@
+"""Checkpoint files: a format that never runs code when read, and two generations of it.
+
+Run directories are copied between machines and shared with colleagues, so opening one must never
+be able to run code: a plain ``torch.load`` unpickles arbitrary objects, and a pickle's
+``__reduce__`` can call anything. A checkpoint here is therefore one file of three parts::
+
+    himit_torch checkpoint\\n        magic line: anything else is refused before a byte is unpickled
+    {"format_version": 1, …}\\n     header: one line of JSON (step, batch shape, state layout,
+                                    payload size, SHA-256)
+    <payload>                       torch.save's zip archive of tensors and plain values, read
+                                    with ``torch.load(weights_only=True)``
+
+The SHA-256 covers the header (without its own field) and the payload, so a file cut short, a
+flipped bit or a foreign file is found before the payload is touched; and even a file whose
+checksum was forged is read with ``weights_only=True``, which refuses every object that is not a
+tensor or a plain value. The payload is opaque to this module — the learner's ``state_dict`` is
+whatever the learner says it is — as long as it is made of tensors, ``bool``/``int``/``float``/
+``str``/``None`` and lists, tuples and dicts of them (:func:`encode` refuses anything else, naming
+where it sits, so a state that would not load back is never written).
+
+:class:`CheckpointGenerations` keeps the newest and the previous checkpoint of one batch
+(``world40.pt`` and ``world40.prev.pt``), so a damaged newest file costs one checkpoint interval,
+not the run. Every file is written to a temporary name, synced and renamed over the old one: a
+save that fails or is killed part-way leaves both generations as they were.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import json
+import os
+import pickle
+import shutil
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import torch
+
+__all__ = ["FORMAT_VERSION", "BatchShape", "CheckpointHeader", "Checkpoint", "DamagedCheckpoint",
+           "NoGoodCheckpoint", "IncompatibleCheckpoint", "CheckpointWriteError", "encode", "decode",
+           "write_checkpoint", "read_checkpoint", "read_header", "CheckpointGenerations", "Skipped",
+           "Resumed"]
+
+#: Version of the file layout described in the module docstring (not of the learner's state:
+#: that is ``state_layout_version`` in the header).
+FORMAT_VERSION = 1
+
+MAGIC = b"himit_torch checkpoint\n"
+_MAX_HEADER = 1 << 20   # a header is a few hundred bytes; more than this is not one of ours
+_ZIP_MAGIC = b"PK\x03\x04"  # torch.save's archive format: the only payload torch.load gets
+
+
+class DamagedCheckpoint(ValueError):
+    """The file is not a readable checkpoint (missing, empty, cut short, altered, foreign)."""
+
+    def __init__(self, path: Path, reason: str, step: int | None = None):
+        super().__init__(f"{path}: {reason}")
+        self.path, self.reason, self.step = path, reason, step
+
+
+class NoGoodCheckpoint(ValueError):
+    """Checkpoint generations exist but none of them is readable; ``skipped`` says why each."""
+
+    def __init__(self, skipped: list["Skipped"]):
+        what = "; ".join(f"{s.path}: {s.reason}" for s in skipped)
+        super().__init__(f"no good checkpoint is left ({what})")
+        self.skipped = skipped
+
+
+class IncompatibleCheckpoint(ValueError):
+    """An intact checkpoint that this code or this run cannot use (other format, state layout or
+    batch). Never a reason to fall back to an older generation: that one would not fit either."""
+
+
+class CheckpointWriteError(OSError):
+    """A save failed (disk full, permissions, …); the checkpoints already on disk are untouched."""
+
+
+@dataclass(frozen=True)
+class BatchShape:
+    """Which runs a checkpoint holds: one agent and one seed per run, on a world of
+    ``num_states`` states. Compared before the payload is restored, so a checkpoint copied from
+    another run is refused by name instead of failing deep inside ``load_state_dict``."""
+
+    agents: tuple[str, ...]
+    seeds: tuple[int, ...]
+    num_states: int
+
+    def __post_init__(self):
+        object.__setattr__(self, "agents", tuple(str(a) for a in self.agents))
+        object.__setattr__(self, "seeds", tuple(int(s) for s in self.seeds))
+        object.__setattr__(self, "num_states", int(self.num_states))
+
+    def describe(self) -> str:
+        return (f"{len(self.agents)} runs (agents {list(self.agents)}, seeds {list(self.seeds)}) "
+                f"on {self.num_states} states")
+
+
+@dataclass(frozen=True)
+class CheckpointHeader:
+    """What a checkpoint says about itself, readable without touching its payload."""
+
+    format_version: int
+    state_layout_version: int
+    step: int
+    batch: BatchShape
+    payload_bytes: int
+    sha256: str = ""
+
+    def to_json(self, with_checksum: bool = True) -> bytes:
+        data = asdict(self)  # tuples become JSON lists
+        if not with_checksum:
+            del data["sha256"]
+        return json.dumps(data, sort_keys=True, separators=(",", ":")).encode("ascii")
+
+
+@dataclass
+class Checkpoint:
+    """A verified checkpoint: its header, its payload and where it was read from."""
+
+    header: CheckpointHeader
+    payload: Any
+    path: Path | None = None
+
+
+def _checksum(header: CheckpointHeader, payload: bytes) -> str:
+    digest = hashlib.sha256(header.to_json(with_checksum=False))
+    digest.update(b"\n")
+    digest.update(payload)
+    return digest.hexdigest()
+
+
+# --------------------------------------------------------------------------------- encoding
+_PLAIN = (bool, int, float, str, type(None))
+
+
+def _check_plain(obj: Any, where: str) -> None:
+    """Refuse anything ``torch.load(weights_only=True)`` would not read back, naming its place
+    (e.g. ``learner.metrics.steps[3]: numpy.int64``), so the mistake shows at the first save and
+    not at the resume it would break."""
+    if isinstance(obj, torch.Tensor):
+        if type(obj) not in (torch.Tensor, torch.nn.Parameter):
+            raise TypeError(f"checkpoint payload {where}: tensor subclass {type(obj).__qualname__} "
+                            "is not allowed; store a plain tensor")
+        return
+    if type(obj) in _PLAIN:  # exact types: a numpy.float64 is a float but needs numpy to load
+        return
+    if type(obj) in (list, tuple):
+        for i, item in enumerate(obj):
+            _check_plain(item, f"{where}[{i}]")
+        return
+    if type(obj) is dict:
+        for key, value in obj.items():
+            if type(key) not in (str, int):
+                raise TypeError(f"checkpoint payload {where}: key {key!r} of type "
+                                f"{type(key).__qualname__}; keys must be str or int")
+            _check_plain(value, f"{where}.{key}" if isinstance(key, str) else f"{where}[{key}]")
+        return
+    raise TypeError(f"checkpoint payload {where}: {type(obj).__module__}.{type(obj).__qualname__} "
+                    "is not a tensor or a plain value (bool, int, float, str, None, list, tuple, "
+                    "dict); convert it before saving, so the file loads without running code")
+
+
+def encode(payload: Any, *, step: int, batch: BatchShape, state_layout_version: int) -> bytes:
+    """The bytes of a checkpoint file holding ``payload`` (see the module docstring).
+
+    Raises:
+        TypeError: the payload holds something other than tensors and plain values.
+    """
+    _check_plain(payload, "payload")
+    buffer = io.BytesIO()
+    torch.save(payload, buffer)
+    body = buffer.getvalue()
+    header = CheckpointHeader(FORMAT_VERSION, int(state_layout_version), int(step), batch,
+                              len(body))
+    header = replace(header, sha256=_checksum(header, body))
+    return MAGIC + header.to_json() + b"\n" + body
+
+
+# --------------------------------------------------------------------------------- decoding
+def _describe_foreign(data: bytes) -> str:
+    if data[:1] == b"\x80" or data[:4] == _ZIP_MAGIC:
+        return ("a bare torch.save/pickle file without the himit_torch checkpoint header (written "
+                "before checkpoint format 1, or not by himit_torch); it was not unpickled")
+    return "not a himit_torch checkpoint (its first bytes are not the checkpoint header)"
+
+
+def _parse_header(data: bytes, path: Path) -> tuple[CheckpointHeader, int]:
+    """The header and the offset of the payload.
+
+    Raises:
+        DamagedCheckpoint: no header, a cut or altered one.
+        IncompatibleCheckpoint: a header of another checkpoint format.
+    """
+    if not data:
+        raise DamagedCheckpoint(path, "the file is empty (0 bytes)")
+    if not data.startswith(MAGIC):
+        if MAGIC.startswith(data):
+            raise DamagedCheckpoint(path, f"cut short inside its header ({len(data)} bytes)")
+        raise DamagedCheckpoint(path, _describe_foreign(data))
+    end = data.find(b"\n", len(MAGIC), len(MAGIC) + _MAX_HEADER)
+    if end < 0:
+        raise DamagedCheckpoint(path, f"cut short inside its header ({len(data)} bytes)")
+    try:
+        raw = json.loads(data[len(MAGIC):end].decode("ascii"))
+    except ValueError as err:
+        raise DamagedCheckpoint(path, f"its header is not valid JSON ({err})") from None
+    version = raw.get("format_version") if isinstance(raw, dict) else None
+    if isinstance(version, int) and version != FORMAT_VERSION:  # its header may differ too
+        raise IncompatibleCheckpoint(f"{path} is in checkpoint format {version}; this version of "
+                                     f"himit_torch reads format {FORMAT_VERSION}")
+    try:
+        batch = raw.pop("batch")
+        header = CheckpointHeader(batch=BatchShape(**batch), **raw)
+        if not (isinstance(header.format_version, int) and isinstance(header.step, int)
+                and isinstance(header.state_layout_version, int)
+                and isinstance(header.payload_bytes, int) and isinstance(header.sha256, str)):
+            raise TypeError("header fields of the wrong type")
+    except (ValueError, TypeError, KeyError, AttributeError) as err:
+        raise DamagedCheckpoint(path, f"its header is not valid ({err})") from None
+    if data[len(MAGIC):end] != header.to_json():
+        # the checksum covers the header as parsed; the bytes must be exactly that header
+        raise DamagedCheckpoint(path, "its header was altered after it was written", header.step)
+    return header, end + 1
+
+
+def _payload_error(err: Exception) -> str:
+    """The useful line of a weights-only refusal (torch's own text goes on to suggest
+    ``weights_only=False``, which is exactly what must not be done with such a file)."""
+    lines = [ln.strip() for ln in str(err).splitlines() if ln.strip()]
+    for ln in lines:
+        if "GLOBAL" in ln or "Unsupported" in ln or "unsupported" in ln:
+            return ln
+    return f"{type(err).__name__}: {lines[0] if lines else ''}"
+
+
+def decode(data: bytes, path: str | os.PathLike = "<bytes>", map_location=None,
+           expect_batch: BatchShape | None = None,
+           expect_layout: int | None = None) -> Checkpoint:
+    """Verify and read checkpoint bytes; the payload is unpickled only after every check passed,
+    and then with ``weights_only=True``.
+
+    Raises:
+        DamagedCheckpoint: not a checkpoint, cut short, checksum mismatch, or a payload that
+            would need code to load.
+        IncompatibleCheckpoint: another file format, state layout or batch (both named).
+    """
+    path = Path(path)
+    header, offset = _parse_header(data, path)
+    body = data[offset:]
+    if len(body) < header.payload_bytes:
+        raise DamagedCheckpoint(path, f"cut short: {len(data)} bytes, its header announces "
+                                      f"{offset + header.payload_bytes}", header.step)
+    if len(body) > header.payload_bytes:
+        raise DamagedCheckpoint(path, f"{len(body) - header.payload_bytes} bytes more than its "
+                                      "header announces", header.step)
+    if _checksum(header, body) != header.sha256:
+        raise DamagedCheckpoint(path, "checksum mismatch: its content was altered after it was "
+                                      "written", header.step)
+    if expect_layout is not None and header.state_layout_version != expect_layout:
+        raise IncompatibleCheckpoint(
+            f"{path} holds learner state layout version {header.state_layout_version}, but this "
+            f"version of himit_torch uses state layout version {expect_layout}: finish that run "
+            "with the version that wrote it, or start over with --force")
+    if expect_batch is not None and header.batch != expect_batch:
+        raise IncompatibleCheckpoint(
+            f"{path} is for {header.batch.describe()}, but this run is {expect_batch.describe()}: "
+            "it belongs to another run; start over with --force")
+    if not body.startswith(_ZIP_MAGIC):
+        raise DamagedCheckpoint(path, "its payload is not a torch.save archive", header.step)
+    try:
+        payload = torch.load(io.BytesIO(body), map_location=map_location, weights_only=True)
+    except pickle.UnpicklingError as err:  # the weights-only unpickler met something else
+        raise DamagedCheckpoint(path, "its payload holds something other than tensors and plain "
+                                      f"values and was refused unread ({_payload_error(err)})",
+                                header.step) from None
+    except (RuntimeError, ValueError, EOFError, OSError) as err:
+        raise DamagedCheckpoint(path, f"its payload could not be read ({_payload_error(err)})",
+                                header.step) from None
+    return Checkpoint(header, payload, path)
+
+
+def _read_bytes(path: Path) -> bytes:
+    try:
+        return path.read_bytes()
+    except FileNotFoundError:
+        raise DamagedCheckpoint(path, "missing") from None
+    except OSError as err:
+        raise DamagedCheckpoint(path, f"unreadable ({err.strerror or err})") from None
+
+
+def read_checkpoint(path: str | os.PathLike, map_location=None,
+                    expect_batch: BatchShape | None = None,
+                    expect_layout: int | None = None) -> Checkpoint:
+    """Read and verify one checkpoint file (see :func:`decode`)."""
+    path = Path(path)
+    return decode(_read_bytes(path), path, map_location, expect_batch, expect_layout)
+
+
+def read_header(path: str | os.PathLike) -> CheckpointHeader:
+    """The header of a checkpoint file, without verifying or reading its payload (cheap: e.g. to
+    see how far a running process has got)."""
+    path = Path(path)
+    try:
+        with path.open("rb") as f:
+            data = f.read(len(MAGIC) + _MAX_HEADER)
+    except FileNotFoundError:
+        raise DamagedCheckpoint(path, "missing") from None
+    return _parse_header(data, path)[0]
+
+
+# ---------------------------------------------------------------------------------- writing
+def _write_file(path: Path, data: bytes) -> None:
+    """Write ``data`` to a new file and force it to disk (the one place bytes are written; tests
+    replace it to make a save fail part-way)."""
+    with path.open("wb") as f:
+        f.write(data)
+        f.flush()
+        os.fsync(f.fileno())
+
+
+def _sync_dir(directory: Path) -> None:
+    """Make renames inside ``directory`` durable (POSIX; a no-op where directories cannot be
+    opened)."""
+    try:
+        fd = os.open(directory, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+def _tmp(path: Path) -> Path:
+    return path.with_name(path.name + ".tmp")
+
+
+def write_checkpoint(path: str | os.PathLike, payload: Any, *, step: int, batch: BatchShape,
+                     state_layout_version: int) -> CheckpointHeader:
+    """Write one checkpoint atomically: to ``<path>.tmp``, synced, then renamed over ``path``.
+
+    Raises:
+        CheckpointWriteError: the write failed; ``path`` is as it was and no ``.tmp`` is left.
+    """
+    path = Path(path)
+    data = encode(payload, step=step, batch=batch, state_layout_version=state_layout_version)
+    _write_tmp(path, data, step)
+    os.replace(_tmp(path), path)
+    _sync_dir(path.parent)
+    return _parse_header(data, path)[0]
+
+
+def _write_tmp(path: Path, data: bytes, step: int) -> None:
+    tmp = _tmp(path)
+    try:
+        _write_file(tmp, data)
+    except BaseException as err:
+        tmp.unlink(missing_ok=True)
+        if isinstance(err, OSError):
+            raise CheckpointWriteError(
+                f"could not save the checkpoint at step {step} to {path} "
+                f"({err.strerror or err}); the checkpoints already on disk are untouched — fix "
+                "the cause (disk space, permissions), then continue with --resume") from None
+        raise
+
+
+# ------------------------------------------------------------------------------ generations
+@dataclass(frozen=True)
+class Skipped:
+    """A generation that could not be used, and why (``step`` if its header said)."""
+
+    path: Path
+    reason: str
+    step: int | None = None
+
+
+@dataclass
+class Resumed:
+    """The checkpoint to continue from, and the newer generations that had to be skipped."""
+
+    checkpoint: Checkpoint
+    skipped: list[Skipped] = field(default_factory=list)
+
+    @property
+    def step(self) -> int:
+        return self.checkpoint.header.step
+
+
+class CheckpointGenerations:
+    """The newest and the previous checkpoint of one batch: ``<name>.pt`` and ``<name>.prev.pt``.
+
+    :meth:`save` writes the new file completely (synced) before anything else is touched; only
+    then does the current newest file — if it verifies — become the previous one (a hard link,
+    renamed into place, so some complete newest file exists at every instant) and the new file is
+    renamed over the newest. A save that fails or is killed at any point leaves at least the two
+    files of before, each complete. A damaged newest file is never promoted: the previous
+    generation stays the last good one.
+    """
+
+    def __init__(self, newest: str | os.PathLike):
+        self.newest = Path(newest)
+        self.previous = self.newest.with_name(f"{self.newest.stem}.prev{self.newest.suffix}")
+
+    @property
+    def paths(self) -> tuple[Path, Path]:
+        return self.newest, self.previous
+
+    def exists(self) -> bool:
+        return self.newest.exists() or self.previous.exists()
+
+    def clear(self) -> None:
+        """Remove both generations and any temporary file (a fresh run starts from nothing)."""
+        for p in (*self.paths, *map(_tmp, self.paths)):
+            p.unlink(missing_ok=True)
+
+    def save(self, payload: Any, *, step: int, batch: BatchShape,
+             state_layout_version: int) -> CheckpointHeader:
+        """Save ``payload`` as the newest generation, the current newest becoming the previous.
+
+        Raises:
+            CheckpointWriteError: the save failed; both generations on disk are as they were.
+            TypeError: the payload holds something other than tensors and plain values.
+        """
+        data = encode(payload, step=step, batch=batch, state_layout_version=state_layout_version)
+        self.newest.parent.mkdir(parents=True, exist_ok=True)
+        _write_tmp(self.newest, data, step)
+        try:
+            if self._newest_is_good():
+                self._promote_newest()
+        except OSError as err:
+            _tmp(self.newest).unlink(missing_ok=True)
+            raise CheckpointWriteError(
+                f"could not keep {self.newest} as the previous checkpoint "
+                f"({err.strerror or err}); the checkpoints already on disk are untouched — fix "
+                "the cause, then continue with --resume") from None
+        os.replace(_tmp(self.newest), self.newest)
+        _sync_dir(self.newest.parent)
+        return _parse_header(data, self.newest)[0]
+
+    def _newest_is_good(self) -> bool:
+        if not self.newest.exists():
+            return False
+        try:
+            data = _read_bytes(self.newest)
+            header, offset = _parse_header(data, self.newest)
+            body = data[offset:]
+            return len(body) == header.payload_bytes and _checksum(header, body) == header.sha256
+        except ValueError:  # damaged, or of another format
+            return False
+
+    def _promote_newest(self) -> None:
+        staged = _tmp(self.previous)
+        staged.unlink(missing_ok=True)
+        try:
+            os.link(self.newest, staged)
+        except OSError:
+            shutil.copyfile(self.newest, staged)  # file systems without hard links
+        os.replace(staged, self.previous)
+
+    def load(self, map_location=None, expect_batch: BatchShape | None = None,
+             expect_layout: int | None = None) -> Resumed | None:
+        """The newest good generation, with the newer ones that were skipped and why; ``None``
+        when no generation exists at all (nothing was saved yet).
+
+        Raises:
+            NoGoodCheckpoint: generations exist but none is good; the message names each file
+                and what is wrong with it.
+            IncompatibleCheckpoint: the newest intact file is for another format, state layout
+                or batch (falling back would not help: the previous one is from the same run).
+        """
+        if not self.exists():
+            return None
+        skipped: list[Skipped] = []
+        for path in self.paths:
+            try:
+                found = read_checkpoint(path, map_location, expect_batch, expect_layout)
+            except DamagedCheckpoint as err:
+                skipped.append(Skipped(path, err.reason, err.step))
+                continue
+            return Resumed(found, skipped)
+        raise NoGoodCheckpoint(skipped)
