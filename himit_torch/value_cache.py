@@ -118,7 +118,10 @@ class ValueCache:
         rbar = torch.where(n > 0, rsum / n.clamp(min=1), torch.zeros_like(n))
         cont = _take(self.q_numerator, flat) - rsum
         second = (n * rbar * rbar + 2 * rbar * cont + _take(self.q_second, flat) + a * v0 * v0) / (n + a)
-        return (second - q * q).clamp(min=0) / (n + a + 1)
+        var = (second - q * q).clamp(min=0) / (n + a + 1)
+        # A row with no posterior at all (untried, no prior) valued by ``untried_value``: its
+        # value is unbounded above, so no mentor term can be confidently better.
+        return torch.where(n + a > 0, var, torch.full_like(var, float("inf")))
 
     def _mentor_variance(self, flat, n, m):
         a, v0 = self.config.mentor_concentration, self.config.initial_value

@@ -176,8 +176,11 @@ def _state_backup(cfg_f, cfg_i, state_rows, terminal, use_mentor, use_conf, q_nu
                 rsum = row_reward[b, row]
                 rbar = rsum / max(n, 1.0) if n > 0 else 0.0
                 cont = q_num[b, row] - rsum
-                second = (n * rbar * rbar + 2 * rbar * cont + q_sec[b, row] + conc * v0 * v0) / (n + conc)
-                var = max(second - q * q, 0.0) / (n + conc + 1)
+                if n + conc > 0:
+                    second = (n * rbar * rbar + 2 * rbar * cont + q_sec[b, row] + conc * v0 * v0) / (n + conc)
+                    var = max(second - q * q, 0.0) / (n + conc + 1)
+                else:                   # untried, valued by untried_value: unbounded above
+                    var = _INF
                 up = q + z * np.sqrt(var)
                 if up > upper:
                     upper = up
