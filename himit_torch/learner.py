@@ -228,7 +228,8 @@ class Learner:
         # ---- the world and the options, as tables both engines read ---------------------
         table = getattr(world, "dynamics_table", None)
         self.dynamics = table().to(dev) if callable(table) else None
-        self.termination = options.termination.to(dev).double().reshape(-1)
+        # β as given (float32 compares with the float64 uniforms exactly as float64 would)
+        self.termination = options.termination.to(dev).reshape(-1).contiguous()
         if options.stochastic:
             self.policy_cdf = options.policy.to(dev).double().cumsum(-1).reshape(O * S, -1).contiguous()
             self.policy = None

@@ -63,14 +63,20 @@ class RowTable:
         self.row_state = torch.cat([row_state, torch.tensor([S], device=dev)])
         self.row_option = torch.cat([row_option, torch.zeros(1, dtype=torch.int64, device=dev)])
 
-        probs = options.action_probabilities(num_actions).to(dev)               # [O, S, A]
-        first_action = probs[row_option, row_state].argmax(-1)
-        self.row_first_action = torch.cat([first_action, torch.zeros(1, dtype=torch.int64, device=dev)])
+        def first_action(opts: torch.Tensor, states: torch.Tensor) -> torch.Tensor:
+            # (never the dense [O, S, A] table: on 120×120 with corner options it is ~600 MB)
+            policy = options.policy.to(dev)[opts, states]
+            return policy.argmax(-1) if options.stochastic else policy
+
+        self.row_first_action = torch.cat([first_action(row_option, row_state),
+                                           torch.zeros(1, dtype=torch.int64, device=dev)])
         prim_option = torch.full((num_actions,), -1, dtype=torch.int64)
-        first_state = options.initiation.float().argmax(1)
-        for o, kind in enumerate(options.kinds):
-            if kind == "primitive":
-                prim_option[int(probs[o, first_state[o]].argmax())] = o
+        first_state = options.initiation.to(dev).float().argmax(1)
+        primitives = [o for o, kind in enumerate(options.kinds) if kind == "primitive"]
+        if primitives:
+            index = torch.tensor(primitives, device=dev)
+            for o, a in zip(primitives, first_action(index, first_state[index]).tolist()):
+                prim_option[a] = o
         self.primitive_rows = torch.full((S + 1, num_actions), M, dtype=torch.int64, device=dev)
         for a, o in enumerate(prim_option.tolist()):
             if o >= 0:

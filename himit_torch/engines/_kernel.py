@@ -46,52 +46,65 @@ def _uniform(key, counter, lane):
 
 
 # ================================================================================ the heap
+# Per run: ``heap[b, i]`` the state in slot i, ``hkey[b, i]`` its priority (kept beside it, so
+# that comparisons read the heap's own memory), ``hpos[b, s]`` the slot of state s (−1: not
+# queued), ``hsize[b]``; ``prio[b, s]`` is the learner's priority array, kept equal.
 @njit(inline="always")
-def _before(prio, b, s1, s2):
+def _before(k1, s1, k2, s2):
     """Pop order: priority descending, then state ascending (the torch queue's order)."""
-    p1 = prio[b, s1]
-    p2 = prio[b, s2]
-    return p1 > p2 or (p1 == p2 and s1 < s2)
+    return k1 > k2 or (k1 == k2 and s1 < s2)
 
 
 @njit(inline="always")
-def _sift_up(heap, hpos, prio, b, i):
+def _sift_up(heap, hkey, hpos, b, i):
     s = heap[b, i]
+    k = hkey[b, i]
     while i > 0:
         parent = (i - 1) >> 1
         p = heap[b, parent]
-        if not _before(prio, b, s, p):
+        kp = hkey[b, parent]
+        if not _before(k, s, kp, p):
             break
         heap[b, i] = p
+        hkey[b, i] = kp
         hpos[b, p] = i
         i = parent
     heap[b, i] = s
+    hkey[b, i] = k
     hpos[b, s] = i
 
 
 @njit(inline="always")
-def _sift_down(heap, hpos, hsize, prio, b, i):
+def _sift_down(heap, hkey, hpos, hsize, b, i):
     n = hsize[b]
     s = heap[b, i]
+    k = hkey[b, i]
     while True:
         child = 2 * i + 1
         if child >= n:
             break
         c = heap[b, child]
-        if child + 1 < n and _before(prio, b, heap[b, child + 1], c):
-            child += 1
-            c = heap[b, child]
-        if not _before(prio, b, c, s):
+        kc = hkey[b, child]
+        if child + 1 < n:
+            c2 = heap[b, child + 1]
+            k2 = hkey[b, child + 1]
+            if _before(k2, c2, kc, c):
+                child += 1
+                c = c2
+                kc = k2
+        if not _before(kc, c, k, s):
             break
         heap[b, i] = c
+        hkey[b, i] = kc
         hpos[b, c] = i
         i = child
     heap[b, i] = s
+    hkey[b, i] = k
     hpos[b, s] = i
 
 
 @njit(inline="always")
-def _push(heap, hpos, hsize, prio, b, s, p):
+def _push(heap, hkey, hpos, hsize, prio, b, s, p):
     """Raise the priority of ``s`` to at least ``p`` (a scatter-max, as the torch queue)."""
     if p > prio[b, s]:
         prio[b, s] = p
@@ -100,11 +113,12 @@ def _push(heap, hpos, hsize, prio, b, s, p):
             i = hsize[b]
             hsize[b] += 1
             heap[b, i] = s
-        _sift_up(heap, hpos, prio, b, i)
+        hkey[b, i] = p
+        _sift_up(heap, hkey, hpos, b, i)
 
 
 @njit(inline="always")
-def _pop(heap, hpos, hsize, prio, b):
+def _pop(heap, hkey, hpos, hsize, prio, b):
     s = heap[b, 0]
     hsize[b] -= 1
     n = hsize[b]
@@ -113,23 +127,25 @@ def _pop(heap, hpos, hsize, prio, b):
     if n > 0:
         last = heap[b, n]
         heap[b, 0] = last
+        hkey[b, 0] = hkey[b, n]
         hpos[b, last] = 0
-        _sift_down(heap, hpos, hsize, prio, b, 0)
+        _sift_down(heap, hkey, hpos, hsize, b, 0)
     return s
 
 
 @njit(inline="always")
-def _heapify(heap, hpos, hsize, prio, b, num):
+def _heapify(heap, hkey, hpos, hsize, prio, b, num):
     n = 0
     for s in range(num):
         hpos[b, s] = -1
         if prio[b, s] > 0.0:
             heap[b, n] = s
+            hkey[b, n] = prio[b, s]
             hpos[b, s] = n
             n += 1
     hsize[b] = n
     for i in range((n >> 1) - 1, -1, -1):
-        _sift_down(heap, hpos, hsize, prio, b, i)
+        _sift_down(heap, hkey, hpos, hsize, b, i)
 
 
 # ========================================================================== eq. 2 at a state
@@ -206,7 +222,7 @@ def _state_backup(cfg_f, cfg_i, state_rows, terminal, use_mentor, use_conf, q_nu
 # ==================================================================== propagation and sweeping
 @njit(inline="always")
 def _propagate_options(cfg_f, cfg_i, row_state, row_enabled, q_num, q_sec, row_count, edge_row,
-                       edge_disc, edge_count, succ_head, succ_next, heap, hpos, hsize, prio,
+                       edge_disc, edge_count, succ_head, succ_next, heap, hkey, hpos, hsize, prio,
                        b, x, d, v_old):
     """``V(x) += d``: every row with an edge to ``x`` gets ``Σγ^k d``; queue its state."""
     thr = cfg_f[F_THRESHOLD]
@@ -223,13 +239,13 @@ def _propagate_options(cfg_f, cfg_i, row_state, row_enabled, q_num, q_sec, row_c
             q_sec[b, row] += g * g / c * ((v_old + d) ** 2 - v_old ** 2)
         p = abs(gd) / max(row_count[b, row] + conc, 1e-300)
         if p > thr and row_enabled[b, row]:
-            _push(heap, hpos, hsize, prio, b, row_state[row], p)
+            _push(heap, hkey, hpos, hsize, prio, b, row_state[row], p)
         e = succ_next[b, e]
 
 
 @njit(inline="always")
 def _propagate_mentor(cfg_f, cfg_i, m_num, m_sec, m_row_count, m_edge_row, m_edge_count,
-                      m_edge_reward, m_succ_head, m_succ_next, heap, hpos, hsize, prio,
+                      m_edge_reward, m_succ_head, m_succ_next, heap, hkey, hpos, hsize, prio,
                       b, x, d, v_old):
     """The same for the mentor term of every state the mentor left towards ``x``."""
     thr = cfg_f[F_THRESHOLD]
@@ -248,7 +264,7 @@ def _propagate_mentor(cfg_f, cfg_i, m_num, m_sec, m_row_count, m_edge_row, m_edg
             m_sec[b, src] += c * ((u_old + gd) ** 2 - u_old ** 2)
         p = abs(cd) / max(m_row_count[b, src] + mconc, 1e-300)
         if p > thr:
-            _push(heap, hpos, hsize, prio, b, src, p)
+            _push(heap, hkey, hpos, hsize, prio, b, src, p)
         e = m_succ_next[b, e]
 
 
@@ -269,7 +285,7 @@ def _run(b, t_end, t_reached, keys, cfg_f, cfg_i,
             m_edge_row, m_edge_succ, m_edge_count, m_row_count, m_row_head, m_row_next,
             m_succ_head, m_succ_next,
             # the sweeper
-            prio, pending, heap, hpos, hsize,
+            pending, heap, hkey, hpos, hsize, prio,
             # the run state
             position, option_start, row_of, duration, disc_return, discount, epsilon, found_goal,
             goals, window_goals, episodes, episode_start, window_episode_steps, window_episodes,
@@ -294,7 +310,7 @@ def _run(b, t_end, t_reached, keys, cfg_f, cfg_i,
     stochastic = cfg_i[I_STOCHASTIC] != 0
     match = cfg_i[I_MATCH] != 0 and cfg_i[I_ANY_MENTOR] != 0
     mentor_run = cfg_i[I_ANY_MENTOR] != 0 and use_mentor[b]
-    _heapify(heap, hpos, hsize, prio, b, S + 1)
+    _heapify(heap, hkey, hpos, hsize, prio, b, S + 1)
     key = np.uint64(keys[b])
     t = t_reached[b]
     while t < t_end:
@@ -375,7 +391,7 @@ def _run(b, t_end, t_reached, keys, cfg_f, cfg_i,
                 g_new = g_old + g
                 old_term = g_old * g_old / max(c_old, 1.0) if c_old > 0 else 0.0
                 q_sec[b, row] += (g_new * g_new / c_new - old_term) * v_end * v_end
-            _push(heap, hpos, hsize, prio, b, start, _INF)      # the start state goes first
+            _push(heap, hkey, hpos, hsize, prio, b, start, _INF)      # the start state goes first
             pending[b] += 1
             decisions[b] += 1
         # ---- plan: prioritized sweeping (Sweeper.sweep + ValueCache.backup_and_propagate) --
@@ -386,8 +402,8 @@ def _run(b, t_end, t_reached, keys, cfg_f, cfg_i,
             while done < budget:
                 n = min(round_size, budget - done)
                 k = 0
-                while k < n and hsize[b] > 0 and prio[b, heap[b, 0]] > threshold:
-                    round_states[b, k] = _pop(heap, hpos, hsize, prio, b)
+                while k < n and hsize[b] > 0 and hkey[b, 0] > threshold:
+                    round_states[b, k] = _pop(heap, hkey, hpos, hsize, prio, b)
                     k += 1
                 if k == 0:
                     break
@@ -408,7 +424,7 @@ def _run(b, t_end, t_reached, keys, cfg_f, cfg_i,
                     if d != 0:
                         _propagate_options(cfg_f, cfg_i, row_state, row_enabled, q_num, q_sec,
                                            row_count, edge_row, edge_disc, edge_count, succ_head,
-                                           succ_next, heap, hpos, hsize, prio, b,
+                                           succ_next, heap, hkey, hpos, hsize, prio, b,
                                            round_states[b, i], d, round_old[b, i])
                 if mentor_run:
                     for i in range(k):
@@ -416,7 +432,7 @@ def _run(b, t_end, t_reached, keys, cfg_f, cfg_i,
                         if d != 0:
                             _propagate_mentor(cfg_f, cfg_i, m_num, m_sec, m_row_count, m_edge_row,
                                               m_edge_count, m_edge_reward, m_succ_head,
-                                              m_succ_next, heap, hpos, hsize, prio, b,
+                                              m_succ_next, heap, hkey, hpos, hsize, prio, b,
                                               round_states[b, i], d, round_old[b, i])
                 done += round_size
         if not ended:
@@ -532,7 +548,7 @@ def advance(t_end, t_reached, keys, cfg_f, cfg_i,
             m_edge_row, m_edge_succ, m_edge_count, m_row_count, m_row_head, m_row_next,
             m_succ_head, m_succ_next,
             # the sweeper
-            prio, pending, heap, hpos, hsize,
+            pending, heap, hkey, hpos, hsize, prio,
             # the run state
             position, option_start, row_of, duration, disc_return, discount, epsilon, found_goal,
             goals, window_goals, episodes, episode_start, window_episode_steps, window_episodes,
@@ -547,7 +563,17 @@ def advance(t_end, t_reached, keys, cfg_f, cfg_i,
     run stopped."""
     B = position.shape[0]
     for b in prange(B):
-        _run(b, t_end, t_reached, keys, cfg_f, cfg_i, dyn_succ, dyn_cdf, dyn_rew, terminal, start_cdf, termination, policy, policy_cdf, state_rows, row_state, row_option, row_first_action, primitive_rows, row_enabled, use_mentor, use_conf, values, q_num, q_sec, m_num, m_sec, m_edge_reward, edge_row, edge_succ, edge_count, edge_disc, num_edges, row_count, row_reward, state_tries, row_head, row_next, succ_head, succ_next, m_edge_row, m_edge_succ, m_edge_count, m_row_count, m_row_head, m_row_next, m_succ_head, m_succ_next, prio, pending, heap, hpos, hsize, position, option_start, row_of, duration, disc_return, discount, epsilon, found_goal, goals, window_goals, episodes, episode_start, window_episode_steps, window_episodes, backups_done, decisions, first_goal_step, visits, round_states, round_best, round_old, round_delta, q_buf, usable_buf, enabled_buf, score_buf)
+        _run(b, t_end, t_reached, keys, cfg_f, cfg_i, dyn_succ, dyn_cdf, dyn_rew, terminal,
+             start_cdf, termination, policy, policy_cdf, state_rows, row_state, row_option,
+             row_first_action, primitive_rows, row_enabled, use_mentor, use_conf, values, q_num,
+             q_sec, m_num, m_sec, m_edge_reward, edge_row, edge_succ, edge_count, edge_disc,
+             num_edges, row_count, row_reward, state_tries, row_head, row_next, succ_head,
+             succ_next, m_edge_row, m_edge_succ, m_edge_count, m_row_count, m_row_head,
+             m_row_next, m_succ_head, m_succ_next, pending, heap, hkey, hpos, hsize, prio,
+             position, option_start, row_of, duration, disc_return, discount, epsilon,
+             found_goal, goals, window_goals, episodes, episode_start, window_episode_steps,
+             window_episodes, backups_done, decisions, first_goal_step, visits, round_states,
+             round_best, round_old, round_delta, q_buf, usable_buf, enabled_buf, score_buf)
 
 
 @njit(cache=True)

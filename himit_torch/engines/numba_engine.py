@@ -74,8 +74,8 @@ class NumbaEngine:
         self.scratch = (np.zeros((B, R), dtype=np.int64), np.zeros((B, R)), np.zeros((B, R)),
                         np.zeros((B, R)), np.zeros((B, J)), np.zeros((B, J), dtype=np.bool_),
                         np.zeros((B, J), dtype=np.bool_), np.zeros((B, A)))
-        self.heap = (np.zeros((B, S + 1), dtype=np.int64), np.zeros((B, S + 1), dtype=np.int64),
-                     np.zeros(B, dtype=np.int64))
+        self.heap = (np.zeros((B, S + 1), dtype=np.int64), np.zeros((B, S + 1)),
+                     np.zeros((B, S + 1), dtype=np.int64), np.zeros(B, dtype=np.int64))
         self._links: dict[str, tuple] = {}
 
     def invalidate(self) -> None:
@@ -116,7 +116,7 @@ class NumbaEngine:
                     _np(model.row_reward), _np(model.state_tries), *option_links,
                     _np(mentor.edge_row), _np(mentor.edge_successor), _np(mentor.edge_count),
                     _np(mentor.row_count), *mentor_links,
-                    _np(sweeper.queue.priority), _np(sweeper.pending), *self.heap,
+                    _np(sweeper.pending), *self.heap, _np(sweeper.queue.priority),
                     _np(run.position), _np(run.option_start), _np(run.row), _np(run.duration),
                     _np(run.discounted_return), _np(run.discount), _np(run.epsilon),
                     _np(run.found_goal), _np(run.goals), _np(run.window_goals), _np(run.episodes),
