@@ -351,7 +351,18 @@ class Learner:
         self.metrics = RunMetrics()
         self._pad_state = torch.tensor(S, device=dev)
         self._start_tensor = torch.tensor(self.start_state, device=dev)
-        self._lanes = 5
+        # A world's start distribution [S] (optional): episodes start at a draw from its cdf,
+        # using lane 5 of the run's own stream (see _start_states).
+        start_distribution = getattr(world, "start_distribution", None)
+        self._start_cdf = None
+        if start_distribution is not None:
+            p = torch.as_tensor(start_distribution, dtype=torch.float64, device=dev)
+            if p.shape != (S,) or not bool(torch.isfinite(p).all()) or bool((p < 0).any()) \
+                    or abs(float(p.sum()) - 1.0) > 1e-6:
+                raise ValueError(f"world.start_distribution must be [S] = [{S}] probabilities "
+                                 "summing to 1 (or None)")
+            self._start_cdf = p.cumsum(0)
+        self._lanes = 6
         # States backed up together per round: a decision's budget in sweep_rounds rounds; with
         # plan_every > 1, the budget of plan_every decisions in as many rounds.
         self._round_size = -(-config.plan_every * config.backups // config.sweep_rounds)
@@ -366,9 +377,11 @@ class Learner:
         self._u_chunk, self._u_chunk_start = None, -1
         if demonstrations is not None:
             self.add_demonstrations(demonstrations)
-        # First options, from draw −1 of each stream (ticks use draws 0, 1, …).
+        # First starts and options, from draw −1 of each stream (ticks use draws 0, 1, …).
         first = uniforms(self.keys, -1, self._lanes)
         runs = torch.arange(B, device=dev)
+        self.position = self._start_states(runs, first).clone()
+        self.option_start = self.position.clone()
         self.row = self._choose(runs, self.position, first[:, 3:])
 
     # ==================================================================================== setup
@@ -743,8 +756,9 @@ class Learner:
 
     # ================================================================================ stepping
     def _tick_uniforms(self) -> torch.Tensor:
-        """``[B, 5]`` uniforms of tick ``t``: 0 slip, 1 termination or action, 2 termination
-        (stochastic policies), 3 ε, 4 which of the candidate options."""
+        """``[B, 6]`` uniforms of tick ``t``: 0 slip, 1 termination or action, 2 termination
+        (stochastic policies), 3 ε, 4 which of the candidate options, 5 the start state after a
+        goal (worlds with a start distribution)."""
         chunk = self.config.rng_chunk
         i = self.t % chunk
         if self._u_chunk is None or self._u_chunk_start != self.t - i:
@@ -807,10 +821,20 @@ class Learner:
         self.duration[runs] = 0
         self.discounted_return[runs] = 0.0
         self.discount[runs] = 1.0
-        here = torch.where(at_goal, self._start_tensor, end)
+        here = torch.where(at_goal, self._start_states(runs, u), end)
         self.position[runs] = here
         self.option_start[runs] = here
         self.row[runs] = self._choose(runs, here, u[:, 3:])
+
+    def _start_states(self, runs: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
+        """``[R]`` states where new episodes of ``runs`` start: ``world.start_state``, or for a
+        world with a ``start_distribution`` the state whose cdf interval holds ``u[:, 5]`` (lane 5
+        of the run's uniforms ``u [R, lanes]``: of draw −1 for the first start, of the tick at a
+        goal), so starts depend on the run's seed alone."""
+        if self._start_cdf is None:
+            return self._start_tensor.expand(runs.shape[0])
+        picked = torch.searchsorted(self._start_cdf, u[:, 5].contiguous(), right=True)
+        return picked.clamp(max=self.num_states - 1)
 
     def _goal_reached(self, at_goal: torch.Tensor) -> None:
         self.goals += at_goal
