@@ -12,22 +12,26 @@ from .gym_env import ENV_ID, MultiRoomsEnv, register_envs
 from .learner import AGENTS, Learner, LearnerConfig
 from .dirichlet_models import DirichletMentorModel, DirichletSMDPModel, EdgeStore, SuccessorDirichlet
 from .exact_option_models import OptionModels, option_durations, option_models
-from .options import (Options, corner_options, doorway_options, learner_options, mentor_options,
-                      primitive_options)
+from .options import (OPTION_KINDS, Options, corner_options, doorway_options, learner_options,
+                      mentor_options, primitive_options, subgoal_options)
 from .sweep_queue import BlockPriorityQueue
 from .exact_planning import (PlanResult, expected_steps, greedy_option_policy, smdp_value_iteration,
                        value_iteration)
 from .reward import SALIENCE_EVENTS, KnownReward, MentorReward, SalienceReward
 from .world import STIMULUS_FEATURES, DynamicsTable, MultiRooms, TabularWorld
+from .table_world import TableWorld, describe_world, transition_support, world_model
+from .gym_adapter import from_gymnasium, taxi_navigation_options
 
 __version__ = "0.1.0"
 
 __all__ = [
     # worlds
     "MultiRooms", "TabularWorld", "DynamicsTable", "MultiRoomsEnv", "register_envs", "ENV_ID",
+    "TableWorld", "from_gymnasium", "world_model", "transition_support", "describe_world",
     # options and their exact models
-    "Options", "primitive_options", "doorway_options", "corner_options", "learner_options",
-    "mentor_options", "OptionModels", "option_models", "option_durations",
+    "Options", "OPTION_KINDS", "primitive_options", "doorway_options", "corner_options",
+    "learner_options", "mentor_options", "subgoal_options", "taxi_navigation_options",
+    "OptionModels", "option_models", "option_durations",
     # exact planning
     "value_iteration", "smdp_value_iteration", "greedy_option_policy", "expected_steps",
     "PlanResult",

@@ -8,7 +8,8 @@ Subcommands (``himit <command> --help`` for their options):
 * ``demo``  — experiment 2's world (40×40, 10×10 rooms): compute the mentor, record its
   state-only demonstrations, save them and a picture like the paper's Fig. 2, then a short
   batched learning run with figures and TensorBoard logs.
-* ``run``   — reproduce experiment 1, 2 or 3 into a run directory (resumable).
+* ``run``   — reproduce experiment 1, 2 or 3 into a run directory (resumable), or
+  ``gymnasium``: imitation vs options vs primitives on Taxi, CliffWalking and FrozenLake 8×8.
 * ``plot``  — redraw a run directory's figures and ``results.md``.
 * ``bench`` — steps per second of the batched learner.
 
@@ -108,6 +109,8 @@ def _kind_counts(options: Options) -> str:
 
 def cmd_info(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
+    if args.env is not None:
+        return _info_gymnasium(args, t0)
     world = MultiRooms(size=args.size, rooms=args.rooms, slip=args.slip)
     learner = learner_options(world, doorways=not args.no_doorway_options,
                               corners=args.corner_options)
@@ -141,7 +144,71 @@ def cmd_info(args: argparse.Namespace) -> int:
     return 0
 
 
+def _info_gymnasium(args: argparse.Namespace, t0: float) -> int:
+    """``himit info --env``: a Gymnasium world through the adapter, exactly solved."""
+    import json
+
+    from .gym_experiment import TASKS, episode_statistics
+    from .reward import KnownReward
+    from .table_world import world_model
+    from .exact_planning import value_iteration
+    from .gym_adapter import from_gymnasium
+
+    try:
+        kwargs = json.loads(args.env_kwargs) if args.env_kwargs else {}
+    except json.JSONDecodeError as err:
+        raise ValueError(f"--env-kwargs is not valid JSON: {err}") from None
+    if not isinstance(kwargs, dict):
+        raise ValueError("--env-kwargs must be a JSON object, e.g. '{\"map_name\": \"8x8\"}'")
+    task = TASKS.get(args.env)
+    if task is not None:
+        if kwargs:
+            raise ValueError(f"--env {args.env} is a task with its own kwargs ({task.kwargs}); give "
+                             f"--env {task.env_id} to choose them")
+        world = task.world(args.gamma)
+        options = task.options(world)
+    else:
+        try:
+            world = from_gymnasium(args.env, gamma=args.gamma, **kwargs)
+        except (ValueError, OSError):
+            raise
+        except Exception as err:   # gymnasium.make's own errors: unknown id, bad kwargs
+            raise ValueError(f"cannot make the Gymnasium environment {args.env!r}: {err}") from None
+        options = primitive_options(world)
+    P, R = world_model(world)
+    plan = value_iteration(P, R, world.gamma)
+    mu = world.start_distribution
+    rewards = world.dynamics_table().rewards
+    known = KnownReward(world)
+    print(f"world      {world.name} {world.describe().get('kwargs', {})} through from_gymnasium, "
+          f"gamma {world.gamma}")
+    print(f"states     {world.num_states} (start states {int((mu > 0).sum())}, terminal "
+          f"{int(world.terminal_mask.sum())}, goal {int(world.goal_mask.sum())})")
+    print(f"actions    {world.num_actions}: {', '.join(world.action_names)}")
+    print(f"rewards    {float(rewards.min()):g} … {float(rewards.max()):g} per transition; "
+          f"mentor reward: {known.note}")
+    extended = [n for n, k in zip(options.names, options.kinds) if k != "primitive"]
+    print(f"learner    {options.num_options} options ({_kind_counts(options)}"
+          + (f": {', '.join(extended)})" if extended else ")"))
+    p_goal, length = episode_statistics(world, plan.policy)
+    models = smdp_value_iteration(option_models(world, options))
+    print(f"\noptimal (value iteration on the true model, primitives)")
+    print(f"  V*(start distribution)      {float(plan.values @ mu):.3f}")
+    print(f"  with the learner's options  {float(models.values @ mu):.3f}")
+    print(f"  P(goal) per episode         {p_goal:.3f}")
+    print(f"  steps per episode           {length:.1f}")
+    print(f"  {f'goals per {GOALS_WINDOW} steps':<28}{GOALS_WINDOW * p_goal / length:.1f}")
+    print(f"\n({time.perf_counter() - t0:.1f} s)")
+    return 0
+
+
 def _add_info(sub: argparse.ArgumentParser) -> None:
+    sub.add_argument("--env", help="a Gymnasium tabular environment instead of MultiRooms: an id "
+                                   "(e.g. Taxi-v4, FrozenLake-v1) or a task of himit run gymnasium "
+                                   "(taxi, cliffwalking, frozenlake8x8)")
+    sub.add_argument("--env-kwargs", help="JSON keyword arguments of gymnasium.make, e.g. "
+                                          "'{\"map_name\": \"8x8\"}'")
+    sub.add_argument("--gamma", type=float, default=0.99, help="discount of a --env world (0.99)")
     sub.add_argument("--size", type=int, default=40, help="cells per side, N (default 40)")
     sub.add_argument("--rooms", type=int, default=10, help="rooms per side, R (default 10)")
     sub.add_argument("--slip", type=float, default=0.1,
@@ -223,6 +290,8 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     from .experiment import EXPERIMENTS, load_config, run_experiment
 
+    if args.experiment == "gymnasium":
+        return _run_gymnasium(args)
     if args.config:
         config = load_config(args.config)
         if args.experiment != config.name:
@@ -256,8 +325,35 @@ def cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _run_gymnasium(args: argparse.Namespace) -> int:
+    """``himit run gymnasium``: Taxi, CliffWalking, FrozenLake 8×8 (``gym_experiment``)."""
+    from dataclasses import replace
+
+    from .gym_experiment import GymExperimentConfig, run_gym_experiment
+
+    if args.config or args.resume:
+        raise ValueError("himit run gymnasium takes no --config or --resume (each task is one "
+                         "batch; rerun a task with --force)")
+    config = GymExperimentConfig()
+    if args.quick:
+        config = config.quick()
+    changes = {k: v for k, v in (("seeds", args.seeds), ("steps", args.steps),
+                                 ("device", args.device)) if v is not None}
+    config = replace(config, **changes)
+    if config.device.startswith("cuda") and not torch.cuda.is_available():
+        raise ValueError("--device cuda: no CUDA device is available here — use --device cpu")
+    run_dir = Path(args.logdir) / config.name
+    print(f"{config.name}: tasks {list(config.tasks)}, agents {list(config.agents)}, "
+          f"{config.seeds} seeds → {run_dir}")
+    t0 = time.perf_counter()
+    run_gym_experiment(config, run_dir, force=args.force, progress=not args.quiet)
+    print(f"done in {time.perf_counter() - t0:.0f} s: {run_dir / 'results.md'}")
+    return 0
+
+
 def _add_run(sub: argparse.ArgumentParser) -> None:
-    sub.add_argument("experiment", choices=["exp1", "exp2", "exp3"], help="which experiment")
+    sub.add_argument("experiment", choices=["exp1", "exp2", "exp3", "gymnasium"],
+                     help="which experiment (gymnasium: Taxi, CliffWalking, FrozenLake 8×8)")
     sub.add_argument("--seeds", type=_positive_int, help="runs per agent (default 5)")
     sub.add_argument("--steps", type=_positive_int, help="steps per run (default: the experiment's)")
     sub.add_argument("--quick", action="store_true", help="tiny budget (smoke test)")
@@ -333,7 +429,8 @@ COMMANDS: dict[str, tuple[Callable[[argparse.Namespace], int],
     "info": (cmd_info, _add_info, "summarize a world: sizes, options, optimal steps and goals"),
     "demo": (cmd_demo, _add_demo, "experiment 2's world: mentor demonstrations, a short batched "
                                   "learning run, figures and TensorBoard logs"),
-    "run": (cmd_run, _add_run, "reproduce one of the paper's experiments (exp1, exp2, exp3)"),
+    "run": (cmd_run, _add_run, "reproduce one of the paper's experiments (exp1, exp2, exp3), or "
+                               "the Gymnasium comparison (gymnasium)"),
     "plot": (cmd_plot, _add_plot, "redraw the figures and results.md of a run directory"),
     "bench": (cmd_bench, _add_bench, "steps per second of the batched learner"),
 }

@@ -16,6 +16,7 @@ from typing import Iterator, Sequence
 import numpy as np
 import torch
 
+from .table_world import describe_world, transition_support
 from .world import MultiRooms
 
 __all__ = ["Demonstrations", "DEMONSTRATIONS_FORMAT_VERSION"]
@@ -32,13 +33,22 @@ class Demonstrations:
     Args:
         episodes: one 1-D sequence of integer states per episode (tensors, arrays or lists); an
             episode holds its first state and the state after every primitive step.
-        world: the world's :meth:`~himit_torch.MultiRooms.describe` dict (a
-            :class:`~himit_torch.MultiRooms` is accepted too and described).
+        world: the world — any world object (MultiRooms, a :class:`~himit_torch.TableWorld`
+            such as a Gymnasium world, your own with a ``dynamics_table()`` or
+            ``transition_model()``) — or its description dict (``world.describe()``) where that
+            rebuilds it: MultiRooms, and Gymnasium worlds (by id and kwargs).
 
-    Every episode is checked against the world: states are cell indices in ``[0, S)``, none is a
-    wall cell, consecutive states are equal (a bump into a wall) or one primitive move apart
-    (4-adjacent), and the goal, which ends an episode, can only be an episode's last state.
-    A violation raises ``ValueError`` naming the episode and the index within it.
+    Every episode is checked against the world: states lie in ``[0, S)``, each consecutive pair
+    ``s → s'`` is a move the world can make in one primitive step (its transition support), and
+    a terminal state, which ends an episode, can only be an episode's last state. In MultiRooms
+    the messages speak of cells: no state is a wall cell, consecutive states are equal (a bump
+    into a wall) or 4-adjacent. A violation raises ``ValueError`` naming the episode and the
+    index within it.
+
+    The description (:func:`~himit_torch.table_world.describe_world`: MultiRooms' fields;
+    Gymnasium's id, kwargs, gamma and a fingerprint of the model; for your own world its class
+    and a fingerprint of its dynamics) is saved with the states, and demonstrations are refused
+    in a world with another description (:meth:`check_world`).
 
     File format (``.npz``, :meth:`save` / :meth:`load`), version
     :data:`DEMONSTRATIONS_FORMAT_VERSION` = 1, exactly these keys:
@@ -58,23 +68,33 @@ class Demonstrations:
     the end). Nothing about the mentor's actions or options is stored, by design.
     """
 
-    def __init__(self, episodes: Sequence, world: dict | MultiRooms, *, source: str | None = None):
+    def __init__(self, episodes: Sequence, world, *, source: str | None = None):
         self._source = source or "Demonstrations"
-        description = world.describe() if isinstance(world, MultiRooms) else world
-        if not isinstance(description, dict):
-            raise ValueError(f"{self._source}: world must be a world description dict (world.describe()),"
-                             f" got {type(description).__name__}")
+        if isinstance(world, dict):
+            description = world
+            self._world = _world_from_description(json.loads(json.dumps(description)), self._source)
+        elif hasattr(world, "num_states") and hasattr(world, "terminal_mask"):
+            description = describe_world(world)
+            self._world = world
+        else:
+            raise ValueError(f"{self._source}: world must be a world description dict "
+                             f"(world.describe()) or a world object, got {type(world).__name__}")
         self._world_description = json.loads(json.dumps(description))  # a plain, JSON-able copy
-        self._world = _world_from_description(self._world_description, self._source)
         if isinstance(episodes, (torch.Tensor, np.ndarray)) and episodes.ndim == 1:
             raise ValueError(f"{self._source}: episodes must be a list of 1-D state sequences, got one "
                              "1-D sequence; wrap it in a list for a single episode")
         if len(episodes) == 0:
             raise ValueError(f"{self._source}: no episodes; demonstrations need at least one episode")
         self._episodes = tuple(_as_episode(e, i, self._source) for i, e in enumerate(episodes))
-        wall, successors = self._world.wall_mask.numpy(), self._world.next_state_table.numpy()
-        for i, ep in enumerate(self._episodes):
-            _check_episode(ep.numpy(), i, self._world, wall, successors, self._source)
+        if isinstance(self._world, MultiRooms):
+            wall, successors = self._world.wall_mask.numpy(), self._world.next_state_table.numpy()
+            for i, ep in enumerate(self._episodes):
+                _check_episode(ep.numpy(), i, self._world, wall, successors, self._source)
+        else:
+            support = transition_support(self._world).numpy()
+            terminal = torch.as_tensor(self._world.terminal_mask, dtype=torch.bool).cpu().numpy()
+            for i, ep in enumerate(self._episodes):
+                _check_steps(ep.numpy(), i, support, terminal, self._source)
 
     # --------------------------------------------------------------------------------- queries
     @property
@@ -87,8 +107,8 @@ class Demonstrations:
         """The world's description dict (a copy)."""
         return json.loads(json.dumps(self._world_description))
 
-    def make_world(self) -> MultiRooms:
-        """A fresh world built from the stored description."""
+    def make_world(self):
+        """A fresh world built from the stored description (MultiRooms and Gymnasium worlds)."""
         return _world_from_description(self._world_description, self._source)
 
     @property
@@ -127,21 +147,17 @@ class Demonstrations:
 
     def __repr__(self) -> str:
         d = self._world_description
+        if d.get("kind") == "MultiRooms":
+            what = f"{d.get('size')}×{d.get('size')}/{d.get('rooms')}"
+        else:
+            what = d.get("id") or d.get("class") or ""
         return (f"Demonstrations(episodes={self.num_episodes}, transitions={self.num_transitions}, "
-                f"world={d.get('kind')} {d.get('size')}×{d.get('size')}/{d.get('rooms')})")
+                f"world={d.get('kind')} {what})")
 
-    def check_world(self, world: MultiRooms | dict) -> None:
-        """Raise ``ValueError`` unless ``world`` is the world these demonstrations were made in,
-        naming each description field that differs."""
-        given = world.describe() if isinstance(world, MultiRooms) else world
-        given = json.loads(json.dumps(given))
-        mine = self._world_description
-        fields = sorted(set(mine) | set(given))
-        diff = [f"{k} (demonstrations: {mine.get(k, '<missing>')!r}, given world: "
-                f"{given.get(k, '<missing>')!r})" for k in fields if mine.get(k) != given.get(k)]
-        if diff:
-            raise ValueError(f"{self._source}: recorded in a different world; fields that differ: "
-                             + "; ".join(diff))
+    def check_world(self, world) -> None:
+        """Raise ``ValueError`` unless ``world`` (a world or its description dict) is the world
+        these demonstrations were made in, naming each description field that differs."""
+        _check_same_world(self._world_description, world, self._source)
 
     # ------------------------------------------------------------------------------------ I/O
     def save(self, path: str | os.PathLike) -> Path:
@@ -161,12 +177,14 @@ class Demonstrations:
         return path
 
     @classmethod
-    def load(cls, path: str | os.PathLike, world: MultiRooms | dict | None = None) -> "Demonstrations":
+    def load(cls, path: str | os.PathLike, world=None) -> "Demonstrations":
         """Read and validate a file written by :meth:`save`.
 
         Args:
             path: the ``.npz`` file.
-            world: if given, the file's world description must equal this world's.
+            world: if given, the file's world description must equal this world's, and the
+                states are checked in it. Needed for worlds that cannot be rebuilt from their
+                description (your own classes); MultiRooms and Gymnasium worlds are rebuilt.
 
         Raises:
             FileNotFoundError: no such file.
@@ -227,18 +245,43 @@ class Demonstrations:
             raise ValueError(f"{src}: episode {starts.size - 1} is empty: it starts at "
                              f"{starts[-1]} but states holds {states.size} entries")
         episodes = np.split(states, starts[1:])
-        demos = cls(episodes, description, source=src)
-        if world is not None:
-            demos.check_world(world)
-        return demos
+        if world is None:
+            return cls(episodes, description, source=src)
+        # The world's identity first (naming the fields that differ), then the states in it.
+        _check_same_world(description, world, src)
+        return cls(episodes, description if isinstance(world, dict) else world, source=src)
 
 
 # ------------------------------------------------------------------------------------ checks
-def _world_from_description(description: dict, source: str) -> MultiRooms:
+def _check_same_world(mine: dict, world, source: str) -> None:
+    """``ValueError`` naming each description field that differs between ``mine`` and ``world``
+    (a world or a description dict)."""
+    given = json.loads(json.dumps(world if isinstance(world, dict) else describe_world(world)))
+    fields = sorted(set(mine) | set(given))
+    diff = [f"{k} (demonstrations: {mine.get(k, '<missing>')!r}, given world: "
+            f"{given.get(k, '<missing>')!r})" for k in fields if mine.get(k) != given.get(k)]
+    if diff:
+        raise ValueError(f"{source}: recorded in a different world; fields that differ: "
+                         + "; ".join(diff))
+
+
+def _world_from_description(description: dict, source: str):
     kind = description.get("kind")
+    if kind == "gymnasium":
+        from .gym_adapter import world_from_description
+        try:
+            return world_from_description(description)
+        except KeyError as err:
+            raise ValueError(f"{source}: world description lacks field {err}") from None
+        except ValueError as err:
+            raise ValueError(f"{source}: {err}") from None
+        except Exception as err:   # gymnasium.make's own errors (unknown id, bad kwargs)
+            raise ValueError(f"{source}: cannot make the Gymnasium world {description.get('id')!r} "
+                             f"with kwargs {description.get('kwargs')}: {err}") from None
     if kind != "MultiRooms":
-        raise ValueError(f"{source}: world kind {kind!r} is not supported; demonstrations are "
-                         "checked against a MultiRooms world (description kind 'MultiRooms')")
+        raise ValueError(f"{source}: world kind {kind!r} is not supported here: only MultiRooms and "
+                         "Gymnasium worlds are rebuilt from a description; pass the world object "
+                         "itself (Demonstrations(episodes, world), Demonstrations.load(path, world=…))")
     try:
         return MultiRooms.from_description(description)
     except KeyError as err:
@@ -292,3 +335,27 @@ def _check_episode(states: np.ndarray, index: int, world: MultiRooms, wall: np.n
         i = int(goal_early[0])
         raise ValueError(f"{where}, index {i}: the goal {world.coords(world.goal_state)} ends an "
                          f"episode but {states.size - 1 - i} more state(s) follow it")
+
+
+def _check_steps(states: np.ndarray, index: int, support: np.ndarray, terminal: np.ndarray,
+                 source: str) -> None:
+    """Any world: states in range, each step in the world's transition support ``[S, S]``, a
+    terminal state only at an episode's end."""
+    where = f"{source}: episode {index}"
+    S = support.shape[0]
+    out = np.flatnonzero((states < 0) | (states >= S))
+    if out.size:
+        i = int(out[0])
+        raise ValueError(f"{where}, index {i}: state {states[i]} is out of range [0, {S})")
+    ended = np.flatnonzero(terminal[states[:-1]])
+    if ended.size:
+        i = int(ended[0])
+        raise ValueError(f"{where}, index {i}: state {states[i]} is terminal and ends an episode, "
+                         f"but {states.size - 1 - i} more state(s) follow it")
+    if states.size > 1:
+        bad = np.flatnonzero(~support[states[:-1], states[1:]])
+        if bad.size:
+            i = int(bad[0]) + 1
+            raise ValueError(f"{where}, index {i}: state {states[i]} follows {states[i - 1]}, but "
+                             f"no action leads from {states[i - 1]} to {states[i]} in one step "
+                             "in this world")

@@ -29,6 +29,7 @@ import scipy.sparse.linalg as spla
 import torch
 
 from .options import Options
+from .table_world import world_model
 
 __all__ = ["OptionModels", "option_models", "option_durations", "csr_from_scipy"]
 
@@ -128,15 +129,16 @@ def option_models(world, options: Options, gamma: float | None = None,
     """Exact multi-time models of every option from every state of its initiation set.
 
     Args:
-        world: provides ``transition_model() [A, S, S]``, ``reward_model() [S, A]``,
-            ``terminal_mask [S]`` and ``gamma``.
+        world: provides ``terminal_mask [S]``, ``gamma`` and its true model: ``transition_model()
+            [A, S, S]`` and ``reward_model() [S, A]``, or a ``dynamics_table()`` to derive them
+            from (:func:`himit_torch.table_world.world_model`).
         options: the options to model.
         gamma: discount; the world's by default. ``1.0`` gives undiscounted termination
             probabilities (requires every option to terminate with probability 1).
         step_reward: ``[S, A]`` reward per step instead of the world's (ones → expected durations).
     """
     gamma = world.gamma if gamma is None else float(gamma)
-    P = world.transition_model(sparse=True).coalesce()
+    P, R_world = world_model(world)
     A, S, _ = P.shape
     if options.num_states != S:
         raise ValueError(f"options are over {options.num_states} states but the world has {S}")
@@ -144,7 +146,7 @@ def option_models(world, options: Options, gamma: float | None = None,
     P_stack = sp.csr_matrix((P.values().numpy(), (idx[0] * S + idx[1], idx[2])), shape=(A * S, S))
     P_stack.eliminate_zeros()
     P_csr = (P_stack.indptr.astype(np.int64), P_stack.indices.astype(np.int64), P_stack.data)
-    R = (world.reward_model() if step_reward is None else torch.as_tensor(step_reward)).double().numpy()
+    R = (R_world if step_reward is None else torch.as_tensor(step_reward)).double().numpy()
     if R.shape != (S, A):
         raise ValueError(f"step_reward must be [S, A] = [{S}, {A}], got {R.shape}")
     terminal = world.terminal_mask.numpy()

@@ -280,13 +280,15 @@ class Learner:
             return None
         dist = torch.as_tensor(dist, dtype=torch.float64, device=self.device)
         if dist.shape != (self.num_states,) or not bool(torch.isfinite(dist).all()) \
-                or bool((dist < 0).any()) or abs(float(dist.sum()) - 1.0) > 1e-9:
+                or bool((dist < 0).any()) or abs(float(dist.sum()) - 1.0) > 1e-6:
             raise ValueError(f"world.start_distribution must be [S={self.num_states}] probabilities "
-                             "summing to 1")
+                             "summing to 1 (or None)")
         if bool((dist[self.terminal[:-1]] > 0).any()):
             raise ValueError("world.start_distribution puts mass on a terminal state")
         cdf = dist.cumsum(0)
-        cdf[-1] = 1.0
+        # From the last possible start on the cdf is exactly 1, so rounding can never draw a
+        # state of probability 0 beyond it.
+        cdf[int(dist.nonzero().max()):] = 1.0
         return cdf
 
     def start_states(self, runs: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
@@ -308,10 +310,11 @@ class Learner:
                 if not bool(self.rows.use_mentor[b]):
                     modules[b] = _NO_MENTOR_REWARD   # no mentor term: its reward is never used
                     continue
-                if getattr(world, "state_reward", None) is None:
+                if getattr(world, "state_reward", None) is None and self.dynamics is None:
                     raise ValueError(f"run {b} ({self.agents[b]}) imitates but no reward module was "
-                                     "given and the world has no state_reward for KnownReward; pass "
-                                     "reward=… (e.g. a SalienceReward or your own MentorReward)")
+                                     "given and the world has neither a state_reward nor a "
+                                     "dynamics_table() for KnownReward; pass reward=… (e.g. a "
+                                     "SalienceReward or your own MentorReward)")
                 known = known or KnownReward(world)
                 modules[b] = known
             elif not hasattr(m, "transition_reward"):
@@ -389,6 +392,8 @@ class Learner:
     def _real_reward_bound(self) -> float | None:
         """The learner's best real reward for one step (``None`` if the world does not say)."""
         reward = getattr(self.world, "state_reward", None)
+        if reward is None and self.dynamics is not None:
+            reward = self.dynamics.rewards
         return None if reward is None else float(torch.as_tensor(reward).max())
 
     # ================================================================================ running

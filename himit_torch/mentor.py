@@ -62,14 +62,15 @@ def mentor_policy(world: MultiRooms, options: Options,
         world: the world the mentor acts in.
         options: the mentor's options, e.g. ``mentor_options(world)``.
         prefer_extended_within: the tolerance, ``≥ 0``; by default one step's cost,
-            ``abs(world.step_reward)`` (0.01). ``0`` gives the strict greedy optimum.
+            ``abs(world.step_reward)`` (0.01), or 0 for worlds without a ``step_reward``. ``0``
+            gives the strict greedy optimum.
 
     Returns:
         :class:`MentorPolicy`; its values are the optimal ``V*`` (the preference changes which
         option is taken, not the values reported).
     """
     if prefer_extended_within is None:
-        prefer_extended_within = abs(world.step_reward)
+        prefer_extended_within = abs(getattr(world, "step_reward", 0.0))
     tolerance = float(prefer_extended_within)
     if not tolerance >= 0.0:  # also rejects NaN
         raise ValueError(f"prefer_extended_within={prefer_extended_within} must be ≥ 0 (a value "
@@ -119,7 +120,10 @@ class MentorRollout:
 def run_mentor(world: MultiRooms, mentor: MentorPolicy | Options, episodes: int = 20, *,
                generator: torch.Generator | None = None, seed: int | None = None,
                max_steps_per_episode: int | None = None) -> MentorRollout:
-    """Run the mentor's policy from ``world.start_state`` until the goal, ``episodes`` times.
+    """Run the mentor's policy from the start until a terminal state, ``episodes`` times.
+
+    Episodes start at ``world.start_state``, or, for a world with a ``start_distribution``, at
+    states drawn from it (one draw per episode from ``generator``, before the steps).
 
     All episodes run together, one primitive step at a time. Where an episode needs a decision
     the mentor picks ``mentor.option[s]``; the option acts by its policy; on arriving in ``s'`` it
@@ -155,10 +159,15 @@ def run_mentor(world: MultiRooms, mentor: MentorPolicy | Options, episodes: int 
     terminal = world.terminal_mask
     E = episodes
 
-    start = int(world.start_state)
-    if choice[start] < 0:
-        raise ValueError(f"the mentor has no option at the start state {world.coords(start)}")
-    pos = torch.full((E,), start, dtype=torch.int64)
+    start_distribution = getattr(world, "start_distribution", None)
+    if start_distribution is None:
+        pos = torch.full((E,), int(world.start_state), dtype=torch.int64)
+    else:
+        pos = torch.multinomial(torch.as_tensor(start_distribution, dtype=torch.float64), E,
+                                replacement=True, generator=generator)
+    if bool((choice[pos] < 0).any()):
+        bad = int(pos[choice[pos] < 0][0])
+        raise ValueError(f"the mentor has no option at the start state {_where(world, bad)}")
     active = torch.ones(E, dtype=torch.bool)
     current = torch.full((E,), -1, dtype=torch.int64)
     history = [pos.clone()]
@@ -170,7 +179,7 @@ def run_mentor(world: MultiRooms, mentor: MentorPolicy | Options, episodes: int 
             if (picked < 0).any() or not init[picked, pos[need]].all():
                 bad = int(pos[need][(picked < 0) | ~init[picked.clamp(min=0), pos[need]]][0])
                 raise ValueError(f"the mentor's policy has no usable option at state "
-                                 f"{world.coords(bad)}")
+                                 f"{_where(world, bad)}")
             current[need] = picked
             decided_episode.append(torch.nonzero(need).flatten())
             decided_option.append(picked)
@@ -215,4 +224,9 @@ def record_demonstrations(world: MultiRooms, mentor: MentorPolicy | Options, epi
     """
     rollout = run_mentor(world, mentor, episodes, generator=generator, seed=seed,
                          max_steps_per_episode=max_steps_per_episode)
-    return Demonstrations(list(rollout.states), world.describe())
+    return Demonstrations(list(rollout.states), world)
+
+
+def _where(world, state: int) -> str:
+    """A state for messages: its cell in MultiRooms, its index elsewhere."""
+    return str(world.coords(state)) if hasattr(world, "coords") else str(state)

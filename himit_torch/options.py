@@ -19,15 +19,19 @@ from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
+import scipy.sparse as sp
 import torch
 
-from .world import ACTION_DELTAS, MultiRooms
+from .table_world import world_model
+from .world import ACTION_DELTAS, ACTION_NAMES, MultiRooms
 
 __all__ = ["Options", "primitive_options", "doorway_options", "corner_options",
-           "learner_options", "mentor_options", "target_policy"]
+           "learner_options", "mentor_options", "target_policy", "subgoal_options", "OPTION_KINDS"]
 
-#: Kinds of option the builders make; ``"custom"`` for user-built ones.
-OPTION_KINDS = ("primitive", "doorway", "corner", "custom")
+#: Kinds of option: ``"primitive"`` (one action, then terminate: what the ``primitives`` agents
+#: use), ``"doorway"`` and ``"corner"`` (MultiRooms' builders), ``"subgoal"``
+#: (:func:`subgoal_options`) and ``"custom"`` for anything else.
+OPTION_KINDS = ("primitive", "doorway", "corner", "subgoal", "custom")
 
 
 @dataclass(frozen=True)
@@ -111,10 +115,17 @@ class Options:
         return Options.concat(self, other)
 
     @staticmethod
-    def concat(*parts: "Options") -> "Options":
-        """Options from several bundles, in order (policies made stochastic if any one is)."""
+    def concat(*parts: "Options | Sequence[Options]") -> "Options":
+        """Options from several bundles, in order (policies made stochastic if any one is):
+        ``Options.concat(a, b)`` or ``Options.concat([a, b])``."""
+        if len(parts) == 1 and isinstance(parts[0], (list, tuple)):
+            parts = tuple(parts[0])
         if not parts:
             raise ValueError("Options.concat needs at least one bundle")
+        wrong = [type(p).__name__ for p in parts if not isinstance(p, Options)]
+        if wrong:
+            raise ValueError(f"Options.concat joins Options bundles, got {wrong}; pass bundles as "
+                             "separate arguments or as one list")
         if len({p.num_states for p in parts}) != 1:
             raise ValueError(f"cannot join options over different state counts "
                              f"{[p.num_states for p in parts]}")
@@ -130,20 +141,40 @@ class Options:
 
     @staticmethod
     def from_policy(initiation: torch.Tensor, policy: torch.Tensor,
-                    termination: torch.Tensor | None = None, name: str = "custom") -> "Options":
+                    termination: torch.Tensor | None = None, name: str = "custom",
+                    kind: str = "custom") -> "Options":
         """One option from any tabular policy.
 
         Args:
             initiation: ``[S]`` bool where it may start.
             policy: ``[S]`` int64 actions or ``[S, A]`` probabilities.
             termination: ``[S]`` β; by default 1 outside the initiation set, 0 inside (the option
-                runs until it leaves the set).
+                runs until it leaves the set) — for ``kind="primitive"``, 1 everywhere.
+            name: the option's name.
+            kind: one of :data:`OPTION_KINDS`. ``"primitive"`` marks a one-step option — the
+                ``primitives`` agents use only those — so it must terminate everywhere
+                (``β = 1``) and take one fixed action in every initiation state.
         """
+        if kind not in OPTION_KINDS:
+            raise ValueError(f"Options.from_policy: kind={kind!r} is unknown; use one of {OPTION_KINDS}")
         initiation = torch.as_tensor(initiation, dtype=torch.bool)
+        policy = torch.as_tensor(policy)
         if termination is None:
-            termination = (~initiation).float()
-        return Options(initiation=initiation[None], termination=torch.as_tensor(termination).float()[None],
-                       policy=torch.as_tensor(policy)[None], names=(name,), kinds=("custom",))
+            termination = torch.ones(initiation.shape) if kind == "primitive" else (~initiation).float()
+        termination = torch.as_tensor(termination).float()
+        if kind == "primitive":
+            if initiation.dim() != 1 or termination.shape != initiation.shape \
+                    or not bool((termination == 1).all()):
+                raise ValueError(f"Options.from_policy({name!r}, kind='primitive'): a primitive "
+                                 "option executes one action and terminates, so its termination "
+                                 "must be 1 in every state")
+            if policy.is_floating_point() or policy.dim() != 1 or \
+                    policy[initiation].unique().numel() > 1:
+                raise ValueError(f"Options.from_policy({name!r}, kind='primitive'): a primitive "
+                                 "option takes one fixed action: give an [S] int64 policy with the "
+                                 "same action in every initiation state")
+        return Options(initiation=initiation[None], termination=termination[None],
+                       policy=policy[None], names=(name,), kinds=(kind,))
 
     def select(self, index: Sequence[int] | torch.Tensor) -> "Options":
         """A sub-bundle with the options at ``index``."""
@@ -158,14 +189,77 @@ class Options:
 
 
 # ------------------------------------------------------------------------------------ builders
-def primitive_options(world: MultiRooms) -> Options:
-    """One option per action: usable in every free non-goal cell, one step, then terminate."""
+def primitive_options(world) -> Options:
+    """One option per action: usable in every non-terminal state (and, in MultiRooms, only in
+    free cells), one step, then terminate. Works for any world with ``num_states``,
+    ``num_actions`` and ``terminal_mask``; names come from ``world.action_names`` if it has them
+    (MultiRooms: ``primitive N`` … ``primitive E``)."""
     S, A = world.num_states, world.num_actions
-    usable = world.free_mask & ~world.terminal_mask
+    usable = ~torch.as_tensor(world.terminal_mask, dtype=torch.bool).cpu()
+    if hasattr(world, "free_mask"):
+        usable = usable & world.free_mask
+    labels = ACTION_NAMES if isinstance(world, MultiRooms) else \
+        tuple(getattr(world, "action_names", None) or range(A))
     return Options(initiation=usable[None].repeat(A, 1),
                    termination=torch.ones(A, S),
                    policy=torch.arange(A)[:, None].repeat(1, S),
-                   names=tuple(f"primitive {n}" for n in "NSWE"), kinds=("primitive",) * A)
+                   names=tuple(f"primitive {n}" for n in labels), kinds=("primitive",) * A)
+
+
+def subgoal_options(world, targets: dict, actions: Sequence[int] | None = None,
+                    gamma: float = 0.999) -> Options:
+    """One option per named target set of states: it heads for its target by the policy of
+    fewest expected steps on the world's *true* model (value iteration with a cost of 1 a step,
+    discount ``gamma``, the target absorbing at 0 and the world's other terminal states as bad
+    as never arriving). Works on any world with a model (:func:`himit_torch.table_world.world_model`).
+
+    Usable in every non-terminal state outside the target from which the target can be reached;
+    it terminates on reaching the target (or leaving that set). Built with
+    :meth:`Options.from_policy`, kind ``"subgoal"``.
+
+    Args:
+        world: the world.
+        targets: ``{name: [S] bool mask}``.
+        actions: the actions the options may use (default: all), e.g. Taxi's four moves.
+        gamma: the discount of the planning problem (close to 1: fewest expected steps).
+    """
+    P, _ = world_model(world)
+    A, S, _ = P.shape
+    actions = list(range(A)) if actions is None else [int(a) for a in actions]
+    if not actions or min(actions) < 0 or max(actions) >= A:
+        raise ValueError(f"subgoal_options: actions {actions} must be a non-empty subset of 0…{A - 1}")
+    if not targets:
+        raise ValueError("subgoal_options: no targets; give {name: [S] bool mask}")
+    idx = P.indices().numpy()
+    stacked = sp.csr_matrix((P.values().numpy(), (idx[0] * S + idx[1], idx[2])), shape=(A * S, S))
+    stacked = sp.vstack([stacked[a * S:(a + 1) * S] for a in actions]).tocsr()
+    terminal = torch.as_tensor(world.terminal_mask, dtype=torch.bool).cpu().numpy()
+    never = -1.0 / (1.0 - gamma)
+    parts = []
+    for name, mask in targets.items():
+        target = torch.as_tensor(mask, dtype=torch.bool).cpu().numpy()
+        if target.shape != (S,) or not target.any():
+            raise ValueError(f"subgoal_options: target {name!r} must be a non-empty [S] = [{S}] "
+                             "bool mask")
+        fixed = target | terminal
+        fixed_value = np.where(target, 0.0, never)
+        # From below (every state "never arrives"): unreachable states stay exactly there, and
+        # in a deterministic world the values are exact after as many sweeps as the longest path.
+        V = np.where(fixed, fixed_value, never)
+        for _ in range(100_000):
+            q = -1.0 + gamma * (stacked @ V).reshape(len(actions), S)
+            new = np.where(fixed, fixed_value, q.max(0))
+            done = np.abs(new - V).max() < 1e-9
+            V = new
+            if done:
+                break
+        best = q.argmax(0)   # ties to the first of ``actions``
+        reach = ~fixed & (V > never + 1e-6)
+        if not reach.any():
+            raise ValueError(f"subgoal_options: target {name!r} cannot be reached from any state")
+        policy = torch.from_numpy(np.asarray(actions)[best]).to(torch.int64)
+        parts.append(Options.from_policy(torch.from_numpy(reach), policy, name=name, kind="subgoal"))
+    return Options.concat(parts)
 
 
 def target_policy(world: MultiRooms, region: Sequence[int], target: int,

@@ -13,7 +13,8 @@ Soundness
 
     * a module declares ``upper_bound`` (the most it ever returns), and the learner compares it
       with its best real reward for one step (``world.state_reward.max()``; +1.0 at the goal
-      of :class:`~himit_torch.MultiRooms`) — an error, a warning or nothing, as
+      of :class:`~himit_torch.MultiRooms`; worlds without ``state_reward`` are not checked)
+      — an error, a warning or nothing, as
       :attr:`LearnerConfig.reward_bound_check <himit_torch.LearnerConfig.reward_bound_check>`
       says;
     * a module that returns more than its own ``upper_bound``, NaN/∞, or the wrong shape is an
@@ -72,20 +73,91 @@ class MentorReward(Protocol):
 
 
 class KnownReward:
-    """The world's own reward (the paper's experiments: ``R_m = R_obs``): the reward for entering
-    ``s'``, as the learner itself would get it."""
+    """The world's own reward (the paper's experiments: ``R_m = R_obs``): what the learner itself
+    would get for the mentor's observed move ``s → s'``.
+
+    Worlds with ``state_reward [S]`` (MultiRooms): the reward for entering ``s'``.
+
+    Worlds with rewards per transition ``(s, a, s')`` (a ``dynamics_table()``: Gymnasium's
+    Taxi, CliffWalking, …): the reward of the pair ``(s, s')`` where every action that can make
+    that move pays the same. Where it depends on the unseen action — Taxi's illegal pick-up
+    (−10) and a move into a wall (−1) both leave the taxi where it is — it takes the **least**
+    reward among the actions (and outcomes) that make the move with positive probability. That
+    never overestimates: whatever action the learner uses to reproduce the move, it gets at least
+    this much, so the mentor term stays the sound lower bound eq. 2 needs (the maximum or the mean
+    could promise more than the learner's action pays). :attr:`ambiguous_pairs` counts such
+    pairs and :attr:`note` says what was done, from construction on; ``repr`` shows it.
+
+    A pair ``(s, s')`` that no action can produce raises ``ValueError`` (demonstrations of
+    another world).
+    """
 
     def __init__(self, world):
-        self.state_reward = world.state_reward.double()
-        if not bool(torch.isfinite(self.state_reward).all()):
-            raise ValueError("KnownReward: the world's state_reward holds NaN or infinite values")
-        self.upper_bound = float(self.state_reward.max())
+        state_reward = getattr(world, "state_reward", None)
+        self._pairs = None
+        self.ambiguous_pairs = 0
+        if state_reward is not None:
+            self.state_reward = torch.as_tensor(state_reward).double()
+            if not bool(torch.isfinite(self.state_reward).all()):
+                raise ValueError("KnownReward: the world's state_reward holds NaN or infinite values")
+            self.upper_bound = float(self.state_reward.max())
+            self.note = "reward for entering s' (the world's state_reward)"
+            return
+        if not hasattr(world, "dynamics_table"):
+            raise ValueError(f"KnownReward: {type(world).__name__} has neither state_reward [S] nor "
+                             "a dynamics_table() with rewards per transition; give the learner "
+                             "another reward module (reward=…)")
+        self.state_reward = None
+        keys, low, ambiguous = _pair_rewards(world)
+        if not bool(torch.isfinite(low).all()):
+            raise ValueError("KnownReward: the world's transition rewards hold NaN or infinite values")
+        self._pairs = (keys, low, int(world.num_states))
+        self.ambiguous_pairs = ambiguous
+        if keys.numel() == 0:
+            raise ValueError("KnownReward: the world has no transition out of a non-terminal state")
+        self.upper_bound = float(low.max())
+        self.note = (f"reward of the observed pair (s, s'); in {ambiguous} of {keys.numel()} possible "
+                     "pairs it depends on the unseen action, and there the least reward of the "
+                     "actions that make the move is used (never an overestimate)"
+                     if ambiguous else "reward of the observed pair (s, s'): it never depends on "
+                     "the unseen action in this world")
 
     def transition_reward(self, sources: torch.Tensor, successors: torch.Tensor) -> torch.Tensor:
-        return self.state_reward.to(successors.device)[successors]
+        if self._pairs is None:
+            return self.state_reward.to(successors.device)[successors]
+        keys, low, S = self._pairs
+        dev = successors.device
+        keys, low = keys.to(dev), low.to(dev)
+        query = sources.to(torch.int64) * S + successors.to(torch.int64)
+        pos = torch.searchsorted(keys, query).clamp(max=keys.numel() - 1)   # keys never empty
+        found = keys[pos] == query
+        if not bool(found.all()):
+            i = int((~found).nonzero()[0, 0])
+            raise ValueError(f"KnownReward: the mentor move {int(sources[i])} → {int(successors[i])} is "
+                             "impossible in this world (no action makes it); were the "
+                             "demonstrations recorded in another world?")
+        return low[pos]
 
     def __repr__(self) -> str:
-        return "KnownReward()"
+        return f"KnownReward({self.note})"
+
+
+def _pair_rewards(world) -> tuple[torch.Tensor, torch.Tensor, int]:
+    """Sorted keys ``s·S + s'`` of every possible move out of a non-terminal state, the least
+    reward of each, and how many pairs have more than one reward."""
+    table = world.dynamics_table()
+    S = int(world.num_states)
+    prob = torch.diff(table.cdf, dim=-1, prepend=torch.zeros_like(table.cdf[..., :1])).cpu()
+    terminal = torch.as_tensor(world.terminal_mask, dtype=torch.bool).cpu()
+    live = (prob > 0) & ~terminal[:, None, None]
+    src = torch.arange(S)[:, None, None].expand_as(prob)[live]
+    key = src * S + table.successors.cpu()[live]
+    reward = table.rewards.cpu().double()[live]
+    keys, inverse = torch.unique(key, return_inverse=True)
+    low = torch.full((keys.numel(),), float("inf"), dtype=torch.float64).scatter_reduce(
+        0, inverse, reward, "amin")
+    high = torch.full_like(low, -float("inf")).scatter_reduce(0, inverse, reward, "amax")
+    return keys, low, int((high > low).sum())
 
 
 #: Salient event kinds of :class:`SalienceReward` (the keys of its ``weights``).

@@ -1,11 +1,12 @@
-"""Write ``quickstart.ipynb`` and ``intrinsic_reward.ipynb`` from the cells below, and (with
-``--execute``) run them top to bottom in place so that they are committed with their outputs.
+"""Write ``quickstart.ipynb``, ``intrinsic_reward.ipynb`` and ``your_own_world.ipynb`` from the
+cells below, and (with ``--execute``) run them top to bottom in place so that they are committed
+with their outputs.
 
     .venv/bin/python notebooks/build_notebooks.py --execute     # a few minutes on a laptop CPU
 
 Edit the notebooks here, not in Jupyter, so that text and code stay reviewable in one place.
 The budgets come from environment variables (``HIMIT_NOTEBOOK_STEPS``, ``HIMIT_NOTEBOOK_SEEDS``);
-the tests run both notebooks with tiny ones (``tests/test_notebooks.py``).
+the tests run every notebook with tiny ones (``tests/test_notebooks.py``).
 """
 
 from __future__ import annotations
@@ -424,11 +425,255 @@ print(f"tensorboard --logdir {LOGDIR / 'tb'}")
 print(len(list((LOGDIR / "tb").glob("world40__*"))), "run folders")"""),
 ]
 
+# ========================================================================= your own world
+YOUR_OWN_WORLD = [
+    new_markdown_cell("""\
+# Your own world: a hand-written four-rooms world, then Gymnasium's Taxi
+
+The learner does not need `MultiRooms`. Any tabular world works that has
+
+* `num_states`, `num_actions`, `start_state`, `gamma`, `terminal_mask [S]` (entering one of
+  these states ends the episode), and
+* a batched `step(positions [B], actions [B], uniforms [B]) → (next [B], reward [B])`;
+
+and, optionally, the wider protocol:
+
+* `start_distribution [S]` — episodes start at a draw from it (from each run's own random
+  stream, so runs stay reproducible);
+* `dynamics_table()` — a `ht.DynamicsTable` (successors, cdf and rewards per slot `[S, A, K]`)
+  that `step` uses: rewards per transition `(s, a, s')`, and from it the true model, so exact
+  value iteration, exact option models, an optimal mentor and checked demonstrations come for
+  free.
+
+Part 1 writes Sutton, Precup & Singh's four-rooms world by hand; part 2 takes Gymnasium's Taxi
+through `ht.from_gymnasium`. Budget: `STEPS` primitive steps per run and `SEEDS` seeds per agent
+(`HIMIT_NOTEBOOK_STEPS`, `HIMIT_NOTEBOOK_SEEDS`; the tests run this notebook with tiny ones)."""),
+    new_code_cell("""\
+import os
+
+import matplotlib.pyplot as plt
+import torch
+
+import himit_torch as ht
+
+STEPS = int(os.environ.get("HIMIT_NOTEBOOK_STEPS", 40_000))   # primitive steps per run
+SEEDS = int(os.environ.get("HIMIT_NOTEBOOK_SEEDS", 3))        # runs per agent
+WINDOW = 2000 if STEPS >= 8000 else max(STEPS // 4, 1)        # goals are counted per window
+AGENTS = ["imitation", "options", "primitives"]
+torch.set_num_threads(1)
+plt.rcParams["figure.dpi"] = 72
+
+
+def plot_goals(learner, title):
+    \"\"\"Goals per window, mean over each agent's seeds (thin lines: single seeds).\"\"\"
+    curve = learner.metrics.curve().double()
+    fig, ax = plt.subplots(figsize=(6, 3.2))
+    for agent, color in zip(AGENTS, ("C3", "C0", "C2")):
+        runs = [b for b, a in enumerate(learner.agents) if a == agent]
+        ax.plot(learner.metrics.steps, curve[:, runs], color=color, alpha=0.3, lw=0.8)
+        ax.plot(learner.metrics.steps, curve[:, runs].mean(1), color=color, lw=2,
+                label=f"{agent} (mean of {len(runs)})")
+    ax.set_xlabel("steps")
+    ax.set_ylabel(f"goals per {WINDOW} steps")
+    ax.set_title(title)
+    ax.legend(fontsize="small")
+    plt.show()"""),
+    new_markdown_cell("""\
+## Part 1 — four rooms, written by hand
+
+104 free cells in four rooms joined by four hallways. A state is the index of a *free* cell
+(no wall states at all). Actions N, S, W, E go the intended way with probability 2/3 and each
+other way with 1/9; a move into a wall stays put. Rewards are per transition: −0.01 a step,
+−0.05 more for bumping into a wall, +1 for entering the goal in the bottom-right corner.
+Episodes start anywhere in the top-left room (a start distribution)."""),
+    new_code_cell("""\
+FOUR_ROOMS = [
+    "#############",
+    "#     #     #",
+    "#     #     #",
+    "#           #",
+    "#     #     #",
+    "#     #     #",
+    "## ####     #",
+    "#     ### ###",
+    "#     #     #",
+    "#     #     #",
+    "#           #",
+    "#     #     #",
+    "#############",
+]
+MOVES = ((-1, 0), (1, 0), (0, -1), (0, 1))           # N, S, W, E
+
+
+class FourRooms:
+    \"\"\"Sutton, Precup & Singh's four rooms, to the world protocol: states are free cells.\"\"\"
+
+    num_actions = 4
+    action_names = ("N", "S", "W", "E")
+
+    def __init__(self, gamma=0.99, goal=(11, 11)):
+        self.cells = [(r, c) for r, row in enumerate(FOUR_ROOMS) for c, ch in enumerate(row) if ch == " "]
+        index = {cell: i for i, cell in enumerate(self.cells)}
+        self.num_states, self.gamma, self.goal = len(self.cells), gamma, index[goal]
+        S = self.num_states
+        succ = torch.zeros(S, 4, 4, dtype=torch.int64)
+        reward = torch.zeros(S, 4, 4, dtype=torch.float64)
+        for s, (r, c) in enumerate(self.cells):
+            for a in range(4):
+                # slots 0-2: the three other directions (1/9 each), slot 3: the intended one
+                for k, d in enumerate([(a + 1 + j) % 4 for j in range(3)] + [a]):
+                    t = index.get((r + MOVES[d][0], c + MOVES[d][1]), s)
+                    succ[s, a, k] = t
+                    reward[s, a, k] = 1.0 if t == self.goal else -0.01 - 0.05 * (t == s)
+        cdf = torch.tensor([1 / 9, 2 / 9, 3 / 9, 1.0], dtype=torch.float64).expand(S, 4, 4)
+        self.table = ht.DynamicsTable(succ, cdf.contiguous(), reward)
+        room = torch.tensor([r < 6 and c < 6 for r, c in self.cells])
+        self.start_distribution = room.double() / room.sum()
+        self.start_state = int(self.start_distribution.argmax())
+
+    @property
+    def terminal_mask(self):
+        mask = torch.zeros(self.num_states, dtype=torch.bool)
+        mask[self.goal] = True
+        return mask
+
+    def dynamics_table(self):
+        return self.table
+
+    def step(self, positions, actions, uniforms):
+        return self.table.step(positions, actions, uniforms)
+
+
+world = FourRooms()
+print(world.num_states, "states;", isinstance(world, ht.TabularWorld), "for the TabularWorld protocol")"""),
+    new_markdown_cell("""\
+### Options: hallway options with `from_policy`
+
+In each room, one option per hallway of that room: it heads for the hallway by the policy of
+fewest expected steps on the true model (`ht.subgoal_options` solves that), usable only inside
+the room — `Options.from_policy(initiation, policy, kind="subgoal")` restricts it. The learner's
+set is the primitives plus these eight options (`Options.concat` takes a list)."""),
+    new_code_cell("""\
+rows, cols = torch.tensor(world.cells).T
+rooms = {"NW": (rows < 6) & (cols < 6), "NE": (rows < 7) & (cols > 6),
+         "SW": (rows > 6) & (cols < 6), "SE": (rows > 7) & (cols > 6)}
+hallways = {"W": (6, 2), "N": (3, 6), "E": (7, 9), "S": (10, 6)}
+room_hallways = {"NW": "NW", "NE": "NE", "SW": "WS", "SE": "ES"}
+hallway_mask = {h: torch.tensor([cell == rc for cell in world.cells]) for h, rc in hallways.items()}
+to_hallway = ht.subgoal_options(world, hallway_mask)       # one option per hallway, from anywhere
+
+parts = [ht.primitive_options(world)]
+for room, doors in room_hallways.items():
+    for h in doors:
+        o = list(hallway_mask).index(h)
+        parts.append(ht.Options.from_policy(rooms[room] & to_hallway.initiation[o],
+                                            to_hallway.policy[o], name=f"{room} → hallway {h}",
+                                            kind="subgoal"))
+options = ht.Options.concat(parts)
+print(options, options.names[4:])"""),
+    new_markdown_cell("""\
+### An optimal mentor, watched through its states only
+
+The mentor is optimal for primitive actions: value iteration on the true model, which
+`ht.world_model` derives from the dynamics table. `Demonstrations(episodes, world)` checks
+every step against the world's transition support — an impossible step is refused, naming
+the episode and the index — and stores a description of the world (here: its class and a
+fingerprint of its dynamics), so the file is refused in another world.
+
+`KnownReward` gives the mentor term the reward of each observed move `(s, s')`, which the
+learner never sees paid. Where that reward depends on the unseen action it takes the least of
+the actions that can make the move, so the mentor term never overestimates what the learner
+gets, and it says so when built. In four rooms no reward depends on the action (a move that
+stays put is always a bump); in Taxi, below, 416 pairs do."""),
+    new_code_cell("""\
+P, R = ht.world_model(world)
+plan = ht.value_iteration(P, R, world.gamma)
+print(f"V* from the start distribution: {float(plan.values @ world.start_distribution):.3f}")
+mentor = ht.mentor_policy(world, ht.primitive_options(world))
+demos = {seed: ht.record_demonstrations(world, mentor, episodes=20, seed=seed) for seed in range(SEEDS)}
+print(demos[0], "| steps per episode:", demos[0].episode_lengths.tolist()[:8], "…")
+try:
+    ht.Demonstrations([[0, 1, 50]], world)
+except ValueError as err:
+    print("refused:", err)
+known = ht.KnownReward(world)
+print(known)"""),
+    new_code_cell("""\
+agents = [a for a in AGENTS for _ in range(SEEDS)]
+seeds = [s for _ in AGENTS for s in range(SEEDS)]
+learner = ht.Learner(world, options, agents, seeds, config=ht.LearnerConfig(window=WINDOW),
+                     reward=[known if a == "imitation" else None for a in agents])
+for s in range(SEEDS):          # each seed watches its own mentor episodes
+    learner.add_demonstrations(demos[s], runs=[b for b, x in enumerate(seeds) if x == s])
+learner.run(STEPS)
+for agent in AGENTS:
+    runs = [b for b, a in enumerate(agents) if a == agent]
+    print(f"{agent:>10}: goals per run {learner.goals[runs].tolist()}, first goal at step "
+          f"{learner.first_goal_step[runs].tolist()}")
+plot_goals(learner, "four rooms (104 states)")"""),
+    new_markdown_cell("""\
+In this small, slippery world every agent finds the goal within a few thousand steps, and
+primitives alone are enough. The mentor term need not help here, and it can leave the imitator
+below the others late in learning: it is never corrected by the learner's own experience, and
+its estimate is biased upwards, the same limitation the README describes for the paper's large
+worlds (the `imitation_confident` agent and `LearnerConfig.mentor_override_after` are the
+settings to try). Taxi, next, is where watching a mentor matters."""),
+    new_markdown_cell("""\
+## Part 2 — Taxi through the Gymnasium adapter
+
+`ht.from_gymnasium(id or env, **kwargs)` reads the tabular model `P[s][a] = [(p, s', r,
+terminated)]` of Gymnasium's toy-text environments and returns a batched world with its true
+model: Taxi's 500 states, its 300 start states, its rewards per transition (−1 a step, −10 for
+an illegal pick-up or drop-off, +20 for a delivery), and the delivery states as terminal states.
+The same uniforms give exactly Gymnasium's transitions (tested).
+
+Dietterich's navigation subtasks become four options, "drive to R / G / Y / B"
+(`ht.taxi_navigation_options`); pick-up and drop-off stay primitive. The mentor is optimal."""),
+    new_code_cell("""\
+taxi = ht.from_gymnasium("Taxi-v4")
+print(taxi, taxi.describe())
+taxi_options = ht.Options.concat([ht.primitive_options(taxi), ht.taxi_navigation_options(taxi)])
+print(taxi_options.names)
+P, R = ht.world_model(taxi)
+plan = ht.value_iteration(P, R, taxi.gamma)
+print(f"V* from the start distribution: {float(plan.values @ taxi.start_distribution):.3f}")
+taxi_mentor = ht.mentor_policy(taxi, ht.primitive_options(taxi))
+taxi_demos = {s: ht.record_demonstrations(taxi, taxi_mentor, episodes=20, seed=s) for s in range(SEEDS)}
+taxi_known = ht.KnownReward(taxi)
+print(taxi_known)"""),
+    new_markdown_cell("""\
+The learner's initial value is set to the value of never delivering, −1 / (1 − γ) = −100 (the
+neutral start that −1 is in the paper's worlds)."""),
+    new_code_cell("""\
+config = ht.LearnerConfig(window=WINDOW, initial_value=-1 / (1 - taxi.gamma), plan_every=4, sweep_rounds=1)
+taxi_learner = ht.Learner(taxi, taxi_options, agents, seeds, config=config,
+                          reward=[taxi_known if a == "imitation" else None for a in agents])
+for s in range(SEEDS):
+    taxi_learner.add_demonstrations(taxi_demos[s], runs=[b for b, x in enumerate(seeds) if x == s])
+taxi_learner.run(STEPS)
+for agent in AGENTS:
+    goals = [int(taxi_learner.goals[b]) for b, a in enumerate(agents) if a == agent]
+    print(f"{agent:>10}: deliveries per run {goals}")
+plot_goals(taxi_learner, "Taxi-v4 through ht.from_gymnasium")"""),
+    new_markdown_cell("""\
+## Next
+
+* `himit info --env taxi` (or any toy-text id: `--env FrozenLake-v1 --env-kwargs
+  '{"map_name": "8x8"}'`) solves a Gymnasium world exactly.
+* `himit run gymnasium` compares imitation, options only and primitives only on Taxi,
+  CliffWalking and FrozenLake 8×8 over 10 seeds, with confidence intervals, figures and
+  TensorBoard logs; the committed results are in `experiments/results/gymnasium/`."""),
+]
+
+
+NOTEBOOKS = (("quickstart", QUICKSTART), ("intrinsic_reward", INTRINSIC),
+             ("your_own_world", YOUR_OWN_WORLD))
+
 
 def build() -> dict[str, nbformat.NotebookNode]:
-    """The two notebooks, unexecuted."""
+    """The notebooks, unexecuted."""
     out = {}
-    for name, cells in (("quickstart", QUICKSTART), ("intrinsic_reward", INTRINSIC)):
+    for name, cells in NOTEBOOKS:
         nb = new_notebook(cells=cells)
         nb.metadata["kernelspec"] = {"name": "python3", "display_name": "Python 3",
                                      "language": "python"}
@@ -440,7 +685,7 @@ def build() -> dict[str, nbformat.NotebookNode]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--execute", action="store_true", help="run them and store the outputs")
-    parser.add_argument("--only", choices=["quickstart", "intrinsic_reward"], default=None)
+    parser.add_argument("--only", choices=[name for name, _ in NOTEBOOKS], default=None)
     parser.add_argument("--update-text", action="store_true",
                         help="replace only the markdown cells of the stored notebooks, keeping "
                              "their outputs (the code cells must be unchanged)")

@@ -118,3 +118,26 @@ def test_demo_is_deterministic_per_seed(capsys, tmp_path):
     a, b, c = (np.load(tmp_path / n / "demonstrations.npz")["states"] for n in "abc")
     assert np.array_equal(a, b)
     assert not np.array_equal(a, c)
+
+
+# ------------------------------------------------------------------------ Gymnasium worlds
+def test_info_of_a_gymnasium_world_is_exact(capsys):
+    """CliffWalking's optimum: 13 steps along the cliff, V* = −Σ_{k<13} 0.99^k."""
+    out = run_ok(capsys, ["info", "--env", "cliffwalking"])
+    assert "states     48 (start states 1, terminal 1, goal 1)" in out
+    assert "to top-left (0,0), to top-right (0,11)" in out
+    assert f"V*(start distribution)      {-(1 - 0.99 ** 13) / 0.01:.3f}" in out
+    assert re.search(r"steps per episode\s+13\.0\n", out) and re.search(r"goals per 5000 steps\s+384\.6", out)
+    out = run_ok(capsys, ["info", "--env", "FrozenLake-v1", "--env-kwargs", '{"is_slippery": false}'])
+    assert "(4 primitive)" in out and re.search(r"steps per episode\s+6\.0\n", out)
+
+
+@pytest.mark.parametrize("argv, what", [
+    (["info", "--env", "Nope-v0"], "cannot make the Gymnasium environment 'Nope-v0'"),
+    (["info", "--env", "CartPole-v1"], "Discrete observation and action spaces"),
+    (["info", "--env", "taxi", "--env-kwargs", '{"is_rainy": true}'], "give --env Taxi-v4"),
+    (["info", "--env", "Taxi-v4", "--env-kwargs", "[1]"], "must be a JSON object"),
+    (["run", "gymnasium", "--resume"], "takes no --config or --resume"),
+])
+def test_gymnasium_mistakes_are_one_line(capsys, argv, what):
+    assert what in run_error(capsys, argv)

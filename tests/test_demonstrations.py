@@ -279,3 +279,92 @@ def test_check_world_names_the_fields(demos, world):
                                          r"255\); rooms \(demonstrations: 2, given world: 4\); "
                                          r"size \(demonstrations: 8, given world: 16\)$"):
         demos.check_world(MultiRooms(size=16, rooms=4))
+
+
+# ---------------------------------------------------------------------------- any world
+@pytest.fixture(scope="module")
+def taxi():
+    from himit_torch.gym_adapter import from_gymnasium
+    return from_gymnasium("Taxi-v4")
+
+
+def taxi_state(world, row, col, passenger, destination):
+    return world.env.encode(row, col, passenger, destination)
+
+
+def test_gymnasium_demonstrations_are_checked_saved_and_refused_elsewhere(taxi, tmp_path):
+    s = lambda *x: taxi_state(taxi, *x)                                     # noqa: E731
+    # the taxi at (2, 2), passenger at R, destination G: north twice, then north into the edge
+    ok = [s(2, 2, 0, 1), s(1, 2, 0, 1), s(0, 2, 0, 1), s(0, 2, 0, 1)]
+    demos = Demonstrations([ok], taxi)
+    assert demos.world_description["id"] == "Taxi-v4" and demos.world_description["kwargs"] == {}
+    # A jump of two cells, and a passenger appearing in the taxi away from its landmark:
+    with pytest.raises(ValueError, match=r"^Demonstrations: episode 1, index 2: state \d+ follows "
+                                         r"\d+, but no action leads"):
+        Demonstrations([ok, [s(2, 2, 0, 1), s(1, 2, 0, 1), s(3, 2, 0, 1)]], taxi)
+    with pytest.raises(ValueError, match="episode 0, index 1: .*no action leads"):
+        Demonstrations([[s(2, 2, 0, 1), s(2, 2, 4, 1)]], taxi)
+    delivered = s(0, 4, 1, 1)                                              # at G with the passenger
+    with pytest.raises(ValueError, match="episode 0, index 1: state .* is terminal"):
+        Demonstrations([[s(0, 4, 4, 1), delivered, s(1, 4, 1, 1)]], taxi)
+    with pytest.raises(ValueError, match="index 1: state 500 is out of range"):
+        Demonstrations([[0, 500]], taxi)
+    # saved with its id and kwargs: loaded alone (rebuilt with gymnasium.make), refused elsewhere
+    path = demos.save(tmp_path / "taxi.npz")
+    loaded = Demonstrations.load(path)
+    assert [e.tolist() for e in loaded] == [ok] and loaded.make_world().describe() == taxi.describe()
+    from himit_torch.gym_adapter import from_gymnasium
+    with pytest.raises(ValueError, match=file_error(path, "different world", "id (demonstrations: "
+                                                    "'Taxi-v4', given world: 'CliffWalking-v1')")):
+        Demonstrations.load(path, world=from_gymnasium("CliffWalking-v1"))
+    with pytest.raises(ValueError, match="different world.*gamma"):
+        Demonstrations.load(path, world=from_gymnasium("Taxi-v4", gamma=0.9))
+
+
+class Ring:
+    """A hand-written world: 6 states on a ring, action 0 forward, 1 stays; state 5 ends.
+    It has a dynamics table but no describe()."""
+
+    num_states, num_actions, start_state, gamma = 6, 2, 0, 0.95
+
+    def __init__(self, forward: int = 1):
+        from himit_torch.world import DynamicsTable
+        s = torch.arange(6)
+        succ = torch.stack([(s + forward) % 6, s], 1)[..., None]
+        self.table = DynamicsTable(succ, torch.ones(6, 2, 1, dtype=torch.float64),
+                                   torch.full((6, 2, 1), -1.0, dtype=torch.float64))
+        self.terminal_mask = s == 5
+
+    def dynamics_table(self):
+        return self.table
+
+    def step(self, positions, actions, uniforms):
+        return self.table.step(positions, actions, uniforms)
+
+
+def test_hand_written_worlds_are_described_by_class_and_fingerprint(tmp_path):
+    ring = Ring()
+    demos = Demonstrations([[0, 1, 1, 2, 3, 4, 5]], ring)
+    d = demos.world_description
+    assert d["kind"] == "custom" and d["class"].endswith("Ring") and len(d["fingerprint"]) == 16
+    with pytest.raises(ValueError, match="episode 0, index 2: state 3 follows 1"):
+        Demonstrations([[0, 1, 3]], ring)
+    path = demos.save(tmp_path / "ring.npz")
+    with pytest.raises(ValueError, match=file_error(path, "world kind 'custom' is not supported here",
+                                                    "pass the world object")):
+        Demonstrations.load(path)
+    assert Demonstrations.load(path, world=ring).num_transitions == 6
+    with pytest.raises(ValueError, match=file_error(path, "different world", "fingerprint")):
+        Demonstrations.load(path, world=Ring(forward=2))                  # other dynamics
+
+
+def test_a_world_without_a_model_cannot_check_demonstrations():
+    class StepOnly:
+        num_states, num_actions, start_state, gamma = 3, 1, 0, 0.9
+        terminal_mask = torch.tensor([False, False, True])
+
+        def step(self, positions, actions, uniforms):
+            return (positions + 1).clamp(max=2), torch.zeros(positions.shape, dtype=torch.float64)
+
+    with pytest.raises(ValueError, match="StepOnly has no true model to read"):
+        Demonstrations([[0, 1, 2]], StepOnly())

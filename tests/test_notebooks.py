@@ -38,7 +38,7 @@ def tiny_budget(monkeypatch, tmp_path):
     return tmp_path
 
 
-@pytest.mark.parametrize("name", ["quickstart", "intrinsic_reward"])
+@pytest.mark.parametrize("name", ["quickstart", "intrinsic_reward", "your_own_world"])
 def test_notebook_runs_with_a_tiny_budget(name, tiny_budget):
     nb = execute(name, tiny_budget)
     assert not outputs(nb, "error")
@@ -51,6 +51,12 @@ def test_notebook_runs_with_a_tiny_budget(name, tiny_budget):
     text = "".join(s["text"] for s in streams)
     if name == "quickstart":
         assert "364 options" in text and "first goal at step" in text
+    elif name == "your_own_world":
+        assert "104 states; True for the TabularWorld protocol" in text
+        assert "refused: Demonstrations: episode 0, index 2: state 50 follows 1" in text
+        assert "Taxi-v4(S=500, A=6, start states=300" in text and "drive to B" in text
+        assert "V* from the start distribution: 6.327" in text
+        assert "first goal at step" in text and "deliveries per run" in text   # both batches ran
     else:
         assert "6 runs × 400 steps" in text                 # 6 variants × 1 seed, the tiny budget
         assert len(list((tiny_budget / "runs/intrinsic_reward/tb").glob("world40__*"))) == 6

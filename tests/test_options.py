@@ -219,3 +219,62 @@ def test_from_policy_and_concat_with_stochastic(world6):
     custom_beta = Options.from_policy(room, torch.zeros(36, dtype=torch.int64),
                                       termination=torch.full((36,), 0.5))
     assert (custom_beta.termination == 0.5).all() and not custom_beta.stochastic
+
+
+# ------------------------------------------------------------------- any world: list and kind
+class Corridor:
+    """Five states in a row, not a MultiRooms: action 1 right, 0 left; state 4 ends."""
+
+    num_states, num_actions, start_state, gamma = 5, 2, 0, 0.9
+    terminal_mask = torch.tensor([False, False, False, False, True])
+
+    def step(self, positions, actions, uniforms):
+        nxt = (positions + torch.where(actions == 1, 1, -1)).clamp(0, 4)
+        return nxt, torch.where(nxt == 4, 1.0, -0.1).double()
+
+
+def test_concat_takes_a_list_as_well(world6):
+    prim, doors = primitive_options(world6), doorway_options(world6)
+    listed, spread = Options.concat([prim, doors]), Options.concat(prim, doors)
+    assert listed.names == spread.names and torch.equal(listed.policy, spread.policy)
+    assert Options.concat((prim,)).names == prim.names
+    with pytest.raises(ValueError, match=r"joins Options bundles, got \['list'\]"):
+        Options.concat(prim, [doors])
+    with pytest.raises(ValueError, match="at least one bundle"):
+        Options.concat([])
+
+
+def test_from_policy_kind():
+    usable = torch.tensor([True, True, True, True, False])
+    left = Options.from_policy(usable, torch.zeros(5, dtype=torch.int64), name="left", kind="primitive")
+    assert left.kinds == ("primitive",) and bool((left.termination == 1).all())   # β = 1 by default
+    assert Options.from_policy(usable, torch.ones(5, dtype=torch.int64)).kinds == ("custom",)
+    with pytest.raises(ValueError, match=r"kind='macro' is unknown; use one of \('primitive'"):
+        Options.from_policy(usable, torch.zeros(5, dtype=torch.int64), kind="macro")
+    with pytest.raises(ValueError, match="termination must be 1 in every state"):
+        Options.from_policy(usable, torch.zeros(5, dtype=torch.int64), termination=(~usable).float(),
+                            kind="primitive")
+    with pytest.raises(ValueError, match="one fixed action"):
+        Options.from_policy(usable, torch.tensor([0, 1, 0, 1, 0]), kind="primitive")
+    with pytest.raises(ValueError, match="one fixed action"):
+        Options.from_policy(usable, torch.full((5, 2), 0.5), kind="primitive")
+
+
+def test_own_primitives_run_the_primitives_agent_on_any_world():
+    """Primitives built with from_policy(kind="primitive") are what the ``primitives`` agent
+    uses (with kind "custom" it would have no usable option)."""
+    from himit_torch.learner import Learner, LearnerConfig
+
+    world = Corridor()
+    usable = ~world.terminal_mask
+    own = Options.concat([Options.from_policy(usable, torch.full((5,), a), name=n, kind="primitive")
+                          for a, n in enumerate(("left", "right"))])
+    builtin = primitive_options(world)
+    assert builtin.names == ("primitive 0", "primitive 1") and builtin.kinds == own.kinds
+    assert torch.equal(builtin.initiation, own.initiation) and torch.equal(builtin.policy, own.policy)
+    learner = Learner(world, own, ["primitives"], [0], config=LearnerConfig(window=200))
+    learner.run(600)
+    assert int(learner.goals[0]) > 20
+    custom = Options.from_policy(usable, torch.ones(5, dtype=torch.int64))
+    with pytest.raises(ValueError, match="no usable option"):
+        Learner(world, custom, ["primitives"], [0])

@@ -1,0 +1,35 @@
+"""Hierarchical imitation on Gymnasium's tabular environments: Taxi, CliffWalking, FrozenLake 8×8.
+
+For each task an optimal mentor (value iteration on the true model) is watched through its
+states only; imitation (options + mentor term), options only and primitives only learn over 10
+seeds each, in one batch per task. Results: mean ± 95 % CI over seeds, figures, TensorBoard logs.
+
+    python experiments/gymnasium_worlds.py [--seeds K] [--steps N] [--tasks taxi,…] [--logdir runs]
+
+(the same as ``himit run gymnasium``; about 7 minutes on a 2-core CPU). Settings:
+``himit_torch.gym_experiment``; committed results: ``experiments/results/gymnasium/``.
+"""
+import argparse
+
+import torch
+
+from himit_torch.gym_experiment import TASKS, GymExperimentConfig, run_gym_experiment
+
+parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+parser.add_argument("--seeds", type=int, default=GymExperimentConfig.seeds)
+parser.add_argument("--steps", type=int, default=None, help="steps per run (default: per task)")
+parser.add_argument("--tasks", default=",".join(TASKS), help=f"some of {','.join(TASKS)}")
+parser.add_argument("--window", type=int, default=GymExperimentConfig.window,
+                    help="steps per window of goals and greedy evaluation")
+parser.add_argument("--logdir", default="runs")
+parser.add_argument("--quick", action="store_true", help="tiny budget (smoke test)")
+parser.add_argument("--force", action="store_true")
+args = parser.parse_args()
+
+torch.set_num_threads(1)   # tiny tensors: one thread per process is fastest
+config = GymExperimentConfig(seeds=args.seeds, steps=args.steps, tasks=tuple(args.tasks.split(",")),
+                             window=args.window)
+if args.quick:
+    config = config.quick()
+run_gym_experiment(config, f"{args.logdir}/{config.name}", force=args.force)
+print(open(f"{args.logdir}/{config.name}/results.md").read())
