@@ -207,10 +207,12 @@ class ValueCache:
         gd = g * d
         flat = self._row_flat(r, rows)
         self.q_numerator.view(-1).index_add_(0, flat, gd)
-        if self.any_confidence:
+        if self.any_confidence:       # (second moments only for the confidence-tested runs)
             c = _take(model.edge_count, flat_e).clamp(min=1)
             v_old = old.index_select(0, owner)
-            self.q_second.view(-1).index_add_(0, flat, g * g / c * ((v_old + d) ** 2 - v_old ** 2))
+            term = g * g / c * ((v_old + d) ** 2 - v_old ** 2)
+            keep = self.rows.use_confidence.index_select(0, r)
+            self.q_second.view(-1).index_add_(0, flat[keep], term[keep])
         prio = gd.abs() / (_take(model.row_count, flat) + self.config.concentration).clamp(min=1e-300)
         push = (prio > self.config.priority_threshold) & _take(self.rows.row_enabled, flat)
         return r[push], self.rows.row_state.index_select(0, rows[push]), prio[push]
@@ -231,7 +233,9 @@ class ValueCache:
         self.mentor_numerator.view(-1).index_add_(0, flat, cd)
         if self.any_confidence:
             u_old = _take(self.mentor_edge_reward, flat_e) + self.gamma * old.index_select(0, owner)
-            self.mentor_second.view(-1).index_add_(0, flat, c * ((u_old + gd) ** 2 - u_old ** 2))
+            term = c * ((u_old + gd) ** 2 - u_old ** 2)
+            keep = self.rows.use_confidence.index_select(0, r)
+            self.mentor_second.view(-1).index_add_(0, flat[keep], term[keep])
         prio = cd.abs() / (_take(mentor.row_count, flat) + self.config.mentor_concentration).clamp(min=1e-300)
         push = prio > self.config.priority_threshold
         return r[push], src[push], prio[push]
@@ -246,7 +250,9 @@ class ValueCache:
         if self.any_confidence:
             c_new, g_new = c_old + 1, g_old + discounts
             old_term = torch.where(c_old > 0, g_old * g_old / c_old.clamp(min=1), self._zero)
-            self.q_second.view(-1).index_add_(0, flat_r, (g_new * g_new / c_new - old_term) * v_end * v_end)
+            term = (g_new * g_new / c_new - old_term) * v_end * v_end
+            keep = self.rows.use_confidence.index_select(0, runs)
+            self.q_second.view(-1).index_add_(0, flat_r[keep], term[keep])
 
     def rebuild_mentor(self) -> None:
         """Recompute the mentor caches from the mentor model's counts, its edge rewards and ``V``."""
@@ -262,4 +268,5 @@ class ValueCache:
         c = torch.where(valid, mentor.edge_count[:, :E], self._zero)
         u = self.mentor_edge_reward[:, :E] + self.gamma * self.values.gather(1, dst)
         self.mentor_numerator.scatter_add_(1, src, c * u)
-        self.mentor_second.scatter_add_(1, src, c * u * u)
+        second = torch.where(self.rows.use_confidence[:, None], c * u * u, self._zero)
+        self.mentor_second.scatter_add_(1, src, second)

@@ -341,7 +341,8 @@ def test_a_checkpoint_of_another_batch_is_refused_naming_both_shapes(reference, 
     run_dir = unfinished_copy(reference, tmp_path)
     newest, _ = newest_and_previous(run_dir)
     other = BatchShape(("imitation", "options", "primitives"), (0, 0, 0), SIZE * SIZE)
-    write_checkpoint(newest, small_payload(), step=2000, batch=other, state_layout_version=1)
+    write_checkpoint(newest, small_payload(), step=2000, batch=other,
+                     state_layout_version=Learner.STATE_LAYOUT_VERSION)
     err = one_line_error(capsys, resume_argv(run_dir))
     mine = BatchShape(("imitation", "primitives"), (0, 0), SIZE * SIZE)
     assert other.describe() in err and mine.describe() in err and "--force" in err

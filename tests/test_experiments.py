@@ -100,8 +100,11 @@ _CHILD = """
 import sys
 from dataclasses import replace
 from himit_torch.experiment import EXPERIMENTS, run_experiment
+# the torch engine: slow enough per window to be killed inside one (the compiled engine runs
+# these 3500 steps in a blink; the state it checkpoints is the same)
 config = replace(EXPERIMENTS["exp2"], sizes=(16,), seeds=1, steps=3500, window=250,
-                 checkpoint_every=250, mentor_episodes=3, agents=("imitation", "primitives"))
+                 checkpoint_every=250, mentor_episodes=3, agents=("imitation", "primitives"),
+                 engine="torch")
 run_experiment(config, sys.argv[1], progress=False, resume=len(sys.argv) > 2)
 """
 

@@ -269,11 +269,12 @@ def test_known_intrinsic_and_no_mentor_reward_in_one_batch(world8, demos8):
     agents = ["imitation", "imitation", "options"]
     batch = Learner(world8, learner_options(world8), agents, [3, 3, 3], demonstrations=demos8,
                     reward=[known, intrinsic, known])
-    E = batch.mentor.edges.num_edges
-    src, dst = batch.mentor.edges.edge_row[:E], batch.mentor.edges.edge_successor[:E]
-    assert torch.equal(batch.mentor_edge_reward[0, :E], known.transition_reward(src, dst))
-    assert torch.equal(batch.mentor_edge_reward[1, :E], intrinsic.transition_reward(src, dst))
-    assert not torch.equal(batch.mentor_edge_reward[0, :E], batch.mentor_edge_reward[1, :E])
+    E = int(batch.mentor.num_edges[0])       # every run watched the same demonstrations
+    src, dst = batch.mentor.edge_row[0, :E], batch.mentor.edge_successor[0, :E]
+    reward = batch.cache.mentor_edge_reward
+    assert torch.equal(reward[0, :E], known.transition_reward(src, dst))
+    assert torch.equal(reward[1, :E], intrinsic.transition_reward(src, dst))
+    assert not torch.equal(reward[0, :E], reward[1, :E])
     batch.run(3000)
     alone = Learner(world8, learner_options(world8), ["imitation"], [3], demonstrations=demos8,
                     reward=intrinsic)

@@ -221,13 +221,13 @@ def _state_backup(cfg_f, cfg_i, state_rows, terminal, use_mentor, use_conf, q_nu
 
 # ==================================================================== propagation and sweeping
 @njit(inline="always")
-def _propagate_options(cfg_f, cfg_i, row_state, row_enabled, q_num, q_sec, row_count, edge_row,
+def _propagate_options(cfg_f, cfg_i, use_conf, row_state, row_enabled, q_num, q_sec, row_count, edge_row,
                        edge_disc, edge_count, succ_head, succ_next, heap, hkey, hpos, hsize, prio,
                        b, x, d, v_old):
     """``V(x) += d``: every row with an edge to ``x`` gets ``Σγ^k d``; queue its state."""
     thr = cfg_f[F_THRESHOLD]
     conc = cfg_f[F_CONC]
-    any_conf = cfg_i[I_ANY_CONF] != 0
+    any_conf = cfg_i[I_ANY_CONF] != 0 and use_conf[b]
     e = succ_head[b, x]
     while e >= 0:
         row = edge_row[b, e]
@@ -244,14 +244,14 @@ def _propagate_options(cfg_f, cfg_i, row_state, row_enabled, q_num, q_sec, row_c
 
 
 @njit(inline="always")
-def _propagate_mentor(cfg_f, cfg_i, m_num, m_sec, m_row_count, m_edge_row, m_edge_count,
+def _propagate_mentor(cfg_f, cfg_i, use_conf, m_num, m_sec, m_row_count, m_edge_row, m_edge_count,
                       m_edge_reward, m_succ_head, m_succ_next, heap, hkey, hpos, hsize, prio,
                       b, x, d, v_old):
     """The same for the mentor term of every state the mentor left towards ``x``."""
     thr = cfg_f[F_THRESHOLD]
     gamma = cfg_f[F_GAMMA]
     mconc = cfg_f[F_MCONC]
-    any_conf = cfg_i[I_ANY_CONF] != 0
+    any_conf = cfg_i[I_ANY_CONF] != 0 and use_conf[b]
     gd = gamma * d
     e = m_succ_head[b, x]
     while e >= 0:
@@ -386,7 +386,7 @@ def _run(b, t_end, t_reached, keys, cfg_f, cfg_i,
             # ... and fold it into the Q cache (ValueCache.add_outcome)
             v_end = values[b, nxt]
             q_num[b, row] += ret + g * v_end
-            if cfg_i[I_ANY_CONF] != 0:
+            if use_conf[b]:
                 c_new = c_old + 1
                 g_new = g_old + g
                 old_term = g_old * g_old / max(c_old, 1.0) if c_old > 0 else 0.0
@@ -422,7 +422,7 @@ def _run(b, t_end, t_reached, keys, cfg_f, cfg_i,
                 for i in range(k):             # ...then their changes propagate
                     d = round_delta[b, i]
                     if d != 0:
-                        _propagate_options(cfg_f, cfg_i, row_state, row_enabled, q_num, q_sec,
+                        _propagate_options(cfg_f, cfg_i, use_conf, row_state, row_enabled, q_num, q_sec,
                                            row_count, edge_row, edge_disc, edge_count, succ_head,
                                            succ_next, heap, hkey, hpos, hsize, prio, b,
                                            round_states[b, i], d, round_old[b, i])
@@ -430,7 +430,7 @@ def _run(b, t_end, t_reached, keys, cfg_f, cfg_i,
                     for i in range(k):
                         d = round_delta[b, i]
                         if d != 0:
-                            _propagate_mentor(cfg_f, cfg_i, m_num, m_sec, m_row_count, m_edge_row,
+                            _propagate_mentor(cfg_f, cfg_i, use_conf, m_num, m_sec, m_row_count, m_edge_row,
                                               m_edge_count, m_edge_reward, m_succ_head,
                                               m_succ_next, heap, hkey, hpos, hsize, prio, b,
                                               round_states[b, i], d, round_old[b, i])
