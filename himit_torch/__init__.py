@@ -15,9 +15,10 @@ from .exact_option_models import OptionModels, option_durations, option_models
 from .options import (Options, corner_options, doorway_options, learner_options, mentor_options,
                       primitive_options)
 from .sweep_queue import BlockPriorityQueue
-from .exact_planning import (PlanResult, expected_steps, greedy_option_policy, smdp_value_iteration,
-                       value_iteration)
+from .exact_planning import (OptimalBaseline, PlanResult, expected_steps, greedy_option_policy,
+                             optimal_baseline, smdp_value_iteration, value_iteration)
 from .reward import SALIENCE_EVENTS, KnownReward, MentorReward, SalienceReward
+from .tensorboard_logger import TensorBoardLogger
 from .world import STIMULUS_FEATURES, DynamicsTable, MultiRooms, TabularWorld
 
 __version__ = "0.1.0"
@@ -30,7 +31,7 @@ __all__ = [
     "mentor_options", "OptionModels", "option_models", "option_durations",
     # exact planning
     "value_iteration", "smdp_value_iteration", "greedy_option_policy", "expected_steps",
-    "PlanResult",
+    "PlanResult", "OptimalBaseline", "optimal_baseline",
     # the learner
     "Learner", "LearnerConfig", "AGENTS", "DirichletSMDPModel", "DirichletMentorModel",
     "SuccessorDirichlet", "EdgeIndex", "BlockPriorityQueue", "backups",
@@ -39,4 +40,6 @@ __all__ = [
     "Demonstrations", "DEMONSTRATIONS_FORMAT_VERSION",
     # mentor reward
     "MentorReward", "KnownReward", "SalienceReward", "SALIENCE_EVENTS", "STIMULUS_FEATURES",
+    # logging
+    "TensorBoardLogger",
 ]
