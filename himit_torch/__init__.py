@@ -15,9 +15,10 @@ from .exact_option_models import OptionModels, option_durations, option_models
 from .options import (OPTION_KINDS, Options, corner_options, doorway_options, learner_options,
                       mentor_options, primitive_options, subgoal_options)
 from .sweep_queue import BlockPriorityQueue
-from .exact_planning import (PlanResult, expected_steps, greedy_option_policy, smdp_value_iteration,
-                       value_iteration)
+from .exact_planning import (OptimalBaseline, PlanResult, expected_steps, greedy_option_policy,
+                             optimal_baseline, smdp_value_iteration, value_iteration)
 from .reward import SALIENCE_EVENTS, KnownReward, MentorReward, SalienceReward
+from .tensorboard_logger import TensorBoardLogger
 from .world import STIMULUS_FEATURES, DynamicsTable, MultiRooms, TabularWorld
 from .table_world import TableWorld, describe_world, transition_support, world_model
 from .gym_adapter import from_gymnasium, taxi_navigation_options
@@ -34,7 +35,7 @@ __all__ = [
     "OptionModels", "option_models", "option_durations",
     # exact planning
     "value_iteration", "smdp_value_iteration", "greedy_option_policy", "expected_steps",
-    "PlanResult",
+    "PlanResult", "OptimalBaseline", "optimal_baseline",
     # the learner
     "Learner", "LearnerConfig", "AGENTS", "DirichletSMDPModel", "DirichletMentorModel",
     "SuccessorDirichlet", "EdgeStore", "BlockPriorityQueue", "backups",
@@ -43,4 +44,6 @@ __all__ = [
     "Demonstrations", "DEMONSTRATIONS_FORMAT_VERSION",
     # mentor reward
     "MentorReward", "KnownReward", "SalienceReward", "SALIENCE_EVENTS", "STIMULUS_FEATURES",
+    # logging
+    "TensorBoardLogger",
 ]

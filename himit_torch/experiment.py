@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import csv
 import json
-import math
 import os
 import sys
 import time
@@ -34,6 +33,7 @@ from .mentor import mentor_policy, record_demonstrations
 from .exact_option_models import option_durations, option_models
 from .options import learner_options, mentor_options, primitive_options
 from .exact_planning import expected_steps, smdp_value_iteration
+from .tensorboard_logger import TensorBoardLogger
 from .world import MultiRooms
 
 __all__ = ["ExperimentConfig", "EXPERIMENTS", "run_experiment", "load_config", "WorldResult",
@@ -218,67 +218,20 @@ def _optimum(world: MultiRooms) -> tuple[float, float]:
     return steps, float(plan.values[world.start_state])
 
 
-class _Logger:
-    """TensorBoard writers, one per run (CleanRL-style names), created lazily."""
-
-    def __init__(self, root: Path, names: list[str], purge_step: int | None):
-        from torch.utils.tensorboard import SummaryWriter
-        self._writers = [SummaryWriter(str(root / n), purge_step=purge_step) for n in names]
-
-    def scalars(self, learner: Learner, window_index: int) -> None:
-        m = learner.metrics
-        step = m.steps[window_index]
-        for b, w in enumerate(self._writers):
-            w.add_scalar("charts/goals_in_window", float(m.goals_in_window[window_index][b]), step)
-            w.add_scalar("charts/epsilon", float(m.epsilon[window_index][b]), step)
-            w.add_scalar("charts/episodes", float(m.episodes[window_index][b]), step)
-            mean_steps = float(m.mean_episode_steps[window_index][b])
-            if math.isfinite(mean_steps):
-                w.add_scalar("charts/steps_per_episode", mean_steps, step)
-            w.add_scalar("planner/backups", float(m.backups[window_index][b]), step)
-            w.add_scalar("planner/decisions", float(m.decisions[window_index][b]), step)
-            wins = float(m.mentor_term_wins[window_index][b])
-            if math.isfinite(wins):
-                w.add_scalar("mentor/term_wins", wins, step)
-
-    def coverage(self, learner: Learner, step: int) -> None:
-        cov = learner.model_coverage()
-        v = learner.state_values()[:, learner.start_state]
-        for b, w in enumerate(self._writers):
-            w.add_scalar("model/coverage", float(cov[b]), step)
-            w.add_scalar("model/value_start", float(v[b]), step)
-
-    def images(self, learner: Learner, world: MultiRooms, mentor_visits: torch.Tensor, step: int,
-               runs: list[int]) -> None:
-        from .plotting import value_image, visitation_image, policy_image
-        values = learner.state_values()
-        greedy = learner.greedy_options()
-        visits = learner.visit_counts()
-        for b in runs:
-            w = self._writers[b]
-            w.add_image("values/V", value_image(world, values[b]), step, dataformats="HWC")
-            w.add_image("policy/greedy_option", policy_image(world, learner.options, greedy[b]), step,
-                        dataformats="HWC")
-            w.add_image("visits/learner_vs_mentor", visitation_image(world, visits[b], mentor_visits),
-                        step, dataformats="HWC")
-
-    def hparams(self, config: ExperimentConfig, result: WorldResult) -> None:
-        hp = {k: (v if isinstance(v, (int, float, str, bool)) else str(v))
-              for k, v in asdict(config.learner).items() if v is not None}
-        hp.update(experiment=config.name, size=result.size, corner_options=config.corner_options)
-        for b, w in enumerate(self._writers):
-            hp_run = dict(hp, agent=result.agents[b], seed=result.seeds[b])
-            w.add_hparams(hp_run, {"hparam/total_goals": float(result.goals[b]),
-                                   "hparam/final_window_goals": float(result.final_window_goals[b])},
-                          run_name=".")
-
-    def flush(self) -> None:
-        for w in self._writers:
-            w.flush()
-
-    def close(self) -> None:
-        for w in self._writers:
-            w.close()
+def _hparams(config: ExperimentConfig, size: int, agent: str) -> dict:
+    """The settings that tell a run's group apart in TensorBoard's HParams dashboard: its agent,
+    experiment and world, and every setting that differs from the library's defaults (the seed
+    never: the seeds of one group are what the dashboard aggregates)."""
+    hp = {"agent": agent, "experiment": config.name, "world": f"{size}×{size}"}
+    skip = {"name", "sizes", "agents", "seeds", "first_seed", "device", "checkpoint_every",
+            "learner"}
+    default = ExperimentConfig()
+    hp.update({f.name: getattr(config, f.name) for f in fields(config)
+               if f.name not in skip and getattr(config, f.name) != getattr(default, f.name)})
+    default_learner = LearnerConfig(window=config.window)
+    hp.update({f.name: getattr(config.learner, f.name) for f in fields(config.learner)
+               if getattr(config.learner, f.name) != getattr(default_learner, f.name)})
+    return hp
 
 
 def _atomic_write(path: Path, text: str) -> None:
@@ -352,8 +305,6 @@ def run_world(config: ExperimentConfig, size: int, run_dir: Path, resume: bool,
     for s in seeds:  # each seed watches its own mentor episodes
         demos[s] = record_demonstrations(world, mentor, config.mentor_episodes, seed=s)
         learner.add_demonstrations(demos[s], runs=[b for b, rs in enumerate(run_seeds) if rs == s])
-    mentor_visits = torch.bincount(torch.cat([torch.as_tensor(e) for e in demos[seeds[0]].episodes]),
-                                   minlength=world.num_states)
     generations = CheckpointGenerations(run_dir / "checkpoints" / f"world{size}.pt")
     batch = BatchShape(agents, run_seeds, world.num_states)
     layout = _state_layout_version()
@@ -363,9 +314,21 @@ def run_world(config: ExperimentConfig, size: int, run_dir: Path, resume: bool,
         generations.clear()  # a fresh run: stale files must never become its "previous" one
         elapsed = 0.0
     names = [f"world{size}__{a}__seed{s}" for a, s in zip(agents, run_seeds)]
-    # Events a killed run logged after its last checkpoint are purged: TensorBoard drops steps
-    # ≥ purge_step from earlier event files, and windows up to t were logged before the checkpoint.
-    logger = _Logger(run_dir / "tb", names, purge_step=learner.t + 1)
+    optimal_steps, true_v = _optimum(world)
+    # A resumed run purges what it logged after its last checkpoint (windows up to t were logged
+    # before the checkpoint); a fresh one refuses folders that hold another run's events.
+    logger = TensorBoardLogger(run_dir / "tb", names, world=world, options=options,
+                               true_value_start=true_v, initial_value=config.learner.initial_value,
+                               resume_step=learner.t if resume else None)
+    if not resume or learner.t == 0:
+        for b in range(learner.batch):
+            logger.text(b, "settings", f"seed {run_seeds[b]}\n\n```\n{config.to_json()}\n```")
+    # Maps during training for the first two seeds of every agent: more than one seed, at a cost
+    # (≈ 0.2 s a run and checkpoint) that stays small beside the run.
+    map_runs = [b for b, s in enumerate(run_seeds) if s in seeds[:2]]
+    mentor_visits = {b: torch.bincount(torch.cat([torch.as_tensor(e) for e in
+                                                  demos[run_seeds[b]].episodes]),
+                                       minlength=world.num_states) for b in map_runs}
     logged = len(learner.metrics.steps)
     bar = None
     if progress:
@@ -379,12 +342,12 @@ def run_world(config: ExperimentConfig, size: int, run_dir: Path, resume: bool,
         if bar is not None:
             bar.update(chunk)
         while logged < len(learner.metrics.steps):
-            logger.scalars(learner, logged)
+            logger.window(learner, logged)
             logged += 1
             if on_window is not None:
                 on_window(learner)
         if learner.t % config.checkpoint_every == 0 or learner.t == config.steps:
-            logger.coverage(learner, learner.t)
+            logger.maps(learner, map_runs, learner.t, mentor_visits)
             logger.flush()  # everything logged so far is on disk before the checkpoint says so
             generations.save({"learner": learner.state_dict(),
                               "elapsed": elapsed + time.perf_counter() - start},
@@ -392,7 +355,6 @@ def run_world(config: ExperimentConfig, size: int, run_dir: Path, resume: bool,
     if bar is not None:
         bar.close()
     wall = elapsed + time.perf_counter() - start
-    optimal_steps, true_v = _optimum(world)
     m = learner.metrics
     result = WorldResult(
         size=size, rooms=world.rooms, agents=agents, seeds=run_seeds, optimal_steps=optimal_steps,
@@ -402,9 +364,14 @@ def run_world(config: ExperimentConfig, size: int, run_dir: Path, resume: bool,
         value_start=learner.state_values()[:, world.start_state].tolist(), true_value_start=true_v,
         mentor_term_wins=learner.mentor_win_share().tolist(), wall_seconds=wall, steps=learner.t,
         engine=learner.engine.name, commit=source_commit())
-    first_seed_runs = [b for b in range(len(agents)) if run_seeds[b] == seeds[0]]
-    logger.images(learner, world, mentor_visits, learner.t, first_seed_runs)
-    logger.hparams(config, result)
+    # A run that never found the goal counts as finding it just after its end.
+    firsts = [f if f >= 0 else learner.t + 1 for f in result.first_goal_step]
+    logger.hparams([_hparams(config, size, a) for a in agents],
+                   [{"hparam/total_goals": result.goals[b],
+                     "hparam/final_window_goals": result.final_window_goals[b],
+                     "hparam/first_goal_step": firsts[b],
+                     "hparam/value_start": result.value_start[b]} for b in range(learner.batch)],
+                   learner.t)
     logger.close()
     _write_curves(run_dir / "worlds" / f"curves{size}.csv", learner, size)
     _atomic_write(run_dir / "worlds" / f"world{size}.json", json.dumps(asdict(result), indent=1))

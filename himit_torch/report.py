@@ -13,11 +13,19 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-__all__ = ["read_curves", "write_figures", "write_results", "plot_curves", "plot_scaling"]
+from .plotting import CURVE_COLORS, plot_first_goals, plot_goal_curves
 
-AGENT_COLORS = {"imitation": "#d62828", "imitation_confident": "#f77f00", "options": "#1f77b4",
-                "primitives": "#2ca02c", "imitation_primitives": "#9467bd",
-                "imitation_primitives_confident": "#8c564b"}
+__all__ = ["read_curves", "write_figures", "write_results", "plot_curves", "plot_scaling",
+           "plot_first_goal_steps", "PAPER_OPTIMAL_GOALS"]
+
+#: One distinct colour per agent, the same in every figure.
+AGENT_COLORS = {"imitation": CURVE_COLORS[1], "imitation_confident": CURVE_COLORS[3],
+                "options": CURVE_COLORS[0], "primitives": CURVE_COLORS[2],
+                "imitation_primitives": CURVE_COLORS[4],
+                "imitation_primitives_confident": CURVE_COLORS[6]}
+
+#: The paper's optimal goals per 5000 steps, by world size (both worlds have 10×10 rooms).
+PAPER_OPTIMAL_GOALS = {40: 53.2, 80: 26.3}
 
 
 def read_curves(run_dir: str | Path) -> dict:
@@ -35,24 +43,31 @@ def read_curves(run_dir: str | Path) -> dict:
     return out
 
 
-def plot_curves(curves_of_world: dict, optimal: float | None, title: str) -> Figure:
-    """Goals in the last window against steps, mean over seeds with the seeds' range shaded
-    (the paper's Figs. 3 and 4)."""
-    fig = Figure(figsize=(7, 4.2), layout="constrained")
+def plot_curves(curves_of_world: dict, optimal: float | None, title: str,
+                paper_optimal: float | None = None, window: int | None = None) -> Figure:
+    """Goals in the last window against steps (the paper's Figs. 3 and 4): per agent the mean
+    over seeds, the seeds' range as a band and, where the seeds split, the median; ``n`` and
+    how many runs found the goal in the legend. The exact optimum is drawn and labelled, the
+    paper's (``paper_optimal``) too if given."""
+    fig = Figure(figsize=(9.5, 4.4), layout="constrained")
     ax = fig.add_subplot()
-    for agent, seeds in curves_of_world.items():
-        steps = next(iter(seeds.values()))[0]
-        goals = np.stack([g for _, g in seeds.values()])
-        color = AGENT_COLORS.get(agent)
-        ax.plot(steps, goals.mean(0), label=f"{agent} (mean of {len(seeds)})", color=color, lw=2)
-        ax.fill_between(steps, goals.min(0), goals.max(0), color=color, alpha=0.15, lw=0)
-    if optimal is not None:
-        ax.axhline(optimal, color="0.3", ls="--", lw=1, label=f"optimal ≈ {optimal:.1f}")
-    ax.set_xlabel("total primitive steps")
-    ax.set_ylabel("goals in the last window of steps")
-    ax.set_title(title)
-    ax.legend(fontsize="small")
-    ax.grid(alpha=0.3)
+    agents = list(curves_of_world)
+    steps = next(iter(curves_of_world[agents[0]].values()))[0]
+    goals = {a: np.stack([g for _, g in curves_of_world[a].values()]) for a in agents}
+    plot_goal_curves(ax, steps, goals, colors=AGENT_COLORS, optimum=optimal,
+                     paper_optimum=paper_optimal, window=window)
+    ax.set_title(title, fontsize="medium")
+    return fig
+
+
+def plot_first_goal_steps(result, title: str) -> Figure:
+    """Each run's first-goal step per agent (a dot per seed, median bar), from a
+    :class:`~himit_torch.experiment.WorldResult`."""
+    firsts = {a: [f for f, b in zip(result.first_goal_step, result.agents) if b == a]
+              for a in dict.fromkeys(result.agents)}
+    fig = Figure(figsize=(9.5, 0.7 + 0.55 * len(firsts) + 0.9), layout="constrained")
+    ax = fig.add_subplot()
+    plot_first_goals(ax, firsts, result.steps, colors=AGENT_COLORS, title=title)
     return fig
 
 
@@ -74,8 +89,9 @@ def plot_scaling(results, agents) -> Figure:
                color=AGENT_COLORS.get(agent))
     ax.set_xticks(np.arange(len(sizes)), [f"{s}×{s}" for s in sizes])
     ax.set_ylabel("total goals, % of optimal")
-    ax.set_title(f"goals in {results[0].steps:,} steps as % of the optimal policy's (bars: mean, "
-                 "whiskers: seeds' range)", fontsize="medium")
+    n = len(results[0].agents) // len(agents)
+    ax.set_title(f"goals in {results[0].steps:,} steps as % of the optimal policy's (bars: mean "
+                 f"of n={n} seeds, whiskers: their range)", fontsize="medium")
     ax.legend(fontsize="small")
     ax.grid(axis="y", alpha=0.3)
     return fig
@@ -93,10 +109,15 @@ def write_figures(run_dir: Path, config, results) -> None:
         if not curves.get(r.size):
             continue  # fewer steps than one window: no curve to draw
         number = {"exp1": 3, "exp2": 4}.get(config.name, "")
-        _save(plot_curves(curves[r.size], r.optimal_goals_per_window,
-                          f"{config.name}: {r.size}×{r.size}, {r.rooms}×{r.rooms} rooms"
-                          f"{', corner options' if config.corner_options else ''}"),
+        paper = PAPER_OPTIMAL_GOALS.get(r.size) if r.rooms == 10 and config.window == 5000 else None
+        where = (f"{config.name}: {r.size}×{r.size}, a {r.rooms}×{r.rooms} grid of rooms of "
+                 f"{config.room_size}×{config.room_size} cells"
+                 f"{', corner options' if config.corner_options else ''}")
+        _save(plot_curves(curves[r.size], r.optimal_goals_per_window, where, paper_optimal=paper,
+                          window=config.window),
               run_dir / "figures" / f"fig{number}_curves_world{r.size}.png")
+        _save(plot_first_goal_steps(r, f"{where}: first goal of each run"),
+              run_dir / "figures" / f"first_goal_world{r.size}.png")
     if len(results) > 1:
         _save(plot_scaling(results, list(config.agents)), run_dir / "figures" / "fig5_scaling.png")
 
@@ -131,7 +152,7 @@ def write_results(run_dir: Path, config, results) -> None:
                   f"Optimal policy (exact, primitives): {r.optimal_steps:.1f} steps a trip, "
                   f"{r.optimal_goals_per_window:.1f} goals per {config.window} steps, "
                   f"V*(start) = {r.true_value_start:.3f}."]
-        paper = {40: 53.2, 80: 26.3}.get(r.size)
+        paper = PAPER_OPTIMAL_GOALS.get(r.size)
         if paper and r.rooms == 10:
             lines.append(f"Paper: ≈ {paper} goals per 5000 steps.")
         lines += ["", "| agent | runs that found the goal | first goal (step, per seed) | goals in "

@@ -37,25 +37,33 @@ from collections import Counter
 
 import matplotlib.pyplot as plt
 import torch
+from matplotlib.lines import Line2D
 
 import himit_torch as ht
-from himit_torch.plotting import plot_world
+from himit_torch.experiment import PAPER
+from himit_torch.plotting import map_legend, plot_goal_curves, plot_state_map, plot_world
 
 STEPS = int(os.environ.get("HIMIT_NOTEBOOK_STEPS", 15_000))   # primitive steps per run
 WINDOW = 1000 if STEPS >= 4000 else max(STEPS // 4, 1)        # goals are counted per window
 torch.set_num_threads(1)            # tiny tensors: one thread is fastest
-plt.rcParams["figure.dpi"] = 72"""),
+plt.rcParams["figure.dpi"] = 100"""),
     new_markdown_cell("""\
 ## The world and the learner's options
 
-A 40×40 grid split into 10×10 rooms joined by single-cell doorways. Actions slip 10 % of the
-time; −0.01 a step, +1 at the goal (bottom-right). The learner's options: 4 primitives and, in
-every room, one option per doorway that heads *directly* to it."""),
+A 40×40 grid divided into a 10×10 grid of rooms of 4×4 cells (3×3 free cells and a wall row and
+column each), joined by single-cell doorways. Actions slip 10 % of the time; −0.01 a step, +1
+at the goal (bottom-right). The learner's options: 4 primitives and, in every room, one option
+per doorway that heads *directly* to it. `ht.optimal_baseline` computes what the optimal policy
+achieves from the start — our exact reference for the curves below."""),
     new_code_cell("""\
 world = ht.MultiRooms(size=40, rooms=10)
 options = ht.learner_options(world)
+best = ht.optimal_baseline(world)     # exact: value iteration on the true model
 print(world)
-print(options.num_options, "options:", dict(Counter(options.kinds)))"""),
+print(options.num_options, "options:", dict(Counter(options.kinds)))
+print(f"optimal policy: {best.steps_to_goal:.1f} steps a trip, {best.goals_per(5000):.1f} goals per "
+      f"5000 steps (the paper reports ≈ {PAPER['exp2']['optimal_goals_per_5000']}), "
+      f"V*(start) = {best.value_start:.3f}")"""),
     new_markdown_cell("""\
 ## The mentor and its demonstrations
 
@@ -65,7 +73,7 @@ optimal policy for them. The learner gets only the mentor's states — no action
 mentor = ht.mentor_policy(world, ht.mentor_options(world))
 demos = ht.record_demonstrations(world, mentor, episodes=20, seed=0)
 print(demos)
-fig, ax = plt.subplots(figsize=(4.5, 4.8))
+fig, ax = plt.subplots(figsize=(5, 5.4))
 plot_world(world, demonstrations=demos, ax=ax)
 plt.show()"""),
     new_markdown_cell("""\
@@ -84,33 +92,62 @@ for agent, seed, first, goals in zip(agents, seeds, learner.first_goal_step.toli
     print(f"{agent:>9} seed {seed}: first goal at step {first:>6} (−1: never), {goals} goals")"""),
     new_code_cell("""\
 curve = learner.metrics.curve().double()          # [windows, runs] goals per window
-steps = learner.metrics.steps
-fig, ax = plt.subplots(figsize=(6, 3.2))
-for agent, color in (("imitation", "C0"), ("options", "C1")):
-    runs = [b for b, a in enumerate(agents) if a == agent]
-    ax.plot(steps, curve[:, runs], color=color, alpha=0.3, linewidth=0.8)
-    ax.plot(steps, curve[:, runs].mean(1), color=color, linewidth=2,
-            label=f"{agent} (mean of {len(runs)})")
-ax.set_xlabel("steps")
-ax.set_ylabel(f"goals per {WINDOW} steps")
-ax.legend()
+goals = {agent: curve[:, [b for b, a in enumerate(agents) if a == agent]].T.numpy()
+         for agent in ("imitation", "options")}
+fig, ax = plt.subplots(figsize=(9.5, 3.8), layout="constrained")
+plot_goal_curves(ax, learner.metrics.steps, goals, window=WINDOW, seed_lines=True,
+                 optimum=best.goals_per(WINDOW),
+                 paper_optimum=PAPER["exp2"]["optimal_goals_per_5000"] * WINDOW / 5000)
+ax.set_title(f"Goals per {WINDOW:,} steps on the 40×40 world: imitators vs options only "
+             f"(thin lines: single seeds)", fontsize="medium")
 plt.show()"""),
+    new_markdown_cell("""\
+## Why the options-only runs may reach no goal at all
+
+Not a bug: before a run first reaches the goal, every value it knows is −1 — the initial value,
+which is also the exact value of never reaching the goal (−0.01 a step forever:
+−0.01 / (1 − 0.99) = −1), so nothing it experiences changes it. All its options tie, ties are
+broken at random, and ε stays at 0.75 (it decays only after the first goal): the options-only
+learner does a random walk. The cell below shows what that walk does in the stored run. It does
+cover the grid — 98 to 100 of the 100 rooms — but it rarely stays in the goal's room, a corner
+room with only 2 doorways whose doorway options lead straight back out: 0, 32 and 18 of the
+15,000 steps there, against about 108 in the average room. And the goal is a single cell of that
+room, entered only by a primitive step from next to it. Such a walk can take a long time:
+experiment 2 ran the same three learners (options only, seeds 0–2) for 200,000 steps, and they
+first reached the goal at step 97,145, at step 31,118, and never
+(`experiments/results/exp2/results.md`). The imitators' mentor term gives the states along the
+mentor's route values above −1 from the start, which leads them to the goal within a few
+thousand steps."""),
+    new_code_cell("""\
+# Room of each state: (room id + 1) / rooms² in the features' "room" column, 0 off rooms.
+room = (world.stimulus_features()[:, 0] * world.rooms ** 2).round().long()   # room id + 1, or 0
+visits = learner.visit_counts().double()
+goal_room = int(room[world.goal_state])
+goal_row, goal_col = world.coords(world.goal_state)
+for b, (agent, seed) in enumerate(zip(agents, seeds)):
+    per_room = torch.zeros(world.rooms ** 2 + 1, dtype=torch.float64).index_add_(0, room, visits[b])[1:]
+    seen = (visits[b] > 0).nonzero()[:, 0]
+    closest = int(((goal_row - seen // world.size).abs() + (goal_col - seen % world.size).abs()).min())
+    print(f"{agent:>9} seed {seed}: entered {int((per_room > 0).sum()):>3} of {world.rooms ** 2} rooms, "
+          f"{int(per_room[goal_room - 1]):>5} steps in the goal's room (average room "
+          f"{float(per_room.mean()):.0f}), came within {closest} cells of the goal, "
+          f"ε now {float(learner.epsilon[b]):.2f}")"""),
     new_markdown_cell("""\
 ## What the imitator believes: its value map and greedy path
 
-`learner.state_values()` is `[runs, S]`. The orange line is one episode that follows run 0's
-greedy options from the start."""),
+`learner.state_values()` is `[runs, S]`. Grey cells hold exactly V = −1: no route from them to
+the goal is known yet (see above; most were never visited). The orange line is one episode that
+follows run 0's greedy options from the start."""),
     new_code_cell("""\
-values = learner.state_values()[0].clone()
-values[world.wall_mask] = float("nan")
+values = learner.state_values()[0]
 path = learner.greedy_trajectory(0, max_steps=2000, seed=0)
-rows, cols = path // world.size, path % world.size
-fig, ax = plt.subplots(figsize=(5, 4.2))
-image = ax.imshow(values.view(world.size, world.size), cmap="viridis")
-ax.plot(cols, rows, color="#e8590c", linewidth=1.2)
-ax.set_title(f"V of run 0 ({agents[0]}) after {learner.t} steps")
-ax.set_xticks([]); ax.set_yticks([])
-fig.colorbar(image, ax=ax, shrink=0.8)
+fig, ax = plt.subplots(figsize=(6.2, 5.6), layout="constrained")
+plot_state_map(ax, world, values, label="V(s), the learner's value",
+               no_data=torch.isclose(values, torch.tensor(-1.0, dtype=values.dtype)),
+               title=f"V of run 0 ({agents[0]}, seed {seeds[0]}) after {learner.t:,} steps")
+ax.plot(path % world.size, path // world.size, color="#e8590c", linewidth=1.2)
+map_legend(ax, "V = −1: no route to the goal known yet",
+           extra=[Line2D([], [], color="#e8590c", label="greedy episode")])
 plt.show()"""),
     new_markdown_cell("""\
 ## Next
@@ -123,6 +160,83 @@ plt.show()"""),
 ]
 
 # ========================================================================= intrinsic reward
+WHAT_WE_SEE = """\
+## What we see, and why
+
+*Written from the stored run: n = 5 seeds per variant × 100,000 steps. Numbers are quoted from
+the cells above — "C1" … "C12" are the checks in the previous cell; ranges are over the five
+seeds, CIs are 95 % intervals of the mean (paired by seed for differences). With another budget
+the numbers above change and this text may not hold; the checks say which parts do.*
+
+**The intrinsic reward with its defaults did better than the known reward.** Over 100,000 steps
+the `intrinsic` runs reached the goal 965 times on average (959–968 per seed) against 891
+(814–936) with the known reward: 73 more, paired CI +15 to +131, ahead in 5 of 5 seeds (C1).
+Over the last 4 windows they reached 51.8 goals per 5000 steps (51.2–52.2) against 48.5
+(44.2–51.5); the exact optimum is 54.7 (the paper reports ≈ 53.2). Their first goals came about
+as early: medians 3536 and 3695, paired difference +187 steps, CI covering 0 (C12).
+
+**Salience is not the reason; the level of `R_m` is.** The control `flat_0.02` — the same
+learner and module with no step salience (`scale=0`: every mentor step costs 0.02, the end pays
+0.5) — reached 960 goals (942–979), 5 fewer than `intrinsic`: paired CI −18 to +27, covering
+0 (C2). The control `flat_0.01` — the real step cost, no salience, the same end — reached 880
+(832–919), no different from the known reward (paired −11, CI covering 0; C4) and 80 fewer than
+`flat_0.02` (CI above 0, ahead in 5 of 5 seeds; C3). So the smaller end reward alone changes
+nothing measurable; charging the mentor's steps *more* than they really cost is what helps:
+
+* The mentor term enters the max of eq. 2 and nothing ever corrects it. With the known reward
+  it is **optimistic**: every known-reward run believes `V(start)` is −0.155 to −0.176, above the
+  true optimum −0.192 (C5) — the mentor model lumps the mentor's different wall-following
+  options into one next-state distribution per state, and the learner's own options cannot
+  follow the mentor's moves exactly (`docs/reproduction-notes.md`, section 3). The inflated
+  values keep pulling the learner back onto the mentor's route: at the end the mentor term still
+  wins at 61–78 % of the mentor's states (C7).
+* Charging 0.01–0.02 per mentor step (never less than the real 0.01) and paying 0.5 at the end
+  makes the mentor term **pessimistic**: `V(start)` −0.204 to −0.224 (`intrinsic`) and −0.207 to
+  −0.220 (`flat_0.02`), all below −0.192 (C6). It still guides the learner to the goal early —
+  any route that ends in the goal beats the −1 of the unknown — and then loses the max wherever
+  the learner's own experience of the real +1 is better: it wins at only 52–76 % of the
+  mentor's states (C7), and the learner's own route takes over (in the visits maps above, the
+  greedy episode of `intrinsic` leaves the mentor's diagonal; that of `known` follows it).
+
+**The end event: no clear effect on the first goal, none on the final rate.** Without it
+(`intrinsic_no_end`: no reward above −0.01 anywhere) the median first goal came later (4645 vs
+3536), but only 3 of 5 seeds were later, and the paired difference (+1812 steps) has a CI
+covering 0; the final rate did not drop (52.3 per window, 960 goals; C8). Even without any
+positive reward the mentor term helps, because this learner knows which states are terminal
+(value 0) and starts every other state at −1: a mentor route that ends in a terminal state is
+already attractive. A learner that did not know where episodes end would depend on the end
+event.
+
+**Where intrinsic reward is worse: when it overestimates.**
+
+* `intrinsic_free` makes salient steps free (`scale = step_cost = 0.01`). That is cycle-safe,
+  but the room entries along each mentor episode (about one per doorway crossed, 18 on the
+  shortest route) now cost 0 instead of 0.01: `V(start)` −0.037
+  to −0.063, far above the true −0.192. The mentor term wins more (73–81 % of the mentor's
+  states), and the learners reach fewer goals than with the known reward: 771 (625–882), paired
+  −120, CI −236 to −4, behind in 5 of 5 seeds (C9); 44.0 per window at the end (36.2–50.8).
+* `intrinsic_paying` lets salient steps pay +0.1. The learners farm it: `V(start)` 3.66–4.13
+  (nothing real exceeds 1), 0 or 1 goals in 100,000 steps (C10); the greedy episode of seed 0
+  spends 1814 of its 2000 steps on two doorway cells, (2, 4) and (4, 6). Stepping through a
+  doorway and back is worth about 0.1 / (1 − γ²) ≈ 5 to them; their own experience cannot
+  correct it, because the mentor term is never checked against it.
+
+**Without a mentor the runs split** (`none`, options only): one never found the goal and one only
+at step 97,145; the other three needed 10–31k steps (C11). The mean of 32 goals per window at
+the end describes none of them — the median (dashed in its panel) and the outcome count do. The
+three that found it early end at 51.8–53.0 per window, above the known-reward imitators and
+level with the intrinsic ones: with no mentor term nothing pulls them off their own best route
+(`docs/reproduction-notes.md`, section 3).
+
+**In short:** in this world the intrinsic learner does as well as the known reward, and better,
+*because* its reward is a cautious lower bound — the flat control without salience does the same
+(C2). The salient events themselves (rooms, slips, lights) shift step costs by at most 0.01 and
+are not what decides the result. Salience that makes the mentor's steps look better than they
+are is harmful, and salience that pays is fatal. A fair test of salience as information —
+worlds where the learner does not know the goal, or rewards that do not follow the mentor's
+route — is left open."""
+
+
 INTRINSIC = [
     new_markdown_cell("""\
 # Intrinsic reward from the mentor's salient events
@@ -143,49 +257,62 @@ Its reward for a mentor step `s → s'` interpolates between a terminal reward a
 `r = e·bound + (1 − e)·(scale·σ − step_cost)`, with `σ` the weighted step salience and `e` the
 weighted end event, both clipped to [0, 1].
 
-**Soundness.** The mentor term is trusted without correction, so `R_m` must not overestimate
-the learner's real reward (−0.01 a step, +1 at the goal). The module declares
+**Never above the real reward.** The mentor term is trusted without correction, so `R_m` must
+not overestimate the learner's real reward (−0.01 a step, +1 at the goal). The module declares
 `upper_bound = bound` (0.5 by default), which the learner checks against its best real reward.
 The defaults go further: an ordinary mentor step costs `step_cost = 0.02`, a fully salient one
 `step_cost − scale = 0.01` — never less than a real step — and the end pays 0.5 < 1. So
 salience makes the mentor's salient steps *cheaper*, never rewarding, and no transition is
-overestimated. This notebook also runs two modules that break this, to show what it costs.
+overestimated. This notebook also runs two modules that break this, to show what it costs, and
+two controls without salience, to show what salience itself contributes.
 
 Budget: `STEPS` per run and `SEEDS` seeds per variant (environment variables
 `HIMIT_NOTEBOOK_STEPS`, `HIMIT_NOTEBOOK_SEEDS`). The outputs stored with the notebook come from
-the defaults below: 5 seeds × 100,000 steps × 6 variants, about 4 minutes on one CPU core."""),
+the defaults below: 5 seeds × 100,000 steps × 8 variants, about 6 minutes on one CPU core."""),
     new_code_cell("""\
 import os
 from pathlib import Path
 
 import matplotlib.pyplot as plt
+import numpy as np
 import torch
-from torch.utils.tensorboard import SummaryWriter
+from matplotlib.lines import Line2D
+from matplotlib.patches import Rectangle
+from scipy import stats
 
 import himit_torch as ht
 from himit_torch.experiment import PAPER
+from himit_torch.plotting import (CURVE_COLORS, map_legend, plot_first_goals, plot_goal_curves,
+                                  plot_state_map)
 
 STEPS = int(os.environ.get("HIMIT_NOTEBOOK_STEPS", 100_000))  # primitive steps per run
 SEEDS = int(os.environ.get("HIMIT_NOTEBOOK_SEEDS", 5))        # runs per variant
 LOGDIR = Path(os.environ.get("HIMIT_NOTEBOOK_LOGDIR", "runs/intrinsic_reward"))
 WINDOW = 5000 if STEPS >= 20_000 else max(STEPS // 4, 1)       # the paper's 5000-step windows
 torch.set_num_threads(1)
-plt.rcParams["figure.dpi"] = 72
+plt.rcParams["figure.dpi"] = 100
 
 world = ht.MultiRooms(size=40, rooms=10)                   # experiment 2's world
 options = ht.learner_options(world)                        # primitives + direct doorway options
 mentor = ht.mentor_policy(world, ht.mentor_options(world))
 demos = {seed: ht.record_demonstrations(world, mentor, episodes=20, seed=seed)
          for seed in range(SEEDS)}                         # each seed watches its own episodes
-print(world, "|", options.num_options, "options |", demos[0])"""),
+best = ht.optimal_baseline(world)                          # exact, from the true model
+OPTIMUM = best.goals_per(WINDOW)
+PAPER_OPTIMUM = PAPER["exp2"]["optimal_goals_per_5000"] * WINDOW / 5000
+print(world, "|", options.num_options, "options |", demos[0])
+print(f"optimal policy (exact): {best.steps_to_goal:.1f} steps a trip = {OPTIMUM:.1f} goals per "
+      f"{WINDOW} steps (the paper reports ≈ {PAPER_OPTIMUM:.1f}); V*(start) = {best.value_start:.3f}")"""),
     new_markdown_cell("""\
 ## The salience map, from the mentor's states alone
 
-Per state, the total salience of the mentor's arrivals there (all four events, weighted and
-clipped to [0, 1]). The world's stimulus features are `[S, 4]`: room, doorway flag, light,
-sound. Light and sound are off unless you set them. On the right, lamps light rows 16–23
-(`world.set_stimulus("light", …)`) and only light changes count (`weights` of room and
-novelty 0): the mentor's steps into and out of the lit band stand out."""),
+Per state, the salience of the mentor's arrivals there (all four events, weighted and clipped
+to [0, 1], averaged over its arrivals). Grey: the mentor never arrived there, so there is no
+salience to show — different from a cell it arrived at without any salient event (salience 0,
+the dark end of the scale). The world's stimulus features are `[S, 4]`: room, doorway flag,
+light, sound. Light and sound are off unless you set them. On the right, lamps light rows
+16–23 (outlined; `world.set_stimulus("light", …)`) and only light changes count (`weights` of
+room and novelty 0): the mentor's steps into and out of the lit band stand out."""),
     new_code_cell("""\
 salience = ht.SalienceReward(world, demos[0])
 print(salience)
@@ -197,51 +324,59 @@ lamp[16:24] = 1.0                                            # rows 16–23 are 
 lit.set_stimulus("light", lamp.flatten())
 lit_salience = ht.SalienceReward(lit, demos[0], weights={"room": 0.0, "novelty": 0.0})
 
-CMAP = plt.get_cmap("magma").copy()
-CMAP.set_bad("0.8")                                          # walls grey
-
-def show(ax, field, title):
-    field = field.clone().double()
-    field[world.wall_mask] = float("nan")
-    image = ax.imshow(field.view(world.size, world.size), cmap=CMAP, vmin=0, vmax=1)
-    ax.set_title(title, fontsize=10)
-    ax.set_xticks([]); ax.set_yticks([])
-    return image
-
+src, dst = demos[0].transitions()
+arrived = torch.bincount(dst, minlength=world.num_states) > 0   # where the mentor ever arrived
 maps = salience.event_maps()
-fig, axes = plt.subplots(1, 4, figsize=(13, 3.6), layout="constrained")
-show(axes[0], salience.salience_map(), "total salience")
-show(axes[1], maps["room"], "room entered")
-show(axes[2], maps["novelty"], "novelty (the mentor's slips)")
-image = show(axes[3], lit_salience.salience_map(), "light changes only (rows 16–23 lit)")
-fig.colorbar(image, ax=axes, shrink=0.8)
+panels = [(salience.salience_map(), "total salience"), (maps["room"], "room entered"),
+          (maps["novelty"], "novelty (the mentor's slips)"),
+          (lit_salience.salience_map(), "light changes only (rows 16–23 lit)")]
+fig, axes = plt.subplots(1, 4, figsize=(15, 4.6), layout="constrained")
+for ax, (field, title) in zip(axes, panels):
+    image = plot_state_map(ax, world, field, label="", title=title, vmin=0, vmax=1,
+                           no_data=~arrived, colorbar=False)
+axes[3].add_patch(Rectangle((-0.5, 15.5), world.size, 8, fill=False, edgecolor="#e8590c",
+                            linewidth=1.8, linestyle="--"))
+fig.colorbar(image, ax=axes, shrink=0.8,
+             label="mean salience of the mentor's arrivals (0–1)")
+map_legend(fig, "the mentor never arrived here",
+           extra=[Line2D([], [], color="#e8590c", linestyle="--", label="lit rows 16–23")])
+fig.suptitle(f"Salience from the mentor's {demos[0].num_episodes} episodes of seed 0")
 plt.show()
 
-src, dst = demos[0].transitions()
 r = salience.transition_reward(src, dst)
+paying = r > 0
+into_goal = int(world.terminal_mask[dst[paying]].sum())
 print(f"rewards of the mentor's steps: min {r.min():.4f}, max {r.max():.4f}; "
-      f"steps paying > 0: {int((r > 0).sum())} of {len(r)} (all into the goal); "
+      f"steps paying > 0: {int(paying.sum())} of {len(r)}, {into_goal} of them into the goal; "
       f"cycle-safe: {salience.cycle_safe}; a step's reward lies in {salience.step_reward_range}")"""),
     new_markdown_cell("""\
-## Known vs intrinsic vs no mentor reward, in one batch
+## Known vs intrinsic vs no mentor reward, with controls, in one batch
 
-Six variants × `SEEDS` seeds, all in one `Learner` batch; each run has its own reward module
-(`reward=[…]`, one per run):
+Eight variants × `SEEDS` seeds, all in one `Learner` batch; each run has its own reward module
+(`reward=[…]`, one per run). Seed `k` of every variant watches the same mentor episodes and
+draws the same random numbers, so variants are compared seed by seed.
 
 | variant | agent | `R_m` | a mentor step pays |
 |---|---|---|---|
 | `known` | imitation | the world's reward (the paper's experiments) | −0.01, +1 into the goal |
-| `intrinsic` | imitation | `SalienceReward` with its defaults (sound) | −0.02 … −0.01, +0.5 at the end |
-| `intrinsic_no_end` | imitation | the same without the end event (`weights={"end": 0}`) | −0.02 … −0.01 everywhere |
+| `intrinsic` | imitation | `SalienceReward` with its defaults: never above the real reward | −0.02 … −0.01, +0.5 at the end |
+| `flat_0.02` | imitation | control: `SalienceReward(scale=0)` — no salience, the same flat cost and end | −0.02, +0.5 at the end |
+| `flat_0.01` | imitation | control: `scale=0, step_cost=0.01` — no salience, exactly the real step cost | −0.01, +0.5 at the end |
+| `intrinsic_no_end` | imitation | the defaults without the end event (`weights={"end": 0}`) | −0.02 … −0.01 everywhere |
 | `intrinsic_free` | imitation | salient steps free: `scale = step_cost = 0.01` (cycle-safe, optimistic) | −0.01 … 0, +0.5 |
 | `intrinsic_paying` | imitation | salient steps pay: `scale=0.1, step_cost=0` (not cycle-safe) | 0 … +0.1, +0.5 |
 | `none` | options | no mentor term (options only) | — |
 
-Every window's goals are also logged to TensorBoard, one run per folder, as `himit run` does."""),
+Every run logs to TensorBoard as `himit run` does (`ht.TensorBoardLogger`): its own folder
+`world40__<variant>__seed<k>`, scalars with descriptions, maps of seeds 0 and 1 four times
+during training, and hyperparameters that group the seeds of a variant."""),
     new_code_cell("""\
 VARIANTS = {   # name: (agent, reward module for one seed)
     "known": ("imitation", lambda seed: ht.KnownReward(world)),
     "intrinsic": ("imitation", lambda seed: ht.SalienceReward(world, demos[seed])),
+    "flat_0.02": ("imitation", lambda seed: ht.SalienceReward(world, demos[seed], scale=0.0)),
+    "flat_0.01": ("imitation",
+                  lambda seed: ht.SalienceReward(world, demos[seed], scale=0.0, step_cost=0.01)),
     "intrinsic_no_end": ("imitation",
                          lambda seed: ht.SalienceReward(world, demos[seed], weights={"end": 0.0})),
     "intrinsic_free": ("imitation",
@@ -250,168 +385,287 @@ VARIANTS = {   # name: (agent, reward module for one seed)
                          lambda seed: ht.SalienceReward(world, demos[seed], scale=0.1, step_cost=0.0)),
     "none": ("options", lambda seed: ht.KnownReward(world)),   # unused: no mentor term
 }
+COLORS = dict(zip(VARIANTS, CURVE_COLORS))
 names, agents, seeds, modules = [], [], [], []
 for name, (agent, make) in VARIANTS.items():
     for seed in range(SEEDS):
         names.append(name); agents.append(agent); seeds.append(seed); modules.append(make(seed))
+runs_of = {name: [b for b, n in enumerate(names) if n == name] for name in VARIANTS}
 
 learner = ht.Learner(world, options, agents, seeds, reward=modules,
                      config=ht.LearnerConfig(window=WINDOW))
 for seed in range(SEEDS):
     learner.add_demonstrations(demos[seed], runs=[b for b, s in enumerate(seeds) if s == seed])
 
-writers = [SummaryWriter(str(LOGDIR / "tb" / f"world40__{n}__seed{s}")) for n, s in zip(names, seeds)]
-for writer, name, seed, module in zip(writers, names, seeds, modules):
-    writer.add_text("run", f"variant {name}, agent {VARIANTS[name][0]}, seed {seed}, reward {module!r}")
+
+def settings(name, module):
+    \"\"\"What tells a variant apart (TensorBoard hparams; never the seed).\"\"\"
+    hp = {"variant": name, "agent": VARIANTS[name][0], "reward": type(module).__name__}
+    if isinstance(module, ht.SalienceReward) and VARIANTS[name][0] == "imitation":
+        hp.update(scale=module.scale, step_cost=module.step_cost, bound=module.bound,
+                  end_weight=module.weights["end"])
+    return hp
+
+
+# This notebook owns LOGDIR/tb: each execution replaces its runs' folders (overwrite=True), so
+# TensorBoard never shows two executions in one curve.
+logger = ht.TensorBoardLogger(LOGDIR / "tb", [f"world40__{n}__seed{s}" for n, s in zip(names, seeds)],
+                              world=world, options=options, true_value_start=best.value_start,
+                              overwrite=True)
+map_runs = [b for b, s in enumerate(seeds) if s < 2]
+mentor_visits = {b: torch.bincount(dst_of, minlength=world.num_states)
+                 for b in map_runs for dst_of in [demos[seeds[b]].transitions()[1]]}
+map_every = max(STEPS // 4, 1)
 while learner.t < STEPS:
-    learner.run(min(WINDOW, STEPS - learner.t))
-    m = learner.metrics
-    if m.steps and m.steps[-1] == learner.t:
-        values_start = learner.state_values()[:, world.start_state]
-        for b, writer in enumerate(writers):
-            writer.add_scalar("charts/goals_in_window", float(m.goals_in_window[-1][b]), learner.t)
-            writer.add_scalar("charts/epsilon", float(m.epsilon[-1][b]), learner.t)
-            writer.add_scalar("model/value_start", float(values_start[b]), learner.t)
-            wins = float(m.mentor_term_wins[-1][b])
-            if wins == wins:                               # NaN for runs without a mentor
-                writer.add_scalar("mentor/term_wins", wins, learner.t)
-for writer in writers:
-    writer.close()
+    learner.run(min(WINDOW - learner.t % WINDOW, STEPS - learner.t))
+    if learner.metrics.steps and learner.metrics.steps[-1] == learner.t:
+        logger.window(learner, len(learner.metrics.steps) - 1)
+    if learner.t % map_every == 0 or learner.t == STEPS:
+        logger.maps(learner, map_runs, learner.t, mentor_visits)
+final_curve = learner.metrics.curve()
+logger.hparams([settings(n, m) for n, m in zip(names, modules)],
+               [{"hparam/total_goals": float(learner.goals[b]),
+                 "hparam/final_window_goals": float(final_curve[-1, b]) if len(final_curve) else 0.0,
+                 "hparam/first_goal_step": float(learner.first_goal_step[b]) if learner.first_goal_step[b] >= 0
+                 else float(learner.t + 1),
+                 "hparam/value_start": float(learner.state_values()[b, world.start_state])}
+                for b in range(learner.batch)], learner.t)
+logger.close()
 print(f"{learner.batch} runs × {learner.t} steps; TensorBoard logs in {LOGDIR / 'tb'}")"""),
+    new_markdown_cell("""\
+## Learning curves, one panel per variant
+
+Each panel: the mean over seeds (thick), every seed (thin), the seeds' range (band), the median
+(dashed) where the seeds split into different outcomes, our exact optimum (dotted) and the
+paper's (dash-dotted). The title says how many runs reached the goal at all."""),
     new_code_cell("""\
 curve = learner.metrics.curve().double()                  # [windows, runs]
 steps = learner.metrics.steps
-optimal = PAPER["exp2"]["optimal_goals_per_5000"] * WINDOW / 5000
-fig, ax = plt.subplots(figsize=(9.5, 4), layout="constrained")
-for i, name in enumerate(VARIANTS):
-    runs = [b for b, n in enumerate(names) if n == name]
-    ax.plot(steps, curve[:, runs], color=f"C{i}", alpha=0.25, linewidth=0.8)
-    ax.plot(steps, curve[:, runs].mean(1), color=f"C{i}", linewidth=2,
-            label=f"{name} (mean of {len(runs)})")
-ax.axhline(optimal, color="0.5", linestyle=":", label="optimal (the paper)")
-ax.set_xlabel("steps")
-ax.set_ylabel(f"goals per {WINDOW} steps")
-ax.set_title("40×40, 10×10 rooms: mentor term with known, intrinsic or no reward")
-ax.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.01, 1.0))
+fig, axes = plt.subplots(2, 4, figsize=(16, 7), sharex=True, sharey=True, layout="constrained")
+for ax, name in zip(axes.flat, VARIANTS):
+    runs = runs_of[name]
+    plot_goal_curves(ax, steps, {name: curve[:, runs].T.numpy()}, colors=COLORS, window=WINDOW,
+                     optimum=OPTIMUM, paper_optimum=PAPER_OPTIMUM, seed_lines=True, legend=False)
+    found = int((learner.first_goal_step[runs] >= 0).sum())
+    ax.set_title(f"{name}: n={len(runs)}, {found}/{len(runs)} found the goal", fontsize="medium")
+    ax.label_outer()
+fig.legend(handles=[Line2D([], [], color="0.3", lw=2, label="mean over seeds"),
+                    Line2D([], [], color="0.3", lw=0.6, label="one seed"),
+                    Rectangle((0, 0), 1, 1, color="0.3", alpha=0.18, label="seeds' range"),
+                    Line2D([], [], color="0.3", lw=1.5, ls="--", label="median (where seeds split)"),
+                    Line2D([], [], color="0.2", ls=":", label=f"optimal policy, exact: {OPTIMUM:.1f}"),
+                    Line2D([], [], color="0.55", ls="-.",
+                           label=f"the paper's optimum: ≈ {PAPER_OPTIMUM:.1f}")],
+           loc="lower center", ncol=6, bbox_to_anchor=(0.5, -0.06), frameon=False)
+fig.suptitle(f"40×40 world, a 10×10 grid of rooms: goals per {WINDOW:,} steps by mentor reward")
 plt.show()"""),
+    new_markdown_cell("""\
+## First goals
+
+5000-step windows cannot show which variant finds the goal first: each run's first-goal step,
+one dot per seed (log scale; "never" on the right), the median as a bar."""),
     new_code_cell("""\
-true_v = ht.value_iteration(world.transition_model(), world.reward_model(), world.gamma).values
-v_star = float(true_v[world.start_state])
+firsts = {name: learner.first_goal_step[runs].tolist() for name, runs in runs_of.items()}
+fig, ax = plt.subplots(figsize=(11, 4.6), layout="constrained")
+plot_first_goals(ax, firsts, STEPS, colors=COLORS,
+                 title=f"Step of each run's first goal (n={SEEDS} seeds per variant)")
+plt.show()"""),
+    new_markdown_cell("""\
+## Every run, and each variant's spread
+
+Per run: first goal (−1: never), total goals, mean goals per window over the last 4 windows,
+`V(start)` (what the run believes the start is worth) and the share of the mentor's states
+where the mentor term wins eq. 2's max. Then per variant: mean, range over seeds `[min, max]`
+and a 95 % confidence interval of the mean (Student t, n − 1 degrees of freedom; with n = 5 it
+is wide)."""),
+    new_code_cell("""\
 v_start = learner.state_values()[:, world.start_state]
 wins = learner.mentor_win_share()
 last = curve[-4:].mean(0) if len(curve) >= 4 else curve.mean(0)
-print(f"V*(start) = {v_star:.3f} (true optimum, primitive actions)\\n")
-print(f"{'variant':<19}{'seed':>5}{'first goal':>12}{'goals':>8}{'last 4 windows':>16}"
+first = learner.first_goal_step
+print(f"{'variant':<18}{'seed':>5}{'first goal':>12}{'goals':>8}{'last 4 windows':>16}"
       f"{'V(start)':>10}{'mentor wins':>13}")
 for b in range(learner.batch):
-    print(f"{names[b]:<19}{seeds[b]:>5}{int(learner.first_goal_step[b]):>12}{int(learner.goals[b]):>8}"
+    print(f"{names[b]:<18}{seeds[b]:>5}{int(first[b]):>12}{int(learner.goals[b]):>8}"
           f"{float(last[b]):>16.1f}{float(v_start[b]):>10.3f}{float(wins[b]):>13.2f}")
-print()
-for name in VARIANTS:
-    runs = [b for b, n in enumerate(names) if n == name]
-    firsts = learner.first_goal_step[runs]
-    found = firsts >= 0
-    mean_first = f"{firsts[found].double().mean():.0f}" if bool(found.any()) else "—"
-    print(f"{name:<19} found the goal in {int(found.sum())}/{len(runs)} runs, mean first goal "
-          f"{mean_first}, total goals {learner.goals[runs].double().mean():.0f}, "
-          f"last 4 windows {last[runs].mean():.1f}, V(start) {v_start[runs].mean():.3f}")"""),
+
+
+def spread(values, digits=0):
+    \"\"\"'mean [min, max] (95% CI lo–hi)' of one variant's seeds.\"\"\"
+    x = np.asarray(values, dtype=float)
+    x = x[np.isfinite(x)]
+    if x.size == 0:
+        return "—"
+    text = f"{x.mean():.{digits}f} [{x.min():.{digits}f}, {x.max():.{digits}f}]"
+    if x.size > 1:
+        half = stats.t.ppf(0.975, x.size - 1) * x.std(ddof=1) / np.sqrt(x.size)
+        text += f" (CI {x.mean() - half:.{digits}f}–{x.mean() + half:.{digits}f})"
+    return text
+
+
+print(f"\\nPer variant, n = {SEEDS} seeds: mean [min, max] (95 % CI of the mean); V*(start) = "
+      f"{best.value_start:.3f}, optimum {OPTIMUM:.1f} goals per window\\n")
+for name, runs in runs_of.items():
+    found = first[runs] >= 0
+    med = f"{np.median(first[runs][found].numpy()):.0f}" if bool(found.any()) else "—"
+    print(f"{name:<18} found the goal in {int(found.sum())}/{len(runs)} runs; their first goal: "
+          f"median {med}, mean {spread(first[runs][found].tolist())}\\n"
+          f"{'':<18} total goals: mean {spread(learner.goals[runs].tolist())}\\n"
+          f"{'':<18} last 4 windows: mean {spread(last[runs].tolist(), 1)}\\n"
+          f"{'':<18} V(start): mean {spread(v_start[runs].tolist(), 3)}\\n"
+          f"{'':<18} mentor wins: mean {spread(wins[runs].tolist(), 2)}")"""),
+    new_markdown_cell("""\
+## Paired differences between variants
+
+Seed `k` of two variants shares its mentor episodes and random numbers, so differences are taken
+seed by seed: the mean difference, its 95 % confidence interval (paired t) and in how many seeds
+the first variant is ahead."""),
+    new_code_cell("""\
+def paired(a, b, values, higher_is_better=True):
+    \"\"\"Seed-by-seed difference of `values` between variants a and b.\"\"\"
+    x = np.asarray(values, dtype=float)
+    d = x[runs_of[a]] - x[runs_of[b]]
+    ok = np.isfinite(d)
+    d = d[ok]
+    ahead = int((d > 0).sum() if higher_is_better else (d < 0).sum())
+    if d.size > 1:
+        half = stats.t.ppf(0.975, d.size - 1) * d.std(ddof=1) / np.sqrt(d.size)
+        ci = (d.mean() - half, d.mean() + half)
+    else:
+        ci = (float("nan"), float("nan"))
+    return {"mean": d.mean() if d.size else float("nan"), "ci": ci, "ahead": ahead, "n": d.size}
+
+
+def fmt(result, digits=0):
+    lo, hi = result["ci"]
+    return (f"{result['mean']:+.{digits}f} (CI {lo:+.{digits}f} to {hi:+.{digits}f}), "
+            f"ahead in {result['ahead']}/{result['n']} seeds")
+
+
+goals_total = learner.goals.double().numpy()
+last_np, first_np = last.numpy(), first.double().numpy()
+first_np[first_np < 0] = np.nan                              # never found: left out of the pair
+PAIRS = [("intrinsic", "known"), ("intrinsic", "flat_0.02"), ("flat_0.02", "flat_0.01"),
+         ("flat_0.01", "known"), ("intrinsic_no_end", "intrinsic"), ("intrinsic_free", "known"),
+         ("none", "known")]
+comparisons = {}
+for a, b in PAIRS:
+    comparisons[a, b] = {"goals": paired(a, b, goals_total), "last": paired(a, b, last_np),
+                         "first": paired(a, b, first_np, higher_is_better=False)}
+    c = comparisons[a, b]
+    print(f"{a} − {b}:\\n  total goals    {fmt(c['goals'])}\\n  last 4 windows {fmt(c['last'], 1)}"
+          f"\\n  first goal     {fmt(c['first'])} (earlier = ahead; seeds where both found it)")"""),
     new_markdown_cell("""\
 ## Where the learners go
 
-Visits of one run of three intrinsic variants (log scale) and, in orange, one episode that
-follows its greedy options from the start (at most 2000 steps). If salient steps pay, the
-learner's values rise far above anything real (compare `V(start)` above with `V*(start)`): a
-doorway it can step through and back again is worth about `r / (1 − γ²)` to it, while it pays
-the real step cost every time."""),
+Visits of seed 0 of four variants over the whole run, on one log scale (grey: never visited),
+and in orange one episode that follows the run's greedy options from the start (at most 2000
+steps). If salient steps pay, the learner's values rise far above anything real (compare
+`V(start)` above with `V*(start)`): a doorway it can step through and back again is worth about
+`r / (1 − γ²)` to it, while it pays the real step cost every time."""),
     new_code_cell("""\
-fig, axes = plt.subplots(1, 3, figsize=(12, 4), layout="constrained")
-VISITS_CMAP = plt.get_cmap("viridis").copy()
-VISITS_CMAP.set_bad("0.8")
-for ax, name in zip(axes, ("intrinsic", "intrinsic_free", "intrinsic_paying")):
-    b = names.index(name)
-    visits = learner.visit_counts()[b].double().log1p()
-    visits[world.wall_mask] = float("nan")
-    ax.imshow(visits.view(world.size, world.size), cmap=VISITS_CMAP)
+shown = ("known", "intrinsic", "intrinsic_free", "intrinsic_paying")
+visits = learner.visit_counts().double()
+top = float(visits[[runs_of[n][0] for n in shown]].max())
+fig, axes = plt.subplots(1, 4, figsize=(16, 4.8), layout="constrained")
+greedy_facts = {}
+for ax, name in zip(axes, shown):
+    b = runs_of[name][0]
+    image = plot_state_map(ax, world, visits[b], label="", log=True, vmin=1, vmax=max(top, 10),
+                           no_data=visits[b] == 0, colorbar=False,
+                           title=f"{name}, seed {seeds[b]}")
     path = learner.greedy_trajectory(b, max_steps=2000, seed=0)
     ax.plot(path % world.size, path // world.size, color="#e8590c", linewidth=1.2)
-    reached = bool(world.terminal_mask[path[-1]])
-    ax.set_title(f"{name}, seed {seeds[b]}", fontsize=10)
-    ax.set_xticks([]); ax.set_yticks([])
-    top = torch.bincount(path, minlength=world.num_states).topk(2)
-    print(f"{name:<19} greedy episode: {len(path) - 1:>4} steps, "
-          f"{'reaches the goal' if reached else 'no goal'}, {len(torch.unique(path))} distinct "
-          f"states; most visited {[world.coords(s) for s in top.indices.tolist()]} "
-          f"({int(top.values.sum())} of its steps)")
+    counts = torch.bincount(path, minlength=world.num_states).topk(2)
+    greedy_facts[name] = {"steps": len(path) - 1, "goal": bool(world.terminal_mask[path[-1]]),
+                          "top2": [world.coords(s) for s in counts.indices.tolist()],
+                          "top2_steps": int(counts.values.sum())}
+    f = greedy_facts[name]
+    print(f"{name:<18} greedy episode: {f['steps']:>4} steps, "
+          f"{'reaches the goal' if f['goal'] else 'no goal'}, {len(torch.unique(path))} distinct "
+          f"states; most visited {f['top2']} ({f['top2_steps']} of its steps)")
+fig.colorbar(image, ax=axes, shrink=0.8, label=f"visits in {learner.t:,} steps (log scale)")
+map_legend(fig, "never visited",
+           extra=[Line2D([], [], color="#e8590c", label="greedy episode from the start")])
 plt.show()"""),
     new_markdown_cell("""\
-## What we see, and why
+## The claims, checked
 
-*(Written from the stored run: 5 seeds × 100,000 steps. With other budgets the numbers above
-differ.)*
+Each statement of the next section, computed from the runs above; `True` means the data support
+it at this budget (with another budget, read the numbers, not the text)."""),
+    new_code_cell("""\
+def rng(name, values, digits=0):
+    x = np.asarray(values, dtype=float)[runs_of[name]]
+    x = x[np.isfinite(x)]
+    return f"{x.min():.{digits}f}–{x.max():.{digits}f}" if x.size else "—"
 
-**The sound intrinsic reward did better than the known reward.** Over 100,000 steps the
-`intrinsic` runs reached the goal 965 times on average (959–968 per seed) against 891 (814–936)
-with the known reward, and ended at 51.8 goals per 5000 steps against 48.5 (the exact optimum is
-54.7; the paper says ≈ 53.2). Their first goals came as early (mean step 3524 vs 3336; seed 0 found it at the same
-step, 876). Salience is not the reason: what differs is the *level* of `R_m` against the real
-reward.
 
-* The mentor term enters the max of eq. 2 and nothing ever corrects it. With the known reward
-  it is already **optimistic**: the known learners believe `V(start)` ≈ −0.162 while the true
-  optimum is −0.192 (the mentor model lumps the mentor's wall-following moves into one step
-  model per state; `shared/docs/REPRODUCTION-NOTES.md`, point 3). The inflated values keep
-  pulling the learner back onto the mentor's route — the mentor term still wins at 61–78 % of
-  the mentor's states at the end.
-* The default `SalienceReward` charges 0.01–0.02 per mentor step (never less than the real
-  0.01) and pays 0.5 at the end (less than the real 1.0): a **pessimistic** mentor term
-  (`V(start)` ≈ −0.211). It guides the learner to the goal early — any route that ends in the
-  goal beats the −1 of the unknown — and then loses the max wherever the learner's own
-  experience of the real +1 is better: the mentor term wins at only 52–76 % of the mentor's
-  states, and the learner settles on its own direct doorway options.
-* A separate run (not in this notebook, same seeds) with `scale=0, step_cost=0.01` — exactly
-  the real step cost, 0.5 at the end — behaved like the known reward (880 goals, 48.6 per
-  window at the end, `V(start)` ≈ −0.165): the smaller end reward alone does not explain the
-  gain; charging more than the real step cost does.
+def median_first(name):
+    x = first_np[runs_of[name]]
+    x = x[np.isfinite(x)]                                    # runs that found the goal
+    return float(np.median(x)) if x.size else float("nan")
 
-**The end event speeds up the first goal, not the final rate.** Without it
-(`intrinsic_no_end`: no reward above −0.01 anywhere) the learners end as well (52.3 per window,
-960 goals) but find the goal later (mean step 5336 vs 3524). Even without any positive reward the
-mentor term helps, because this learner knows which states are terminal (value 0) and starts
-every other state at −1: a mentor route that ends in a terminal state is already attractive. A
-learner that did not know where episodes end would depend on the end event.
 
-**Where intrinsic reward is worse: when it overestimates.**
-
-* `intrinsic_free` makes salient steps free (`scale = step_cost = 0.01`). That is cycle-safe,
-  but the ~20 room entries of each mentor episode now cost 0 instead of 0.01: `V(start)` ≈
-  −0.049, far above the true −0.192. The mentor term wins more (73–81 %), and the learners do
-  worse than with the known reward: 771 goals, 44.0 per window at the end (36.2–50.8 per seed),
-  first goal at step 4120 on average.
-* `intrinsic_paying` lets salient steps pay +0.1. The learners farm it: their values reach
-  `V(start)` ≈ 3.7–4.1 (nothing real exceeds 1), their greedy policy steps back and forth between
-  the first doorways — 1814 of 2000 steps of one greedy episode on two doorway cells, (2, 4)
-  and (4, 6) — and they reach the goal 0 or 1 times in 100,000 steps. Stepping through a doorway
-  and back is worth about 0.1 / (1 − γ²) ≈ 5 to them; their own experience cannot correct it,
-  because the mentor term is never checked against it.
-
-**Without a mentor** (`none`, options only) one run never found the goal and one found it only
-at step 97,145; the other three needed 10–31k steps (504 goals on average). The three that found
-it early end at 51.8–53.0 per window, above the known-reward imitators (48.5) and level with the
-sound intrinsic ones: with no mentor term nothing pulls them off their own best route (the notes
-report imitation 1–4 goals below the non-imitators in experiment 2, as here).
-
-**In short:** in this world the intrinsic learner works as well as the known reward, and better,
-*because* its reward is a cautious lower bound; the salient events themselves (rooms, slips,
-lights) only shift step costs by at most 0.01 and are not what decides the result. Salience
-that makes the mentor's steps look better than they are is harmful, and salience that pays is
-fatal. A fair test of salience as information — worlds where the learner does not know the
-goal, or rewards that do not follow the mentor's route — is left open."""),
+vs = v_start.numpy()
+wins_np = wins.numpy()
+c = comparisons
+claims = {
+    "C1 intrinsic reaches more goals than known (paired CI above 0)":
+        (c["intrinsic", "known"]["goals"]["ci"][0] > 0, fmt(c["intrinsic", "known"]["goals"])),
+    "C2 salience adds nothing measurable: intrinsic vs flat_0.02 total goals, CI covers 0":
+        (c["intrinsic", "flat_0.02"]["goals"]["ci"][0] <= 0 <= c["intrinsic", "flat_0.02"]["goals"]["ci"][1],
+         fmt(c["intrinsic", "flat_0.02"]["goals"])),
+    "C3 a step cost above the real one helps: flat_0.02 ahead of flat_0.01 (paired CI above 0)":
+        (c["flat_0.02", "flat_0.01"]["goals"]["ci"][0] > 0, fmt(c["flat_0.02", "flat_0.01"]["goals"])),
+    "C4 the real step cost with a smaller end reward behaves like known: flat_0.01 − known CI covers 0":
+        (c["flat_0.01", "known"]["goals"]["ci"][0] <= 0 <= c["flat_0.01", "known"]["goals"]["ci"][1],
+         fmt(c["flat_0.01", "known"]["goals"])),
+    "C5 known is optimistic: every known run's V(start) is above V*(start)":
+        (bool((vs[runs_of["known"]] > best.value_start).all()),
+         f"V(start) {rng('known', vs, 3)} vs V* {best.value_start:.3f}"),
+    "C6 intrinsic and flat_0.02 are pessimistic: every run's V(start) below V*(start)":
+        (bool((vs[runs_of["intrinsic"] + runs_of["flat_0.02"]] < best.value_start).all()),
+         f"intrinsic {rng('intrinsic', vs, 3)}, flat_0.02 {rng('flat_0.02', vs, 3)}"),
+    "C7 the mentor term wins less often with intrinsic than with known (mean share)":
+        (wins_np[runs_of["intrinsic"]].mean() < wins_np[runs_of["known"]].mean(),
+         f"intrinsic {rng('intrinsic', wins_np, 2)}, known {rng('known', wins_np, 2)}"),
+    "C8 without the end event the first goal comes later (median), the final rate does not drop":
+        (median_first("intrinsic_no_end") > median_first("intrinsic")
+         and c["intrinsic_no_end", "intrinsic"]["last"]["ci"][1] >= 0,
+         f"first goal {fmt(c['intrinsic_no_end', 'intrinsic']['first'])}; last 4 windows "
+         f"{fmt(c['intrinsic_no_end', 'intrinsic']['last'], 1)}"),
+    "C9 free salient steps overestimate and cost goals: intrinsic_free below known (paired CI)":
+        (c["intrinsic_free", "known"]["goals"]["ci"][1] < 0
+         and bool((vs[runs_of["intrinsic_free"]] > best.value_start).all()),
+         f"{fmt(c['intrinsic_free', 'known']['goals'])}; V(start) {rng('intrinsic_free', vs, 3)}"),
+    "C10 paying salient steps are farmed: V(start) > 1 and at most 1 goal in every run":
+        (bool((vs[runs_of["intrinsic_paying"]] > 1).all()
+              and (goals_total[runs_of["intrinsic_paying"]] <= 1).all()),
+         f"V(start) {rng('intrinsic_paying', vs, 2)}, goals {rng('intrinsic_paying', goals_total)}; "
+         f"greedy episode of seed 0: {greedy_facts['intrinsic_paying']['top2_steps']} of "
+         f"{greedy_facts['intrinsic_paying']['steps']} steps on {greedy_facts['intrinsic_paying']['top2']}"),
+    "C11 without a mentor the runs split: some never find the goal or only after half the run":
+        (bool((first_np[runs_of["none"]] != first_np[runs_of["none"]]).any()
+              or (np.nan_to_num(first_np[runs_of["none"]], nan=STEPS) > STEPS / 2).any()),
+         f"first goals {[int(f) for f in first[runs_of['none']]]}; last 4 windows "
+         f"{[round(float(x), 1) for x in last[runs_of['none']]]}"),
+    "C12 intrinsic finds the goal about as early as known: paired first-goal CI covers 0":
+        (c["intrinsic", "known"]["first"]["ci"][0] <= 0 <= c["intrinsic", "known"]["first"]["ci"][1],
+         f"{fmt(c['intrinsic', 'known']['first'])}; medians {median_first('intrinsic'):.0f} vs "
+         f"{median_first('known'):.0f}"),
+}
+for text, (holds, evidence) in claims.items():
+    print(f"{str(bool(holds)):>5}  {text}\\n       {evidence}")"""),
+    new_markdown_cell(WHAT_WE_SEE),
     new_markdown_cell("""\
 ## The same runs in TensorBoard
 
-Every run above wrote its scalars (`charts/goals_in_window`, `charts/epsilon`,
-`model/value_start`, `mentor/term_wins`) to its own folder `world40__<variant>__seed<k>` under
-`LOGDIR/tb`, the layout `himit run` uses. Open them with
+Every run above has its own folder `world40__<variant>__seed<k>` under `LOGDIR/tb`, the layout
+`himit run` uses: scalars with descriptions (`charts/goals_in_window` per window,
+`charts/goals_total` cumulative, `charts/first_goal_step`, `model/value_start` beside
+`model/value_start_true` = V*(start), `mentor/term_wins`, …), maps of seeds 0 and 1 four times
+during training (`maps/values`, `maps/greedy_option`, `maps/visits`) and hyperparameters in
+which the seeds of one variant form one group. Open them with
 
 ```bash
 .venv/bin/tensorboard --logdir runs/intrinsic_reward/tb

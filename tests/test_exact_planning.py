@@ -9,8 +9,8 @@ import torch
 
 from himit_torch.exact_option_models import OptionModels, csr_from_scipy, option_durations, option_models
 from himit_torch.options import learner_options, primitive_options
-from himit_torch.exact_planning import (expected_steps, greedy_option_policy, smdp_value_iteration,
-                                  value_iteration)
+from himit_torch.exact_planning import (expected_steps, greedy_option_policy, optimal_baseline,
+                                        smdp_value_iteration, value_iteration)
 from himit_torch.world import MultiRooms
 
 
@@ -195,6 +195,23 @@ def test_expected_steps_on_the_papers_40x40_world():
     assert steps == pytest.approx(91.37, abs=0.05)
     assert abs(steps - 5000 / 53.2) / (5000 / 53.2) < 0.1
     assert vi.values[world.start_state] == pytest.approx(-0.192, abs=0.001)
+
+
+def test_optimal_baseline_without_slip_is_the_shortest_path_by_hand():
+    # 6×6, 2×2 rooms, no slip: 10 moves from (0,0) to (5,5); 9 pay −0.01 and the last +1.
+    best = optimal_baseline(MultiRooms(size=6, rooms=2, slip=0.0))
+    gamma = 0.99
+    assert best.steps_to_goal == pytest.approx(10.0, abs=1e-9)
+    assert best.value_start == pytest.approx(-0.01 * (1 - gamma ** 9) / (1 - gamma) + gamma ** 9,
+                                             abs=1e-9)
+    assert best.goals_per(5000) == pytest.approx(500.0)
+
+
+def test_optimal_baseline_of_the_papers_40x40_world_is_ours_not_the_papers():
+    """The curves' reference line: 54.7 goals per 5000 steps (the paper reports ≈ 53.2)."""
+    best = optimal_baseline(MultiRooms(size=40, rooms=10))
+    assert best.goals_per(5000) == pytest.approx(54.72, abs=0.01)
+    assert best.value_start == pytest.approx(-0.1923, abs=1e-4)
 
 
 # ---------------------------------------------------------------------------- bad inputs

@@ -53,8 +53,12 @@ def test_each_experiment_runs_and_writes_its_outputs(name, tmp_path):
     figures = sorted(p.name for p in (run_dir / "figures").iterdir())
     assert any(f.startswith("fig2_world") for f in figures)
     assert any("curves" in f for f in figures)
+    assert any(f.startswith("first_goal_world") for f in figures)
+    from PIL import Image
     for f in (run_dir / "figures").iterdir():
         assert f.read_bytes()[:4] == b"\x89PNG"
+        with Image.open(f) as image:                     # readable: at least 100 dpi
+            assert min(image.info["dpi"]) >= 99.9, (f.name, image.info["dpi"])
 
 
 def test_exp3_with_two_worlds_draws_the_scaling_bars(tmp_path):
@@ -65,25 +69,92 @@ def test_exp3_with_two_worlds_draws_the_scaling_bars(tmp_path):
     assert "Scaling" in (tmp_path / "e3" / "results.md").read_text()
 
 
-def test_tensorboard_event_files_hold_the_scalar_tags(tmp_path):
-    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+@pytest.fixture(scope="module")
+def small_run(tmp_path_factory):
+    """One tiny run on a 16×16 world (2 agents × 2 seeds, 3 windows): small enough that runs find
+    the goal within the budget, so first-goal logging is exercised."""
+    run_dir = tmp_path_factory.mktemp("tb") / "run"
+    config = tiny("exp2", sizes=(16,), seeds=2, steps=3000)
+    (result,) = run_experiment(config, run_dir, progress=False)
+    return run_dir, result
 
-    run_experiment(tiny("exp2"), tmp_path / "tb", progress=False)
-    runs = sorted((tmp_path / "tb" / "tb").iterdir())
-    assert [r.name for r in runs] == ["world40__imitation__seed0", "world40__options__seed0"]
-    acc = EventAccumulator(str(runs[0]), size_guidance={"images": 0})
+
+def accumulate(folder: Path):
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+    acc = EventAccumulator(str(folder), size_guidance={"images": 0, "scalars": 0, "tensors": 0})
     acc.Reload()
-    scalars = set(acc.Tags()["scalars"])
-    for tag in ("charts/goals_in_window", "charts/epsilon", "charts/episodes", "planner/backups",
-                "planner/decisions", "model/coverage", "mentor/term_wins"):
-        assert tag in scalars, (tag, scalars)
-    goals = acc.Scalars("charts/goals_in_window")
-    assert [e.step for e in goals] == [1000, 2000]
-    assert {"values/V", "policy/greedy_option", "visits/learner_vs_mentor"} <= set(acc.Tags()["images"])
-    # the options-only run has no mentor term to log
-    acc2 = EventAccumulator(str(runs[1]))
-    acc2.Reload()
-    assert "mentor/term_wins" not in acc2.Tags()["scalars"]
+    return acc
+
+
+def test_tensorboard_holds_first_goal_true_value_descriptions_and_maps(small_run):
+    from himit_torch.tensorboard_logger import IMAGE_DESCRIPTIONS, SCALAR_DESCRIPTIONS
+
+    run_dir, result = small_run
+    names = [f"world16__{a}__seed{s}" for a, s in zip(result.agents, result.seeds)]
+    assert sorted(p.name for p in (run_dir / "tb").iterdir()) == sorted(names)
+    assert any(f >= 0 for f in result.first_goal_step), "no run found the goal: nothing checked"
+    for b, name in enumerate(names):
+        acc = accumulate(run_dir / "tb" / name)
+        scalars = set(acc.Tags()["scalars"])
+        assert [e.step for e in acc.Scalars("charts/goals_in_window")] == [1000, 2000, 3000]
+        # Every scalar says what it is (TensorBoard shows the description beside the chart).
+        for tag in scalars:
+            assert acc.SummaryMetadata(tag).summary_description == SCALAR_DESCRIPTIONS[tag], tag
+        # The first goal: one point at (step, step), or none for a run that never found it.
+        first = result.first_goal_step[b]
+        if first >= 0:
+            assert [(e.step, e.value) for e in acc.Scalars("charts/first_goal_step")] == [(first, first)]
+        else:
+            assert "charts/first_goal_step" not in scalars
+        # V*(start) beside V(start), at every window.
+        true_v = acc.Scalars("model/value_start_true")
+        assert [e.step for e in true_v] == [e.step for e in acc.Scalars("model/value_start")] \
+            == [1000, 2000, 3000]
+        assert all(e.value == pytest.approx(result.true_value_start, abs=1e-6) for e in true_v)
+        assert acc.Scalars("model/value_start")[-1].value == pytest.approx(result.value_start[b],
+                                                                           abs=1e-6)
+        # Maps during training (every checkpoint, not only at the end), for both seeds, with
+        # colorbars or legends drawn in: wide enough to read.
+        images = set(acc.Tags()["images"])
+        assert images == set(IMAGE_DESCRIPTIONS)
+        for tag in images:
+            events = acc.Images(tag)
+            assert [e.step for e in events] == [1000, 2000, 3000]
+            assert events[0].width >= 400 and events[0].height >= 300
+            assert acc.SummaryMetadata(tag).summary_description == IMAGE_DESCRIPTIONS[tag]
+    # The options-only runs have no mentor term to log.
+    assert "mentor/term_wins" not in accumulate(run_dir / "tb" / names[-1]).Tags()["scalars"]
+
+
+def test_hparams_group_the_seeds_of_one_agent(small_run):
+    from tensorboard.plugins.hparams.plugin_data_pb2 import HParamsPluginData
+
+    run_dir, result = small_run
+    groups = {}
+    for a, s in zip(result.agents, result.seeds):
+        content = accumulate(run_dir / "tb" / f"world16__{a}__seed{s}").PluginTagToContent("hparams")
+        start = HParamsPluginData.FromString(content["_hparams_/session_start_info"]).session_start_info
+        assert "seed" not in start.hparams and start.hparams["agent"].string_value == a
+        groups[a, s] = start.group_name
+    # Seeds of one agent share a group; the agents' groups differ.
+    assert groups["imitation", 0] == groups["imitation", 1] != groups["options", 0] == groups["options", 1]
+
+
+def test_a_forced_rerun_with_another_budget_keeps_none_of_the_old_events(tmp_path):
+    run_experiment(tiny("exp2", sizes=(16,)), tmp_path / "r", progress=False)
+    rerun = tiny("exp2", sizes=(16,), steps=1000, window=500, checkpoint_every=500)
+    run_experiment(rerun, tmp_path / "r", progress=False, force=True)
+    acc = accumulate(tmp_path / "r" / "tb" / "world16__imitation__seed0")
+    assert [e.step for e in acc.Scalars("charts/goals_in_window")] == [500, 1000]
+
+
+def test_run_world_refuses_a_folder_with_another_runs_events(tmp_path):
+    from himit_torch.experiment import run_world
+
+    config = tiny("exp2", sizes=(16,), steps=1000)
+    run_world(config, 16, tmp_path, resume=False, progress=False)
+    with pytest.raises(FileExistsError, match="would mix its curves"):
+        run_world(config, 16, tmp_path, resume=False, progress=False)
 
 
 def test_a_finished_run_is_not_overwritten_without_force(tmp_path):

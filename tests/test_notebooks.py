@@ -40,6 +40,15 @@ def tiny_budget(monkeypatch, tmp_path):
 
 @pytest.mark.parametrize("name", ["quickstart", "intrinsic_reward", "your_own_world"])
 def test_notebook_runs_with_a_tiny_budget(name, tiny_budget):
+    earlier = tiny_budget / "runs/intrinsic_reward/tb/world40__known__seed0"
+    if name == "intrinsic_reward":
+        # An earlier execution with another budget left its events here; the notebook must
+        # replace them, not append (the bug: one folder held 5000…100000, then 500…2000).
+        from himit_torch import TensorBoardLogger
+        old = TensorBoardLogger(earlier.parent, [earlier.name])
+        for step in (5000, 10000):
+            old.scalar(0, "charts/goals_in_window", 7.0, step)
+        old.close()
     nb = execute(name, tiny_budget)
     assert not outputs(nb, "error")
     pngs = [o for o in outputs(nb, "display_data") if "image/png" in o.get("data", {})]
@@ -51,6 +60,8 @@ def test_notebook_runs_with_a_tiny_budget(name, tiny_budget):
     text = "".join(s["text"] for s in streams)
     if name == "quickstart":
         assert "364 options" in text and "first goal at step" in text
+        assert "54.7 goals per 5000 steps" in text           # our exact optimum, computed
+        assert text.count("steps in the goal's room") == 6   # the reach of every run, measured
     elif name == "your_own_world":
         assert "104 states; True for the TabularWorld protocol" in text
         assert "refused: Demonstrations: episode 0, index 2: state 50 follows 1" in text
@@ -58,6 +69,14 @@ def test_notebook_runs_with_a_tiny_budget(name, tiny_budget):
         assert "V* from the start distribution: 6.327" in text
         assert "first goal at step" in text and "deliveries per run" in text   # both batches ran
     else:
-        assert "6 runs × 400 steps" in text                 # 6 variants × 1 seed, the tiny budget
-        assert len(list((tiny_budget / "runs/intrinsic_reward/tb").glob("world40__*"))) == 6
+        assert "8 runs × 400 steps" in text                 # 8 variants × 1 seed, the tiny budget
+        assert len(list((tiny_budget / "runs/intrinsic_reward/tb").glob("world40__*"))) == 8
         assert "cycle-safe: True" in text
+        assert "20 of them into the goal" in text           # computed, not a hard-coded "all"
+        # Every claim of "What we see" is checked by a cell (True/False at any budget).
+        assert sum(line.strip().startswith(("True ", "False ")) for line in text.splitlines()) == 12
+        from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+        acc = EventAccumulator(str(earlier))
+        acc.Reload()
+        assert [e.step for e in acc.Scalars("charts/goals_in_window")] == [100, 200, 300, 400]
+

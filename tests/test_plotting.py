@@ -1,7 +1,9 @@
-"""The Fig. 2 style world picture: what is drawn, where, and that it saves without pyplot."""
+"""Pictures: the Fig. 2 world (what is drawn, where, saved without pyplot), state maps that keep
+"no data" apart from low values, curves with n, bands and medians, first goals, TensorBoard maps."""
 
 import numpy as np
 import pytest
+import torch
 from matplotlib.figure import Figure
 
 from himit_torch.demonstrations import Demonstrations
@@ -62,3 +64,90 @@ def test_save_world_figure_writes_a_png(world, tmp_path):
     path = save_world_figure(tmp_path / "world.png", world, Demonstrations(EPISODES, world))
     data = path.read_bytes()
     assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 2000
+
+
+# ------------------------------------------------------------------------------- state maps
+def test_state_map_keeps_never_visited_apart_from_low_values(world):
+    from matplotlib.colors import to_rgba
+
+    from himit_torch.plotting import NO_DATA_COLOR, WALL_COLOR, plot_state_map
+    field = np.zeros(world.num_states)
+    field[[0, 1, 2]] = [0.0, 0.5, 1.0]       # visited, salience 0 / 0.5 / 1
+    never = np.ones(world.num_states, dtype=bool)
+    never[[0, 1, 2]] = False
+    fig = Figure()
+    ax = fig.add_subplot()
+    image = plot_state_map(ax, world, field, label="salience", no_data=never)
+    data = image.get_array()
+    # A visited cell with salience 0 is coloured (the low end); never-visited cells are masked
+    # and drawn in the no-data grey, which is not a colour of the scale.
+    assert not data.mask[0, 0] and data.mask[0, 3] and data.mask[4, 0]
+    assert image.cmap.get_bad() == pytest.approx(to_rgba(NO_DATA_COLOR))
+    assert all(image.cmap(x) != pytest.approx(to_rgba(NO_DATA_COLOR)) for x in np.linspace(0, 1, 11))
+    walls = ax.get_images()[1]
+    assert walls.cmap(0.0) == pytest.approx(to_rgba(WALL_COLOR))
+    assert fig.axes[-1].get_ylabel() == "salience"      # the colorbar says what it measures
+
+
+def test_log_map_shows_zero_counts_as_no_data(world):
+    from himit_torch.plotting import plot_state_map
+    visits = np.zeros(world.num_states)
+    visits[[0, 1]] = [1, 100]
+    fig = Figure()
+    image = plot_state_map(fig.add_subplot(), world, visits, label="visits", log=True)
+    assert image.get_array().mask.reshape(-1)[2] and image.norm.vmin == 1 and image.norm.vmax == 100
+
+
+# --------------------------------------------------------------------------- learning curves
+def test_runs_split_when_some_seeds_end_far_below_the_others():
+    from himit_torch.plotting import runs_split
+    assert runs_split(np.array([[0, 50], [0, 52], [0, 1]]))
+    assert not runs_split(np.array([[0, 50], [0, 52], [0, 40]]))
+    assert not runs_split(np.array([[0, 0], [0, 0]]))        # all failed alike: no split
+
+
+def test_goal_curves_state_n_outcomes_median_and_our_optimum():
+    from matplotlib.collections import PolyCollection
+
+    from himit_torch.plotting import plot_goal_curves
+    fig = Figure()
+    ax = fig.add_subplot()
+    steps = np.array([5000, 10000])
+    plot_goal_curves(ax, steps, {"known": np.array([[30, 50], [35, 52], [20, 48]]),
+                                 "none": np.array([[0, 52], [10, 51], [0, 0]])},
+                     optimum=54.72, paper_optimum=53.2, window=5000)
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert "known: mean of n=3, 3/3 found the goal" in labels
+    assert "none: mean of n=3, 2/3 found the goal; median dashed" in labels
+    assert "optimal policy, exact: 54.7" in labels and "the paper's optimum: ≈ 53.2" in labels
+    dashed = [ln for ln in ax.get_lines() if ln.get_linestyle() == "--"]
+    assert len(dashed) == 1 and list(dashed[0].get_ydata()) == [0, 51]   # only "none" split
+    assert len([c for c in ax.collections if isinstance(c, PolyCollection)]) == 2   # two bands
+
+
+def test_first_goals_show_never_and_the_median():
+    from himit_torch.plotting import plot_first_goals
+    fig = Figure()
+    ax = fig.add_subplot()
+    plot_first_goals(ax, {"known": [876, 2953, 4451], "none": [-1, 97145, 31118]}, 100_000)
+    texts = [t.get_text() for t in ax.texts]
+    assert "n=3, median 2,953" in texts and "n=3, 2/3 found it" in texts
+    assert "never" in [t.get_text() for t in ax.get_xticklabels()]
+
+
+# ------------------------------------------------------------------------ TensorBoard maps
+def test_value_map_greys_out_cells_still_at_the_initial_value():
+    from matplotlib.colors import to_rgb
+
+    from himit_torch.plotting import NO_DATA_COLOR, MapRenderer
+    world = MultiRooms(size=16, rooms=4)
+    renderer = MapRenderer(world)
+    grey = (np.array(to_rgb(NO_DATA_COLOR)) * 255).round()
+    values = torch.full((world.num_states,), -0.5, dtype=torch.float64)
+    values[:128] = -1.0                                    # the top half: no route known yet
+    with_unknown = renderer.values(values, "half unknown")
+    all_known = renderer.values(torch.full_like(values, -0.5), "all known")
+    count = lambda rgb: int((np.abs(rgb.astype(float) - grey).sum(-1) < 8).sum())
+    assert with_unknown.shape[1] >= 400 and with_unknown.dtype == np.uint8
+    # Only the legend's patch is grey when no cell is at −1.
+    assert count(with_unknown) > 10 * max(count(all_known), 1)
