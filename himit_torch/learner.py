@@ -48,7 +48,8 @@ __all__ = ["Learner", "LearnerConfig", "AGENTS"]
 @dataclass
 class LearnerConfig:
     """Settings of the learner. Defaults follow the paper where it speaks (ε, γ from the world) and
-    ``shared/docs/REPRODUCTION-NOTES.md`` where it is silent."""
+    ``docs/reproduction-notes.md`` (what an earlier straightforward implementation showed) where
+    it is silent."""
 
     backups: int = 10
     """Prioritized-sweeping backups per decision (the paper: about the number of options needed to
