@@ -195,18 +195,36 @@ class EdgeStore:
             ids = index.find(runs, rows, successors)
         return ids
 
+    @property
+    def used(self) -> int:
+        """Edge slots in use by the fullest run (what a checkpoint keeps of the lists)."""
+        return max(1, int(self.num_edges.max()))
+
     def state_dict(self) -> dict:
-        names = ("edge_row", "edge_successor", "num_edges") + self._EDGE_FLOATS + self._ROW_FLOATS
-        return {name: getattr(self, name).clone() for name in names}
+        """The edge lists (only the slots in use), counts and per-row sums."""
+        used = self.used
+        out = {name: getattr(self, name)[:, :used].clone()
+               for name in ("edge_row", "edge_successor") + self._EDGE_FLOATS}
+        out.update({name: getattr(self, name).clone() for name in ("num_edges",) + self._ROW_FLOATS})
+        return out
 
     def load_state_dict(self, state: dict) -> None:
         for name, value in state.items():
             current = getattr(self, name)
-            if name not in ("num_edges",) and value.shape[0] != current.shape[0]:
-                raise ValueError(f"model state {name} has {value.shape[0]} runs, this model {current.shape[0]}")
+            if value.shape[0] != current.shape[0] or value.dim() != current.dim() or \
+                    (name in ("num_edges", "state_tries") + self._ROW_FLOATS and value.shape != current.shape):
+                raise ValueError(f"model state {name} has shape {tuple(value.shape)}, this model's "
+                                 f"{tuple(current.shape)}")
             setattr(self, name, value.to(self.device).clone())
+        saved = self.edge_row.shape[1]
+        capacity = 256
+        while capacity < saved:
+            capacity *= 2
+        self.edge_row = _grow_columns(self.edge_row, capacity, -1)
+        self.edge_successor = _grow_columns(self.edge_successor, capacity, -1)
+        for name in self._EDGE_FLOATS:
+            setattr(self, name, _grow_columns(getattr(self, name), capacity))
         self.version += 1
-        capacity = self.capacity
         for callback in self.on_grow:
             callback(capacity)
 

@@ -73,16 +73,27 @@ class ValueCache:
               "mentor_edge_reward")
 
     def state_dict(self) -> dict:
-        return {name: getattr(self, name).clone() for name in self._STATE}
+        out = {name: getattr(self, name).clone() for name in self._STATE}
+        out["mentor_edge_reward"] = self.mentor_edge_reward[:, :self.mentor.used].clone()
+        return out
 
     def load_state_dict(self, state: dict) -> None:
+        """Restore (after the mentor model, whose capacity the edge rewards follow)."""
         for name in self._STATE:
-            setattr(self, name, state[name].to(self.device).clone())
+            value, current = state[name], getattr(self, name)
+            if value.shape[0] != current.shape[0] or (name != "mentor_edge_reward"
+                                                      and value.shape != current.shape):
+                raise ValueError(f"value cache {name} has shape {tuple(value.shape)}, this "
+                                 f"learner's {tuple(current.shape)}")
+            setattr(self, name, value.to(self.device).clone())
+        self._grow_mentor_reward(self.mentor.capacity)
 
     def _grow_mentor_reward(self, capacity: int) -> None:
-        if capacity > self.mentor_edge_reward.shape[1]:
+        """Keep one edge reward per slot of the mentor model's edge lists."""
+        if capacity != self.mentor_edge_reward.shape[1]:
             grown = torch.zeros(self.batch, capacity, dtype=torch.float64, device=self.device)
-            grown[:, :self.mentor_edge_reward.shape[1]] = self.mentor_edge_reward
+            keep = min(capacity, self.mentor_edge_reward.shape[1])
+            grown[:, :keep] = self.mentor_edge_reward[:, :keep]
             self.mentor_edge_reward = grown
 
     # ============================================================================ value queries
