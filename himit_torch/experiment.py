@@ -326,9 +326,9 @@ def run_world(config: ExperimentConfig, size: int, run_dir: Path, resume: bool,
     # Maps during training for the first two seeds of every agent: more than one seed, at a cost
     # (≈ 0.2 s a run and checkpoint) that stays small beside the run.
     map_runs = [b for b, s in enumerate(run_seeds) if s in seeds[:2]]
-    # ... at about four moments of training and at the end (drawing them costs ≈ 0.2 s a run:
-    # at every checkpoint they took longer than the learning itself)
-    maps_every = config.checkpoint_every * max(1, round(config.steps / 4 / config.checkpoint_every))
+    # ... half-way and at the end (drawing them costs ≈ 0.2 s a run: at every checkpoint they
+    # took longer than the learning itself)
+    maps_every = config.checkpoint_every * max(1, round(config.steps / 2 / config.checkpoint_every))
     mentor_visits = {b: torch.bincount(torch.cat([torch.as_tensor(e) for e in
                                                   demos[run_seeds[b]].episodes]),
                                        minlength=world.num_states) for b in map_runs}

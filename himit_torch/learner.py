@@ -517,10 +517,14 @@ class Learner:
         out = torch.full((self.batch,), float("nan"), dtype=torch.float64, device=self.device)
         if not bool(observed.any()):
             return out
-        states = observed.any(0).nonzero()[:, 0]
-        runs = torch.arange(self.batch, device=self.device)
-        _, _, won = self.cache.state_backup(runs[:, None], states[None].expand(self.batch, -1))
-        frac = (won & observed[:, states]).sum(1).double() / observed.sum(1).clamp(min=1)
+        if hasattr(self.engine, "mentor_wins"):       # the compiled backup: ~1000× faster
+            wins = self.engine.mentor_wins().to(self.device)
+        else:
+            states = observed.any(0).nonzero()[:, 0]
+            runs = torch.arange(self.batch, device=self.device)
+            _, _, won = self.cache.state_backup(runs[:, None], states[None].expand(self.batch, -1))
+            wins = (won & observed[:, states]).sum(1)
+        frac = wins.double() / observed.sum(1).clamp(min=1)
         return torch.where(self.rows.use_mentor, frac, out)
 
     def greedy_options(self) -> torch.Tensor:

@@ -197,3 +197,16 @@ def test_engine_curves_agree_statistically_over_20_seeds():
         a, b = totals["numba"][k::3], totals["torch"][k::3]
         assert scipy.stats.ks_2samp(a, b).pvalue > 0.05
     np.testing.assert_array_equal(totals["numba"], totals["torch"])
+
+
+def test_mentor_win_share_is_the_same_from_either_engine(world12, demos12):
+    """The compiled count of states where the mentor term wins equals the batched one."""
+    learner = Learner(world12, learner_options(world12), AGENT_MIX, range(5),
+                      config=CONFIGS["priors_override_first"], demonstrations=demos12)
+    learner.run(2000)
+    compiled = learner.mentor_win_share()
+    learner.use_engine("torch")
+    batched = learner.mentor_win_share()
+    assert torch.equal(compiled.isnan(), ~learner.rows.use_mentor)
+    torch.testing.assert_close(compiled, batched, equal_nan=True, rtol=0, atol=0)
+    assert float(compiled.nan_to_num(0).max()) > 0

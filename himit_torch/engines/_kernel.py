@@ -591,3 +591,24 @@ def link_edges(edge_row, edge_succ, num_edges, row_head, row_next, succ_head, su
             row_head[b, r] = e
             succ_next[b, e] = succ_head[b, s]
             succ_head[b, s] = e
+
+
+@njit(parallel=True, cache=True)
+def mentor_wins(cfg_f, cfg_i, state_rows, terminal, use_mentor, use_conf, q_num, q_sec, row_count,
+                row_reward, row_enabled, state_tries, m_num, m_sec, m_row_count, out):
+    """``out[b]``: how many of run ``b``'s mentor-observed states the mentor term wins eq. 2 in
+    (:meth:`Learner.mentor_win_share`), by the kernel's own backup."""
+    B = out.shape[0]
+    S = terminal.shape[0] - 1
+    for b in prange(B):
+        won_states = 0
+        if use_mentor[b]:
+            for s in range(S):
+                if m_row_count[b, s] > 0:
+                    _, _, won = _state_backup(cfg_f, cfg_i, state_rows, terminal, use_mentor,
+                                              use_conf, q_num, q_sec, row_count, row_reward,
+                                              row_enabled, state_tries, m_num, m_sec, m_row_count,
+                                              b, s)
+                    if won:
+                        won_states += 1
+        out[b] = won_states

@@ -78,6 +78,19 @@ class NumbaEngine:
                      np.zeros((B, S + 1), dtype=np.int64), np.zeros(B, dtype=np.int64))
         self._links: dict[str, tuple] = {}
 
+    def mentor_wins(self) -> torch.Tensor:
+        """``[B]`` how many mentor-observed states the mentor term wins eq. 2 in, per run."""
+        L = self.learner
+        cache, model, rows = L.cache, L.model, L.rows
+        out = np.zeros(L.batch, dtype=np.int64)
+        _kernel.mentor_wins(self.cfg_f, self.cfg_i, _np(rows.state_rows), _np(L.terminal),
+                            _np(rows.use_mentor), _np(rows.use_confidence), _np(cache.q_numerator),
+                            _np(cache.q_second), _np(model.row_count), _np(model.row_reward),
+                            _np(rows.row_enabled), _np(model.state_tries),
+                            _np(cache.mentor_numerator), _np(cache.mentor_second),
+                            _np(L.mentor.row_count), out)
+        return torch.from_numpy(out)
+
     def invalidate(self) -> None:
         """The state was changed outside this engine: relink before the next call."""
         self._links.clear()
