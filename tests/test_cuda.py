@@ -1,13 +1,23 @@
 """The CUDA path: the torch engine on a GPU takes the decisions of the compiled engine on the CPU.
 
-Skipped without a CUDA device (CI has none). On a GPU, ``index_add_``/``scatter_add_`` on float64
-add repeated indices with atomics in no fixed order, so the ``Q`` and mentor caches, ``V`` and the
-sweep priorities may differ from the CPU's in the last bits. Decisions, goals, counts, edge lists
-and curves must still be identical; float64 state is compared to ``VALUES_ATOL``: every such
-quantity here is at most ~1e2 (values ≤ 1, caches are counts × values), one reordered addition
-moves it by ≤ ~1e2 · 2⁻⁵³ ≈ 1e-14, and a run of a few thousand ticks makes ~1e5 of them per
-batch, so honest reordering stays orders of magnitude below 1e-9, while a wrong operation (a lost
-or doubled update) moves a value by ≥ ~1e-3.
+Skipped without a CUDA device (CI has none); about a minute on one.
+
+On a GPU, ``index_add_``/``scatter_add_`` on float64 add repeated indices with atomics in no
+fixed order, so the ``Q`` and mentor caches, ``V`` and the sweep priorities differ from the CPU's
+in the last bits (≤ ~1e-15 here). Each quantity compared is at most ~1e2 (values ≤ 1, caches
+are counts × values), so ``VALUES_ATOL = 1e-9`` leaves six orders of magnitude for rounding
+while a wrong operation (a lost or doubled update) moves a value by ≥ ~1e-3.
+
+Why the horizons are short: prioritized sweeping is not continuous in its inputs. A sweep backs
+up the ``n`` highest-priority states, ties to the lowest state, and stops at its budget; when
+two priorities are equal on the CPU and one ulp apart on the GPU, another state is backed up
+first and values move by ~1e-4 in one tick (measured on an H100: 12×12 world, default config,
+drift ≤ 1e-15 until tick 1346, then 1.6e-4; first different decision at tick 3209; with
+``plan_every=4, sweep_rounds=1`` the first different decision at tick 3442). Runs longer than
+~1000 ticks are therefore equal only in distribution, not tick for tick, and even two CUDA runs
+of one batch may differ. So the tests below check (a) 1000 ticks from the start, (b) 40 ticks
+from exact CPU states taken late in a run (many edges, goals, mentor terms), and (c) a CUDA
+checkpoint resumed on the CPU, each within that horizon.
 """
 import pytest
 import torch
@@ -26,7 +36,7 @@ CONFIGS = {
 VALUES_ATOL = 1e-9
 #: float64 tensors that hold counts (sums of ones: exact in any order) or ε (no sums): compared exactly
 EXACT_FLOATS = {"epsilon", "row_count", "state_tries", "model.edge_count", "mentor.edge_count"}
-TICKS = 3000
+TICKS = 1000            # one whole metrics window, inside the horizon where runs agree tick for tick
 
 
 @pytest.fixture(scope="module")
@@ -62,22 +72,33 @@ def _state(learner: Learner) -> dict[str, torch.Tensor]:
     return {name: value.cpu() for name, value in state.items()}
 
 
-def assert_same_run(cpu: Learner, gpu: Learner) -> None:
+def assert_same_run(cpu: Learner, other: Learner) -> None:
     """Same decisions, goals, counts, edges and curves exactly; float64 state to VALUES_ATOL."""
-    assert cpu.t == gpu.t
-    a, b = _state(cpu), _state(gpu)
+    assert cpu.t == other.t
+    a, b = _state(cpu), _state(other)
     for name in a:
         if a[name].dtype == torch.float64 and name not in EXACT_FLOATS:
             torch.testing.assert_close(b[name], a[name], atol=VALUES_ATOL, rtol=0,
-                                       msg=lambda m, name=name: f"{name}: {m}")
+                                       msg=lambda m, name=name: f"t={cpu.t} {name}: {m}")
         else:
-            assert torch.equal(a[name], b[name]), name
-    assert torch.equal(cpu.metrics.curve(), gpu.metrics.curve())
+            assert torch.equal(a[name], b[name]), f"t={cpu.t} {name}"
+    assert torch.equal(cpu.metrics.curve(), other.metrics.curve()), f"t={cpu.t} curve"
+
+
+def _all_tensors(x):
+    if isinstance(x, torch.Tensor):
+        yield x
+    elif isinstance(x, dict):
+        for v in x.values():
+            yield from _all_tensors(v)
+    elif isinstance(x, (list, tuple)):
+        for v in x:
+            yield from _all_tensors(v)
 
 
 @pytest.mark.parametrize("name", list(CONFIGS))
 def test_cuda_torch_engine_matches_cpu_numba(world12, demos12, name):
-    """Every agent variant, 3000 ticks: the CUDA run is the CPU run."""
+    """Every agent variant, one window of 1000 ticks: the CUDA run is the CPU run."""
     cpu = _make(world12, demos12, CONFIGS[name], "cpu", "numba")
     gpu = _make(world12, demos12, CONFIGS[name], "cuda", "torch")
     assert gpu.values.is_cuda and gpu.engine.name == "torch"
@@ -88,28 +109,32 @@ def test_cuda_torch_engine_matches_cpu_numba(world12, demos12, name):
 
 
 @pytest.mark.parametrize("name", list(CONFIGS))
+def test_cuda_ticks_from_late_cpu_states(world12, demos12, name):
+    """From exact CPU states at ticks 1500 and 3000 (edge lists grown, goals found, mentor terms
+    in play), 40 CUDA ticks are the CPU's 40 ticks."""
+    cpu = _make(world12, demos12, CONFIGS[name], "cpu", "numba")
+    gpu = _make(world12, demos12, CONFIGS[name], "cuda", "torch")
+    for until in (1500, 3000):
+        cpu.run(until - cpu.t)
+        gpu.load_state_dict(cpu.state_dict())
+        assert gpu.values.is_cuda and gpu.model.edge_row.is_cuda
+        cpu.run(40)
+        gpu.run(40)
+        assert_same_run(cpu, gpu)
+    assert int(cpu.goals.sum()) > 0
+
+
+@pytest.mark.parametrize("name", list(CONFIGS))
 def test_cuda_checkpoint_resumes_on_the_cpu(world12, demos12, name):
-    """A CUDA learner's state_dict loads into a CPU (numba) learner and goes on to the run an
+    """A CUDA learner's state_dict loads into a CPU (numba) learner, which goes on to the run an
     uninterrupted CPU run makes."""
     straight = _make(world12, demos12, CONFIGS[name], "cpu", "numba")
     straight.run(TICKS)
     gpu = _make(world12, demos12, CONFIGS[name], "cuda", "torch")
-    gpu.run(1200)
+    gpu.run(400)
     resumed = _make(world12, demos12, CONFIGS[name], "cpu", "numba")
     resumed.load_state_dict(gpu.state_dict())
-    assert all(not t.is_cuda for t in _state_tensors(resumed))
-    resumed.run(TICKS - 1200)
+    assert not any(t.is_cuda for t in _all_tensors(resumed.state_dict()))
+    resumed.run(TICKS - 400)
+    assert resumed.engine.name == "numba"
     assert_same_run(straight, resumed)
-
-
-def _state_tensors(learner: Learner):
-    def walk(x):
-        if isinstance(x, torch.Tensor):
-            yield x
-        elif isinstance(x, dict):
-            for v in x.values():
-                yield from walk(v)
-        elif isinstance(x, (list, tuple)):
-            for v in x:
-                yield from walk(v)
-    yield from walk(learner.state_dict())

@@ -113,13 +113,13 @@ def test_tensorboard_holds_first_goal_true_value_descriptions_and_maps(small_run
         assert all(e.value == pytest.approx(result.true_value_start, abs=1e-6) for e in true_v)
         assert acc.Scalars("model/value_start")[-1].value == pytest.approx(result.value_start[b],
                                                                            abs=1e-6)
-        # Maps during training (every checkpoint, not only at the end), for both seeds, with
-        # colorbars or legends drawn in: wide enough to read.
+        # Maps during training (half-way — the checkpoint nearest it — not only at the end), for
+        # both seeds, with colorbars or legends drawn in: wide enough to read.
         images = set(acc.Tags()["images"])
         assert images == set(IMAGE_DESCRIPTIONS)
         for tag in images:
             events = acc.Images(tag)
-            assert [e.step for e in events] == [1000, 2000, 3000]
+            assert [e.step for e in events] == [2000, 3000]
             assert events[0].width >= 400 and events[0].height >= 300
             assert acc.SummaryMetadata(tag).summary_description == IMAGE_DESCRIPTIONS[tag]
     # The options-only runs have no mentor term to log.
