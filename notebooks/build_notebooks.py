@@ -2,7 +2,7 @@
 cells below, and (with ``--execute``) run them top to bottom in place so that they are committed
 with their outputs.
 
-    .venv/bin/python notebooks/build_notebooks.py --execute     # a few minutes on a laptop CPU
+    .venv/bin/python notebooks/build_notebooks.py --execute     # about a minute on a laptop CPU
 
 Edit the notebooks here, not in Jupyter, so that text and code stay reviewable in one place.
 The budgets come from environment variables (``HIMIT_NOTEBOOK_STEPS``, ``HIMIT_NOTEBOOK_SEEDS``);
@@ -169,39 +169,42 @@ seeds, CIs are 95 % intervals of the mean (paired by seed for differences). With
 the numbers above change and this text may not hold; the checks say which parts do.*
 
 **The intrinsic reward with its defaults did better than the known reward.** Over 100,000 steps
-the `intrinsic` runs reached the goal 965 times on average (959–968 per seed) against 891
-(814–936) with the known reward: 73 more, paired CI +15 to +131, ahead in 5 of 5 seeds (C1).
-Over the last 4 windows they reached 51.8 goals per 5000 steps (51.2–52.2) against 48.5
-(44.2–51.5); the exact optimum is 54.7 (the paper reports ≈ 53.2). Their first goals came about
-as early: medians 3536 and 3695, paired difference +187 steps, CI covering 0 (C12).
+the `intrinsic` runs reached the goal 958 times on average (949–977 per seed) against 892
+(841–916) with the known reward: 66 more, paired CI +33 to +99, ahead in 5 of 5 seeds (C1).
+Over the last 4 windows they reached 51.5 goals per 5000 steps (50.5–52.8) against 49.2
+(47.8–50.5); the exact optimum is 54.7 (the paper reports ≈ 53.2). Their first goals came about
+as early: medians 3536 and 3179, paired difference +581 steps, CI covering 0 (C12).
 
 **Salience is not the reason; the level of `R_m` is.** The control `flat_0.02` — the same
 learner and module with no step salience (`scale=0`: every mentor step costs 0.02, the end pays
-0.5) — reached 960 goals (942–979), 5 fewer than `intrinsic`: paired CI −18 to +27, covering
-0 (C2). The control `flat_0.01` — the real step cost, no salience, the same end — reached 880
-(832–919), no different from the known reward (paired −11, CI covering 0; C4) and 80 fewer than
-`flat_0.02` (CI above 0, ahead in 5 of 5 seeds; C3). So the smaller end reward alone changes
-nothing measurable; charging the mentor's steps *more* than they really cost is what helps:
+0.5) — reached 960 goals (945–969), as many as `intrinsic`: paired difference −1, CI from −16
+to +14, covering 0 (C2). The control `flat_0.01` — the real step cost, no salience, the same end —
+reached 853 (819–884), not measurably different from the known reward (paired −39, CI −80 to +3,
+just covering 0; behind in 4 of 5 seeds; C4) and 106 fewer than `flat_0.02` (CI +70 to +142,
+above 0; `flat_0.02` ahead in 5 of 5 seeds; C3). So the smaller end reward alone changes nothing
+measurable at n = 5 (if anything it costs a few goals); charging the mentor's steps *more* than
+they really cost is what helps:
 
 * The mentor term enters the max of eq. 2 and nothing ever corrects it. With the known reward
-  it is **optimistic**: every known-reward run believes `V(start)` is −0.155 to −0.176, above the
+  it is **optimistic**: every known-reward run believes `V(start)` is −0.154 to −0.173, above the
   true optimum −0.192 (C5) — the mentor model lumps the mentor's different wall-following
   options into one next-state distribution per state, and the learner's own options cannot
   follow the mentor's moves exactly (`docs/reproduction-notes.md`, section 3). The inflated
   values keep pulling the learner back onto the mentor's route: at the end the mentor term still
-  wins at 61–78 % of the mentor's states (C7).
+  wins at 65–78 % of the mentor's states (mean 72 %; C7).
 * Charging 0.01–0.02 per mentor step (never less than the real 0.01) and paying 0.5 at the end
-  makes the mentor term **pessimistic**: `V(start)` −0.204 to −0.224 (`intrinsic`) and −0.207 to
-  −0.220 (`flat_0.02`), all below −0.192 (C6). It still guides the learner to the goal early —
+  makes the mentor term **pessimistic**: `V(start)` −0.197 to −0.224 (`intrinsic`) and −0.204 to
+  −0.213 (`flat_0.02`), all below −0.192 (C6). It still guides the learner to the goal early —
   any route that ends in the goal beats the −1 of the unknown — and then loses the max wherever
-  the learner's own experience of the real +1 is better: it wins at only 52–76 % of the
-  mentor's states (C7), and the learner's own route takes over (in the visits maps above, the
-  greedy episode of `intrinsic` leaves the mentor's diagonal; that of `known` follows it).
+  the learner's own experience of the real +1 is better: it wins at only 43–73 % of the
+  mentor's states (mean 54 %; C7), and the learner's own route takes over (in the visits maps
+  above, the greedy episode of `intrinsic` leaves the mentor's diagonal; that of `known` follows it).
 
-**The end event: no clear effect on the first goal, none on the final rate.** Without it
-(`intrinsic_no_end`: no reward above −0.01 anywhere) the median first goal came later (4645 vs
-3536), but only 3 of 5 seeds were later, and the paired difference (+1812 steps) has a CI
-covering 0; the final rate did not drop (52.3 per window, 960 goals; C8). Even without any
+**The end event: no measurable effect on the first goal or on the final rate.** Without it
+(`intrinsic_no_end`: no reward above −0.01 anywhere) the median first goal came at step 2961
+against 3536, later in only 2 of 5 seeds; the paired difference (+293 steps, CI −3820 to +4406)
+covers 0, and so does that of the final rate (51.5 per window, −0.1, CI −2.4 to +2.3; 958 goals;
+C8). Even without any
 positive reward the mentor term helps, because this learner knows which states are terminal
 (value 0) and starts every other state at −1: a mentor route that ends in a terminal state is
 already attractive. A learner that did not know where episodes end would depend on the end
@@ -211,22 +214,22 @@ event.
 
 * `intrinsic_free` makes salient steps free (`scale = step_cost = 0.01`). That is cycle-safe,
   but the room entries along each mentor episode (about one per doorway crossed, 18 on the
-  shortest route) now cost 0 instead of 0.01: `V(start)` −0.037
-  to −0.063, far above the true −0.192. The mentor term wins more (73–81 % of the mentor's
-  states), and the learners reach fewer goals than with the known reward: 771 (625–882), paired
-  −120, CI −236 to −4, behind in 5 of 5 seeds (C9); 44.0 per window at the end (36.2–50.8).
-* `intrinsic_paying` lets salient steps pay +0.1. The learners farm it: `V(start)` 3.66–4.13
-  (nothing real exceeds 1), 0 or 1 goals in 100,000 steps (C10); the greedy episode of seed 0
-  spends 1814 of its 2000 steps on two doorway cells, (2, 4) and (4, 6). Stepping through a
-  doorway and back is worth about 0.1 / (1 − γ²) ≈ 5 to them; their own experience cannot
-  correct it, because the mentor term is never checked against it.
+  shortest route) now cost 0 instead of 0.01: `V(start)` −0.040
+  to −0.062, far above the true −0.192. The mentor term wins more (72–83 % of the mentor's
+  states), and the learners reach fewer goals than with the known reward: 712 (640–819), paired
+  −180, CI −310 to −49, behind in 5 of 5 seeds (C9); 44.0 per window at the end (38.0–49.2).
+* `intrinsic_paying` lets salient steps pay +0.1. The learners farm it: `V(start)` 3.49–3.85
+  (nothing real exceeds 1), 0 to 2 goals in 100,000 steps (C10); the greedy episode of seed 0
+  spends 1928 of its 2000 steps on a doorway cell, (2, 4), and the cell next to it in the start
+  room, (2, 3). Stepping through a doorway and back is worth about 0.1 / (1 − γ²) ≈ 5 to them;
+  their own experience cannot correct it, because the mentor term is never checked against it.
 
 **Without a mentor the runs split** (`none`, options only): one never found the goal and one only
 at step 97,145; the other three needed 10–31k steps (C11). The mean of 32 goals per window at
 the end describes none of them — the median (dashed in its panel) and the outcome count do. The
-three that found it early end at 51.8–53.0 per window, above the known-reward imitators and
-level with the intrinsic ones: with no mentor term nothing pulls them off their own best route
-(`docs/reproduction-notes.md`, section 3).
+three that found it early end at 52.0–53.0 per window, above the known-reward imitators
+(47.8–50.5) and level with the intrinsic ones (50.5–52.8): with no mentor term nothing pulls
+them off their own best route (`docs/reproduction-notes.md`, section 3).
 
 **In short:** in this world the intrinsic learner does as well as the known reward, and better,
 *because* its reward is a cautious lower bound — the flat control without salience does the same
@@ -268,7 +271,7 @@ two controls without salience, to show what salience itself contributes.
 
 Budget: `STEPS` per run and `SEEDS` seeds per variant (environment variables
 `HIMIT_NOTEBOOK_STEPS`, `HIMIT_NOTEBOOK_SEEDS`). The outputs stored with the notebook come from
-the defaults below: 5 seeds × 100,000 steps × 8 variants, about 6 minutes on one CPU core."""),
+the defaults below: 5 seeds × 100,000 steps × 8 variants, under a minute on one CPU core."""),
     new_code_cell("""\
 import os
 from pathlib import Path
@@ -629,18 +632,19 @@ claims = {
     "C7 the mentor term wins less often with intrinsic than with known (mean share)":
         (wins_np[runs_of["intrinsic"]].mean() < wins_np[runs_of["known"]].mean(),
          f"intrinsic {rng('intrinsic', wins_np, 2)}, known {rng('known', wins_np, 2)}"),
-    "C8 without the end event the first goal comes later (median), the final rate does not drop":
-        (median_first("intrinsic_no_end") > median_first("intrinsic")
-         and c["intrinsic_no_end", "intrinsic"]["last"]["ci"][1] >= 0,
-         f"first goal {fmt(c['intrinsic_no_end', 'intrinsic']['first'])}; last 4 windows "
+    "C8 without the end event neither the first goal nor the final rate changes measurably (paired CIs cover 0)":
+        (c["intrinsic_no_end", "intrinsic"]["first"]["ci"][0] <= 0 <= c["intrinsic_no_end", "intrinsic"]["first"]["ci"][1]
+         and c["intrinsic_no_end", "intrinsic"]["last"]["ci"][0] <= 0 <= c["intrinsic_no_end", "intrinsic"]["last"]["ci"][1],
+         f"first goal {fmt(c['intrinsic_no_end', 'intrinsic']['first'])}; medians "
+         f"{median_first('intrinsic_no_end'):.0f} vs {median_first('intrinsic'):.0f}; last 4 windows "
          f"{fmt(c['intrinsic_no_end', 'intrinsic']['last'], 1)}"),
     "C9 free salient steps overestimate and cost goals: intrinsic_free below known (paired CI)":
         (c["intrinsic_free", "known"]["goals"]["ci"][1] < 0
          and bool((vs[runs_of["intrinsic_free"]] > best.value_start).all()),
          f"{fmt(c['intrinsic_free', 'known']['goals'])}; V(start) {rng('intrinsic_free', vs, 3)}"),
-    "C10 paying salient steps are farmed: V(start) > 1 and at most 1 goal in every run":
+    "C10 paying salient steps are farmed: V(start) > 1 and at most 2 goals in every run":
         (bool((vs[runs_of["intrinsic_paying"]] > 1).all()
-              and (goals_total[runs_of["intrinsic_paying"]] <= 1).all()),
+              and (goals_total[runs_of["intrinsic_paying"]] <= 2).all()),
          f"V(start) {rng('intrinsic_paying', vs, 2)}, goals {rng('intrinsic_paying', goals_total)}; "
          f"greedy episode of seed 0: {greedy_facts['intrinsic_paying']['top2_steps']} of "
          f"{greedy_facts['intrinsic_paying']['steps']} steps on {greedy_facts['intrinsic_paying']['top2']}"),
