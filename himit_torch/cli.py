@@ -320,7 +320,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     print(f"{config.name}: worlds {list(config.sizes)}, agents {list(config.agents)}, "
           f"{config.seeds} seeds, {config.steps:,} steps → {run_dir}")
     t0 = time.perf_counter()
-    run_experiment(config, run_dir, resume=args.resume, force=args.force, progress=not args.quiet)
+    run_experiment(config, run_dir, resume=args.resume, force=args.force, progress=not args.quiet,
+                   workers=args.workers)
     print(f"done in {time.perf_counter() - t0:.0f} s: {run_dir / 'results.md'}")
     return 0
 
@@ -367,6 +368,9 @@ def _add_run(sub: argparse.ArgumentParser) -> None:
                      help="continue an interrupted run from its newest good checkpoint")
     sub.add_argument("--force", action="store_true", help="overwrite a finished run")
     sub.add_argument("--quiet", action="store_true", help="no progress bars")
+    sub.add_argument("--workers", type=_positive_int,
+                     help="worlds run in parallel, one process each (default: one per core, "
+                          "at most one per world; the results do not depend on it)")
 
 
 # ------------------------------------------------------------------------------------- plot

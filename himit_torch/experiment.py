@@ -447,12 +447,18 @@ def _check_run_dir(run_dir: Path, resume: bool, force: bool) -> None:
 
 
 def run_experiment(config: ExperimentConfig, run_dir: str | os.PathLike, resume: bool = False,
-                   force: bool = False, progress: bool = True) -> list[WorldResult]:
-    """Run an experiment into ``run_dir``: every world in turn, then figures and ``results.md``.
+                   force: bool = False, progress: bool = True, workers: int | None = None
+                   ) -> list[WorldResult]:
+    """Run an experiment into ``run_dir``: every world, then figures and ``results.md``.
 
     ``resume=True`` continues an interrupted run from its checkpoints (the configuration must be
     the saved one) and ends with exactly the curves an uninterrupted run gives. A directory with a
     finished run is not overwritten unless ``force``.
+
+    Worlds run in parallel, one process each, ``workers`` at a time (default: as many as there
+    are cores, at most one per world); the cores are shared out between them, so each world's
+    compiled engine gets ``cores // workers`` threads. Each world is independent of the others,
+    so the results are the same for any ``workers``. ``workers=1`` runs them in this process.
     """
     run_dir = Path(run_dir)
     _check_run_dir(run_dir, resume, force)
@@ -471,18 +477,45 @@ def run_experiment(config: ExperimentConfig, run_dir: str | os.PathLike, resume:
                              "given; resume with the saved one (--config "
                              f"{cfg_path}) or start over with --force")
     _atomic_write(cfg_path, config.to_json())
-    results = []
+    finished = {}
     for size in config.sizes:
         done = run_dir / "worlds" / f"world{size}.json"
         if resume and done.exists():
-            results.append(WorldResult(**json.loads(done.read_text())))
-            continue
-        results.append(run_world(config, size, run_dir, resume, progress))
+            finished[size] = WorldResult(**json.loads(done.read_text()))
+    todo = [size for size in config.sizes if size not in finished]
+    cores = os.cpu_count() or 1
+    workers = min(len(todo), cores) if workers is None else min(int(workers), len(todo))
+    if workers > 1:
+        from concurrent.futures import ProcessPoolExecutor
+        import multiprocessing
+        # "spawn": a forked child of a process whose OpenMP threads already ran can hang.
+        with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"),
+                                 initializer=_share_cores, initargs=(max(1, cores // workers),)) as pool:
+            futures = {size: pool.submit(run_world, config, size, run_dir, resume, False)
+                       for size in sorted(todo, reverse=True)}      # the largest worlds first
+            for size, future in futures.items():
+                finished[size] = future.result()
+                if progress:
+                    print(f"{config.name}: world {size}×{size} done", file=sys.stderr, flush=True)
+    else:
+        for size in todo:
+            finished[size] = run_world(config, size, run_dir, resume, progress)
+    results = [finished[size] for size in config.sizes]
     _merge_curves(run_dir, config)
     from .report import write_figures, write_results
     write_figures(run_dir, config, results)
     write_results(run_dir, config, results)
     return results
+
+
+def _share_cores(threads: int) -> None:
+    """A world's process: one torch thread, ``threads`` for the compiled engine."""
+    torch.set_num_threads(1)
+    try:
+        import numba
+    except ImportError:
+        return
+    numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
 
 
 def _merge_curves(run_dir: Path, config: ExperimentConfig) -> None:
