@@ -37,6 +37,8 @@ parser.add_argument("--batches", type=int, nargs="+", default=[1, 16, 64, 256])
 parser.add_argument("--engines", nargs="+", default=["numba", "torch"])
 parser.add_argument("--torch-batches", type=int, nargs="+", default=[1, 16, 64, 256])
 parser.add_argument("--torch-worlds", nargs="+", default=["40", "80c"])
+parser.add_argument("--reference-worlds", nargs="+", default=["40", "80c"],
+                    help="worlds on which the reference runs beside ours")
 parser.add_argument("--out", default=None, help="also write the table to this markdown file")
 
 
@@ -64,9 +66,10 @@ def measure(spec: str, batch: int, steps: int, engine: str, env=None) -> dict:
 _reference: dict = {}
 
 
-def reference_steps_per_second(spec: str, steps: int, agents: tuple[str, ...]) -> float | None:
+def reference_steps_per_second(spec: str, steps: int, agents: tuple[str, ...],
+                               worlds: list[str]) -> float | None:
     """The reference's steps/s for ``agents`` (total steps ÷ total learning time), one repeat."""
-    if not REFERENCE.exists():
+    if not REFERENCE.exists() or spec not in worlds:
         return None
     size, rooms, corners = parse_world(spec)
     total_time = 0.0
@@ -101,7 +104,7 @@ def main() -> None:
                     ours.append(measure(spec, batch, steps, engine))
                     key = (spec, steps, agents)
                     if key not in _reference or len(_reference[key]) < args.repeats:
-                        ref = reference_steps_per_second(spec, steps, agents)
+                        ref = reference_steps_per_second(spec, steps, agents, args.reference_worlds)
                         if ref is not None:
                             _reference.setdefault(key, []).append(ref)
                 sps = statistics.median(r["steps_per_second"] for r in ours)

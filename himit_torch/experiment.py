@@ -130,9 +130,10 @@ class ExperimentConfig:
 
 def _paper_learner() -> LearnerConfig:
     """The experiments' learner: the library defaults, planning every 4 ticks in one round
-    (``plan_every=4, sweep_rounds=1``). On experiment 2 this gave the same curves as planning at
-    every decision in two rounds (goals by 75k steps, mean of 5 seeds: imitation 635 vs 639,
-    options-only identical failures) at a fraction of the cost; see results.md."""
+    (``plan_every=4, sweep_rounds=1``). On experiment 2, against planning at every decision in
+    two rounds, it gave the same totals at 200k steps (imitation 1903 vs 1898, options-only
+    identical failures) but a slower start (goals by 75k steps: imitation 615 vs 646); see
+    experiments/results/results.md."""
     return LearnerConfig(plan_every=4, sweep_rounds=1)
 
 
