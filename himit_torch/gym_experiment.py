@@ -44,6 +44,7 @@ from .exact_option_models import OptionModels, option_models
 from .exact_planning import value_iteration
 from .gym_adapter import from_gymnasium, taxi_navigation_options
 from .learner import AGENTS, Learner, LearnerConfig
+from .experiment import source_commit
 from .mentor import mentor_policy, record_demonstrations
 from .options import Options, primitive_options, subgoal_options
 from .reward import KnownReward
@@ -368,6 +369,7 @@ def run_task(config: GymExperimentConfig, task_name: str, run_dir: Path,
     last = [r for r in rows if r["step"] == learner.t] if rows else []
     summary = {
         "task": task_name, "env_id": task.env_id, "kwargs": task.kwargs, "about": task.about,
+        "engine": learner.engine.name,
         "num_states": world.num_states, "num_actions": world.num_actions,
         "options": list(options.names), "agents": agents, "seeds": run_seeds,
         "optimal_value": evaluator.optimal_value, "optimal_goals_per_window": optimal_rate,
@@ -515,7 +517,9 @@ def write_gym_results(run_dir: Path, config: GymExperimentConfig, summaries: lis
     """``results.md``: per task and agent, mean ± 95 % CI over seeds."""
     lines = [f"# {config.name}: hierarchical imitation on Gymnasium's tabular environments", "",
              "Produced by `himit run gymnasium` (the same as `python "
-             "experiments/gymnasium_worlds.py`); settings: `himit_torch/gym_experiment.py`.", "",
+             "experiments/gymnasium_worlds.py`); settings: `himit_torch/gym_experiment.py`. "
+             f"Code at commit `{source_commit()}`, engine "
+             + ", ".join(sorted({f"`{s.get('engine', 'unknown')}`" for s in summaries})) + ".", "",
              f"{config.seeds} seeds per agent and task, "
              + ", ".join(f"{t} {config.steps_of(t):,}" for t in config.tasks) + " steps per run, "
              f"{config.mentor_episodes} mentor episodes (states only) per seed, γ = {config.gamma}, "
