@@ -38,3 +38,17 @@ class _PlantsMarker:
 def plants_marker():
     """``plants_marker(path)``: an object whose unpickling creates ``path``."""
     return _PlantsMarker
+
+
+@pytest.fixture(scope="module")
+def world12() -> MultiRooms:
+    """12×12 world, 2×2 rooms."""
+    return MultiRooms(12, 2)
+
+
+@pytest.fixture(scope="module")
+def mentor_demos12(world12):
+    """5 demonstrations of the optimal mentor on ``world12`` (the engine-parity tests' batch)."""
+    from himit_torch.mentor import mentor_policy, record_demonstrations
+    from himit_torch.options import mentor_options
+    return record_demonstrations(world12, mentor_policy(world12, mentor_options(world12)), 5, seed=0)

@@ -22,8 +22,7 @@ checkpoint resumed on the CPU, each within that horizon.
 import pytest
 import torch
 
-from himit_torch import (Learner, LearnerConfig, MultiRooms, learner_options, mentor_options,
-                         mentor_policy, record_demonstrations)
+from himit_torch import Learner, LearnerConfig, learner_options
 
 pytestmark = pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")
 pytest.importorskip("numba")
@@ -37,16 +36,6 @@ VALUES_ATOL = 1e-9
 #: float64 tensors that hold counts (sums of ones: exact in any order) or ε (no sums): compared exactly
 EXACT_FLOATS = {"epsilon", "row_count", "state_tries", "model.edge_count", "mentor.edge_count"}
 TICKS = 1000            # one whole metrics window, inside the horizon where runs agree tick for tick
-
-
-@pytest.fixture(scope="module")
-def world12() -> MultiRooms:
-    return MultiRooms(12, 2)
-
-
-@pytest.fixture(scope="module")
-def demos12(world12):
-    return record_demonstrations(world12, mentor_policy(world12, mentor_options(world12)), 5, seed=0)
 
 
 def _make(world, demos, config, device, engine) -> Learner:
@@ -97,10 +86,10 @@ def _all_tensors(x):
 
 
 @pytest.mark.parametrize("name", list(CONFIGS))
-def test_cuda_torch_engine_matches_cpu_numba(world12, demos12, name):
+def test_cuda_torch_engine_matches_cpu_numba(world12, mentor_demos12, name):
     """Every agent variant, one window of 1000 ticks: the CUDA run is the CPU run."""
-    cpu = _make(world12, demos12, CONFIGS[name], "cpu", "numba")
-    gpu = _make(world12, demos12, CONFIGS[name], "cuda", "torch")
+    cpu = _make(world12, mentor_demos12, CONFIGS[name], "cpu", "numba")
+    gpu = _make(world12, mentor_demos12, CONFIGS[name], "cuda", "torch")
     assert gpu.values.is_cuda and gpu.engine.name == "torch"
     cpu.run(TICKS)
     gpu.run(TICKS)
@@ -109,11 +98,11 @@ def test_cuda_torch_engine_matches_cpu_numba(world12, demos12, name):
 
 
 @pytest.mark.parametrize("name", list(CONFIGS))
-def test_cuda_ticks_from_late_cpu_states(world12, demos12, name):
+def test_cuda_ticks_from_late_cpu_states(world12, mentor_demos12, name):
     """From exact CPU states at ticks 1500 and 3000 (edge lists grown, goals found, mentor terms
     in play), 40 CUDA ticks are the CPU's 40 ticks."""
-    cpu = _make(world12, demos12, CONFIGS[name], "cpu", "numba")
-    gpu = _make(world12, demos12, CONFIGS[name], "cuda", "torch")
+    cpu = _make(world12, mentor_demos12, CONFIGS[name], "cpu", "numba")
+    gpu = _make(world12, mentor_demos12, CONFIGS[name], "cuda", "torch")
     for until in (1500, 3000):
         cpu.run(until - cpu.t)
         gpu.load_state_dict(cpu.state_dict())
@@ -125,14 +114,14 @@ def test_cuda_ticks_from_late_cpu_states(world12, demos12, name):
 
 
 @pytest.mark.parametrize("name", list(CONFIGS))
-def test_cuda_checkpoint_resumes_on_the_cpu(world12, demos12, name):
+def test_cuda_checkpoint_resumes_on_the_cpu(world12, mentor_demos12, name):
     """A CUDA learner's state_dict loads into a CPU (numba) learner, which goes on to the run an
     uninterrupted CPU run makes."""
-    straight = _make(world12, demos12, CONFIGS[name], "cpu", "numba")
+    straight = _make(world12, mentor_demos12, CONFIGS[name], "cpu", "numba")
     straight.run(TICKS)
-    gpu = _make(world12, demos12, CONFIGS[name], "cuda", "torch")
+    gpu = _make(world12, mentor_demos12, CONFIGS[name], "cuda", "torch")
     gpu.run(400)
-    resumed = _make(world12, demos12, CONFIGS[name], "cpu", "numba")
+    resumed = _make(world12, mentor_demos12, CONFIGS[name], "cpu", "numba")
     resumed.load_state_dict(gpu.state_dict())
     assert not any(t.is_cuda for t in _all_tensors(resumed.state_dict()))
     resumed.run(TICKS - 400)

@@ -28,16 +28,6 @@ CONFIGS = {
 }
 
 
-@pytest.fixture(scope="module")
-def world12() -> MultiRooms:
-    return MultiRooms(12, 2)
-
-
-@pytest.fixture(scope="module")
-def demos12(world12):
-    return record_demonstrations(world12, mentor_policy(world12, mentor_options(world12)), 5, seed=0)
-
-
 def _state(learner: Learner) -> dict[str, torch.Tensor]:
     run, cache = learner.run_state, learner.cache
     return {"position": run.position, "row": run.row, "decisions": run.decisions,
@@ -67,19 +57,19 @@ def assert_same_run(a: Learner, b: Learner, values_atol: float = 1e-9) -> None:
 
 
 @pytest.mark.parametrize("name", list(CONFIGS))
-def test_engines_agree_on_the_small_world(world12, demos12, name):
+def test_engines_agree_on_the_small_world(world12, mentor_demos12, name):
     """5000 ticks of every agent variant under every setting family: identical on both engines."""
     options = learner_options(world12)
     seeds = list(range(len(AGENT_MIX)))
     runs = {engine: Learner(world12, options, AGENT_MIX, seeds, config=CONFIGS[name],
-                            demonstrations=demos12, engine=engine) for engine in ("numba", "torch")}
+                            demonstrations=mentor_demos12, engine=engine) for engine in ("numba", "torch")}
     for learner in runs.values():
         learner.run(5000)
     assert_same_run(runs["numba"], runs["torch"])
     assert int(runs["numba"].decisions.min()) > 300 and int(runs["numba"].goals.sum()) > 0
 
 
-def test_engines_agree_with_stochastic_option_policies(world12, demos12):
+def test_engines_agree_with_stochastic_option_policies(world12, mentor_demos12):
     """Options with ``[O, S, A]`` policies go through the sampling path of both engines."""
     usable = world12.free_mask & ~world12.terminal_mask
     walk = Options.from_policy(usable, torch.full((world12.num_states, 4), 0.25),
@@ -87,7 +77,7 @@ def test_engines_agree_with_stochastic_option_policies(world12, demos12):
     options = learner_options(world12) + walk
     config = LearnerConfig(window=1000, mentor_choice="match")
     runs = [Learner(world12, options, ["imitation", "options"], [0, 1], config=config,
-                    demonstrations=demos12, engine=engine) for engine in ("numba", "torch")]
+                    demonstrations=mentor_demos12, engine=engine) for engine in ("numba", "torch")]
     for learner in runs:
         learner.run(3000)
     assert_same_run(*runs)
@@ -108,28 +98,28 @@ def test_engines_agree_on_the_paper_40x40_world():
 
 
 @pytest.mark.parametrize("engine", ["numba", "torch"])
-def test_run_in_a_batch_equals_run_alone(world12, demos12, engine):
+def test_run_in_a_batch_equals_run_alone(world12, mentor_demos12, engine):
     """Run b inside a batch is bit for bit the same run alone, on each engine."""
     config = CONFIGS["plan_every3_rounds3"]
     options = learner_options(world12)
     agents, seeds = ["imitation_confident", "options", "imitation"], [11, 12, 13]
-    batch = Learner(world12, options, agents, seeds, config=config, demonstrations=demos12,
+    batch = Learner(world12, options, agents, seeds, config=config, demonstrations=mentor_demos12,
                     engine=engine)
     batch.run(3000)
     for b, (agent, seed) in enumerate(zip(agents, seeds)):
-        alone = Learner(world12, options, [agent], [seed], config=config, demonstrations=demos12,
+        alone = Learner(world12, options, [agent], [seed], config=config, demonstrations=mentor_demos12,
                         engine=engine)
         alone.run(3000)
         for name, value in _state(alone).items():
             assert torch.equal(_state(batch)[name][b], value[0]), (b, name)
 
 
-def test_switching_engines_mid_run_changes_nothing(world12, demos12):
+def test_switching_engines_mid_run_changes_nothing(world12, mentor_demos12):
     """The state is shared: numba → torch → numba gives the run that one engine gives."""
     config = CONFIGS["plan_every4_one_round"]
     options = learner_options(world12)
     make = lambda: Learner(world12, options, AGENT_MIX, range(5), config=config,  # noqa: E731
-                           demonstrations=demos12, engine="numba")
+                           demonstrations=mentor_demos12, engine="numba")
     straight, switched = make(), make()
     straight.run(4500)
     switched.run(1500)
@@ -141,12 +131,12 @@ def test_switching_engines_mid_run_changes_nothing(world12, demos12):
     assert_same_run(straight, switched, values_atol=0.0)
 
 
-def test_state_dict_moves_between_engines(world12, demos12):
+def test_state_dict_moves_between_engines(world12, mentor_demos12):
     """A checkpoint of a numba run resumes on the torch engine to the same run."""
     config = CONFIGS["default"]
     options = learner_options(world12)
     make = lambda engine: Learner(world12, options, AGENT_MIX, range(5), config=config,  # noqa: E731
-                                  demonstrations=demos12, engine=engine)
+                                  demonstrations=mentor_demos12, engine=engine)
     straight, first = make("numba"), make("numba")
     straight.run(3000)
     first.run(1200)
@@ -199,10 +189,10 @@ def test_engine_curves_agree_statistically_over_20_seeds():
     np.testing.assert_array_equal(totals["numba"], totals["torch"])
 
 
-def test_mentor_win_share_is_the_same_from_either_engine(world12, demos12):
+def test_mentor_win_share_is_the_same_from_either_engine(world12, mentor_demos12):
     """The compiled count of states where the mentor term wins equals the batched one."""
     learner = Learner(world12, learner_options(world12), AGENT_MIX, range(5),
-                      config=CONFIGS["priors_override_first"], demonstrations=demos12)
+                      config=CONFIGS["priors_override_first"], demonstrations=mentor_demos12)
     learner.run(2000)
     compiled = learner.mentor_win_share()
     learner.use_engine("torch")

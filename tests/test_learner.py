@@ -20,11 +20,6 @@ from himit_torch.world import MultiRooms
 
 
 @pytest.fixture(scope="module")
-def world12() -> MultiRooms:
-    return MultiRooms(12, 2)
-
-
-@pytest.fixture(scope="module")
 def demos8(world8):
     return record_demonstrations(world8, mentor_options(world8), episodes=20, seed=0)
 
