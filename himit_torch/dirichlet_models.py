@@ -23,8 +23,7 @@ dense row over ``S``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
+import numpy as np
 import torch
 
 __all__ = ["EdgeStore", "DenseEdgeIndex", "SuccessorDirichlet", "DirichletSMDPModel",
@@ -240,20 +239,52 @@ class EdgeStore:
         return SuccessorDirichlet(torch.cat([counts, prior], -1), succ)
 
 
-@dataclass(frozen=True)
-class SuccessorDirichlet:
-    """Dirichlet posterior over a row's successors, batched: ``[..., K + 1]`` categories.
+class SuccessorDirichlet(torch.distributions.Dirichlet):
+    """Dirichlet posterior over a row's successors, batched: a real
+    :class:`torch.distributions.Dirichlet` with ``batch_shape = [...]`` (one per row) and
+    ``event_shape = [K + 1]`` categories.
 
     The first ``K`` categories are observed successors (``successors[..., k]``, −1 = padding, with
     zero concentration); the last is the lumped "unseen successor" carrying the prior
-    concentration. Looks like NumPyro's ``Dirichlet``.
+    concentration.
+
+    Categories with concentration 0 (padding, or the unseen outcome without a prior) are the
+    degenerate limit ``α_k → 0``: their probability is 0 with certainty, and the rest is the
+    Dirichlet of the positive categories alone (so :attr:`mean`, :attr:`variance`,
+    :meth:`log_prob` and :meth:`entropy` equal ``scipy.stats.dirichlet``'s over those). A row with
+    no mass at all (an untried row, no prior) has mean and variance 0, draws all zeros, and
+    ``log_prob`` 0 at the zero vector (−∞ elsewhere).
     """
 
-    concentration: torch.Tensor
-    successors: torch.Tensor
+    has_rsample = False
+
+    def __init__(self, concentration: torch.Tensor, successors: torch.Tensor,
+                 validate_args: bool | None = None):
+        concentration = torch.as_tensor(concentration)
+        if not concentration.is_floating_point():
+            concentration = concentration.double()
+        if concentration.dim() < 1:
+            raise ValueError("SuccessorDirichlet: concentration must have a category axis [..., K + 1]")
+        if tuple(successors.shape) != tuple(concentration.shape[:-1]) + (concentration.shape[-1] - 1,):
+            raise ValueError(f"SuccessorDirichlet: successors {tuple(successors.shape)} must be "
+                             f"[..., K] for concentration {tuple(concentration.shape)} = [..., K + 1]")
+        if validate_args is not False and not bool(
+                (torch.isfinite(concentration) & (concentration >= 0)).all()):
+            raise ValueError("SuccessorDirichlet: concentrations must be finite and ≥ 0")
+        self.successors = successors
+        # The parent's positivity constraint does not hold for zero (padding) categories: the
+        # checks above replace it.
+        super().__init__(concentration, validate_args=False)
+
+    def expand(self, batch_shape, _instance=None):
+        new = self._get_checked_instance(SuccessorDirichlet, _instance)
+        new = super().expand(batch_shape, _instance=new)
+        new.successors = self.successors.expand(torch.Size(batch_shape) + self.successors.shape[-1:])
+        return new
 
     @property
     def total(self) -> torch.Tensor:
+        """``α_0 = Σ_k α_k``, ``[...]``."""
         return self.concentration.sum(-1)
 
     @property
@@ -270,18 +301,66 @@ class SuccessorDirichlet:
         return torch.where(total > 0, a * (total - a) / (total.clamp(min=1e-300) ** 2 * (total + 1)),
                            torch.zeros_like(a))
 
-    def sample(self, generator: torch.Generator) -> torch.Tensor:
-        """One draw of the probabilities per row, from ``generator`` (categories with zero
-        concentration get probability 0)."""
-        seed = int(torch.randint(0, 2**62, (1,), generator=generator, device=generator.device))
-        devices = list(range(torch.cuda.device_count())) if torch.cuda.is_available() else []
-        with torch.random.fork_rng(devices=devices):   # leaves every global RNG as it was
-            torch.manual_seed(seed)
-            a = self.concentration.double().cpu()
-            g = torch._standard_gamma(a.clamp(min=1e-300)) * (a > 0)
+    @property
+    def mode(self) -> torch.Tensor:
+        raise NotImplementedError("SuccessorDirichlet.mode is not defined (zero-mass categories)")
+
+    def log_prob(self, value: torch.Tensor) -> torch.Tensor:
+        """Log density of ``value [..., K + 1]`` over the simplex of the positive categories
+        (−∞ where a zero-concentration category gets a non-zero probability)."""
+        value = torch.as_tensor(value, dtype=self.concentration.dtype,
+                                device=self.concentration.device)
+        a = self.concentration
+        pos = a > 0
+        safe = torch.where(pos, a, torch.ones_like(a))
+        term = torch.where(pos, torch.xlogy(a - 1.0, value) - torch.lgamma(safe),
+                           torch.zeros_like(a)).sum(-1)
+        total = self.total
+        norm = torch.where(total > 0, torch.lgamma(total.clamp(min=1e-300)), torch.zeros_like(total))
+        outside = ((~pos) & (value != 0)).any(-1)
+        return torch.where(outside, torch.full_like(term, float("-inf")), term + norm)
+
+    def entropy(self) -> torch.Tensor:
+        """Differential entropy over the simplex of the positive categories."""
+        a = self.concentration
+        pos = a > 0
+        safe = torch.where(pos, a, torch.ones_like(a))
+        k = pos.sum(-1).to(a.dtype)
+        total = self.total
+        safe_total = torch.where(total > 0, total, torch.ones_like(total))
+        per = torch.where(pos, torch.lgamma(safe) - (safe - 1.0) * torch.digamma(safe),
+                          torch.zeros_like(a)).sum(-1)
+        out = per - torch.lgamma(safe_total) - (k - safe_total) * torch.digamma(safe_total)
+        return torch.where(k > 1, out, torch.zeros_like(out))
+
+    def sample(self, sample_shape=torch.Size(), generator: torch.Generator | None = None
+               ) -> torch.Tensor:
+        """Draws of the probabilities, ``sample_shape + batch_shape + [K + 1]``, from
+        ``generator`` (a ``torch.Generator``; the global torch random state when omitted, as in
+        every ``torch.distributions`` object). Categories with zero concentration get
+        probability 0. ``sample(generator)`` (the generator alone) also works.
+
+        The gamma variates come from NumPy's ``Generator.standard_gamma`` seeded by one draw
+        from ``generator``, so the global random state of torch and NumPy is left alone and the
+        same generator state always gives the same draws (on any device)."""
+        if isinstance(sample_shape, torch.Generator):   # sample(generator), the old call
+            sample_shape, generator = torch.Size(), sample_shape
+        shape = self._extended_shape(torch.Size(sample_shape))
+        device = generator.device if generator is not None else torch.device("cpu")
+        seed = int(torch.randint(0, 2**63 - 1, (1,), generator=generator, device=device))
+        a = self.concentration.detach().double().cpu().expand(shape).numpy()
+        g = torch.from_numpy(np.random.default_rng(seed).standard_gamma(a))
         g = g.to(self.concentration.device, self.concentration.dtype)
         total = g.sum(-1, keepdim=True)
         return torch.where(total > 0, g / total.clamp(min=1e-300), torch.zeros_like(g))
+
+    def rsample(self, sample_shape=torch.Size()) -> torch.Tensor:
+        raise NotImplementedError("SuccessorDirichlet has no reparameterized sample (posteriors "
+                                  "of counts need no gradient); use sample(generator=…)")
+
+    def __repr__(self) -> str:
+        return (f"SuccessorDirichlet(batch_shape={tuple(self.batch_shape)}, "
+                f"event_shape={tuple(self.event_shape)})")
 
 
 class DirichletSMDPModel(EdgeStore):

@@ -88,6 +88,60 @@ def test_dirichlet_sample_moments_match_scipy(gen):
     assert (draws[:, 3] == 0).all()
 
 
+def test_posterior_is_a_torch_dirichlet_with_batch_and_event_shapes():
+    alpha = torch.rand(2, 3, 5, generator=torch.Generator().manual_seed(1), dtype=torch.float64) + 0.1
+    post = SuccessorDirichlet(alpha, torch.zeros(2, 3, 4, dtype=torch.int64))
+    assert isinstance(post, torch.distributions.Dirichlet)
+    assert isinstance(post, torch.distributions.Distribution)
+    assert post.batch_shape == (2, 3) and post.event_shape == (5,)
+    draws = post.sample((7,), generator=torch.Generator().manual_seed(3))
+    assert draws.shape == (7, 2, 3, 5)
+    assert torch.allclose(draws.sum(-1), torch.ones(7, 2, 3, dtype=torch.float64))
+    assert post.log_prob(draws).shape == (7, 2, 3)
+    assert post.entropy().shape == (2, 3)
+    expanded = post.expand((4, 2, 3))
+    assert expanded.batch_shape == (4, 2, 3) and expanded.successors.shape == (4, 2, 3, 4)
+
+
+def test_posterior_log_prob_and_entropy_match_scipy(gen):
+    alpha = torch.rand(5, 4, generator=gen, dtype=torch.float64) * 4 + 0.2
+    post = SuccessorDirichlet(alpha, torch.zeros(5, 3, dtype=torch.int64))
+    x = post.sample(generator=gen)
+    for i in range(5):
+        a = alpha[i].numpy()
+        assert post.log_prob(x)[i].item() == pytest.approx(
+            scipy.stats.dirichlet.logpdf(x[i].numpy(), a), rel=1e-10)
+        assert post.entropy()[i].item() == pytest.approx(scipy.stats.dirichlet.entropy(a), rel=1e-10)
+
+
+def test_posterior_log_prob_with_zero_categories_is_the_positive_categories_dirichlet():
+    alpha = torch.tensor([[2.0, 0.0, 3.0, 0.5], [0.0, 0.0, 0.0, 0.0]], dtype=torch.float64)
+    post = SuccessorDirichlet(alpha, long(1, -1, 2, -1, -1, -1).view(2, 3))
+    x = torch.tensor([[0.3, 0.0, 0.5, 0.2], [0.0, 0.0, 0.0, 0.0]], dtype=torch.float64)
+    keep = [0, 2, 3]
+    assert post.log_prob(x)[0].item() == pytest.approx(
+        scipy.stats.dirichlet.logpdf(x[0, keep].numpy(), alpha[0, keep].numpy()), rel=1e-10)
+    assert post.log_prob(x)[1].item() == 0.0
+    assert post.entropy()[0].item() == pytest.approx(
+        scipy.stats.dirichlet.entropy(alpha[0, keep].numpy()), rel=1e-10)
+    # mass on a zero-concentration category is impossible
+    y = torch.tensor([[0.3, 0.1, 0.4, 0.2], [1.0, 0.0, 0.0, 0.0]], dtype=torch.float64)
+    assert post.log_prob(y).tolist() == [float("-inf"), float("-inf")]
+
+
+def test_posterior_sample_keyword_generator_equals_positional_and_refuses_bad_concentration():
+    post = SuccessorDirichlet(torch.tensor([[1.0, 2.0, 0.5]], dtype=torch.float64), long(3, 4)[None])
+    a = post.sample(generator=torch.Generator().manual_seed(8))
+    b = post.sample(torch.Generator().manual_seed(8))
+    assert torch.equal(a, b)
+    with pytest.raises(ValueError, match="finite and ≥ 0"):
+        SuccessorDirichlet(torch.tensor([[1.0, -1.0]]), long(0)[None])
+    with pytest.raises(ValueError, match="finite and ≥ 0"):
+        SuccessorDirichlet(torch.tensor([[1.0, float("nan")]]), long(0)[None])
+    with pytest.raises(ValueError, match=r"\[\.\.\., K\]"):
+        SuccessorDirichlet(torch.tensor([[1.0, 1.0]]), long(0, 1)[None])
+
+
 # =================================================================== EdgeStore and its index
 def _check_store(store: EdgeStore, run: int, expected: dict[tuple[int, int], int] | set) -> None:
     """Run ``run``'s edge list and every table of the dense index agree with the set of
