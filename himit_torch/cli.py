@@ -455,7 +455,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     Torch runs on one thread (``HIMIT_THREADS`` to change): the learner's tensors are small, and
     on a CPU two processes use two cores far better than two threads in one."""
     args = build_parser().parse_args(argv)
-    torch.set_num_threads(int(os.environ.get("HIMIT_THREADS", "1")))
+    threads = os.environ.get("HIMIT_THREADS", "1")
+    if not threads.strip().isdigit() or int(threads) < 1:
+        _fail(f"HIMIT_THREADS={threads!r} must be a whole number ≥ 1")
+    torch.set_num_threads(int(threads))
     try:
         return COMMANDS[args.command][0](args)
     except ValueError as err:

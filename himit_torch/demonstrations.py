@@ -86,14 +86,26 @@ class Demonstrations:
         if len(episodes) == 0:
             raise ValueError(f"{self._source}: no episodes; demonstrations need at least one episode")
         self._episodes = tuple(_as_episode(e, i, self._source) for i, e in enumerate(episodes))
-        if isinstance(self._world, MultiRooms):
-            wall, successors = self._world.wall_mask.numpy(), self._world.next_state_table.numpy()
+        self._check_states_in(self._world, strict=True)
+
+    def _check_states_in(self, world, strict: bool) -> None:
+        """Check every episode's states in the world *object* ``world`` (any TabularWorld):
+        MultiRooms by its cells; other worlds by their transition support, or — where a world
+        has neither ``dynamics_table()`` nor ``transition_model()`` and ``strict`` is off — by
+        the state range and terminal states alone."""
+        if isinstance(world, MultiRooms):
+            wall, successors = world.wall_mask.numpy(), world.next_state_table.numpy()
             for i, ep in enumerate(self._episodes):
-                _check_episode(ep.numpy(), i, self._world, wall, successors, self._source)
-        else:
-            support = transition_support(self._world).numpy()
-            terminal = torch.as_tensor(self._world.terminal_mask, dtype=torch.bool).cpu().numpy()
-            for i, ep in enumerate(self._episodes):
+                _check_episode(ep.numpy(), i, world, wall, successors, self._source)
+            return
+        terminal = torch.as_tensor(world.terminal_mask, dtype=torch.bool).cpu().numpy()
+        support = None
+        if strict or hasattr(world, "dynamics_table") or hasattr(world, "transition_model"):
+            support = transition_support(world).numpy()
+        for i, ep in enumerate(self._episodes):
+            if support is None:
+                _check_range_and_end(ep.numpy(), i, int(world.num_states), terminal, self._source)
+            else:
                 _check_steps(ep.numpy(), i, support, terminal, self._source)
 
     # --------------------------------------------------------------------------------- queries
@@ -156,8 +168,15 @@ class Demonstrations:
 
     def check_world(self, world) -> None:
         """Raise ``ValueError`` unless ``world`` (a world or its description dict) is the world
-        these demonstrations were made in, naming each description field that differs."""
+        these demonstrations were made in, naming each description field that differs.
+
+        Given a world *object* (what a :class:`~himit_torch.Learner` passes), the episodes are
+        also checked in that very object — states in range, every step one its dynamics can
+        make, terminal states only at an episode's end — not only in a world rebuilt from the
+        stored description (which may not be the one the learner runs in)."""
         _check_same_world(self._world_description, world, self._source)
+        if not isinstance(world, dict) and world is not self._world:
+            self._check_states_in(world, strict=False)
 
     # ------------------------------------------------------------------------------------ I/O
     def save(self, path: str | os.PathLike) -> Path:
@@ -337,12 +356,19 @@ def _check_episode(states: np.ndarray, index: int, world: MultiRooms, wall: np.n
                          f"episode but {states.size - 1 - i} more state(s) follow it")
 
 
+def _check_range_and_end(states: np.ndarray, index: int, S: int, terminal: np.ndarray,
+                         source: str) -> None:
+    """A world without a known transition support: states in range, terminal only at the end."""
+    _check_steps(states, index, np.ones((1, 1), dtype=bool), terminal, source, num_states=S,
+                 check_moves=False)
+
+
 def _check_steps(states: np.ndarray, index: int, support: np.ndarray, terminal: np.ndarray,
-                 source: str) -> None:
+                 source: str, num_states: int | None = None, check_moves: bool = True) -> None:
     """Any world: states in range, each step in the world's transition support ``[S, S]``, a
     terminal state only at an episode's end."""
     where = f"{source}: episode {index}"
-    S = support.shape[0]
+    S = support.shape[0] if num_states is None else num_states
     out = np.flatnonzero((states < 0) | (states >= S))
     if out.size:
         i = int(out[0])
@@ -352,7 +378,7 @@ def _check_steps(states: np.ndarray, index: int, support: np.ndarray, terminal: 
         i = int(ended[0])
         raise ValueError(f"{where}, index {i}: state {states[i]} is terminal and ends an episode, "
                          f"but {states.size - 1 - i} more state(s) follow it")
-    if states.size > 1:
+    if check_moves and states.size > 1:
         bad = np.flatnonzero(~support[states[:-1], states[1:]])
         if bad.size:
             i = int(bad[0]) + 1

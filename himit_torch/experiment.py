@@ -25,6 +25,7 @@ from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Callable
 
+import numpy as np
 import torch
 
 from .checkpoints import BatchShape, CheckpointGenerations, NoGoodCheckpoint
@@ -34,6 +35,7 @@ from .exact_option_models import option_durations, option_models
 from .options import learner_options, mentor_options, primitive_options
 from .exact_planning import expected_steps, smdp_value_iteration
 from .tensorboard_logger import TensorBoardLogger
+from .validation import as_choice, as_float, as_int, as_tuple, check_memory
 from .world import MultiRooms
 
 __all__ = ["ExperimentConfig", "EXPERIMENTS", "run_experiment", "load_config", "WorldResult",
@@ -89,10 +91,42 @@ class ExperimentConfig:
     """Learner settings (see ``LearnerConfig``)."""
 
     def __post_init__(self):
+        # Input rules of himit_torch.validation: lists become tuples, whole numbers are never
+        # truncated, bools and strings are not numbers, every number is finite.
         if isinstance(self.learner, dict):
+            _refuse_unknown_fields(self.learner, LearnerConfig, "ExperimentConfig.learner")
             self.learner = LearnerConfig(**self.learner)
-        self.sizes = tuple(int(s) for s in self.sizes)
-        self.agents = tuple(self.agents)
+        if not isinstance(self.learner, LearnerConfig):
+            raise ValueError(f"ExperimentConfig.learner must be a LearnerConfig or a dict, got "
+                             f"{type(self.learner).__name__}")
+        if not isinstance(self.name, str) or not self.name:
+            raise ValueError(f"ExperimentConfig.name must be a non-empty string, got {self.name!r}")
+        self.sizes = tuple(as_int(f"ExperimentConfig.sizes[{i}]", v, minimum=1)
+                           for i, v in enumerate(as_tuple("ExperimentConfig.sizes", self.sizes)))
+        self.agents = as_tuple("ExperimentConfig.agents", self.agents)
+        if not all(isinstance(a, str) for a in self.agents):
+            raise ValueError(f"ExperimentConfig.agents must be names, got {list(self.agents)}")
+        self.room_size = as_int("ExperimentConfig.room_size", self.room_size, minimum=2)
+        for name, minimum in (("seeds", 1), ("first_seed", 0), ("steps", 1),
+                              ("mentor_episodes", 1), ("window", 1), ("checkpoint_every", 1)):
+            setattr(self, name, as_int(f"ExperimentConfig.{name}", getattr(self, name), minimum))
+        if not isinstance(self.corner_options, (bool, np.bool_)):
+            raise ValueError(f"ExperimentConfig.corner_options must be true or false, got "
+                             f"{self.corner_options!r}")
+        self.corner_options = bool(self.corner_options)
+        self.slip = as_float("ExperimentConfig.slip", self.slip, 0.0, 1.0, high_open=True)
+        if self.mentor_preference is not None:
+            self.mentor_preference = as_float("ExperimentConfig.mentor_preference",
+                                              self.mentor_preference, low=0.0)
+        as_choice("ExperimentConfig.engine", self.engine, ("auto", "numba", "torch"))
+        if not isinstance(self.device, str):
+            raise ValueError(f"ExperimentConfig.device must be a string such as 'cpu' or 'cuda', "
+                             f"got {self.device!r}")
+        try:
+            torch.device(self.device)
+        except RuntimeError as err:
+            raise ValueError(f"ExperimentConfig.device={self.device!r} is not a torch device "
+                             f"({err}); use e.g. 'cpu' or 'cuda'") from None
 
         def bad(name, why):
             raise ValueError(f"ExperimentConfig.{name}={getattr(self, name)!r}: {why}")
@@ -114,6 +148,22 @@ class ExperimentConfig:
             bad("checkpoint_every", f"must be a positive multiple of window={self.window}")
         if self.learner.window != self.window:
             self.learner = replace(self.learner, window=self.window)
+        for size in self.sizes:   # refused now, not hours later when that world's turn comes
+            check_memory(f"ExperimentConfig: world {size}×{size} with its options and a batch of "
+                         f"{len(self.agents) * self.seeds} runs", self.estimate_bytes(size),
+                         "use smaller sizes, fewer agents or seeds")
+
+    def estimate_bytes(self, size: int) -> int:
+        """Rough bytes one world of this experiment needs: the world, the learner's and the
+        mentor's dense option tables and the batch's per-run tables (the constants of
+        ``MultiRooms``, ``options`` and ``Learner``)."""
+        from .options import BYTES_PER_OPTION_STATE
+        S, R = size * size, size // self.room_size
+        options = 4 + 4 * R * (R - 1) + (8 * R * R if self.corner_options else 0)
+        rows = 4 * S + (options - 4) * (self.room_size - 1) ** 2
+        batch = len(self.agents) * self.seeds
+        return (S * MultiRooms.BYTES_PER_STATE + 2 * options * S * BYTES_PER_OPTION_STATE
+                + batch * (S * Learner.BYTES_PER_RUN_STATE + rows * Learner.BYTES_PER_RUN_ROW))
 
     def to_json(self) -> str:
         return json.dumps(asdict(self), indent=2)
@@ -178,6 +228,8 @@ def load_config(path: str | os.PathLike) -> ExperimentConfig:
     try:
         data["learner"] = LearnerConfig(**learner)
         return ExperimentConfig(**data)
+    except ValueError as err:
+        raise ValueError(f"config file {path}: {err}") from None
     except TypeError as err:
         raise ValueError(f"config file {path}: {err}") from None
 

@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import asdict, dataclass
-from typing import Sequence
+from typing import TYPE_CHECKING, Iterable, Protocol, Sequence
 
 import torch
 
@@ -40,9 +40,21 @@ from .rng import seed_streams, uniforms
 from .rows import AGENTS, RowTable
 from .run_state import RunMetrics, RunState
 from .sweep_queue import Sweeper
+from .validation import as_choice, as_float, as_int, check_memory
 from .value_cache import ValueCache
 
+if TYPE_CHECKING:
+    from .demonstrations import Demonstrations
+    from .reward import MentorReward
+    from .world import TabularWorld
+
 __all__ = ["Learner", "LearnerConfig", "AGENTS"]
+
+
+class HasTransitions(Protocol):
+    """Demonstrations in any form: consecutive mentor states ``(from [T], to [T])``."""
+
+    def transitions(self) -> tuple[torch.Tensor, torch.Tensor]: ...
 
 
 @dataclass
@@ -117,7 +129,27 @@ class LearnerConfig:
     ``"error"`` (ValueError), ``"warn"`` (a warning) or ``"off"``. Values above a module's own
     declared bound are always an error."""
 
+    #: Field kinds for the input rules of :mod:`himit_torch.validation` (whole numbers are never
+    #: truncated, bools and strings never taken for numbers, every number finite).
+    _INTS = ("backups", "sweep_rounds", "plan_every", "rng_chunk", "window", "max_option_steps")
+    _FLOATS = ("priority_threshold", "initial_value", "concentration", "mentor_concentration",
+               "confidence_z", "eps_start", "eps_decay", "eps_min")
+    _CHOICES = {"mentor_choice": ("greedy", "match"), "tie_break": ("random", "first"),
+                "reward_bound_check": ("error", "warn", "off")}
+
     def __post_init__(self):
+        for name in self._INTS:
+            setattr(self, name, as_int(f"LearnerConfig.{name}", getattr(self, name)))
+        for name in self._FLOATS:
+            setattr(self, name, as_float(f"LearnerConfig.{name}", getattr(self, name)))
+        if self.untried_value is not None:
+            self.untried_value = as_float("LearnerConfig.untried_value", self.untried_value)
+        if self.mentor_override_after is not None:
+            self.mentor_override_after = as_int("LearnerConfig.mentor_override_after",
+                                                self.mentor_override_after, minimum=0)
+        for name, choices in self._CHOICES.items():
+            as_choice(f"LearnerConfig.{name}", getattr(self, name), choices)
+
         def bad(name, why):
             raise ValueError(f"LearnerConfig.{name}={getattr(self, name)!r}: {why}")
         if self.backups < 1:
@@ -198,26 +230,64 @@ class Learner:
     #: policies), 3 ε, 4 which candidate option, 5 the next episode's start state.
     LANES = 6
 
-    def __init__(self, world, options: Options, agents: Sequence[str], seeds: Sequence[int],
-                 config: LearnerConfig | None = None, demonstrations=None, reward=None,
+    #: Bytes per run and state / per run and ``(s, o)`` row that the up-front size check of a
+    #: batch multiplies by (the value cache, models, queue and engine tables at the start; the
+    #: models' edge lists grow with experience beyond that).
+    BYTES_PER_RUN_STATE = 128
+    BYTES_PER_RUN_ROW = 96
+
+    def __init__(self, world: TabularWorld, options: Options, agents: Sequence[str],
+                 seeds: Sequence[int], config: LearnerConfig | None = None,
+                 demonstrations: Demonstrations | HasTransitions | None = None,
+                 reward: MentorReward | Sequence[MentorReward | None] | None = None,
                  device: str | torch.device = "cpu", engine: str = "auto"):
+        if config is not None and not isinstance(config, LearnerConfig):
+            raise ValueError(f"config must be a LearnerConfig, got {type(config).__name__}")
         self.config = config = config or LearnerConfig()
+        if not isinstance(options, Options):
+            raise ValueError(f"options must be an Options bundle, got {type(options).__name__}")
         self.world, self.options = world, options
-        self.device = dev = torch.device(device)
-        agents, seeds = list(agents), [int(s) for s in seeds]
+        try:
+            self.device = dev = torch.device(device)
+        except (RuntimeError, TypeError) as err:
+            raise ValueError(f"device={device!r} is not a torch device ({err}); use e.g. 'cpu' or "
+                             "'cuda'") from None
+        as_choice("engine", engine, ("auto", "numba", "torch"))
+        for name, what in (("agents", agents), ("seeds", seeds)):
+            if isinstance(what, (str, bytes)) or not isinstance(what, Iterable):
+                raise ValueError(f"{name} must be a list (one per run), got {what!r}")
+        agents = list(agents)
+        seeds = [as_int(f"seeds[{i}]", s, minimum=0) for i, s in enumerate(seeds)]
         B = len(agents)
         if B == 0:
             raise ValueError("a batch of 0 runs: give at least one agent (e.g. agents=['imitation'])")
         if len(seeds) != B:
             raise ValueError(f"{B} agents but {len(seeds)} seeds: give one seed per run")
-        unknown = sorted(set(agents) - set(AGENTS))
+        unknown = sorted({repr(a) for a in agents if not isinstance(a, str) or a not in AGENTS})
         if unknown:
             raise ValueError(f"unknown agent variant(s) {unknown}; use one of {sorted(AGENTS)}")
+        missing = [m for m in ("num_states", "num_actions", "start_state", "gamma", "terminal_mask")
+                   if not hasattr(world, m)]
+        if missing:
+            raise ValueError(f"world {type(world).__name__} lacks {missing}: a world must follow the "
+                             "TabularWorld protocol (himit_torch.TabularWorld)")
         S, O = world.num_states, options.num_options
         if options.num_states != S:
             raise ValueError(f"options are over {options.num_states} states but the world has {S}")
-        if not 0 < world.gamma <= 1:
+        gamma = as_float("world.gamma", world.gamma)
+        if not 0 < gamma <= 1:
             raise ValueError(f"world.gamma={world.gamma} must lie in (0, 1]")
+        A = as_int("world.num_actions", world.num_actions, minimum=1)
+        if options.stochastic and options.policy.shape[2] != A:
+            raise ValueError(f"options' policy probabilities are over {options.policy.shape[2]} "
+                             f"actions but the world has {A}")
+        if not options.stochastic and int(options.policy[options.initiation].max()) >= A:
+            raise ValueError(f"options' policy uses action {int(options.policy[options.initiation].max())}"
+                             f" but the world has actions 0…{A - 1}")
+        M = int(options.initiation.sum())
+        check_memory(f"a batch of {B} runs over {S:,} states and {M:,} (state, option) rows",
+                     B * (S * self.BYTES_PER_RUN_STATE + M * self.BYTES_PER_RUN_ROW),
+                     "run fewer runs at once (a smaller batch), or fewer options")
         self.batch, self.num_states, self.num_options = B, S, O
         self.agents, self.seeds = agents, seeds
         self.gamma = float(world.gamma)

@@ -23,6 +23,7 @@ import scipy.sparse as sp
 import torch
 
 from .table_world import world_model
+from .validation import as_tuple, check_memory
 from .world import ACTION_DELTAS, ACTION_NAMES, MultiRooms
 
 __all__ = ["Options", "primitive_options", "doorway_options", "corner_options",
@@ -45,6 +46,15 @@ class Options:
     kinds: tuple[str, ...]
 
     def __post_init__(self):
+        for name in ("initiation", "termination", "policy"):
+            if not isinstance(getattr(self, name), torch.Tensor):
+                raise ValueError(f"Options.{name} must be a torch.Tensor, got "
+                                 f"{type(getattr(self, name)).__name__}")
+        for name in ("names", "kinds"):   # a list is stored as a tuple; a bare string is refused
+            value = as_tuple(f"Options.{name}", getattr(self, name))
+            if not all(isinstance(v, str) for v in value):
+                raise ValueError(f"Options.{name} must hold strings, got {list(value)[:5]}")
+            object.__setattr__(self, name, value)
         init, beta, pol = self.initiation, self.termination, self.policy
         if init.dim() != 2 or init.dtype != torch.bool:
             raise ValueError(f"Options.initiation must be a [O, S] bool tensor, got "
@@ -157,7 +167,12 @@ class Options:
         """
         if kind not in OPTION_KINDS:
             raise ValueError(f"Options.from_policy: kind={kind!r} is unknown; use one of {OPTION_KINDS}")
-        initiation = torch.as_tensor(initiation, dtype=torch.bool)
+        initiation = torch.as_tensor(initiation)
+        if initiation.dtype != torch.bool:
+            if initiation.is_complex() or not bool(((initiation == 0) | (initiation == 1)).all()):
+                raise ValueError(f"Options.from_policy({name!r}): initiation must be [S] bools "
+                                 "(or 0/1), got other values")
+            initiation = initiation.to(torch.bool)   # 0/1 → False/True, the only conversion
         policy = torch.as_tensor(policy)
         if termination is None:
             termination = torch.ones(initiation.shape) if kind == "primitive" else (~initiation).float()
@@ -350,6 +365,10 @@ def _room_target_options(world: MultiRooms, targets_of_room, style: str, kind: s
             betas.append((~init).float())      # runs until it reaches the target or leaves
             policies.append(policy)
             names.append(f"{kind} room({rr},{rc})->{label}{world.coords(target)}")
+    if not names:
+        raise ValueError(f"{world!r} has no {kind} options (no room has a {kind} target it can "
+                         f"head for: {'no doorways' if kind == 'doorway' else 'rooms too small'}); "
+                         f"leave them out (e.g. learner_options(world, doorways=False))")
     return Options(torch.stack(inits), torch.stack(betas), torch.stack(policies),
                    tuple(names), (kind,) * len(names))
 
@@ -389,8 +408,9 @@ def corner_options(world: MultiRooms, style: str = "direct") -> Options:
 
 def learner_options(world: MultiRooms, doorways: bool = True, corners: bool = False) -> Options:
     """The learner's set: primitives, ``direct`` doorway options, optionally corner options."""
+    _check_options_size(world, doorways, corners)
     parts = [primitive_options(world)]
-    if doorways:
+    if doorways and world.doorway_rooms:   # a one-room world has no doorways to head for
         parts.append(doorway_options(world, "direct"))
     if corners:
         parts.append(corner_options(world, "direct"))
@@ -399,7 +419,24 @@ def learner_options(world: MultiRooms, doorways: bool = True, corners: bool = Fa
 
 def mentor_options(world: MultiRooms, corners: bool = False) -> Options:
     """The mentor's set: primitives, ``walls`` doorway options, optionally corner options."""
-    parts = [primitive_options(world), doorway_options(world, "walls")]
+    _check_options_size(world, True, corners)
+    parts = [primitive_options(world)]
+    if world.doorway_rooms:
+        parts.append(doorway_options(world, "walls"))
     if corners:
         parts.append(corner_options(world, "walls"))
     return Options.concat(*parts)
+
+
+#: Bytes per option and state of an :class:`Options` bundle (β float32, policy int64, initiation
+#: bool), doubled for the copy :meth:`Options.concat` makes: what the up-front size check uses.
+BYTES_PER_OPTION_STATE = 2 * (4 + 8 + 1)
+
+
+def _check_options_size(world: MultiRooms, doorways: bool, corners: bool) -> None:
+    """Refuse a bundle whose dense ``[O, S]`` tables would not fit, before building it."""
+    O = world.num_actions + (2 * len(world.doorway_rooms) if doorways else 0) \
+        + (8 * world.num_rooms if corners else 0)
+    check_memory(f"{O:,} options over {world.num_states:,} states (dense [O, S] tables)",
+                 O * world.num_states * BYTES_PER_OPTION_STATE,
+                 "use a smaller world, or no corner options")

@@ -15,6 +15,8 @@ from typing import Iterable, Mapping, Protocol, runtime_checkable
 import numpy as np
 import torch
 
+from .validation import as_float, as_int, check_memory
+
 __all__ = ["MultiRooms", "TabularWorld", "DynamicsTable", "ACTION_NAMES", "ACTION_DELTAS",
            "STIMULUS_FEATURES"]
 
@@ -164,6 +166,9 @@ class MultiRooms:
     """
 
     num_actions = 4
+    #: Bytes a state costs when a world is built (layout, successor and dynamics tables): what
+    #: the up-front size check multiplies by the number of states.
+    BYTES_PER_STATE = 512
 
     def __init__(self, size: int = 40, rooms: int = 10, slip: float = 0.1,
                  start: int | tuple[int, int] | None = None,
@@ -179,13 +184,16 @@ class MultiRooms:
         if size // rooms < 2:
             raise ValueError(f"size/rooms = {size // rooms} is too small: each room needs at least "
                              f"2 cells per side (one wall row and one free row); use size ≥ {2 * rooms}")
-        if not (0.0 <= float(slip) < 1.0):
-            raise ValueError(f"slip={slip} must lie in [0, 1) (the probability that an action fails)")
-        if not (0.0 < float(gamma) <= 1.0):
-            raise ValueError(f"gamma={gamma} must lie in (0, 1]")
-        for name, value in (("step_reward", step_reward), ("goal_reward", goal_reward)):
-            if not np.isfinite(value):
-                raise ValueError(f"{name}={value} must be a finite number")
+        check_memory(f"MultiRooms(size={size}) ({size * size:,} states)",
+                     size * size * self.BYTES_PER_STATE,
+                     f"about {self.BYTES_PER_STATE} bytes a state; choose a smaller size")
+        slip = as_float("MultiRooms slip", slip, 0.0, 1.0, high_open=True)
+        gamma = as_float("MultiRooms gamma", gamma, 0.0, 1.0, low_open=True)
+        step_reward = as_float("MultiRooms step_reward", step_reward)
+        goal_reward = as_float("MultiRooms goal_reward", goal_reward)
+        if isinstance(closed_doorways, (str, bytes)) or not isinstance(closed_doorways, Iterable):
+            raise ValueError(f"closed_doorways must be a list of cells (indices or (row, col) "
+                             f"pairs), got {closed_doorways!r}")
         self.size, self.rooms, self.room_size = size, rooms, size // rooms
         self.slip, self.gamma = float(slip), float(gamma)
         self.step_reward, self.goal_reward = float(step_reward), float(goal_reward)
@@ -217,8 +225,10 @@ class MultiRooms:
 
     # ----------------------------------------------------------------------------- layout
     def _cell(self, what: str, cell, allow_wall: bool = False) -> int:
-        if isinstance(cell, (tuple, list)) and len(cell) == 2:
-            r, c = (int(v) for v in cell)
+        if isinstance(cell, (tuple, list)):
+            if len(cell) != 2:
+                raise ValueError(f"{what} must be a cell index or a (row, col) pair, got {cell!r}")
+            r, c = (as_int(f"{what} {name}", v) for name, v in zip(("row", "column"), cell))
             if not (0 <= r < self.size and 0 <= c < self.size):
                 raise ValueError(f"{what} {tuple(cell)} lies outside the {self.size}×{self.size} grid")
             cell = r * self.size + c
@@ -227,7 +237,8 @@ class MultiRooms:
             if not (0 <= cell < self.num_states):
                 raise ValueError(f"{what} {cell} is not a cell index in [0, {self.num_states})")
         else:
-            raise ValueError(f"{what} must be a cell index or a (row, col) pair, got {cell!r}")
+            raise ValueError(f"{what} must be a cell index or a (row, col) pair of integers, got "
+                             f"{cell!r}")
         if not allow_wall and self._wall.flat[cell]:
             raise ValueError(f"{what} {self.coords(cell)} is a wall cell; choose a free cell "
                              f"(rows/columns that are multiples of {self.room_size} are walls)")
