@@ -35,6 +35,7 @@ from .exact_option_models import option_durations, option_models
 from .options import Options, learner_options, mentor_options, primitive_options
 from .exact_planning import expected_steps, smdp_value_iteration
 from .world import MultiRooms
+from .tensorboard_logger import tensorboard_command
 
 __all__ = ["main", "build_parser", "COMMANDS"]
 
@@ -268,7 +269,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
               + f"   (optimal ≈ {r.optimal_goals_per_window:.1f})")
     print(f"saved     {out / 'learning'}/results.md, figures/, curves.csv  "
           f"({time.perf_counter() - t0:.0f} s)")
-    print(f"watch     tensorboard --logdir {out / 'learning' / 'tb'}")
+    print(f"watch     {tensorboard_command(out / 'learning' / 'tb')}")
     return 0
 
 

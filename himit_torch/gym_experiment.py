@@ -49,6 +49,7 @@ from .mentor import mentor_policy, record_demonstrations
 from .options import Options, primitive_options, subgoal_options
 from .reward import KnownReward
 from .table_world import TableWorld, world_model
+from .tensorboard_logger import tensorboard_command
 
 __all__ = ["GymTask", "TASKS", "GymExperimentConfig", "run_gym_experiment", "greedy_value_gap",
            "mean_ci"]
@@ -471,6 +472,7 @@ def write_gym_figures(run_dir: Path, config: GymExperimentConfig, summaries: lis
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
+    from .plotting import fit_titles
     from .report import AGENT_COLORS
 
     curves = read_gym_curves(run_dir)
@@ -501,6 +503,7 @@ def write_gym_figures(run_dir: Path, config: GymExperimentConfig, summaries: lis
             ax.legend(fontsize="small")
         fig.suptitle(f"{summary['about']} — mean and 95 % CI over seeds", fontsize="medium")
         FigureCanvasAgg(fig)
+        fit_titles(fig)
         fig.savefig(fig_dir / f"curves_{task}.png", dpi=100)
 
 
@@ -556,5 +559,6 @@ def write_gym_results(run_dir: Path, config: GymExperimentConfig, summaries: lis
                 f"{_cell([s['mentor_term_wins'][b] for b in idx], 2) if s['mentor_term_wins'] else '–'} |")
         lines += ["", f"Wall time for this task's batch of {len(s['agents'])} runs: "
                   f"{s['wall_seconds']:.0f} s. Figure: `figures/curves_{s['task']}.png`.", ""]
-    lines += ["Curves: `curves.csv`. TensorBoard: `tensorboard --logdir <run dir>/tb`.", ""]
+    lines += ["Curves: `curves.csv`. TensorBoard: "
+              f"`{tensorboard_command(Path(run_dir) / 'tb')}`.", ""]
     (run_dir / "results.md").write_text("\n".join(lines))

@@ -16,6 +16,7 @@ figures to leak); :func:`save_world_figure` renders with the Agg canvas.
 from __future__ import annotations
 
 import os
+import warnings
 from pathlib import Path
 from typing import Sequence
 
@@ -27,12 +28,13 @@ from matplotlib.colors import ListedColormap
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
+from matplotlib.text import Text
 from matplotlib.ticker import FuncFormatter
 
 from .demonstrations import Demonstrations
 from .world import MultiRooms
 
-__all__ = ["plot_world", "save_world_figure", "plot_state_map", "map_legend", "plot_goal_curves",
+__all__ = ["fit_titles", "plot_world", "save_world_figure", "plot_state_map", "map_legend", "plot_goal_curves",
            "plot_first_goals", "runs_split", "MapRenderer", "value_image", "visitation_image",
            "policy_image", "CURVE_COLORS", "WALL_COLOR", "NO_DATA_COLOR", "MAP_CMAP"]
 
@@ -147,6 +149,55 @@ def plot_world(world: MultiRooms, demonstrations: Demonstrations | None = None,
     return fig
 
 
+def _wrap_to_width(text: Text, width_px: float, renderer) -> None:
+    """Re-break ``text`` at spaces so that no line is wider than ``width_px``; a single word
+    still too wide makes the font smaller (down to 6 pt)."""
+    words = text.get_text().split()
+    if not words:
+        return
+    while True:
+        lines: list[str] = []
+        current = ""
+        for word in words:
+            trial = f"{current} {word}".strip()
+            text.set_text(trial)
+            if current and text.get_window_extent(renderer).width > width_px:
+                lines.append(current)
+                current = word
+            else:
+                current = trial
+        lines.append(current)
+        text.set_text("\n".join(lines))
+        if text.get_window_extent(renderer).width <= width_px or text.get_fontsize() <= 6:
+            return
+        text.set_fontsize(max(6.0, text.get_fontsize() * 0.85))
+
+
+def fit_titles(fig: Figure, margin: float = 0.01) -> None:
+    """Make every title of ``fig`` (axes titles, the suptitle, and texts registered with
+    ``fig._himit_titles``) fit inside the figure: lines are re-broken at spaces to the width
+    available around the title's anchor, then the figure is laid out again (a constrained
+    layout makes room above the axes for the extra lines). Call before saving."""
+    renderer = fig.canvas.get_renderer() if hasattr(fig.canvas, "get_renderer") else \
+        FigureCanvasAgg(fig).get_renderer()
+    with warnings.catch_warnings():   # the unwrapped titles may not leave the axes any room yet
+        warnings.filterwarnings("ignore", "constrained_layout not applied", UserWarning)
+        fig.draw_without_rendering()
+    texts = [ax.title for ax in fig.axes if ax.title.get_text()]
+    texts += [t for t in (getattr(fig, "_suptitle", None),) if t is not None and t.get_text()]
+    texts += [t for t in getattr(fig, "_himit_titles", []) if t.get_text()]
+    width = fig.bbox.width
+    for text in texts:
+        box = text.get_window_extent(renderer)
+        ha = text.get_horizontalalignment()
+        anchor = {"left": box.x0, "right": box.x1}.get(ha, (box.x0 + box.x1) / 2)
+        left, right = anchor - margin * width, (1 - margin) * width - anchor
+        room = {"left": right, "right": left}.get(ha, 2 * min(left, right))
+        if box.width > room or box.x0 < 0 or box.x1 > width:
+            _wrap_to_width(text, max(room, 20.0), renderer)
+    fig.draw_without_rendering()
+
+
 def save_world_figure(path: str | os.PathLike, world: MultiRooms,
                       demonstrations: Demonstrations | None = None, learner_states=None,
                       title: str | None = None, dpi: int = 150) -> Path:
@@ -155,6 +206,7 @@ def save_world_figure(path: str | os.PathLike, world: MultiRooms,
                      title=title)
     FigureCanvasAgg(fig)
     path = Path(path)
+    fit_titles(fig)
     fig.savefig(path, dpi=dpi, format=path.suffix[1:] or "png")
     return path
 
@@ -440,12 +492,15 @@ class MapRenderer:
                        loc="lower center", bbox_to_anchor=(0.45, 0.0), ncol=3 if extra else 2,
                        fontsize="small", frameon=False)
         parts["title"] = fig.text(0.33, 0.975, "", ha="center", va="top", fontsize="medium")
+        fig._himit_titles = [parts["title"]]
         self._figures[kind] = parts
         return parts
 
     @staticmethod
     def _render(parts, title: str) -> np.ndarray:
         parts["title"].set_text(title)
+        parts["title"].set_fontsize("medium")
+        fit_titles(parts["fig"])
         parts["canvas"].draw()
         return np.asarray(parts["canvas"].buffer_rgba())[..., :3].copy()
 

@@ -13,7 +13,8 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from .plotting import CURVE_COLORS, plot_first_goals, plot_goal_curves
+from .plotting import CURVE_COLORS, fit_titles, plot_first_goals, plot_goal_curves
+from .tensorboard_logger import tensorboard_command
 
 __all__ = ["read_curves", "write_figures", "write_results", "plot_curves", "plot_scaling",
            "plot_first_goal_steps", "PAPER_OPTIMAL_GOALS"]
@@ -100,6 +101,7 @@ def plot_scaling(results, agents) -> Figure:
 def _save(fig: Figure, path: Path) -> None:
     FigureCanvasAgg(fig)
     path.parent.mkdir(parents=True, exist_ok=True)
+    fit_titles(fig)
     fig.savefig(path, dpi=110)
 
 
@@ -189,6 +191,6 @@ def write_results(run_dir: Path, config, results) -> None:
                 cells.append(_fmt([p for p, a in zip(r.percent_of_optimal(), r.agents) if a == agent]))
             lines.append(f"| {r.size}×{r.size} | " + " | ".join(cells) + " |")
         lines.append("")
-    lines += ["Figures: `figures/`. Curves: `curves.csv`. TensorBoard: `tensorboard --logdir "
-              f"{run_dir}/tb`.", ""]
+    lines += ["Figures: `figures/`. Curves: `curves.csv`. TensorBoard: "
+              f"`{tensorboard_command(Path(run_dir) / 'tb')}`.", ""]
     (run_dir / "results.md").write_text("\n".join(lines))

@@ -20,14 +20,40 @@ from __future__ import annotations
 
 import math
 import os
+import shlex
 import shutil
+import sys
 from pathlib import Path
 from typing import Mapping, Sequence
 
 import numpy as np
 import torch
 
-__all__ = ["TensorBoardLogger", "SCALAR_DESCRIPTIONS", "IMAGE_DESCRIPTIONS"]
+__all__ = ["TensorBoardLogger", "SCALAR_DESCRIPTIONS", "IMAGE_DESCRIPTIONS", "tensorboard_command"]
+
+
+def _shell_path(path: Path) -> str:
+    """``path`` as typed in a shell from the current folder (relative when below it)."""
+    try:
+        text = str(path.relative_to(Path.cwd()))
+        text = text if "/" in text else f"./{text}"
+    except ValueError:
+        text = str(path)
+    return shlex.quote(text)
+
+
+def tensorboard_command(logdir: str | os.PathLike) -> str:
+    """The command that starts TensorBoard on ``logdir``, as it works typed from the current
+    folder: ``tensorboard`` when it is on ``PATH``, else the ``tensorboard`` script beside this
+    Python (``.venv/bin/tensorboard`` in the project's virtual environment), else
+    ``<this python> -m tensorboard.main``."""
+    log = shlex.quote(str(logdir))
+    if shutil.which("tensorboard") is not None:
+        return f"tensorboard --logdir {log}"
+    beside = Path(sys.executable).parent / "tensorboard"
+    if beside.is_file() and os.access(beside, os.X_OK):
+        return f"{_shell_path(beside)} --logdir {log}"
+    return f"{_shell_path(Path(sys.executable))} -m tensorboard.main --logdir {log}"
 
 #: What each scalar tag holds; written into the event files as the tag's description.
 SCALAR_DESCRIPTIONS = {

@@ -151,3 +151,69 @@ def test_value_map_greys_out_cells_still_at_the_initial_value():
     assert with_unknown.shape[1] >= 400 and with_unknown.dtype == np.uint8
     # Only the legend's patch is grey when no cell is at −1.
     assert count(with_unknown) > 10 * max(count(all_known), 1)
+
+
+# ------------------------------------------------------------------------- titles fit
+LONG_TITLE = ("a very long title that names the world, the mentor's episodes, the learner's "
+              "greedy path and every setting of the run, far wider than any figure ") * 2
+
+
+def _inside(fig: Figure, text) -> bool:
+    renderer = fig.canvas.get_renderer()
+    box, frame = text.get_window_extent(renderer), fig.bbox
+    return box.x0 >= frame.x0 - 0.5 and box.x1 <= frame.x1 + 0.5 and \
+        box.y0 >= frame.y0 - 0.5 and box.y1 <= frame.y1 + 0.5
+
+
+def test_long_titles_are_wrapped_inside_the_figure(world, tmp_path):
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from himit_torch.plotting import MapRenderer, fit_titles
+
+    fig = plot_world(world, title=LONG_TITLE)
+    FigureCanvasAgg(fig)
+    fig.canvas.draw()
+    assert not _inside(fig, fig.axes[0].title), "the check must be able to fail"
+    fit_titles(fig)
+    fig.canvas.draw()
+    assert _inside(fig, fig.axes[0].title)
+    assert fig.axes[0].title.get_text().split() == LONG_TITLE.split()   # nothing dropped
+    # the saved figure, the TensorBoard maps and the report's curves do it themselves
+    save_world_figure(tmp_path / "w.png", world, title=LONG_TITLE)
+    renderer = MapRenderer(world)
+    renderer.values(torch.zeros(world.num_states), title=LONG_TITLE)
+    parts = renderer._figures["values"]
+    assert _inside(parts["fig"], parts["title"])
+    fig = Figure(figsize=(6, 5), layout="constrained")
+    ax = fig.add_subplot()
+    ax.set_title(LONG_TITLE[:200])
+    fig.suptitle(LONG_TITLE[:150])
+    FigureCanvasAgg(fig)
+    fit_titles(fig)
+    fig.canvas.draw()
+    assert _inside(fig, ax.title) and _inside(fig, fig._suptitle)
+
+
+def test_tensorboard_hint_runs_as_typed(monkeypatch, tmp_path):
+    """The printed command names an executable that exists as typed from the current folder (on
+    PATH, or a path to the script beside this Python, or this Python with ``-m``)."""
+    import os
+    import shlex
+    import shutil
+    import sys
+
+    from himit_torch.tensorboard_logger import tensorboard_command
+
+    def runnable(program: str) -> bool:
+        if "/" in program:
+            return os.path.isfile(program) and os.access(program, os.X_OK)
+        return shutil.which(program) is not None
+
+    command = shlex.split(tensorboard_command(tmp_path / "tb"))
+    assert command[-2:] == ["--logdir", str(tmp_path / "tb")] and runnable(command[0])
+    monkeypatch.setenv("PATH", "")   # not on PATH: the script beside this Python, or -m
+    command = shlex.split(tensorboard_command("runs/x/tb"))
+    assert "/" in command[0] and runnable(command[0]), command
+    if "-m" in command:
+        assert command[1:3] == ["-m", "tensorboard.main"]
+        assert os.path.samefile(command[0], sys.executable)
