@@ -1,6 +1,7 @@
 # Two entry points, each doing its own set-up on a fresh machine:
 #   make demo   — the main job (a short experiment-2 run: world, mentor demonstrations, figures)
 #   make test   — the test suite
+#   make lint   — ruff (lint + format check) and mypy; CI runs it before the tests
 # The virtual environment lives in .venv. torch is installed first, on its own, as the build
 # named by TORCH_SPEC (default: torch==2.13.0, the CPU wheel on a CPU-only machine), so that the
 # package's plain "torch" requirement never pulls a multi-GB CUDA stack by accident. If .venv
@@ -12,7 +13,7 @@ TORCH_SPEC ?= torch==2.13.0
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.himit-installed
 
-.PHONY: demo test test-all bench install clean
+.PHONY: demo test test-all lint bench install clean
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -27,6 +28,12 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
+
+# ruff (lint rules and format check) and mypy, configured in pyproject.toml.
+lint: $(STAMP)
+	$(BIN)/ruff check .
+	$(BIN)/ruff format --check .
+	$(BIN)/mypy
 
 test-all: $(STAMP)
 	$(BIN)/python -m pytest -q -m "slow or not slow"

@@ -99,7 +99,7 @@ def main() -> None:
         for spec in worlds:
             for batch in batches:
                 agents = ("imitation",) if batch == 1 else ("imitation", "options", "primitives")
-                ours, refs = [], []
+                ours = []
                 for _ in range(args.repeats):      # interleaved, so load changes hit both alike
                     ours.append(measure(spec, batch, steps, engine))
                     key = (spec, steps, agents)

@@ -13,8 +13,15 @@ import time
 
 import torch
 
-from himit_torch import (Learner, LearnerConfig, MultiRooms, learner_options, mentor_options,
-                         mentor_policy, record_demonstrations)
+from himit_torch import (
+    Learner,
+    LearnerConfig,
+    MultiRooms,
+    learner_options,
+    mentor_options,
+    mentor_policy,
+    record_demonstrations,
+)
 
 parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
 parser.add_argument("--batches", type=int, nargs="+", default=[256, 1024, 4096])

@@ -7,21 +7,41 @@ Bellman equation with options (Friesen & Rao, "Imitation learning with hierarchi
 
 from . import backups
 from .demonstrations import DEMONSTRATIONS_FORMAT_VERSION, Demonstrations
-from .mentor import MentorPolicy, MentorRollout, mentor_policy, record_demonstrations, run_mentor
+from .dirichlet_models import (
+                      DirichletMentorModel,
+                      DirichletSMDPModel,
+                      EdgeStore,
+                      SuccessorDirichlet,
+)
+from .exact_option_models import OptionModels, option_durations, option_models
+from .exact_planning import (
+                      OptimalBaseline,
+                      PlanResult,
+                      expected_steps,
+                      greedy_option_policy,
+                      optimal_baseline,
+                      smdp_value_iteration,
+                      value_iteration,
+)
+from .gym_adapter import from_gymnasium, taxi_navigation_options
 from .gym_env import ENV_ID, MultiRoomsEnv, register_envs
 from .learner import AGENTS, Learner, LearnerConfig
-from .dirichlet_models import DirichletMentorModel, DirichletSMDPModel, EdgeStore, SuccessorDirichlet
-from .exact_option_models import OptionModels, option_durations, option_models
-from .options import (OPTION_KINDS, Options, corner_options, doorway_options, learner_options,
-                      mentor_options, primitive_options, subgoal_options)
-from .sweep_queue import BlockPriorityQueue
-from .exact_planning import (OptimalBaseline, PlanResult, expected_steps, greedy_option_policy,
-                             optimal_baseline, smdp_value_iteration, value_iteration)
+from .mentor import MentorPolicy, MentorRollout, mentor_policy, record_demonstrations, run_mentor
+from .options import (
+                      OPTION_KINDS,
+                      Options,
+                      corner_options,
+                      doorway_options,
+                      learner_options,
+                      mentor_options,
+                      primitive_options,
+                      subgoal_options,
+)
 from .reward import SALIENCE_EVENTS, KnownReward, MentorReward, SalienceReward
+from .sweep_queue import BlockPriorityQueue
+from .table_world import TableWorld, describe_world, transition_support, world_model
 from .tensorboard_logger import TensorBoardLogger
 from .world import STIMULUS_FEATURES, DynamicsTable, MultiRooms, TabularWorld
-from .table_world import TableWorld, describe_world, transition_support, world_model
-from .gym_adapter import from_gymnasium, taxi_navigation_options
 
 __version__ = "0.1.0"
 

@@ -63,7 +63,7 @@ class DamagedCheckpoint(ValueError):
 class NoGoodCheckpoint(ValueError):
     """Checkpoint generations exist but none of them is readable; ``skipped`` says why each."""
 
-    def __init__(self, skipped: list["Skipped"]):
+    def __init__(self, skipped: list[Skipped]):
         what = "; ".join(f"{s.path}: {s.reason}" for s in skipped)
         super().__init__(f"no good checkpoint is left ({what})")
         self.skipped = skipped

@@ -23,19 +23,20 @@ import argparse
 import os
 import sys
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import NoReturn
 
 import torch
 
-from .mentor import mentor_policy, run_mentor
 from .demonstrations import Demonstrations
 from .exact_option_models import option_durations, option_models
-from .options import Options, learner_options, mentor_options, primitive_options
 from .exact_planning import expected_steps, smdp_value_iteration
-from .world import MultiRooms
+from .mentor import mentor_policy, run_mentor
+from .options import Options, learner_options, mentor_options, primitive_options
 from .tensorboard_logger import tensorboard_command
+from .world import MultiRooms
 
 __all__ = ["main", "build_parser", "COMMANDS"]
 
@@ -56,7 +57,7 @@ class _Parser(argparse.ArgumentParser):
         _fail(f"{self.prog.split(' ', 1)[1] + ': ' if ' ' in self.prog else ''}{message}")
 
 
-def _fail(message: str, status: int = 2):
+def _fail(message: str | Exception, status: int = 2) -> NoReturn:
     line = " ".join(str(message).split())  # one line, whatever the message held
     print(f"himit: error: {line}", file=sys.stderr)
     raise SystemExit(status)
@@ -102,7 +103,7 @@ def optimal_trip(world: MultiRooms, options: Options, policy: torch.Tensor | Non
 
 
 def _kind_counts(options: Options) -> str:
-    counts = {}
+    counts: dict[str, int] = {}
     for k in options.kinds:
         counts[k] = counts.get(k, 0) + 1
     return ", ".join(f"{n} {k}" for k, n in counts.items())
@@ -149,11 +150,11 @@ def _info_gymnasium(args: argparse.Namespace, t0: float) -> int:
     """``himit info --env``: a Gymnasium world through the adapter, exactly solved."""
     import json
 
+    from .exact_planning import value_iteration
+    from .gym_adapter import from_gymnasium
     from .gym_experiment import TASKS, episode_statistics
     from .reward import KnownReward
     from .table_world import world_model
-    from .exact_planning import value_iteration
-    from .gym_adapter import from_gymnasium
 
     try:
         kwargs = json.loads(args.env_kwargs) if args.env_kwargs else {}
@@ -193,7 +194,7 @@ def _info_gymnasium(args: argparse.Namespace, t0: float) -> int:
           + (f": {', '.join(extended)})" if extended else ")"))
     p_goal, length = episode_statistics(world, plan.policy)
     models = smdp_value_iteration(option_models(world, options))
-    print(f"\noptimal (value iteration on the true model, primitives)")
+    print("\noptimal (value iteration on the true model, primitives)")
     print(f"  V*(start distribution)      {float(plan.values @ mu):.3f}")
     print(f"  with the learner's options  {float(models.values @ mu):.3f}")
     print(f"  P(goal) per episode         {p_goal:.3f}")

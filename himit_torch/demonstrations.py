@@ -10,8 +10,8 @@ from __future__ import annotations
 import json
 import os
 import zipfile
+from collections.abc import Iterator, Sequence
 from pathlib import Path
-from typing import Iterator, Sequence
 
 import numpy as np
 import torch
@@ -196,7 +196,7 @@ class Demonstrations:
         return path
 
     @classmethod
-    def load(cls, path: str | os.PathLike, world=None) -> "Demonstrations":
+    def load(cls, path: str | os.PathLike, world=None) -> Demonstrations:
         """Read and validate a file written by :meth:`save`.
 
         Args:

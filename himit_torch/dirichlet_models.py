@@ -41,7 +41,7 @@ class DenseEdgeIndex:
     :class:`EdgeStore`, padded with −1: ``forward [B, R + 1, K]``, ``reverse [B, S + 1, P]``.
     ``K`` and ``P`` double when a row or a state needs more room. Derived: never saved."""
 
-    def __init__(self, store: "EdgeStore", width: int = 8, fan_in: int = 16):
+    def __init__(self, store: EdgeStore, width: int = 8, fan_in: int = 16):
         B, dev = store.batch, store.device
         self.store = store
         self.forward = torch.full((B, store.num_rows + 1, width), -1, dtype=torch.int64, device=dev)
@@ -121,6 +121,9 @@ class EdgeStore:
 
     _EDGE_FLOATS: tuple[str, ...] = ("edge_count",)
     _ROW_FLOATS: tuple[str, ...] = ("row_count",)
+    # Set by name in __init__ from _EDGE_FLOATS / _ROW_FLOATS.
+    edge_count: torch.Tensor
+    row_count: torch.Tensor
 
     def __init__(self, num_rows: int, num_states: int, batch: int, device, concentration: float,
                  capacity: int = 256):
@@ -227,7 +230,7 @@ class EdgeStore:
         for callback in self.on_grow:
             callback(capacity)
 
-    def posterior(self, runs: torch.Tensor, rows: torch.Tensor) -> "SuccessorDirichlet":
+    def posterior(self, runs: torch.Tensor, rows: torch.Tensor) -> SuccessorDirichlet:
         """Posterior over the successors of ``rows`` (any shape) in ``runs`` (same shape)."""
         edge = self.index().forward[runs, rows]                              # [..., K]
         r = runs[..., None].expand_as(edge)
@@ -333,8 +336,10 @@ class SuccessorDirichlet(torch.distributions.Dirichlet):
         out = per - torch.lgamma(safe_total) - (k - safe_total) * torch.digamma(safe_total)
         return torch.where(k > 1, out, torch.zeros_like(out))
 
-    def sample(self, sample_shape=torch.Size(), generator: torch.Generator | None = None
-               ) -> torch.Tensor:
+    # Adds ``generator``, and takes one in place of the shape (the old ``sample(generator)``).
+    def sample(
+            self, sample_shape: torch.Size | list[int] | tuple[int, ...] | torch.Generator = (),
+            generator: torch.Generator | None = None) -> torch.Tensor:
         """Draws of the probabilities, ``sample_shape + batch_shape + [K + 1]``, from
         ``generator`` (a ``torch.Generator``; the global torch random state when omitted, as in
         every ``torch.distributions`` object). Categories with zero concentration get
@@ -344,7 +349,8 @@ class SuccessorDirichlet(torch.distributions.Dirichlet):
         from ``generator``, so the global random state of torch and NumPy is left alone and the
         same generator state always gives the same draws (on any device)."""
         if isinstance(sample_shape, torch.Generator):   # sample(generator), the old call
-            sample_shape, generator = torch.Size(), sample_shape
+            generator = sample_shape
+            sample_shape = ()
         shape = self._extended_shape(torch.Size(sample_shape))
         device = generator.device if generator is not None else torch.device("cpu")
         seed = int(torch.randint(0, 2**63 - 1, (1,), generator=generator, device=device))
@@ -354,7 +360,7 @@ class SuccessorDirichlet(torch.distributions.Dirichlet):
         total = g.sum(-1, keepdim=True)
         return torch.where(total > 0, g / total.clamp(min=1e-300), torch.zeros_like(g))
 
-    def rsample(self, sample_shape=torch.Size()) -> torch.Tensor:
+    def rsample(self, sample_shape: torch.Size | list[int] | tuple[int, ...] = ()) -> torch.Tensor:
         raise NotImplementedError("SuccessorDirichlet has no reparameterized sample (posteriors "
                                   "of counts need no gradient); use sample(generator=…)")
 
@@ -376,6 +382,8 @@ class DirichletSMDPModel(EdgeStore):
 
     _EDGE_FLOATS = ("edge_count", "edge_discount")
     _ROW_FLOATS = ("row_count", "row_reward")
+    edge_discount: torch.Tensor
+    row_reward: torch.Tensor
 
     def __init__(self, num_rows: int, num_states: int, batch: int, device="cpu",
                  concentration: float = 0.0, capacity: int = 256):

@@ -63,7 +63,7 @@ def value_iteration(P: torch.Tensor, R: torch.Tensor, gamma: float, tol: float =
     stacked = sp.csr_matrix((flat.values().double().numpy(), (rows, idx[2].numpy())), shape=(A * S, S))
     Rn = R.double().numpy()
     V = np.zeros(S)
-    for it in range(1, max_iter + 1):
+    for it in range(1, max_iter + 1):  # noqa: B007 (the count is returned)
         q = Rn + gamma * (stacked @ V).reshape(A, S).T
         new = q.max(1)
         delta = np.abs(new - V).max()
@@ -93,7 +93,7 @@ def smdp_value_iteration(models: OptionModels, tol: float = 1e-10, max_iter: int
     Tm, r, row_state = Tm[order], r[order], row_state[order]
     block_states, block_starts = np.unique(row_state, return_index=True)
     V = np.zeros(S)
-    for it in range(1, max_iter + 1):
+    for it in range(1, max_iter + 1):  # noqa: B007 (the count is returned)
         q = r + Tm @ V
         new = np.zeros(S)
         new[block_states] = np.maximum.reduceat(q, block_starts)

@@ -21,19 +21,19 @@ import json
 import os
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 import torch
 
 from .checkpoints import BatchShape, CheckpointGenerations, NoGoodCheckpoint
+from .exact_option_models import option_durations, option_models
+from .exact_planning import expected_steps, smdp_value_iteration
 from .learner import AGENTS, Learner, LearnerConfig
 from .mentor import mentor_policy, record_demonstrations
-from .exact_option_models import option_durations, option_models
 from .options import learner_options, mentor_options, primitive_options
-from .exact_planning import expected_steps, smdp_value_iteration
 from .tensorboard_logger import TensorBoardLogger
 from .validation import as_choice, as_float, as_int, as_tuple, check_memory
 from .world import MultiRooms
@@ -171,7 +171,7 @@ class ExperimentConfig:
     def world(self, size: int) -> MultiRooms:
         return MultiRooms(size=size, rooms=size // self.room_size, slip=self.slip)
 
-    def quick(self) -> "ExperimentConfig":
+    def quick(self) -> ExperimentConfig:
         """A tiny budget of the same experiment, for smoke tests and ``--quick``."""
         return replace(self, seeds=min(self.seeds, 2), steps=min(self.steps, 4 * self.window),
                        sizes=self.sizes[:2], checkpoint_every=self.window,
@@ -325,7 +325,8 @@ def _resume(generations: CheckpointGenerations, learner: Learner, batch: BatchSh
             redo = (f"the steps after it (up to checkpoint_every={config.checkpoint_every}) will "
                     "be redone")
         print(f"himit: warning: {skipped.path}: {skipped.reason}; resuming from "
-              f"{found.path.name} at step {found.header.step}: {redo}", file=sys.stderr)
+              f"{(found.path or generations.newest).name} at step {found.header.step}: {redo}",
+              file=sys.stderr)
     payload = found.payload
     if not isinstance(payload, dict) or not isinstance(payload.get("learner"), dict):
         raise ValueError(f"{found.path} holds no learner state; start over with --force")
@@ -359,7 +360,7 @@ def run_world(config: ExperimentConfig, size: int, run_dir: Path, resume: bool,
         demos[s] = record_demonstrations(world, mentor, config.mentor_episodes, seed=s)
         learner.add_demonstrations(demos[s], runs=[b for b, rs in enumerate(run_seeds) if rs == s])
     generations = CheckpointGenerations(run_dir / "checkpoints" / f"world{size}.pt")
-    batch = BatchShape(agents, run_seeds, world.num_states)
+    batch = BatchShape(tuple(agents), tuple(run_seeds), world.num_states)
     layout = _state_layout_version()
     if resume:
         elapsed = _resume(generations, learner, batch, layout, config)
@@ -539,8 +540,8 @@ def run_experiment(config: ExperimentConfig, run_dir: str | os.PathLike, resume:
     cores = os.cpu_count() or 1
     workers = min(len(todo), cores) if workers is None else min(int(workers), len(todo))
     if workers > 1:
-        from concurrent.futures import ProcessPoolExecutor
         import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor
         # "spawn": a forked child of a process whose OpenMP threads already ran can hang.
         with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"),
                                  initializer=_share_cores, initargs=(max(1, cores // workers),)) as pool:
@@ -568,11 +569,12 @@ def _share_cores(threads: int) -> None:
         import numba
     except ImportError:
         return
-    numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
+    numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))  # type: ignore[attr-defined]
 
 
 def _merge_curves(run_dir: Path, config: ExperimentConfig) -> None:
-    rows, header = [], None
+    rows: list[list[str]] = []
+    header: list[str] = []
     for size in config.sizes:
         with (run_dir / "worlds" / f"curves{size}.csv").open() as f:
             reader = csv.reader(f)

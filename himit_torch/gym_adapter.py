@@ -34,7 +34,8 @@ from __future__ import annotations
 
 import json
 from collections import deque
-from typing import Any, Iterable, Mapping
+from collections.abc import Iterable, Mapping
+from typing import Any
 
 import numpy as np
 import torch
@@ -91,7 +92,7 @@ def from_gymnasium(env: Any, gamma: float = 0.99, *, start_distribution=None,
             raise ValueError(f"from_gymnasium: keyword arguments {sorted(kwargs)} are for "
                              "gymnasium.make and need an environment id, not an environment object")
         spec = getattr(env, "spec", None)
-        env_id = spec.id if spec is not None else None
+        env_id = spec.id if spec is not None else None  # type: ignore[assignment]
         made_kwargs = {k: v for k, v in dict(spec.kwargs if spec is not None else {}).items()
                        if k != "render_mode"}
     raw = getattr(env, "unwrapped", env)
@@ -158,8 +159,8 @@ def from_gymnasium(env: Any, gamma: float = 0.99, *, start_distribution=None,
     world = TableWorld(table, start, terminal, gamma=gamma,
                        action_names=GYM_ACTION_NAMES.get(type(raw).__name__),
                        description=description, name=label)
-    world.env = raw
-    world.gym_id, world.gym_kwargs = env_id, made_kwargs
+    world.env = raw  # type: ignore[attr-defined]  # extra attributes of a Gymnasium world
+    world.gym_id, world.gym_kwargs = env_id, made_kwargs  # type: ignore[attr-defined]
     return world
 
 

@@ -14,8 +14,9 @@ or, without importing first, ``gymnasium.make("himit_torch.gym_env:himit_torch/M
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from functools import cached_property
-from typing import Any, Iterable
+from typing import Any
 
 import gymnasium
 import numpy as np
@@ -100,8 +101,8 @@ class MultiRoomsEnv(gymnasium.Env[int, int]):
                                 goal_reward=goal_reward, gamma=gamma)
         self.render_mode = render_mode
         self.cell_pixels = int(cell_pixels)
-        self.observation_space = spaces.Discrete(self.world.num_states)
-        self.action_space = spaces.Discrete(self.world.num_actions)
+        self.observation_space = spaces.Discrete(self.world.num_states)  # type: ignore[assignment]
+        self.action_space = spaces.Discrete(self.world.num_actions)  # type: ignore[assignment]
         self.state: int | None = None
 
     # ------------------------------------------------------------------------------ Gym API
@@ -124,11 +125,11 @@ class MultiRoomsEnv(gymnasium.Env[int, int]):
         positions = torch.tensor([self.state], dtype=torch.int64)
         actions = torch.tensor([int(action)], dtype=torch.int64)
         uniforms = torch.tensor([self.np_random.random()], dtype=torch.float64)
-        nxt, reward = self.world.step(positions, actions, uniforms)
+        nxt, rewards = self.world.step(positions, actions, uniforms)
         executed = int(self.world.slipped_actions(actions, uniforms)[0])
         self.state = int(nxt[0])
         terminated = self.state == self.world.goal_state
-        reward = float(reward[0])
+        reward = float(rewards[0])
         return self.state, reward, terminated, False, {"executed_action": executed}
 
     def render(self) -> np.ndarray | str | None:

@@ -31,9 +31,10 @@ import json
 import math
 import os
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
-from typing import Callable
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
@@ -42,9 +43,9 @@ import torch
 
 from .exact_option_models import OptionModels, option_models
 from .exact_planning import value_iteration
+from .experiment import source_commit
 from .gym_adapter import from_gymnasium, taxi_navigation_options
 from .learner import AGENTS, Learner, LearnerConfig
-from .experiment import source_commit
 from .mentor import mentor_policy, record_demonstrations
 from .options import Options, primitive_options, subgoal_options
 from .reward import KnownReward
@@ -172,7 +173,7 @@ class GymExperimentConfig:
         if self.learner.window != self.window:
             self.learner = replace(self.learner, window=self.window)
 
-    def quick(self) -> "GymExperimentConfig":
+    def quick(self) -> GymExperimentConfig:
         """A tiny budget (smoke tests, ``--quick``)."""
         return replace(self, seeds=min(self.seeds, 2), steps=2 * self.window,
                        mentor_episodes=min(self.mentor_episodes, 5))
@@ -329,7 +330,7 @@ def run_task(config: GymExperimentConfig, task_name: str, run_dir: Path,
     goal = world.goal_mask.to(learner.device)
     names = [f"{task_name}__{a}__seed{s}" for a, s in zip(agents, run_seeds)]
     writers = [SummaryWriter(str(run_dir / "tb" / n)) for n in names]
-    rows = []
+    rows: list[dict[str, Any]] = []
     previous_goals = torch.zeros(learner.batch, dtype=torch.int64)
     steps = config.steps_of(task_name)
     bar = None
@@ -350,7 +351,7 @@ def run_task(config: GymExperimentConfig, task_name: str, run_dir: Path,
         gap = greedy_value_gap(evaluator, learner)
         coverage = learner.model_coverage().cpu()
         for b in range(learner.batch):
-            row = {"task": task_name, "agent": agents[b], "seed": run_seeds[b], "step": learner.t,
+            row: dict[str, Any] = {"task": task_name, "agent": agents[b], "seed": run_seeds[b], "step": learner.t,
                    "goals": int(goals[b]), "episodes": int(m.goals_in_window[-1][b]),
                    "epsilon": float(m.epsilon[-1][b]), "value_gap": gap[b],
                    "mentor_term_wins": float(m.mentor_term_wins[-1][b])}

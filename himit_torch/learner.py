@@ -27,8 +27,9 @@ Shapes: ``B`` runs, ``S`` states, ``O`` options, ``M`` rows, ``E`` model edges p
 from __future__ import annotations
 
 import warnings
+from collections.abc import Iterable, Sequence
 from dataclasses import asdict, dataclass
-from typing import TYPE_CHECKING, Iterable, Protocol, Sequence
+from typing import TYPE_CHECKING, Protocol
 
 import torch
 
@@ -302,8 +303,9 @@ class Learner:
         # β as given (float32 compares with the float64 uniforms exactly as float64 would)
         self.termination = options.termination.to(dev).reshape(-1).contiguous()
         if options.stochastic:
-            self.policy_cdf = options.policy.to(dev).double().cumsum(-1).reshape(O * S, -1).contiguous()
-            self.policy = None
+            self.policy_cdf: torch.Tensor | None = \
+                options.policy.to(dev).double().cumsum(-1).reshape(O * S, -1).contiguous()
+            self.policy: torch.Tensor | None = None
         else:
             self.policy = options.policy.to(dev).reshape(-1).contiguous()
             self.policy_cdf = None
@@ -640,6 +642,7 @@ class Learner:
             if self.policy is not None:
                 action = self.policy[flat]
             else:
+                assert self.policy_cdf is not None   # stochastic options
                 action = torch.multinomial(torch.diff(self.policy_cdf[flat], prepend=torch.zeros(
                     1, 1, dtype=torch.float64, device=self.device)), 1, generator=gen)[:, 0]
             u = torch.rand(s.shape, generator=gen, device=self.device, dtype=torch.float64)

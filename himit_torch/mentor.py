@@ -14,9 +14,9 @@ import torch
 
 from .demonstrations import Demonstrations
 from .exact_option_models import option_models
-from .options import Options
 from .exact_planning import greedy_option_policy, smdp_value_iteration
-from .world import MultiRooms
+from .options import Options
+from .world import MultiRooms, TabularWorld
 
 __all__ = ["MentorPolicy", "MentorRollout", "mentor_policy", "run_mentor", "record_demonstrations"]
 
@@ -46,7 +46,7 @@ class MentorPolicy:
         return (self.option >= 0) & ext[self.option.clamp(min=0)]
 
 
-def mentor_policy(world: MultiRooms, options: Options,
+def mentor_policy(world: MultiRooms | TabularWorld, options: Options,
                   prefer_extended_within: float | None = None) -> MentorPolicy:
     """The mentor's optimal policy for its own options, by exact SMDP value iteration.
 
@@ -117,7 +117,7 @@ class MentorRollout:
         return counts
 
 
-def run_mentor(world: MultiRooms, mentor: MentorPolicy | Options, episodes: int = 20, *,
+def run_mentor(world: MultiRooms | TabularWorld, mentor: MentorPolicy | Options, episodes: int = 20, *,
                generator: torch.Generator | None = None, seed: int | None = None,
                max_steps_per_episode: int | None = None) -> MentorRollout:
     """Run the mentor's policy from the start until a terminal state, ``episodes`` times.
@@ -213,7 +213,7 @@ def run_mentor(world: MultiRooms, mentor: MentorPolicy | Options, episodes: int 
     return MentorRollout(states=states, decisions=decisions, options=options)
 
 
-def record_demonstrations(world: MultiRooms, mentor: MentorPolicy | Options, episodes: int = 20, *,
+def record_demonstrations(world: MultiRooms | TabularWorld, mentor: MentorPolicy | Options, episodes: int = 20, *,
                           generator: torch.Generator | None = None, seed: int | None = None,
                           max_steps_per_episode: int | None = None) -> Demonstrations:
     """State-only demonstrations of the mentor: :func:`run_mentor`, keeping the states only.

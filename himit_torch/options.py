@@ -15,8 +15,8 @@ loop and the exact option models add that, it need not be written into β.
 from __future__ import annotations
 
 import heapq
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 import scipy.sparse as sp
@@ -121,38 +121,39 @@ class Options:
     def __len__(self) -> int:
         return self.num_options
 
-    def __add__(self, other: "Options") -> "Options":
+    def __add__(self, other: Options) -> Options:
         return Options.concat(self, other)
 
     @staticmethod
-    def concat(*parts: "Options | Sequence[Options]") -> "Options":
+    def concat(*parts: Options | Sequence[Options]) -> Options:
         """Options from several bundles, in order (policies made stochastic if any one is):
         ``Options.concat(a, b)`` or ``Options.concat([a, b])``."""
-        if len(parts) == 1 and isinstance(parts[0], (list, tuple)):
-            parts = tuple(parts[0])
-        if not parts:
+        items: tuple = tuple(parts[0]) if len(parts) == 1 and isinstance(parts[0], (list, tuple)) \
+            else parts
+        if not items:
             raise ValueError("Options.concat needs at least one bundle")
-        wrong = [type(p).__name__ for p in parts if not isinstance(p, Options)]
+        wrong = [type(p).__name__ for p in items if not isinstance(p, Options)]
         if wrong:
             raise ValueError(f"Options.concat joins Options bundles, got {wrong}; pass bundles as "
                              "separate arguments or as one list")
-        if len({p.num_states for p in parts}) != 1:
+        bundles: list[Options] = list(items)
+        if len({p.num_states for p in bundles}) != 1:
             raise ValueError(f"cannot join options over different state counts "
-                             f"{[p.num_states for p in parts]}")
-        if any(p.stochastic for p in parts):
-            A = max(p.policy.shape[2] if p.stochastic else int(p.policy.max()) + 1 for p in parts)
-            policy = torch.cat([p.action_probabilities(A) for p in parts])
+                             f"{[p.num_states for p in bundles]}")
+        if any(p.stochastic for p in bundles):
+            A = max(p.policy.shape[2] if p.stochastic else int(p.policy.max()) + 1 for p in bundles)
+            policy = torch.cat([p.action_probabilities(A) for p in bundles])
         else:
-            policy = torch.cat([p.policy for p in parts])
-        return Options(initiation=torch.cat([p.initiation for p in parts]),
-                       termination=torch.cat([p.termination for p in parts]),
-                       policy=policy, names=sum((p.names for p in parts), ()),
-                       kinds=sum((p.kinds for p in parts), ()))
+            policy = torch.cat([p.policy for p in bundles])
+        return Options(initiation=torch.cat([p.initiation for p in bundles]),
+                       termination=torch.cat([p.termination for p in bundles]),
+                       policy=policy, names=sum((p.names for p in bundles), ()),
+                       kinds=sum((p.kinds for p in bundles), ()))
 
     @staticmethod
     def from_policy(initiation: torch.Tensor, policy: torch.Tensor,
                     termination: torch.Tensor | None = None, name: str = "custom",
-                    kind: str = "custom") -> "Options":
+                    kind: str = "custom") -> Options:
         """One option from any tabular policy.
 
         Args:
@@ -191,7 +192,7 @@ class Options:
         return Options(initiation=initiation[None], termination=termination[None],
                        policy=policy[None], names=(name,), kinds=(kind,))
 
-    def select(self, index: Sequence[int] | torch.Tensor) -> "Options":
+    def select(self, index: Sequence[int] | torch.Tensor) -> Options:
         """A sub-bundle with the options at ``index``."""
         index = torch.as_tensor(index, dtype=torch.int64)
         return Options(self.initiation[index], self.termination[index], self.policy[index],
@@ -308,7 +309,7 @@ def target_policy(world: MultiRooms, region: Sequence[int], target: int,
     for s in region:
         r, c = world.coords(s)
         best = None
-        for a, (dr, dc) in enumerate(ACTION_DELTAS):
+        for a, (dr, _dc) in enumerate(ACTION_DELTAS):
             v = int(nxt[s, a])
             if v == s or v not in dist:
                 continue

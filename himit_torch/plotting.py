@@ -17,11 +17,13 @@ from __future__ import annotations
 
 import os
 import warnings
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
+from typing import Any
 
 import numpy as np
 import torch
+from matplotlib.artist import Artist
 from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.colors import ListedColormap
@@ -107,7 +109,9 @@ def plot_world(world: MultiRooms, demonstrations: Demonstrations | None = None,
         fig = Figure(figsize=(side, side + 0.6), layout="constrained")
         ax = fig.add_subplot()
     else:
-        fig = ax.get_figure()
+        parent = ax.get_figure()
+        assert isinstance(parent, Figure), "plot_world draws into the axes of a Figure"
+        fig = parent
     N = world.size
     # 0 free, 1 wall, 2 doorway.
     cells = world.wall_mask.numpy().astype(np.int64)
@@ -115,8 +119,8 @@ def plot_world(world: MultiRooms, demonstrations: Demonstrations | None = None,
     cmap = ListedColormap(["white", WALL_COLOR, DOORWAY_COLOR])
     ax.imshow(cells.reshape(N, N), cmap=cmap, vmin=0, vmax=2, interpolation="nearest",
               extent=(-0.5, N - 0.5, N - 0.5, -0.5), zorder=0)
-    handles = [Patch(facecolor=WALL_COLOR, label="wall"),
-               Patch(facecolor=DOORWAY_COLOR, edgecolor="0.4", label="doorway")]
+    handles: list[Artist] = [Patch(facecolor=WALL_COLOR, label="wall"),
+                             Patch(facecolor=DOORWAY_COLOR, edgecolor="0.4", label="doorway")]
     if demonstrations is not None:
         paths = [e.numpy() for e in demonstrations.episodes]
         # Fainter lines for more episodes, so overlaps show where the mentor goes reliably.
@@ -168,9 +172,10 @@ def _wrap_to_width(text: Text, width_px: float, renderer) -> None:
                 current = trial
         lines.append(current)
         text.set_text("\n".join(lines))
-        if text.get_window_extent(renderer).width <= width_px or text.get_fontsize() <= 6:
+        size = float(text.get_fontsize())
+        if text.get_window_extent(renderer).width <= width_px or size <= 6:
             return
-        text.set_fontsize(max(6.0, text.get_fontsize() * 0.85))
+        text.set_fontsize(max(6.0, size * 0.85))
 
 
 def fit_titles(fig: Figure, margin: float = 0.01) -> None:
@@ -274,7 +279,9 @@ def plot_state_map(ax: Axes, world: MultiRooms, field, *, label: str, title: str
     if title is not None:
         ax.set_title(title, fontsize="medium")
     if colorbar:
-        ax.get_figure().colorbar(image, ax=ax, label=label, shrink=0.85)
+        figure = ax.get_figure()
+        assert figure is not None, "plot_state_map draws into axes that belong to a figure"
+        figure.colorbar(image, ax=ax, label=label, shrink=0.85)
     return image
 
 
@@ -400,10 +407,10 @@ def plot_first_goals(ax: Axes, first_goals, steps: int, *, colors=None,
     ax.set_yticks(range(len(names)), names[::-1])
     ax.set_ylim(-0.6, len(names) - 0.4)
     ticks = [t for t in (100, 1_000, 10_000, 100_000, 1_000_000) if t <= steps]
-    ax.set_xticks(ticks + [never_x], [_steps_label(t) for t in ticks] + ["never"])
+    ax.set_xticks([*ticks, never_x], [_steps_label(t) for t in ticks] + ["never"])
     ax.minorticks_off()
-    found = [float(v) for f in first_goals.values() for v in f if v > 0]
-    ax.set_xlim((min(found) if found else steps / 10) / 2, never_x * 1.4)
+    found_steps = [float(v) for f in first_goals.values() for v in f if v > 0]
+    ax.set_xlim((min(found_steps) if found_steps else steps / 10) / 2, never_x * 1.4)
     ax.axvline(steps, color="0.6", lw=0.8, ls=":")
     ax.annotate("end of the runs", (steps, 1.0), xycoords=("data", "axes fraction"),
                 xytext=(-3, -3), textcoords="offset points", ha="right", va="top",
@@ -447,7 +454,7 @@ class MapRenderer:
         fig = Figure(figsize=(5.6, 4.8), dpi=self.dpi)
         ax = fig.add_axes((0.03, 0.13, 0.60, 0.70))
         blank = np.zeros(self.world.num_states)
-        parts = {"fig": fig, "ax": ax, "canvas": FigureCanvasAgg(fig)}
+        parts: dict[str, Any] = {"fig": fig, "ax": ax, "canvas": FigureCanvasAgg(fig)}
         if kind == "policy":
             keys = list(_POLICY_PALETTE)
             colours = ListedColormap([_POLICY_PALETTE[k] for k in keys])
@@ -492,7 +499,7 @@ class MapRenderer:
                        loc="lower center", bbox_to_anchor=(0.45, 0.0), ncol=3 if extra else 2,
                        fontsize="small", frameon=False)
         parts["title"] = fig.text(0.33, 0.975, "", ha="center", va="top", fontsize="medium")
-        fig._himit_titles = [parts["title"]]
+        fig._himit_titles = [parts["title"]]  # type: ignore[attr-defined]  # read by fit_titles
         self._figures[kind] = parts
         return parts
 

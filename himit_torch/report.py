@@ -167,8 +167,8 @@ def write_results(run_dir: Path, config, results) -> None:
             firsts = [r.first_goal_step[b] for b in idx]
             found = sum(f >= 0 for f in firsts)
             seeds_curves = curves.get(r.size, {}).get(agent, {})
-            reach = [_reach_step(*seeds_curves[r.seeds[b]], half) if r.seeds[b] in seeds_curves
-                     else None for b in idx]
+            reach = [_reach_step(seeds_curves[r.seeds[b]][0], seeds_curves[r.seeds[b]][1], half)
+                     if r.seeds[b] in seeds_curves else None for b in idx]
             reach_txt = ", ".join("never" if x is None else f"{x // 1000}k" for x in reach)
             lines.append(
                 f"| {agent} | {found}/{len(idx)} | "

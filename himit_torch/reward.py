@@ -47,7 +47,8 @@ from __future__ import annotations
 
 import math
 import operator
-from typing import Iterable, Mapping, Protocol, Sequence, runtime_checkable
+from collections.abc import Iterable, Mapping, Sequence
+from typing import Protocol, runtime_checkable
 
 import torch
 
@@ -275,7 +276,7 @@ class SalienceReward:
             self.fit(demonstrations)
 
     # ------------------------------------------------------------------------------- fitting
-    def fit(self, demonstrations) -> "SalienceReward":
+    def fit(self, demonstrations) -> SalienceReward:
         """Estimate the mentor statistics (visits, arrivals, episode ends) from its episodes.
 
         ``demonstrations``: a :class:`~himit_torch.Demonstrations` (checked against the world),
@@ -399,7 +400,7 @@ class SalienceReward:
         S = self.num_states
         src, dst = self._arrival_pairs
         ev = self._events(src, dst, self.end_rate(), self.novelty())
-        total = sum(self.weights[k] * ev[k] for k in SALIENCE_EVENTS).clamp(0.0, 1.0)
+        total = torch.stack([self.weights[k] * ev[k] for k in SALIENCE_EVENTS]).sum(0).clamp(0.0, 1.0)
         return _mean_over_arrivals(total, dst, self._arrivals, S)
 
     def event_maps(self) -> dict[str, torch.Tensor]:

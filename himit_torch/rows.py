@@ -6,7 +6,7 @@ Shapes: ``M`` rows (plus one padding row ``M``), ``J`` rows per state at most, `
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import torch
 

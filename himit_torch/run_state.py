@@ -30,6 +30,23 @@ class RunState:
             "decisions", "first_goal_step")
     _FLOAT = ("discounted_return", "discount", "epsilon")
     _STATE = _INT + _FLOAT + ("found_goal", "visits")
+    # The per-run tensors set by name in __init__ ([B] each; visits [B, S + 1]).
+    position: torch.Tensor
+    option_start: torch.Tensor
+    row: torch.Tensor
+    duration: torch.Tensor
+    goals: torch.Tensor
+    window_goals: torch.Tensor
+    episodes: torch.Tensor
+    episode_start: torch.Tensor
+    window_episode_steps: torch.Tensor
+    window_episodes: torch.Tensor
+    backups_done: torch.Tensor
+    decisions: torch.Tensor
+    first_goal_step: torch.Tensor
+    discounted_return: torch.Tensor
+    discount: torch.Tensor
+    epsilon: torch.Tensor
 
     def __init__(self, batch: int, num_states: int, start: torch.Tensor, pad_row: int,
                  eps_start: float, device):

@@ -47,7 +47,7 @@ def _take(x: torch.Tensor, flat: torch.Tensor) -> torch.Tensor:
 class ValueCache:
     """``V [B, S + 1]`` and the caches of eq. 2 for a batch, over its models and row table."""
 
-    def __init__(self, config: "LearnerConfig", rows: RowTable, model: DirichletSMDPModel,
+    def __init__(self, config: LearnerConfig, rows: RowTable, model: DirichletSMDPModel,
                  mentor: DirichletMentorModel, terminal: torch.Tensor, gamma: float):
         self.config, self.rows, self.model, self.mentor = config, rows, model, mentor
         self.terminal, self.gamma = terminal, gamma
@@ -204,7 +204,8 @@ class ValueCache:
         pushes = [self._propagate_options(rr, xs, dd, vo)]
         if self.any_mentor:
             pushes.append(self._propagate_mentor(rr, xs, dd, vo))
-        return tuple(torch.cat(parts) for parts in zip(*pushes))
+        runs_out, states_out, priorities = (torch.cat(parts) for parts in zip(*pushes))
+        return runs_out, states_out, priorities
 
     def _propagate_options(self, runs, states, delta, old):
         """``V(x) += δ``: update the ``Q`` caches of every row with an edge to ``x``."""

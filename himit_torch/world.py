@@ -9,8 +9,9 @@ what it has seen, so unused wall states cost nothing there).
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
-from typing import Iterable, Mapping, Protocol, runtime_checkable
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 import torch
@@ -90,7 +91,7 @@ class DynamicsTable:
         return (self.successors.view(-1).index_select(0, flat),
                 self.rewards.view(-1).index_select(0, flat))
 
-    def to(self, device: torch.device | str) -> "DynamicsTable":
+    def to(self, device: torch.device | str) -> DynamicsTable:
         return DynamicsTable(self.successors.to(device), self.cdf.to(device), self.rewards.to(device))
 
 
@@ -340,7 +341,7 @@ class MultiRooms:
                 "goal_reward": self.goal_reward, "gamma": self.gamma}
 
     @classmethod
-    def from_description(cls, desc: dict) -> "MultiRooms":
+    def from_description(cls, desc: dict) -> MultiRooms:
         if desc.get("kind") != "MultiRooms":
             raise ValueError(f"description is of a {desc.get('kind')!r} world, not MultiRooms")
         return cls(size=desc["size"], rooms=desc["rooms"], slip=desc["slip"], start=desc["start"],
@@ -425,7 +426,9 @@ class MultiRooms:
                 if p == 0.0:
                     continue
                 target = np.where(absorbing, states, self._next[:, b])
-                idx_a.append(np.full(S, a)); idx_s.append(states); idx_t.append(target)
+                idx_a.append(np.full(S, a))
+                idx_s.append(states)
+                idx_t.append(target)
                 vals.append(np.where(absorbing, 1.0 if a == b else 0.0, p))
         indices = torch.from_numpy(np.stack([np.concatenate(idx_a), np.concatenate(idx_s),
                                              np.concatenate(idx_t)]))

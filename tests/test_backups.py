@@ -9,9 +9,16 @@ import pytest
 import scipy.stats
 import torch
 
-from himit_torch.backups import (augmented_option_backup, augmented_primitive_backup,
-                                 confident_mentor, dirichlet_value_moments, mentor_backup,
-                                 option_backup, options_only_backup, primitives_only_backup)
+from himit_torch.backups import (
+    augmented_option_backup,
+    augmented_primitive_backup,
+    confident_mentor,
+    dirichlet_value_moments,
+    mentor_backup,
+    option_backup,
+    options_only_backup,
+    primitives_only_backup,
+)
 
 NEG_INF = float("-inf")
 

@@ -13,10 +13,19 @@ import pytest
 import torch
 
 import himit_torch.checkpoints as ckpt
-from himit_torch.checkpoints import (BatchShape, CheckpointGenerations, CheckpointWriteError,
-                                     DamagedCheckpoint, IncompatibleCheckpoint, NoGoodCheckpoint,
-                                     decode, encode, read_checkpoint, read_header,
-                                     write_checkpoint)
+from himit_torch.checkpoints import (
+    BatchShape,
+    CheckpointGenerations,
+    CheckpointWriteError,
+    DamagedCheckpoint,
+    IncompatibleCheckpoint,
+    NoGoodCheckpoint,
+    decode,
+    encode,
+    read_checkpoint,
+    read_header,
+    write_checkpoint,
+)
 from himit_torch.cli import main
 from himit_torch.experiment import EXPERIMENTS, run_experiment
 from himit_torch.learner import Learner

@@ -8,8 +8,8 @@ import pytest
 from himit_torch.cli import COMMANDS, main
 from himit_torch.demonstrations import Demonstrations
 from himit_torch.exact_option_models import option_durations, option_models
-from himit_torch.options import primitive_options
 from himit_torch.exact_planning import expected_steps, smdp_value_iteration
+from himit_torch.options import primitive_options
 from himit_torch.world import MultiRooms
 
 

@@ -8,8 +8,13 @@ import pytest
 import scipy.stats
 import torch
 
-from himit_torch.dirichlet_models import (DenseEdgeIndex, DirichletMentorModel, DirichletSMDPModel,
-                                         EdgeStore, SuccessorDirichlet)
+from himit_torch.dirichlet_models import (
+    DenseEdgeIndex,
+    DirichletMentorModel,
+    DirichletSMDPModel,
+    EdgeStore,
+    SuccessorDirichlet,
+)
 from himit_torch.exact_option_models import option_models
 from himit_torch.options import learner_options
 from himit_torch.world import MultiRooms

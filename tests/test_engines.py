@@ -8,8 +8,16 @@ import pytest
 import scipy.stats
 import torch
 
-from himit_torch import (Learner, LearnerConfig, MultiRooms, Options, learner_options,
-                         mentor_options, mentor_policy, record_demonstrations)
+from himit_torch import (
+    Learner,
+    LearnerConfig,
+    MultiRooms,
+    Options,
+    learner_options,
+    mentor_options,
+    mentor_policy,
+    record_demonstrations,
+)
 from himit_torch.engines import make_engine
 
 pytest.importorskip("numba")

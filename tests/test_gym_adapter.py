@@ -123,7 +123,7 @@ def test_successor_distribution_matches_gymnasium_statistically(worlds):
                 mine[t] = mine.get(t, 0.0) + float(prob[s, a, k])
             mine = {t: p for t, p in mine.items() if p > 0}
             assert mine.keys() == truth.keys()
-            for t, (p, r, _) in truth.items():
+            for t, (p, _r, _) in truth.items():
                 assert mine[t] == pytest.approx(p, abs=1e-12)
             got, _ = world.step(torch.full((n,), int(s)), torch.full((n,), a),
                                 torch.rand(n, generator=gen, dtype=torch.float64))

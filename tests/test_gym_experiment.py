@@ -11,9 +11,15 @@ import numpy as np
 import pytest
 import torch
 
-from himit_torch.gym_experiment import (TASKS, GreedyEvaluator, GymExperimentConfig, mean_ci,
-                                        neutral_value, optimal_goals_per_window,
-                                        run_gym_experiment)
+from himit_torch.gym_experiment import (
+    TASKS,
+    GreedyEvaluator,
+    GymExperimentConfig,
+    mean_ci,
+    neutral_value,
+    optimal_goals_per_window,
+    run_gym_experiment,
+)
 from himit_torch.table_world import world_model
 
 ROOT = Path(__file__).resolve().parent.parent

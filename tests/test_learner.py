@@ -10,11 +10,11 @@ import torch
 
 from himit_torch.backups import confident_mentor, dirichlet_value_moments
 from himit_torch.choice import choose_rows
+from himit_torch.exact_option_models import option_models
+from himit_torch.exact_planning import smdp_value_iteration
 from himit_torch.learner import AGENTS, Learner, LearnerConfig
 from himit_torch.mentor import mentor_policy, record_demonstrations
-from himit_torch.exact_option_models import option_models
 from himit_torch.options import Options, learner_options, mentor_options, primitive_options
-from himit_torch.exact_planning import smdp_value_iteration
 from himit_torch.rng import seed_streams, splitmix64, uniforms
 from himit_torch.world import MultiRooms
 

@@ -5,8 +5,14 @@ import re
 import pytest
 import torch
 
-from himit_torch.options import (Options, corner_options, doorway_options, learner_options,
-                                 mentor_options, primitive_options)
+from himit_torch.options import (
+    Options,
+    corner_options,
+    doorway_options,
+    learner_options,
+    mentor_options,
+    primitive_options,
+)
 from himit_torch.world import MultiRooms
 
 

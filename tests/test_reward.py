@@ -12,7 +12,6 @@ from himit_torch.options import learner_options, mentor_options
 from himit_torch.reward import SALIENCE_EVENTS, KnownReward, MentorReward, SalienceReward
 from himit_torch.world import STIMULUS_FEATURES, MultiRooms
 
-
 # ======================================================================= the tiny world by hand
 #   MultiRooms(6, 2), states s = 6·row + col      rooms: 0 top-left, 1 top-right,
 #        col 0 1 2 3 4 5                                2 bottom-left, 3 bottom-right
@@ -310,8 +309,14 @@ def test_intrinsic_reward_alone_reaches_the_goal(world8, demos8):
 
 def test_salience_refit_replaces_the_previous_fit():
     """A refit on a mentor that never moves leaves no arrivals from the earlier fit."""
-    from himit_torch import Demonstrations, MultiRooms, SalienceReward, mentor_options, mentor_policy
-    from himit_torch import record_demonstrations
+    from himit_torch import (
+        Demonstrations,
+        MultiRooms,
+        SalienceReward,
+        mentor_options,
+        mentor_policy,
+        record_demonstrations,
+    )
     world = MultiRooms(8, 2)
     demos = record_demonstrations(world, mentor_policy(world, mentor_options(world)), 2, seed=0)
     module = SalienceReward(world, demos)

@@ -30,7 +30,7 @@ class NumbaEngine:
     def __init__(self, learner):
         L = self.learner = learner
         cfg = L.config
-        B, S, M = L.batch, L.num_states, L.num_rows
+        B, S = L.batch, L.num_states
         cfg_f = np.zeros(9)
         cfg_f[_kernel.F_GAMMA] = L.gamma
         cfg_f[_kernel.F_EPS_DECAY] = cfg.eps_decay
@@ -120,7 +120,7 @@ class NumbaEngine:
             # Runs differ in cost (an imitator plans more than a primitives-only run): hand them
             # to the threads one at a time, not in fixed blocks.
             with numba.parallel_chunksize(1):
-                _kernel.advance(
+                _kernel.advance(  # type: ignore[call-arg]  # a numba dispatcher
                     t_end, t_reached, self.keys, self.cfg_f, self.cfg_i, *self.static,
                     _np(cache.values), _np(cache.q_numerator), _np(cache.q_second),
                     _np(cache.mentor_numerator), _np(cache.mentor_second), _np(cache.mentor_edge_reward),
