@@ -148,7 +148,13 @@ class ExperimentConfig:
             bad("checkpoint_every", f"must be a positive multiple of window={self.window}")
         if self.learner.window != self.window:
             self.learner = replace(self.learner, window=self.window)
-        for size in self.sizes:   # refused now, not hours later when that world's turn comes
+
+    def check_size(self) -> None:
+        """Refuse, before anything runs, a world of this experiment whose world, option tables
+        and batch would not fit in memory (:func:`himit_torch.validation.check_memory`): not
+        hours later when that world's turn comes. Called by :func:`run_experiment` (not on
+        construction, so that defining an experiment never depends on the memory free now)."""
+        for size in self.sizes:
             check_memory(f"ExperimentConfig: world {size}×{size} with its options and a batch of "
                          f"{len(self.agents) * self.seeds} runs", self.estimate_bytes(size),
                          "use smaller sizes, fewer agents or seeds")
@@ -514,6 +520,7 @@ def run_experiment(config: ExperimentConfig, run_dir: str | os.PathLike, resume:
     compiled engine gets ``cores // workers`` threads. Each world is independent of the others,
     so the results are the same for any ``workers``. ``workers=1`` runs them in this process.
     """
+    config.check_size()
     run_dir = Path(run_dir)
     _check_run_dir(run_dir, resume, force)
     if force and run_dir.exists():
