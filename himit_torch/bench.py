@@ -67,9 +67,10 @@ def benchmark(size: int = 40, rooms: int = 10, corner_options: bool = False, bat
     if threads is not None:
         torch.set_num_threads(threads)
     world = MultiRooms(size=size, rooms=rooms)
-    options = learner_options(world, corners=corner_options)
+    # the mentor's tables are freed before the learner's are built (as in the experiments)
     demos = record_demonstrations(world, mentor_policy(world, mentor_options(world, corner_options)),
                                   20, seed=0)
+    options = learner_options(world, corners=corner_options)
     mix = ["imitation", "options", "primitives"]
     agents = [mix[b % 3] if agent == "mix" else agent for b in range(batch)]
     learner = Learner(world, options, agents, list(range(batch)), demonstrations=demos,

@@ -163,7 +163,7 @@ def option_models(world, options: Options, gamma: float | None = None,
     out_rows, out_cols, out_vals = [], [], []      # triplets of the stacked [M, S] transition
     offset = 0
     for o in range(options.num_options):
-        policy = policy_all[o]
+        policy = policy_all[o] if options.stochastic else policy_all[o].astype(np.int64)
         stop = np.where(terminal, 1.0, beta_all[o])
         cont = 1.0 - stop
         start = np.flatnonzero(init_all[o])

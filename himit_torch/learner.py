@@ -34,7 +34,7 @@ import torch
 
 from .dirichlet_models import DirichletMentorModel, DirichletSMDPModel
 from .engines import make_engine
-from .options import Options
+from .options import Options, action_dtype
 from .reward import KnownReward
 from .rng import seed_streams, uniforms
 from .rows import AGENTS, RowTable
@@ -235,7 +235,13 @@ class Learner:
             self.policy_cdf = options.policy.to(dev).double().cumsum(-1).reshape(O * S, -1).contiguous()
             self.policy = None
         else:
-            self.policy = options.policy.to(dev).reshape(-1).contiguous()
+            if int(options.policy.max()) >= world.num_actions:
+                raise ValueError(f"Options.policy holds action {int(options.policy.max())}; the "
+                                 f"world has actions 0…{world.num_actions - 1}")
+            # one action dtype for every bundle (no copy of the builders' int8 tables), so the
+            # compiled kernel is specialised once
+            actions = action_dtype(world.num_actions)
+            self.policy = options.policy.to(dev, actions).reshape(-1).contiguous()
             self.policy_cdf = None
 
         # ---- the state, one owner per piece ------------------------------------------------
@@ -568,7 +574,7 @@ class Learner:
                         len(rows), (1,), generator=gen, device=self.device)]])
             flat = option * S + s
             if self.policy is not None:
-                action = self.policy[flat]
+                action = self.policy[flat].long()
             else:
                 action = torch.multinomial(torch.diff(self.policy_cdf[flat], prepend=torch.zeros(
                     1, 1, dtype=torch.float64, device=self.device)), 1, generator=gen)[:, 0]

@@ -186,7 +186,7 @@ def run_mentor(world: MultiRooms, mentor: MentorPolicy | Options, episodes: int 
         u = torch.rand(3, E, generator=generator, dtype=torch.float64)
         o = current.clamp(min=0)
         if probs is None:
-            action = options.policy[o, pos]
+            action = options.policy[o, pos].long()
         else:
             cdf = probs[o, pos].double().cumsum(-1)
             action = torch.searchsorted(cdf, u[0, :, None] * cdf[:, -1:]).flatten()

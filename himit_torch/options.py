@@ -6,7 +6,15 @@ that it terminates on arriving in ``s'``, and the policy it follows meanwhile. `
 
 * ``initiation``  ``[O, S]`` bool,
 * ``termination`` ``[O, S]`` float32 (β),
-* ``policy``      ``[O, S]`` int64 action index, or ``[O, S, A]`` float32 action probabilities.
+* ``policy``      ``[O, S]`` integer action index (any signed integer dtype; the builders here
+  use the smallest that holds the actions, ``int8`` for up to 127 actions), or ``[O, S, A]``
+  float32 action probabilities.
+
+Memory: on 120×120 with corner options (2,644 options × 14,400 states) these tables are what
+dominates a process, so the builders write each table once into a preallocated tensor (no lists
+of per-option rows, no stacking or joining copies) and keep the policy in ``int8``: 0.23 GB for a
+bundle instead of 0.5 GB plus ~1.5 GB of temporaries. Code that indexes with an action taken from
+``policy`` should convert it with ``.long()`` (torch indexes only with int64/int32).
 
 Every option also terminates when it reaches a terminal state of the world (the goal): the run
 loop and the exact option models add that, it need not be written into β.
@@ -25,13 +33,25 @@ import torch
 from .table_world import world_model
 from .world import ACTION_DELTAS, ACTION_NAMES, MultiRooms
 
-__all__ = ["Options", "primitive_options", "doorway_options", "corner_options",
+__all__ = ["Options", "ACTION_DTYPES", "action_dtype", "primitive_options", "doorway_options", "corner_options",
            "learner_options", "mentor_options", "target_policy", "subgoal_options", "OPTION_KINDS"]
 
 #: Kinds of option: ``"primitive"`` (one action, then terminate: what the ``primitives`` agents
 #: use), ``"doorway"`` and ``"corner"`` (MultiRooms' builders), ``"subgoal"``
 #: (:func:`subgoal_options`) and ``"custom"`` for anything else.
 OPTION_KINDS = ("primitive", "doorway", "corner", "subgoal", "custom")
+
+#: Integer dtypes a deterministic ``Options.policy`` may have (unsigned ones are left out: torch
+#: reads a uint8 index tensor as a mask).
+ACTION_DTYPES = (torch.int8, torch.int16, torch.int32, torch.int64)
+
+
+def action_dtype(num_actions: int) -> torch.dtype:
+    """The smallest of :data:`ACTION_DTYPES` that holds action indices ``0 … num_actions - 1``."""
+    for dtype in ACTION_DTYPES:
+        if num_actions - 1 <= torch.iinfo(dtype).max:
+            return dtype
+    raise ValueError(f"num_actions={num_actions} does not fit an int64 action index")
 
 
 @dataclass(frozen=True)
@@ -58,9 +78,10 @@ class Options:
         if not torch.isfinite(beta).all() or (beta < 0).any() or (beta > 1).any():
             raise ValueError("Options.termination (β) must hold probabilities in [0, 1]")
         if pol.dim() == 2:
-            if pol.shape != (O, S) or pol.dtype != torch.int64:
-                raise ValueError(f"Options.policy must be [O, S] = [{O}, {S}] int64 actions or "
-                                 f"[O, S, A] probabilities, got {tuple(pol.shape)} {pol.dtype}")
+            if pol.shape != (O, S) or pol.dtype not in ACTION_DTYPES:
+                raise ValueError(f"Options.policy must be [O, S] = [{O}, {S}] integer actions "
+                                 f"(int8, int16, int32 or int64) or [O, S, A] probabilities, got "
+                                 f"{tuple(pol.shape)} {pol.dtype}")
             if pol.numel() and (pol.min() < 0):
                 raise ValueError("Options.policy holds a negative action index")
         elif pol.dim() == 3:
@@ -106,7 +127,7 @@ class Options:
         """``[O, S, A]`` float32 policy, one-hot for deterministic policies."""
         if self.stochastic:
             return self.policy.float()
-        return torch.nn.functional.one_hot(self.policy, num_actions).float()
+        return torch.nn.functional.one_hot(self.policy.long(), num_actions).float()
 
     def __len__(self) -> int:
         return self.num_options
@@ -202,7 +223,7 @@ def primitive_options(world) -> Options:
         tuple(getattr(world, "action_names", None) or range(A))
     return Options(initiation=usable[None].repeat(A, 1),
                    termination=torch.ones(A, S),
-                   policy=torch.arange(A)[:, None].repeat(1, S),
+                   policy=torch.arange(A, dtype=action_dtype(A))[:, None].repeat(1, S),
                    names=tuple(f"primitive {n}" for n in labels), kinds=("primitive",) * A)
 
 
@@ -320,13 +341,24 @@ def _room_perimeter(world: MultiRooms, cells: list[int]) -> set[int]:
     return out
 
 
-def _room_target_options(world: MultiRooms, targets_of_room, style: str, kind: str) -> Options:
+@dataclass(frozen=True)
+class _SparseOption:
+    """One option given by its initiation cells and the action in each (nothing else stored):
+    β is 1 outside the cells, 0 inside; the policy 0 outside."""
+
+    name: str
+    kind: str
+    cells: np.ndarray       # [n] int64 states of the initiation set
+    actions: np.ndarray     # [n] int64 action in each
+
+
+def _room_target_specs(world: MultiRooms, targets_of_room, style: str,
+                       kind: str) -> list[_SparseOption]:
     if style not in ("direct", "walls"):
         raise ValueError(f"style={style!r}: use 'direct' (shortest path, the learner's) or 'walls' "
                          "(along the room's walls, the mentor's)")
-    S = world.num_states
     goal = world.goal_state
-    inits, betas, policies, names = [], [], [], []
+    specs = []
     for room in range(world.num_rooms):
         cells = world.room_cells(room)
         if not cells:
@@ -342,16 +374,55 @@ def _room_target_options(world: MultiRooms, targets_of_room, style: str, kind: s
             pol = target_policy(world, region, target, penalized=penalized - {target})
             if not pol:
                 continue
-            init = torch.zeros(S, dtype=torch.bool)
-            init[list(pol)] = True
-            policy = torch.zeros(S, dtype=torch.int64)
-            policy[list(pol)] = torch.tensor(list(pol.values()))
-            inits.append(init)
-            betas.append((~init).float())      # runs until it reaches the target or leaves
-            policies.append(policy)
-            names.append(f"{kind} room({rr},{rc})->{label}{world.coords(target)}")
-    return Options(torch.stack(inits), torch.stack(betas), torch.stack(policies),
-                   tuple(names), (kind,) * len(names))
+            specs.append(_SparseOption(f"{kind} room({rr},{rc})->{label}{world.coords(target)}",
+                                       kind, np.fromiter(pol.keys(), np.int64, len(pol)),
+                                       np.fromiter(pol.values(), np.int64, len(pol))))
+    return specs
+
+
+def _assemble(world, dense: Sequence[Options], specs: Sequence[_SparseOption]) -> Options:
+    """``dense`` bundles then ``specs``, written once into preallocated ``[O, S]`` tables (what
+    ``Options.concat`` of the same options gives, without building each part's tables first)."""
+    S, A = world.num_states, world.num_actions
+    O = sum(d.num_options for d in dense) + len(specs)
+    dtypes = [d.policy.dtype for d in dense] + [action_dtype(A)]
+    initiation = torch.zeros(O, S, dtype=torch.bool)
+    termination = torch.ones(O, S)
+    policy = torch.zeros(O, S, dtype=max(dtypes, key=lambda t: torch.iinfo(t).bits))
+    o = 0
+    for d in dense:
+        n = d.num_options
+        initiation[o:o + n], termination[o:o + n], policy[o:o + n] = \
+            d.initiation, d.termination, d.policy
+        o += n
+    for spec in specs:
+        cells = torch.from_numpy(spec.cells)
+        initiation[o, cells] = True
+        termination[o, cells] = 0.0     # runs until it reaches the target or leaves
+        policy[o, cells] = torch.from_numpy(spec.actions).to(policy.dtype)
+        o += 1
+    return Options(initiation, termination, policy,
+                   sum((d.names for d in dense), ()) + tuple(sp.name for sp in specs),
+                   sum((d.kinds for d in dense), ()) + tuple(sp.kind for sp in specs))
+
+
+def _doorway_specs(world: MultiRooms, style: str) -> list[_SparseOption]:
+    return _room_target_specs(world, lambda w, room, cells, doors: [("door", d) for d in doors],
+                              style, "doorway")
+
+
+def _corner_specs(world: MultiRooms, style: str) -> list[_SparseOption]:
+    def targets(w, room, cells, doors):
+        rows, cols = zip(*(w.coords(s) for s in cells))
+        r0, r1, c0, c1 = min(rows), max(rows), min(cols), max(cols)
+        out = []
+        for r, c, dr, dc, name in ((r0, c0, 1, 1, "NW"), (r0, c1, 1, -1, "NE"),
+                                   (r1, c0, -1, 1, "SW"), (r1, c1, -1, -1, "SE")):
+            out.append((f"corner {name}", r * w.size + c))
+            out.append((f"near {name}", (r + dr) * w.size + c + dc))
+        return out
+
+    return _room_target_specs(world, targets, style, "corner")
 
 
 def doorway_options(world: MultiRooms, style: str = "direct") -> Options:
@@ -365,41 +436,26 @@ def doorway_options(world: MultiRooms, style: str = "direct") -> Options:
             options); ``"walls"`` travels along the room's walls, paying a large cost for each
             cell away from them (the mentor's options, as in the paper's Fig. 2).
     """
-    return _room_target_options(world, lambda w, room, cells, doors: [("door", d) for d in doors],
-                                style, "doorway")
+    return _assemble(world, [], _doorway_specs(world, style))
 
 
 def corner_options(world: MultiRooms, style: str = "direct") -> Options:
     """Eight options per room: to each of its four corner cells, and to the cell diagonally
     inward from each corner (experiment 1's extraneous options — except the one whose corner is
     the goal). Initiation set and termination as for :func:`doorway_options`."""
-
-    def targets(w, room, cells, doors):
-        rows, cols = zip(*(w.coords(s) for s in cells))
-        r0, r1, c0, c1 = min(rows), max(rows), min(cols), max(cols)
-        out = []
-        for r, c, dr, dc, name in ((r0, c0, 1, 1, "NW"), (r0, c1, 1, -1, "NE"),
-                                   (r1, c0, -1, 1, "SW"), (r1, c1, -1, -1, "SE")):
-            out.append((f"corner {name}", r * w.size + c))
-            out.append((f"near {name}", (r + dr) * w.size + c + dc))
-        return out
-
-    return _room_target_options(world, targets, style, "corner")
+    return _assemble(world, [], _corner_specs(world, style))
 
 
 def learner_options(world: MultiRooms, doorways: bool = True, corners: bool = False) -> Options:
-    """The learner's set: primitives, ``direct`` doorway options, optionally corner options."""
-    parts = [primitive_options(world)]
-    if doorways:
-        parts.append(doorway_options(world, "direct"))
-    if corners:
-        parts.append(corner_options(world, "direct"))
-    return Options.concat(*parts)
+    """The learner's set: primitives, ``direct`` doorway options, optionally corner options
+    (the tables written once: no per-part tables joined)."""
+    specs = (_doorway_specs(world, "direct") if doorways else []) + \
+        (_corner_specs(world, "direct") if corners else [])
+    return _assemble(world, [primitive_options(world)], specs)
 
 
 def mentor_options(world: MultiRooms, corners: bool = False) -> Options:
-    """The mentor's set: primitives, ``walls`` doorway options, optionally corner options."""
-    parts = [primitive_options(world), doorway_options(world, "walls")]
-    if corners:
-        parts.append(corner_options(world, "walls"))
-    return Options.concat(*parts)
+    """The mentor's set: primitives, ``walls`` doorway options, optionally corner options (the
+    tables written once)."""
+    specs = _doorway_specs(world, "walls") + (_corner_specs(world, "walls") if corners else [])
+    return _assemble(world, [primitive_options(world)], specs)

@@ -82,6 +82,7 @@ class DynamicsTable:
     def step(self, positions: torch.Tensor, actions: torch.Tensor, uniforms: torch.Tensor
              ) -> tuple[torch.Tensor, torch.Tensor]:
         """``positions [B], actions [B], uniforms [B]`` → ``(next [B] int64, reward [B] float64)``."""
+        actions = actions.long()          # e.g. an Options.policy entry (int8)
         cdf = self.cdf[positions, actions]                                         # [B, K]
         slot = (cdf <= uniforms.to(torch.float64)[:, None]).sum(1).clamp(max=cdf.shape[1] - 1)
         flat = (positions * self.cdf.shape[1] + actions) * self.cdf.shape[2] + slot

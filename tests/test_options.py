@@ -5,8 +5,8 @@ import re
 import pytest
 import torch
 
-from himit_torch.options import (Options, corner_options, doorway_options, learner_options,
-                                 mentor_options, primitive_options)
+from himit_torch.options import (Options, action_dtype, corner_options, doorway_options,
+                                 learner_options, mentor_options, primitive_options)
 from himit_torch.world import MultiRooms
 
 
@@ -155,8 +155,9 @@ def make_tensors(O: int = 2, S: int = 5, A: int = 4):
     (lambda t: t[1].__setitem__((0, 0), 1.5), r"probabilities in \[0, 1\]"),
     (lambda t: t[1].__setitem__((0, 0), -0.1), r"probabilities in \[0, 1\]"),
     (lambda t: t[1].__setitem__((0, 0), float("nan")), r"probabilities in \[0, 1\]"),
-    (lambda t: t.__setitem__(2, t[2].int()), "int64 actions"),
-    (lambda t: t.__setitem__(2, torch.zeros(2, 4, dtype=torch.int64)), "int64 actions"),
+    (lambda t: t.__setitem__(2, t[2].to(torch.uint8)), "integer actions"),
+    (lambda t: t.__setitem__(2, t[2].bool()), "integer actions"),
+    (lambda t: t.__setitem__(2, torch.zeros(2, 4, dtype=torch.int64)), "integer actions"),
     (lambda t: t[2].__setitem__((1, 1), -1), "negative action"),
     (lambda t: t.__setitem__(2, torch.zeros(2, dtype=torch.int64)), "2 or 3 dimensions"),
     (lambda t: t.__setitem__(2, torch.full((2, 5, 4), 0.3)), "sum to 1"),
@@ -278,3 +279,29 @@ def test_own_primitives_run_the_primitives_agent_on_any_world():
     custom = Options.from_policy(usable, torch.ones(5, dtype=torch.int64))
     with pytest.raises(ValueError, match="no usable option"):
         Learner(world, custom, ["primitives"], [0])
+
+
+@pytest.mark.parametrize("corners", [False, True])
+def test_sets_written_once_equal_the_joined_parts(world6, corners):
+    """learner_options/mentor_options write their tables once (memory); the result must be what
+    joining the separately built parts gives, in the smallest action dtype."""
+    for style, build in (("direct", lambda: learner_options(world6, corners=corners)),
+                         ("walls", lambda: mentor_options(world6, corners=corners))):
+        parts = [primitive_options(world6), doorway_options(world6, style)]
+        if corners:
+            parts.append(corner_options(world6, style))
+        joined, built = Options.concat(parts), build()
+        assert built.policy.dtype == torch.int8 and joined.policy.dtype == torch.int8
+        assert built.names == joined.names and built.kinds == joined.kinds
+        assert torch.equal(built.initiation, joined.initiation)
+        assert torch.equal(built.termination, joined.termination)
+        assert torch.equal(built.policy, joined.policy)
+        # β: 1 outside each room option's initiation set, 0 inside; its policy 0 outside
+        room = torch.tensor([k != "primitive" for k in built.kinds])
+        assert torch.equal(built.termination[room], (~built.initiation[room]).float())
+        assert (built.policy[room][~built.initiation[room]] == 0).all()
+
+
+def test_action_dtype():
+    assert action_dtype(4) == torch.int8 and action_dtype(128) == torch.int8
+    assert action_dtype(129) == torch.int16 and action_dtype(40_000) == torch.int32

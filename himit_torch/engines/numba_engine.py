@@ -64,7 +64,7 @@ class NumbaEngine:
             _np(table.rewards.contiguous()), _np(L.terminal),
             _np(L.start_cdf) if L.start_cdf is not None else np.ones(1),
             _np(L.termination),
-            _np(L.policy) if L.policy is not None else np.zeros(1, dtype=np.int64),
+            _np(L.policy) if L.policy is not None else np.zeros(1, dtype=np.int8),
             _np(L.policy_cdf) if L.policy_cdf is not None else np.ones((1, 1)),
             _np(rows.state_rows), _np(rows.row_state), _np(rows.row_option),
             _np(rows.row_first_action), _np(rows.primitive_rows), _np(rows.row_enabled),

@@ -63,7 +63,7 @@ class TorchEngine:
         option = L.rows.row_option[run.row]
         flat = option * S + run.position
         if L.policy is not None:
-            action = L.policy[flat]
+            action = L.policy[flat].long()
             stop_u = u[:, 1]
         else:
             action = torch.searchsorted(L.policy_cdf[flat], u[:, 1:2].contiguous()).squeeze(1)
