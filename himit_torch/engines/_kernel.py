@@ -269,7 +269,9 @@ def _propagate_mentor(cfg_f, cfg_i, use_conf, m_num, m_sec, m_row_count, m_edge_
 
 
 # ============================================================================ the tick loop
-@njit(cache=True)
+# error_model="numpy": a division by zero gives inf/nan (as in the parallel loop that runs it,
+# where Numba compiles with that model) instead of raising
+@njit(cache=True, error_model="numpy")
 def _run(b, t_end, t_reached, keys, cfg_f, cfg_i,
             # the world and the options (shared, read only)
             dyn_succ, dyn_cdf, dyn_rew, terminal, start_cdf, termination, policy, policy_cdf,
@@ -563,7 +565,9 @@ def advance(t_end, t_reached, keys, cfg_f, cfg_i,
     run stopped."""
     B = position.shape[0]
     for b in prange(B):
-        _run(b, t_end, t_reached, keys, cfg_f, cfg_i, dyn_succ, dyn_cdf, dyn_rew, terminal,
+        # int64: Numba types a prange index int64 when it types the loop and uint64 when it
+        # lowers it, and would compile the whole of ``_run`` once for each (twice the compile time)
+        _run(np.int64(b), t_end, t_reached, keys, cfg_f, cfg_i, dyn_succ, dyn_cdf, dyn_rew, terminal,
              start_cdf, termination, policy, policy_cdf, state_rows, row_state, row_option,
              row_first_action, primitive_rows, row_enabled, use_mentor, use_conf, values, q_num,
              q_sec, m_num, m_sec, m_edge_reward, edge_row, edge_succ, edge_count, edge_disc,
@@ -593,14 +597,15 @@ def link_edges(edge_row, edge_succ, num_edges, row_head, row_next, succ_head, su
             succ_head[b, s] = e
 
 
-@njit(parallel=True, cache=True)
+# Serial: once a window it costs microseconds, and a parallel loop costs seconds of compiling.
+@njit(cache=True, error_model="numpy")
 def mentor_wins(cfg_f, cfg_i, state_rows, terminal, use_mentor, use_conf, q_num, q_sec, row_count,
                 row_reward, row_enabled, state_tries, m_num, m_sec, m_row_count, out):
     """``out[b]``: how many of run ``b``'s mentor-observed states the mentor term wins eq. 2 in
     (:meth:`Learner.mentor_win_share`), by the kernel's own backup."""
     B = out.shape[0]
     S = terminal.shape[0] - 1
-    for b in prange(B):
+    for b in range(B):
         won_states = 0
         if use_mentor[b]:
             for s in range(S):
