@@ -146,3 +146,26 @@ def test_exact_option_models_plan_to_the_optimum(world8):
     start = world8.start_state
     assert float(learner.state_values()[0, start]) == pytest.approx(float(optimum[start]), abs=1e-4)
     assert not math.isclose(float(optimum[start]), -1.0)
+
+
+def test_mentor_fade_mixes_the_mentor_term_with_own_experience(world8):
+    """Eq. 2 with mentor_fade = k at each mentor state: max(own, (k·m + n·own) / (k + n)) where
+    own options were tried (n own executions), m itself where none was; and the diagnostics
+    report the raw margin m − own."""
+    from himit_torch.mentor_diagnostics import mentor_margin_summary, mentor_margins
+    mentor = mentor_policy(world8, mentor_options(world8))
+    demos = record_demonstrations(world8, mentor, 5, seed=0)
+    learner = _run(world8, LearnerConfig(window=500, mentor_fade=4.0), 1500, agents=("imitation",),
+                   demonstrations=demos)
+    d = mentor_margins(learner)
+    obs = ~d["mentor"][0].isnan()
+    states = obs.nonzero()[:, 0]
+    best, _, _ = learner.cache.state_backup(torch.zeros(1, 1, dtype=torch.int64), states[None])
+    n = learner.model.state_tries[0, states]
+    m, own = d["mentor"][0, states], d["own"][0, states]
+    mixed = torch.where(torch.isfinite(own), (4.0 * m + n * own) / (4.0 + n), m)
+    torch.testing.assert_close(best[0], torch.maximum(own, mixed), rtol=0, atol=1e-12)
+    assert bool((n[torch.isfinite(own)] > 0).any())
+    torch.testing.assert_close(d["margin"][0, states], m - own)
+    summary = mentor_margin_summary(learner)
+    assert summary["observed"] == [float(obs.sum())] and 0 <= summary["win_share"][0] <= 1
