@@ -7,7 +7,8 @@ Bellman equation with options (Friesen & Rao, "Imitation learning with hierarchi
 
 from . import backups
 from .demonstrations import DEMONSTRATIONS_FORMAT_VERSION, Demonstrations
-from .mentor import MentorPolicy, MentorRollout, mentor_policy, record_demonstrations, run_mentor
+from .mentor import (ExactMentorTransitions, MentorPolicy, MentorRollout, exact_mentor_transitions,
+                     mentor_policy, record_demonstrations, run_mentor)
 from .gym_env import ENV_ID, MultiRoomsEnv, register_envs
 from .learner import AGENTS, Learner, LearnerConfig
 from .dirichlet_models import DirichletMentorModel, DirichletSMDPModel, EdgeStore, SuccessorDirichlet
@@ -41,6 +42,7 @@ __all__ = [
     "SuccessorDirichlet", "EdgeStore", "BlockPriorityQueue", "backups",
     # mentor and demonstrations
     "MentorPolicy", "MentorRollout", "mentor_policy", "run_mentor", "record_demonstrations",
+    "ExactMentorTransitions", "exact_mentor_transitions",
     "Demonstrations", "DEMONSTRATIONS_FORMAT_VERSION",
     # mentor reward
     "MentorReward", "KnownReward", "SalienceReward", "SALIENCE_EVENTS", "STIMULUS_FEATURES",

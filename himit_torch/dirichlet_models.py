@@ -347,15 +347,20 @@ class DirichletMentorModel(EdgeStore):
         super().__init__(num_states, num_states, batch, device, concentration, capacity)
 
     def observe(self, sources: torch.Tensor, successors: torch.Tensor,
-                runs: torch.Tensor | None = None) -> None:
-        """Count the transitions ``sources[i] → successors[i]`` for ``runs`` (all by default)."""
+                runs: torch.Tensor | None = None, counts: torch.Tensor | None = None) -> None:
+        """Count the transitions ``sources[i] → successors[i]`` for ``runs`` (all by default),
+        each once, or ``counts[i]`` times (any positive weight: expected counts of an exact
+        model, :class:`~himit_torch.mentor.ExactMentorTransitions`)."""
         if sources.numel() == 0:
             return
         runs = torch.arange(self.batch, device=self.device) if runs is None else runs
         R, T = runs.numel(), sources.numel()
         rr, src, dst = runs.repeat_interleave(T), sources.repeat(R), successors.repeat(R)
         e = self.find_or_add(rr, src, dst)
-        ones = torch.ones(R * T, dtype=torch.float64, device=self.device)
+        if counts is None:
+            ones = torch.ones(R * T, dtype=torch.float64, device=self.device)
+        else:
+            ones = torch.as_tensor(counts, dtype=torch.float64, device=self.device).repeat(R)
         self.edge_count.index_put_((rr, e), ones, accumulate=True)
         self.row_count.index_put_((rr, src), ones, accumulate=True)
 

@@ -29,7 +29,7 @@ import torch
 
 from .checkpoints import BatchShape, CheckpointGenerations, NoGoodCheckpoint
 from .learner import AGENTS, Learner, LearnerConfig
-from .mentor import mentor_policy, record_demonstrations
+from .mentor import exact_mentor_transitions, mentor_policy, record_demonstrations
 from .exact_option_models import option_durations, option_models
 from .options import learner_options, mentor_options, primitive_options
 from .exact_planning import expected_steps, smdp_value_iteration
@@ -74,6 +74,12 @@ class ExperimentConfig:
     """Mentor episodes recorded (states only) before learning, per seed."""
     mentor_preference: float | None = None
     """The mentor takes an extended option within this of the best value (None: one step's cost)."""
+    mentor_model: str = "learned"
+    """Where the imitators' mentor model ``p_m(s'|s)`` comes from: ``"learned"`` — counts of the
+    ``mentor_episodes`` recorded demonstrations (the paper); ``"exact"`` — the mentor's exact
+    transition model (:func:`~himit_torch.mentor.exact_mentor_transitions`: expected counts of
+    ``mentor_episodes`` episodes, so the same total mass, at every state the mentor reaches with
+    positive probability). Demonstrations are still recorded for the figures."""
     slip: float = 0.1
     """Probability that an action fails (the paper: 10 %)."""
     window: int = 5000
@@ -110,6 +116,8 @@ class ExperimentConfig:
             bad("steps", "must be ≥ 1")
         if self.mentor_episodes < 1:
             bad("mentor_episodes", "must be ≥ 1")
+        if self.mentor_model not in ("learned", "exact"):
+            bad("mentor_model", "use 'learned' or 'exact'")
         if self.window < 1 or self.checkpoint_every < 1 or self.checkpoint_every % self.window:
             bad("checkpoint_every", f"must be a positive multiple of window={self.window}")
         if self.learner.window != self.window:
@@ -304,12 +312,15 @@ def run_world(config: ExperimentConfig, size: int, run_dir: Path, resume: bool,
     mentor = mentor_policy(world, mentor_options(world, corners=config.corner_options),
                            config.mentor_preference)
     demos = {s: record_demonstrations(world, mentor, config.mentor_episodes, seed=s) for s in seeds}
+    exact = (exact_mentor_transitions(world, mentor, float(config.mentor_episodes))
+             if config.mentor_model == "exact" else None)
     del mentor
     options = learner_options(world, corners=config.corner_options)
     learner = Learner(world, options, agents, run_seeds, config=config.learner,
                       device=config.device, engine=config.engine)
     for s in seeds:  # each seed watches its own mentor episodes
-        learner.add_demonstrations(demos[s], runs=[b for b, rs in enumerate(run_seeds) if rs == s])
+        learner.add_demonstrations(demos[s] if exact is None else exact,
+                                   runs=[b for b, rs in enumerate(run_seeds) if rs == s])
     generations = CheckpointGenerations(run_dir / "checkpoints" / f"world{size}.pt")
     batch = BatchShape(agents, run_seeds, world.num_states)
     layout = _state_layout_version()

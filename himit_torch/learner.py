@@ -42,7 +42,10 @@ from .run_state import RunMetrics, RunState
 from .sweep_queue import Sweeper
 from .value_cache import ValueCache
 
-__all__ = ["Learner", "LearnerConfig", "AGENTS"]
+__all__ = ["Learner", "LearnerConfig", "AGENTS", "EPS_SCHEDULES"]
+
+#: ``LearnerConfig.eps_schedule`` values, in the order of their code in the compiled engine.
+EPS_SCHEDULES = ("decision", "step", "goals", "paper")
 
 
 @dataclass
@@ -91,12 +94,53 @@ class LearnerConfig:
     mentor_override_after: int | None = None
     """Ignore the mentor term at ``s`` once the run has executed its own options there this many
     times (own experience overrides the mentor); ``None`` = never."""
+    mentor_fade: float | None = None
+    """Shrink the mentor term towards the run's own estimate as its own experience grows (issue
+    11, item 4): where some own option was tried at ``s``, eq. 2's mentor term ``m`` is replaced
+    by ``(k·m + n·own) / (k + n)`` with ``k = mentor_fade``, ``n`` the own options executed from
+    ``s`` and ``own`` the best own ``Q`` there — the mentor's evidence counts as ``k`` own
+    executions, so the mentor's value leads early and the run's own value decides in the limit
+    (no lasting upward bias). Where nothing own was tried, ``m`` is used as it is. ``None`` = no
+    fading (the paper's eq. 2)."""
     eps_start: float = 0.75
     """ε until the run's first goal."""
     eps_decay: float = 0.999
     """After the first goal, ε is multiplied by this at every decision…"""
     eps_min: float = 0.01
     """…down to this floor."""
+    eps_schedule: str = "decision"
+    """When ε changes (every schedule starts at ``eps_start`` and never goes below ``eps_min``):
+
+    * ``"decision"`` (default): ×``eps_decay`` at every decision (option choice) once the run has
+      found the goal — the rule of the earlier implementation, not a statement of the paper.
+    * ``"step"``: ×``eps_decay`` at every primitive step once the run has found the goal (the
+      step of the first goal included).
+    * ``"goals"``: ``eps_start`` until the run has reached ``eps_goals`` goals, then ``eps_min``
+      at once (explore fully until the goal is known well, then exploit).
+    * ``"paper"``: a literal reading of the paper (Sec. III: "ε begins at 0.75 and starts to
+      decay to a minimum of 0.01 after the agent first finds the goal"). The paper names the start,
+      the trigger (the first goal) and the floor, but neither the rate nor the unit of the decay;
+      the one event its sentence names is finding the goal, so here ε is ×``eps_decay`` at every
+      goal reached (episode end), the first included. With the default 0.999 ε stays near its
+      start for thousands of goals: the rate is this reading's free parameter."""
+    eps_goals: int = 10
+    """Goals after which the ``"goals"`` schedule drops ε to ``eps_min`` (other schedules ignore
+    it)."""
+    option_models: str = "learned"
+    """Where each run's option model comes from: ``"learned"`` (counts of its own executions, the
+    paper) or ``"exact"``: before the first step every ``(s, o)`` row the run may use is preloaded
+    with the exact model (:func:`~himit_torch.exact_option_models.option_models` and
+    :func:`~himit_torch.exact_option_models.option_durations` of the world and options) as
+    ``exact_model_count`` pseudo-executions in exact proportions — count ``N``, summed reward
+    ``N·r(s,o)``, per successor ``N·Pr(s'|s,o)`` and ``N·P^o[s,s']`` — so every posterior mean
+    is the exact model and the run's own executions move it by at most ``1/N``. Values are not
+    solved: ``V`` starts at ``initial_value`` and the states whose backup would change their
+    value are queued with that change as priority, so planning still runs on the usual budget.
+    Preloaded rows count as tried (they are usable at once); ``state_tries`` stays 0, so
+    ``mentor_override_after`` counts only own executions. The world's ``max_option_steps`` cut is
+    not modelled. Needs a world with a true model (``transition_model`` or ``dynamics_table``)."""
+    exact_model_count: float = 1e6
+    """Pseudo-executions per row of the ``"exact"`` option models."""
     mentor_choice: str = "greedy"
     """How a run picks its own option (greedy choices only) in a state where the mentor term wins
     eq. 2. ``"greedy"``: the best own option by its ``Q`` — values that the mentor term has already
@@ -134,6 +178,16 @@ class LearnerConfig:
             bad("eps_min", f"must not exceed eps_start={self.eps_start}")
         if not self.confidence_z >= 0:
             bad("confidence_z", "must be ≥ 0")
+        if self.eps_schedule not in EPS_SCHEDULES:
+            bad("eps_schedule", f"use one of {list(EPS_SCHEDULES)}")
+        if self.eps_goals < 1:
+            bad("eps_goals", "must be ≥ 1 goal")
+        if self.mentor_fade is not None and not self.mentor_fade > 0:
+            bad("mentor_fade", "must be > 0 (the mentor's weight in own executions) or None")
+        if self.option_models not in ("learned", "exact"):
+            bad("option_models", "use 'learned' or 'exact'")
+        if not self.exact_model_count > 0:
+            bad("exact_model_count", "must be > 0 pseudo-executions")
         if self.mentor_choice not in ("greedy", "match"):
             bad("mentor_choice", "use 'greedy' or 'match'")
         if self.tie_break not in ("random", "first"):
@@ -260,6 +314,8 @@ class Learner:
         self._visit_base = torch.arange(B, device=dev) * (S + 1)
         self._ones_b = torch.ones(B, dtype=torch.int64, device=dev)
 
+        if config.option_models == "exact":
+            self._load_exact_option_models()
         self.rewards = self._reward_modules(reward, world, B)
         self._check_world_rewards(world)
         if demonstrations is not None:
@@ -328,6 +384,64 @@ class Learner:
                 raise ValueError(f"reward module {m!r} has no transition_reward(sources, successors)")
         return modules
 
+    def _load_exact_option_models(self) -> None:
+        """Preload every run's option model with the exact models (``LearnerConfig.option_models
+        = "exact"``; see there), fill the ``Q`` caches from them and queue the states whose value
+        a backup would change."""
+        from .exact_option_models import option_durations, option_models
+        N = float(self.config.exact_model_count)
+        S, O, dev = self.num_states, self.num_options, self.device
+        disc = option_models(self.world, self.options)          # Σγ^k weights and rewards
+        prob = option_durations(self.world, self.options)       # termination probabilities
+        # Row of the exact models → row of the learner (both enumerate the initiation sets).
+        key = self.rows.row_state[:-1] * O + self.rows.row_option[:-1]
+        order = torch.argsort(key)
+        exact_rows = order[torch.searchsorted(key[order], (disc.row_state * O + disc.row_option).to(dev))]
+        coo_d = disc.transition.to_sparse_coo().coalesce()
+        coo_p = prob.transition.to_sparse_coo().coalesce()
+        # Union of the two supports, per (row, successor): weights, probabilities (0 if absent).
+        Sp = S + 1
+        kd = coo_d.indices()[0] * Sp + coo_d.indices()[1]
+        kp = coo_p.indices()[0] * Sp + coo_p.indices()[1]
+        keys, inv = torch.unique(torch.cat([kd, kp]), return_inverse=True)
+        g = torch.zeros(keys.numel(), dtype=torch.float64).index_add_(0, inv[:kd.numel()], coo_d.values())
+        p = torch.zeros(keys.numel(), dtype=torch.float64).index_add_(0, inv[kd.numel():], coo_p.values())
+        e_row = exact_rows[(keys // Sp).to(dev)]
+        e_succ = (keys % Sp).to(dev)
+        g, p = g.to(dev), p.to(dev)
+        model, cache = self.model, self.cache
+        for b in range(self.batch):
+            use = self.rows.row_enabled[b, e_row]
+            rows_b, succ_b = e_row[use], e_succ[use]
+            E = rows_b.numel()
+            model.reserve(E)
+            model.edge_row[b, :E] = rows_b
+            model.edge_successor[b, :E] = succ_b
+            model.edge_count[b, :E] = N * p[use]
+            model.edge_discount[b, :E] = N * g[use]
+            model.num_edges[b] = E
+            enabled_exact = self.rows.row_enabled[b, exact_rows]
+            model.row_count[b, exact_rows[enabled_exact]] = N
+            model.row_reward[b, exact_rows[enabled_exact]] = N * disc.reward.to(dev)[enabled_exact]
+        model.version += 1
+        # Q caches as add_outcome would have built them: Σr + Σ_e Σγ^k V(s'), and the second
+        # moments Σ_e (Σγ^k)² / c · V(s')² of the confidence test.
+        cache.q_numerator.copy_(model.row_reward)
+        for b in range(self.batch):
+            E = int(model.num_edges[b])
+            rows_b, succ_b = model.edge_row[b, :E], model.edge_successor[b, :E]
+            v = cache.values[b].index_select(0, succ_b)
+            g_b, c_b = model.edge_discount[b, :E], model.edge_count[b, :E]
+            cache.q_numerator[b].index_add_(0, rows_b, g_b * v)
+            if bool(self.rows.use_confidence[b]):
+                cache.q_second[b].index_add_(0, rows_b, g_b * g_b / c_b.clamp(min=1e-300) * v * v)
+        runs = torch.arange(self.batch, device=dev)
+        states = torch.arange(S, device=dev)
+        best, has_value, _ = cache.state_backup(runs[:, None], states[None].expand(self.batch, -1))
+        change = torch.where(has_value, (best - cache.values[:, :S]).abs(), torch.zeros_like(best))
+        rr, ss = (change > self.config.priority_threshold).nonzero(as_tuple=True)
+        self.sweeper.push(rr, ss, change[rr, ss])
+
     def _check_world_rewards(self, world) -> None:
         probe = torch.full((1,), self.start_state, dtype=torch.int64, device=self.device)
         for a in range(world.num_actions):
@@ -340,7 +454,9 @@ class Learner:
         """Add mentor state sequences to the mentor model of ``runs`` (all by default).
 
         ``demonstrations`` has ``transitions() -> (from [T], to [T])``; if it also has
-        ``check_world(world)``, it is called first (demonstrations of another world are refused).
+        ``check_world(world)``, it is called first (demonstrations of another world are refused);
+        if it has ``counts [T]`` (e.g. :func:`~himit_torch.mentor.exact_mentor_transitions`, the
+        mentor's exact model), each transition is counted that many times instead of once.
         """
         if hasattr(demonstrations, "check_world"):
             demonstrations.check_world(self.world)
@@ -350,12 +466,20 @@ class Learner:
         if src.numel() and (int(src.min()) < 0 or int(max(src.max(), dst.max())) >= self.num_states):
             raise ValueError(f"demonstrations hold states outside 0…{self.num_states - 1}: they come "
                              "from another world")
+        counts = getattr(demonstrations, "counts", None)
+        if counts is not None:
+            counts = torch.as_tensor(counts, dtype=torch.float64, device=self.device)
+            if counts.shape != src.shape or not bool((counts > 0).all()) \
+                    or not bool(torch.isfinite(counts).all()):
+                raise ValueError(f"demonstrations.counts must be [T={src.numel()}] finite positive "
+                                 "weights, one per transition")
         # Episodes end at a terminal state: a "transition" out of one is not the mentor's move.
         keep = ~self.terminal.index_select(0, src)
         src, dst = src[keep], dst[keep]
+        counts = None if counts is None else counts[keep]
         run_idx = None if runs is None else \
             torch.as_tensor(list(runs), dtype=torch.int64, device=self.device)
-        self.mentor.observe(src, dst, run_idx)
+        self.mentor.observe(src, dst, run_idx, counts)
         self.refresh_mentor_reward()
 
     def refresh_mentor_reward(self) -> None:

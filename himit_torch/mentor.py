@@ -18,7 +18,8 @@ from .options import Options
 from .exact_planning import greedy_option_policy, smdp_value_iteration
 from .world import MultiRooms
 
-__all__ = ["MentorPolicy", "MentorRollout", "mentor_policy", "run_mentor", "record_demonstrations"]
+__all__ = ["MentorPolicy", "MentorRollout", "mentor_policy", "run_mentor", "record_demonstrations",
+           "ExactMentorTransitions", "exact_mentor_transitions"]
 
 
 @dataclass(frozen=True)
@@ -230,3 +231,125 @@ def record_demonstrations(world: MultiRooms, mentor: MentorPolicy | Options, epi
 def _where(world, state: int) -> str:
     """A state for messages: its cell in MultiRooms, its index elsewhere."""
     return str(world.coords(state)) if hasattr(world, "coords") else str(state)
+
+
+@dataclass(frozen=True)
+class ExactMentorTransitions:
+    """The mentor's exact state-transition model as expected counts: what infinitely many
+    demonstrations would show, scaled to ``episodes`` episodes.
+
+    ``counts[i]`` is the expected number of primitive steps ``sources[i] → successors[i]`` the
+    mentor makes in ``episodes`` episodes, so ``p_m(s'|s) = counts / Σ_{s'} counts`` exactly
+    (:func:`exact_mentor_transitions`). Give it to :meth:`Learner.add_demonstrations
+    <himit_torch.Learner.add_demonstrations>` in place of recorded demonstrations: its
+    ``transitions()`` and ``counts`` are read, and the mentor model holds these (fractional)
+    counts.
+    """
+
+    sources: torch.Tensor
+    successors: torch.Tensor
+    counts: torch.Tensor
+
+    def transitions(self) -> tuple[torch.Tensor, torch.Tensor]:
+        return self.sources, self.successors
+
+
+def exact_mentor_transitions(world, mentor: MentorPolicy, episodes: float = 1.0
+                             ) -> ExactMentorTransitions:
+    """The exact one-step model ``p_m(s'|s)`` of the mentor of :func:`run_mentor`, as expected
+    transition counts over ``episodes`` episodes.
+
+    The mentor is Markov in the pair (state, executing option), not in the state alone: at a
+    decision in ``s`` it starts ``mentor.option[s]``; the option acts by its policy, the world
+    moves to ``s'``, and the option stops there with probability ``β_o(s')`` (always at a
+    terminal state), when a new decision is made at ``s'``. With ``T`` that chain's transient
+    kernel over reachable pairs and ``x0`` the start distribution over pairs, the expected visits
+    are ``x = x0 (I − T)⁻¹`` (one sparse solve), and the expected count of ``s → s'`` is
+    ``Σ_o x(s, o) P(s' | s, π_o(s))`` — what the learned counts converge to, divided by the
+    number of episodes. Every state the mentor reaches with positive probability (with slips,
+    far more than a few demonstrations visit) gets its exact ``p_m(·|s)``.
+
+    Args:
+        world: a world with a true model (:func:`~himit_torch.table_world.world_model`).
+        mentor: the mentor's :class:`MentorPolicy` (deterministic or stochastic option policies).
+        episodes: scale of the counts (``> 0``): the expected counts of this many episodes.
+    """
+    import numpy as np
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+
+    from .table_world import world_model
+
+    if not episodes > 0:
+        raise ValueError(f"episodes={episodes!r} must be > 0 (the scale of the expected counts)")
+    P, _ = world_model(world)
+    A, S, _ = P.shape
+    idx, val = P.indices().numpy(), P.values().numpy()
+    # One-step kernel per (action, state): CSR over rows a·S + s.
+    K = sp.csr_matrix((val, (idx[0] * S + idx[1], idx[2])), shape=(A * S, S))
+    options = mentor.options
+    probs = options.action_probabilities(A).double().numpy() if options.stochastic else None
+    policy = None if options.stochastic else options.policy.numpy()
+    beta = options.termination.double().numpy()
+    choice = mentor.option.numpy()
+    terminal = world.terminal_mask.numpy()
+
+    def actions(o: int, s: int):
+        if probs is None:
+            return [(int(policy[o, s]), 1.0)]
+        return [(a, float(p)) for a, p in enumerate(probs[o, s]) if p > 0]
+
+    start = getattr(world, "start_distribution", None)
+    start = (np.eye(S)[int(world.start_state)] if start is None
+             else torch.as_tensor(start, dtype=torch.float64).numpy())
+    pair_id: dict[tuple[int, int], int] = {}
+    pairs: list[tuple[int, int]] = []
+
+    def pair(s: int, o: int) -> int:
+        key = (s, o)
+        if key not in pair_id:
+            if o < 0:
+                raise ValueError(f"the mentor's policy has no option at state {_where(world, s)}, "
+                                 "which it can reach")
+            pair_id[key] = len(pairs)
+            pairs.append(key)
+        return pair_id[key]
+
+    starts = {pair(int(s), int(choice[s])): float(start[s]) for s in np.flatnonzero(start > 0)}
+    rows, cols, vals = [], [], []              # transient kernel T between pairs
+    edge_pair, edge_succ, edge_prob = [], [], []   # pair → next state, per-step probability
+    i = 0
+    while i < len(pairs):
+        s, o = pairs[i]
+        for a, pa in actions(o, s):
+            lo, hi = K.indptr[a * S + s], K.indptr[a * S + s + 1]
+            for s2, p in zip(K.indices[lo:hi], K.data[lo:hi]):
+                p = pa * p
+                if p <= 0:
+                    continue
+                edge_pair.append(i)
+                edge_succ.append(int(s2))
+                edge_prob.append(p)
+                if terminal[s2]:
+                    continue
+                b = float(beta[o, s2])
+                if b > 0:
+                    rows.append(i); cols.append(pair(int(s2), int(choice[s2]))); vals.append(p * b)
+                if b < 1:
+                    rows.append(i); cols.append(pair(int(s2), o)); vals.append(p * (1 - b))
+        i += 1
+    n = len(pairs)
+    T = sp.csr_matrix((vals, (rows, cols)), shape=(n, n))
+    x0 = np.zeros(n)
+    x0[list(starts)] = list(starts.values())
+    visits = spla.spsolve((sp.identity(n, format="csc") - T).T.tocsc(), x0)
+    counts = episodes * visits[np.array(edge_pair)] * np.array(edge_prob)
+    src = np.array([pairs[j][0] for j in edge_pair], dtype=np.int64)
+    dst = np.array(edge_succ, dtype=np.int64)
+    # One entry per (s, s'): sum over the options executing at s.
+    key = src * S + dst
+    uniq, inv = np.unique(key, return_inverse=True)
+    summed = np.bincount(inv, weights=counts)
+    keep = summed > 0
+    return ExactMentorTransitions(torch.from_numpy(uniq[keep] // S), torch.from_numpy(uniq[keep] % S),
+                                  torch.from_numpy(summed[keep]))

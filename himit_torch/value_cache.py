@@ -177,6 +177,10 @@ class ValueCache:
             upper = torch.where(usable, q + z * var.sqrt(), self._neg_inf).amax(-1)
             confident = (m - z * self._mentor_variance(flat, n_m, m).sqrt()) > upper
             mentor_ok = mentor_ok & (confident | ~self.rows.use_confidence[runs])
+        if cfg.mentor_fade is not None:
+            # The mentor's evidence weighs as mentor_fade own executions (LearnerConfig.mentor_fade).
+            k, n = cfg.mentor_fade, _take(self.model.state_tries, flat)
+            m = torch.where(torch.isfinite(own), (k * m + n * own) / (k + n), m)
         m = torch.where(mentor_ok, m, self._neg_inf)
         best = torch.maximum(own, m)
         # Terminal states (and the padding state) keep V = 0.

@@ -25,6 +25,11 @@ CONFIGS = {
                                            tie_break="first", confidence_z=0.5),
     "match_optimistic": LearnerConfig(window=1000, mentor_choice="match", initial_value=0.0,
                                       untried_value=0.0, max_option_steps=30),
+    # settings of issue 11's factorial studies
+    "eps_step": LearnerConfig(window=1000, eps_schedule="step", eps_decay=0.9995),
+    "eps_goals_fade": LearnerConfig(window=1000, eps_schedule="goals", eps_goals=3, mentor_fade=3.0),
+    "eps_paper_exact_models": LearnerConfig(window=1000, eps_schedule="paper", eps_decay=0.9,
+                                            option_models="exact", exact_model_count=50.0),
 }
 
 
@@ -200,3 +205,15 @@ def test_mentor_win_share_is_the_same_from_either_engine(world12, mentor_demos12
     assert torch.equal(compiled.isnan(), ~learner.rows.use_mentor)
     torch.testing.assert_close(compiled, batched, equal_nan=True, rtol=0, atol=0)
     assert float(compiled.nan_to_num(0).max()) > 0
+
+
+def test_engines_agree_with_the_exact_mentor_model(world12):
+    """The mentor's exact transition model (fractional counts) on both engines: the same run."""
+    from himit_torch import exact_mentor_transitions
+    exact = exact_mentor_transitions(world12, mentor_policy(world12, mentor_options(world12)), 5.0)
+    runs = [Learner(world12, learner_options(world12), AGENT_MIX, range(5), config=CONFIGS["default"],
+                    demonstrations=exact, engine=engine) for engine in ("numba", "torch")]
+    for learner in runs:
+        learner.run(3000)
+    assert_same_run(*runs)
+    assert int(runs[0].goals.sum()) > 0

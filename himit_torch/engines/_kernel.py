@@ -28,6 +28,13 @@ _TWO_POW_MINUS_53 = 1.0 / 9007199254740992.0
 F_GAMMA, F_EPS_DECAY, F_EPS_MIN, F_THRESHOLD, F_V0, F_CONC, F_MCONC, F_UNTRIED, F_Z = range(9)
 (I_BACKUPS, I_ROUND, I_PLAN_EVERY, I_MAX_STEPS, I_UNTRIED_MODE, I_OVERRIDE, I_MATCH, I_TIE_FIRST,
  I_ANY_CONF, I_ANY_MENTOR, I_STOCHASTIC, I_START) = range(12)
+# (appended settings, issue 11) ε schedule: 0 decision, 1 step, 2 goals, 3 paper
+# (``learner.EPS_SCHEDULES``), and the goals of the "goals" schedule.
+I_EPS_SCHEDULE, I_EPS_GOALS = 12, 13
+N_CFG_I = 14
+# (appended, issue 11) the mentor term's fading weight (LearnerConfig.mentor_fade; 0 = off)
+F_FADE = 9
+N_CFG_F = 10
 
 
 @njit(inline="always")
@@ -212,6 +219,11 @@ def _state_backup(cfg_f, cfg_i, state_rows, terminal, use_mentor, use_conf, q_nu
         mvar = max(second - m * m, 0.0) / (n_m + mconc + 1)
         if not (m - z * np.sqrt(mvar)) > upper:
             ok = False
+    # ---- (issue 11) LearnerConfig.mentor_fade: shrink m towards own by own experience
+    fade = cfg_f[F_FADE]
+    if fade > 0 and np.isfinite(own):
+        n_own = state_tries[b, s]
+        m = (fade * m + n_own * own) / (fade + n_own)
     if not ok:
         m = -_INF
     best = own if own >= m else m
@@ -359,6 +371,16 @@ def _run(b, t_end, t_reached, keys, cfg_f, cfg_i,
             window_episode_steps[b] += t - episode_start[b]
             window_episodes[b] += 1
             episode_start[b] = t
+        # ---- ε schedules other than "decision" (LearnerConfig.eps_schedule; TorchEngine._eps_tick)
+        eps_schedule = cfg_i[I_EPS_SCHEDULE]
+        if eps_schedule == 1:
+            if found_goal[b]:
+                epsilon[b] = max(epsilon[b] * cfg_f[F_EPS_DECAY], cfg_f[F_EPS_MIN])
+        elif at_goal and eps_schedule == 2:
+            if goals[b] >= cfg_i[I_EPS_GOALS]:
+                epsilon[b] = cfg_f[F_EPS_MIN]
+        elif at_goal and eps_schedule == 3:
+            epsilon[b] = max(epsilon[b] * cfg_f[F_EPS_DECAY], cfg_f[F_EPS_MIN])
         # ---- learn: count the option's outcome (DirichletSMDPModel.update) -----------------
         if ended:
             start = option_start[b]
@@ -440,7 +462,7 @@ def _run(b, t_end, t_reached, keys, cfg_f, cfg_i,
         if not ended:
             continue
         # ---- choose: ε-greedy over the run's own rows (choice.choose_rows) -------------------
-        if found_goal[b]:
+        if found_goal[b] and cfg_i[I_EPS_SCHEDULE] == 0:
             epsilon[b] = max(epsilon[b] * cfg_f[F_EPS_DECAY], cfg_f[F_EPS_MIN])
         duration[b] = 0
         disc_return[b] = 0.0

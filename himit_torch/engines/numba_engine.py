@@ -31,7 +31,7 @@ class NumbaEngine:
         L = self.learner = learner
         cfg = L.config
         B, S, M = L.batch, L.num_states, L.num_rows
-        cfg_f = np.zeros(9)
+        cfg_f = np.zeros(_kernel.N_CFG_F)
         cfg_f[_kernel.F_GAMMA] = L.gamma
         cfg_f[_kernel.F_EPS_DECAY] = cfg.eps_decay
         cfg_f[_kernel.F_EPS_MIN] = cfg.eps_min
@@ -41,7 +41,7 @@ class NumbaEngine:
         cfg_f[_kernel.F_MCONC] = cfg.mentor_concentration
         cfg_f[_kernel.F_UNTRIED] = 0.0 if cfg.untried_value is None else cfg.untried_value
         cfg_f[_kernel.F_Z] = cfg.confidence_z
-        cfg_i = np.zeros(12, dtype=np.int64)
+        cfg_i = np.zeros(_kernel.N_CFG_I, dtype=np.int64)
         cfg_i[_kernel.I_BACKUPS] = cfg.backups
         cfg_i[_kernel.I_ROUND] = L.sweeper.round_size
         cfg_i[_kernel.I_PLAN_EVERY] = cfg.plan_every
@@ -55,6 +55,10 @@ class NumbaEngine:
         cfg_i[_kernel.I_ANY_MENTOR] = L.cache.any_mentor
         cfg_i[_kernel.I_STOCHASTIC] = L.policy is None
         cfg_i[_kernel.I_START] = -1 if L.start_cdf is not None else L.start_state
+        from ..learner import EPS_SCHEDULES
+        cfg_i[_kernel.I_EPS_SCHEDULE] = EPS_SCHEDULES.index(cfg.eps_schedule)
+        cfg_i[_kernel.I_EPS_GOALS] = cfg.eps_goals
+        cfg_f[_kernel.F_FADE] = 0.0 if cfg.mentor_fade is None else cfg.mentor_fade
         self.cfg_f, self.cfg_i = cfg_f, cfg_i
 
         table = L.dynamics

@@ -48,6 +48,8 @@ class TorchEngine:
         cfg, run = L.config, L.run_state
         u = self._tick_uniforms(run.t)
         at_goal, ended = self._act(u)
+        if cfg.eps_schedule != "decision":
+            self._eps_tick(at_goal)
         runs = ended.nonzero()[:, 0] if bool(ended.any()) else None
         if runs is not None:
             self._learn(runs)
@@ -83,6 +85,21 @@ class TorchEngine:
             self._goal_reached(at_goal)
         return at_goal, ended
 
+    def _eps_tick(self, at_goal: torch.Tensor) -> None:
+        """ε schedules that change ε at steps or goals, not decisions
+        (``LearnerConfig.eps_schedule``): "step" decays at every step once the goal was found,
+        "goals" drops to the floor at the ``eps_goals``-th goal, "paper" decays at every goal."""
+        L = self.learner
+        cfg, run = L.config, L.run_state
+        decayed = (run.epsilon * cfg.eps_decay).clamp(min=cfg.eps_min)
+        if cfg.eps_schedule == "step":
+            run.epsilon = torch.where(run.found_goal, decayed, run.epsilon)
+        elif cfg.eps_schedule == "goals":
+            drop = at_goal & (run.goals >= cfg.eps_goals)
+            run.epsilon = torch.where(drop, torch.full_like(run.epsilon, cfg.eps_min), run.epsilon)
+        elif cfg.eps_schedule == "paper":
+            run.epsilon = torch.where(at_goal, decayed, run.epsilon)
+
     def _learn(self, runs: torch.Tensor) -> None:
         """Runs whose option just ended count its outcome and queue its start state first."""
         L = self.learner
@@ -108,9 +125,10 @@ class TorchEngine:
         """Runs whose option ended start the next one (at a new episode's start after a goal)."""
         L = self.learner
         cfg, run = L.config, L.run_state
-        eps = run.epsilon[runs]
-        run.epsilon[runs] = torch.where(run.found_goal[runs],
-                                        (eps * cfg.eps_decay).clamp(min=cfg.eps_min), eps)
+        if cfg.eps_schedule == "decision":
+            eps = run.epsilon[runs]
+            run.epsilon[runs] = torch.where(run.found_goal[runs],
+                                            (eps * cfg.eps_decay).clamp(min=cfg.eps_min), eps)
         run.duration[runs] = 0
         run.discounted_return[runs] = 0.0
         run.discount[runs] = 1.0
