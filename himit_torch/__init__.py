@@ -17,7 +17,8 @@ from .options import (OPTION_KINDS, Options, corner_options, doorway_options, le
 from .sweep_queue import BlockPriorityQueue
 from .exact_planning import (OptimalBaseline, PlanResult, expected_steps, greedy_option_policy,
                              optimal_baseline, smdp_value_iteration, value_iteration)
-from .reward import SALIENCE_EVENTS, KnownReward, MentorReward, SalienceReward
+from .reward import (MENTOR_REWARDS, SALIENCE_EVENTS, KnownReward, MentorReward, SalienceReward,
+                     ZeroReward, mentor_reward_module)
 from .tensorboard_logger import TensorBoardLogger
 from .world import STIMULUS_FEATURES, DynamicsTable, MultiRooms, TabularWorld
 from .table_world import TableWorld, describe_world, transition_support, world_model
@@ -43,7 +44,8 @@ __all__ = [
     "MentorPolicy", "MentorRollout", "mentor_policy", "run_mentor", "record_demonstrations",
     "Demonstrations", "DEMONSTRATIONS_FORMAT_VERSION",
     # mentor reward
-    "MentorReward", "KnownReward", "SalienceReward", "SALIENCE_EVENTS", "STIMULUS_FEATURES",
+    "MentorReward", "KnownReward", "SalienceReward", "ZeroReward", "SALIENCE_EVENTS",
+    "STIMULUS_FEATURES", "MENTOR_REWARDS", "mentor_reward_module",
     # logging
     "TensorBoardLogger",
 ]

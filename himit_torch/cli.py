@@ -33,6 +33,7 @@ from .mentor import mentor_policy, run_mentor
 from .demonstrations import Demonstrations
 from .exact_option_models import option_durations, option_models
 from .options import Options, learner_options, mentor_options, primitive_options
+from .reward import MENTOR_REWARDS
 from .exact_planning import expected_steps, smdp_value_iteration
 from .world import MultiRooms
 
@@ -311,6 +312,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         changes["device"] = args.device
     if args.engine is not None:
         changes["engine"] = args.engine
+    if args.mentor_reward is not None:
+        changes["mentor_reward"] = args.mentor_reward
     if changes:
         config = replace(config, **changes)
     if config.device.startswith("cuda") and not torch.cuda.is_available():
@@ -332,6 +335,9 @@ def _run_gymnasium(args: argparse.Namespace) -> int:
 
     from .gym_experiment import GymExperimentConfig, run_gym_experiment
 
+    if args.mentor_reward is not None:
+        raise ValueError("himit run gymnasium takes no --mentor-reward (its imitators use the "
+                         "world's own reward, KnownReward)")
     if args.config or args.resume:
         raise ValueError("himit run gymnasium takes no --config or --resume (each task is one "
                          "batch; rerun a task with --force)")
@@ -362,6 +368,10 @@ def _add_run(sub: argparse.ArgumentParser) -> None:
     sub.add_argument("--device", help="cpu (default) or cuda")
     sub.add_argument("--engine", choices=["auto", "numba", "torch"],
                      help="auto (default): the compiled loop on a CPU, torch on a GPU")
+    sub.add_argument("--mentor-reward", choices=list(MENTOR_REWARDS),
+                     help="the reward R_m of the mentor's transitions in the imitators' mentor "
+                          "term: known (the world's, default), salience (intrinsic, from the "
+                          "mentor's states) or none (r_m = 0)")
     sub.add_argument("--config", help="a config.json (as saved in a run directory) to run instead "
                                       "of the defaults")
     sub.add_argument("--resume", action="store_true",
