@@ -20,6 +20,7 @@ from .exact_planning import (OptimalBaseline, PlanResult, expected_steps, greedy
 from .reward import (MENTOR_REWARDS, SALIENCE_EVENTS, KnownReward, MentorReward, SalienceReward,
                      ZeroReward, mentor_reward_module)
 from .tensorboard_logger import TensorBoardLogger
+from .discovery import Subgoals, discover_subgoals, learned_subgoal_options, one_step_counts
 from .world import STIMULUS_FEATURES, DynamicsTable, MultiRooms, TabularWorld
 from .table_world import TableWorld, describe_world, transition_support, world_model
 from .gym_adapter import from_gymnasium, taxi_navigation_options
@@ -46,6 +47,8 @@ __all__ = [
     # mentor reward
     "MentorReward", "KnownReward", "SalienceReward", "ZeroReward", "SALIENCE_EVENTS",
     "STIMULUS_FEATURES", "MENTOR_REWARDS", "mentor_reward_module",
+    # options discovered from demonstrations
+    "Subgoals", "discover_subgoals", "learned_subgoal_options", "one_step_counts",
     # logging
     "TensorBoardLogger",
 ]
