@@ -148,3 +148,29 @@ def test_subgoal_figure(world8, tmp_path):
     fig.savefig(tmp_path / "s.png")
     labels = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
     assert "subgoal: a doorway" in labels and (tmp_path / "s.png").stat().st_size > 1000
+
+
+def test_himit_run_discovery_quick(tmp_path, capsys):
+    import csv
+
+    from himit_torch.cli import main
+    from himit_torch.discovery_experiment import DISCOVERY_AGENTS, DiscoveryConfig, mean_ci
+    assert main(["run", "discovery", "--quick", "--seeds", "2", "--steps", "10000", "--logdir",
+                 str(tmp_path), "--quiet"]) == 0
+    run = tmp_path / "discovery"
+    text = (run / "results.md").read_text()
+    for agent in DISCOVERY_AGENTS:
+        assert f"| {agent} |" in text
+    with (run / "curves.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == len(DISCOVERY_AGENTS) * 2 * 2            # 2 seeds × 2 windows of 5000
+    assert {r["agent"] for r in rows} == set(DISCOVERY_AGENTS)
+    assert (run / "figures" / "subgoals_exp2.png").exists() and (run / "subgoals.csv").exists()
+    capsys.readouterr()
+    with pytest.raises(SystemExit):
+        main(["run", "discovery", "--quick", "--mentor-reward", "none", "--logdir", str(tmp_path)])
+    assert "takes no --mentor-reward" in capsys.readouterr().err
+    with pytest.raises(ValueError, match="warmup"):
+        DiscoveryConfig(steps=20_000, warmup=20_000)
+    m, h = mean_ci([1.0, 2.0, 3.0])                   # t(0.975, 2) = 4.303, sd = 1
+    assert m == 2.0 and h == pytest.approx(4.302653 / 3 ** 0.5, rel=1e-5)
