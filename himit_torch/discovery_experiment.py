@@ -216,7 +216,7 @@ def _run_world(config: DiscoveryConfig, exp: str, out: Path, progress: bool) -> 
             if s == seeds[0] and found_opts is not None:
                 _subgoal_figure(out / "figures" / f"options_{variant}_{exp}.png", world, found[s],
                                 demos[s], found_opts,
-                                f"{exp}'s world, seed {s}: subgoals and options built from "
+                                f"{exp}'s world, seed {s}: subgoals and options built\nfrom "
                                 f"{source}'s model after {warmup:,} steps")
             learner = batch(opts, [agent], [s])
             learner.run(steps - warmup)
@@ -229,7 +229,7 @@ def _run_world(config: DiscoveryConfig, exp: str, out: Path, progress: bool) -> 
     engine = learner.engine.name
     log(f"discovered options done ({wall['discovered options']:.0f} s)")
     _subgoal_figure(out / "figures" / f"subgoals_{exp}.png", world, found[seeds[0]], demos[seeds[0]],
-                    None, f"{exp}'s world ({size}×{size}), seed {seeds[0]}: subgoals found in "
+                    None, f"{exp}'s world ({size}×{size}), seed {seeds[0]}:\nsubgoals found in "
                           f"{base.mentor_episodes} mentor episodes")
     return {"world": exp, "size": size, "steps": steps, "window": window, "goals": goals,
             "first_goal": first_goal, "subgoals": subgoal_rows, "needed": needed_rows,
@@ -310,7 +310,17 @@ def _write_results(out: Path, config: DiscoveryConfig, results: list[dict], tota
              f"Code at commit `{source_commit()}`, engine `{engine}`, {config.seeds} seeds, warm-up {config.warmup:,} steps, initiation "
              f"sets within {config.max_steps_factor:g} × separation expected steps. Total wall time "
              f"{total:.0f} s. Numbers: mean ± half-width of the 95 % confidence interval "
-             "(Student's t) over seeds.", ""]
+             "(Student's t) over seeds.", "",
+             "What runs (see `himit_torch/discovery_experiment.py`): `primitives` / "
+             "`imitation_primitives` — primitive options only, without / with the mentor term; "
+             "`doorway_options` / `doorway_imitation` — primitives + the hand-built doorway options "
+             "(shortest path, from the true layout; no corner options, also on exp1's world); "
+             "`discovered_options` / `discovered_imitation` — the first `warmup` steps are those of "
+             "the primitives-only run of the same seed and variant, then a new learner with "
+             "primitives + options to the subgoals discovered in that seed's demonstrations, built "
+             "from that run's own one-step counts, for the remaining steps (its models start empty). "
+             "Goals count over both phases. Each world uses its experiment's steps, mentor episodes "
+             "and learner settings; each seed its own mentor episodes.", ""]
     for r in results:
         seeds = r["seeds"]
         tot = {a: [int(r["goals"][a][s].sum()) for s in seeds] for a in DISCOVERY_AGENTS}
