@@ -18,8 +18,10 @@ from .options import (OPTION_KINDS, Options, corner_options, doorway_options, le
 from .sweep_queue import BlockPriorityQueue
 from .exact_planning import (OptimalBaseline, PlanResult, expected_steps, greedy_option_policy,
                              optimal_baseline, smdp_value_iteration, value_iteration)
-from .reward import SALIENCE_EVENTS, KnownReward, MentorReward, SalienceReward
+from .reward import (MENTOR_REWARDS, SALIENCE_EVENTS, KnownReward, MentorReward, SalienceReward,
+                     ZeroReward, mentor_reward_module)
 from .tensorboard_logger import TensorBoardLogger
+from .discovery import Subgoals, discover_subgoals, learned_subgoal_options, one_step_counts
 from .world import STIMULUS_FEATURES, DynamicsTable, MultiRooms, TabularWorld
 from .table_world import TableWorld, describe_world, transition_support, world_model
 from .gym_adapter import from_gymnasium, taxi_navigation_options
@@ -45,7 +47,10 @@ __all__ = [
     "ExactMentorTransitions", "exact_mentor_transitions",
     "Demonstrations", "DEMONSTRATIONS_FORMAT_VERSION",
     # mentor reward
-    "MentorReward", "KnownReward", "SalienceReward", "SALIENCE_EVENTS", "STIMULUS_FEATURES",
+    "MentorReward", "KnownReward", "SalienceReward", "ZeroReward", "SALIENCE_EVENTS",
+    "STIMULUS_FEATURES", "MENTOR_REWARDS", "mentor_reward_module",
+    # options discovered from demonstrations
+    "Subgoals", "discover_subgoals", "learned_subgoal_options", "one_step_counts",
     # logging
     "TensorBoardLogger",
 ]

@@ -9,7 +9,8 @@ Subcommands (``himit <command> --help`` for their options):
   state-only demonstrations, save them and a picture like the paper's Fig. 2, then a short
   batched learning run with figures and TensorBoard logs.
 * ``run``   — reproduce experiment 1, 2 or 3 into a run directory (resumable), or
-  ``gymnasium``: imitation vs options vs primitives on Taxi, CliffWalking and FrozenLake 8×8.
+  ``gymnasium``: imitation vs options vs primitives on Taxi, CliffWalking and FrozenLake 8×8, or
+  ``discovery``: options discovered from the mentor's states vs hand-built doorway options.
 * ``plot``  — redraw a run directory's figures and ``results.md``.
 * ``bench`` — steps per second of the batched learner.
 
@@ -33,6 +34,7 @@ from .mentor import mentor_policy, run_mentor
 from .demonstrations import Demonstrations
 from .exact_option_models import option_durations, option_models
 from .options import Options, learner_options, mentor_options, primitive_options
+from .reward import MENTOR_REWARDS
 from .exact_planning import expected_steps, smdp_value_iteration
 from .world import MultiRooms
 
@@ -292,6 +294,8 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     if args.experiment == "gymnasium":
         return _run_gymnasium(args)
+    if args.experiment == "discovery":
+        return _run_discovery(args)
     if args.config:
         config = load_config(args.config)
         if args.experiment != config.name:
@@ -311,6 +315,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         changes["device"] = args.device
     if args.engine is not None:
         changes["engine"] = args.engine
+    if args.mentor_reward is not None:
+        changes["mentor_reward"] = args.mentor_reward
     if changes:
         config = replace(config, **changes)
     if config.device.startswith("cuda") and not torch.cuda.is_available():
@@ -332,6 +338,9 @@ def _run_gymnasium(args: argparse.Namespace) -> int:
 
     from .gym_experiment import GymExperimentConfig, run_gym_experiment
 
+    if args.mentor_reward is not None:
+        raise ValueError("himit run gymnasium takes no --mentor-reward (its imitators use the "
+                         "world's own reward, KnownReward)")
     if args.config or args.resume:
         raise ValueError("himit run gymnasium takes no --config or --resume (each task is one "
                          "batch; rerun a task with --force)")
@@ -352,9 +361,38 @@ def _run_gymnasium(args: argparse.Namespace) -> int:
     return 0
 
 
+def _run_discovery(args: argparse.Namespace) -> int:
+    """``himit run discovery``: options discovered from the mentor's states
+    (``discovery_experiment``) on experiment 1's and 2's worlds."""
+    from dataclasses import replace
+
+    from .discovery_experiment import DiscoveryConfig, run_discovery
+
+    refused = [flag for flag, value in (("--config", args.config), ("--resume", args.resume),
+                                        ("--mentor-reward", args.mentor_reward),
+                                        ("--device", args.device), ("--workers", args.workers))
+               if value]
+    if refused:
+        raise ValueError(f"himit run discovery takes no {', '.join(refused)} (it runs on the CPU in "
+                         "one process, with the world's own mentor reward; rerun with --force)")
+    config = DiscoveryConfig()
+    if args.quick:
+        config = config.quick()
+    changes = {k: v for k, v in (("seeds", args.seeds), ("steps", args.steps),
+                                 ("engine", args.engine)) if v is not None}
+    config = replace(config, **changes)
+    run_dir = Path(args.logdir) / config.name
+    print(f"{config.name}: worlds {list(config.worlds)}, {config.seeds} seeds → {run_dir}")
+    t0 = time.perf_counter()
+    run_discovery(config, run_dir, force=args.force, progress=not args.quiet)
+    print(f"done in {time.perf_counter() - t0:.0f} s: {run_dir / 'results.md'}")
+    return 0
+
+
 def _add_run(sub: argparse.ArgumentParser) -> None:
-    sub.add_argument("experiment", choices=["exp1", "exp2", "exp3", "gymnasium"],
-                     help="which experiment (gymnasium: Taxi, CliffWalking, FrozenLake 8×8)")
+    sub.add_argument("experiment", choices=["exp1", "exp2", "exp3", "gymnasium", "discovery"],
+                     help="which experiment (gymnasium: Taxi, CliffWalking, FrozenLake 8×8; "
+                          "discovery: options discovered from the mentor's states)")
     sub.add_argument("--seeds", type=_positive_int, help="runs per agent (default 5)")
     sub.add_argument("--steps", type=_positive_int, help="steps per run (default: the experiment's)")
     sub.add_argument("--quick", action="store_true", help="tiny budget (smoke test)")
@@ -362,6 +400,10 @@ def _add_run(sub: argparse.ArgumentParser) -> None:
     sub.add_argument("--device", help="cpu (default) or cuda")
     sub.add_argument("--engine", choices=["auto", "numba", "torch"],
                      help="auto (default): the compiled loop on a CPU, torch on a GPU")
+    sub.add_argument("--mentor-reward", choices=list(MENTOR_REWARDS),
+                     help="the reward R_m of the mentor's transitions in the imitators' mentor "
+                          "term: known (the world's, default), salience (intrinsic, from the "
+                          "mentor's states) or none (r_m = 0)")
     sub.add_argument("--config", help="a config.json (as saved in a run directory) to run instead "
                                       "of the defaults")
     sub.add_argument("--resume", action="store_true",

@@ -32,6 +32,7 @@ from .learner import AGENTS, Learner, LearnerConfig
 from .mentor import exact_mentor_transitions, mentor_policy, record_demonstrations
 from .exact_option_models import option_durations, option_models
 from .options import learner_options, mentor_options, primitive_options
+from .reward import MENTOR_REWARDS, mentor_reward_module
 from .exact_planning import expected_steps, smdp_value_iteration
 from .tensorboard_logger import TensorBoardLogger
 from .world import MultiRooms
@@ -72,6 +73,11 @@ class ExperimentConfig:
     """Primitive steps per run."""
     mentor_episodes: int = 20
     """Mentor episodes recorded (states only) before learning, per seed."""
+    mentor_reward: str = "known"
+    """The reward ``R_m`` the imitating runs give the mentor's transitions (eq. 2): ``known``
+    (the world's own reward, the paper's), ``salience`` (``SalienceReward`` with its defaults,
+    fitted on each seed's own demonstrations: intrinsic, no knowledge of the world's reward) or
+    ``none`` (``ZeroReward``: r_m = 0). See ``himit_torch.reward``."""
     mentor_preference: float | None = None
     """The mentor takes an extended option within this of the best value (None: one step's cost)."""
     mentor_model: str = "learned"
@@ -118,6 +124,8 @@ class ExperimentConfig:
             bad("mentor_episodes", "must be ≥ 1")
         if self.mentor_model not in ("learned", "exact"):
             bad("mentor_model", "use 'learned' or 'exact'")
+        if self.mentor_reward not in MENTOR_REWARDS:
+            bad("mentor_reward", f"use one of {list(MENTOR_REWARDS)}")
         if self.window < 1 or self.checkpoint_every < 1 or self.checkpoint_every % self.window:
             bad("checkpoint_every", f"must be a positive multiple of window={self.window}")
         if self.learner.window != self.window:
@@ -317,6 +325,7 @@ def run_world(config: ExperimentConfig, size: int, run_dir: Path, resume: bool,
     del mentor
     options = learner_options(world, corners=config.corner_options)
     learner = Learner(world, options, agents, run_seeds, config=config.learner,
+                      reward=mentor_rewards(config, world, agents, run_seeds, demos),
                       device=config.device, engine=config.engine)
     for s in seeds:  # each seed watches its own mentor episodes
         learner.add_demonstrations(demos[s] if exact is None else exact,
@@ -397,6 +406,23 @@ def run_world(config: ExperimentConfig, size: int, run_dir: Path, resume: bool,
     _atomic_write(run_dir / "worlds" / f"world{size}.json", json.dumps(asdict(result), indent=1))
     _world_figure(run_dir, config, world, demos[seeds[0]], learner, agents, run_seeds, seeds[0], size)
     return result
+
+
+def mentor_rewards(config: ExperimentConfig, world, agents, run_seeds, demos) -> list | None:
+    """The reward modules of a batch for ``config.mentor_reward``: ``None`` for ``known`` (the
+    learner's default, :class:`~himit_torch.KnownReward`), else one module per run — fitted on
+    that run's seed's demonstrations for ``salience`` — and ``None`` for runs that do not imitate."""
+    if config.mentor_reward == "known":
+        return None
+    modules, fitted = [], {}
+    for agent, seed in zip(agents, run_seeds):
+        if not AGENTS[agent][1]:           # the variant has no mentor term
+            modules.append(None)
+            continue
+        if seed not in fitted:
+            fitted[seed] = mentor_reward_module(config.mentor_reward, world, demos[seed])
+        modules.append(fitted[seed])
+    return modules
 
 
 def _write_curves(path: Path, learner: Learner, size: int) -> None:

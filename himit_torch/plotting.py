@@ -518,3 +518,66 @@ def visitation_image(world: MultiRooms, learner_visits: torch.Tensor,
 def policy_image(world: MultiRooms, options, greedy: torch.Tensor, title: str = "") -> np.ndarray:
     """``[H, W, 3]`` uint8 map of the greedy option per state, with its legend."""
     return MapRenderer(world, options).policy(greedy, title)
+
+
+# ============================================================================ discovered subgoals
+SUBGOAL_COLOR = "#c2185b"
+
+
+def plot_subgoals(world: MultiRooms, subgoals, demonstrations: Demonstrations | None = None,
+                  options=None, ax: Axes | None = None, title: str | None = None) -> Figure:
+    """The world (:func:`plot_world`) with discovered subgoals and, if given, options to them.
+
+    Subgoals that are true doorways are drawn as filled magenta squares, the others as hollow
+    ones; ``options`` (an :class:`~himit_torch.Options`, e.g. from
+    :func:`himit_torch.discovery.learned_subgoal_options`) shade each cell by how many of them
+    may start there and draw each option's action there as a short arrow.
+
+    Args:
+        world: the world.
+        subgoals: a :class:`~himit_torch.discovery.Subgoals` or a sequence of states.
+        demonstrations: mentor episodes to draw beneath.
+        options: options whose initiation sets and policies to draw (subgoal options only).
+        ax, title: as for :func:`plot_world`.
+    """
+    from .world import ACTION_DELTAS
+
+    states = list(getattr(subgoals, "states", subgoals))
+    fig = plot_world(world, demonstrations=demonstrations, ax=ax, title=title)
+    ax = fig.axes[0] if ax is None else ax
+    N = world.size
+    if options is not None:
+        init = options.initiation.numpy()
+        cover = init.sum(0).astype(np.float64)
+        shade = np.ma.masked_where(cover == 0, cover).reshape(N, N)
+        ax.imshow(shade, cmap="Purples", alpha=0.45, vmin=0, vmax=max(1.0, cover.max()) * 1.5,
+                  interpolation="nearest", extent=(-0.5, N - 0.5, N - 0.5, -0.5), zorder=1)
+        if not options.stochastic:
+            policy = options.policy.numpy()
+            for o in range(options.num_options):
+                cells = np.flatnonzero(init[o])
+                if not cells.size:
+                    continue
+                dr, dc = np.asarray(ACTION_DELTAS)[policy[o, cells]].T
+                r, c = np.divmod(cells, N)
+                ax.quiver(c, r, dc, -dr, color="#5e3c99", alpha=0.5, scale=2.6 * N / 10,
+                          width=0.002, zorder=1.5)
+    doors = set(world.doorways.tolist())
+    marker = max(6.0, 160.0 / N)
+    for hit in (True, False):
+        pick = [s for s in states if (s in doors) == hit]
+        if not pick:
+            continue
+        r, c = np.divmod(np.asarray(pick), N)
+        ax.plot(c, r, "s", markersize=marker, markeredgewidth=1.6, linestyle="none",
+                markeredgecolor=SUBGOAL_COLOR, markerfacecolor=SUBGOAL_COLOR if hit else "none",
+                zorder=5)
+    legend = ax.get_legend()
+    handles = list(legend.legend_handles) if legend is not None else []
+    handles += [Line2D([], [], marker="s", color=SUBGOAL_COLOR, linestyle="none",
+                       label="subgoal: a doorway"),
+                Line2D([], [], marker="s", markerfacecolor="none", color=SUBGOAL_COLOR,
+                       linestyle="none", label="subgoal: not a doorway")]
+    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.01),
+              ncol=min(4, len(handles)), fontsize="small", frameon=False, handlelength=1.5)
+    return fig

@@ -144,7 +144,10 @@ def write_results(run_dir: Path, config, results) -> None:
              f"Worlds {', '.join(f'{s}×{s}' for s in config.sizes)} (rooms of {config.room_size} "
              f"cells), corner options: {config.corner_options}, {config.seeds} seeds, "
              f"{config.steps:,} steps per run, {config.mentor_episodes} mentor episodes, "
-             f"window {config.window}.", "",
+             f"window {config.window}"
+             + (f", mentor reward `{config.mentor_reward}`" if getattr(config, "mentor_reward",
+                                                                     "known") != "known" else "")
+             + ".", "",
              "Learner settings: " + ", ".join(f"`{k}={v}`" for k, v in asdict(config.learner).items()),
              ""]
     for r in results:

@@ -40,6 +40,8 @@ Modules
     :class:`KnownReward` — the world's own reward (the paper's experiments, ``R_m = R_obs``).
     :class:`SalienceReward` — intrinsic reward from salient events in the mentor's states
     alone, with no knowledge of the world's reward.
+    :class:`ZeroReward` — no reward of its own (``r_m = 0``): the mentor term only carries the
+    values of the states the mentor moves to.
     Any object with ``upper_bound`` and ``transition_reward`` works (:class:`MentorReward`).
 """
 
@@ -51,7 +53,8 @@ from typing import Iterable, Mapping, Protocol, Sequence, runtime_checkable
 
 import torch
 
-__all__ = ["MentorReward", "KnownReward", "SalienceReward", "SALIENCE_EVENTS"]
+__all__ = ["MentorReward", "KnownReward", "SalienceReward", "ZeroReward", "SALIENCE_EVENTS",
+           "MENTOR_REWARDS", "mentor_reward_module"]
 
 
 @runtime_checkable
@@ -158,6 +161,54 @@ def _pair_rewards(world) -> tuple[torch.Tensor, torch.Tensor, int]:
         0, inverse, reward, "amin")
     high = torch.full_like(low, -float("inf")).scatter_reduce(0, inverse, reward, "amax")
     return keys, low, int((high > low).sum())
+
+
+class ZeroReward:
+    """No reward of the mentor's own: ``r_m(s, s') = 0`` on every mentor transition, so the
+    mentor term at ``s`` is ``γ Σ_{s'} p_m(s'|s) V(s')`` — it passes on the values of the states
+    the mentor moves to and nothing else (``upper_bound = 0``).
+
+    Cycle-safe (nothing pays more than 0), but not sound where steps cost something: it
+    overestimates every real step cost (MultiRooms' −0.01) by that cost. It is the "no reward
+    model" control of the ``mentor_reward`` setting (:data:`MENTOR_REWARDS`).
+    """
+
+    upper_bound = 0.0
+
+    def transition_reward(self, sources: torch.Tensor, successors: torch.Tensor) -> torch.Tensor:
+        sources = torch.as_tensor(sources)
+        if sources.shape != torch.as_tensor(successors).shape or sources.ndim != 1:
+            raise ValueError("ZeroReward.transition_reward: sources and successors must both be [n]")
+        return torch.zeros(sources.shape, dtype=torch.float64, device=sources.device)
+
+    def __repr__(self) -> str:
+        return "ZeroReward(r_m = 0)"
+
+
+#: The mentor-reward modules an experiment can name (``ExperimentConfig.mentor_reward``,
+#: ``himit run --mentor-reward``): ``"known"`` (:class:`KnownReward`, the paper's),
+#: ``"salience"`` (:class:`SalienceReward` with its defaults, fitted on each run's own
+#: demonstrations) and ``"none"`` (:class:`ZeroReward`).
+MENTOR_REWARDS = ("known", "salience", "none")
+
+
+def mentor_reward_module(name: str, world, demonstrations=None):
+    """The reward module named ``name`` (one of :data:`MENTOR_REWARDS`) for ``world``;
+    ``"salience"`` is fitted on ``demonstrations`` (required for it).
+
+    Raises:
+        ValueError: an unknown name, or ``"salience"`` without demonstrations.
+    """
+    if name == "known":
+        return KnownReward(world)
+    if name == "salience":
+        if demonstrations is None:
+            raise ValueError("mentor_reward='salience' is fitted on the mentor's demonstrations; "
+                             "give demonstrations=…")
+        return SalienceReward(world, demonstrations)
+    if name == "none":
+        return ZeroReward()
+    raise ValueError(f"mentor_reward={name!r} is unknown; use one of {list(MENTOR_REWARDS)}")
 
 
 #: Salient event kinds of :class:`SalienceReward` (the keys of its ``weights``).

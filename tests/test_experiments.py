@@ -304,3 +304,36 @@ def test_cli_bench_prints_a_rate(capsys):
     line = capsys.readouterr().out
     assert "steps/s" in line and "B=2" in line
     assert "agent" in one_line_error(capsys, ["bench", "--agent", "nobody"])
+
+
+def test_mentor_reward_is_a_setting_of_the_runner_and_the_cli(tmp_path, capsys):
+    """``mentor_reward`` changes only the imitators: the options runs (no mentor term) are the same
+    in every batch, the imitators' curves differ between the world's reward and r_m = 0."""
+    with pytest.raises(ValueError, match="mentor_reward='bogus'.*known"):
+        tiny("exp2", mentor_reward="bogus")
+    runs = {}
+    for name in ("known", "salience", "none"):
+        config = tiny("exp2", mentor_reward=name, steps=3000)
+        run_experiment(config, tmp_path / name, progress=False, workers=1)
+        assert load_config(tmp_path / name / "config.json").mentor_reward == name
+        runs[name] = {(r["agent"], r["step"]): r["goals_in_window"]
+                      for r in read_curves(tmp_path / name / "curves.csv")}
+    own = {k: v for k, v in runs["known"].items() if k[0] == "options"}
+    for name in ("salience", "none"):
+        assert {k: v for k, v in runs[name].items() if k[0] == "options"} == own
+    # the mentor term's values differ with its reward: compare the learners' start values
+    starts = {n: json.loads((tmp_path / n / "worlds" / "world40.json").read_text())["value_start"][0]
+              for n in runs}
+    assert len(set(starts.values())) == 3
+    assert "mentor reward `none`" in (tmp_path / "none" / "results.md").read_text()
+    assert "mentor reward" not in (tmp_path / "known" / "results.md").read_text()
+    # the CLI flag
+    cfg = tmp_path / "cfg.json"
+    cfg.write_text(tiny("exp2", steps=1000).to_json())
+    assert main(["run", "exp2", "--config", str(cfg), "--mentor-reward", "salience", "--logdir",
+                 str(tmp_path / "cli"), "--quiet"]) == 0
+    assert load_config(tmp_path / "cli" / "exp2" / "config.json").mentor_reward == "salience"
+    capsys.readouterr()
+    assert "invalid choice" in one_line_error(capsys, ["run", "exp2", "--mentor-reward", "x"])
+    assert "no --mentor-reward" in one_line_error(capsys, ["run", "gymnasium", "--mentor-reward",
+                                                           "none"])

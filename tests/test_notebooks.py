@@ -38,7 +38,8 @@ def tiny_budget(monkeypatch, tmp_path):
     return tmp_path
 
 
-@pytest.mark.parametrize("name", ["quickstart", "intrinsic_reward", "your_own_world"])
+@pytest.mark.parametrize("name", ["quickstart", "intrinsic_reward", "your_own_world",
+                                  "option_discovery"])
 def test_notebook_runs_with_a_tiny_budget(name, tiny_budget):
     earlier = tiny_budget / "runs/intrinsic_reward/tb/world40__known__seed0"
     if name == "intrinsic_reward":
@@ -62,6 +63,10 @@ def test_notebook_runs_with_a_tiny_budget(name, tiny_budget):
         assert "364 options" in text and "first goal at step" in text
         assert "54.7 goals per 5000 steps" in text           # our exact optimum, computed
         assert text.count("steps in the goal's room") == 6   # the reach of every run, measured
+    elif name == "option_discovery":
+        assert "400 steps per run, warm-up 100, 1 seed(s), separation 3" in text
+        assert "seed 0:" in text and "precision" in text and "20 episodes: precision" in text
+        assert text.count("total goals per run") == 3       # all three learners ran
     elif name == "your_own_world":
         assert "104 states; True for the TabularWorld protocol" in text
         assert "refused: Demonstrations: episode 0, index 2: state 50 follows 1" in text

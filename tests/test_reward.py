@@ -319,3 +319,31 @@ def test_salience_refit_replaces_the_previous_fit():
     still = Demonstrations([torch.tensor([world.start_state])], world)
     module.fit(still)
     assert float(module.salience_map().abs().sum()) == 0.0
+
+
+def test_zero_reward_and_modules_by_name(world8, demos8):
+    from himit_torch.reward import MENTOR_REWARDS, ZeroReward, mentor_reward_module
+    src, dst = demos8.transitions()
+    zero = mentor_reward_module("none", world8)
+    assert isinstance(zero, ZeroReward) and zero.upper_bound == 0.0
+    r = zero.transition_reward(src, dst)
+    assert r.shape == src.shape and r.dtype == torch.float64 and bool((r == 0).all())
+    known = mentor_reward_module("known", world8)
+    assert torch.equal(known.transition_reward(src, dst), world8.state_reward.double()[dst])
+    salience = mentor_reward_module("salience", world8, demos8)
+    assert salience.fitted and salience.num_episodes == demos8.num_episodes
+    with pytest.raises(ValueError, match="demonstrations"):
+        mentor_reward_module("salience", world8)
+    with pytest.raises(ValueError, match="unknown; use one of"):
+        mentor_reward_module("extrinsic", world8)
+    assert MENTOR_REWARDS == ("known", "salience", "none")
+    # In a learner: the world's reward carries the goal's +1 back along the mentor's path;
+    # r_m = 0 carries no reward at all, so no value rises above 0.
+    values = {}
+    for name in ("known", "none"):
+        learner = Learner(world8, ht.learner_options(world8), ["imitation"], [0],
+                          reward=mentor_reward_module(name, world8, demos8))
+        learner.add_demonstrations(demos8)
+        learner.plan()
+        values[name] = learner.state_values()[0, world8.start_state]
+    assert values["known"] > 0.5 and values["none"] <= 0.0
