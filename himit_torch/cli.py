@@ -476,7 +476,7 @@ COMMANDS: dict[str, tuple[Callable[[argparse.Namespace], int],
     "run": (cmd_run, _add_run, "reproduce one of the paper's experiments (exp1, exp2, exp3), or "
                                "the Gymnasium comparison (gymnasium)"),
     "sweep": (cmd_sweep, _add_sweep, "run a sweep spec: settings × seeds × worlds as resumable "
-                                     "trials (on Ray when installed), with tables and 95 % CIs"),
+                                     "trials (on Ray when installed), with tables and 95 %% CIs"),
     "plot": (cmd_plot, _add_plot, "redraw the figures and results.md of a run directory"),
     "bench": (cmd_bench, _add_bench, "steps per second of the batched learner"),
 }

@@ -320,6 +320,24 @@ if e3:
             f"(least squares over {len(xs)} seed-level differences, p = {lr.pvalue:.2g}); Spearman "
             f"ρ = {rho.statistic:.2f} (p = {rho.pvalue:.2g}).")
     say()
+    for sweep in ("exp3_ties", "exp3_backups"):
+        other = runs(sweep)
+        if not other:
+            continue
+        [cell] = list(dict.fromkeys(r["cell"] for r in other))
+        say(f"{sweep} (`{cell}`): per world, imitation − options (total goals), each agent against "
+            "the baseline (total goals), and failures imitation / options:")
+        say()
+        say("| world | imitation − options | imitation vs baseline | options vs baseline | failed |")
+        say("|---|---|---|---|---|")
+        for size in sorted({int(r["world"]) for r in other}):
+            i, o = pick(other, cell, "imitation", size), pick(other, cell, "options", size)
+            bi, bo = pick(e3, "baseline", "imitation", size), pick(e3, "baseline", "options", size)
+            f = [sum(int(r["first_goal_step"]) < 0 for r in d.values()) for d in (i, o)]
+            say(f"| {size} | {paired(i, o, 'total_goals', '{:.0f}')} | "
+                f"{paired(i, bi, 'total_goals', '{:.0f}')} | {paired(o, bo, 'total_goals', '{:.0f}')} | "
+                f"{f[0]} / {f[1]} of {len(i)} |")
+        say()
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
