@@ -246,6 +246,14 @@ if e1:
         vs_o = "–" if cell == "baseline" else paired(o, base["options"], "late_goals")
         say(f"| {cell} | {paired(i, o, 'late_goals')} | {paired(i, o, 'total_goals', '{:.0f}')} | "
             f"{vs_i} | {vs_o} |")
+    eps = runs("exp1_eps")      # a separate sweep of the same design (slower ε decay)
+    if eps:
+        add_sums(eps, windows("exp1_eps"))
+        for cell in dict.fromkeys(r["cell"] for r in eps):
+            i, o = pick(eps, cell, "imitation"), pick(eps, cell, "options")
+            say(f"| {cell} (exp1_eps) | {paired(i, o, 'late_goals')} | "
+                f"{paired(i, o, 'total_goals', '{:.0f}')} | {paired(i, base['imitation'], 'late_goals')} | "
+                f"{paired(o, base['options'], 'late_goals')} |")
     say()
     say("### Two explanations of the end deficit, tested over the 20 baseline seeds")
     say()
@@ -330,13 +338,22 @@ if e3:
         say()
         say("| world | imitation − options | imitation vs baseline | options vs baseline | failed |")
         say("|---|---|---|---|---|")
+        gx, gy = [], []
         for size in sorted({int(r["world"]) for r in other}):
             i, o = pick(other, cell, "imitation", size), pick(other, cell, "options", size)
+            gx += [size] * len(i)
+            gy += [float(i[s]["total_goals"]) - float(o[s]["total_goals"]) for s in i]
             bi, bo = pick(e3, "baseline", "imitation", size), pick(e3, "baseline", "options", size)
             f = [sum(int(r["first_goal_step"]) < 0 for r in d.values()) for d in (i, o)]
             say(f"| {size} | {paired(i, o, 'total_goals', '{:.0f}')} | "
                 f"{paired(i, bi, 'total_goals', '{:.0f}')} | {paired(o, bo, 'total_goals', '{:.0f}')} | "
                 f"{f[0]} / {f[1]} of {len(i)} |")
+        say()
+        lr = stats.linregress(gx, gy)
+        half = stats.t.ppf(0.975, len(gx) - 2) * lr.stderr
+        say(f"* Growth of imitation − options with the side: slope {lr.slope:.2f} goals per cell "
+            f"[{lr.slope - half:.2f}, {lr.slope + half:.2f}] (p = {lr.pvalue:.2g}); Spearman ρ = "
+            f"{stats.spearmanr(gx, gy).statistic:.2f}.")
         say()
     import matplotlib
     matplotlib.use("Agg")
