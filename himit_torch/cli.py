@@ -11,6 +11,8 @@ Subcommands (``himit <command> --help`` for their options):
 * ``run``   — reproduce experiment 1, 2 or 3 into a run directory (resumable), or
   ``gymnasium``: imitation vs options vs primitives on Taxi, CliffWalking and FrozenLake 8×8, or
   ``discovery``: options discovered from the mentor's states vs hand-built doorway options.
+* ``sweep`` — a grid of settings × seeds × worlds from a spec file, each trial a resumable run, as
+  Ray tasks when Ray is installed (``himit sweep --help`` documents the spec).
 * ``plot``  — redraw a run directory's figures and ``results.md``.
 * ``bench`` — steps per second of the batched learner.
 
@@ -441,6 +443,44 @@ def _add_plot(sub: argparse.ArgumentParser) -> None:
     sub.add_argument("run_dir", help="a run directory written by himit run")
 
 
+# ------------------------------------------------------------------------------------ sweep
+def cmd_sweep(args: argparse.Namespace) -> int:
+    from .sweep import load_spec, run_sweep
+
+    spec = load_spec(args.spec)
+    out = Path(args.out) if args.out else Path("runs") / "sweeps" / spec.name
+    if args.dry_run:
+        for trial in spec.trials(out):
+            print(trial.run_dir)
+        print(f"{len(spec.cells)} cells, {len(spec.trials(out))} trials")
+        return 0
+    t0 = time.perf_counter()
+    record = run_sweep(spec, out, address=args.address, use_ray=not args.no_ray,
+                       workers=args.workers)
+    print(f"done in {time.perf_counter() - t0:.0f} s (commit {', '.join(record['commit'])}, engine "
+          f"{', '.join(record['engine'])}): {out / 'summary.md'}, {out / 'results.csv'}")
+    return 0
+
+
+def _add_sweep(sub: argparse.ArgumentParser) -> None:
+    from . import sweep
+
+    sub.formatter_class = argparse.RawDescriptionHelpFormatter
+    doc = sweep.__doc__
+    sub.epilog = doc[doc.index("A sweep is described"):doc.index("**Where the trials run")].rstrip()
+    sub.add_argument("spec", help="the sweep spec, a .toml or .json file (see below)")
+    sub.add_argument("--out", help="the sweep's folder (default runs/sweeps/<name>); rerunning "
+                                   "into it skips finished trials and resumes interrupted ones")
+    sub.add_argument("--address", help="join this Ray cluster (e.g. auto) instead of starting a "
+                                       "local Ray")
+    sub.add_argument("--no-ray", action="store_true",
+                     help="run the trials in this process, one at a time, even if Ray is installed")
+    sub.add_argument("--workers", type=_positive_int,
+                     help="trials at a time on a local Ray (default: one per core)")
+    sub.add_argument("--dry-run", action="store_true",
+                     help="check the spec and list the trials' run directories; run nothing")
+
+
 # ------------------------------------------------------------------------------------ bench
 def cmd_bench(args: argparse.Namespace) -> int:
     from .bench import benchmark
@@ -477,6 +517,8 @@ COMMANDS: dict[str, tuple[Callable[[argparse.Namespace], int],
                                   "learning run, figures and TensorBoard logs"),
     "run": (cmd_run, _add_run, "reproduce one of the paper's experiments (exp1, exp2, exp3), or "
                                "the Gymnasium comparison (gymnasium)"),
+    "sweep": (cmd_sweep, _add_sweep, "run a sweep spec: settings × seeds × worlds as resumable "
+                                     "trials (on Ray when installed), with tables and 95 %% CIs"),
     "plot": (cmd_plot, _add_plot, "redraw the figures and results.md of a run directory"),
     "bench": (cmd_bench, _add_bench, "steps per second of the batched learner"),
 }
