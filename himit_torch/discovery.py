@@ -176,9 +176,9 @@ def one_step_counts(learner, run: int) -> sp.csr_matrix:
     state = rows.row_state.cpu()[row]
     primitive = options.is_primitive[option]
     if options.stochastic:
-        action = options.policy.argmax(-1)[option, state]
+        action = options.policy.argmax(-1)[option, state].long()
     else:
-        action = options.policy[option, state]
+        action = options.policy[option, state].long()   # int8 tables: widen before arithmetic
     keep = primitive & (count > 0)
     flat = (action[keep] * S + state[keep]).numpy()
     return sp.csr_matrix((count[keep].numpy(), (flat, succ[keep].numpy())), shape=(A * S, S))
