@@ -1,7 +1,7 @@
 # Two entry points, each doing its own set-up on a fresh machine:
 #   make demo   — the main job (a short experiment-2 run: world, mentor demonstrations, figures)
-#   make test   — the test suite
 #   make lint   — ruff (lint + format check) and mypy; CI runs it before the tests
+#   make test   — the test suite (with Ray, the sweep extra: +250 MB, so the Ray test runs)
 # The virtual environment lives in .venv. torch is installed first, on its own, as the build
 # named by TORCH_SPEC (default: torch==2.13.0, the CPU wheel on a CPU-only machine), so that the
 # package's plain "torch" requirement never pulls a multi-GB CUDA stack by accident. If .venv
@@ -18,7 +18,7 @@ STAMP := $(VENV)/.himit-installed
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -c "import torch" 2>/dev/null || $(BIN)/python -m pip install --quiet "$(TORCH_SPEC)"
-	$(BIN)/python -m pip install --quiet -e ".[dev]"
+	$(BIN)/python -m pip install --quiet -e ".[dev,sweep]"
 	touch $(STAMP)
 
 install: $(STAMP)

@@ -15,6 +15,7 @@ imitator alone for B = 1). Medians of ``--repeats`` repeats.
 A world is ``N`` (N×N, 10×10 rooms) or ``Nc`` (with corner options, rooms of 8 cells as in
 experiments 1 and 3: N/8 rooms per side).
 """
+
 import argparse
 import json
 import os
@@ -37,8 +38,12 @@ parser.add_argument("--batches", type=int, nargs="+", default=[1, 16, 64, 256])
 parser.add_argument("--engines", nargs="+", default=["numba", "torch"])
 parser.add_argument("--torch-batches", type=int, nargs="+", default=[1, 16, 64, 256])
 parser.add_argument("--torch-worlds", nargs="+", default=["40", "80c"])
-parser.add_argument("--reference-worlds", nargs="+", default=["40", "80c"],
-                    help="worlds on which the reference runs beside ours")
+parser.add_argument(
+    "--reference-worlds",
+    nargs="+",
+    default=["40", "80c"],
+    help="worlds on which the reference runs beside ours",
+)
 parser.add_argument("--out", default=None, help="also write the table to this markdown file")
 
 
@@ -52,30 +57,50 @@ def measure(spec: str, batch: int, steps: int, engine: str, env=None) -> dict:
     """One benchmark in a fresh process (so that its peak RSS is its own)."""
     size, rooms, corners = parse_world(spec)
     agent = "imitation" if batch == 1 else "mix"
-    code = ("import json, torch; from himit_torch.bench import benchmark; "
-            f"r = benchmark(size={size}, rooms={rooms}, corner_options={corners}, batch={batch}, "
-            f"steps={steps}, agent={agent!r}, warmup=0, engine={engine!r}); "
-            "print(json.dumps(dict(steps_per_second=r.steps_per_second, "
-            "decisions_per_second=r.decisions_per_second, peak=r.peak_memory_mib, "
-            "first=r.first_call_seconds, engine=r.engine)))")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
-                         env=env).stdout
+    code = (
+        "import json, torch; from himit_torch.bench import benchmark; "
+        f"r = benchmark(size={size}, rooms={rooms}, corner_options={corners}, batch={batch}, "
+        f"steps={steps}, agent={agent!r}, warmup=0, engine={engine!r}); "
+        "print(json.dumps(dict(steps_per_second=r.steps_per_second, "
+        "decisions_per_second=r.decisions_per_second, peak=r.peak_memory_mib, "
+        "first=r.first_call_seconds, engine=r.engine)))"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env
+    ).stdout
     return json.loads(out.strip().splitlines()[-1])
 
 
 _reference: dict = {}
 
 
-def reference_steps_per_second(spec: str, steps: int, agents: tuple[str, ...],
-                               worlds: list[str]) -> float | None:
+def reference_steps_per_second(
+    spec: str, steps: int, agents: tuple[str, ...], worlds: list[str]
+) -> float | None:
     """The reference's steps/s for ``agents`` (total steps ÷ total learning time), one repeat."""
     if not REFERENCE.exists() or spec not in worlds:
         return None
     size, rooms, corners = parse_world(spec)
     total_time = 0.0
     for agent in agents:
-        cmd = [sys.executable, str(REFERENCE), "--N", str(size), "--R", str(rooms), "--agent", agent,
-               "--steps", str(steps), "--seed", "0", "--untried", "skip", "--v-init", "-1"]
+        cmd = [
+            sys.executable,
+            str(REFERENCE),
+            "--N",
+            str(size),
+            "--R",
+            str(rooms),
+            "--agent",
+            agent,
+            "--steps",
+            str(steps),
+            "--seed",
+            "0",
+            "--untried",
+            "skip",
+            "--v-init",
+            "-1",
+        ]
         if corners:
             cmd.append("--corner-options")
         out = subprocess.run(cmd, capture_output=True, text=True, check=True).stdout
@@ -85,8 +110,11 @@ def reference_steps_per_second(spec: str, steps: int, agents: tuple[str, ...],
 
 def main() -> None:
     args = parser.parse_args()
-    rows = ["| engine | world | B | steps/s | decisions/s | steps/s per run | peak RSS MiB | "
-            "first call s | reference steps/s | ratio |", "|---|---|---|---|---|---|---|---|---|---|"]
+    rows = [
+        "| engine | world | B | steps/s | decisions/s | steps/s per run | peak RSS MiB | "
+        "first call s | reference steps/s | ratio |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
     with tempfile.TemporaryDirectory() as cache:
         env = {**os.environ, "NUMBA_CACHE_DIR": cache}
         cold = measure("40", 1, 100, "numba", env) if "numba" in args.engines else None
@@ -100,7 +128,7 @@ def main() -> None:
             for batch in batches:
                 agents = ("imitation",) if batch == 1 else ("imitation", "options", "primitives")
                 ours = []
-                for _ in range(args.repeats):      # interleaved, so load changes hit both alike
+                for _ in range(args.repeats):  # interleaved, so load changes hit both alike
                     ours.append(measure(spec, batch, steps, engine))
                     key = (spec, steps, agents)
                     if key not in _reference or len(_reference[key]) < args.repeats:
@@ -109,21 +137,28 @@ def main() -> None:
                             _reference.setdefault(key, []).append(ref)
                 sps = statistics.median(r["steps_per_second"] for r in ours)
                 dps = statistics.median(r["decisions_per_second"] for r in ours)
-                ref = statistics.median(_reference[(spec, steps, agents)]) \
-                    if _reference.get((spec, steps, agents)) else None
-                row = (f"| {ours[0]['engine']} | {spec} | {batch} | {sps:,.0f} | {dps:,.0f} | "
-                       f"{sps / batch:,.0f} | {max(r['peak'] for r in ours):,.0f} | "
-                       f"{statistics.median(r['first'] for r in ours):.2f} | "
-                       + (f"{ref:,.0f} | {sps / ref:.1f}× |" if ref else "— | — |"))
+                ref = (
+                    statistics.median(_reference[(spec, steps, agents)])
+                    if _reference.get((spec, steps, agents))
+                    else None
+                )
+                row = (
+                    f"| {ours[0]['engine']} | {spec} | {batch} | {sps:,.0f} | {dps:,.0f} | "
+                    f"{sps / batch:,.0f} | {max(r['peak'] for r in ours):,.0f} | "
+                    f"{statistics.median(r['first'] for r in ours):.2f} | "
+                    + (f"{ref:,.0f} | {sps / ref:.1f}× |" if ref else "— | — |")
+                )
                 rows.append(row)
                 print(row, flush=True)
     table = "\n".join(rows)
     print()
     print(table)
     if args.out:
-        header = (f"`python benchmarks/bench_learner.py {' '.join(sys.argv[1:])}`: {args.steps:,} "
-                  f"ticks (torch engine {args.torch_steps:,}) from scratch per measurement, medians "
-                  f"of {args.repeats}.")
+        header = (
+            f"`python benchmarks/bench_learner.py {' '.join(sys.argv[1:])}`: {args.steps:,} "
+            f"ticks (torch engine {args.torch_steps:,}) from scratch per measurement, medians "
+            f"of {args.repeats}."
+        )
         if cold:
             header += f" Cold compile of the kernels (empty cache): {cold['first']:.1f} s."
         Path(args.out).write_text(f"{header}\n\n{table}\n")

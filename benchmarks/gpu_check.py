@@ -8,6 +8,7 @@
 
     python benchmarks/gpu_check.py [--batches 256 1024 4096] [--steps 2000]
 """
+
 import argparse
 import time
 
@@ -37,8 +38,16 @@ agents = ["imitation", "options", "primitives", "imitation_confident", "imitatio
 config = LearnerConfig(plan_every=4, sweep_rounds=1, window=1000)
 runs = {}
 for device, engine in (("cpu", "numba"), ("cuda", "torch")):
-    learner = Learner(world, learner_options(world), agents, range(5), config=config,
-                      demonstrations=demos, device=device, engine=engine)
+    learner = Learner(
+        world,
+        learner_options(world),
+        agents,
+        range(5),
+        config=config,
+        demonstrations=demos,
+        device=device,
+        engine=engine,
+    )
     learner.run(5000)
     runs[device] = learner
 cpu, gpu = runs["cpu"], runs["cuda"]
@@ -46,22 +55,34 @@ same_rows = torch.equal(cpu.run_state.row, gpu.run_state.row.cpu())
 same_goals = torch.equal(cpu.goals, gpu.goals.cpu())
 same_curves = torch.equal(cpu.metrics.curve(), gpu.metrics.curve())
 drift = (cpu.values - gpu.values.cpu()).abs().max().item()
-print(f"parity 12x12, 5 agents, 5000 ticks: same decisions {same_rows}, same goals {same_goals}, "
-      f"same curves {same_curves}, max |V_cpu - V_cuda| = {drift:.3g}")
+print(
+    f"parity 12x12, 5 agents, 5000 ticks: same decisions {same_rows}, same goals {same_goals}, "
+    f"same curves {same_curves}, max |V_cpu - V_cuda| = {drift:.3g}"
+)
 print("goals cpu", cpu.goals.tolist(), "cuda", gpu.goals.cpu().tolist())
 
 world = MultiRooms(40, 10)
 demos = record_demonstrations(world, mentor_policy(world, mentor_options(world)), 20, seed=0)
 for batch in args.batches:
     mix = ["imitation", "options", "primitives"]
-    learner = Learner(world, learner_options(world), [mix[b % 3] for b in range(batch)], range(batch),
-                      config=config, demonstrations=demos, device="cuda", engine="torch")
+    learner = Learner(
+        world,
+        learner_options(world),
+        [mix[b % 3] for b in range(batch)],
+        range(batch),
+        config=config,
+        demonstrations=demos,
+        device="cuda",
+        engine="torch",
+    )
     learner.run(100)
     torch.cuda.synchronize()
     start = time.perf_counter()
     learner.run(args.steps)
     torch.cuda.synchronize()
     seconds = time.perf_counter() - start
-    print(f"cuda torch engine 40x40 B={batch}: {batch * args.steps / seconds:,.0f} steps/s "
-          f"({seconds:.1f} s for {args.steps} ticks), peak {torch.cuda.max_memory_allocated() / 2**20:,.0f} MiB",
-          flush=True)
+    print(
+        f"cuda torch engine 40x40 B={batch}: {batch * args.steps / seconds:,.0f} steps/s "
+        f"({seconds:.1f} s for {args.steps} ticks), peak {torch.cuda.max_memory_allocated() / 2**20:,.0f} MiB",
+        flush=True,
+    )

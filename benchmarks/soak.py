@@ -57,8 +57,9 @@ def build(seeds: int, engine: str):
     config = EXPERIMENTS["exp1"]
     world = config.world(config.sizes[0])
     options = learner_options(world, corners=config.corner_options)
-    mentor = mentor_policy(world, mentor_options(world, corners=config.corner_options),
-                           config.mentor_preference)
+    mentor = mentor_policy(
+        world, mentor_options(world, corners=config.corner_options), config.mentor_preference
+    )
     seed_list = list(range(seeds))
     agents = [a for a in config.agents for _ in seed_list]
     run_seeds = [s for _ in config.agents for s in seed_list]
@@ -73,8 +74,14 @@ def same_state(a, b, where: str = "state") -> list[str]:
     """Paths where two state dicts differ (empty: identical)."""
     if isinstance(a, torch.Tensor):
         # bit for bit, NaN equal to NaN (a window without an episode has a NaN mean length)
-        same = isinstance(b, torch.Tensor) and a.shape == b.shape and a.dtype == b.dtype and \
-            bool(((a == b) | (a.isnan() & b.isnan()) if a.is_floating_point() else a == b).all())
+        same = (
+            isinstance(b, torch.Tensor)
+            and a.shape == b.shape
+            and a.dtype == b.dtype
+            and bool(
+                ((a == b) | (a.isnan() & b.isnan()) if a.is_floating_point() else a == b).all()
+            )
+        )
         return [] if same else [where]
     if isinstance(a, dict):
         if not isinstance(b, dict) or set(a) != set(b):
@@ -89,10 +96,18 @@ def same_state(a, b, where: str = "state") -> list[str]:
 
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--total-steps", type=int, default=10_000_000,
-                   help="primitive steps summed over the batch (default 10 M)")
-    p.add_argument("--checkpoint-every", type=int, default=500_000,
-                   help="steps (summed over the batch) between checkpoints (default 500 k)")
+    p.add_argument(
+        "--total-steps",
+        type=int,
+        default=10_000_000,
+        help="primitive steps summed over the batch (default 10 M)",
+    )
+    p.add_argument(
+        "--checkpoint-every",
+        type=int,
+        default=500_000,
+        help="steps (summed over the batch) between checkpoints (default 500 k)",
+    )
     p.add_argument("--seeds", type=int, default=5, help="seeds per agent (exp1: 5 → B = 20)")
     p.add_argument("--engine", default="auto")
     p.add_argument("--dir", default=None, help="checkpoint folder (default: a temporary one)")
@@ -107,14 +122,19 @@ def main() -> int:
     ticks_per_ckpt = args.checkpoint_every // B
     ticks_per_ckpt -= ticks_per_ckpt % window  # the learner records metrics per window
     if ticks_per_ckpt < window:
-        p.error(f"--checkpoint-every {args.checkpoint_every} is less than one window "
-                f"({window} ticks × B = {B})")
+        p.error(
+            f"--checkpoint-every {args.checkpoint_every} is less than one window "
+            f"({window} ticks × B = {B})"
+        )
     total_ticks = args.total_steps // B // ticks_per_ckpt * ticks_per_ckpt
     setup_s = time.perf_counter() - t0
-    print(f"B = {B} runs on {learner.num_states} states, {learner.num_options} options, engine "
-          f"{learner.engine.name}; {total_ticks} ticks = {total_ticks * B:,} steps, a checkpoint "
-          f"every {ticks_per_ckpt} ticks = {ticks_per_ckpt * B:,} steps; set-up {setup_s:.1f} s, "
-          f"RSS {rss_mib():.0f} MiB", flush=True)
+    print(
+        f"B = {B} runs on {learner.num_states} states, {learner.num_options} options, engine "
+        f"{learner.engine.name}; {total_ticks} ticks = {total_ticks * B:,} steps, a checkpoint "
+        f"every {ticks_per_ckpt} ticks = {ticks_per_ckpt * B:,} steps; set-up {setup_s:.1f} s, "
+        f"RSS {rss_mib():.0f} MiB",
+        flush=True,
+    )
 
     tmp = None
     if args.dir is None:
@@ -125,37 +145,70 @@ def main() -> int:
     generations = CheckpointGenerations(folder / "soak.pt")
     generations.clear()
     layout = Learner.STATE_LAYOUT_VERSION
-    curve = [{"steps": 0, "rss_mib": rss_mib(), "peak_rss_mib": peak_rss_mib(), "edges": 0,
-              "mentor_edges": int(learner.mentor.num_edges.max()), "wall_s": 0.0}]
-    print(f"{'steps':>12} {'RSS MiB':>8} {'peak MiB':>9} {'edges':>7} {'ckpt MiB':>9} "
-          f"{'wall s':>7}", flush=True)
+    curve = [
+        {
+            "steps": 0,
+            "rss_mib": rss_mib(),
+            "peak_rss_mib": peak_rss_mib(),
+            "edges": 0,
+            "mentor_edges": int(learner.mentor.num_edges.max()),
+            "wall_s": 0.0,
+        }
+    ]
+    print(
+        f"{'steps':>12} {'RSS MiB':>8} {'peak MiB':>9} {'edges':>7} {'ckpt MiB':>9} {'wall s':>7}",
+        flush=True,
+    )
     start = time.perf_counter()
     while learner.t < total_ticks:
         learner.run(ticks_per_ckpt)
-        generations.save({"learner": learner.state_dict()}, step=learner.t, batch=batch,
-                         state_layout_version=layout)
-        row = {"steps": learner.t * B, "rss_mib": rss_mib(), "peak_rss_mib": peak_rss_mib(),
-               "edges": int(learner.model.num_edges.max()),
-               "mentor_edges": int(learner.mentor.num_edges.max()),
-               "checkpoint_mib": generations.newest.stat().st_size / 2**20,
-               "wall_s": time.perf_counter() - start}
+        generations.save(
+            {"learner": learner.state_dict()},
+            step=learner.t,
+            batch=batch,
+            state_layout_version=layout,
+        )
+        row = {
+            "steps": learner.t * B,
+            "rss_mib": rss_mib(),
+            "peak_rss_mib": peak_rss_mib(),
+            "edges": int(learner.model.num_edges.max()),
+            "mentor_edges": int(learner.mentor.num_edges.max()),
+            "checkpoint_mib": generations.newest.stat().st_size / 2**20,
+            "wall_s": time.perf_counter() - start,
+        }
         curve.append(row)
-        print(f"{row['steps']:>12,} {row['rss_mib']:>8.0f} {row['peak_rss_mib']:>9.0f} "
-              f"{row['edges']:>7} {row['checkpoint_mib']:>9.1f} {row['wall_s']:>7.1f}", flush=True)
+        print(
+            f"{row['steps']:>12,} {row['rss_mib']:>8.0f} {row['peak_rss_mib']:>9.0f} "
+            f"{row['edges']:>7} {row['checkpoint_mib']:>9.1f} {row['wall_s']:>7.1f}",
+            flush=True,
+        )
 
     half = [r for r in curve if r["steps"] >= curve[-1]["steps"] / 2]
     xs = torch.tensor([r["steps"] / 1e6 for r in half], dtype=torch.float64)
     ys = torch.tensor([r["rss_mib"] for r in half], dtype=torch.float64)
-    slope = float(((xs - xs.mean()) * (ys - ys.mean())).sum() / ((xs - xs.mean()) ** 2).sum()) \
-        if len(half) > 1 else float("nan")
+    slope = (
+        float(((xs - xs.mean()) * (ys - ys.mean())).sum() / ((xs - xs.mean()) ** 2).sum())
+        if len(half) > 1
+        else float("nan")
+    )
     edge_growth = (half[-1]["edges"] - half[0]["edges"]) / max(1e-9, float(xs[-1] - xs[0]))
-    summary = {"batch": B, "total_steps": curve[-1]["steps"], "setup_s": setup_s,
-               "run_s": curve[-1]["wall_s"], "rss_growth_mib_per_million_steps": slope,
-               "edge_growth_per_million_steps": edge_growth,
-               "final_peak_rss_mib": curve[-1]["peak_rss_mib"], "curve": curve}
-    print(f"second half: RSS grows {slope:+.2f} MiB per million steps (least squares over "
-          f"{len(half)} checkpoints); the fullest run's model gains {edge_growth:.0f} edges per "
-          "million steps", flush=True)
+    summary = {
+        "batch": B,
+        "total_steps": curve[-1]["steps"],
+        "setup_s": setup_s,
+        "run_s": curve[-1]["wall_s"],
+        "rss_growth_mib_per_million_steps": slope,
+        "edge_growth_per_million_steps": edge_growth,
+        "final_peak_rss_mib": curve[-1]["peak_rss_mib"],
+        "curve": curve,
+    }
+    print(
+        f"second half: RSS grows {slope:+.2f} MiB per million steps (least squares over "
+        f"{len(half)} checkpoints); the fullest run's model gains {edge_growth:.0f} edges per "
+        "million steps",
+        flush=True,
+    )
 
     if not args.no_resume_check:
         # The previous generation is the checkpoint before the last: resume from it and run the
@@ -166,6 +219,7 @@ def main() -> int:
         assert found is not None
         prev = found.checkpoint.path
         from himit_torch.checkpoints import read_checkpoint
+
         ckpt = read_checkpoint(generations.previous, expect_batch=batch, expect_layout=layout)
         resumed_learner.load_state_dict(ckpt.payload["learner"])
         from_step = resumed_learner.t
@@ -176,13 +230,20 @@ def main() -> int:
         fresh, _ = build(args.seeds, args.engine)
         fresh.load_state_dict(newest.payload["learner"])
         fresh.run(window)
-        summary["resume"] = {"from_step": from_step * B, "to_step": total_ticks * B,
-                             "identical": not differ, "differences": differ[:10],
-                             "final_checkpoint_loads_and_runs": fresh.t == total_ticks + window}
-        print(f"resume: from the checkpoint at {from_step * B:,} steps to {total_ticks * B:,}: "
-              f"{'identical to the uninterrupted run' if not differ else f'DIFFERS at {differ[:5]}'}"
-              f"; the final checkpoint loads into a fresh learner and runs on: "
-              f"{summary['resume']['final_checkpoint_loads_and_runs']}", flush=True)
+        summary["resume"] = {
+            "from_step": from_step * B,
+            "to_step": total_ticks * B,
+            "identical": not differ,
+            "differences": differ[:10],
+            "final_checkpoint_loads_and_runs": fresh.t == total_ticks + window,
+        }
+        print(
+            f"resume: from the checkpoint at {from_step * B:,} steps to {total_ticks * B:,}: "
+            f"{'identical to the uninterrupted run' if not differ else f'DIFFERS at {differ[:5]}'}"
+            f"; the final checkpoint loads into a fresh learner and runs on: "
+            f"{summary['resume']['final_checkpoint_loads_and_runs']}",
+            flush=True,
+        )
     if args.json:
         Path(args.json).write_text(json.dumps(summary, indent=1))
     if tmp is not None:

@@ -3,6 +3,7 @@ experiments/results/ (small PNGs and markdown only; curves.csv is kept too, it i
 
     python experiments/collect_results.py runs/exp1 runs/exp2 runs/exp3 [--out experiments/results]
 """
+
 import argparse
 import shutil
 from pathlib import Path

@@ -8,6 +8,7 @@ confidence-tested mentor term), options only, primitives only; 5 seeds each, one
 
 (the same as ``himit run exp1``). Settings: ``himit_torch.experiment.EXPERIMENTS["exp1"]``.
 """
+
 import argparse
 from dataclasses import replace
 

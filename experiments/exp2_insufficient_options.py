@@ -8,6 +8,7 @@ reliably; the non-imitating agent failed to find it in 4 of 5 runs.
 
 (the same as ``himit run exp2``). Settings: ``himit_torch.experiment.EXPERIMENTS["exp2"]``.
 """
+
 import argparse
 from dataclasses import replace
 

@@ -9,6 +9,7 @@ Add ``--sizes 64 80 96 120 240`` to go beyond the paper.
 
 (the same as ``himit run exp3``). Settings: ``himit_torch.experiment.EXPERIMENTS["exp3"]``.
 """
+
 import argparse
 from dataclasses import replace
 

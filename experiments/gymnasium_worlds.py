@@ -9,6 +9,7 @@ seeds each, in one batch per task. Results: mean ± 95 % CI over seeds, figures,
 (the same as ``himit run gymnasium``; about 7 minutes on a 2-core CPU). Settings:
 ``himit_torch.gym_experiment``; committed results: ``experiments/results/gymnasium/``.
 """
+
 import argparse
 
 import torch
@@ -19,16 +20,21 @@ parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
 parser.add_argument("--seeds", type=int, default=GymExperimentConfig.seeds)
 parser.add_argument("--steps", type=int, default=None, help="steps per run (default: per task)")
 parser.add_argument("--tasks", default=",".join(TASKS), help=f"some of {','.join(TASKS)}")
-parser.add_argument("--window", type=int, default=GymExperimentConfig.window,
-                    help="steps per window of goals and greedy evaluation")
+parser.add_argument(
+    "--window",
+    type=int,
+    default=GymExperimentConfig.window,
+    help="steps per window of goals and greedy evaluation",
+)
 parser.add_argument("--logdir", default="runs")
 parser.add_argument("--quick", action="store_true", help="tiny budget (smoke test)")
 parser.add_argument("--force", action="store_true")
 args = parser.parse_args()
 
-torch.set_num_threads(1)   # tiny tensors: one thread per process is fastest
-config = GymExperimentConfig(seeds=args.seeds, steps=args.steps, tasks=tuple(args.tasks.split(",")),
-                             window=args.window)
+torch.set_num_threads(1)  # tiny tensors: one thread per process is fastest
+config = GymExperimentConfig(
+    seeds=args.seeds, steps=args.steps, tasks=tuple(args.tasks.split(",")), window=args.window
+)
 if args.quick:
     config = config.quick()
 run_gym_experiment(config, f"{args.logdir}/{config.name}", force=args.force)

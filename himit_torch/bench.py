@@ -42,16 +42,28 @@ class BenchResult:
         return self.decisions / self.seconds
 
     def line(self) -> str:
-        return (f"{self.size}x{self.size}/{self.rooms} corners={self.corner_options} B={self.batch} "
-                f"agent={self.agent} engine={self.engine} device={self.device}: "
-                f"{self.steps_per_second:,.0f} steps/s, {self.decisions_per_second:,.0f} decisions/s, "
-                f"peak memory {self.peak_memory_mib:,.0f} MiB ({self.seconds:.2f} s for "
-                f"{self.steps} steps; first call {self.first_call_seconds:.2f} s)")
+        return (
+            f"{self.size}x{self.size}/{self.rooms} corners={self.corner_options} B={self.batch} "
+            f"agent={self.agent} engine={self.engine} device={self.device}: "
+            f"{self.steps_per_second:,.0f} steps/s, {self.decisions_per_second:,.0f} decisions/s, "
+            f"peak memory {self.peak_memory_mib:,.0f} MiB ({self.seconds:.2f} s for "
+            f"{self.steps} steps; first call {self.first_call_seconds:.2f} s)"
+        )
 
 
-def benchmark(size: int = 40, rooms: int = 10, corner_options: bool = False, batch: int = 15,
-              steps: int = 5000, agent: str = "mix", device: str = "cpu", plan_every: int = 4,
-              warmup: int = 1000, threads: int | None = 1, engine: str = "auto") -> BenchResult:
+def benchmark(
+    size: int = 40,
+    rooms: int = 10,
+    corner_options: bool = False,
+    batch: int = 15,
+    steps: int = 5000,
+    agent: str = "mix",
+    device: str = "cpu",
+    plan_every: int = 4,
+    warmup: int = 1000,
+    threads: int | None = 1,
+    engine: str = "auto",
+) -> BenchResult:
     """Time ``steps`` ticks of a batch of ``batch`` runs after ``warmup`` untimed ticks.
 
     ``agent="mix"`` cycles imitation / options / primitives over the batch (as the experiments
@@ -67,14 +79,23 @@ def benchmark(size: int = 40, rooms: int = 10, corner_options: bool = False, bat
     if threads is not None:
         torch.set_num_threads(threads)
     world = MultiRooms(size=size, rooms=rooms)
+    # the mentor's tables are freed before the learner's are built (as in the experiments)
+    demos = record_demonstrations(
+        world, mentor_policy(world, mentor_options(world, corner_options)), 20, seed=0
+    )
     options = learner_options(world, corners=corner_options)
-    demos = record_demonstrations(world, mentor_policy(world, mentor_options(world, corner_options)),
-                                  20, seed=0)
     mix = ["imitation", "options", "primitives"]
     agents = [mix[b % 3] if agent == "mix" else agent for b in range(batch)]
-    learner = Learner(world, options, agents, list(range(batch)), demonstrations=demos,
-                      config=LearnerConfig(plan_every=plan_every, sweep_rounds=1), device=device,
-                      engine=engine)
+    learner = Learner(
+        world,
+        options,
+        agents,
+        list(range(batch)),
+        demonstrations=demos,
+        config=LearnerConfig(plan_every=plan_every, sweep_rounds=1),
+        device=device,
+        engine=engine,
+    )
     first = time.perf_counter()
     learner.run(1)
     first = time.perf_counter() - first
@@ -92,5 +113,17 @@ def benchmark(size: int = 40, rooms: int = 10, corner_options: bool = False, bat
         peak = torch.cuda.max_memory_allocated() / 2**20
     else:
         peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-    return BenchResult(size, rooms, corner_options, batch, steps, agent, device, seconds,
-                       int(learner.decisions.sum()) - decisions0, peak, learner.engine.name, first)
+    return BenchResult(
+        size,
+        rooms,
+        corner_options,
+        batch,
+        steps,
+        agent,
+        device,
+        seconds,
+        int(learner.decisions.sum()) - decisions0,
+        peak,
+        learner.engine.name,
+        first,
+    )

@@ -38,17 +38,31 @@ from typing import Any
 
 import torch
 
-__all__ = ["FORMAT_VERSION", "BatchShape", "CheckpointHeader", "Checkpoint", "DamagedCheckpoint",
-           "NoGoodCheckpoint", "IncompatibleCheckpoint", "CheckpointWriteError", "encode", "decode",
-           "write_checkpoint", "read_checkpoint", "read_header", "CheckpointGenerations", "Skipped",
-           "Resumed"]
+__all__ = [
+    "FORMAT_VERSION",
+    "BatchShape",
+    "CheckpointHeader",
+    "Checkpoint",
+    "DamagedCheckpoint",
+    "NoGoodCheckpoint",
+    "IncompatibleCheckpoint",
+    "CheckpointWriteError",
+    "encode",
+    "decode",
+    "write_checkpoint",
+    "read_checkpoint",
+    "read_header",
+    "CheckpointGenerations",
+    "Skipped",
+    "Resumed",
+]
 
 #: Version of the file layout described in the module docstring (not of the learner's state:
 #: that is ``state_layout_version`` in the header).
 FORMAT_VERSION = 1
 
 MAGIC = b"himit_torch checkpoint\n"
-_MAX_HEADER = 1 << 20   # a header is a few hundred bytes; more than this is not one of ours
+_MAX_HEADER = 1 << 20  # a header is a few hundred bytes; more than this is not one of ours
 _ZIP_MAGIC = b"PK\x03\x04"  # torch.save's archive format: the only payload torch.load gets
 
 
@@ -94,8 +108,10 @@ class BatchShape:
         object.__setattr__(self, "num_states", int(self.num_states))
 
     def describe(self) -> str:
-        return (f"{len(self.agents)} runs (agents {list(self.agents)}, seeds {list(self.seeds)}) "
-                f"on {self.num_states} states")
+        return (
+            f"{len(self.agents)} runs (agents {list(self.agents)}, seeds {list(self.seeds)}) "
+            f"on {self.num_states} states"
+        )
 
 
 @dataclass(frozen=True)
@@ -142,8 +158,10 @@ def _check_plain(obj: Any, where: str) -> None:
     not at the resume it would break."""
     if isinstance(obj, torch.Tensor):
         if type(obj) not in (torch.Tensor, torch.nn.Parameter):
-            raise TypeError(f"checkpoint payload {where}: tensor subclass {type(obj).__qualname__} "
-                            "is not allowed; store a plain tensor")
+            raise TypeError(
+                f"checkpoint payload {where}: tensor subclass {type(obj).__qualname__} "
+                "is not allowed; store a plain tensor"
+            )
         return
     if type(obj) in _PLAIN:  # exact types: a numpy.float64 is a float but needs numpy to load
         return
@@ -154,13 +172,17 @@ def _check_plain(obj: Any, where: str) -> None:
     if type(obj) is dict:
         for key, value in obj.items():
             if type(key) not in (str, int):
-                raise TypeError(f"checkpoint payload {where}: key {key!r} of type "
-                                f"{type(key).__qualname__}; keys must be str or int")
+                raise TypeError(
+                    f"checkpoint payload {where}: key {key!r} of type "
+                    f"{type(key).__qualname__}; keys must be str or int"
+                )
             _check_plain(value, f"{where}.{key}" if isinstance(key, str) else f"{where}[{key}]")
         return
-    raise TypeError(f"checkpoint payload {where}: {type(obj).__module__}.{type(obj).__qualname__} "
-                    "is not a tensor or a plain value (bool, int, float, str, None, list, tuple, "
-                    "dict); convert it before saving, so the file loads without running code")
+    raise TypeError(
+        f"checkpoint payload {where}: {type(obj).__module__}.{type(obj).__qualname__} "
+        "is not a tensor or a plain value (bool, int, float, str, None, list, tuple, "
+        "dict); convert it before saving, so the file loads without running code"
+    )
 
 
 def encode(payload: Any, *, step: int, batch: BatchShape, state_layout_version: int) -> bytes:
@@ -173,8 +195,9 @@ def encode(payload: Any, *, step: int, batch: BatchShape, state_layout_version: 
     buffer = io.BytesIO()
     torch.save(payload, buffer)
     body = buffer.getvalue()
-    header = CheckpointHeader(FORMAT_VERSION, int(state_layout_version), int(step), batch,
-                              len(body))
+    header = CheckpointHeader(
+        FORMAT_VERSION, int(state_layout_version), int(step), batch, len(body)
+    )
     header = replace(header, sha256=_checksum(header, body))
     return MAGIC + header.to_json() + b"\n" + body
 
@@ -182,8 +205,10 @@ def encode(payload: Any, *, step: int, batch: BatchShape, state_layout_version: 
 # --------------------------------------------------------------------------------- decoding
 def _describe_foreign(data: bytes) -> str:
     if data[:1] == b"\x80" or data[:4] == _ZIP_MAGIC:
-        return ("a bare torch.save/pickle file without the himit_torch checkpoint header (written "
-                "before checkpoint format 1, or not by himit_torch); it was not unpickled")
+        return (
+            "a bare torch.save/pickle file without the himit_torch checkpoint header (written "
+            "before checkpoint format 1, or not by himit_torch); it was not unpickled"
+        )
     return "not a himit_torch checkpoint (its first bytes are not the checkpoint header)"
 
 
@@ -204,23 +229,29 @@ def _parse_header(data: bytes, path: Path) -> tuple[CheckpointHeader, int]:
     if end < 0:
         raise DamagedCheckpoint(path, f"cut short inside its header ({len(data)} bytes)")
     try:
-        raw = json.loads(data[len(MAGIC):end].decode("ascii"))
+        raw = json.loads(data[len(MAGIC) : end].decode("ascii"))
     except ValueError as err:
         raise DamagedCheckpoint(path, f"its header is not valid JSON ({err})") from None
     version = raw.get("format_version") if isinstance(raw, dict) else None
     if isinstance(version, int) and version != FORMAT_VERSION:  # its header may differ too
-        raise IncompatibleCheckpoint(f"{path} is in checkpoint format {version}; this version of "
-                                     f"himit_torch reads format {FORMAT_VERSION}")
+        raise IncompatibleCheckpoint(
+            f"{path} is in checkpoint format {version}; this version of "
+            f"himit_torch reads format {FORMAT_VERSION}"
+        )
     try:
         batch = raw.pop("batch")
         header = CheckpointHeader(batch=BatchShape(**batch), **raw)
-        if not (isinstance(header.format_version, int) and isinstance(header.step, int)
-                and isinstance(header.state_layout_version, int)
-                and isinstance(header.payload_bytes, int) and isinstance(header.sha256, str)):
+        if not (
+            isinstance(header.format_version, int)
+            and isinstance(header.step, int)
+            and isinstance(header.state_layout_version, int)
+            and isinstance(header.payload_bytes, int)
+            and isinstance(header.sha256, str)
+        ):
             raise TypeError("header fields of the wrong type")
     except (ValueError, TypeError, KeyError, AttributeError) as err:
         raise DamagedCheckpoint(path, f"its header is not valid ({err})") from None
-    if data[len(MAGIC):end] != header.to_json():
+    if data[len(MAGIC) : end] != header.to_json():
         # the checksum covers the header as parsed; the bytes must be exactly that header
         raise DamagedCheckpoint(path, "its header was altered after it was written", header.step)
     return header, end + 1
@@ -236,9 +267,13 @@ def _payload_error(err: Exception) -> str:
     return f"{type(err).__name__}: {lines[0] if lines else ''}"
 
 
-def decode(data: bytes, path: str | os.PathLike = "<bytes>", map_location=None,
-           expect_batch: BatchShape | None = None,
-           expect_layout: int | None = None) -> Checkpoint:
+def decode(
+    data: bytes,
+    path: str | os.PathLike = "<bytes>",
+    map_location=None,
+    expect_batch: BatchShape | None = None,
+    expect_layout: int | None = None,
+) -> Checkpoint:
     """Verify and read checkpoint bytes; the payload is unpickled only after every check passed,
     and then with ``weights_only=True``.
 
@@ -251,34 +286,47 @@ def decode(data: bytes, path: str | os.PathLike = "<bytes>", map_location=None,
     header, offset = _parse_header(data, path)
     body = data[offset:]
     if len(body) < header.payload_bytes:
-        raise DamagedCheckpoint(path, f"cut short: {len(data)} bytes, its header announces "
-                                      f"{offset + header.payload_bytes}", header.step)
+        raise DamagedCheckpoint(
+            path,
+            f"cut short: {len(data)} bytes, its header announces {offset + header.payload_bytes}",
+            header.step,
+        )
     if len(body) > header.payload_bytes:
-        raise DamagedCheckpoint(path, f"{len(body) - header.payload_bytes} bytes more than its "
-                                      "header announces", header.step)
+        raise DamagedCheckpoint(
+            path,
+            f"{len(body) - header.payload_bytes} bytes more than its header announces",
+            header.step,
+        )
     if _checksum(header, body) != header.sha256:
-        raise DamagedCheckpoint(path, "checksum mismatch: its content was altered after it was "
-                                      "written", header.step)
+        raise DamagedCheckpoint(
+            path, "checksum mismatch: its content was altered after it was written", header.step
+        )
     if expect_layout is not None and header.state_layout_version != expect_layout:
         raise IncompatibleCheckpoint(
             f"{path} holds learner state layout version {header.state_layout_version}, but this "
             f"version of himit_torch uses state layout version {expect_layout}: finish that run "
-            "with the version that wrote it, or start over with --force")
+            "with the version that wrote it, or start over with --force"
+        )
     if expect_batch is not None and header.batch != expect_batch:
         raise IncompatibleCheckpoint(
             f"{path} is for {header.batch.describe()}, but this run is {expect_batch.describe()}: "
-            "it belongs to another run; start over with --force")
+            "it belongs to another run; start over with --force"
+        )
     if not body.startswith(_ZIP_MAGIC):
         raise DamagedCheckpoint(path, "its payload is not a torch.save archive", header.step)
     try:
         payload = torch.load(io.BytesIO(body), map_location=map_location, weights_only=True)
     except pickle.UnpicklingError as err:  # the weights-only unpickler met something else
-        raise DamagedCheckpoint(path, "its payload holds something other than tensors and plain "
-                                      f"values and was refused unread ({_payload_error(err)})",
-                                header.step) from None
+        raise DamagedCheckpoint(
+            path,
+            "its payload holds something other than tensors and plain "
+            f"values and was refused unread ({_payload_error(err)})",
+            header.step,
+        ) from None
     except (RuntimeError, ValueError, EOFError, OSError) as err:
-        raise DamagedCheckpoint(path, f"its payload could not be read ({_payload_error(err)})",
-                                header.step) from None
+        raise DamagedCheckpoint(
+            path, f"its payload could not be read ({_payload_error(err)})", header.step
+        ) from None
     return Checkpoint(header, payload, path)
 
 
@@ -291,9 +339,12 @@ def _read_bytes(path: Path) -> bytes:
         raise DamagedCheckpoint(path, f"unreadable ({err.strerror or err})") from None
 
 
-def read_checkpoint(path: str | os.PathLike, map_location=None,
-                    expect_batch: BatchShape | None = None,
-                    expect_layout: int | None = None) -> Checkpoint:
+def read_checkpoint(
+    path: str | os.PathLike,
+    map_location=None,
+    expect_batch: BatchShape | None = None,
+    expect_layout: int | None = None,
+) -> Checkpoint:
     """Read and verify one checkpoint file (see :func:`decode`)."""
     path = Path(path)
     return decode(_read_bytes(path), path, map_location, expect_batch, expect_layout)
@@ -340,8 +391,14 @@ def _tmp(path: Path) -> Path:
     return path.with_name(path.name + ".tmp")
 
 
-def write_checkpoint(path: str | os.PathLike, payload: Any, *, step: int, batch: BatchShape,
-                     state_layout_version: int) -> CheckpointHeader:
+def write_checkpoint(
+    path: str | os.PathLike,
+    payload: Any,
+    *,
+    step: int,
+    batch: BatchShape,
+    state_layout_version: int,
+) -> CheckpointHeader:
     """Write one checkpoint atomically: to ``<path>.tmp``, synced, then renamed over ``path``.
 
     Raises:
@@ -365,7 +422,8 @@ def _write_tmp(path: Path, data: bytes, step: int) -> None:
             raise CheckpointWriteError(
                 f"could not save the checkpoint at step {step} to {path} "
                 f"({err.strerror or err}); the checkpoints already on disk are untouched — fix "
-                "the cause (disk space, permissions), then continue with --resume") from None
+                "the cause (disk space, permissions), then continue with --resume"
+            ) from None
         raise
 
 
@@ -418,8 +476,9 @@ class CheckpointGenerations:
         for p in (*self.paths, *map(_tmp, self.paths)):
             p.unlink(missing_ok=True)
 
-    def save(self, payload: Any, *, step: int, batch: BatchShape,
-             state_layout_version: int) -> CheckpointHeader:
+    def save(
+        self, payload: Any, *, step: int, batch: BatchShape, state_layout_version: int
+    ) -> CheckpointHeader:
         """Save ``payload`` as the newest generation, the current newest becoming the previous.
 
         Raises:
@@ -437,7 +496,8 @@ class CheckpointGenerations:
             raise CheckpointWriteError(
                 f"could not keep {self.newest} as the previous checkpoint "
                 f"({err.strerror or err}); the checkpoints already on disk are untouched — fix "
-                "the cause, then continue with --resume") from None
+                "the cause, then continue with --resume"
+            ) from None
         os.replace(_tmp(self.newest), self.newest)
         _sync_dir(self.newest.parent)
         return _parse_header(data, self.newest)[0]
@@ -462,8 +522,12 @@ class CheckpointGenerations:
             shutil.copyfile(self.newest, staged)  # file systems without hard links
         os.replace(staged, self.previous)
 
-    def load(self, map_location=None, expect_batch: BatchShape | None = None,
-             expect_layout: int | None = None) -> Resumed | None:
+    def load(
+        self,
+        map_location=None,
+        expect_batch: BatchShape | None = None,
+        expect_layout: int | None = None,
+    ) -> Resumed | None:
         """The newest good generation, with the newer ones that were skipped and why; ``None``
         when no generation exists at all (nothing was saved yet).
 

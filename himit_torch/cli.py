@@ -9,7 +9,10 @@ Subcommands (``himit <command> --help`` for their options):
   state-only demonstrations, save them and a picture like the paper's Fig. 2, then a short
   batched learning run with figures and TensorBoard logs.
 * ``run``   — reproduce experiment 1, 2 or 3 into a run directory (resumable), or
-  ``gymnasium``: imitation vs options vs primitives on Taxi, CliffWalking and FrozenLake 8×8.
+  ``gymnasium``: imitation vs options vs primitives on Taxi, CliffWalking and FrozenLake 8×8, or
+  ``discovery``: options discovered from the mentor's states vs hand-built doorway options.
+* ``sweep`` — a grid of settings × seeds × worlds from a spec file, each trial a resumable run, as
+  Ray tasks when Ray is installed (``himit sweep --help`` documents the spec).
 * ``plot``  — redraw a run directory's figures and ``results.md``.
 * ``bench`` — steps per second of the batched learner.
 
@@ -35,6 +38,7 @@ from .exact_option_models import option_durations, option_models
 from .exact_planning import expected_steps, smdp_value_iteration
 from .mentor import mentor_policy, run_mentor
 from .options import Options, learner_options, mentor_options, primitive_options
+from .reward import MENTOR_REWARDS
 from .tensorboard_logger import tensorboard_command
 from .world import MultiRooms
 
@@ -65,6 +69,7 @@ def _fail(message: str | Exception, status: int = 2) -> NoReturn:
 
 def _int_at_least(minimum: int) -> Callable[[str], int]:
     """An argparse type: a whole number ≥ ``minimum``."""
+
     def parse(text: str) -> int:
         try:
             value = int(text)
@@ -73,6 +78,7 @@ def _int_at_least(minimum: int) -> Callable[[str], int]:
         if value < minimum:
             raise argparse.ArgumentTypeError(f"must be ≥ {minimum}, got {value}")
         return value
+
     return parse
 
 
@@ -92,8 +98,9 @@ class OptimalTrip:
         return GOALS_WINDOW / self.steps if self.steps > 0 else float("inf")
 
 
-def optimal_trip(world: MultiRooms, options: Options, policy: torch.Tensor | None = None
-                 ) -> OptimalTrip:
+def optimal_trip(
+    world: MultiRooms, options: Options, policy: torch.Tensor | None = None
+) -> OptimalTrip:
     """Steps start → goal of the optimal policy for ``options`` (or of the given ``policy [S]``):
     exact option models → SMDP value iteration → expected steps from undiscounted durations."""
     if policy is None:
@@ -114,34 +121,50 @@ def cmd_info(args: argparse.Namespace) -> int:
     if args.env is not None:
         return _info_gymnasium(args, t0)
     world = MultiRooms(size=args.size, rooms=args.rooms, slip=args.slip)
-    learner = learner_options(world, doorways=not args.no_doorway_options,
-                              corners=args.corner_options)
+    learner = learner_options(
+        world, doorways=not args.no_doorway_options, corners=args.corner_options
+    )
     mentor_opts = mentor_options(world, corners=args.corner_options)
     free = int(world.free_mask.sum())
-    print(f"world      {world.size}×{world.size} cells, {world.rooms}×{world.rooms} rooms "
-          f"{world.room_size} cells apart (one-cell walls between), slip {world.slip}, gamma "
-          f"{world.gamma}, reward {world.step_reward} a step and {world.goal_reward} at the goal")
-    print(f"states     {world.num_states} (free cells {free}, doorways {len(world.doorway_rooms)}, "
-          f"rooms {world.num_rooms})")
+    print(
+        f"world      {world.size}×{world.size} cells, {world.rooms}×{world.rooms} rooms "
+        f"{world.room_size} cells apart (one-cell walls between), slip {world.slip}, gamma "
+        f"{world.gamma}, reward {world.step_reward} a step and {world.goal_reward} at the goal"
+    )
+    print(
+        f"states     {world.num_states} (free cells {free}, doorways {len(world.doorway_rooms)}, "
+        f"rooms {world.num_rooms})"
+    )
     print(f"start/goal {world.coords(world.start_state)} → {world.coords(world.goal_state)}")
-    print(f"learner    {learner.num_options} options ({_kind_counts(learner)}; doorway/corner "
-          "options head directly to their target)")
-    print(f"mentor     {mentor_opts.num_options} options ({_kind_counts(mentor_opts)}; doorway/corner "
-          "options travel along the room's walls)")
-    rows = [("primitives only", optimal_trip(world, primitive_options(world))),
-            ("learner's options", optimal_trip(world, learner))]
+    print(
+        f"learner    {learner.num_options} options ({_kind_counts(learner)}; doorway/corner "
+        "options head directly to their target)"
+    )
+    print(
+        f"mentor     {mentor_opts.num_options} options ({_kind_counts(mentor_opts)}; doorway/corner "
+        "options travel along the room's walls)"
+    )
+    rows = [
+        ("primitives only", optimal_trip(world, primitive_options(world))),
+        ("learner's options", optimal_trip(world, learner)),
+    ]
     mentor = mentor_policy(world, mentor_opts)
-    rows.append((f"mentor (prefers its options within {mentor.tolerance:g})",
-                 optimal_trip(world, mentor_opts, mentor.option)))
+    rows.append(
+        (
+            f"mentor (prefers its options within {mentor.tolerance:g})",
+            optimal_trip(world, mentor_opts, mentor.option),
+        )
+    )
     width = max(len(name) for name, _ in rows) + 2
-    print(f"\n{'optimal policy':<{width}}{'steps start→goal':>18}{f'goals / {GOALS_WINDOW} steps':>22}")
+    print(
+        f"\n{'optimal policy':<{width}}{'steps start→goal':>18}{f'goals / {GOALS_WINDOW} steps':>22}"
+    )
     for name, trip in rows:
         print(f"{name:<{width}}{trip.steps:>18.1f}{trip.goals_per_window:>22.1f}")
     paper = PAPER_OPTIMUM.get((world.size, world.rooms, world.slip))
     if paper is not None:
         experiment, steps, goals = paper
-        print(f"{'paper, ' + experiment:<{width}}{'≈' + format(steps, '.0f'):>18}"
-              f"{goals:>22.1f}")
+        print(f"{'paper, ' + experiment:<{width}}{'≈' + format(steps, '.0f'):>18}{goals:>22.1f}")
     print(f"\n({time.perf_counter() - t0:.1f} s)")
     return 0
 
@@ -161,12 +184,14 @@ def _info_gymnasium(args: argparse.Namespace, t0: float) -> int:
     except json.JSONDecodeError as err:
         raise ValueError(f"--env-kwargs is not valid JSON: {err}") from None
     if not isinstance(kwargs, dict):
-        raise ValueError("--env-kwargs must be a JSON object, e.g. '{\"map_name\": \"8x8\"}'")
+        raise ValueError('--env-kwargs must be a JSON object, e.g. \'{"map_name": "8x8"}\'')
     task = TASKS.get(args.env)
     if task is not None:
         if kwargs:
-            raise ValueError(f"--env {args.env} is a task with its own kwargs ({task.kwargs}); give "
-                             f"--env {task.env_id} to choose them")
+            raise ValueError(
+                f"--env {args.env} is a task with its own kwargs ({task.kwargs}); give "
+                f"--env {task.env_id} to choose them"
+            )
         world = task.world(args.gamma)
         options = task.options(world)
     else:
@@ -174,7 +199,7 @@ def _info_gymnasium(args: argparse.Namespace, t0: float) -> int:
             world = from_gymnasium(args.env, gamma=args.gamma, **kwargs)
         except (ValueError, OSError):
             raise
-        except Exception as err:   # gymnasium.make's own errors: unknown id, bad kwargs
+        except Exception as err:  # gymnasium.make's own errors: unknown id, bad kwargs
             raise ValueError(f"cannot make the Gymnasium environment {args.env!r}: {err}") from None
         options = primitive_options(world)
     P, R = world_model(world)
@@ -182,16 +207,24 @@ def _info_gymnasium(args: argparse.Namespace, t0: float) -> int:
     mu = world.start_distribution
     rewards = world.dynamics_table().rewards
     known = KnownReward(world)
-    print(f"world      {world.name} {world.describe().get('kwargs', {})} through from_gymnasium, "
-          f"gamma {world.gamma}")
-    print(f"states     {world.num_states} (start states {int((mu > 0).sum())}, terminal "
-          f"{int(world.terminal_mask.sum())}, goal {int(world.goal_mask.sum())})")
+    print(
+        f"world      {world.name} {world.describe().get('kwargs', {})} through from_gymnasium, "
+        f"gamma {world.gamma}"
+    )
+    print(
+        f"states     {world.num_states} (start states {int((mu > 0).sum())}, terminal "
+        f"{int(world.terminal_mask.sum())}, goal {int(world.goal_mask.sum())})"
+    )
     print(f"actions    {world.num_actions}: {', '.join(world.action_names)}")
-    print(f"rewards    {float(rewards.min()):g} … {float(rewards.max()):g} per transition; "
-          f"mentor reward: {known.note}")
+    print(
+        f"rewards    {float(rewards.min()):g} … {float(rewards.max()):g} per transition; "
+        f"mentor reward: {known.note}"
+    )
     extended = [n for n, k in zip(options.names, options.kinds) if k != "primitive"]
-    print(f"learner    {options.num_options} options ({_kind_counts(options)}"
-          + (f": {', '.join(extended)})" if extended else ")"))
+    print(
+        f"learner    {options.num_options} options ({_kind_counts(options)}"
+        + (f": {', '.join(extended)})" if extended else ")")
+    )
     p_goal, length = episode_statistics(world, plan.policy)
     models = smdp_value_iteration(option_models(world, options))
     print("\noptimal (value iteration on the true model, primitives)")
@@ -205,21 +238,32 @@ def _info_gymnasium(args: argparse.Namespace, t0: float) -> int:
 
 
 def _add_info(sub: argparse.ArgumentParser) -> None:
-    sub.add_argument("--env", help="a Gymnasium tabular environment instead of MultiRooms: an id "
-                                   "(e.g. Taxi-v4, FrozenLake-v1) or a task of himit run gymnasium "
-                                   "(taxi, cliffwalking, frozenlake8x8)")
-    sub.add_argument("--env-kwargs", help="JSON keyword arguments of gymnasium.make, e.g. "
-                                          "'{\"map_name\": \"8x8\"}'")
+    sub.add_argument(
+        "--env",
+        help="a Gymnasium tabular environment instead of MultiRooms: an id "
+        "(e.g. Taxi-v4, FrozenLake-v1) or a task of himit run gymnasium "
+        "(taxi, cliffwalking, frozenlake8x8)",
+    )
+    sub.add_argument(
+        "--env-kwargs",
+        help='JSON keyword arguments of gymnasium.make, e.g. \'{"map_name": "8x8"}\'',
+    )
     sub.add_argument("--gamma", type=float, default=0.99, help="discount of a --env world (0.99)")
     sub.add_argument("--size", type=int, default=40, help="cells per side, N (default 40)")
     sub.add_argument("--rooms", type=int, default=10, help="rooms per side, R (default 10)")
-    sub.add_argument("--slip", type=float, default=0.1,
-                     help="probability that an action fails (default 0.1)")
-    sub.add_argument("--corner-options", action="store_true",
-                     help="give the learner (and the mentor) 8 corner options per room "
-                          "(experiment 1)")
-    sub.add_argument("--no-doorway-options", action="store_true",
-                     help="the learner gets primitives only (plus corners if asked)")
+    sub.add_argument(
+        "--slip", type=float, default=0.1, help="probability that an action fails (default 0.1)"
+    )
+    sub.add_argument(
+        "--corner-options",
+        action="store_true",
+        help="give the learner (and the mentor) 8 corner options per room (experiment 1)",
+    )
+    sub.add_argument(
+        "--no-doorway-options",
+        action="store_true",
+        help="the learner gets primitives only (plus corners if asked)",
+    )
 
 
 # ------------------------------------------------------------------------------------- demo
@@ -241,48 +285,77 @@ def cmd_demo(args: argparse.Namespace) -> int:
     demos = Demonstrations(list(rollout.states), world.describe())
     lengths = demos.episode_lengths.double()
     counts = rollout.decision_counts()
-    print(f"mentor    {options.num_options} options; {args.episodes} episodes, "
-          f"{lengths.mean():.1f} steps on average (min {int(lengths.min())}, max "
-          f"{int(lengths.max())}); decisions: "
-          + ", ".join(f"{n} {k}" for k, n in sorted(counts.items())))
+    print(
+        f"mentor    {options.num_options} options; {args.episodes} episodes, "
+        f"{lengths.mean():.1f} steps on average (min {int(lengths.min())}, max "
+        f"{int(lengths.max())}); decisions: "
+        + ", ".join(f"{n} {k}" for k, n in sorted(counts.items()))
+    )
     npz = demos.save(out / "demonstrations.npz")
-    png = save_world_figure(out / "world_mentor.png", world, demos,
-                            title=f"Mentor demonstrations ({args.episodes} episodes), "
-                                  "40×40, 10×10 rooms")
-    print(f"saved     {npz}  (states only: {demos.num_transitions} transitions, "
-          f"{len(demos.visited_states())} distinct states)")
+    png = save_world_figure(
+        out / "world_mentor.png",
+        world,
+        demos,
+        title=f"Mentor demonstrations ({args.episodes} episodes), 40×40, 10×10 rooms",
+    )
+    print(
+        f"saved     {npz}  (states only: {demos.num_transitions} transitions, "
+        f"{len(demos.visited_states())} distinct states)"
+    )
     print(f"saved     {png}")
     if args.steps == 0:
         return 0
-    config = replace(EXPERIMENTS["exp2"], name="demo", agents=("imitation", "options", "primitives"),
-                     seeds=args.seeds, first_seed=args.seed, steps=args.steps,
-                     mentor_episodes=args.episodes, window=min(5000, args.steps),
-                     checkpoint_every=min(5000, args.steps))
-    print(f"learning  {len(config.agents)} agents × {config.seeds} seeds = "
-          f"{len(config.agents) * config.seeds} runs in one batch, {config.steps:,} steps each")
+    config = replace(
+        EXPERIMENTS["exp2"],
+        name="demo",
+        agents=("imitation", "options", "primitives"),
+        seeds=args.seeds,
+        first_seed=args.seed,
+        steps=args.steps,
+        mentor_episodes=args.episodes,
+        window=min(5000, args.steps),
+        checkpoint_every=min(5000, args.steps),
+    )
+    print(
+        f"learning  {len(config.agents)} agents × {config.seeds} seeds = "
+        f"{len(config.agents) * config.seeds} runs in one batch, {config.steps:,} steps each"
+    )
     t0 = time.perf_counter()
     results = run_experiment(config, out / "learning", force=True, progress=not args.quiet)
     r = results[0]
     for agent in config.agents:
         idx = [b for b, a in enumerate(r.agents) if a == agent]
-        print(f"  {agent:<12} goals in the last {config.window} steps: "
-              + ", ".join(str(r.final_window_goals[b]) for b in idx)
-              + f"   (optimal ≈ {r.optimal_goals_per_window:.1f})")
-    print(f"saved     {out / 'learning'}/results.md, figures/, curves.csv  "
-          f"({time.perf_counter() - t0:.0f} s)")
+        print(
+            f"  {agent:<12} goals in the last {config.window} steps: "
+            + ", ".join(str(r.final_window_goals[b]) for b in idx)
+            + f"   (optimal ≈ {r.optimal_goals_per_window:.1f})"
+        )
+    print(
+        f"saved     {out / 'learning'}/results.md, figures/, curves.csv  "
+        f"({time.perf_counter() - t0:.0f} s)"
+    )
     print(f"watch     {tensorboard_command(out / 'learning' / 'tb')}")
     return 0
 
 
 def _add_demo(sub: argparse.ArgumentParser) -> None:
     sub.add_argument("--out", default="runs/demo", help="output folder (default runs/demo)")
-    sub.add_argument("--episodes", type=_positive_int, default=20,
-                     help="mentor episodes to record (default 20)")
+    sub.add_argument(
+        "--episodes", type=_positive_int, default=20, help="mentor episodes to record (default 20)"
+    )
     sub.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    sub.add_argument("--seeds", type=_positive_int, default=2,
-                     help="runs per agent in the learning run (default 2)")
-    sub.add_argument("--steps", type=_nonnegative_int, default=20_000,
-                     help="steps per run (default 20000; 0 = demonstrations only)")
+    sub.add_argument(
+        "--seeds",
+        type=_positive_int,
+        default=2,
+        help="runs per agent in the learning run (default 2)",
+    )
+    sub.add_argument(
+        "--steps",
+        type=_nonnegative_int,
+        default=20_000,
+        help="steps per run (default 20000; 0 = demonstrations only)",
+    )
     sub.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -294,10 +367,14 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     if args.experiment == "gymnasium":
         return _run_gymnasium(args)
+    if args.experiment == "discovery":
+        return _run_discovery(args)
     if args.config:
         config = load_config(args.config)
         if args.experiment != config.name:
-            raise ValueError(f"--config {args.config} is for {config.name!r}, not {args.experiment!r}")
+            raise ValueError(
+                f"--config {args.config} is for {config.name!r}, not {args.experiment!r}"
+            )
     else:
         config = EXPERIMENTS[args.experiment]
     if args.quick:
@@ -307,23 +384,36 @@ def cmd_run(args: argparse.Namespace) -> int:
         changes["seeds"] = args.seeds
     if args.steps is not None:
         changes["steps"] = args.steps
-        changes["checkpoint_every"] = max(config.window,
-                                          min(config.checkpoint_every, args.steps // config.window * config.window))
+        changes["checkpoint_every"] = max(
+            config.window, min(config.checkpoint_every, args.steps // config.window * config.window)
+        )
     if args.device is not None:
         changes["device"] = args.device
     if args.engine is not None:
         changes["engine"] = args.engine
+    if args.mentor_reward is not None:
+        changes["mentor_reward"] = args.mentor_reward
     if changes:
         config = replace(config, **changes)
     if config.device.startswith("cuda") and not torch.cuda.is_available():
-        raise ValueError("--device cuda: no CUDA device is available here (install a CUDA build of "
-                         "torch, see README) — use --device cpu")
+        raise ValueError(
+            "--device cuda: no CUDA device is available here (install a CUDA build of "
+            "torch, see README) — use --device cpu"
+        )
     run_dir = Path(args.logdir) / config.name
-    print(f"{config.name}: worlds {list(config.sizes)}, agents {list(config.agents)}, "
-          f"{config.seeds} seeds, {config.steps:,} steps → {run_dir}")
+    print(
+        f"{config.name}: worlds {list(config.sizes)}, agents {list(config.agents)}, "
+        f"{config.seeds} seeds, {config.steps:,} steps → {run_dir}"
+    )
     t0 = time.perf_counter()
-    run_experiment(config, run_dir, resume=args.resume, force=args.force, progress=not args.quiet,
-                   workers=args.workers)
+    run_experiment(
+        config,
+        run_dir,
+        resume=args.resume,
+        force=args.force,
+        progress=not args.quiet,
+        workers=args.workers,
+    )
     print(f"done in {time.perf_counter() - t0:.0f} s: {run_dir / 'results.md'}")
     return 0
 
@@ -334,45 +424,121 @@ def _run_gymnasium(args: argparse.Namespace) -> int:
 
     from .gym_experiment import GymExperimentConfig, run_gym_experiment
 
+    if args.mentor_reward is not None:
+        raise ValueError(
+            "himit run gymnasium takes no --mentor-reward (its imitators use the "
+            "world's own reward, KnownReward)"
+        )
     if args.config or args.resume:
-        raise ValueError("himit run gymnasium takes no --config or --resume (each task is one "
-                         "batch; rerun a task with --force)")
+        raise ValueError(
+            "himit run gymnasium takes no --config or --resume (each task is one "
+            "batch; rerun a task with --force)"
+        )
     config = GymExperimentConfig()
     if args.quick:
         config = config.quick()
-    changes = {k: v for k, v in (("seeds", args.seeds), ("steps", args.steps),
-                                 ("device", args.device)) if v is not None}
+    changes = {
+        k: v
+        for k, v in (("seeds", args.seeds), ("steps", args.steps), ("device", args.device))
+        if v is not None
+    }
     config = replace(config, **changes)
     if config.device.startswith("cuda") and not torch.cuda.is_available():
         raise ValueError("--device cuda: no CUDA device is available here — use --device cpu")
     run_dir = Path(args.logdir) / config.name
-    print(f"{config.name}: tasks {list(config.tasks)}, agents {list(config.agents)}, "
-          f"{config.seeds} seeds → {run_dir}")
+    print(
+        f"{config.name}: tasks {list(config.tasks)}, agents {list(config.agents)}, "
+        f"{config.seeds} seeds → {run_dir}"
+    )
     t0 = time.perf_counter()
     run_gym_experiment(config, run_dir, force=args.force, progress=not args.quiet)
     print(f"done in {time.perf_counter() - t0:.0f} s: {run_dir / 'results.md'}")
     return 0
 
 
+def _run_discovery(args: argparse.Namespace) -> int:
+    """``himit run discovery``: options discovered from the mentor's states
+    (``discovery_experiment``) on experiment 1's and 2's worlds."""
+    from dataclasses import replace
+
+    from .discovery_experiment import DiscoveryConfig, run_discovery
+
+    refused = [
+        flag
+        for flag, value in (
+            ("--config", args.config),
+            ("--resume", args.resume),
+            ("--mentor-reward", args.mentor_reward),
+            ("--device", args.device),
+            ("--workers", args.workers),
+        )
+        if value
+    ]
+    if refused:
+        raise ValueError(
+            f"himit run discovery takes no {', '.join(refused)} (it runs on the CPU in "
+            "one process, with the world's own mentor reward; rerun with --force)"
+        )
+    config = DiscoveryConfig()
+    if args.quick:
+        config = config.quick()
+    changes = {
+        k: v
+        for k, v in (("seeds", args.seeds), ("steps", args.steps), ("engine", args.engine))
+        if v is not None
+    }
+    config = replace(config, **changes)
+    run_dir = Path(args.logdir) / config.name
+    print(f"{config.name}: worlds {list(config.worlds)}, {config.seeds} seeds → {run_dir}")
+    t0 = time.perf_counter()
+    run_discovery(config, run_dir, force=args.force, progress=not args.quiet)
+    print(f"done in {time.perf_counter() - t0:.0f} s: {run_dir / 'results.md'}")
+    return 0
+
+
 def _add_run(sub: argparse.ArgumentParser) -> None:
-    sub.add_argument("experiment", choices=["exp1", "exp2", "exp3", "gymnasium"],
-                     help="which experiment (gymnasium: Taxi, CliffWalking, FrozenLake 8×8)")
+    sub.add_argument(
+        "experiment",
+        choices=["exp1", "exp2", "exp3", "gymnasium", "discovery"],
+        help="which experiment (gymnasium: Taxi, CliffWalking, FrozenLake 8×8; "
+        "discovery: options discovered from the mentor's states)",
+    )
     sub.add_argument("--seeds", type=_positive_int, help="runs per agent (default 5)")
-    sub.add_argument("--steps", type=_positive_int, help="steps per run (default: the experiment's)")
+    sub.add_argument(
+        "--steps", type=_positive_int, help="steps per run (default: the experiment's)"
+    )
     sub.add_argument("--quick", action="store_true", help="tiny budget (smoke test)")
     sub.add_argument("--logdir", default="runs", help="parent folder of the run directory")
     sub.add_argument("--device", help="cpu (default) or cuda")
-    sub.add_argument("--engine", choices=["auto", "numba", "torch"],
-                     help="auto (default): the compiled loop on a CPU, torch on a GPU")
-    sub.add_argument("--config", help="a config.json (as saved in a run directory) to run instead "
-                                      "of the defaults")
-    sub.add_argument("--resume", action="store_true",
-                     help="continue an interrupted run from its newest good checkpoint")
+    sub.add_argument(
+        "--engine",
+        choices=["auto", "numba", "torch"],
+        help="auto (default): the compiled loop on a CPU, torch on a GPU",
+    )
+    sub.add_argument(
+        "--mentor-reward",
+        choices=list(MENTOR_REWARDS),
+        help="the reward R_m of the mentor's transitions in the imitators' mentor "
+        "term: known (the world's, default), salience (intrinsic, from the "
+        "mentor's states) or none (r_m = 0)",
+    )
+    sub.add_argument(
+        "--config",
+        help="a config.json (as saved in a run directory) to run instead of the defaults",
+    )
+    sub.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue an interrupted run from its newest good checkpoint",
+    )
     sub.add_argument("--force", action="store_true", help="overwrite a finished run")
     sub.add_argument("--quiet", action="store_true", help="no progress bars")
-    sub.add_argument("--workers", type=_positive_int,
-                     help="worlds run in parallel, one process each (default: one per core, "
-                          "at most one per world; the results do not depend on it)")
+    sub.add_argument(
+        "--workers",
+        type=_positive_int,
+        help="worlds run in parallel, one process each (default: one per core, "
+        "at most one per world; the results do not depend on it)",
+    )
 
 
 # ------------------------------------------------------------------------------------- plot
@@ -388,8 +554,10 @@ def cmd_plot(args: argparse.Namespace) -> int:
     for size in config.sizes:
         path = run_dir / "worlds" / f"world{size}.json"
         if not path.exists():
-            raise ValueError(f"{run_dir}: world {size} has not finished ({path} is missing); "
-                             "finish it with himit run … --resume")
+            raise ValueError(
+                f"{run_dir}: world {size} has not finished ({path} is missing); "
+                "finish it with himit run … --resume"
+            )
         results.append(WorldResult(**json.loads(path.read_text())))
     write_figures(run_dir, config, results)
     write_results(run_dir, config, results)
@@ -401,13 +569,78 @@ def _add_plot(sub: argparse.ArgumentParser) -> None:
     sub.add_argument("run_dir", help="a run directory written by himit run")
 
 
+# ------------------------------------------------------------------------------------ sweep
+def cmd_sweep(args: argparse.Namespace) -> int:
+    from .sweep import load_spec, run_sweep
+
+    spec = load_spec(args.spec)
+    out = Path(args.out) if args.out else Path("runs") / "sweeps" / spec.name
+    if args.dry_run:
+        for trial in spec.trials(out):
+            print(trial.run_dir)
+        print(f"{len(spec.cells)} cells, {len(spec.trials(out))} trials")
+        return 0
+    t0 = time.perf_counter()
+    record = run_sweep(
+        spec, out, address=args.address, use_ray=not args.no_ray, workers=args.workers
+    )
+    print(
+        f"done in {time.perf_counter() - t0:.0f} s (commit {', '.join(record['commit'])}, engine "
+        f"{', '.join(record['engine'])}): {out / 'summary.md'}, {out / 'results.csv'}"
+    )
+    return 0
+
+
+def _add_sweep(sub: argparse.ArgumentParser) -> None:
+    from . import sweep
+
+    sub.formatter_class = argparse.RawDescriptionHelpFormatter
+    doc = sweep.__doc__
+    sub.epilog = doc[
+        doc.index("A sweep is described") : doc.index("**Where the trials run")
+    ].rstrip()
+    sub.add_argument("spec", help="the sweep spec, a .toml or .json file (see below)")
+    sub.add_argument(
+        "--out",
+        help="the sweep's folder (default runs/sweeps/<name>); rerunning "
+        "into it skips finished trials and resumes interrupted ones",
+    )
+    sub.add_argument(
+        "--address", help="join this Ray cluster (e.g. auto) instead of starting a local Ray"
+    )
+    sub.add_argument(
+        "--no-ray",
+        action="store_true",
+        help="run the trials in this process, one at a time, even if Ray is installed",
+    )
+    sub.add_argument(
+        "--workers",
+        type=_positive_int,
+        help="trials at a time on a local Ray (default: one per core)",
+    )
+    sub.add_argument(
+        "--dry-run",
+        action="store_true",
+        help="check the spec and list the trials' run directories; run nothing",
+    )
+
+
 # ------------------------------------------------------------------------------------ bench
 def cmd_bench(args: argparse.Namespace) -> int:
     from .bench import benchmark
 
-    result = benchmark(size=args.size, rooms=args.rooms, corner_options=args.corner_options,
-                       batch=args.batch, steps=args.steps, agent=args.agent, device=args.device,
-                       plan_every=args.plan_every, warmup=args.warmup, engine=args.engine)
+    result = benchmark(
+        size=args.size,
+        rooms=args.rooms,
+        corner_options=args.corner_options,
+        batch=args.batch,
+        steps=args.steps,
+        agent=args.agent,
+        device=args.device,
+        plan_every=args.plan_every,
+        warmup=args.warmup,
+        engine=args.engine,
+    )
     print(result.line())
     return 0
 
@@ -419,32 +652,60 @@ def _add_bench(sub: argparse.ArgumentParser) -> None:
     sub.add_argument("--batch", type=_positive_int, default=15, help="runs advancing together")
     sub.add_argument("--steps", type=_positive_int, default=5000, help="timed steps per run")
     sub.add_argument("--warmup", type=_nonnegative_int, default=1000, help="untimed steps first")
-    sub.add_argument("--agent", default="mix",
-                     help="agent variant for every run, or 'mix' (imitation/options/primitives)")
-    sub.add_argument("--plan-every", type=_positive_int, default=4,
-                     help="sweep every this many ticks (the experiments' 4; 1 = every decision)")
+    sub.add_argument(
+        "--agent",
+        default="mix",
+        help="agent variant for every run, or 'mix' (imitation/options/primitives)",
+    )
+    sub.add_argument(
+        "--plan-every",
+        type=_positive_int,
+        default=4,
+        help="sweep every this many ticks (the experiments' 4; 1 = every decision)",
+    )
     sub.add_argument("--device", default="cpu")
-    sub.add_argument("--engine", default="auto", choices=["auto", "numba", "torch"],
-                     help="auto: the compiled loop on a CPU, torch on a GPU")
+    sub.add_argument(
+        "--engine",
+        default="auto",
+        choices=["auto", "numba", "torch"],
+        help="auto: the compiled loop on a CPU, torch on a GPU",
+    )
 
 
 # ------------------------------------------------------------------------------------- main
 #: Subcommand → (function, argument adder, one-line help).
-COMMANDS: dict[str, tuple[Callable[[argparse.Namespace], int],
-                          Callable[[argparse.ArgumentParser], None], str]] = {
+COMMANDS: dict[
+    str, tuple[Callable[[argparse.Namespace], int], Callable[[argparse.ArgumentParser], None], str]
+] = {
     "info": (cmd_info, _add_info, "summarize a world: sizes, options, optimal steps and goals"),
-    "demo": (cmd_demo, _add_demo, "experiment 2's world: mentor demonstrations, a short batched "
-                                  "learning run, figures and TensorBoard logs"),
-    "run": (cmd_run, _add_run, "reproduce one of the paper's experiments (exp1, exp2, exp3), or "
-                               "the Gymnasium comparison (gymnasium)"),
+    "demo": (
+        cmd_demo,
+        _add_demo,
+        "experiment 2's world: mentor demonstrations, a short batched "
+        "learning run, figures and TensorBoard logs",
+    ),
+    "run": (
+        cmd_run,
+        _add_run,
+        "reproduce one of the paper's experiments (exp1, exp2, exp3), or "
+        "the Gymnasium comparison (gymnasium)",
+    ),
+    "sweep": (
+        cmd_sweep,
+        _add_sweep,
+        "run a sweep spec: settings × seeds × worlds as resumable "
+        "trials (on Ray when installed), with tables and 95 %% CIs",
+    ),
     "plot": (cmd_plot, _add_plot, "redraw the figures and results.md of a run directory"),
     "bench": (cmd_bench, _add_bench, "steps per second of the batched learner"),
 }
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="himit", description="Hierarchical goal-based imitation from "
-                                               "state-only demonstrations.")
+    parser = _Parser(
+        prog="himit",
+        description="Hierarchical goal-based imitation from state-only demonstrations.",
+    )
     subs = parser.add_subparsers(dest="command", metavar="command", required=True)
     for name, (_, add_arguments, help_text) in COMMANDS.items():
         add_arguments(subs.add_parser(name, help=help_text, description=help_text))

@@ -77,14 +77,20 @@ class Demonstrations:
             description = describe_world(world)
             self._world = world
         else:
-            raise ValueError(f"{self._source}: world must be a world description dict "
-                             f"(world.describe()) or a world object, got {type(world).__name__}")
+            raise ValueError(
+                f"{self._source}: world must be a world description dict "
+                f"(world.describe()) or a world object, got {type(world).__name__}"
+            )
         self._world_description = json.loads(json.dumps(description))  # a plain, JSON-able copy
         if isinstance(episodes, (torch.Tensor, np.ndarray)) and episodes.ndim == 1:
-            raise ValueError(f"{self._source}: episodes must be a list of 1-D state sequences, got one "
-                             "1-D sequence; wrap it in a list for a single episode")
+            raise ValueError(
+                f"{self._source}: episodes must be a list of 1-D state sequences, got one "
+                "1-D sequence; wrap it in a list for a single episode"
+            )
         if len(episodes) == 0:
-            raise ValueError(f"{self._source}: no episodes; demonstrations need at least one episode")
+            raise ValueError(
+                f"{self._source}: no episodes; demonstrations need at least one episode"
+            )
         self._episodes = tuple(_as_episode(e, i, self._source) for i, e in enumerate(episodes))
         self._check_states_in(self._world, strict=True)
 
@@ -163,8 +169,10 @@ class Demonstrations:
             what = f"{d.get('size')}×{d.get('size')}/{d.get('rooms')}"
         else:
             what = d.get("id") or d.get("class") or ""
-        return (f"Demonstrations(episodes={self.num_episodes}, transitions={self.num_transitions}, "
-                f"world={d.get('kind')} {what})")
+        return (
+            f"Demonstrations(episodes={self.num_episodes}, transitions={self.num_transitions}, "
+            f"world={d.get('kind')} {what})"
+        )
 
     def check_world(self, world) -> None:
         """Raise ``ValueError`` unless ``world`` (a world or its description dict) is the world
@@ -189,10 +197,12 @@ class Demonstrations:
         starts = np.concatenate([[0], np.cumsum(lengths)[:-1]]).astype(np.int64)
         with open(path, "wb") as f:
             np.savez_compressed(
-                f, format_version=np.array(DEMONSTRATIONS_FORMAT_VERSION, dtype=np.int64),
+                f,
+                format_version=np.array(DEMONSTRATIONS_FORMAT_VERSION, dtype=np.int64),
                 world=np.array(json.dumps(self._world_description, sort_keys=True)),
                 states=torch.cat(self._episodes).numpy().astype(np.int64),
-                episode_starts=starts)
+                episode_starts=starts,
+            )
         return path
 
     @classmethod
@@ -221,35 +231,48 @@ class Demonstrations:
             raise ValueError(f"{src}: not a readable .npz demonstrations file ({err})") from None
         missing = [k for k in _NPZ_KEYS if k not in arrays]
         if missing:
-            raise ValueError(f"{src}: missing keys {missing}; a demonstrations file holds exactly "
-                             f"{list(_NPZ_KEYS)}")
+            raise ValueError(
+                f"{src}: missing keys {missing}; a demonstrations file holds exactly "
+                f"{list(_NPZ_KEYS)}"
+            )
         extra = sorted(set(arrays) - set(_NPZ_KEYS))
         if extra:
-            raise ValueError(f"{src}: unexpected keys {extra}; format version "
-                             f"{DEMONSTRATIONS_FORMAT_VERSION} holds exactly {list(_NPZ_KEYS)}")
+            raise ValueError(
+                f"{src}: unexpected keys {extra}; format version "
+                f"{DEMONSTRATIONS_FORMAT_VERSION} holds exactly {list(_NPZ_KEYS)}"
+            )
         version = arrays["format_version"]
         if version.shape != () or version.dtype.kind not in "iu":
-            raise ValueError(f"{src}: format_version must be an integer scalar, got dtype "
-                             f"{version.dtype} shape {version.shape}")
+            raise ValueError(
+                f"{src}: format_version must be an integer scalar, got dtype "
+                f"{version.dtype} shape {version.shape}"
+            )
         if int(version) != DEMONSTRATIONS_FORMAT_VERSION:
-            raise ValueError(f"{src}: unknown format_version {int(version)}; this version of "
-                             f"himit_torch reads format_version {DEMONSTRATIONS_FORMAT_VERSION}")
+            raise ValueError(
+                f"{src}: unknown format_version {int(version)}; this version of "
+                f"himit_torch reads format_version {DEMONSTRATIONS_FORMAT_VERSION}"
+            )
         world_json = arrays["world"]
         if world_json.shape != () or world_json.dtype.kind != "U":
-            raise ValueError(f"{src}: world must be a JSON string scalar, got dtype "
-                             f"{world_json.dtype} shape {world_json.shape}")
+            raise ValueError(
+                f"{src}: world must be a JSON string scalar, got dtype "
+                f"{world_json.dtype} shape {world_json.shape}"
+            )
         try:
             description = json.loads(str(world_json))
         except json.JSONDecodeError as err:
             raise ValueError(f"{src}: world is not valid JSON ({err})") from None
         if not isinstance(description, dict):
-            raise ValueError(f"{src}: world must be a JSON object (a world description), got "
-                             f"{type(description).__name__}")
+            raise ValueError(
+                f"{src}: world must be a JSON object (a world description), got "
+                f"{type(description).__name__}"
+            )
         for key in ("states", "episode_starts"):
             a = arrays[key]
             if a.dtype != np.int64 or a.ndim != 1:
-                raise ValueError(f"{src}: {key} must be a 1-D int64 array, got dtype {a.dtype} "
-                                 f"shape {a.shape}")
+                raise ValueError(
+                    f"{src}: {key} must be a 1-D int64 array, got dtype {a.dtype} shape {a.shape}"
+                )
         states, starts = arrays["states"], arrays["episode_starts"]
         if starts.size == 0:
             raise ValueError(f"{src}: episode_starts is empty; the file holds no episode")
@@ -258,11 +281,15 @@ class Demonstrations:
         bad = np.flatnonzero(np.diff(starts) <= 0)
         if bad.size:
             e = int(bad[0]) + 1
-            raise ValueError(f"{src}: episode {e} is empty or misordered: episode_starts[{e}] = "
-                             f"{starts[e]} is not greater than episode_starts[{e - 1}] = {starts[e - 1]}")
+            raise ValueError(
+                f"{src}: episode {e} is empty or misordered: episode_starts[{e}] = "
+                f"{starts[e]} is not greater than episode_starts[{e - 1}] = {starts[e - 1]}"
+            )
         if starts[-1] >= states.size:
-            raise ValueError(f"{src}: episode {starts.size - 1} is empty: it starts at "
-                             f"{starts[-1]} but states holds {states.size} entries")
+            raise ValueError(
+                f"{src}: episode {starts.size - 1} is empty: it starts at "
+                f"{starts[-1]} but states holds {states.size} entries"
+            )
         episodes = np.split(states, starts[1:])
         if world is None:
             return cls(episodes, description, source=src)
@@ -277,30 +304,40 @@ def _check_same_world(mine: dict, world, source: str) -> None:
     (a world or a description dict)."""
     given = json.loads(json.dumps(world if isinstance(world, dict) else describe_world(world)))
     fields = sorted(set(mine) | set(given))
-    diff = [f"{k} (demonstrations: {mine.get(k, '<missing>')!r}, given world: "
-            f"{given.get(k, '<missing>')!r})" for k in fields if mine.get(k) != given.get(k)]
+    diff = [
+        f"{k} (demonstrations: {mine.get(k, '<missing>')!r}, given world: "
+        f"{given.get(k, '<missing>')!r})"
+        for k in fields
+        if mine.get(k) != given.get(k)
+    ]
     if diff:
-        raise ValueError(f"{source}: recorded in a different world; fields that differ: "
-                         + "; ".join(diff))
+        raise ValueError(
+            f"{source}: recorded in a different world; fields that differ: " + "; ".join(diff)
+        )
 
 
 def _world_from_description(description: dict, source: str):
     kind = description.get("kind")
     if kind == "gymnasium":
         from .gym_adapter import world_from_description
+
         try:
             return world_from_description(description)
         except KeyError as err:
             raise ValueError(f"{source}: world description lacks field {err}") from None
         except ValueError as err:
             raise ValueError(f"{source}: {err}") from None
-        except Exception as err:   # gymnasium.make's own errors (unknown id, bad kwargs)
-            raise ValueError(f"{source}: cannot make the Gymnasium world {description.get('id')!r} "
-                             f"with kwargs {description.get('kwargs')}: {err}") from None
+        except Exception as err:  # gymnasium.make's own errors (unknown id, bad kwargs)
+            raise ValueError(
+                f"{source}: cannot make the Gymnasium world {description.get('id')!r} "
+                f"with kwargs {description.get('kwargs')}: {err}"
+            ) from None
     if kind != "MultiRooms":
-        raise ValueError(f"{source}: world kind {kind!r} is not supported here: only MultiRooms and "
-                         "Gymnasium worlds are rebuilt from a description; pass the world object "
-                         "itself (Demonstrations(episodes, world), Demonstrations.load(path, world=…))")
+        raise ValueError(
+            f"{source}: world kind {kind!r} is not supported here: only MultiRooms and "
+            "Gymnasium worlds are rebuilt from a description; pass the world object "
+            "itself (Demonstrations(episodes, world), Demonstrations.load(path, world=…))"
+        )
     try:
         return MultiRooms.from_description(description)
     except KeyError as err:
@@ -315,56 +352,86 @@ def _as_episode(episode, index: int, source: str) -> torch.Tensor:
     else:
         a = np.asarray(episode)
     if a.ndim != 1:
-        raise ValueError(f"{source}: episode {index} must be a 1-D sequence of states, got shape "
-                         f"{a.shape}")
+        raise ValueError(
+            f"{source}: episode {index} must be a 1-D sequence of states, got shape {a.shape}"
+        )
     if a.size == 0:
-        raise ValueError(f"{source}: episode {index} is empty; an episode holds at least its "
-                         "first state")
+        raise ValueError(
+            f"{source}: episode {index} is empty; an episode holds at least its first state"
+        )
     if a.dtype.kind not in "iu":
         raise ValueError(f"{source}: episode {index} must hold integer states, got dtype {a.dtype}")
     return torch.from_numpy(a.astype(np.int64, copy=True))
 
 
-def _check_episode(states: np.ndarray, index: int, world: MultiRooms, wall: np.ndarray,
-                   successors: np.ndarray, source: str) -> None:
+def _check_episode(
+    states: np.ndarray,
+    index: int,
+    world: MultiRooms,
+    wall: np.ndarray,
+    successors: np.ndarray,
+    source: str,
+) -> None:
     """``wall [S]`` and ``successors [S, A]`` are the world's, passed in to build them once."""
     where = f"{source}: episode {index}"
     S = world.num_states
     out = np.flatnonzero((states < 0) | (states >= S))
     if out.size:
         i = int(out[0])
-        raise ValueError(f"{where}, index {i}: state {states[i]} is out of range [0, {S}) for the "
-                         f"{world.size}×{world.size} world")
+        raise ValueError(
+            f"{where}, index {i}: state {states[i]} is out of range [0, {S}) for the "
+            f"{world.size}×{world.size} world"
+        )
     on_wall = np.flatnonzero(wall[states])
     if on_wall.size:
         i = int(on_wall[0])
-        raise ValueError(f"{where}, index {i}: state {states[i]} {world.coords(states[i])} is a "
-                         "wall cell")
+        raise ValueError(
+            f"{where}, index {i}: state {states[i]} {world.coords(states[i])} is a wall cell"
+        )
     if states.size > 1:
-        nxt = successors[states[:-1]]                                       # [T, A]
+        nxt = successors[states[:-1]]  # [T, A]
         ok = (states[1:] == states[:-1]) | (nxt == states[1:, None]).any(1)
         jump = np.flatnonzero(~ok)
         if jump.size:
             i = int(jump[0]) + 1
-            raise ValueError(f"{where}, index {i}: state {states[i]} {world.coords(states[i])} "
-                             f"follows {states[i - 1]} {world.coords(states[i - 1])}; consecutive "
-                             "states must be equal or 4-adjacent (one primitive move)")
+            raise ValueError(
+                f"{where}, index {i}: state {states[i]} {world.coords(states[i])} "
+                f"follows {states[i - 1]} {world.coords(states[i - 1])}; consecutive "
+                "states must be equal or 4-adjacent (one primitive move)"
+            )
     goal_early = np.flatnonzero(states[:-1] == world.goal_state)
     if goal_early.size:
         i = int(goal_early[0])
-        raise ValueError(f"{where}, index {i}: the goal {world.coords(world.goal_state)} ends an "
-                         f"episode but {states.size - 1 - i} more state(s) follow it")
+        raise ValueError(
+            f"{where}, index {i}: the goal {world.coords(world.goal_state)} ends an "
+            f"episode but {states.size - 1 - i} more state(s) follow it"
+        )
 
 
-def _check_range_and_end(states: np.ndarray, index: int, S: int, terminal: np.ndarray,
-                         source: str) -> None:
+def _check_range_and_end(
+    states: np.ndarray, index: int, S: int, terminal: np.ndarray, source: str
+) -> None:
     """A world without a known transition support: states in range, terminal only at the end."""
-    _check_steps(states, index, np.ones((1, 1), dtype=bool), terminal, source, num_states=S,
-                 check_moves=False)
+    _check_steps(
+        states,
+        index,
+        np.ones((1, 1), dtype=bool),
+        terminal,
+        source,
+        num_states=S,
+        check_moves=False,
+    )
 
 
-def _check_steps(states: np.ndarray, index: int, support: np.ndarray, terminal: np.ndarray,
-                 source: str, num_states: int | None = None, check_moves: bool = True) -> None:
+def _check_steps(
+    states: np.ndarray,
+    index: int,
+    support: np.ndarray,
+    terminal: np.ndarray,
+    source: str,
+    num_states: int | None = None,
+    check_moves: bool = True,
+) -> None:
     """Any world: states in range, each step in the world's transition support ``[S, S]``, a
     terminal state only at an episode's end."""
     where = f"{source}: episode {index}"
@@ -376,12 +443,16 @@ def _check_steps(states: np.ndarray, index: int, support: np.ndarray, terminal: 
     ended = np.flatnonzero(terminal[states[:-1]])
     if ended.size:
         i = int(ended[0])
-        raise ValueError(f"{where}, index {i}: state {states[i]} is terminal and ends an episode, "
-                         f"but {states.size - 1 - i} more state(s) follow it")
+        raise ValueError(
+            f"{where}, index {i}: state {states[i]} is terminal and ends an episode, "
+            f"but {states.size - 1 - i} more state(s) follow it"
+        )
     if check_moves and states.size > 1:
         bad = np.flatnonzero(~support[states[:-1], states[1:]])
         if bad.size:
             i = int(bad[0]) + 1
-            raise ValueError(f"{where}, index {i}: state {states[i]} follows {states[i - 1]}, but "
-                             f"no action leads from {states[i - 1]} to {states[i]} in one step "
-                             "in this world")
+            raise ValueError(
+                f"{where}, index {i}: state {states[i]} follows {states[i - 1]}, but "
+                f"no action leads from {states[i - 1]} to {states[i]} in one step "
+                "in this world"
+            )

@@ -26,13 +26,18 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-__all__ = ["EdgeStore", "DenseEdgeIndex", "SuccessorDirichlet", "DirichletSMDPModel",
-           "DirichletMentorModel"]
+__all__ = [
+    "EdgeStore",
+    "DenseEdgeIndex",
+    "SuccessorDirichlet",
+    "DirichletSMDPModel",
+    "DirichletMentorModel",
+]
 
 
 def _grow_columns(tensor: torch.Tensor, capacity: int, fill=0) -> torch.Tensor:
     grown = torch.full((tensor.shape[0], capacity), fill, dtype=tensor.dtype, device=tensor.device)
-    grown[:, :tensor.shape[1]] = tensor
+    grown[:, : tensor.shape[1]] = tensor
     return grown
 
 
@@ -46,7 +51,9 @@ class DenseEdgeIndex:
         self.store = store
         self.forward = torch.full((B, store.num_rows + 1, width), -1, dtype=torch.int64, device=dev)
         self.forward_len = torch.zeros(B, store.num_rows + 1, dtype=torch.int64, device=dev)
-        self.reverse = torch.full((B, store.num_states + 1, fan_in), -1, dtype=torch.int64, device=dev)
+        self.reverse = torch.full(
+            (B, store.num_states + 1, fan_in), -1, dtype=torch.int64, device=dev
+        )
         self.reverse_len = torch.zeros(B, store.num_states + 1, dtype=torch.int64, device=dev)
         runs = torch.arange(B, device=dev)[:, None].expand(-1, store.capacity)
         valid = torch.arange(store.capacity, device=dev) < store.num_edges[:, None]
@@ -80,30 +87,40 @@ class DenseEdgeIndex:
             width = table.shape[2]
             while width < need:
                 width *= 2
-            grown = torch.full(table.shape[:2] + (width,), -1, dtype=table.dtype, device=table.device)
-            grown[:, :, :table.shape[2]] = table
+            grown = torch.full(
+                table.shape[:2] + (width,), -1, dtype=table.dtype, device=table.device
+            )
+            grown[:, :, : table.shape[2]] = table
             table = grown
         table.view(-1).index_put_((key * table.shape[2] + pos,), ids_sorted)
         flat_len.index_add_(0, key, torch.ones_like(key))
         return table
 
-    def find(self, runs: torch.Tensor, rows: torch.Tensor, successors: torch.Tensor) -> torch.Tensor:
+    def find(
+        self, runs: torch.Tensor, rows: torch.Tensor, successors: torch.Tensor
+    ) -> torch.Tensor:
         """Edge ids of ``(runs[i], rows[i], successors[i])``, −1 where not seen."""
-        cand = self.forward[runs, rows]                                          # [n, K]
+        cand = self.forward[runs, rows]  # [n, K]
         succ = self.store.edge_successor[runs[:, None], cand.clamp(min=0)]
         match = (succ == successors[:, None]) & (cand >= 0)
-        return torch.where(match.any(1), cand.gather(1, match.long().argmax(1, keepdim=True))[:, 0],
-                           torch.full_like(rows, -1))
+        return torch.where(
+            match.any(1),
+            cand.gather(1, match.long().argmax(1, keepdim=True))[:, 0],
+            torch.full_like(rows, -1),
+        )
 
-    def incoming(self, runs: torch.Tensor, states: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    def incoming(
+        self, runs: torch.Tensor, states: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
         """All edges of ``runs[i]`` ending in ``states[i]``: ``(owner [T], edge [T])`` where
         ``owner`` indexes the inputs, in input order and, within one input, ascending edge ids.
         Gathers only the ``Σ fan-in`` real entries, not ``n × P`` padded ones."""
         flat = runs * self.reverse.shape[1] + states
         lengths = self.reverse_len.view(-1).index_select(0, flat)
         total = int(lengths.sum())
-        owner = torch.repeat_interleave(torch.arange(states.numel(), device=states.device),
-                                        lengths, output_size=total)
+        owner = torch.repeat_interleave(
+            torch.arange(states.numel(), device=states.device), lengths, output_size=total
+        )
         ends = lengths.cumsum(0)
         offset = torch.arange(total, device=states.device) - (ends - lengths).index_select(0, owner)
         cells = flat.index_select(0, owner) * self.reverse.shape[2] + offset
@@ -125,13 +142,22 @@ class EdgeStore:
     edge_count: torch.Tensor
     row_count: torch.Tensor
 
-    def __init__(self, num_rows: int, num_states: int, batch: int, device, concentration: float,
-                 capacity: int = 256):
+    def __init__(
+        self,
+        num_rows: int,
+        num_states: int,
+        batch: int,
+        device,
+        concentration: float,
+        capacity: int = 256,
+    ):
         if batch <= 0:
             raise ValueError(f"batch={batch}: a model needs at least one run")
         if not concentration >= 0:
-            raise ValueError(f"concentration={concentration} must be ≥ 0 (the prior's Dirichlet mass "
-                             "on unseen successors)")
+            raise ValueError(
+                f"concentration={concentration} must be ≥ 0 (the prior's Dirichlet mass "
+                "on unseen successors)"
+            )
         self.device = dev = torch.device(device)
         self.batch, self.num_rows, self.num_states = batch, num_rows, num_states
         self.concentration = float(concentration)
@@ -142,8 +168,8 @@ class EdgeStore:
         for name in self._ROW_FLOATS:
             setattr(self, name, torch.zeros(batch, num_rows + 1, dtype=torch.float64, device=dev))
         self.num_edges = torch.zeros(batch, dtype=torch.int64, device=dev)
-        self.version = 0           # bumped by every change to the edge lists
-        self.on_grow: list = []    # callbacks(new_capacity)
+        self.version = 0  # bumped by every change to the edge lists
+        self.on_grow: list = []  # callbacks(new_capacity)
         self._index: DenseEdgeIndex | None = None
 
     @property
@@ -170,8 +196,9 @@ class EdgeStore:
             self._index = DenseEdgeIndex(self)
         return self._index
 
-    def find_or_add(self, runs: torch.Tensor, rows: torch.Tensor, successors: torch.Tensor
-                    ) -> torch.Tensor:
+    def find_or_add(
+        self, runs: torch.Tensor, rows: torch.Tensor, successors: torch.Tensor
+    ) -> torch.Tensor:
         """Edge ids of ``(runs[i], rows[i], successors[i])``, adding the unseen pairs to their
         run's list (new ids in order of first appearance within each run, by sorted key)."""
         index = self.index()
@@ -205,18 +232,30 @@ class EdgeStore:
     def state_dict(self) -> dict:
         """The edge lists (only the slots in use), counts and per-row sums."""
         used = self.used
-        out = {name: getattr(self, name)[:, :used].clone()
-               for name in ("edge_row", "edge_successor") + self._EDGE_FLOATS}
-        out.update({name: getattr(self, name).clone() for name in ("num_edges",) + self._ROW_FLOATS})
+        out = {
+            name: getattr(self, name)[:, :used].clone()
+            for name in ("edge_row", "edge_successor") + self._EDGE_FLOATS
+        }
+        out.update(
+            {name: getattr(self, name).clone() for name in ("num_edges",) + self._ROW_FLOATS}
+        )
         return out
 
     def load_state_dict(self, state: dict) -> None:
         for name, value in state.items():
             current = getattr(self, name)
-            if value.shape[0] != current.shape[0] or value.dim() != current.dim() or \
-                    (name in ("num_edges", "state_tries") + self._ROW_FLOATS and value.shape != current.shape):
-                raise ValueError(f"model state {name} has shape {tuple(value.shape)}, this model's "
-                                 f"{tuple(current.shape)}")
+            if (
+                value.shape[0] != current.shape[0]
+                or value.dim() != current.dim()
+                or (
+                    name in ("num_edges", "state_tries") + self._ROW_FLOATS
+                    and value.shape != current.shape
+                )
+            ):
+                raise ValueError(
+                    f"model state {name} has shape {tuple(value.shape)}, this model's "
+                    f"{tuple(current.shape)}"
+                )
             setattr(self, name, value.to(self.device).clone())
         saved = self.edge_row.shape[1]
         capacity = 256
@@ -232,12 +271,16 @@ class EdgeStore:
 
     def posterior(self, runs: torch.Tensor, rows: torch.Tensor) -> SuccessorDirichlet:
         """Posterior over the successors of ``rows`` (any shape) in ``runs`` (same shape)."""
-        edge = self.index().forward[runs, rows]                              # [..., K]
+        edge = self.index().forward[runs, rows]  # [..., K]
         r = runs[..., None].expand_as(edge)
-        counts = torch.where(edge >= 0, self.edge_count[r, edge.clamp(min=0)],
-                             torch.zeros((), dtype=torch.float64, device=self.device))
-        prior = torch.full(rows.shape + (1,), self.concentration, dtype=torch.float64,
-                           device=self.device)
+        counts = torch.where(
+            edge >= 0,
+            self.edge_count[r, edge.clamp(min=0)],
+            torch.zeros((), dtype=torch.float64, device=self.device),
+        )
+        prior = torch.full(
+            rows.shape + (1,), self.concentration, dtype=torch.float64, device=self.device
+        )
         succ = torch.where(edge >= 0, self.edge_successor[r, edge.clamp(min=0)], edge)
         return SuccessorDirichlet(torch.cat([counts, prior], -1), succ)
 
@@ -261,18 +304,29 @@ class SuccessorDirichlet(torch.distributions.Dirichlet):
 
     has_rsample = False
 
-    def __init__(self, concentration: torch.Tensor, successors: torch.Tensor,
-                 validate_args: bool | None = None):
+    def __init__(
+        self,
+        concentration: torch.Tensor,
+        successors: torch.Tensor,
+        validate_args: bool | None = None,
+    ):
         concentration = torch.as_tensor(concentration)
         if not concentration.is_floating_point():
             concentration = concentration.double()
         if concentration.dim() < 1:
-            raise ValueError("SuccessorDirichlet: concentration must have a category axis [..., K + 1]")
-        if tuple(successors.shape) != tuple(concentration.shape[:-1]) + (concentration.shape[-1] - 1,):
-            raise ValueError(f"SuccessorDirichlet: successors {tuple(successors.shape)} must be "
-                             f"[..., K] for concentration {tuple(concentration.shape)} = [..., K + 1]")
+            raise ValueError(
+                "SuccessorDirichlet: concentration must have a category axis [..., K + 1]"
+            )
+        if tuple(successors.shape) != tuple(concentration.shape[:-1]) + (
+            concentration.shape[-1] - 1,
+        ):
+            raise ValueError(
+                f"SuccessorDirichlet: successors {tuple(successors.shape)} must be "
+                f"[..., K] for concentration {tuple(concentration.shape)} = [..., K + 1]"
+            )
         if validate_args is not False and not bool(
-                (torch.isfinite(concentration) & (concentration >= 0)).all()):
+            (torch.isfinite(concentration) & (concentration >= 0)).all()
+        ):
             raise ValueError("SuccessorDirichlet: concentrations must be finite and ≥ 0")
         self.successors = successors
         # The parent's positivity constraint does not hold for zero (padding) categories: the
@@ -282,7 +336,9 @@ class SuccessorDirichlet(torch.distributions.Dirichlet):
     def expand(self, batch_shape, _instance=None):
         new = self._get_checked_instance(SuccessorDirichlet, _instance)
         new = super().expand(batch_shape, _instance=new)
-        new.successors = self.successors.expand(torch.Size(batch_shape) + self.successors.shape[-1:])
+        new.successors = self.successors.expand(
+            torch.Size(batch_shape) + self.successors.shape[-1:]
+        )
         return new
 
     @property
@@ -294,15 +350,21 @@ class SuccessorDirichlet(torch.distributions.Dirichlet):
     def mean(self) -> torch.Tensor:
         """``E[p_k] = α_k / α_0`` (zeros where α_0 = 0, i.e. nothing seen and no prior)."""
         total = self.total[..., None]
-        return torch.where(total > 0, self.concentration / total.clamp(min=1e-300),
-                           torch.zeros_like(self.concentration))
+        return torch.where(
+            total > 0,
+            self.concentration / total.clamp(min=1e-300),
+            torch.zeros_like(self.concentration),
+        )
 
     @property
     def variance(self) -> torch.Tensor:
         """``Var[p_k] = α_k (α_0 − α_k) / (α_0² (α_0 + 1))``."""
         a, total = self.concentration, self.total[..., None]
-        return torch.where(total > 0, a * (total - a) / (total.clamp(min=1e-300) ** 2 * (total + 1)),
-                           torch.zeros_like(a))
+        return torch.where(
+            total > 0,
+            a * (total - a) / (total.clamp(min=1e-300) ** 2 * (total + 1)),
+            torch.zeros_like(a),
+        )
 
     @property
     def mode(self) -> torch.Tensor:
@@ -311,15 +373,19 @@ class SuccessorDirichlet(torch.distributions.Dirichlet):
     def log_prob(self, value: torch.Tensor) -> torch.Tensor:
         """Log density of ``value [..., K + 1]`` over the simplex of the positive categories
         (−∞ where a zero-concentration category gets a non-zero probability)."""
-        value = torch.as_tensor(value, dtype=self.concentration.dtype,
-                                device=self.concentration.device)
+        value = torch.as_tensor(
+            value, dtype=self.concentration.dtype, device=self.concentration.device
+        )
         a = self.concentration
         pos = a > 0
         safe = torch.where(pos, a, torch.ones_like(a))
-        term = torch.where(pos, torch.xlogy(a - 1.0, value) - torch.lgamma(safe),
-                           torch.zeros_like(a)).sum(-1)
+        term = torch.where(
+            pos, torch.xlogy(a - 1.0, value) - torch.lgamma(safe), torch.zeros_like(a)
+        ).sum(-1)
         total = self.total
-        norm = torch.where(total > 0, torch.lgamma(total.clamp(min=1e-300)), torch.zeros_like(total))
+        norm = torch.where(
+            total > 0, torch.lgamma(total.clamp(min=1e-300)), torch.zeros_like(total)
+        )
         outside = ((~pos) & (value != 0)).any(-1)
         return torch.where(outside, torch.full_like(term, float("-inf")), term + norm)
 
@@ -331,15 +397,18 @@ class SuccessorDirichlet(torch.distributions.Dirichlet):
         k = pos.sum(-1).to(a.dtype)
         total = self.total
         safe_total = torch.where(total > 0, total, torch.ones_like(total))
-        per = torch.where(pos, torch.lgamma(safe) - (safe - 1.0) * torch.digamma(safe),
-                          torch.zeros_like(a)).sum(-1)
+        per = torch.where(
+            pos, torch.lgamma(safe) - (safe - 1.0) * torch.digamma(safe), torch.zeros_like(a)
+        ).sum(-1)
         out = per - torch.lgamma(safe_total) - (k - safe_total) * torch.digamma(safe_total)
         return torch.where(k > 1, out, torch.zeros_like(out))
 
     # Adds ``generator``, and takes one in place of the shape (the old ``sample(generator)``).
     def sample(
-            self, sample_shape: torch.Size | list[int] | tuple[int, ...] | torch.Generator = (),
-            generator: torch.Generator | None = None) -> torch.Tensor:
+        self,
+        sample_shape: torch.Size | list[int] | tuple[int, ...] | torch.Generator = (),
+        generator: torch.Generator | None = None,
+    ) -> torch.Tensor:
         """Draws of the probabilities, ``sample_shape + batch_shape + [K + 1]``, from
         ``generator`` (a ``torch.Generator``; the global torch random state when omitted, as in
         every ``torch.distributions`` object). Categories with zero concentration get
@@ -348,7 +417,7 @@ class SuccessorDirichlet(torch.distributions.Dirichlet):
         The gamma variates come from NumPy's ``Generator.standard_gamma`` seeded by one draw
         from ``generator``, so the global random state of torch and NumPy is left alone and the
         same generator state always gives the same draws (on any device)."""
-        if isinstance(sample_shape, torch.Generator):   # sample(generator), the old call
+        if isinstance(sample_shape, torch.Generator):  # sample(generator), the old call
             generator = sample_shape
             sample_shape = ()
         shape = self._extended_shape(torch.Size(sample_shape))
@@ -361,12 +430,16 @@ class SuccessorDirichlet(torch.distributions.Dirichlet):
         return torch.where(total > 0, g / total.clamp(min=1e-300), torch.zeros_like(g))
 
     def rsample(self, sample_shape: torch.Size | list[int] | tuple[int, ...] = ()) -> torch.Tensor:
-        raise NotImplementedError("SuccessorDirichlet has no reparameterized sample (posteriors "
-                                  "of counts need no gradient); use sample(generator=…)")
+        raise NotImplementedError(
+            "SuccessorDirichlet has no reparameterized sample (posteriors "
+            "of counts need no gradient); use sample(generator=…)"
+        )
 
     def __repr__(self) -> str:
-        return (f"SuccessorDirichlet(batch_shape={tuple(self.batch_shape)}, "
-                f"event_shape={tuple(self.event_shape)})")
+        return (
+            f"SuccessorDirichlet(batch_shape={tuple(self.batch_shape)}, "
+            f"event_shape={tuple(self.event_shape)})"
+        )
 
 
 class DirichletSMDPModel(EdgeStore):
@@ -385,17 +458,32 @@ class DirichletSMDPModel(EdgeStore):
     edge_discount: torch.Tensor
     row_reward: torch.Tensor
 
-    def __init__(self, num_rows: int, num_states: int, batch: int, device="cpu",
-                 concentration: float = 0.0, capacity: int = 256):
+    def __init__(
+        self,
+        num_rows: int,
+        num_states: int,
+        batch: int,
+        device="cpu",
+        concentration: float = 0.0,
+        capacity: int = 256,
+    ):
         super().__init__(num_rows, num_states, batch, device, concentration, capacity)
-        self.state_tries = torch.zeros(batch, num_states + 1, dtype=torch.float64, device=self.device)
+        self.state_tries = torch.zeros(
+            batch, num_states + 1, dtype=torch.float64, device=self.device
+        )
 
     def state_dict(self) -> dict:
         return {**super().state_dict(), "state_tries": self.state_tries.clone()}
 
-    def update(self, runs: torch.Tensor, rows: torch.Tensor, starts: torch.Tensor,
-               successors: torch.Tensor, discounts: torch.Tensor, discounted_rewards: torch.Tensor
-               ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    def update(
+        self,
+        runs: torch.Tensor,
+        rows: torch.Tensor,
+        starts: torch.Tensor,
+        successors: torch.Tensor,
+        discounts: torch.Tensor,
+        discounted_rewards: torch.Tensor,
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """Record one executed option per run (``runs`` distinct): it started in ``starts`` from
         ``rows``, ended in ``successors`` after ``γ^k = discounts`` having collected
         ``discounted_rewards``. Returns ``(edge ids, counts before, summed γ^k before)``."""
@@ -415,10 +503,15 @@ class DirichletSMDPModel(EdgeStore):
         r = runs[..., None].expand_as(edge)
         n = self.row_count[runs, rows]
         denom = (n + self.concentration)[..., None]
-        g = torch.where(edge >= 0, self.edge_discount[r, edge.clamp(min=0)],
-                        torch.zeros((), dtype=torch.float64, device=self.device))
+        g = torch.where(
+            edge >= 0,
+            self.edge_discount[r, edge.clamp(min=0)],
+            torch.zeros((), dtype=torch.float64, device=self.device),
+        )
         weights = torch.where(denom > 0, g / denom.clamp(min=1e-300), torch.zeros_like(g))
-        reward = torch.where(n > 0, self.row_reward[runs, rows] / n.clamp(min=1), torch.zeros_like(n))
+        reward = torch.where(
+            n > 0, self.row_reward[runs, rows] / n.clamp(min=1), torch.zeros_like(n)
+        )
         succ = torch.where(edge >= 0, self.edge_successor[r, edge.clamp(min=0)], edge)
         return reward, succ, weights
 
@@ -429,26 +522,42 @@ class DirichletMentorModel(EdgeStore):
     Rows are states. Demonstrations can be added at any time, to all runs or to some.
     """
 
-    def __init__(self, num_states: int, batch: int, device="cpu", concentration: float = 0.0,
-                 capacity: int = 256):
+    def __init__(
+        self,
+        num_states: int,
+        batch: int,
+        device="cpu",
+        concentration: float = 0.0,
+        capacity: int = 256,
+    ):
         super().__init__(num_states, num_states, batch, device, concentration, capacity)
 
-    def observe(self, sources: torch.Tensor, successors: torch.Tensor,
-                runs: torch.Tensor | None = None) -> None:
-        """Count the transitions ``sources[i] → successors[i]`` for ``runs`` (all by default)."""
+    def observe(
+        self,
+        sources: torch.Tensor,
+        successors: torch.Tensor,
+        runs: torch.Tensor | None = None,
+        counts: torch.Tensor | None = None,
+    ) -> None:
+        """Count the transitions ``sources[i] → successors[i]`` for ``runs`` (all by default),
+        each once, or ``counts[i]`` times (any positive weight: expected counts of an exact
+        model, :class:`~himit_torch.mentor.ExactMentorTransitions`)."""
         if sources.numel() == 0:
             return
         runs = torch.arange(self.batch, device=self.device) if runs is None else runs
         R, T = runs.numel(), sources.numel()
         rr, src, dst = runs.repeat_interleave(T), sources.repeat(R), successors.repeat(R)
         e = self.find_or_add(rr, src, dst)
-        ones = torch.ones(R * T, dtype=torch.float64, device=self.device)
+        if counts is None:
+            ones = torch.ones(R * T, dtype=torch.float64, device=self.device)
+        else:
+            ones = torch.as_tensor(counts, dtype=torch.float64, device=self.device).repeat(R)
         self.edge_count.index_put_((rr, e), ones, accumulate=True)
         self.row_count.index_put_((rr, src), ones, accumulate=True)
 
     def observed(self) -> torch.Tensor:
         """``[B, S]`` bool: states where the mentor was seen leaving (its term exists there)."""
-        return self.row_count[:, :self.num_states] > 0
+        return self.row_count[:, : self.num_states] > 0
 
     def mean(self, runs: torch.Tensor, states: torch.Tensor):
         """``(successors [..., K], probabilities [..., K])`` posterior means ``p_m(s'|s)``."""

@@ -38,10 +38,13 @@ def csr_from_scipy(matrix: sp.csr_matrix) -> torch.Tensor:
     """A torch sparse CSR tensor holding a scipy CSR matrix."""
     with warnings.catch_warnings():  # torch flags sparse CSR as beta on every construction
         warnings.simplefilter("ignore", UserWarning)
-        return torch.sparse_csr_tensor(torch.from_numpy(matrix.indptr.astype(np.int64)),
-                                       torch.from_numpy(matrix.indices.astype(np.int64)),
-                                       torch.from_numpy(matrix.data), size=matrix.shape,
-                                       check_invariants=False)
+        return torch.sparse_csr_tensor(
+            torch.from_numpy(matrix.indptr.astype(np.int64)),
+            torch.from_numpy(matrix.indices.astype(np.int64)),
+            torch.from_numpy(matrix.data),
+            size=matrix.shape,
+            check_invariants=False,
+        )
 
 
 @dataclass(frozen=True)
@@ -90,8 +93,9 @@ class OptionModels:
 _DENSE_LIMIT = 1024
 
 
-def _kernel_entries(P_csr: tuple[np.ndarray, np.ndarray, np.ndarray], policy: np.ndarray,
-                    states: np.ndarray, S: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _kernel_entries(
+    P_csr: tuple[np.ndarray, np.ndarray, np.ndarray], policy: np.ndarray, states: np.ndarray, S: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """One-step kernel rows ``K[states, :]`` under a policy (actions [S] or probabilities [S, A])
     as triplets ``(row, next_state, probability)``, ``row`` indexing ``states``; duplicates (one
     per action of a stochastic policy) are meant to be summed.
@@ -111,21 +115,24 @@ def _kernel_entries(P_csr: tuple[np.ndarray, np.ndarray, np.ndarray], policy: np
     return np.repeat(owner, counts), indices[idx], prob
 
 
-def _dense(rows: np.ndarray, cols: np.ndarray, vals: np.ndarray, shape: tuple[int, int]
-           ) -> np.ndarray:
+def _dense(
+    rows: np.ndarray, cols: np.ndarray, vals: np.ndarray, shape: tuple[int, int]
+) -> np.ndarray:
     """A dense matrix from triplets, summing duplicates."""
     flat = np.bincount(rows * shape[1] + cols, weights=vals, minlength=shape[0] * shape[1])
     return flat.reshape(shape)
 
 
-def _sparse(rows: np.ndarray, cols: np.ndarray, vals: np.ndarray, shape: tuple[int, int]
-            ) -> sp.csr_matrix:
+def _sparse(
+    rows: np.ndarray, cols: np.ndarray, vals: np.ndarray, shape: tuple[int, int]
+) -> sp.csr_matrix:
     """A sparse CSR matrix from triplets, summing duplicates."""
     return sp.csr_matrix((vals, (rows, cols)), shape=shape)
 
 
-def option_models(world, options: Options, gamma: float | None = None,
-                  step_reward: torch.Tensor | None = None) -> OptionModels:
+def option_models(
+    world, options: Options, gamma: float | None = None, step_reward: torch.Tensor | None = None
+) -> OptionModels:
     """Exact multi-time models of every option from every state of its initiation set.
 
     Args:
@@ -157,13 +164,13 @@ def option_models(world, options: Options, gamma: float | None = None,
         policy_all = options.policy.double().numpy()
         sums = policy_all.sum(-1, keepdims=True)
         policy_all = np.divide(policy_all, sums, out=np.zeros_like(policy_all), where=sums > 0)
-    local = np.full(S, -1, dtype=np.int64)        # scratch: state -> index in C (reset per option)
+    local = np.full(S, -1, dtype=np.int64)  # scratch: state -> index in C (reset per option)
 
     row_state, row_option, rewards = [], [], []
-    out_rows, out_cols, out_vals = [], [], []      # triplets of the stacked [M, S] transition
+    out_rows, out_cols, out_vals = [], [], []  # triplets of the stacked [M, S] transition
     offset = 0
     for o in range(options.num_options):
-        policy = policy_all[o]
+        policy = policy_all[o] if options.stochastic else policy_all[o].astype(np.int64)
         stop = np.where(terminal, 1.0, beta_all[o])
         cont = 1.0 - stop
         start = np.flatnonzero(init_all[o])
@@ -198,7 +205,9 @@ def option_models(world, options: Options, gamma: float | None = None,
                     sol = np.linalg.solve(np.eye(nC) - gamma * T_CC, rhs)
                 else:
                     T_CC = _sparse(own[on_C] - nI, local[cols[on_C]], go_on[on_C], (nC, nC))
-                    sol = spla.splu((sp.identity(nC, format="csc") - gamma * T_CC).tocsc()).solve(rhs)
+                    sol = spla.splu((sp.identity(nC, format="csc") - gamma * T_CC).tocsc()).solve(
+                        rhs
+                    )
             except (np.linalg.LinAlgError, RuntimeError) as err:
                 raise _never_terminates(options.names[o], gamma) from err
             if not np.isfinite(sol).all():
@@ -207,7 +216,8 @@ def option_models(world, options: Options, gamma: float | None = None,
             # Continuing first: gamma K[s, C] (1 - beta_C) W_C, only for starts that can continue.
             J, j_row = np.unique(own[on_I], return_inverse=True)
             T_JC = (_dense if nC <= _DENSE_LIMIT else _sparse)(
-                j_row, local[cols[on_I]], go_on[on_I], (J.size, nC))
+                j_row, local[cols[on_I]], go_on[on_I], (J.size, nC)
+            )
             via = np.asarray(gamma * (T_JC @ W))
             jr, jc = np.nonzero(via)
             rows_o.append(J[jr])
@@ -223,21 +233,28 @@ def option_models(world, options: Options, gamma: float | None = None,
         row_option.append(np.full(nI, o))
         rewards.append(r)
         offset += nI
-    T = sp.csr_matrix((np.concatenate(out_vals), (np.concatenate(out_rows), np.concatenate(out_cols))),
-                      shape=(offset, S))
+    T = sp.csr_matrix(
+        (np.concatenate(out_vals), (np.concatenate(out_rows), np.concatenate(out_cols))),
+        shape=(offset, S),
+    )
     T.sum_duplicates()
     T.eliminate_zeros()
     T.sort_indices()
     transition = csr_from_scipy(T)
-    return OptionModels(row_state=torch.from_numpy(np.concatenate(row_state)),
-                        row_option=torch.from_numpy(np.concatenate(row_option)),
-                        reward=torch.from_numpy(np.concatenate(rewards)),
-                        transition=transition, num_options=options.num_options)
+    return OptionModels(
+        row_state=torch.from_numpy(np.concatenate(row_state)),
+        row_option=torch.from_numpy(np.concatenate(row_option)),
+        reward=torch.from_numpy(np.concatenate(rewards)),
+        transition=transition,
+        num_options=options.num_options,
+    )
 
 
 def _never_terminates(name: str, gamma: float) -> ValueError:
-    return ValueError(f"option {name!r} may never terminate from some state (its absorbing chain "
-                      f"is singular at gamma={gamma}); use gamma < 1 or make it terminate")
+    return ValueError(
+        f"option {name!r} may never terminate from some state (its absorbing chain "
+        f"is singular at gamma={gamma}); use gamma < 1 or make it terminate"
+    )
 
 
 def option_durations(world, options: Options) -> OptionModels:

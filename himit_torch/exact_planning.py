@@ -20,8 +20,15 @@ import torch
 from .exact_option_models import OptionModels, option_durations, option_models
 from .options import primitive_options
 
-__all__ = ["value_iteration", "smdp_value_iteration", "PlanResult", "expected_steps",
-           "greedy_option_policy", "OptimalBaseline", "optimal_baseline"]
+__all__ = [
+    "value_iteration",
+    "smdp_value_iteration",
+    "PlanResult",
+    "expected_steps",
+    "greedy_option_policy",
+    "OptimalBaseline",
+    "optimal_baseline",
+]
 
 
 @dataclass(frozen=True)
@@ -35,8 +42,9 @@ class PlanResult:
     iterations: int
 
 
-def value_iteration(P: torch.Tensor, R: torch.Tensor, gamma: float, tol: float = 1e-10,
-                    max_iter: int = 100_000) -> PlanResult:
+def value_iteration(
+    P: torch.Tensor, R: torch.Tensor, gamma: float, tol: float = 1e-10, max_iter: int = 100_000
+) -> PlanResult:
     """Value iteration for a tabular MDP (MDP-toolbox convention).
 
     Args:
@@ -60,7 +68,9 @@ def value_iteration(P: torch.Tensor, R: torch.Tensor, gamma: float, tol: float =
     flat = P.coalesce() if P.is_sparse else P.to_sparse().coalesce()
     idx = flat.indices()
     rows = (idx[0] * S + idx[1]).numpy()
-    stacked = sp.csr_matrix((flat.values().double().numpy(), (rows, idx[2].numpy())), shape=(A * S, S))
+    stacked = sp.csr_matrix(
+        (flat.values().double().numpy(), (rows, idx[2].numpy())), shape=(A * S, S)
+    )
     Rn = R.double().numpy()
     V = np.zeros(S)
     for it in range(1, max_iter + 1):  # noqa: B007 (the count is returned)
@@ -71,12 +81,17 @@ def value_iteration(P: torch.Tensor, R: torch.Tensor, gamma: float, tol: float =
         if delta < tol:
             break
     q = Rn + gamma * (stacked @ V).reshape(A, S).T
-    return PlanResult(values=torch.from_numpy(V), policy=torch.from_numpy(q.argmax(1)),
-                      q=torch.from_numpy(q), iterations=it)
+    return PlanResult(
+        values=torch.from_numpy(V),
+        policy=torch.from_numpy(q.argmax(1)),
+        q=torch.from_numpy(q),
+        iterations=it,
+    )
 
 
-def smdp_value_iteration(models: OptionModels, tol: float = 1e-10, max_iter: int = 100_000
-                         ) -> PlanResult:
+def smdp_value_iteration(
+    models: OptionModels, tol: float = 1e-10, max_iter: int = 100_000
+) -> PlanResult:
     """Value iteration with option models: ``V(s) = max_o r(s, o) + Σ P^o[s, s'] V(s')``.
 
     States with no available option (walls, terminal states) keep ``V = 0``. Returns ``q [M]``
@@ -104,13 +119,18 @@ def smdp_value_iteration(models: OptionModels, tol: float = 1e-10, max_iter: int
     q = torch.empty(order.size, dtype=torch.float64)
     q[torch.from_numpy(order)] = torch.from_numpy(r + Tm @ V)
     values = torch.from_numpy(V)
-    return PlanResult(values=values, policy=greedy_option_policy(models, q, values),
-                      q=q, iterations=it)
+    return PlanResult(
+        values=values, policy=greedy_option_policy(models, q, values), q=q, iterations=it
+    )
 
 
-def greedy_option_policy(models: OptionModels, q: torch.Tensor, values: torch.Tensor,
-                         preferred: torch.Tensor | None = None, tolerance: float = 0.0
-                         ) -> torch.Tensor:
+def greedy_option_policy(
+    models: OptionModels,
+    q: torch.Tensor,
+    values: torch.Tensor,
+    preferred: torch.Tensor | None = None,
+    tolerance: float = 0.0,
+) -> torch.Tensor:
     """Greedy option per state from row values ``q [M]``: ``[S]`` int64, −1 where none.
 
     With ``preferred [O]`` bool and ``tolerance > 0``, a preferred option whose value is within
@@ -135,8 +155,9 @@ def greedy_option_policy(models: OptionModels, q: torch.Tensor, values: torch.Te
     return policy
 
 
-def expected_steps(durations: OptionModels, policy: torch.Tensor, start: int,
-                   terminal: torch.Tensor) -> float:
+def expected_steps(
+    durations: OptionModels, policy: torch.Tensor, start: int, terminal: torch.Tensor
+) -> float:
     """Expected primitive steps from ``start`` until a terminal state, following ``policy [S]``.
 
     Args:
@@ -174,7 +195,7 @@ def expected_steps(durations: OptionModels, policy: torch.Tensor, start: int,
             if row is None or policy[s] < 0:
                 return float("inf")
             rows[s] = row
-            for t in Tm.indices[Tm.indptr[row]:Tm.indptr[row + 1]]:
+            for t in Tm.indices[Tm.indptr[row] : Tm.indptr[row + 1]]:
                 parents.setdefault(int(t), []).append(s)
                 if int(t) not in seen:
                     seen.add(int(t))
@@ -197,7 +218,8 @@ def expected_steps(durations: OptionModels, policy: torch.Tensor, start: int,
     keep = np.isin(sub.col, states)
     n = states.size
     system = sp.identity(n, format="csr") - sp.csr_matrix(
-        (sub.data[keep], (sub.row[keep], [pos[c] for c in sub.col[keep]])), shape=(n, n))
+        (sub.data[keep], (sub.row[keep], [pos[c] for c in sub.col[keep]])), shape=(n, n)
+    )
     dur = durations.reward.numpy()[[rows[s] for s in states]]
     t = spla.spsolve(system.tocsc(), dur)
     value = float(np.atleast_1d(t)[pos[int(start)]])
@@ -226,7 +248,9 @@ def optimal_baseline(world) -> OptimalBaseline:
     options' exact models."""
     prims = primitive_options(world)
     plan = smdp_value_iteration(option_models(world, prims))
-    steps = expected_steps(option_durations(world, prims), plan.policy, world.start_state,
-                           world.terminal_mask)
-    return OptimalBaseline(steps_to_goal=float(steps),
-                           value_start=float(plan.values[world.start_state]))
+    steps = expected_steps(
+        option_durations(world, prims), plan.policy, world.start_state, world.terminal_mask
+    )
+    return OptimalBaseline(
+        steps_to_goal=float(steps), value_start=float(plan.values[world.start_state])
+    )

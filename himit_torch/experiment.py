@@ -32,22 +32,34 @@ from .checkpoints import BatchShape, CheckpointGenerations, NoGoodCheckpoint
 from .exact_option_models import option_durations, option_models
 from .exact_planning import expected_steps, smdp_value_iteration
 from .learner import AGENTS, Learner, LearnerConfig
-from .mentor import mentor_policy, record_demonstrations
+from .mentor import exact_mentor_transitions, mentor_policy, record_demonstrations
 from .options import learner_options, mentor_options, primitive_options
+from .reward import MENTOR_REWARDS, mentor_reward_module
 from .tensorboard_logger import TensorBoardLogger
 from .validation import as_choice, as_float, as_int, as_tuple, check_memory
 from .world import MultiRooms
 
-__all__ = ["ExperimentConfig", "EXPERIMENTS", "run_experiment", "load_config", "WorldResult",
-           "PAPER"]
+__all__ = [
+    "ExperimentConfig",
+    "EXPERIMENTS",
+    "run_experiment",
+    "load_config",
+    "WorldResult",
+    "PAPER",
+]
 
 #: What the paper reports (Section III, Figs. 3–5).
 PAPER = {
     "exp1": {"optimal_goals_per_5000": 26.3, "optimal_steps": 190},
-    "exp2": {"optimal_goals_per_5000": 53.2, "optimal_steps": 94,
-             "non_imitator_failures": "4 of 5 runs never found the goal"},
-    "exp3": {"claim": "the benefit of imitation grows with the world's size (64 → 120); numbers "
-                      "only as a bar chart"},
+    "exp2": {
+        "optimal_goals_per_5000": 53.2,
+        "optimal_steps": 94,
+        "non_imitator_failures": "4 of 5 runs never found the goal",
+    },
+    "exp3": {
+        "claim": "the benefit of imitation grows with the world's size (64 → 120); numbers "
+        "only as a bar chart"
+    },
 }
 
 
@@ -74,8 +86,19 @@ class ExperimentConfig:
     """Primitive steps per run."""
     mentor_episodes: int = 20
     """Mentor episodes recorded (states only) before learning, per seed."""
+    mentor_reward: str = "known"
+    """The reward ``R_m`` the imitating runs give the mentor's transitions (eq. 2): ``known``
+    (the world's own reward, the paper's), ``salience`` (``SalienceReward`` with its defaults,
+    fitted on each seed's own demonstrations: intrinsic, no knowledge of the world's reward) or
+    ``none`` (``ZeroReward``: r_m = 0). See ``himit_torch.reward``."""
     mentor_preference: float | None = None
     """The mentor takes an extended option within this of the best value (None: one step's cost)."""
+    mentor_model: str = "learned"
+    """Where the imitators' mentor model ``p_m(s'|s)`` comes from: ``"learned"`` — counts of the
+    ``mentor_episodes`` recorded demonstrations (the paper); ``"exact"`` — the mentor's exact
+    transition model (:func:`~himit_torch.mentor.exact_mentor_transitions`: expected counts of
+    ``mentor_episodes`` episodes, so the same total mass, at every state the mentor reaches with
+    positive probability). Demonstrations are still recorded for the figures."""
     slip: float = 0.1
     """Probability that an action fails (the paper: 10 %)."""
     window: int = 5000
@@ -97,44 +120,64 @@ class ExperimentConfig:
             _refuse_unknown_fields(self.learner, LearnerConfig, "ExperimentConfig.learner")
             self.learner = LearnerConfig(**self.learner)
         if not isinstance(self.learner, LearnerConfig):
-            raise ValueError(f"ExperimentConfig.learner must be a LearnerConfig or a dict, got "
-                             f"{type(self.learner).__name__}")
+            raise ValueError(
+                f"ExperimentConfig.learner must be a LearnerConfig or a dict, got "
+                f"{type(self.learner).__name__}"
+            )
         if not isinstance(self.name, str) or not self.name:
             raise ValueError(f"ExperimentConfig.name must be a non-empty string, got {self.name!r}")
-        self.sizes = tuple(as_int(f"ExperimentConfig.sizes[{i}]", v, minimum=1)
-                           for i, v in enumerate(as_tuple("ExperimentConfig.sizes", self.sizes)))
+        self.sizes = tuple(
+            as_int(f"ExperimentConfig.sizes[{i}]", v, minimum=1)
+            for i, v in enumerate(as_tuple("ExperimentConfig.sizes", self.sizes))
+        )
         self.agents = as_tuple("ExperimentConfig.agents", self.agents)
         if not all(isinstance(a, str) for a in self.agents):
             raise ValueError(f"ExperimentConfig.agents must be names, got {list(self.agents)}")
         self.room_size = as_int("ExperimentConfig.room_size", self.room_size, minimum=2)
-        for name, minimum in (("seeds", 1), ("first_seed", 0), ("steps", 1),
-                              ("mentor_episodes", 1), ("window", 1), ("checkpoint_every", 1)):
+        for name, minimum in (
+            ("seeds", 1),
+            ("first_seed", 0),
+            ("steps", 1),
+            ("mentor_episodes", 1),
+            ("window", 1),
+            ("checkpoint_every", 1),
+        ):
             setattr(self, name, as_int(f"ExperimentConfig.{name}", getattr(self, name), minimum))
         if not isinstance(self.corner_options, (bool, np.bool_)):
-            raise ValueError(f"ExperimentConfig.corner_options must be true or false, got "
-                             f"{self.corner_options!r}")
+            raise ValueError(
+                f"ExperimentConfig.corner_options must be true or false, got "
+                f"{self.corner_options!r}"
+            )
         self.corner_options = bool(self.corner_options)
         self.slip = as_float("ExperimentConfig.slip", self.slip, 0.0, 1.0, high_open=True)
         if self.mentor_preference is not None:
-            self.mentor_preference = as_float("ExperimentConfig.mentor_preference",
-                                              self.mentor_preference, low=0.0)
+            self.mentor_preference = as_float(
+                "ExperimentConfig.mentor_preference", self.mentor_preference, low=0.0
+            )
         as_choice("ExperimentConfig.engine", self.engine, ("auto", "numba", "torch"))
         if not isinstance(self.device, str):
-            raise ValueError(f"ExperimentConfig.device must be a string such as 'cpu' or 'cuda', "
-                             f"got {self.device!r}")
+            raise ValueError(
+                f"ExperimentConfig.device must be a string such as 'cpu' or 'cuda', "
+                f"got {self.device!r}"
+            )
         try:
             torch.device(self.device)
         except RuntimeError as err:
-            raise ValueError(f"ExperimentConfig.device={self.device!r} is not a torch device "
-                             f"({err}); use e.g. 'cpu' or 'cuda'") from None
+            raise ValueError(
+                f"ExperimentConfig.device={self.device!r} is not a torch device "
+                f"({err}); use e.g. 'cpu' or 'cuda'"
+            ) from None
 
         def bad(name, why):
             raise ValueError(f"ExperimentConfig.{name}={getattr(self, name)!r}: {why}")
+
         if not self.sizes:
             bad("sizes", "needs at least one world size")
         for s in self.sizes:
             if s <= 0 or s % self.room_size:
-                bad("sizes", f"every size must be a positive multiple of room_size={self.room_size}")
+                bad(
+                    "sizes", f"every size must be a positive multiple of room_size={self.room_size}"
+                )
         unknown = sorted(set(self.agents) - set(AGENTS))
         if unknown or not self.agents:
             bad("agents", f"unknown or empty; use some of {sorted(AGENTS)}")
@@ -144,6 +187,10 @@ class ExperimentConfig:
             bad("steps", "must be ≥ 1")
         if self.mentor_episodes < 1:
             bad("mentor_episodes", "must be ≥ 1")
+        if self.mentor_model not in ("learned", "exact"):
+            bad("mentor_model", "use 'learned' or 'exact'")
+        if self.mentor_reward not in MENTOR_REWARDS:
+            bad("mentor_reward", f"use one of {list(MENTOR_REWARDS)}")
         if self.window < 1 or self.checkpoint_every < 1 or self.checkpoint_every % self.window:
             bad("checkpoint_every", f"must be a positive multiple of window={self.window}")
         if self.learner.window != self.window:
@@ -155,21 +202,28 @@ class ExperimentConfig:
         hours later when that world's turn comes. Called by :func:`run_experiment` (not on
         construction, so that defining an experiment never depends on the memory free now)."""
         for size in self.sizes:
-            check_memory(f"ExperimentConfig: world {size}×{size} with its options and a batch of "
-                         f"{len(self.agents) * self.seeds} runs", self.estimate_bytes(size),
-                         "use smaller sizes, fewer agents or seeds")
+            check_memory(
+                f"ExperimentConfig: world {size}×{size} with its options and a batch of "
+                f"{len(self.agents) * self.seeds} runs",
+                self.estimate_bytes(size),
+                "use smaller sizes, fewer agents or seeds",
+            )
 
     def estimate_bytes(self, size: int) -> int:
         """Rough bytes one world of this experiment needs: the world, the learner's and the
         mentor's dense option tables and the batch's per-run tables (the constants of
         ``MultiRooms``, ``options`` and ``Learner``)."""
         from .options import BYTES_PER_OPTION_STATE
+
         S, R = size * size, size // self.room_size
         options = 4 + 4 * R * (R - 1) + (8 * R * R if self.corner_options else 0)
         rows = 4 * S + (options - 4) * (self.room_size - 1) ** 2
         batch = len(self.agents) * self.seeds
-        return (S * MultiRooms.BYTES_PER_STATE + 2 * options * S * BYTES_PER_OPTION_STATE
-                + batch * (S * Learner.BYTES_PER_RUN_STATE + rows * Learner.BYTES_PER_RUN_ROW))
+        return (
+            S * MultiRooms.BYTES_PER_STATE
+            + 2 * options * S * BYTES_PER_OPTION_STATE
+            + batch * (S * Learner.BYTES_PER_RUN_STATE + rows * Learner.BYTES_PER_RUN_ROW)
+        )
 
     def to_json(self) -> str:
         return json.dumps(asdict(self), indent=2)
@@ -179,9 +233,14 @@ class ExperimentConfig:
 
     def quick(self) -> ExperimentConfig:
         """A tiny budget of the same experiment, for smoke tests and ``--quick``."""
-        return replace(self, seeds=min(self.seeds, 2), steps=min(self.steps, 4 * self.window),
-                       sizes=self.sizes[:2], checkpoint_every=self.window,
-                       mentor_episodes=min(self.mentor_episodes, 5))
+        return replace(
+            self,
+            seeds=min(self.seeds, 2),
+            steps=min(self.steps, 4 * self.window),
+            sizes=self.sizes[:2],
+            checkpoint_every=self.window,
+            mentor_episodes=min(self.mentor_episodes, 5),
+        )
 
 
 def _paper_learner() -> LearnerConfig:
@@ -195,14 +254,31 @@ def _paper_learner() -> LearnerConfig:
 
 #: The paper's three experiments with our defaults (see ``experiments/results/results.md``).
 EXPERIMENTS: dict[str, ExperimentConfig] = {
-    "exp1": ExperimentConfig(name="exp1", sizes=(80,), room_size=8, corner_options=True,
-                             steps=300_000, learner=_paper_learner()),
-    "exp2": ExperimentConfig(name="exp2", sizes=(40,), room_size=4, corner_options=False,
-                             steps=200_000, learner=_paper_learner()),
-    "exp3": ExperimentConfig(name="exp3", sizes=(64, 80, 96, 120), room_size=8,
-                             corner_options=True, steps=130_000,
-                             agents=("imitation", "options", "primitives"),
-                             learner=_paper_learner()),
+    "exp1": ExperimentConfig(
+        name="exp1",
+        sizes=(80,),
+        room_size=8,
+        corner_options=True,
+        steps=300_000,
+        learner=_paper_learner(),
+    ),
+    "exp2": ExperimentConfig(
+        name="exp2",
+        sizes=(40,),
+        room_size=4,
+        corner_options=False,
+        steps=200_000,
+        learner=_paper_learner(),
+    ),
+    "exp3": ExperimentConfig(
+        name="exp3",
+        sizes=(64, 80, 96, 120),
+        room_size=8,
+        corner_options=True,
+        steps=130_000,
+        agents=("imitation", "options", "primitives"),
+        learner=_paper_learner(),
+    ),
 }
 
 
@@ -272,8 +348,9 @@ def _optimum(world: MultiRooms) -> tuple[float, float]:
     """Expected steps of the optimal (primitive) policy from start to goal, and V*(start)."""
     prims = primitive_options(world)
     plan = smdp_value_iteration(option_models(world, prims))
-    steps = expected_steps(option_durations(world, prims), plan.policy, world.start_state,
-                           world.terminal_mask)
+    steps = expected_steps(
+        option_durations(world, prims), plan.policy, world.start_state, world.terminal_mask
+    )
     return steps, float(plan.values[world.start_state])
 
 
@@ -282,14 +359,32 @@ def _hparams(config: ExperimentConfig, size: int, agent: str) -> dict:
     experiment and world, and every setting that differs from the library's defaults (the seed
     never: the seeds of one group are what the dashboard aggregates)."""
     hp = {"agent": agent, "experiment": config.name, "world": f"{size}×{size}"}
-    skip = {"name", "sizes", "agents", "seeds", "first_seed", "device", "checkpoint_every",
-            "learner"}
+    skip = {
+        "name",
+        "sizes",
+        "agents",
+        "seeds",
+        "first_seed",
+        "device",
+        "checkpoint_every",
+        "learner",
+    }
     default = ExperimentConfig()
-    hp.update({f.name: getattr(config, f.name) for f in fields(config)
-               if f.name not in skip and getattr(config, f.name) != getattr(default, f.name)})
+    hp.update(
+        {
+            f.name: getattr(config, f.name)
+            for f in fields(config)
+            if f.name not in skip and getattr(config, f.name) != getattr(default, f.name)
+        }
+    )
     default_learner = LearnerConfig(window=config.window)
-    hp.update({f.name: getattr(config.learner, f.name) for f in fields(config.learner)
-               if getattr(config.learner, f.name) != getattr(default_learner, f.name)})
+    hp.update(
+        {
+            f.name: getattr(config.learner, f.name)
+            for f in fields(config.learner)
+            if getattr(config.learner, f.name) != getattr(default_learner, f.name)
+        }
+    )
     return hp
 
 
@@ -305,8 +400,13 @@ def _state_layout_version() -> int:
     return int(getattr(Learner, "STATE_LAYOUT_VERSION", 1))
 
 
-def _resume(generations: CheckpointGenerations, learner: Learner, batch: BatchShape, layout: int,
-            config: ExperimentConfig) -> float:
+def _resume(
+    generations: CheckpointGenerations,
+    learner: Learner,
+    batch: BatchShape,
+    layout: int,
+    config: ExperimentConfig,
+) -> float:
     """Restore ``learner`` from the newest good checkpoint generation; returns the wall seconds
     the run had used. Nothing saved yet: the learner is left as it is (a run killed before its
     first checkpoint starts over). A damaged newest file: one line on stderr, then the previous
@@ -317,8 +417,9 @@ def _resume(generations: CheckpointGenerations, learner: Learner, batch: BatchSh
             batch, or it does not fit this learner; the message names the file.
     """
     try:
-        resumed = generations.load(map_location=config.device, expect_batch=batch,
-                                   expect_layout=layout)
+        resumed = generations.load(
+            map_location=config.device, expect_batch=batch, expect_layout=layout
+        )
     except NoGoodCheckpoint as err:
         raise ValueError(f"--resume: {err}; start over with --force") from None
     if resumed is None:
@@ -328,11 +429,15 @@ def _resume(generations: CheckpointGenerations, learner: Learner, batch: BatchSh
         if skipped.step is not None and skipped.step > found.header.step:
             redo = f"{skipped.step - found.header.step} steps will be redone"
         else:
-            redo = (f"the steps after it (up to checkpoint_every={config.checkpoint_every}) will "
-                    "be redone")
-        print(f"himit: warning: {skipped.path}: {skipped.reason}; resuming from "
-              f"{(found.path or generations.newest).name} at step {found.header.step}: {redo}",
-              file=sys.stderr)
+            redo = (
+                f"the steps after it (up to checkpoint_every={config.checkpoint_every}) will "
+                "be redone"
+            )
+        print(
+            f"himit: warning: {skipped.path}: {skipped.reason}; resuming from "
+            f"{(found.path or generations.newest).name} at step {found.header.step}: {redo}",
+            file=sys.stderr,
+        )
     payload = found.payload
     if not isinstance(payload, dict) or not isinstance(payload.get("learner"), dict):
         raise ValueError(f"{found.path} holds no learner state; start over with --force")
@@ -344,27 +449,55 @@ def _resume(generations: CheckpointGenerations, learner: Learner, batch: BatchSh
         raise ValueError(
             f"{found.path} (step {found.header.step}) could not be restored into this learner "
             f"({type(err).__name__}: {err}) although its state layout version {layout} is this "
-            "himit_torch's: please report it; start over with --force") from None
+            "himit_torch's: please report it; start over with --force"
+        ) from None
     elapsed = payload.get("elapsed", 0.0)
     return float(elapsed) if isinstance(elapsed, (int, float)) else 0.0
 
 
-def run_world(config: ExperimentConfig, size: int, run_dir: Path, resume: bool,
-              progress: bool = True, on_window: Callable | None = None) -> WorldResult:
+def run_world(
+    config: ExperimentConfig,
+    size: int,
+    run_dir: Path,
+    resume: bool,
+    progress: bool = True,
+    on_window: Callable | None = None,
+) -> WorldResult:
     """Run every agent × seed of one world in one batch (resuming from its checkpoint)."""
     world = config.world(size)
-    options = learner_options(world, corners=config.corner_options)
-    mentor = mentor_policy(world, mentor_options(world, corners=config.corner_options),
-                           config.mentor_preference)
     seeds = list(range(config.first_seed, config.first_seed + config.seeds))
     agents = [a for a in config.agents for _ in seeds]
     run_seeds = [s for _ in config.agents for s in seeds]
-    learner = Learner(world, options, agents, run_seeds, config=config.learner,
-                      device=config.device, engine=config.engine)
-    demos = {}
+    # The mentor (its own [O, S] option tables: 0.23 GB on 120×120 with corners) records every
+    # seed's episodes and is gone before the learner's tables are built, so the two never share
+    # the process's peak memory. Each seed's episodes come from its own generator: the order
+    # changes nothing.
+    mentor = mentor_policy(
+        world, mentor_options(world, corners=config.corner_options), config.mentor_preference
+    )
+    demos = {s: record_demonstrations(world, mentor, config.mentor_episodes, seed=s) for s in seeds}
+    exact = (
+        exact_mentor_transitions(world, mentor, float(config.mentor_episodes))
+        if config.mentor_model == "exact"
+        else None
+    )
+    del mentor
+    options = learner_options(world, corners=config.corner_options)
+    learner = Learner(
+        world,
+        options,
+        agents,
+        run_seeds,
+        config=config.learner,
+        reward=mentor_rewards(config, world, agents, run_seeds, demos),
+        device=config.device,
+        engine=config.engine,
+    )
     for s in seeds:  # each seed watches its own mentor episodes
-        demos[s] = record_demonstrations(world, mentor, config.mentor_episodes, seed=s)
-        learner.add_demonstrations(demos[s], runs=[b for b, rs in enumerate(run_seeds) if rs == s])
+        learner.add_demonstrations(
+            demos[s] if exact is None else exact,
+            runs=[b for b, rs in enumerate(run_seeds) if rs == s],
+        )
     generations = CheckpointGenerations(run_dir / "checkpoints" / f"world{size}.pt")
     batch = BatchShape(tuple(agents), tuple(run_seeds), world.num_states)
     layout = _state_layout_version()
@@ -377,9 +510,15 @@ def run_world(config: ExperimentConfig, size: int, run_dir: Path, resume: bool,
     optimal_steps, true_v = _optimum(world)
     # A resumed run purges what it logged after its last checkpoint (windows up to t were logged
     # before the checkpoint); a fresh one refuses folders that hold another run's events.
-    logger = TensorBoardLogger(run_dir / "tb", names, world=world, options=options,
-                               true_value_start=true_v, initial_value=config.learner.initial_value,
-                               resume_step=learner.t if resume else None)
+    logger = TensorBoardLogger(
+        run_dir / "tb",
+        names,
+        world=world,
+        options=options,
+        true_value_start=true_v,
+        initial_value=config.learner.initial_value,
+        resume_step=learner.t if resume else None,
+    )
     if not resume or learner.t == 0:
         for b in range(learner.batch):
             logger.text(b, "settings", f"seed {run_seeds[b]}\n\n```\n{config.to_json()}\n```")
@@ -389,15 +528,25 @@ def run_world(config: ExperimentConfig, size: int, run_dir: Path, resume: bool,
     # ... half-way and at the end (drawing them costs ≈ 0.2 s a run: at every checkpoint they
     # took longer than the learning itself)
     maps_every = config.checkpoint_every * max(1, round(config.steps / 2 / config.checkpoint_every))
-    mentor_visits = {b: torch.bincount(torch.cat([torch.as_tensor(e) for e in
-                                                  demos[run_seeds[b]].episodes]),
-                                       minlength=world.num_states) for b in map_runs}
+    mentor_visits = {
+        b: torch.bincount(
+            torch.cat([torch.as_tensor(e) for e in demos[run_seeds[b]].episodes]),
+            minlength=world.num_states,
+        )
+        for b in map_runs
+    }
     logged = len(learner.metrics.steps)
     bar = None
     if progress:
         from tqdm.auto import tqdm
-        bar = tqdm(total=config.steps, initial=learner.t, unit="step", mininterval=1.0,
-                   desc=f"{config.name} {size}×{size} B={learner.batch}")
+
+        bar = tqdm(
+            total=config.steps,
+            initial=learner.t,
+            unit="step",
+            mininterval=1.0,
+            desc=f"{config.name} {size}×{size} B={learner.batch}",
+        )
     start = time.perf_counter()
     while learner.t < config.steps:
         chunk = min(config.window - learner.t % config.window, config.steps - learner.t)
@@ -413,34 +562,76 @@ def run_world(config: ExperimentConfig, size: int, run_dir: Path, resume: bool,
             logger.maps(learner, map_runs, learner.t, mentor_visits)
         if learner.t % config.checkpoint_every == 0 or learner.t == config.steps:
             logger.flush()  # everything logged so far is on disk before the checkpoint says so
-            generations.save({"learner": learner.state_dict(),
-                              "elapsed": elapsed + time.perf_counter() - start},
-                             step=learner.t, batch=batch, state_layout_version=layout)
+            generations.save(
+                {"learner": learner.state_dict(), "elapsed": elapsed + time.perf_counter() - start},
+                step=learner.t,
+                batch=batch,
+                state_layout_version=layout,
+            )
     if bar is not None:
         bar.close()
     wall = elapsed + time.perf_counter() - start
     m = learner.metrics
     result = WorldResult(
-        size=size, rooms=world.rooms, agents=agents, seeds=run_seeds, optimal_steps=optimal_steps,
-        optimal_goals_per_window=config.window / optimal_steps, goals=learner.goals.tolist(),
+        size=size,
+        rooms=world.rooms,
+        agents=agents,
+        seeds=run_seeds,
+        optimal_steps=optimal_steps,
+        optimal_goals_per_window=config.window / optimal_steps,
+        goals=learner.goals.tolist(),
         first_goal_step=learner.first_goal_step.tolist(),
-        final_window_goals=(m.goals_in_window[-1].tolist() if m.goals_in_window else [0] * len(agents)),
-        value_start=learner.state_values()[:, world.start_state].tolist(), true_value_start=true_v,
-        mentor_term_wins=learner.mentor_win_share().tolist(), wall_seconds=wall, steps=learner.t,
-        engine=learner.engine.name, commit=source_commit())
+        final_window_goals=(
+            m.goals_in_window[-1].tolist() if m.goals_in_window else [0] * len(agents)
+        ),
+        value_start=learner.state_values()[:, world.start_state].tolist(),
+        true_value_start=true_v,
+        mentor_term_wins=learner.mentor_win_share().tolist(),
+        wall_seconds=wall,
+        steps=learner.t,
+        engine=learner.engine.name,
+        commit=source_commit(),
+    )
     # A run that never found the goal counts as finding it just after its end.
     firsts = [f if f >= 0 else learner.t + 1 for f in result.first_goal_step]
-    logger.hparams([_hparams(config, size, a) for a in agents],
-                   [{"hparam/total_goals": result.goals[b],
-                     "hparam/final_window_goals": result.final_window_goals[b],
-                     "hparam/first_goal_step": firsts[b],
-                     "hparam/value_start": result.value_start[b]} for b in range(learner.batch)],
-                   learner.t)
+    logger.hparams(
+        [_hparams(config, size, a) for a in agents],
+        [
+            {
+                "hparam/total_goals": result.goals[b],
+                "hparam/final_window_goals": result.final_window_goals[b],
+                "hparam/first_goal_step": firsts[b],
+                "hparam/value_start": result.value_start[b],
+            }
+            for b in range(learner.batch)
+        ],
+        learner.t,
+    )
     logger.close()
     _write_curves(run_dir / "worlds" / f"curves{size}.csv", learner, size)
     _atomic_write(run_dir / "worlds" / f"world{size}.json", json.dumps(asdict(result), indent=1))
-    _world_figure(run_dir, config, world, demos[seeds[0]], learner, agents, run_seeds, seeds[0], size)
+    _world_figure(
+        run_dir, config, world, demos[seeds[0]], learner, agents, run_seeds, seeds[0], size
+    )
     return result
+
+
+def mentor_rewards(config: ExperimentConfig, world, agents, run_seeds, demos) -> list | None:
+    """The reward modules of a batch for ``config.mentor_reward``: ``None`` for ``known`` (the
+    learner's default, :class:`~himit_torch.KnownReward`), else one module per run — fitted on
+    that run's seed's demonstrations for ``salience`` — and ``None`` for runs that do not imitate."""
+    if config.mentor_reward == "known":
+        return None
+    modules: list = []
+    fitted: dict = {}
+    for agent, seed in zip(agents, run_seeds):
+        if not AGENTS[agent][1]:  # the variant has no mentor term
+            modules.append(None)
+            continue
+        if seed not in fitted:
+            fitted[seed] = mentor_reward_module(config.mentor_reward, world, demos[seed])
+        modules.append(fitted[seed])
+    return modules
 
 
 def _write_curves(path: Path, learner: Learner, size: int) -> None:
@@ -449,31 +640,63 @@ def _write_curves(path: Path, learner: Learner, size: int) -> None:
     tmp = path.with_suffix(".tmp")
     with tmp.open("w", newline="") as f:
         out = csv.writer(f)
-        out.writerow(["world", "agent", "seed", "step", "goals_in_window", "epsilon", "episodes",
-                      "mean_episode_steps", "backups", "decisions", "mentor_term_wins"])
+        out.writerow(
+            [
+                "world",
+                "agent",
+                "seed",
+                "step",
+                "goals_in_window",
+                "epsilon",
+                "episodes",
+                "mean_episode_steps",
+                "backups",
+                "decisions",
+                "mentor_term_wins",
+            ]
+        )
         for i, step in enumerate(m.steps):
             for b in range(learner.batch):
-                out.writerow([size, learner.agents[b], learner.seeds[b], step,
-                              int(m.goals_in_window[i][b]), f"{float(m.epsilon[i][b]):.5f}",
-                              int(m.episodes[i][b]), f"{float(m.mean_episode_steps[i][b]):.2f}",
-                              int(m.backups[i][b]), int(m.decisions[i][b]),
-                              f"{float(m.mentor_term_wins[i][b]):.4f}"])
+                out.writerow(
+                    [
+                        size,
+                        learner.agents[b],
+                        learner.seeds[b],
+                        step,
+                        int(m.goals_in_window[i][b]),
+                        f"{float(m.epsilon[i][b]):.5f}",
+                        int(m.episodes[i][b]),
+                        f"{float(m.mean_episode_steps[i][b]):.2f}",
+                        int(m.backups[i][b]),
+                        int(m.decisions[i][b]),
+                        f"{float(m.mentor_term_wins[i][b]):.4f}",
+                    ]
+                )
     os.replace(tmp, path)
 
 
 def _world_figure(run_dir, config, world, demos, learner, agents, run_seeds, seed, size):
     from .plotting import save_world_figure
+
     fig_dir = run_dir / "figures"
     fig_dir.mkdir(parents=True, exist_ok=True)
-    imitator = next((b for b, a in enumerate(agents) if run_seeds[b] == seed and a.startswith("imitation")),
-                    None)
+    imitator = next(
+        (b for b, a in enumerate(agents) if run_seeds[b] == seed and a.startswith("imitation")),
+        None,
+    )
     learned = None
     if imitator is not None:
-        learned = learner.greedy_trajectory(imitator, max_steps=20 * size * size // config.room_size, seed=seed)
-    save_world_figure(fig_dir / f"fig2_world{size}.png", world, demonstrations=demos,
-                      learner_states=learned,
-                      title=f"{size}×{size}, {world.rooms}×{world.rooms} rooms: mentor (states only) "
-                            f"and the imitator's greedy path")
+        learned = learner.greedy_trajectory(
+            imitator, max_steps=20 * size * size // config.room_size, seed=seed
+        )
+    save_world_figure(
+        fig_dir / f"fig2_world{size}.png",
+        world,
+        demonstrations=demos,
+        learner_states=learned,
+        title=f"{size}×{size}, {world.rooms}×{world.rooms} rooms: mentor (states only) "
+        f"and the imitator's greedy path",
+    )
 
 
 # ================================================================================ the runner
@@ -481,13 +704,25 @@ def source_commit() -> str:
     """The git commit of the code that runs (``+dirty`` if it has uncommitted changes), or
     ``"unknown"`` outside a git checkout: recorded with every result."""
     import subprocess
+
     root = Path(__file__).resolve().parent.parent
     try:
-        commit = subprocess.run(["git", "rev-parse", "--short=12", "HEAD"], cwd=root, text=True,
-                                capture_output=True, timeout=10, check=True).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", "--",
-                                "himit_torch"], cwd=root, text=True, capture_output=True,
-                               timeout=10, check=True).stdout.strip()
+        commit = subprocess.run(
+            ["git", "rev-parse", "--short=12", "HEAD"],
+            cwd=root,
+            text=True,
+            capture_output=True,
+            timeout=10,
+            check=True,
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=no", "--", "himit_torch"],
+            cwd=root,
+            text=True,
+            capture_output=True,
+            timeout=10,
+            check=True,
+        ).stdout.strip()
     except (OSError, subprocess.SubprocessError):
         return "unknown"
     return commit + ("+dirty" if dirty else "")
@@ -499,16 +734,25 @@ def _check_run_dir(run_dir: Path, resume: bool, force: bool) -> None:
     if force:
         return
     if finished and not resume:
-        raise ValueError(f"{run_dir} already holds a finished run; choose another --logdir or pass "
-                         "--force to overwrite it")
+        raise ValueError(
+            f"{run_dir} already holds a finished run; choose another --logdir or pass "
+            "--force to overwrite it"
+        )
     if started and not finished and not resume:
-        raise ValueError(f"{run_dir} holds an unfinished run; pass --resume to continue it or "
-                         "--force to start over")
+        raise ValueError(
+            f"{run_dir} holds an unfinished run; pass --resume to continue it or "
+            "--force to start over"
+        )
 
 
-def run_experiment(config: ExperimentConfig, run_dir: str | os.PathLike, resume: bool = False,
-                   force: bool = False, progress: bool = True, workers: int | None = None
-                   ) -> list[WorldResult]:
+def run_experiment(
+    config: ExperimentConfig,
+    run_dir: str | os.PathLike,
+    resume: bool = False,
+    force: bool = False,
+    progress: bool = True,
+    workers: int | None = None,
+) -> list[WorldResult]:
     """Run an experiment into ``run_dir``: every world, then figures and ``results.md``.
 
     ``resume=True`` continues an interrupted run from its checkpoints (the configuration must be
@@ -525,6 +769,7 @@ def run_experiment(config: ExperimentConfig, run_dir: str | os.PathLike, resume:
     _check_run_dir(run_dir, resume, force)
     if force and run_dir.exists():
         import shutil
+
         for sub in ("checkpoints", "tb", "worlds", "figures"):
             shutil.rmtree(run_dir / sub, ignore_errors=True)
         for f in ("results.md", "curves.csv", "config.json"):
@@ -534,9 +779,11 @@ def run_experiment(config: ExperimentConfig, run_dir: str | os.PathLike, resume:
     if resume and cfg_path.exists():
         saved = load_config(cfg_path)
         if asdict(saved) != asdict(config):
-            raise ValueError(f"--resume: {cfg_path} holds a different configuration than the one "
-                             "given; resume with the saved one (--config "
-                             f"{cfg_path}) or start over with --force")
+            raise ValueError(
+                f"--resume: {cfg_path} holds a different configuration than the one "
+                "given; resume with the saved one (--config "
+                f"{cfg_path}) or start over with --force"
+            )
     _atomic_write(cfg_path, config.to_json())
     finished = {}
     for size in config.sizes:
@@ -549,11 +796,18 @@ def run_experiment(config: ExperimentConfig, run_dir: str | os.PathLike, resume:
     if workers > 1:
         import multiprocessing
         from concurrent.futures import ProcessPoolExecutor
+
         # "spawn": a forked child of a process whose OpenMP threads already ran can hang.
-        with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"),
-                                 initializer=_share_cores, initargs=(max(1, cores // workers),)) as pool:
-            futures = {size: pool.submit(run_world, config, size, run_dir, resume, False)
-                       for size in sorted(todo, reverse=True)}      # the largest worlds first
+        with ProcessPoolExecutor(
+            workers,
+            mp_context=multiprocessing.get_context("spawn"),
+            initializer=_share_cores,
+            initargs=(max(1, cores // workers),),
+        ) as pool:
+            futures = {
+                size: pool.submit(run_world, config, size, run_dir, resume, False)
+                for size in sorted(todo, reverse=True)
+            }  # the largest worlds first
             for size, future in futures.items():
                 finished[size] = future.result()
                 if progress:
@@ -564,6 +818,7 @@ def run_experiment(config: ExperimentConfig, run_dir: str | os.PathLike, resume:
     results = [finished[size] for size in config.sizes]
     _merge_curves(run_dir, config)
     from .report import write_figures, write_results
+
     write_figures(run_dir, config, results)
     write_results(run_dir, config, results)
     return results

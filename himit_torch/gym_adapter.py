@@ -54,9 +54,14 @@ GYM_ACTION_NAMES = {
 }
 
 
-def from_gymnasium(env: Any, gamma: float = 0.99, *, start_distribution=None,
-                   terminal_states: Iterable[int] | torch.Tensor | None = None,
-                   **kwargs) -> TableWorld:
+def from_gymnasium(
+    env: Any,
+    gamma: float = 0.99,
+    *,
+    start_distribution=None,
+    terminal_states: Iterable[int] | torch.Tensor | None = None,
+    **kwargs,
+) -> TableWorld:
     """A batched world with the true model of a tabular Gymnasium environment.
 
     Args:
@@ -85,80 +90,119 @@ def from_gymnasium(env: Any, gamma: float = 0.99, *, start_distribution=None,
     if isinstance(env, str):
         env_id = env
         env = gymnasium.make(env_id, **kwargs)
-        made_kwargs = {k: v for k, v in dict(env.spec.kwargs if env.spec else kwargs).items()
-                       if k != "render_mode"}
+        made_kwargs = {
+            k: v
+            for k, v in dict(env.spec.kwargs if env.spec else kwargs).items()
+            if k != "render_mode"
+        }
     else:
         if kwargs:
-            raise ValueError(f"from_gymnasium: keyword arguments {sorted(kwargs)} are for "
-                             "gymnasium.make and need an environment id, not an environment object")
+            raise ValueError(
+                f"from_gymnasium: keyword arguments {sorted(kwargs)} are for "
+                "gymnasium.make and need an environment id, not an environment object"
+            )
         spec = getattr(env, "spec", None)
         env_id = spec.id if spec is not None else None  # type: ignore[assignment]
-        made_kwargs = {k: v for k, v in dict(spec.kwargs if spec is not None else {}).items()
-                       if k != "render_mode"}
+        made_kwargs = {
+            k: v
+            for k, v in dict(spec.kwargs if spec is not None else {}).items()
+            if k != "render_mode"
+        }
     raw = getattr(env, "unwrapped", env)
     label = env_id or type(raw).__name__
-    S, A = _discrete_size(raw, "observation_space", label), _discrete_size(raw, "action_space", label)
+    S, A = (
+        _discrete_size(raw, "observation_space", label),
+        _discrete_size(raw, "action_space", label),
+    )
     if getattr(raw, "fickle_passenger", False):
-        raise ValueError(f"from_gymnasium({label}): fickle_passenger=True changes the destination "
-                         "inside step(), outside the tabular model P; use fickle_passenger=False")
+        raise ValueError(
+            f"from_gymnasium({label}): fickle_passenger=True changes the destination "
+            "inside step(), outside the tabular model P; use fickle_passenger=False"
+        )
     P = getattr(raw, "P", None)
     if P is None:
-        raise ValueError(f"from_gymnasium({label}): the environment has no tabular model: its "
-                         "unwrapped object needs P[s][a] = [(probability, next state, reward, "
-                         "terminated), …] for every state s and action a (as Gymnasium's toy-text "
-                         "environments have)")
+        raise ValueError(
+            f"from_gymnasium({label}): the environment has no tabular model: its "
+            "unwrapped object needs P[s][a] = [(probability, next state, reward, "
+            "terminated), …] for every state s and action a (as Gymnasium's toy-text "
+            "environments have)"
+        )
     succ, prob, rew, term = _read_model(P, S, A, label)
-    cdf = np.cumsum(prob, axis=-1)                       # NumPy's order of sums, as in step()
+    cdf = np.cumsum(prob, axis=-1)  # NumPy's order of sums, as in step()
     last = cdf[..., -1]
     if np.abs(last - 1.0).max() > 1e-9:
         s, a = np.unravel_index(np.abs(last - 1.0).argmax(), last.shape)
-        raise ValueError(f"from_gymnasium({label}): P[{s}][{a}] probabilities sum to "
-                         f"{float(last[s, a])!r}, not 1")
+        raise ValueError(
+            f"from_gymnasium({label}): P[{s}][{a}] probabilities sum to "
+            f"{float(last[s, a])!r}, not 1"
+        )
     cdf[..., -1] = 1.0
     table = DynamicsTable(torch.from_numpy(succ), torch.from_numpy(cdf), torch.from_numpy(rew))
 
     if start_distribution is None:
         start_distribution = getattr(raw, "initial_state_distrib", None)
         if start_distribution is None:
-            raise ValueError(f"from_gymnasium({label}): the environment has no "
-                             "initial_state_distrib; pass start_distribution=[S] probabilities")
+            raise ValueError(
+                f"from_gymnasium({label}): the environment has no "
+                "initial_state_distrib; pass start_distribution=[S] probabilities"
+            )
         given_start = None
     else:
         given_start = [float(x) for x in torch.as_tensor(start_distribution, dtype=torch.float64)]
     start = torch.as_tensor(np.asarray(start_distribution, dtype=np.float64))
     if start.shape != (S,):
-        raise ValueError(f"from_gymnasium({label}): start distribution of shape "
-                         f"{tuple(start.shape)}, expected [S] = [{S}]")
+        raise ValueError(
+            f"from_gymnasium({label}): start distribution of shape "
+            f"{tuple(start.shape)}, expected [S] = [{S}]"
+        )
 
     if terminal_states is None:
-        terminal = _terminal_from_flags(succ, prob, term, start.numpy(), label, GYM_ACTION_NAMES.get(
-            type(raw).__name__))
+        terminal = _terminal_from_flags(
+            succ, prob, term, start.numpy(), label, GYM_ACTION_NAMES.get(type(raw).__name__)
+        )
         given_terminal = None
     else:
         terminal = _mask(terminal_states, S, label)
         given_terminal = terminal.nonzero()[:, 0].tolist()
 
     fingerprint = table_fingerprint(table, terminal, start)
-    if env_id is None:   # identified by the model alone (rebuilding needs the env object)
-        description = {"kind": "gymnasium", "id": None, "class": type(raw).__name__,
-                       "gamma": float(gamma), "fingerprint": fingerprint}
+    if env_id is None:  # identified by the model alone (rebuilding needs the env object)
+        description = {
+            "kind": "gymnasium",
+            "id": None,
+            "class": type(raw).__name__,
+            "gamma": float(gamma),
+            "fingerprint": fingerprint,
+        }
     else:
         try:
             json.dumps(made_kwargs)
         except TypeError:
-            raise ValueError(f"from_gymnasium({label}): keyword arguments {made_kwargs!r} are not "
-                             "JSON-able, so the world cannot be described for saved "
-                             "demonstrations") from None
-        description = {"kind": "gymnasium", "id": env_id, "kwargs": made_kwargs,
-                       "gamma": float(gamma)}
+            raise ValueError(
+                f"from_gymnasium({label}): keyword arguments {made_kwargs!r} are not "
+                "JSON-able, so the world cannot be described for saved "
+                "demonstrations"
+            ) from None
+        description = {
+            "kind": "gymnasium",
+            "id": env_id,
+            "kwargs": made_kwargs,
+            "gamma": float(gamma),
+        }
         if given_start is not None:
             description["start_distribution"] = given_start
         if given_terminal is not None:
             description["terminal_states"] = given_terminal
         description["fingerprint"] = fingerprint
-    world = TableWorld(table, start, terminal, gamma=gamma,
-                       action_names=GYM_ACTION_NAMES.get(type(raw).__name__),
-                       description=description, name=label)
+    world = TableWorld(
+        table,
+        start,
+        terminal,
+        gamma=gamma,
+        action_names=GYM_ACTION_NAMES.get(type(raw).__name__),
+        description=description,
+        name=label,
+    )
     world.env = raw  # type: ignore[attr-defined]  # extra attributes of a Gymnasium world
     world.gym_id, world.gym_kwargs = env_id, made_kwargs  # type: ignore[attr-defined]
     return world
@@ -168,17 +212,24 @@ def world_from_description(description: Mapping) -> TableWorld:
     """Rebuild a :func:`from_gymnasium` world from its ``describe()`` dict (the id and kwargs),
     refusing it if the model's fingerprint differs (another Gymnasium version, say)."""
     if description.get("id") is None:
-        raise ValueError("a Gymnasium world made from an environment object without an id cannot "
-                         "be rebuilt from its description; pass the world itself")
-    world = from_gymnasium(description["id"], gamma=description.get("gamma", 0.99),
-                           start_distribution=description.get("start_distribution"),
-                           terminal_states=description.get("terminal_states"),
-                           **description.get("kwargs", {}))
+        raise ValueError(
+            "a Gymnasium world made from an environment object without an id cannot "
+            "be rebuilt from its description; pass the world itself"
+        )
+    world = from_gymnasium(
+        description["id"],
+        gamma=description.get("gamma", 0.99),
+        start_distribution=description.get("start_distribution"),
+        terminal_states=description.get("terminal_states"),
+        **description.get("kwargs", {}),
+    )
     mine, theirs = world.describe().get("fingerprint"), description.get("fingerprint")
     if theirs is not None and mine != theirs:
-        raise ValueError(f"{description['id']} with kwargs {description.get('kwargs')} has "
-                         f"another model here (fingerprint {mine}, described {theirs}): the "
-                         "installed Gymnasium's environment differs from the one described")
+        raise ValueError(
+            f"{description['id']} with kwargs {description.get('kwargs')} has "
+            f"another model here (fingerprint {mine}, described {theirs}): the "
+            "installed Gymnasium's environment differs from the one described"
+        )
     return world
 
 
@@ -188,11 +239,15 @@ def _discrete_size(raw, name: str, label: str) -> int:
 
     space = getattr(raw, name, None)
     if not isinstance(space, gymnasium.spaces.Discrete):
-        raise ValueError(f"from_gymnasium({label}): {name} is {space!r}; a tabular world needs "
-                         "Discrete observation and action spaces")
+        raise ValueError(
+            f"from_gymnasium({label}): {name} is {space!r}; a tabular world needs "
+            "Discrete observation and action spaces"
+        )
     if int(space.start) != 0:
-        raise ValueError(f"from_gymnasium({label}): {name} starts at {int(space.start)}; states "
-                         "and actions must be numbered from 0")
+        raise ValueError(
+            f"from_gymnasium({label}): {name} starts at {int(space.start)}; states "
+            "and actions must be numbered from 0"
+        )
     return int(space.n)
 
 
@@ -207,28 +262,37 @@ def _read_model(P, S: int, A: int, label: str):
             ps = P[s]
             per_action = [list(ps[a]) for a in range(A)]
         except (KeyError, IndexError, TypeError):
-            raise ValueError(f"from_gymnasium({label}): P[{s}][a] is missing for some action a in "
-                             f"0…{A - 1}; the model needs every state and action") from None
+            raise ValueError(
+                f"from_gymnasium({label}): P[{s}][a] is missing for some action a in "
+                f"0…{A - 1}; the model needs every state and action"
+            ) from None
         clean = []
         for a, outcomes in enumerate(per_action):
             kept = []
             for entry in outcomes:
                 if not (isinstance(entry, (tuple, list)) and len(entry) == 4):
-                    raise ValueError(f"from_gymnasium({label}): P[{s}][{a}] holds {entry!r}; "
-                                     "entries must be (probability, next state, reward, terminated)")
+                    raise ValueError(
+                        f"from_gymnasium({label}): P[{s}][{a}] holds {entry!r}; "
+                        "entries must be (probability, next state, reward, terminated)"
+                    )
                 p, nxt, r, t = entry
                 p, r = float(p), float(r)
                 if not (np.isfinite(p) and p >= 0) or not np.isfinite(r):
-                    raise ValueError(f"from_gymnasium({label}): P[{s}][{a}] entry {entry!r} has a "
-                                     "negative or non-finite probability or reward")
+                    raise ValueError(
+                        f"from_gymnasium({label}): P[{s}][{a}] entry {entry!r} has a "
+                        "negative or non-finite probability or reward"
+                    )
                 if not (0 <= int(nxt) < S):
-                    raise ValueError(f"from_gymnasium({label}): P[{s}][{a}] leads to state "
-                                     f"{int(nxt)}, outside 0…{S - 1}")
+                    raise ValueError(
+                        f"from_gymnasium({label}): P[{s}][{a}] leads to state "
+                        f"{int(nxt)}, outside 0…{S - 1}"
+                    )
                 if p > 0:
                     kept.append((p, int(nxt), r, bool(t)))
             if not kept:
-                raise ValueError(f"from_gymnasium({label}): P[{s}][{a}] has no outcome of positive "
-                                 "probability")
+                raise ValueError(
+                    f"from_gymnasium({label}): P[{s}][{a}] has no outcome of positive probability"
+                )
             K = max(K, len(kept))
             clean.append(kept)
         rows.append(clean)
@@ -282,17 +346,21 @@ def _terminal_from_flags(succ, prob, term, start, label, action_names) -> torch.
         s, a, k = (int(x) for x in np.argwhere(bad)[0])
         t = int(succ[s, a, k])
         other = np.argwhere(live & term & (succ == t))
-        name = (lambda act: action_names[act] if action_names else str(act))
+        name = lambda act: action_names[act] if action_names else str(act)
         if other.size:
             s2, a2, _ = (int(x) for x in other[0])
-            why = (f"{s2} -({name(a2)})-> {t} ends the episode but {s} -({name(a)})-> {t}, which "
-                   "the agent can make, does not")
-        else:   # unreachable: a terminated flag into a non-terminal state cannot occur
+            why = (
+                f"{s2} -({name(a2)})-> {t} ends the episode but {s} -({name(a)})-> {t}, which "
+                "the agent can make, does not"
+            )
+        else:  # unreachable: a terminated flag into a non-terminal state cannot occur
             why = f"{s} -({name(a)})-> {t} is marked terminated inconsistently"
-        raise ValueError(f"from_gymnasium({label}): Gymnasium marks termination per transition, "
-                         f"the world protocol per state entered (terminal_mask), and here they "
-                         f"differ: {why}. Pass terminal_states=… to choose the terminal states "
-                         "yourself")
+        raise ValueError(
+            f"from_gymnasium({label}): Gymnasium marks termination per transition, "
+            f"the world protocol per state entered (terminal_mask), and here they "
+            f"differ: {why}. Pass terminal_states=… to choose the terminal states "
+            "yourself"
+        )
     return torch.from_numpy(terminal)
 
 

@@ -84,21 +84,41 @@ class MultiRoomsEnv(gymnasium.Env[int, int]):
 
     metadata = {"render_modes": ["rgb_array", "ansi"], "render_fps": 4}
 
-    def __init__(self, size: int = 40, rooms: int = 10, slip: float = 0.1,
-                 start: int | tuple[int, int] | None = None,
-                 goal: int | tuple[int, int] | None = None,
-                 closed_doorways: Iterable[int | tuple[int, int]] = (),
-                 step_reward: float = -0.01, goal_reward: float = 1.0, gamma: float = 0.99,
-                 render_mode: str | None = None, cell_pixels: int = 8):
+    def __init__(
+        self,
+        size: int = 40,
+        rooms: int = 10,
+        slip: float = 0.1,
+        start: int | tuple[int, int] | None = None,
+        goal: int | tuple[int, int] | None = None,
+        closed_doorways: Iterable[int | tuple[int, int]] = (),
+        step_reward: float = -0.01,
+        goal_reward: float = 1.0,
+        gamma: float = 0.99,
+        render_mode: str | None = None,
+        cell_pixels: int = 8,
+    ):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode={render_mode!r}: use None or one of "
-                             f"{self.metadata['render_modes']}")
-        if isinstance(cell_pixels, bool) or not isinstance(cell_pixels, (int, np.integer)) \
-                or cell_pixels < 1:
+            raise ValueError(
+                f"render_mode={render_mode!r}: use None or one of {self.metadata['render_modes']}"
+            )
+        if (
+            isinstance(cell_pixels, bool)
+            or not isinstance(cell_pixels, (int, np.integer))
+            or cell_pixels < 1
+        ):
             raise ValueError(f"cell_pixels={cell_pixels!r} must be a positive whole number")
-        self.world = MultiRooms(size=size, rooms=rooms, slip=slip, start=start, goal=goal,
-                                closed_doorways=closed_doorways, step_reward=step_reward,
-                                goal_reward=goal_reward, gamma=gamma)
+        self.world = MultiRooms(
+            size=size,
+            rooms=rooms,
+            slip=slip,
+            start=start,
+            goal=goal,
+            closed_doorways=closed_doorways,
+            step_reward=step_reward,
+            goal_reward=goal_reward,
+            gamma=gamma,
+        )
         self.render_mode = render_mode
         self.cell_pixels = int(cell_pixels)
         self.observation_space = spaces.Discrete(self.world.num_states)  # type: ignore[assignment]
@@ -106,8 +126,9 @@ class MultiRoomsEnv(gymnasium.Env[int, int]):
         self.state: int | None = None
 
     # ------------------------------------------------------------------------------ Gym API
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
-              ) -> tuple[int, dict[str, Any]]:
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[int, dict[str, Any]]:
         """Start an episode at the world's start cell. ``options`` is accepted and ignored."""
         super().reset(seed=seed)
         self.state = self.world.start_state
@@ -136,8 +157,10 @@ class MultiRoomsEnv(gymnasium.Env[int, int]):
         """``"rgb_array"``: ``[size·cell_pixels, size·cell_pixels, 3]`` uint8 picture (walls dark,
         doorways ochre, start green, goal red, agent blue); ``"ansi"``: the world's text picture."""
         if self.render_mode is None:
-            gymnasium.logger.warn("render() called without a render_mode; pass render_mode="
-                                  "'rgb_array' or 'ansi' to the constructor or to gymnasium.make")
+            gymnasium.logger.warn(
+                "render() called without a render_mode; pass render_mode="
+                "'rgb_array' or 'ansi' to the constructor or to gymnasium.make"
+            )
             return None
         agents = () if self.state is None else (self.state,)
         if self.render_mode == "ansi":
@@ -156,7 +179,9 @@ class MultiRoomsEnv(gymnasium.Env[int, int]):
         pad = k // 4  # the agent is an inset square, so the cell's own colour still shows
         for s in agents:
             r, c = w.coords(s)
-            image[r * k + pad:(r + 1) * k - pad, c * k + pad:(c + 1) * k - pad] = COLORS["agent"]
+            image[r * k + pad : (r + 1) * k - pad, c * k + pad : (c + 1) * k - pad] = COLORS[
+                "agent"
+            ]
         return image
 
     # ------------------------------------------------------------------------------ true model
@@ -175,13 +200,19 @@ class MultiRoomsEnv(gymnasium.Env[int, int]):
         P = self.transition_model(sparse=True).coalesce()
         (a_idx, s_idx, t_idx), probs = P.indices().tolist(), P.values().tolist()
         free, goal = self.world.free_mask.tolist(), self.world.goal_state
-        out: dict[int, dict[int, list]] = {s: {a: [] for a in range(self.world.num_actions)}
-                                          for s in range(self.world.num_states) if free[s]}
+        out: dict[int, dict[int, list]] = {
+            s: {a: [] for a in range(self.world.num_actions)}
+            for s in range(self.world.num_states)
+            if free[s]
+        }
         for a, s, t, p in zip(a_idx, s_idx, t_idx, probs):
             if not free[s]:
                 continue
-            reward = 0.0 if s == goal else (self.world.goal_reward if t == goal
-                                            else self.world.step_reward)
+            reward = (
+                0.0
+                if s == goal
+                else (self.world.goal_reward if t == goal else self.world.step_reward)
+            )
             out[s][a].append((p, t, reward, t == goal))
         return out
 
@@ -194,8 +225,9 @@ def register_envs() -> None:
     """
     if ENV_ID in gymnasium.registry:
         return
-    gymnasium.register(id=ENV_ID, entry_point="himit_torch.gym_env:MultiRoomsEnv",
-                       max_episode_steps=10_000)
+    gymnasium.register(
+        id=ENV_ID, entry_point="himit_torch.gym_env:MultiRoomsEnv", max_episode_steps=10_000
+    )
 
 
 register_envs()

@@ -52,8 +52,14 @@ from .reward import KnownReward
 from .table_world import TableWorld, world_model
 from .tensorboard_logger import tensorboard_command
 
-__all__ = ["GymTask", "TASKS", "GymExperimentConfig", "run_gym_experiment", "greedy_value_gap",
-           "mean_ci"]
+__all__ = [
+    "GymTask",
+    "TASKS",
+    "GymExperimentConfig",
+    "run_gym_experiment",
+    "greedy_value_gap",
+    "mean_ci",
+]
 
 
 @dataclass(frozen=True)
@@ -99,16 +105,30 @@ def frozen_lake_options(world: TableWorld) -> Options:
 
 #: The tasks, by name.
 TASKS: dict[str, GymTask] = {
-    "taxi": GymTask("Taxi-v4", {}, taxi_navigation_options,
-                    "Taxi-v4: 500 states, 300 start states, 6 actions; options: drive to R, G, "
-                    "Y, B (Dietterich's navigation subtasks)", steps=60_000),
-    "cliffwalking": GymTask("CliffWalking-v1", {}, cliff_options,
-                            "CliffWalking-v1: 4×12, −1 a step, −100 and back to the start at the "
-                            "cliff; options: to the two top corners", steps=30_000),
-    "frozenlake8x8": GymTask("FrozenLake-v1", {"map_name": "8x8", "is_slippery": True},
-                             frozen_lake_options,
-                             "FrozenLake-v1 8×8, slippery: +1 at the goal, holes end the episode; "
-                             "options: to the corners (0,7) and (7,0)", steps=100_000),
+    "taxi": GymTask(
+        "Taxi-v4",
+        {},
+        taxi_navigation_options,
+        "Taxi-v4: 500 states, 300 start states, 6 actions; options: drive to R, G, "
+        "Y, B (Dietterich's navigation subtasks)",
+        steps=60_000,
+    ),
+    "cliffwalking": GymTask(
+        "CliffWalking-v1",
+        {},
+        cliff_options,
+        "CliffWalking-v1: 4×12, −1 a step, −100 and back to the start at the "
+        "cliff; options: to the two top corners",
+        steps=30_000,
+    ),
+    "frozenlake8x8": GymTask(
+        "FrozenLake-v1",
+        {"map_name": "8x8", "is_slippery": True},
+        frozen_lake_options,
+        "FrozenLake-v1 8×8, slippery: +1 at the goal, holes end the episode; "
+        "options: to the corners (0,7) and (7,0)",
+        steps=100_000,
+    ),
 }
 
 
@@ -157,6 +177,7 @@ class GymExperimentConfig:
 
         def bad(name, why):
             raise ValueError(f"GymExperimentConfig.{name}={getattr(self, name)!r}: {why}")
+
         unknown = sorted(set(self.tasks) - set(TASKS))
         if unknown or not self.tasks:
             bad("tasks", f"unknown or empty; use some of {sorted(TASKS)}")
@@ -175,8 +196,12 @@ class GymExperimentConfig:
 
     def quick(self) -> GymExperimentConfig:
         """A tiny budget (smoke tests, ``--quick``)."""
-        return replace(self, seeds=min(self.seeds, 2), steps=2 * self.window,
-                       mentor_episodes=min(self.mentor_episodes, 5))
+        return replace(
+            self,
+            seeds=min(self.seeds, 2),
+            steps=2 * self.window,
+            mentor_episodes=min(self.mentor_episodes, 5),
+        )
 
     def steps_of(self, task: str) -> int:
         """Primitive steps per run in ``task``."""
@@ -187,8 +212,9 @@ class GymExperimentConfig:
 
 
 # ================================================================================ evaluation
-def _uniform_primitive_rows(models: OptionModels, options: Options, S: int
-                            ) -> tuple[sp.csr_matrix, np.ndarray]:
+def _uniform_primitive_rows(
+    models: OptionModels, options: Options, S: int
+) -> tuple[sp.csr_matrix, np.ndarray]:
     """Per state the model of picking a primitive option uniformly at random: ``[S, S]`` and
     ``[S]`` (zero rows where no primitive is available)."""
     T = _scipy(models.transition)
@@ -205,8 +231,10 @@ def _uniform_primitive_rows(models: OptionModels, options: Options, S: int
 
 def _scipy(t: torch.Tensor) -> sp.csr_matrix:
     c = t.to_sparse_csr() if t.layout != torch.sparse_csr else t
-    return sp.csr_matrix((c.values().numpy(), c.col_indices().numpy(), c.crow_indices().numpy()),
-                         shape=tuple(c.shape))
+    return sp.csr_matrix(
+        (c.values().numpy(), c.col_indices().numpy(), c.crow_indices().numpy()),
+        shape=tuple(c.shape),
+    )
 
 
 class GreedyEvaluator:
@@ -223,8 +251,9 @@ class GreedyEvaluator:
         self.T = _scipy(self.models.transition)
         self.r = self.models.reward.numpy()
         self.row_index = np.full((self.S, options.num_options), -1, dtype=np.int64)
-        self.row_index[self.models.row_state.numpy(), self.models.row_option.numpy()] = \
-            np.arange(self.models.num_rows)
+        self.row_index[self.models.row_state.numpy(), self.models.row_option.numpy()] = np.arange(
+            self.models.num_rows
+        )
         self.random_T, self.random_r = _uniform_primitive_rows(self.models, options, self.S)
         self.live = ~world.terminal_mask.numpy()
         self.start = world.start_distribution.numpy()
@@ -238,7 +267,9 @@ class GreedyEvaluator:
         rows = np.where(g >= 0, self.row_index[np.arange(self.S), np.maximum(g, 0)], -1)
         pick = np.flatnonzero((rows >= 0) & self.live)
         randomly = ((rows < 0) & self.live).astype(np.float64)
-        select = sp.csr_matrix((np.ones(pick.size), (pick, rows[pick])), shape=(self.S, self.T.shape[0]))
+        select = sp.csr_matrix(
+            (np.ones(pick.size), (pick, rows[pick])), shape=(self.S, self.T.shape[0])
+        )
         T_pi = select @ self.T + sp.diags(randomly) @ self.random_T
         r_pi = select @ self.r + randomly * self.random_r
         V = spla.spsolve((sp.identity(self.S, format="csc") - T_pi).tocsc(), r_pi)
@@ -249,12 +280,13 @@ def greedy_value_gap(evaluator: GreedyEvaluator, learner: Learner) -> list[float
     """``V*(μ) − V^π(μ)`` of every run's greedy option policy (≥ 0; 0 = optimal)."""
     greedy = learner.greedy_options()
     gaps = [evaluator.optimal_value - evaluator.value(greedy[b]) for b in range(learner.batch)]
-    return [0.0 if abs(g) < 1e-9 else g for g in gaps]   # solver round-off, not a real gap
+    return [0.0 if abs(g) < 1e-9 else g for g in gaps]  # solver round-off, not a real gap
 
 
 def mean_ci(values, level: float = 0.95) -> tuple[float, float, int]:
     """``(mean, half-width, n)`` of a Student-t confidence interval for the mean over seeds."""
     from scipy import stats
+
     v = np.asarray([x for x in values if x is not None and math.isfinite(x)], dtype=np.float64)
     n = v.size
     if n == 0:
@@ -303,8 +335,9 @@ def neutral_value(world: TableWorld) -> float:
 
 
 # ================================================================================ the runner
-def run_task(config: GymExperimentConfig, task_name: str, run_dir: Path,
-             progress: bool = True) -> dict:
+def run_task(
+    config: GymExperimentConfig, task_name: str, run_dir: Path, progress: bool = True
+) -> dict:
     """One task: every agent × seed in one batch; returns the task's summary (also written)."""
     from torch.utils.tensorboard import SummaryWriter
 
@@ -319,10 +352,16 @@ def run_task(config: GymExperimentConfig, task_name: str, run_dir: Path,
     learner_config = config.learner
     if config.neutral_initial_value:
         learner_config = replace(learner_config, initial_value=neutral_value(world))
-    learner = Learner(world, options, agents, run_seeds, config=learner_config,
-                      reward=[known if AGENTS[a][1] else None for a in agents],
-                      device=config.device)
-    for s in seeds:   # each seed watches its own mentor episodes
+    learner = Learner(
+        world,
+        options,
+        agents,
+        run_seeds,
+        config=learner_config,
+        reward=[known if AGENTS[a][1] else None for a in agents],
+        device=config.device,
+    )
+    for s in seeds:  # each seed watches its own mentor episodes
         demos = record_demonstrations(world, mentor, config.mentor_episodes, seed=s)
         learner.add_demonstrations(demos, runs=[b for b, rs in enumerate(run_seeds) if rs == s])
     evaluator = GreedyEvaluator(world, options)
@@ -336,6 +375,7 @@ def run_task(config: GymExperimentConfig, task_name: str, run_dir: Path,
     bar = None
     if progress:
         from tqdm.auto import tqdm
+
         bar = tqdm(total=steps, unit="step", mininterval=1.0, desc=f"{task_name} B={learner.batch}")
     start = time.perf_counter()
     while learner.t < steps:
@@ -351,10 +391,17 @@ def run_task(config: GymExperimentConfig, task_name: str, run_dir: Path,
         gap = greedy_value_gap(evaluator, learner)
         coverage = learner.model_coverage().cpu()
         for b in range(learner.batch):
-            row: dict[str, Any] = {"task": task_name, "agent": agents[b], "seed": run_seeds[b], "step": learner.t,
-                   "goals": int(goals[b]), "episodes": int(m.goals_in_window[-1][b]),
-                   "epsilon": float(m.epsilon[-1][b]), "value_gap": gap[b],
-                   "mentor_term_wins": float(m.mentor_term_wins[-1][b])}
+            row: dict[str, Any] = {
+                "task": task_name,
+                "agent": agents[b],
+                "seed": run_seeds[b],
+                "step": learner.t,
+                "goals": int(goals[b]),
+                "episodes": int(m.goals_in_window[-1][b]),
+                "epsilon": float(m.epsilon[-1][b]),
+                "value_gap": gap[b],
+                "mentor_term_wins": float(m.mentor_term_wins[-1][b]),
+            }
             rows.append(row)
             w = writers[b]
             w.add_scalar("charts/goals_in_window", row["goals"], learner.t)
@@ -370,27 +417,51 @@ def run_task(config: GymExperimentConfig, task_name: str, run_dir: Path,
     wall = time.perf_counter() - start
     last = [r for r in rows if r["step"] == learner.t] if rows else []
     summary = {
-        "task": task_name, "env_id": task.env_id, "kwargs": task.kwargs, "about": task.about,
+        "task": task_name,
+        "env_id": task.env_id,
+        "kwargs": task.kwargs,
+        "about": task.about,
         "engine": learner.engine.name,
-        "num_states": world.num_states, "num_actions": world.num_actions,
-        "options": list(options.names), "agents": agents, "seeds": run_seeds,
-        "optimal_value": evaluator.optimal_value, "optimal_goals_per_window": optimal_rate,
+        "num_states": world.num_states,
+        "num_actions": world.num_actions,
+        "options": list(options.names),
+        "agents": agents,
+        "seeds": run_seeds,
+        "optimal_value": evaluator.optimal_value,
+        "optimal_goals_per_window": optimal_rate,
         "total_goals": [int(x) for x in previous_goals.tolist()],
-        "first_goal_window": [min((r["step"] for r in rows if r["goals"] > 0 and r["agent"] == a
-                                  and r["seed"] == sd), default=-1)
-                              for a, sd in zip(agents, run_seeds)],
-        "final_goals": [r["goals"] for r in last], "final_value_gap": [r["value_gap"] for r in last],
+        "first_goal_window": [
+            min(
+                (r["step"] for r in rows if r["goals"] > 0 and r["agent"] == a and r["seed"] == sd),
+                default=-1,
+            )
+            for a, sd in zip(agents, run_seeds)
+        ],
+        "final_goals": [r["goals"] for r in last],
+        "final_value_gap": [r["value_gap"] for r in last],
         "mentor_term_wins": [r["mentor_term_wins"] for r in last],
-        "wall_seconds": wall, "steps": learner.t, "initial_value": learner_config.initial_value,
-        "ambiguous_reward_pairs": known.ambiguous_pairs, "known_reward": known.note,
+        "wall_seconds": wall,
+        "steps": learner.t,
+        "initial_value": learner_config.initial_value,
+        "ambiguous_reward_pairs": known.ambiguous_pairs,
+        "known_reward": known.note,
     }
-    hp = {k: (v if isinstance(v, (int, float, str, bool)) else str(v))
-          for k, v in asdict(learner_config).items() if v is not None}
+    hp = {
+        k: (v if isinstance(v, (int, float, str, bool)) else str(v))
+        for k, v in asdict(learner_config).items()
+        if v is not None
+    }
     for b, w in enumerate(writers):
-        w.add_hparams(dict(hp, task=task_name, agent=agents[b], seed=run_seeds[b]),
-                      {"hparam/total_goals": float(summary["total_goals"][b]),
-                       "hparam/final_value_gap": float(summary["final_value_gap"][b])
-                       if last else float("nan")}, run_name=".")
+        w.add_hparams(
+            dict(hp, task=task_name, agent=agents[b], seed=run_seeds[b]),
+            {
+                "hparam/total_goals": float(summary["total_goals"][b]),
+                "hparam/final_value_gap": float(summary["final_value_gap"][b])
+                if last
+                else float("nan"),
+            },
+            run_name=".",
+        )
         w.close()
     (run_dir / "tasks").mkdir(parents=True, exist_ok=True)
     (run_dir / "tasks" / f"{task_name}.json").write_text(json.dumps(summary, indent=1))
@@ -398,8 +469,17 @@ def run_task(config: GymExperimentConfig, task_name: str, run_dir: Path,
     return summary
 
 
-_COLUMNS = ("task", "agent", "seed", "step", "goals", "episodes", "epsilon", "value_gap",
-            "mentor_term_wins")
+_COLUMNS = (
+    "task",
+    "agent",
+    "seed",
+    "step",
+    "goals",
+    "episodes",
+    "epsilon",
+    "value_gap",
+    "mentor_term_wins",
+)
 
 
 def _write_rows(path: Path, rows: list[dict]) -> None:
@@ -410,18 +490,25 @@ def _write_rows(path: Path, rows: list[dict]) -> None:
             out.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
 
 
-def run_gym_experiment(config: GymExperimentConfig, run_dir: str | os.PathLike,
-                       force: bool = False, progress: bool = True) -> list[dict]:
+def run_gym_experiment(
+    config: GymExperimentConfig,
+    run_dir: str | os.PathLike,
+    force: bool = False,
+    progress: bool = True,
+) -> list[dict]:
     """Run every task of ``config`` into ``run_dir``, then figures and ``results.md``.
 
     A directory holding a finished run is not overwritten unless ``force``.
     """
     run_dir = Path(run_dir)
     if (run_dir / "results.md").exists() and not force:
-        raise ValueError(f"{run_dir} already holds a finished run; choose another --logdir or pass "
-                         "--force to overwrite it")
+        raise ValueError(
+            f"{run_dir} already holds a finished run; choose another --logdir or pass "
+            "--force to overwrite it"
+        )
     if force and run_dir.exists():
         import shutil
+
         for sub in ("tb", "tasks", "figures"):
             shutil.rmtree(run_dir / sub, ignore_errors=True)
     run_dir.mkdir(parents=True, exist_ok=True)
@@ -454,8 +541,9 @@ def read_gym_curves(run_dir: str | os.PathLike) -> dict:
     with (Path(run_dir) / "curves.csv").open() as f:
         for r in csv.DictReader(f):
             d = acc.setdefault(r["task"], {}).setdefault(r["agent"], {})
-            d.setdefault(int(r["seed"]), []).append((int(r["step"]), float(r["goals"]),
-                                                     float(r["value_gap"])))
+            d.setdefault(int(r["seed"]), []).append(
+                (int(r["step"]), float(r["goals"]), float(r["value_gap"]))
+            )
     out: dict = {}
     for task, agents in acc.items():
         out[task] = {}
@@ -493,8 +581,13 @@ def write_gym_figures(run_dir: Path, config: GymExperimentConfig, summaries: lis
                 half = np.nan_to_num(np.array([s[1] for s in stats]))
                 ax.plot(steps, mean, color=color, lw=2, label=f"{agent} (n={data.shape[0]})")
                 ax.fill_between(steps, mean - half, mean + half, color=color, alpha=0.18, lw=0)
-        ax_goals.axhline(summary["optimal_goals_per_window"], color="0.3", ls="--", lw=1,
-                         label=f"optimal ≈ {summary['optimal_goals_per_window']:.1f}")
+        ax_goals.axhline(
+            summary["optimal_goals_per_window"],
+            color="0.3",
+            ls="--",
+            lw=1,
+            label=f"optimal ≈ {summary['optimal_goals_per_window']:.1f}",
+        )
         ax_goals.set_ylabel(f"goals per {config.window} steps")
         ax_gap.set_ylabel("V*(μ) − V^greedy(μ)  (exact; 0 = optimal)")
         ax_gap.set_yscale("symlog", linthresh=0.1)
@@ -519,34 +612,51 @@ def _cell(values, digits: int = 1) -> str:
 
 def write_gym_results(run_dir: Path, config: GymExperimentConfig, summaries: list[dict]) -> None:
     """``results.md``: per task and agent, mean ± 95 % CI over seeds."""
-    lines = [f"# {config.name}: hierarchical imitation on Gymnasium's tabular environments", "",
-             "Produced by `himit run gymnasium` (the same as `python "
-             "experiments/gymnasium_worlds.py`); settings: `himit_torch/gym_experiment.py`. "
-             f"Code at commit `{source_commit()}`, engine "
-             + ", ".join(sorted({f"`{s.get('engine', 'unknown')}`" for s in summaries})) + ".", "",
-             f"{config.seeds} seeds per agent and task, "
-             + ", ".join(f"{t} {config.steps_of(t):,}" for t in config.tasks) + " steps per run, "
-             f"{config.mentor_episodes} mentor episodes (states only) per seed, γ = {config.gamma}, "
-             f"window {config.window}. Cells: mean ± half-width of the 95 % Student-t confidence "
-             "interval over seeds (n = seeds). The mentor is optimal (value iteration on the true "
-             "model, primitive actions); the imitator's mentor reward is `KnownReward` (the least "
-             "reward of the actions consistent with each observed move).", "",
-             "Learner settings: " + ", ".join(f"`{k}={v}`" for k, v in asdict(config.learner).items()),
-             "", "Columns: *goals, last window* — arrivals at the goal states in the last "
-             f"{config.window} steps (optimal: the optimal policy's renewal rate); *total goals* — "
-             "over the whole run; *value gap* — V*(μ) − V^π(μ) of the run's final greedy option "
-             "policy, both exact on the true model from the start distribution (0 = optimal); "
-             "*first goal* — end of the first window with a goal (runs that never reached one are "
-             "left out, and counted in *found*).", ""]
+    lines = [
+        f"# {config.name}: hierarchical imitation on Gymnasium's tabular environments",
+        "",
+        "Produced by `himit run gymnasium` (the same as `python "
+        "experiments/gymnasium_worlds.py`); settings: `himit_torch/gym_experiment.py`. "
+        f"Code at commit `{source_commit()}`, engine "
+        + ", ".join(sorted({f"`{s.get('engine', 'unknown')}`" for s in summaries}))
+        + ".",
+        "",
+        f"{config.seeds} seeds per agent and task, "
+        + ", ".join(f"{t} {config.steps_of(t):,}" for t in config.tasks)
+        + " steps per run, "
+        f"{config.mentor_episodes} mentor episodes (states only) per seed, γ = {config.gamma}, "
+        f"window {config.window}. Cells: mean ± half-width of the 95 % Student-t confidence "
+        "interval over seeds (n = seeds). The mentor is optimal (value iteration on the true "
+        "model, primitive actions); the imitator's mentor reward is `KnownReward` (the least "
+        "reward of the actions consistent with each observed move).",
+        "",
+        "Learner settings: " + ", ".join(f"`{k}={v}`" for k, v in asdict(config.learner).items()),
+        "",
+        "Columns: *goals, last window* — arrivals at the goal states in the last "
+        f"{config.window} steps (optimal: the optimal policy's renewal rate); *total goals* — "
+        "over the whole run; *value gap* — V*(μ) − V^π(μ) of the run's final greedy option "
+        "policy, both exact on the true model from the start distribution (0 = optimal); "
+        "*first goal* — end of the first window with a goal (runs that never reached one are "
+        "left out, and counted in *found*).",
+        "",
+    ]
     for s in summaries:
-        lines += [f"## {s['task']}", "", s["about"] + f"; {s['steps']:,} steps per run.", "",
-                  f"Options of the learner: {', '.join(s['options'])}.", "",
-                  f"Optimal: V*(μ) = {s['optimal_value']:.3f}, "
-                  f"{s['optimal_goals_per_window']:.1f} goals per {config.window} steps. "
-                  f"Learner's initial value: {s['initial_value']:g}. "
-                  f"KnownReward: {s['known_reward']}.", "",
-                  "| agent | n | found | goals, last window | total goals | value gap | first goal | "
-                  "mentor term wins |", "|---|---|---|---|---|---|---|---|"]
+        lines += [
+            f"## {s['task']}",
+            "",
+            s["about"] + f"; {s['steps']:,} steps per run.",
+            "",
+            f"Options of the learner: {', '.join(s['options'])}.",
+            "",
+            f"Optimal: V*(μ) = {s['optimal_value']:.3f}, "
+            f"{s['optimal_goals_per_window']:.1f} goals per {config.window} steps. "
+            f"Learner's initial value: {s['initial_value']:g}. "
+            f"KnownReward: {s['known_reward']}.",
+            "",
+            "| agent | n | found | goals, last window | total goals | value gap | first goal | "
+            "mentor term wins |",
+            "|---|---|---|---|---|---|---|---|",
+        ]
         for agent in dict.fromkeys(s["agents"]):
             idx = [b for b, a in enumerate(s["agents"]) if a == agent]
             firsts = [s["first_goal_window"][b] for b in idx]
@@ -557,9 +667,16 @@ def write_gym_results(run_dir: Path, config: GymExperimentConfig, summaries: lis
                 f"{_cell([s['total_goals'][b] for b in idx], 0)} | "
                 f"{_cell([s['final_value_gap'][b] for b in idx], 3) if s['final_value_gap'] else '–'} | "
                 f"{_cell(found, 0)} | "
-                f"{_cell([s['mentor_term_wins'][b] for b in idx], 2) if s['mentor_term_wins'] else '–'} |")
-        lines += ["", f"Wall time for this task's batch of {len(s['agents'])} runs: "
-                  f"{s['wall_seconds']:.0f} s. Figure: `figures/curves_{s['task']}.png`.", ""]
-    lines += ["Curves: `curves.csv`. TensorBoard: "
-              f"`{tensorboard_command(Path(run_dir) / 'tb')}`.", ""]
+                f"{_cell([s['mentor_term_wins'][b] for b in idx], 2) if s['mentor_term_wins'] else '–'} |"
+            )
+        lines += [
+            "",
+            f"Wall time for this task's batch of {len(s['agents'])} runs: "
+            f"{s['wall_seconds']:.0f} s. Figure: `figures/curves_{s['task']}.png`.",
+            "",
+        ]
+    lines += [
+        f"Curves: `curves.csv`. TensorBoard: `{tensorboard_command(Path(run_dir) / 'tb')}`.",
+        "",
+    ]
     (run_dir / "results.md").write_text("\n".join(lines))

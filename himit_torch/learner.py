@@ -35,7 +35,7 @@ import torch
 
 from .dirichlet_models import DirichletMentorModel, DirichletSMDPModel
 from .engines import make_engine
-from .options import Options
+from .options import Options, action_dtype
 from .reward import KnownReward
 from .rng import seed_streams, uniforms
 from .rows import AGENTS, RowTable
@@ -49,7 +49,10 @@ if TYPE_CHECKING:
     from .reward import MentorReward
     from .world import TabularWorld
 
-__all__ = ["Learner", "LearnerConfig", "AGENTS"]
+__all__ = ["Learner", "LearnerConfig", "AGENTS", "EPS_SCHEDULES"]
+
+#: ``LearnerConfig.eps_schedule`` values, in the order of their code in the compiled engine.
+EPS_SCHEDULES = ("decision", "step", "goals", "paper")
 
 
 class HasTransitions(Protocol):
@@ -104,12 +107,53 @@ class LearnerConfig:
     mentor_override_after: int | None = None
     """Ignore the mentor term at ``s`` once the run has executed its own options there this many
     times (own experience overrides the mentor); ``None`` = never."""
+    mentor_fade: float | None = None
+    """Shrink the mentor term towards the run's own estimate as its own experience grows (issue
+    11, item 4): where some own option was tried at ``s``, eq. 2's mentor term ``m`` is replaced
+    by ``(k·m + n·own) / (k + n)`` with ``k = mentor_fade``, ``n`` the own options executed from
+    ``s`` and ``own`` the best own ``Q`` there — the mentor's evidence counts as ``k`` own
+    executions, so the mentor's value leads early and the run's own value decides in the limit
+    (no lasting upward bias). Where nothing own was tried, ``m`` is used as it is. ``None`` = no
+    fading (the paper's eq. 2)."""
     eps_start: float = 0.75
     """ε until the run's first goal."""
     eps_decay: float = 0.999
     """After the first goal, ε is multiplied by this at every decision…"""
     eps_min: float = 0.01
     """…down to this floor."""
+    eps_schedule: str = "decision"
+    """When ε changes (every schedule starts at ``eps_start`` and never goes below ``eps_min``):
+
+    * ``"decision"`` (default): ×``eps_decay`` at every decision (option choice) once the run has
+      found the goal — the rule of the earlier implementation, not a statement of the paper.
+    * ``"step"``: ×``eps_decay`` at every primitive step once the run has found the goal (the
+      step of the first goal included).
+    * ``"goals"``: ``eps_start`` until the run has reached ``eps_goals`` goals, then ``eps_min``
+      at once (explore fully until the goal is known well, then exploit).
+    * ``"paper"``: a literal reading of the paper (Sec. III: "ε begins at 0.75 and starts to
+      decay to a minimum of 0.01 after the agent first finds the goal"). The paper names the start,
+      the trigger (the first goal) and the floor, but neither the rate nor the unit of the decay;
+      the one event its sentence names is finding the goal, so here ε is ×``eps_decay`` at every
+      goal reached (episode end), the first included. With the default 0.999 ε stays near its
+      start for thousands of goals: the rate is this reading's free parameter."""
+    eps_goals: int = 10
+    """Goals after which the ``"goals"`` schedule drops ε to ``eps_min`` (other schedules ignore
+    it)."""
+    option_models: str = "learned"
+    """Where each run's option model comes from: ``"learned"`` (counts of its own executions, the
+    paper) or ``"exact"``: before the first step every ``(s, o)`` row the run may use is preloaded
+    with the exact model (:func:`~himit_torch.exact_option_models.option_models` and
+    :func:`~himit_torch.exact_option_models.option_durations` of the world and options) as
+    ``exact_model_count`` pseudo-executions in exact proportions — count ``N``, summed reward
+    ``N·r(s,o)``, per successor ``N·Pr(s'|s,o)`` and ``N·P^o[s,s']`` — so every posterior mean
+    is the exact model and the run's own executions move it by at most ``1/N``. Values are not
+    solved: ``V`` starts at ``initial_value`` and the states whose backup would change their
+    value are queued with that change as priority, so planning still runs on the usual budget.
+    Preloaded rows count as tried (they are usable at once); ``state_tries`` stays 0, so
+    ``mentor_override_after`` counts only own executions. The world's ``max_option_steps`` cut is
+    not modelled. Needs a world with a true model (``transition_model`` or ``dynamics_table``)."""
+    exact_model_count: float = 1e6
+    """Pseudo-executions per row of the ``"exact"`` option models."""
     mentor_choice: str = "greedy"
     """How a run picks its own option (greedy choices only) in a state where the mentor term wins
     eq. 2. ``"greedy"``: the best own option by its ``Q`` — values that the mentor term has already
@@ -133,10 +177,21 @@ class LearnerConfig:
     #: Field kinds for the input rules of :mod:`himit_torch.validation` (whole numbers are never
     #: truncated, bools and strings never taken for numbers, every number finite).
     _INTS = ("backups", "sweep_rounds", "plan_every", "rng_chunk", "window", "max_option_steps")
-    _FLOATS = ("priority_threshold", "initial_value", "concentration", "mentor_concentration",
-               "confidence_z", "eps_start", "eps_decay", "eps_min")
-    _CHOICES = {"mentor_choice": ("greedy", "match"), "tie_break": ("random", "first"),
-                "reward_bound_check": ("error", "warn", "off")}
+    _FLOATS = (
+        "priority_threshold",
+        "initial_value",
+        "concentration",
+        "mentor_concentration",
+        "confidence_z",
+        "eps_start",
+        "eps_decay",
+        "eps_min",
+    )
+    _CHOICES = {
+        "mentor_choice": ("greedy", "match"),
+        "tie_break": ("random", "first"),
+        "reward_bound_check": ("error", "warn", "off"),
+    }
 
     def __post_init__(self):
         for name in self._INTS:
@@ -146,13 +201,15 @@ class LearnerConfig:
         if self.untried_value is not None:
             self.untried_value = as_float("LearnerConfig.untried_value", self.untried_value)
         if self.mentor_override_after is not None:
-            self.mentor_override_after = as_int("LearnerConfig.mentor_override_after",
-                                                self.mentor_override_after, minimum=0)
+            self.mentor_override_after = as_int(
+                "LearnerConfig.mentor_override_after", self.mentor_override_after, minimum=0
+            )
         for name, choices in self._CHOICES.items():
             as_choice(f"LearnerConfig.{name}", getattr(self, name), choices)
 
         def bad(name, why):
             raise ValueError(f"LearnerConfig.{name}={getattr(self, name)!r}: {why}")
+
         if self.backups < 1:
             bad("backups", "needs at least 1 backup per decision")
         if not 1 <= self.sweep_rounds <= self.backups:
@@ -167,6 +224,16 @@ class LearnerConfig:
             bad("eps_min", f"must not exceed eps_start={self.eps_start}")
         if not self.confidence_z >= 0:
             bad("confidence_z", "must be ≥ 0")
+        if self.eps_schedule not in EPS_SCHEDULES:
+            bad("eps_schedule", f"use one of {list(EPS_SCHEDULES)}")
+        if self.eps_goals < 1:
+            bad("eps_goals", "must be ≥ 1 goal")
+        if self.mentor_fade is not None and not self.mentor_fade > 0:
+            bad("mentor_fade", "must be > 0 (the mentor's weight in own executions) or None")
+        if self.option_models not in ("learned", "exact"):
+            bad("option_models", "use 'learned' or 'exact'")
+        if not self.exact_model_count > 0:
+            bad("exact_model_count", "must be > 0 pseudo-executions")
         if self.mentor_choice not in ("greedy", "match"):
             bad("mentor_choice", "use 'greedy' or 'match'")
         if self.tie_break not in ("random", "first"):
@@ -237,11 +304,18 @@ class Learner:
     BYTES_PER_RUN_STATE = 128
     BYTES_PER_RUN_ROW = 96
 
-    def __init__(self, world: TabularWorld, options: Options, agents: Sequence[str],
-                 seeds: Sequence[int], config: LearnerConfig | None = None,
-                 demonstrations: Demonstrations | HasTransitions | None = None,
-                 reward: MentorReward | Sequence[MentorReward | None] | None = None,
-                 device: str | torch.device = "cpu", engine: str = "auto"):
+    def __init__(
+        self,
+        world: TabularWorld,
+        options: Options,
+        agents: Sequence[str],
+        seeds: Sequence[int],
+        config: LearnerConfig | None = None,
+        demonstrations: Demonstrations | HasTransitions | None = None,
+        reward: MentorReward | Sequence[MentorReward | None] | None = None,
+        device: str | torch.device = "cpu",
+        engine: str = "auto",
+    ):
         if config is not None and not isinstance(config, LearnerConfig):
             raise ValueError(f"config must be a LearnerConfig, got {type(config).__name__}")
         self.config = config = config or LearnerConfig()
@@ -251,8 +325,9 @@ class Learner:
         try:
             self.device = dev = torch.device(device)
         except (RuntimeError, TypeError) as err:
-            raise ValueError(f"device={device!r} is not a torch device ({err}); use e.g. 'cpu' or "
-                             "'cuda'") from None
+            raise ValueError(
+                f"device={device!r} is not a torch device ({err}); use e.g. 'cpu' or 'cuda'"
+            ) from None
         as_choice("engine", engine, ("auto", "numba", "torch"))
         for name, what in (("agents", agents), ("seeds", seeds)):
             if isinstance(what, (str, bytes)) or not isinstance(what, Iterable):
@@ -261,17 +336,24 @@ class Learner:
         seeds = [as_int(f"seeds[{i}]", s, minimum=0) for i, s in enumerate(seeds)]
         B = len(agents)
         if B == 0:
-            raise ValueError("a batch of 0 runs: give at least one agent (e.g. agents=['imitation'])")
+            raise ValueError(
+                "a batch of 0 runs: give at least one agent (e.g. agents=['imitation'])"
+            )
         if len(seeds) != B:
             raise ValueError(f"{B} agents but {len(seeds)} seeds: give one seed per run")
         unknown = sorted({repr(a) for a in agents if not isinstance(a, str) or a not in AGENTS})
         if unknown:
             raise ValueError(f"unknown agent variant(s) {unknown}; use one of {sorted(AGENTS)}")
-        missing = [m for m in ("num_states", "num_actions", "start_state", "gamma", "terminal_mask")
-                   if not hasattr(world, m)]
+        missing = [
+            m
+            for m in ("num_states", "num_actions", "start_state", "gamma", "terminal_mask")
+            if not hasattr(world, m)
+        ]
         if missing:
-            raise ValueError(f"world {type(world).__name__} lacks {missing}: a world must follow the "
-                             "TabularWorld protocol (himit_torch.TabularWorld)")
+            raise ValueError(
+                f"world {type(world).__name__} lacks {missing}: a world must follow the "
+                "TabularWorld protocol (himit_torch.TabularWorld)"
+            )
         S, O = world.num_states, options.num_options
         if options.num_states != S:
             raise ValueError(f"options are over {options.num_states} states but the world has {S}")
@@ -280,20 +362,27 @@ class Learner:
             raise ValueError(f"world.gamma={world.gamma} must lie in (0, 1]")
         A = as_int("world.num_actions", world.num_actions, minimum=1)
         if options.stochastic and options.policy.shape[2] != A:
-            raise ValueError(f"options' policy probabilities are over {options.policy.shape[2]} "
-                             f"actions but the world has {A}")
+            raise ValueError(
+                f"options' policy probabilities are over {options.policy.shape[2]} "
+                f"actions but the world has {A}"
+            )
         if not options.stochastic and int(options.policy[options.initiation].max()) >= A:
-            raise ValueError(f"options' policy uses action {int(options.policy[options.initiation].max())}"
-                             f" but the world has actions 0…{A - 1}")
+            raise ValueError(
+                f"options' policy uses action {int(options.policy[options.initiation].max())}"
+                f" but the world has actions 0…{A - 1}"
+            )
         M = int(options.initiation.sum())
-        check_memory(f"a batch of {B} runs over {S:,} states and {M:,} (state, option) rows",
-                     B * (S * self.BYTES_PER_RUN_STATE + M * self.BYTES_PER_RUN_ROW),
-                     "run fewer runs at once (a smaller batch), or fewer options")
+        check_memory(
+            f"a batch of {B} runs over {S:,} states and {M:,} (state, option) rows",
+            B * (S * self.BYTES_PER_RUN_STATE + M * self.BYTES_PER_RUN_ROW),
+            "run fewer runs at once (a smaller batch), or fewer options",
+        )
         self.batch, self.num_states, self.num_options = B, S, O
         self.agents, self.seeds = agents, seeds
         self.gamma = float(world.gamma)
-        self.terminal = torch.cat([world.terminal_mask.to(dev), torch.ones(1, dtype=torch.bool,
-                                                                            device=dev)])
+        self.terminal = torch.cat(
+            [world.terminal_mask.to(dev), torch.ones(1, dtype=torch.bool, device=dev)]
+        )
         self.start_state = int(world.start_state)
         self.start_cdf = self._start_cdf(world)
 
@@ -303,11 +392,20 @@ class Learner:
         # β as given (float32 compares with the float64 uniforms exactly as float64 would)
         self.termination = options.termination.to(dev).reshape(-1).contiguous()
         if options.stochastic:
-            self.policy_cdf: torch.Tensor | None = \
+            self.policy_cdf: torch.Tensor | None = (
                 options.policy.to(dev).double().cumsum(-1).reshape(O * S, -1).contiguous()
+            )
             self.policy: torch.Tensor | None = None
         else:
-            self.policy = options.policy.to(dev).reshape(-1).contiguous()
+            if int(options.policy.max()) >= world.num_actions:
+                raise ValueError(
+                    f"Options.policy holds action {int(options.policy.max())}; the "
+                    f"world has actions 0…{world.num_actions - 1}"
+                )
+            # one action dtype for every bundle (no copy of the builders' int8 tables), so the
+            # compiled kernel is specialised once
+            actions = action_dtype(world.num_actions)
+            self.policy = options.policy.to(dev, actions).reshape(-1).contiguous()
             self.policy_cdf = None
 
         # ---- the state, one owner per piece ------------------------------------------------
@@ -315,24 +413,43 @@ class Learner:
         self.num_rows = M = self.rows.num_rows
         self.model = DirichletSMDPModel(M, S, B, dev, config.concentration)
         self.mentor = DirichletMentorModel(S, B, dev, config.mentor_concentration)
-        self.cache = ValueCache(config, self.rows, self.model, self.mentor, self.terminal, self.gamma)
-        self.sweeper = Sweeper(B, S, dev, config.backups, config.sweep_rounds, config.plan_every,
-                               config.priority_threshold)
+        self.cache = ValueCache(
+            config, self.rows, self.model, self.mentor, self.terminal, self.gamma
+        )
+        self.sweeper = Sweeper(
+            B,
+            S,
+            dev,
+            config.backups,
+            config.sweep_rounds,
+            config.plan_every,
+            config.priority_threshold,
+        )
         self.keys = seed_streams(torch.tensor(seeds, dtype=torch.int64, device=dev))
-        first = uniforms(self.keys, -1, self.LANES)       # draw −1: the first start and option
+        first = uniforms(self.keys, -1, self.LANES)  # draw −1: the first start and option
         runs = torch.arange(B, device=dev)
         self.run_state = RunState(B, S, self.start_states(runs, first), M, config.eps_start, dev)
         self.metrics = RunMetrics()
         self._visit_base = torch.arange(B, device=dev) * (S + 1)
         self._ones_b = torch.ones(B, dtype=torch.int64, device=dev)
 
+        if config.option_models == "exact":
+            self._load_exact_option_models()
         self.rewards = self._reward_modules(reward, world, B)
         self._check_world_rewards(world)
         if demonstrations is not None:
             self.add_demonstrations(demonstrations)
         from .choice import choose_rows
-        self.run_state.row = choose_rows(self.cache, runs, self.run_state.position, first[:, 3:5],
-                                         self.run_state.epsilon, config.mentor_choice, config.tie_break)
+
+        self.run_state.row = choose_rows(
+            self.cache,
+            runs,
+            self.run_state.position,
+            first[:, 3:5],
+            self.run_state.epsilon,
+            config.mentor_choice,
+            config.tie_break,
+        )
         self.engine = make_engine(engine, self)
 
     # ============================================================================ engines
@@ -352,16 +469,22 @@ class Learner:
         if dist is None:
             return None
         dist = torch.as_tensor(dist, dtype=torch.float64, device=self.device)
-        if dist.shape != (self.num_states,) or not bool(torch.isfinite(dist).all()) \
-                or bool((dist < 0).any()) or abs(float(dist.sum()) - 1.0) > 1e-6:
-            raise ValueError(f"world.start_distribution must be [S={self.num_states}] probabilities "
-                             "summing to 1 (or None)")
+        if (
+            dist.shape != (self.num_states,)
+            or not bool(torch.isfinite(dist).all())
+            or bool((dist < 0).any())
+            or abs(float(dist.sum()) - 1.0) > 1e-6
+        ):
+            raise ValueError(
+                f"world.start_distribution must be [S={self.num_states}] probabilities "
+                "summing to 1 (or None)"
+            )
         if bool((dist[self.terminal[:-1]] > 0).any()):
             raise ValueError("world.start_distribution puts mass on a terminal state")
         cdf = dist.cumsum(0)
         # From the last possible start on the cdf is exactly 1, so rounding can never draw a
         # state of probability 0 beyond it.
-        cdf[int(dist.nonzero().max()):] = 1.0
+        cdf[int(dist.nonzero().max()) :] = 1.0
         return cdf
 
     def start_states(self, runs: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
@@ -370,58 +493,157 @@ class Learner:
         if self.start_cdf is None:
             return torch.full_like(runs, self.start_state)
         return torch.searchsorted(self.start_cdf, u[:, 5].contiguous(), right=True).clamp(
-            max=self.num_states - 1)
+            max=self.num_states - 1
+        )
 
     # ==================================================================================== setup
     def _reward_modules(self, reward, world, B):
         modules = list(reward) if isinstance(reward, (list, tuple)) else [reward] * B
         if len(modules) != B:
-            raise ValueError(f"{len(modules)} reward modules for {B} runs: give one, or one per run")
+            raise ValueError(
+                f"{len(modules)} reward modules for {B} runs: give one, or one per run"
+            )
         known = None
         for b, m in enumerate(modules):
             if m is None:
                 if not bool(self.rows.use_mentor[b]):
-                    modules[b] = _NO_MENTOR_REWARD   # no mentor term: its reward is never used
+                    modules[b] = _NO_MENTOR_REWARD  # no mentor term: its reward is never used
                     continue
                 if getattr(world, "state_reward", None) is None and self.dynamics is None:
-                    raise ValueError(f"run {b} ({self.agents[b]}) imitates but no reward module was "
-                                     "given and the world has neither a state_reward nor a "
-                                     "dynamics_table() for KnownReward; pass reward=… (e.g. a "
-                                     "SalienceReward or your own MentorReward)")
+                    raise ValueError(
+                        f"run {b} ({self.agents[b]}) imitates but no reward module was "
+                        "given and the world has neither a state_reward nor a "
+                        "dynamics_table() for KnownReward; pass reward=… (e.g. a "
+                        "SalienceReward or your own MentorReward)"
+                    )
                 known = known or KnownReward(world)
                 modules[b] = known
             elif not hasattr(m, "transition_reward"):
-                raise ValueError(f"reward module {m!r} has no transition_reward(sources, successors)")
+                raise ValueError(
+                    f"reward module {m!r} has no transition_reward(sources, successors)"
+                )
         return modules
+
+    def _load_exact_option_models(self) -> None:
+        """Preload every run's option model with the exact models (``LearnerConfig.option_models
+        = "exact"``; see there), fill the ``Q`` caches from them and queue the states whose value
+        a backup would change."""
+        from .exact_option_models import option_durations, option_models
+
+        N = float(self.config.exact_model_count)
+        S, O, dev = self.num_states, self.num_options, self.device
+        disc = option_models(self.world, self.options)  # Σγ^k weights and rewards
+        prob = option_durations(self.world, self.options)  # termination probabilities
+        # Row of the exact models → row of the learner (both enumerate the initiation sets).
+        key = self.rows.row_state[:-1] * O + self.rows.row_option[:-1]
+        order = torch.argsort(key)
+        exact_rows = order[
+            torch.searchsorted(key[order], (disc.row_state * O + disc.row_option).to(dev))
+        ]
+        coo_d = disc.transition.to_sparse_coo().coalesce()
+        coo_p = prob.transition.to_sparse_coo().coalesce()
+        # Union of the two supports, per (row, successor): weights, probabilities (0 if absent).
+        Sp = S + 1
+        kd = coo_d.indices()[0] * Sp + coo_d.indices()[1]
+        kp = coo_p.indices()[0] * Sp + coo_p.indices()[1]
+        keys, inv = torch.unique(torch.cat([kd, kp]), return_inverse=True)
+        g = torch.zeros(keys.numel(), dtype=torch.float64).index_add_(
+            0, inv[: kd.numel()], coo_d.values()
+        )
+        p = torch.zeros(keys.numel(), dtype=torch.float64).index_add_(
+            0, inv[kd.numel() :], coo_p.values()
+        )
+        e_row = exact_rows[(keys // Sp).to(dev)]
+        e_succ = (keys % Sp).to(dev)
+        g, p = g.to(dev), p.to(dev)
+        model, cache = self.model, self.cache
+        for b in range(self.batch):
+            use = self.rows.row_enabled[b, e_row]
+            rows_b, succ_b = e_row[use], e_succ[use]
+            E = rows_b.numel()
+            model.reserve(E)
+            model.edge_row[b, :E] = rows_b
+            model.edge_successor[b, :E] = succ_b
+            model.edge_count[b, :E] = N * p[use]
+            model.edge_discount[b, :E] = N * g[use]
+            model.num_edges[b] = E
+            enabled_exact = self.rows.row_enabled[b, exact_rows]
+            model.row_count[b, exact_rows[enabled_exact]] = N
+            model.row_reward[b, exact_rows[enabled_exact]] = N * disc.reward.to(dev)[enabled_exact]
+        model.version += 1
+        # Q caches as add_outcome would have built them: Σr + Σ_e Σγ^k V(s'), and the second
+        # moments Σ_e (Σγ^k)² / c · V(s')² of the confidence test.
+        cache.q_numerator.copy_(model.row_reward)
+        for b in range(self.batch):
+            E = int(model.num_edges[b])
+            rows_b, succ_b = model.edge_row[b, :E], model.edge_successor[b, :E]
+            v = cache.values[b].index_select(0, succ_b)
+            g_b, c_b = model.edge_discount[b, :E], model.edge_count[b, :E]
+            cache.q_numerator[b].index_add_(0, rows_b, g_b * v)
+            if bool(self.rows.use_confidence[b]):
+                cache.q_second[b].index_add_(0, rows_b, g_b * g_b / c_b.clamp(min=1e-300) * v * v)
+        runs = torch.arange(self.batch, device=dev)
+        states = torch.arange(S, device=dev)
+        best, has_value, _ = cache.state_backup(runs[:, None], states[None].expand(self.batch, -1))
+        change = torch.where(has_value, (best - cache.values[:, :S]).abs(), torch.zeros_like(best))
+        rr, ss = (change > self.config.priority_threshold).nonzero(as_tuple=True)
+        self.sweeper.push(rr, ss, change[rr, ss])
 
     def _check_world_rewards(self, world) -> None:
         probe = torch.full((1,), self.start_state, dtype=torch.int64, device=self.device)
         for a in range(world.num_actions):
-            _, r = self.step_world(probe, torch.tensor([a], device=self.device),
-                                   torch.full((1,), 0.5, dtype=torch.float64, device=self.device))
+            _, r = self.step_world(
+                probe,
+                torch.tensor([a], device=self.device),
+                torch.full((1,), 0.5, dtype=torch.float64, device=self.device),
+            )
             if not bool(torch.isfinite(r).all()):
-                raise ValueError("the world returned a NaN or infinite reward; rewards must be finite")
+                raise ValueError(
+                    "the world returned a NaN or infinite reward; rewards must be finite"
+                )
 
     def add_demonstrations(self, demonstrations, runs: Sequence[int] | None = None) -> None:
         """Add mentor state sequences to the mentor model of ``runs`` (all by default).
 
         ``demonstrations`` has ``transitions() -> (from [T], to [T])``; if it also has
-        ``check_world(world)``, it is called first (demonstrations of another world are refused).
+        ``check_world(world)``, it is called first (demonstrations of another world are refused);
+        if it has ``counts [T]`` (e.g. :func:`~himit_torch.mentor.exact_mentor_transitions`, the
+        mentor's exact model), each transition is counted that many times instead of once.
         """
         if hasattr(demonstrations, "check_world"):
             demonstrations.check_world(self.world)
         src, dst = demonstrations.transitions()
         src = torch.as_tensor(src, dtype=torch.int64, device=self.device)
         dst = torch.as_tensor(dst, dtype=torch.int64, device=self.device)
-        if src.numel() and (int(src.min()) < 0 or int(max(src.max(), dst.max())) >= self.num_states):
-            raise ValueError(f"demonstrations hold states outside 0…{self.num_states - 1}: they come "
-                             "from another world")
+        if src.numel() and (
+            int(src.min()) < 0 or int(max(src.max(), dst.max())) >= self.num_states
+        ):
+            raise ValueError(
+                f"demonstrations hold states outside 0…{self.num_states - 1}: they come "
+                "from another world"
+            )
+        counts = getattr(demonstrations, "counts", None)
+        if counts is not None:
+            counts = torch.as_tensor(counts, dtype=torch.float64, device=self.device)
+            if (
+                counts.shape != src.shape
+                or not bool((counts > 0).all())
+                or not bool(torch.isfinite(counts).all())
+            ):
+                raise ValueError(
+                    f"demonstrations.counts must be [T={src.numel()}] finite positive "
+                    "weights, one per transition"
+                )
         # Episodes end at a terminal state: a "transition" out of one is not the mentor's move.
         keep = ~self.terminal.index_select(0, src)
         src, dst = src[keep], dst[keep]
-        run_idx = None if runs is None else \
-            torch.as_tensor(list(runs), dtype=torch.int64, device=self.device)
-        self.mentor.observe(src, dst, run_idx)
+        counts = None if counts is None else counts[keep]
+        run_idx = (
+            None
+            if runs is None
+            else torch.as_tensor(list(runs), dtype=torch.int64, device=self.device)
+        )
+        self.mentor.observe(src, dst, run_idx, counts)
         self.refresh_mentor_reward()
 
     def refresh_mentor_reward(self) -> None:
@@ -431,36 +653,50 @@ class Learner:
         mentor = self.mentor
         for b, module in enumerate(self.rewards):
             E = int(mentor.num_edges[b])
-            if module is _NO_MENTOR_REWARD:   # a run without a mentor term: nothing to check
+            if module is _NO_MENTOR_REWARD:  # a run without a mentor term: nothing to check
                 self.cache.mentor_edge_reward[b, :E] = 0.0
                 continue
             bound = float(getattr(module, "upper_bound", float("inf")))
-            if real_best is not None and bound > real_best + 1e-12 and self.config.reward_bound_check != "off":
-                message = (f"reward module {module!r} declares upper_bound={bound:g}, above the "
-                           f"learner's best real reward per step {real_best:g}: R_m must not "
-                           "overestimate the real reward (eq. 2's guarantee); lower the module's "
-                           "scale/bound or set LearnerConfig.reward_bound_check='warn'/'off'")
+            if (
+                real_best is not None
+                and bound > real_best + 1e-12
+                and self.config.reward_bound_check != "off"
+            ):
+                message = (
+                    f"reward module {module!r} declares upper_bound={bound:g}, above the "
+                    f"learner's best real reward per step {real_best:g}: R_m must not "
+                    "overestimate the real reward (eq. 2's guarantee); lower the module's "
+                    "scale/bound or set LearnerConfig.reward_bound_check='warn'/'off'"
+                )
                 if self.config.reward_bound_check == "error":
                     raise ValueError(message)
                 warnings.warn(message, stacklevel=3)
             src, dst = mentor.edge_row[b, :E], mentor.edge_successor[b, :E]
-            r = torch.as_tensor(module.transition_reward(src, dst), dtype=torch.float64,
-                                device=self.device)
+            r = torch.as_tensor(
+                module.transition_reward(src, dst), dtype=torch.float64, device=self.device
+            )
             if r.shape != (E,):
-                raise ValueError(f"reward module {module!r} returned shape {tuple(r.shape)} for {E} "
-                                 "transitions; it must return one reward per transition")
+                raise ValueError(
+                    f"reward module {module!r} returned shape {tuple(r.shape)} for {E} "
+                    "transitions; it must return one reward per transition"
+                )
             if not bool(torch.isfinite(r).all()):
                 raise ValueError(f"reward module {module!r} returned NaN or infinite rewards")
             if E and float(r.max()) > bound + 1e-12:
-                raise ValueError(f"reward module {module!r} returned {float(r.max()):g}, above its "
-                                 f"declared upper_bound={bound:g}")
+                raise ValueError(
+                    f"reward module {module!r} returned {float(r.max()):g}, above its "
+                    f"declared upper_bound={bound:g}"
+                )
             self.cache.mentor_edge_reward[b, :E] = r
         self.cache.rebuild_mentor()
         # Every mentor state is worth a backup now.
         runs, states = mentor.observed().nonzero(as_tuple=True)
         keep = self.rows.use_mentor[runs]
-        self.sweeper.push(runs[keep], states[keep],
-                          torch.ones(int(keep.sum()), dtype=torch.float64, device=self.device))
+        self.sweeper.push(
+            runs[keep],
+            states[keep],
+            torch.ones(int(keep.sum()), dtype=torch.float64, device=self.device),
+        )
 
     def _real_reward_bound(self) -> float | None:
         """The learner's best real reward for one step (``None`` if the world does not say)."""
@@ -482,6 +718,7 @@ class Learner:
         bar = None
         if progress:
             from tqdm.auto import tqdm
+
             bar = tqdm(total=steps, desc=f"{self.batch} runs", unit="step", mininterval=1.0)
         left = steps
         while left > 0:
@@ -501,33 +738,47 @@ class Learner:
         states): the exhaustive path, for checks. Returns the number of rounds."""
         runs = torch.arange(self.batch, device=self.device)
         budget = torch.full((self.batch,), self.config.backups * max_rounds, device=self.device)
-        done = self.sweeper.sweep(runs, budget, self.cache.backup_and_propagate,
-                                  round_size=self.config.backups)
+        done = self.sweeper.sweep(
+            runs, budget, self.cache.backup_and_propagate, round_size=self.config.backups
+        )
         self.engine.invalidate()
         return -(-int(done.max()) // self.config.backups) if done.numel() else 0
 
     # ============================================================================ checkpoints
     def _identity(self) -> dict:
-        return {"agents": self.agents, "seeds": self.seeds, "num_states": self.num_states,
-                "num_options": self.num_options, "num_rows": self.num_rows,
-                "config": asdict(self.config)}
+        return {
+            "agents": self.agents,
+            "seeds": self.seeds,
+            "num_states": self.num_states,
+            "num_options": self.num_options,
+            "num_rows": self.num_rows,
+            "config": asdict(self.config),
+        }
 
     def state_dict(self) -> dict:
         """Everything that changes while learning (models, values, queue, run state, metrics):
         with the same world, options, agents, seeds and config, :meth:`load_state_dict` continues
         exactly where this left off (on either engine). Plain tensors, numbers, strings, lists
         and dicts only."""
-        return {"layout": self.STATE_LAYOUT_VERSION, "identity": self._identity(),
-                "run": self.run_state.state_dict(), "model": self.model.state_dict(),
-                "mentor": self.mentor.state_dict(), "cache": self.cache.state_dict(),
-                "sweeper": self.sweeper.state_dict(), "metrics": self.metrics.state_dict()}
+        return {
+            "layout": self.STATE_LAYOUT_VERSION,
+            "identity": self._identity(),
+            "run": self.run_state.state_dict(),
+            "model": self.model.state_dict(),
+            "mentor": self.mentor.state_dict(),
+            "cache": self.cache.state_dict(),
+            "sweeper": self.sweeper.state_dict(),
+            "metrics": self.metrics.state_dict(),
+        }
 
     def load_state_dict(self, state: dict) -> None:
         """Restore a :meth:`state_dict` (refuses one of another layout, batch or configuration)."""
         layout = state.get("layout", 1)
         if layout != self.STATE_LAYOUT_VERSION:
-            raise ValueError(f"state layout {layout} cannot be loaded by this learner (layout "
-                             f"{self.STATE_LAYOUT_VERSION}); start the run again")
+            raise ValueError(
+                f"state layout {layout} cannot be loaded by this learner (layout "
+                f"{self.STATE_LAYOUT_VERSION}); start the run again"
+            )
         ident, mine = state["identity"], self._identity()
         differ = sorted(k for k in mine if mine[k] != ident.get(k))
         if differ:
@@ -589,7 +840,7 @@ class Learner:
         out = torch.full((self.batch,), float("nan"), dtype=torch.float64, device=self.device)
         if not bool(observed.any()):
             return out
-        if hasattr(self.engine, "mentor_wins"):       # the compiled backup: ~1000× faster
+        if hasattr(self.engine, "mentor_wins"):  # the compiled backup: ~1000× faster
             wins = self.engine.mentor_wins().to(self.device)
         else:
             states = observed.any(0).nonzero()[:, 0]
@@ -602,22 +853,24 @@ class Learner:
     def greedy_options(self) -> torch.Tensor:
         """``[B, S]`` greedy option per state (−1 where none is usable), ties to the lowest row."""
         runs = torch.arange(self.batch, device=self.device)[:, None, None]
-        rows = self.rows.state_rows[:self.num_states][None]
+        rows = self.rows.state_rows[: self.num_states][None]
         q = self.cache.row_q(runs, rows)
         usable = self.rows.row_enabled[runs, rows] & (self.model.row_count[runs, rows] > 0)
         q = torch.where(usable, q, torch.full_like(q, float("-inf")))
         best = q.argmax(-1)
-        option = self.rows.row_option[rows.expand(self.batch, -1, -1).gather(2, best[..., None])[..., 0]]
+        option = self.rows.row_option[
+            rows.expand(self.batch, -1, -1).gather(2, best[..., None])[..., 0]
+        ]
         return torch.where(usable.any(-1), option, torch.full_like(option, -1))
 
     def visit_counts(self) -> torch.Tensor:
         """``[B, S]`` how often each run has been in each state (after each primitive step)."""
-        return self.run_state.visits[:, :self.num_states]
+        return self.run_state.visits[:, : self.num_states]
 
     def model_coverage(self) -> torch.Tensor:
         """``[B]`` share of the run's usable ``(s, o)`` rows it has tried at least once."""
-        enabled = self.rows.row_enabled[:, :self.num_rows]
-        tried = (self.model.row_count[:, :self.num_rows] > 0) & enabled
+        enabled = self.rows.row_enabled[:, : self.num_rows]
+        tried = (self.model.row_count[:, : self.num_rows] > 0) & enabled
         return tried.sum(1).double() / enabled.sum(1).clamp(min=1)
 
     def greedy_trajectory(self, run: int, max_steps: int, seed: int = 0) -> torch.Tensor:
@@ -633,18 +886,27 @@ class Learner:
         while steps < max_steps and not bool(self.terminal[s]):
             if option < 0:
                 option = int(greedy[s])
-                if option < 0:   # nothing tried here: any usable option
+                if option < 0:  # nothing tried here: any usable option
                     rows = self.rows.state_rows[s][0]
                     rows = rows[self.rows.row_enabled[run, rows]]
-                    option = int(self.rows.row_option[rows[torch.randint(
-                        len(rows), (1,), generator=gen, device=self.device)]])
+                    option = int(
+                        self.rows.row_option[
+                            rows[torch.randint(len(rows), (1,), generator=gen, device=self.device)]
+                        ]
+                    )
             flat = option * S + s
             if self.policy is not None:
-                action = self.policy[flat]
+                action = self.policy[flat].long()
             else:
-                assert self.policy_cdf is not None   # stochastic options
-                action = torch.multinomial(torch.diff(self.policy_cdf[flat], prepend=torch.zeros(
-                    1, 1, dtype=torch.float64, device=self.device)), 1, generator=gen)[:, 0]
+                assert self.policy_cdf is not None  # stochastic options
+                action = torch.multinomial(
+                    torch.diff(
+                        self.policy_cdf[flat],
+                        prepend=torch.zeros(1, 1, dtype=torch.float64, device=self.device),
+                    ),
+                    1,
+                    generator=gen,
+                )[:, 0]
             u = torch.rand(s.shape, generator=gen, device=self.device, dtype=torch.float64)
             s, _ = self.step_world(s, action, u)
             steps += 1
@@ -656,11 +918,18 @@ class Learner:
 
     def state_values(self) -> torch.Tensor:
         """``[B, S]`` current value estimates."""
-        return self.cache.values[:, :self.num_states]
+        return self.cache.values[:, : self.num_states]
 
     def summary(self) -> dict:
         run = self.run_state
-        return {"steps": self.t, "goals": run.goals.tolist(), "episodes": run.episodes.tolist(),
-                "first_goal_step": run.first_goal_step.tolist(), "epsilon": run.epsilon.tolist(),
-                "backups": run.backups_done.tolist(), "decisions": run.decisions.tolist(),
-                "engine": self.engine.name, "config": asdict(self.config)}
+        return {
+            "steps": self.t,
+            "goals": run.goals.tolist(),
+            "episodes": run.episodes.tolist(),
+            "first_goal_step": run.first_goal_step.tolist(),
+            "epsilon": run.epsilon.tolist(),
+            "backups": run.backups_done.tolist(),
+            "decisions": run.decisions.tolist(),
+            "engine": self.engine.name,
+            "config": asdict(self.config),
+        }

@@ -18,7 +18,15 @@ from .exact_planning import greedy_option_policy, smdp_value_iteration
 from .options import Options
 from .world import MultiRooms, TabularWorld
 
-__all__ = ["MentorPolicy", "MentorRollout", "mentor_policy", "run_mentor", "record_demonstrations"]
+__all__ = [
+    "MentorPolicy",
+    "MentorRollout",
+    "mentor_policy",
+    "run_mentor",
+    "record_demonstrations",
+    "ExactMentorTransitions",
+    "exact_mentor_transitions",
+]
 
 
 @dataclass(frozen=True)
@@ -46,8 +54,9 @@ class MentorPolicy:
         return (self.option >= 0) & ext[self.option.clamp(min=0)]
 
 
-def mentor_policy(world: MultiRooms | TabularWorld, options: Options,
-                  prefer_extended_within: float | None = None) -> MentorPolicy:
+def mentor_policy(
+    world: MultiRooms | TabularWorld, options: Options, prefer_extended_within: float | None = None
+) -> MentorPolicy:
     """The mentor's optimal policy for its own options, by exact SMDP value iteration.
 
     Why the preference: with primitives among its options, the strictly optimal choice is often
@@ -73,11 +82,14 @@ def mentor_policy(world: MultiRooms | TabularWorld, options: Options,
         prefer_extended_within = abs(getattr(world, "step_reward", 0.0))
     tolerance = float(prefer_extended_within)
     if not tolerance >= 0.0:  # also rejects NaN
-        raise ValueError(f"prefer_extended_within={prefer_extended_within} must be ≥ 0 (a value "
-                         "tolerance; 0 gives the strict optimum)")
+        raise ValueError(
+            f"prefer_extended_within={prefer_extended_within} must be ≥ 0 (a value "
+            "tolerance; 0 gives the strict optimum)"
+        )
     if options.num_states != world.num_states:
-        raise ValueError(f"options are over {options.num_states} states but the world has "
-                         f"{world.num_states}")
+        raise ValueError(
+            f"options are over {options.num_states} states but the world has {world.num_states}"
+        )
     models = option_models(world, options)
     plan = smdp_value_iteration(models)
     extended = ~options.is_primitive
@@ -117,9 +129,15 @@ class MentorRollout:
         return counts
 
 
-def run_mentor(world: MultiRooms | TabularWorld, mentor: MentorPolicy | Options, episodes: int = 20, *,
-               generator: torch.Generator | None = None, seed: int | None = None,
-               max_steps_per_episode: int | None = None) -> MentorRollout:
+def run_mentor(
+    world: MultiRooms | TabularWorld,
+    mentor: MentorPolicy | Options,
+    episodes: int = 20,
+    *,
+    generator: torch.Generator | None = None,
+    seed: int | None = None,
+    max_steps_per_episode: int | None = None,
+) -> MentorRollout:
     """Run the mentor's policy from the start until a terminal state, ``episodes`` times.
 
     Episodes start at ``world.start_state``, or, for a world with a ``start_distribution``, at
@@ -163,8 +181,12 @@ def run_mentor(world: MultiRooms | TabularWorld, mentor: MentorPolicy | Options,
     if start_distribution is None:
         pos = torch.full((E,), int(world.start_state), dtype=torch.int64)
     else:
-        pos = torch.multinomial(torch.as_tensor(start_distribution, dtype=torch.float64), E,
-                                replacement=True, generator=generator)
+        pos = torch.multinomial(
+            torch.as_tensor(start_distribution, dtype=torch.float64),
+            E,
+            replacement=True,
+            generator=generator,
+        )
     if bool((choice[pos] < 0).any()):
         bad = int(pos[choice[pos] < 0][0])
         raise ValueError(f"the mentor has no option at the start state {_where(world, bad)}")
@@ -178,15 +200,16 @@ def run_mentor(world: MultiRooms | TabularWorld, mentor: MentorPolicy | Options,
             picked = choice[pos[need]]
             if (picked < 0).any() or not init[picked, pos[need]].all():
                 bad = int(pos[need][(picked < 0) | ~init[picked.clamp(min=0), pos[need]]][0])
-                raise ValueError(f"the mentor's policy has no usable option at state "
-                                 f"{_where(world, bad)}")
+                raise ValueError(
+                    f"the mentor's policy has no usable option at state {_where(world, bad)}"
+                )
             current[need] = picked
             decided_episode.append(torch.nonzero(need).flatten())
             decided_option.append(picked)
         u = torch.rand(3, E, generator=generator, dtype=torch.float64)
         o = current.clamp(min=0)
         if probs is None:
-            action = options.policy[o, pos]
+            action = options.policy[o, pos].long()
         else:
             cdf = probs[o, pos].double().cumsum(-1)
             action = torch.searchsorted(cdf, u[0, :, None] * cdf[:, -1:]).flatten()
@@ -201,11 +224,13 @@ def run_mentor(world: MultiRooms | TabularWorld, mentor: MentorPolicy | Options,
         if not active.any():
             break
     if active.any():
-        raise ValueError(f"the mentor did not reach the goal within max_steps_per_episode="
-                         f"{max_steps} steps in {int(active.sum())} of {E} episodes; is its "
-                         "policy able to reach the goal?")
-    hist = torch.stack(history)                                  # [T + 1, E]
-    reached = terminal[hist].int().argmax(0)                     # first arrival at the goal
+        raise ValueError(
+            f"the mentor did not reach the goal within max_steps_per_episode="
+            f"{max_steps} steps in {int(active.sum())} of {E} episodes; is its "
+            "policy able to reach the goal?"
+        )
+    hist = torch.stack(history)  # [T + 1, E]
+    reached = terminal[hist].int().argmax(0)  # first arrival at the goal
     states = tuple(hist[: int(reached[e]) + 1, e].clone() for e in range(E))
     ep = torch.cat(decided_episode)
     opt = torch.cat(decided_option)
@@ -213,20 +238,168 @@ def run_mentor(world: MultiRooms | TabularWorld, mentor: MentorPolicy | Options,
     return MentorRollout(states=states, decisions=decisions, options=options)
 
 
-def record_demonstrations(world: MultiRooms | TabularWorld, mentor: MentorPolicy | Options, episodes: int = 20, *,
-                          generator: torch.Generator | None = None, seed: int | None = None,
-                          max_steps_per_episode: int | None = None) -> Demonstrations:
+def record_demonstrations(
+    world: MultiRooms | TabularWorld,
+    mentor: MentorPolicy | Options,
+    episodes: int = 20,
+    *,
+    generator: torch.Generator | None = None,
+    seed: int | None = None,
+    max_steps_per_episode: int | None = None,
+) -> Demonstrations:
     """State-only demonstrations of the mentor: :func:`run_mentor`, keeping the states only.
 
     The learner sees nothing of the mentor's actions, options or rewards; the returned
     :class:`~himit_torch.Demonstrations` holds each episode's states and the world's description.
     Arguments as for :func:`run_mentor`.
     """
-    rollout = run_mentor(world, mentor, episodes, generator=generator, seed=seed,
-                         max_steps_per_episode=max_steps_per_episode)
+    rollout = run_mentor(
+        world,
+        mentor,
+        episodes,
+        generator=generator,
+        seed=seed,
+        max_steps_per_episode=max_steps_per_episode,
+    )
     return Demonstrations(list(rollout.states), world)
 
 
 def _where(world, state: int) -> str:
     """A state for messages: its cell in MultiRooms, its index elsewhere."""
     return str(world.coords(state)) if hasattr(world, "coords") else str(state)
+
+
+@dataclass(frozen=True)
+class ExactMentorTransitions:
+    """The mentor's exact state-transition model as expected counts: what infinitely many
+    demonstrations would show, scaled to ``episodes`` episodes.
+
+    ``counts[i]`` is the expected number of primitive steps ``sources[i] → successors[i]`` the
+    mentor makes in ``episodes`` episodes, so ``p_m(s'|s) = counts / Σ_{s'} counts`` exactly
+    (:func:`exact_mentor_transitions`). Give it to :meth:`Learner.add_demonstrations
+    <himit_torch.Learner.add_demonstrations>` in place of recorded demonstrations: its
+    ``transitions()`` and ``counts`` are read, and the mentor model holds these (fractional)
+    counts.
+    """
+
+    sources: torch.Tensor
+    successors: torch.Tensor
+    counts: torch.Tensor
+
+    def transitions(self) -> tuple[torch.Tensor, torch.Tensor]:
+        return self.sources, self.successors
+
+
+def exact_mentor_transitions(
+    world, mentor: MentorPolicy, episodes: float = 1.0
+) -> ExactMentorTransitions:
+    """The exact one-step model ``p_m(s'|s)`` of the mentor of :func:`run_mentor`, as expected
+    transition counts over ``episodes`` episodes.
+
+    The mentor is Markov in the pair (state, executing option), not in the state alone: at a
+    decision in ``s`` it starts ``mentor.option[s]``; the option acts by its policy, the world
+    moves to ``s'``, and the option stops there with probability ``β_o(s')`` (always at a
+    terminal state), when a new decision is made at ``s'``. With ``T`` that chain's transient
+    kernel over reachable pairs and ``x0`` the start distribution over pairs, the expected visits
+    are ``x = x0 (I − T)⁻¹`` (one sparse solve), and the expected count of ``s → s'`` is
+    ``Σ_o x(s, o) P(s' | s, π_o(s))`` — what the learned counts converge to, divided by the
+    number of episodes. Every state the mentor reaches with positive probability (with slips,
+    far more than a few demonstrations visit) gets its exact ``p_m(·|s)``.
+
+    Args:
+        world: a world with a true model (:func:`~himit_torch.table_world.world_model`).
+        mentor: the mentor's :class:`MentorPolicy` (deterministic or stochastic option policies).
+        episodes: scale of the counts (``> 0``): the expected counts of this many episodes.
+    """
+    import numpy as np
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+
+    from .table_world import world_model
+
+    if not episodes > 0:
+        raise ValueError(f"episodes={episodes!r} must be > 0 (the scale of the expected counts)")
+    P, _ = world_model(world)
+    A, S, _ = P.shape
+    idx, val = P.indices().numpy(), P.values().numpy()
+    # One-step kernel per (action, state): CSR over rows a·S + s.
+    K = sp.csr_matrix((val, (idx[0] * S + idx[1], idx[2])), shape=(A * S, S))
+    options = mentor.options
+    probs = options.action_probabilities(A).double().numpy() if options.stochastic else None
+    policy = None if options.stochastic else options.policy.numpy()
+    beta = options.termination.double().numpy()
+    choice = mentor.option.numpy()
+    terminal = world.terminal_mask.numpy()
+
+    def actions(o: int, s: int):
+        if probs is None:
+            assert policy is not None  # deterministic options have a policy table
+            return [(int(policy[o, s]), 1.0)]
+        return [(a, float(p)) for a, p in enumerate(probs[o, s]) if p > 0]
+
+    start = getattr(world, "start_distribution", None)
+    start = (
+        np.eye(S)[int(world.start_state)]
+        if start is None
+        else torch.as_tensor(start, dtype=torch.float64).numpy()
+    )
+    pair_id: dict[tuple[int, int], int] = {}
+    pairs: list[tuple[int, int]] = []
+
+    def pair(s: int, o: int) -> int:
+        key = (s, o)
+        if key not in pair_id:
+            if o < 0:
+                raise ValueError(
+                    f"the mentor's policy has no option at state {_where(world, s)}, "
+                    "which it can reach"
+                )
+            pair_id[key] = len(pairs)
+            pairs.append(key)
+        return pair_id[key]
+
+    starts = {pair(int(s), int(choice[s])): float(start[s]) for s in np.flatnonzero(start > 0)}
+    rows, cols, vals = [], [], []  # transient kernel T between pairs
+    edge_pair, edge_succ, edge_prob = [], [], []  # pair → next state, per-step probability
+    i = 0
+    while i < len(pairs):
+        s, o = pairs[i]
+        for a, pa in actions(o, s):
+            lo, hi = K.indptr[a * S + s], K.indptr[a * S + s + 1]
+            for s2, p in zip(K.indices[lo:hi], K.data[lo:hi]):
+                p = pa * p
+                if p <= 0:
+                    continue
+                edge_pair.append(i)
+                edge_succ.append(int(s2))
+                edge_prob.append(p)
+                if terminal[s2]:
+                    continue
+                b = float(beta[o, s2])
+                if b > 0:
+                    rows.append(i)
+                    cols.append(pair(int(s2), int(choice[s2])))
+                    vals.append(p * b)
+                if b < 1:
+                    rows.append(i)
+                    cols.append(pair(int(s2), o))
+                    vals.append(p * (1 - b))
+        i += 1
+    n = len(pairs)
+    T = sp.csr_matrix((vals, (rows, cols)), shape=(n, n))
+    x0 = np.zeros(n)
+    x0[list(starts)] = list(starts.values())
+    visits = spla.spsolve((sp.identity(n, format="csc") - T).T.tocsc(), x0)
+    counts = episodes * visits[np.array(edge_pair)] * np.array(edge_prob)
+    src = np.array([pairs[j][0] for j in edge_pair], dtype=np.int64)
+    dst = np.array(edge_succ, dtype=np.int64)
+    # One entry per (s, s'): sum over the options executing at s.
+    key = src * S + dst
+    uniq, inv = np.unique(key, return_inverse=True)
+    summed = np.bincount(inv, weights=counts)
+    keep = summed > 0
+    return ExactMentorTransitions(
+        torch.from_numpy(uniq[keep] // S),
+        torch.from_numpy(uniq[keep] % S),
+        torch.from_numpy(summed[keep]),
+    )

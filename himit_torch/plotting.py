@@ -36,9 +36,24 @@ from matplotlib.ticker import FuncFormatter
 from .demonstrations import Demonstrations
 from .world import MultiRooms
 
-__all__ = ["fit_titles", "plot_world", "save_world_figure", "plot_state_map", "map_legend", "plot_goal_curves",
-           "plot_first_goals", "runs_split", "MapRenderer", "value_image", "visitation_image",
-           "policy_image", "CURVE_COLORS", "WALL_COLOR", "NO_DATA_COLOR", "MAP_CMAP"]
+__all__ = [
+    "fit_titles",
+    "plot_world",
+    "save_world_figure",
+    "plot_state_map",
+    "map_legend",
+    "plot_goal_curves",
+    "plot_first_goals",
+    "runs_split",
+    "MapRenderer",
+    "value_image",
+    "visitation_image",
+    "policy_image",
+    "CURVE_COLORS",
+    "WALL_COLOR",
+    "NO_DATA_COLOR",
+    "MAP_CMAP",
+]
 
 MENTOR_COLOR = "#1f5fbf"
 LEARNER_COLOR = "#e8590c"
@@ -52,14 +67,26 @@ OPTIMUM_COLOR = "0.2"
 PAPER_OPTIMUM_COLOR = "0.55"
 #: Distinct curve colours (Okabe & Ito's colour-blind-safe set, yellow swapped for a dark gold
 #: that shows on white); one per variant, in order.
-CURVE_COLORS = ("#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9", "#000000",
-                "#8F7A00")
+CURVE_COLORS = (
+    "#0072B2",
+    "#D55E00",
+    "#009E73",
+    "#CC79A7",
+    "#E69F00",
+    "#56B4E9",
+    "#000000",
+    "#8F7A00",
+)
 
 
 def _trajectories(states) -> list[np.ndarray]:
     """One trajectory (1-D sequence) or several (a sequence of them) as a list of arrays."""
     if isinstance(states, (torch.Tensor, np.ndarray)):
-        a = states.detach().cpu().numpy() if isinstance(states, torch.Tensor) else np.asarray(states)
+        a = (
+            states.detach().cpu().numpy()
+            if isinstance(states, torch.Tensor)
+            else np.asarray(states)
+        )
         if a.ndim == 1:
             return [a.astype(np.int64)]
         if a.ndim == 2:
@@ -68,24 +95,46 @@ def _trajectories(states) -> list[np.ndarray]:
     items = list(states)
     if items and all(np.ndim(x) == 0 for x in items):
         return [np.asarray(items, dtype=np.int64)]
-    return [np.asarray(x.detach().cpu().numpy() if isinstance(x, torch.Tensor) else x, dtype=np.int64)
-            for x in items]
+    return [
+        np.asarray(x.detach().cpu().numpy() if isinstance(x, torch.Tensor) else x, dtype=np.int64)
+        for x in items
+    ]
 
 
-def _draw_paths(ax: Axes, world: MultiRooms, paths: Sequence[np.ndarray], color: str, alpha: float,
-                linewidth: float, zorder: int) -> None:
+def _draw_paths(
+    ax: Axes,
+    world: MultiRooms,
+    paths: Sequence[np.ndarray],
+    color: str,
+    alpha: float,
+    linewidth: float,
+    zorder: int,
+) -> None:
     for path in paths:
         if path.size == 0:
             continue
         if ((path < 0) | (path >= world.num_states)).any():
             raise ValueError(f"trajectory holds states outside [0, {world.num_states})")
         rows, cols = np.divmod(path, world.size)
-        ax.plot(cols, rows, color=color, alpha=alpha, linewidth=linewidth, zorder=zorder,
-                solid_capstyle="round", solid_joinstyle="round")
+        ax.plot(
+            cols,
+            rows,
+            color=color,
+            alpha=alpha,
+            linewidth=linewidth,
+            zorder=zorder,
+            solid_capstyle="round",
+            solid_joinstyle="round",
+        )
 
 
-def plot_world(world: MultiRooms, demonstrations: Demonstrations | None = None,
-               learner_states=None, ax: Axes | None = None, title: str | None = None) -> Figure:
+def plot_world(
+    world: MultiRooms,
+    demonstrations: Demonstrations | None = None,
+    learner_states=None,
+    ax: Axes | None = None,
+    title: str | None = None,
+) -> Figure:
     """Draw the world like the paper's Fig. 2.
 
     Walls are black, doorways yellow, the start a green circle and the goal a red star. Each
@@ -117,39 +166,88 @@ def plot_world(world: MultiRooms, demonstrations: Demonstrations | None = None,
     cells = world.wall_mask.numpy().astype(np.int64)
     cells[world.doorways.numpy()] = 2
     cmap = ListedColormap(["white", WALL_COLOR, DOORWAY_COLOR])
-    ax.imshow(cells.reshape(N, N), cmap=cmap, vmin=0, vmax=2, interpolation="nearest",
-              extent=(-0.5, N - 0.5, N - 0.5, -0.5), zorder=0)
-    handles: list[Artist] = [Patch(facecolor=WALL_COLOR, label="wall"),
-                             Patch(facecolor=DOORWAY_COLOR, edgecolor="0.4", label="doorway")]
+    ax.imshow(
+        cells.reshape(N, N),
+        cmap=cmap,
+        vmin=0,
+        vmax=2,
+        interpolation="nearest",
+        extent=(-0.5, N - 0.5, N - 0.5, -0.5),
+        zorder=0,
+    )
+    handles: list[Artist] = [
+        Patch(facecolor=WALL_COLOR, label="wall"),
+        Patch(facecolor=DOORWAY_COLOR, edgecolor="0.4", label="doorway"),
+    ]
     if demonstrations is not None:
         paths = [e.numpy() for e in demonstrations.episodes]
         # Fainter lines for more episodes, so overlaps show where the mentor goes reliably.
         alpha = float(np.clip(1.5 / max(1, len(paths)) ** 0.5, 0.12, 0.8))
         _draw_paths(ax, world, paths, MENTOR_COLOR, alpha, 2.0, zorder=2)
-        handles.append(Line2D([], [], color=MENTOR_COLOR, linewidth=2.0,
-                              label=f"mentor ({len(paths)} episode{'s' * (len(paths) != 1)})"))
+        handles.append(
+            Line2D(
+                [],
+                [],
+                color=MENTOR_COLOR,
+                linewidth=2.0,
+                label=f"mentor ({len(paths)} episode{'s' * (len(paths) != 1)})",
+            )
+        )
     if learner_states is not None:
         paths = _trajectories(learner_states)
         _draw_paths(ax, world, paths, LEARNER_COLOR, 0.85, 1.6, zorder=3)
         handles.append(Line2D([], [], color=LEARNER_COLOR, linewidth=1.6, label="learner"))
     marker = max(7.0, 200.0 / N)
-    for state, color, shape, label in ((world.start_state, START_COLOR, "o", "start"),
-                                       (world.goal_state, GOAL_COLOR, "*", "goal")):
+    for state, color, shape, label in (
+        (world.start_state, START_COLOR, "o", "start"),
+        (world.goal_state, GOAL_COLOR, "*", "goal"),
+    ):
         r, c = world.coords(state)
-        ax.plot([c], [r], marker=shape, color=color, markersize=marker * (1.6 if shape == "*" else 1),
-                markeredgecolor="white", markeredgewidth=0.8, linestyle="none", zorder=4)
-        handles.append(Line2D([], [], marker=shape, color=color, linestyle="none",
-                              markeredgecolor="white", markersize=8, label=label))
+        ax.plot(
+            [c],
+            [r],
+            marker=shape,
+            color=color,
+            markersize=marker * (1.6 if shape == "*" else 1),
+            markeredgecolor="white",
+            markeredgewidth=0.8,
+            linestyle="none",
+            zorder=4,
+        )
+        handles.append(
+            Line2D(
+                [],
+                [],
+                marker=shape,
+                color=color,
+                linestyle="none",
+                markeredgecolor="white",
+                markersize=8,
+                label=label,
+            )
+        )
     ax.set_xlim(-0.5, N - 0.5)
     ax.set_ylim(N - 0.5, -0.5)
     ax.set_aspect("equal")
     ax.set_xticks([])
     ax.set_yticks([])
-    ax.set_title(title if title is not None else
-                 f"{N}×{N} multirooms: a {world.rooms}×{world.rooms} grid of rooms of "
-                 f"{world.room_size}×{world.room_size} cells", fontsize="medium")
-    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.01), ncol=len(handles),
-              fontsize="small", frameon=False, handlelength=1.5, columnspacing=1.0)
+    ax.set_title(
+        title
+        if title is not None
+        else f"{N}×{N} multirooms: a {world.rooms}×{world.rooms} grid of rooms of "
+        f"{world.room_size}×{world.room_size} cells",
+        fontsize="medium",
+    )
+    ax.legend(
+        handles=handles,
+        loc="upper center",
+        bbox_to_anchor=(0.5, -0.01),
+        ncol=len(handles),
+        fontsize="small",
+        frameon=False,
+        handlelength=1.5,
+        columnspacing=1.0,
+    )
     return fig
 
 
@@ -183,9 +281,12 @@ def fit_titles(fig: Figure, margin: float = 0.01) -> None:
     ``fig._himit_titles``) fit inside the figure: lines are re-broken at spaces to the width
     available around the title's anchor, then the figure is laid out again (a constrained
     layout makes room above the axes for the extra lines). Call before saving."""
-    renderer = fig.canvas.get_renderer() if hasattr(fig.canvas, "get_renderer") else \
-        FigureCanvasAgg(fig).get_renderer()
-    with warnings.catch_warnings():   # the unwrapped titles may not leave the axes any room yet
+    renderer = (
+        fig.canvas.get_renderer()
+        if hasattr(fig.canvas, "get_renderer")
+        else FigureCanvasAgg(fig).get_renderer()
+    )
+    with warnings.catch_warnings():  # the unwrapped titles may not leave the axes any room yet
         warnings.filterwarnings("ignore", "constrained_layout not applied", UserWarning)
         fig.draw_without_rendering()
     texts = [ax.title for ax in fig.axes if ax.title.get_text()]
@@ -203,19 +304,23 @@ def fit_titles(fig: Figure, margin: float = 0.01) -> None:
     fig.draw_without_rendering()
 
 
-def save_world_figure(path: str | os.PathLike, world: MultiRooms,
-                      demonstrations: Demonstrations | None = None, learner_states=None,
-                      title: str | None = None, dpi: int = 150) -> Path:
+def save_world_figure(
+    path: str | os.PathLike,
+    world: MultiRooms,
+    demonstrations: Demonstrations | None = None,
+    learner_states=None,
+    title: str | None = None,
+    dpi: int = 150,
+) -> Path:
     """Draw :func:`plot_world` and write it to ``path`` (PNG by default); returns the path."""
-    fig = plot_world(world, demonstrations=demonstrations, learner_states=learner_states,
-                     title=title)
+    fig = plot_world(
+        world, demonstrations=demonstrations, learner_states=learner_states, title=title
+    )
     FigureCanvasAgg(fig)
     path = Path(path)
     fit_titles(fig)
     fig.savefig(path, dpi=dpi, format=path.suffix[1:] or "png")
     return path
-
-
 
 
 # ============================================================================ per-state maps
@@ -225,9 +330,20 @@ def _numpy(x) -> np.ndarray:
     return np.asarray(x, dtype=np.float64)
 
 
-def plot_state_map(ax: Axes, world: MultiRooms, field, *, label: str, title: str | None = None,
-                   log: bool = False, vmin: float | None = None, vmax: float | None = None,
-                   no_data=None, colorbar: bool = True, cmap: str = MAP_CMAP):
+def plot_state_map(
+    ax: Axes,
+    world: MultiRooms,
+    field,
+    *,
+    label: str,
+    title: str | None = None,
+    log: bool = False,
+    vmin: float | None = None,
+    vmax: float | None = None,
+    no_data=None,
+    colorbar: bool = True,
+    cmap: str = MAP_CMAP,
+):
     """Draw a per-state quantity ``field [S]`` on the world's grid.
 
     Walls are :data:`WALL_COLOR`; the cells of ``no_data [S]`` (bool: e.g. never visited) are
@@ -253,10 +369,13 @@ def plot_state_map(ax: Axes, world: MultiRooms, field, *, label: str, title: str
     """
     import matplotlib
     from matplotlib.colors import LogNorm, Normalize
+
     N = world.size
     values = _numpy(field).reshape(-1)
     if values.shape != (world.num_states,):
-        raise ValueError(f"field has {values.size} entries; the world has {world.num_states} states")
+        raise ValueError(
+            f"field has {values.size} entries; the world has {world.num_states} states"
+        )
     wall = world.wall_mask.numpy()
     hide = wall | ~np.isfinite(values)
     if no_data is not None:
@@ -270,10 +389,17 @@ def plot_state_map(ax: Axes, world: MultiRooms, field, *, label: str, title: str
         hi = lo * 10 if log else lo + 1.0
     norm = LogNorm(lo, hi) if log else Normalize(lo, hi)
     colours = matplotlib.colormaps[cmap].with_extremes(bad=NO_DATA_COLOR)
-    image = ax.imshow(np.ma.masked_array(values, hide).reshape(N, N), cmap=colours, norm=norm,
-                      interpolation="nearest")
-    ax.imshow(np.ma.masked_array(np.ones(world.num_states), ~wall).reshape(N, N),
-              cmap=ListedColormap([WALL_COLOR]), interpolation="nearest")
+    image = ax.imshow(
+        np.ma.masked_array(values, hide).reshape(N, N),
+        cmap=colours,
+        norm=norm,
+        interpolation="nearest",
+    )
+    ax.imshow(
+        np.ma.masked_array(np.ones(world.num_states), ~wall).reshape(N, N),
+        cmap=ListedColormap([WALL_COLOR]),
+        interpolation="nearest",
+    )
     ax.set_xticks([])
     ax.set_yticks([])
     if title is not None:
@@ -320,10 +446,18 @@ def runs_split(goals) -> bool:
     return bool(last.size > 1 and last.max() > 0 and (last < 0.5 * last.max()).any())
 
 
-def plot_goal_curves(ax: Axes, steps, goals, *, colors=None, optimum: float | None = None,
-                     paper_optimum: float | None = None,
-                     window: int | None = None, seed_lines: bool = False,
-                     legend: bool = True) -> None:
+def plot_goal_curves(
+    ax: Axes,
+    steps,
+    goals,
+    *,
+    colors=None,
+    optimum: float | None = None,
+    paper_optimum: float | None = None,
+    window: int | None = None,
+    seed_lines: bool = False,
+    legend: bool = True,
+) -> None:
     """Goals per window against steps, one entry per variant: the mean over seeds (solid), the
     seeds' range as a band, and — where the runs split (:func:`runs_split`) — the median
     (dashed); the legend states ``n`` and how many runs reached the goal at all.
@@ -358,23 +492,39 @@ def plot_goal_curves(ax: Axes, steps, goals, *, colors=None, optimum: float | No
         if split:
             ax.plot(steps, np.median(runs, 0), color=color, lw=1.5, ls="--")
     if optimum is not None:
-        ax.axhline(optimum, color=OPTIMUM_COLOR, ls=":", lw=1.2,
-                   label=f"optimal policy, exact: {optimum:.1f}")
+        ax.axhline(
+            optimum,
+            color=OPTIMUM_COLOR,
+            ls=":",
+            lw=1.2,
+            label=f"optimal policy, exact: {optimum:.1f}",
+        )
     if paper_optimum is not None:
-        ax.axhline(paper_optimum, color=PAPER_OPTIMUM_COLOR, ls="-.", lw=0.9,
-                   label=f"the paper's optimum: ≈ {paper_optimum:.1f}")
+        ax.axhline(
+            paper_optimum,
+            color=PAPER_OPTIMUM_COLOR,
+            ls="-.",
+            lw=0.9,
+            label=f"the paper's optimum: ≈ {paper_optimum:.1f}",
+        )
     ax.set_xlabel("primitive steps")
     ax.xaxis.set_major_formatter(_STEPS_FORMAT)
     ax.set_ylabel(f"goals per {window:,} steps" if window else "goals per window")
     ax.set_ylim(bottom=0)
     ax.grid(alpha=0.3)
     if legend:
-        ax.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.01, 1.0),
-                  title="band: seeds' range", title_fontsize="small")
+        ax.legend(
+            fontsize="small",
+            loc="upper left",
+            bbox_to_anchor=(1.01, 1.0),
+            title="band: seeds' range",
+            title_fontsize="small",
+        )
 
 
-def plot_first_goals(ax: Axes, first_goals, steps: int, *, colors=None,
-                     title: str | None = None) -> None:
+def plot_first_goals(
+    ax: Axes, first_goals, steps: int, *, colors=None, title: str | None = None
+) -> None:
     """Each run's first-goal step, one row per variant: a dot per seed (log-scaled steps; runs
     that never found it at "never" on the right), the median as a bar, ``n`` on the label.
 
@@ -412,9 +562,17 @@ def plot_first_goals(ax: Axes, first_goals, steps: int, *, colors=None,
     found_steps = [float(v) for f in first_goals.values() for v in f if v > 0]
     ax.set_xlim((min(found_steps) if found_steps else steps / 10) / 2, never_x * 1.4)
     ax.axvline(steps, color="0.6", lw=0.8, ls=":")
-    ax.annotate("end of the runs", (steps, 1.0), xycoords=("data", "axes fraction"),
-                xytext=(-3, -3), textcoords="offset points", ha="right", va="top",
-                fontsize="x-small", color="0.4")
+    ax.annotate(
+        "end of the runs",
+        (steps, 1.0),
+        xycoords=("data", "axes fraction"),
+        xytext=(-3, -3),
+        textcoords="offset points",
+        ha="right",
+        va="top",
+        fontsize="x-small",
+        color="0.4",
+    )
     ax.set_xlabel("step of the first goal (log scale; dots: seeds, bar: median where all found it)")
     ax.grid(axis="x", alpha=0.3)
     if title is not None:
@@ -422,8 +580,15 @@ def plot_first_goals(ax: Axes, first_goals, steps: int, *, colors=None,
 
 
 # ============================================================ maps for TensorBoard, as RGB arrays
-_POLICY_PALETTE = {"N": "#1f77b4", "S": "#2ca02c", "W": "#d62728", "E": "#9467bd",
-                   "doorway": "#ff7f0e", "corner": "#8c564b", "custom": "#17becf"}
+_POLICY_PALETTE = {
+    "N": "#1f77b4",
+    "S": "#2ca02c",
+    "W": "#d62728",
+    "E": "#9467bd",
+    "doorway": "#ff7f0e",
+    "corner": "#8c564b",
+    "custom": "#17becf",
+}
 
 
 class MapRenderer:
@@ -441,7 +606,9 @@ class MapRenderer:
         dpi: pixels per inch of the images.
     """
 
-    def __init__(self, world: MultiRooms, options=None, initial_value: float = -1.0, dpi: int = 100):
+    def __init__(
+        self, world: MultiRooms, options=None, initial_value: float = -1.0, dpi: int = 100
+    ):
         self.world, self.options, self.initial_value, self.dpi = world, options, initial_value, dpi
         self._figures: dict = {}
 
@@ -459,45 +626,85 @@ class MapRenderer:
             keys = list(_POLICY_PALETTE)
             colours = ListedColormap([_POLICY_PALETTE[k] for k in keys])
             parts["keys"] = keys
-            parts["image"] = ax.imshow(np.ma.masked_all((N, N)), cmap=colours.with_extremes(
-                bad=NO_DATA_COLOR), vmin=-0.5, vmax=len(keys) - 0.5, interpolation="nearest")
-            ax.imshow(np.ma.masked_array(np.ones(self.world.num_states),
-                                         ~self.world.wall_mask.numpy()).reshape(N, N),
-                      cmap=ListedColormap([WALL_COLOR]), interpolation="nearest")
+            parts["image"] = ax.imshow(
+                np.ma.masked_all((N, N)),
+                cmap=colours.with_extremes(bad=NO_DATA_COLOR),
+                vmin=-0.5,
+                vmax=len(keys) - 0.5,
+                interpolation="nearest",
+            )
+            ax.imshow(
+                np.ma.masked_array(
+                    np.ones(self.world.num_states), ~self.world.wall_mask.numpy()
+                ).reshape(N, N),
+                cmap=ListedColormap([WALL_COLOR]),
+                interpolation="nearest",
+            )
             ax.set_xticks([])
             ax.set_yticks([])
-            names = {"N": "primitive N", "S": "primitive S", "W": "primitive W", "E": "primitive E",
-                     "doorway": "doorway option", "corner": "corner option", "custom": "other option"}
+            names = {
+                "N": "primitive N",
+                "S": "primitive S",
+                "W": "primitive W",
+                "E": "primitive E",
+                "doorway": "doorway option",
+                "corner": "corner option",
+                "custom": "other option",
+            }
             handles = [Patch(facecolor=_POLICY_PALETTE[k], label=names[k]) for k in keys]
-            handles += [Patch(facecolor=NO_DATA_COLOR, edgecolor="0.5", label="nothing tried"),
-                        Patch(facecolor=WALL_COLOR, label="wall")]
-            fig.legend(handles=handles, loc="center left", bbox_to_anchor=(0.64, 0.48),
-                       fontsize="small", frameon=False)
+            handles += [
+                Patch(facecolor=NO_DATA_COLOR, edgecolor="0.5", label="nothing tried"),
+                Patch(facecolor=WALL_COLOR, label="wall"),
+            ]
+            fig.legend(
+                handles=handles,
+                loc="center left",
+                bbox_to_anchor=(0.64, 0.48),
+                fontsize="small",
+                frameon=False,
+            )
         else:
             log = kind == "visits"
-            parts["image"] = plot_state_map(ax, self.world, blank + 1, label="", log=log,
-                                            colorbar=False)
+            parts["image"] = plot_state_map(
+                ax, self.world, blank + 1, label="", log=log, colorbar=False
+            )
             cax = fig.add_axes((0.68, 0.18, 0.035, 0.60))
-            label = ("visits of the learner (log scale)" if log else
-                     "V(s), the learner's value")
+            label = "visits of the learner (log scale)" if log else "V(s), the learner's value"
             parts["colorbar"] = fig.colorbar(parts["image"], cax=cax, label=label)
             extra = []
             if log:
                 # Dots half a cell wide: the learner's colour stays visible around them.
                 cell = 0.60 * 5.6 * 72 / N
-                parts["mentor"] = ax.scatter([], [], s=(cell / 2) ** 2, color="#e8590c",
-                                             marker="o", linewidths=0)
-                extra = [Line2D([], [], marker="o", color="#e8590c", linestyle="none",
-                                markersize=4, label="mentor's states")]
+                parts["mentor"] = ax.scatter(
+                    [], [], s=(cell / 2) ** 2, color="#e8590c", marker="o", linewidths=0
+                )
+                extra = [
+                    Line2D(
+                        [],
+                        [],
+                        marker="o",
+                        color="#e8590c",
+                        linestyle="none",
+                        markersize=4,
+                        label="mentor's states",
+                    )
+                ]
                 no_data = "never visited"
             else:
                 initial = f"{self.initial_value:g}".replace("-", "−")
                 no_data = f"V = {initial}: no route to the goal known yet"
-            fig.legend(handles=[Patch(facecolor=WALL_COLOR, label="wall"),
-                                Patch(facecolor=NO_DATA_COLOR, edgecolor="0.5", label=no_data),
-                                *extra],
-                       loc="lower center", bbox_to_anchor=(0.45, 0.0), ncol=3 if extra else 2,
-                       fontsize="small", frameon=False)
+            fig.legend(
+                handles=[
+                    Patch(facecolor=WALL_COLOR, label="wall"),
+                    Patch(facecolor=NO_DATA_COLOR, edgecolor="0.5", label=no_data),
+                    *extra,
+                ],
+                loc="lower center",
+                bbox_to_anchor=(0.45, 0.0),
+                ncol=3 if extra else 2,
+                fontsize="small",
+                frameon=False,
+            )
         parts["title"] = fig.text(0.33, 0.975, "", ha="center", va="top", fontsize="medium")
         fig._himit_titles = [parts["title"]]  # type: ignore[attr-defined]  # read by fit_titles
         self._figures[kind] = parts
@@ -538,8 +745,9 @@ class MapRenderer:
         parts = self._figure("visits")
         self._field(parts, v, np.zeros_like(v, dtype=bool), log=True)
         if mentor_visits is not None:
-            rows, cols = np.divmod(np.flatnonzero(_numpy(mentor_visits).reshape(-1) > 0),
-                                   self.world.size)
+            rows, cols = np.divmod(
+                np.flatnonzero(_numpy(mentor_visits).reshape(-1) > 0), self.world.size
+            )
             parts["mentor"].set_offsets(np.column_stack([cols, rows]))
         else:
             parts["mentor"].set_offsets(np.zeros((0, 2)))
@@ -565,14 +773,19 @@ class MapRenderer:
         return self._render(parts, title)
 
 
-def value_image(world: MultiRooms, values: torch.Tensor, title: str = "",
-                initial_value: float = -1.0) -> np.ndarray:
+def value_image(
+    world: MultiRooms, values: torch.Tensor, title: str = "", initial_value: float = -1.0
+) -> np.ndarray:
     """``[H, W, 3]`` uint8 map of state values with its colorbar (see :class:`MapRenderer`)."""
     return MapRenderer(world, initial_value=initial_value).values(values, title)
 
 
-def visitation_image(world: MultiRooms, learner_visits: torch.Tensor,
-                     mentor_visits: torch.Tensor | None = None, title: str = "") -> np.ndarray:
+def visitation_image(
+    world: MultiRooms,
+    learner_visits: torch.Tensor,
+    mentor_visits: torch.Tensor | None = None,
+    title: str = "",
+) -> np.ndarray:
     """``[H, W, 3]`` uint8 map of the learner's visits (log scale) with the mentor's states."""
     return MapRenderer(world).visits(learner_visits, mentor_visits, title)
 
@@ -580,3 +793,114 @@ def visitation_image(world: MultiRooms, learner_visits: torch.Tensor,
 def policy_image(world: MultiRooms, options, greedy: torch.Tensor, title: str = "") -> np.ndarray:
     """``[H, W, 3]`` uint8 map of the greedy option per state, with its legend."""
     return MapRenderer(world, options).policy(greedy, title)
+
+
+# ============================================================================ discovered subgoals
+SUBGOAL_COLOR = "#c2185b"
+
+
+def plot_subgoals(
+    world: MultiRooms,
+    subgoals,
+    demonstrations: Demonstrations | None = None,
+    options=None,
+    ax: Axes | None = None,
+    title: str | None = None,
+) -> Figure:
+    """The world (:func:`plot_world`) with discovered subgoals and, if given, options to them.
+
+    Subgoals that are true doorways are drawn as filled magenta squares, the others as hollow
+    ones; ``options`` (an :class:`~himit_torch.Options`, e.g. from
+    :func:`himit_torch.discovery.learned_subgoal_options`) shade each cell by how many of them
+    may start there and draw each option's action there as a short arrow.
+
+    Args:
+        world: the world.
+        subgoals: a :class:`~himit_torch.discovery.Subgoals` or a sequence of states.
+        demonstrations: mentor episodes to draw beneath.
+        options: options whose initiation sets and policies to draw (subgoal options only).
+        ax, title: as for :func:`plot_world`.
+    """
+    from .world import ACTION_DELTAS
+
+    states = list(getattr(subgoals, "states", subgoals))
+    fig = plot_world(world, demonstrations=demonstrations, ax=ax, title=title)
+    ax = fig.axes[0] if ax is None else ax
+    N = world.size
+    if options is not None:
+        init = options.initiation.numpy()
+        cover = init.sum(0).astype(np.float64)
+        shade = np.ma.masked_where(cover == 0, cover).reshape(N, N)
+        ax.imshow(
+            shade,
+            cmap="Purples",
+            alpha=0.45,
+            vmin=0,
+            vmax=max(1.0, cover.max()) * 1.5,
+            interpolation="nearest",
+            extent=(-0.5, N - 0.5, N - 0.5, -0.5),
+            zorder=1,
+        )
+        if not options.stochastic:
+            policy = options.policy.numpy()
+            for o in range(options.num_options):
+                cells = np.flatnonzero(init[o])
+                if not cells.size:
+                    continue
+                dr, dc = np.asarray(ACTION_DELTAS)[policy[o, cells]].T
+                r, c = np.divmod(cells, N)
+                ax.quiver(
+                    c,
+                    r,
+                    dc,
+                    -dr,
+                    color="#5e3c99",
+                    alpha=0.5,
+                    scale=2.6 * N / 10,
+                    width=0.002,
+                    zorder=1.5,
+                )
+    doors = set(world.doorways.tolist())
+    marker = max(6.0, 160.0 / N)
+    for hit in (True, False):
+        pick = [s for s in states if (s in doors) == hit]
+        if not pick:
+            continue
+        r, c = np.divmod(np.asarray(pick), N)
+        ax.plot(
+            c,
+            r,
+            "s",
+            markersize=marker,
+            markeredgewidth=1.6,
+            linestyle="none",
+            markeredgecolor=SUBGOAL_COLOR,
+            markerfacecolor=SUBGOAL_COLOR if hit else "none",
+            zorder=5,
+        )
+    legend = ax.get_legend()
+    handles = list(legend.legend_handles) if legend is not None else []
+    handles += [
+        Line2D(
+            [], [], marker="s", color=SUBGOAL_COLOR, linestyle="none", label="subgoal: a doorway"
+        ),
+        Line2D(
+            [],
+            [],
+            marker="s",
+            markerfacecolor="none",
+            color=SUBGOAL_COLOR,
+            linestyle="none",
+            label="subgoal: not a doorway",
+        ),
+    ]
+    ax.legend(
+        handles=handles,
+        loc="upper center",
+        bbox_to_anchor=(0.5, -0.01),
+        ncol=min(4, len(handles)),
+        fontsize="small",
+        frameon=False,
+        handlelength=1.5,
+    )
+    return fig

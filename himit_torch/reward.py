@@ -40,6 +40,8 @@ Modules
     :class:`KnownReward` — the world's own reward (the paper's experiments, ``R_m = R_obs``).
     :class:`SalienceReward` — intrinsic reward from salient events in the mentor's states
     alone, with no knowledge of the world's reward.
+    :class:`ZeroReward` — no reward of its own (``r_m = 0``): the mentor term only carries the
+    values of the states the mentor moves to.
     Any object with ``upper_bound`` and ``transition_reward`` works (:class:`MentorReward`).
 """
 
@@ -52,7 +54,15 @@ from typing import Protocol, runtime_checkable
 
 import torch
 
-__all__ = ["MentorReward", "KnownReward", "SalienceReward", "SALIENCE_EVENTS"]
+__all__ = [
+    "MentorReward",
+    "KnownReward",
+    "SalienceReward",
+    "ZeroReward",
+    "SALIENCE_EVENTS",
+    "MENTOR_REWARDS",
+    "mentor_reward_module",
+]
 
 
 @runtime_checkable
@@ -100,28 +110,37 @@ class KnownReward:
         if state_reward is not None:
             self.state_reward = torch.as_tensor(state_reward).double()
             if not bool(torch.isfinite(self.state_reward).all()):
-                raise ValueError("KnownReward: the world's state_reward holds NaN or infinite values")
+                raise ValueError(
+                    "KnownReward: the world's state_reward holds NaN or infinite values"
+                )
             self.upper_bound = float(self.state_reward.max())
             self.note = "reward for entering s' (the world's state_reward)"
             return
         if not hasattr(world, "dynamics_table"):
-            raise ValueError(f"KnownReward: {type(world).__name__} has neither state_reward [S] nor "
-                             "a dynamics_table() with rewards per transition; give the learner "
-                             "another reward module (reward=…)")
+            raise ValueError(
+                f"KnownReward: {type(world).__name__} has neither state_reward [S] nor "
+                "a dynamics_table() with rewards per transition; give the learner "
+                "another reward module (reward=…)"
+            )
         self.state_reward = None
         keys, low, ambiguous = _pair_rewards(world)
         if not bool(torch.isfinite(low).all()):
-            raise ValueError("KnownReward: the world's transition rewards hold NaN or infinite values")
+            raise ValueError(
+                "KnownReward: the world's transition rewards hold NaN or infinite values"
+            )
         self._pairs = (keys, low, int(world.num_states))
         self.ambiguous_pairs = ambiguous
         if keys.numel() == 0:
             raise ValueError("KnownReward: the world has no transition out of a non-terminal state")
         self.upper_bound = float(low.max())
-        self.note = (f"reward of the observed pair (s, s'); in {ambiguous} of {keys.numel()} possible "
-                     "pairs it depends on the unseen action, and there the least reward of the "
-                     "actions that make the move is used (never an overestimate)"
-                     if ambiguous else "reward of the observed pair (s, s'): it never depends on "
-                     "the unseen action in this world")
+        self.note = (
+            f"reward of the observed pair (s, s'); in {ambiguous} of {keys.numel()} possible "
+            "pairs it depends on the unseen action, and there the least reward of the "
+            "actions that make the move is used (never an overestimate)"
+            if ambiguous
+            else "reward of the observed pair (s, s'): it never depends on "
+            "the unseen action in this world"
+        )
 
     def transition_reward(self, sources: torch.Tensor, successors: torch.Tensor) -> torch.Tensor:
         if self._pairs is None:
@@ -130,13 +149,15 @@ class KnownReward:
         dev = successors.device
         keys, low = keys.to(dev), low.to(dev)
         query = sources.to(torch.int64) * S + successors.to(torch.int64)
-        pos = torch.searchsorted(keys, query).clamp(max=keys.numel() - 1)   # keys never empty
+        pos = torch.searchsorted(keys, query).clamp(max=keys.numel() - 1)  # keys never empty
         found = keys[pos] == query
         if not bool(found.all()):
             i = int((~found).nonzero()[0, 0])
-            raise ValueError(f"KnownReward: the mentor move {int(sources[i])} → {int(successors[i])} is "
-                             "impossible in this world (no action makes it); were the "
-                             "demonstrations recorded in another world?")
+            raise ValueError(
+                f"KnownReward: the mentor move {int(sources[i])} → {int(successors[i])} is "
+                "impossible in this world (no action makes it); were the "
+                "demonstrations recorded in another world?"
+            )
         return low[pos]
 
     def __repr__(self) -> str:
@@ -156,17 +177,70 @@ def _pair_rewards(world) -> tuple[torch.Tensor, torch.Tensor, int]:
     reward = table.rewards.cpu().double()[live]
     keys, inverse = torch.unique(key, return_inverse=True)
     low = torch.full((keys.numel(),), float("inf"), dtype=torch.float64).scatter_reduce(
-        0, inverse, reward, "amin")
+        0, inverse, reward, "amin"
+    )
     high = torch.full_like(low, -float("inf")).scatter_reduce(0, inverse, reward, "amax")
     return keys, low, int((high > low).sum())
+
+
+class ZeroReward:
+    """No reward of the mentor's own: ``r_m(s, s') = 0`` on every mentor transition, so the
+    mentor term at ``s`` is ``γ Σ_{s'} p_m(s'|s) V(s')`` — it passes on the values of the states
+    the mentor moves to and nothing else (``upper_bound = 0``).
+
+    Cycle-safe (nothing pays more than 0), but not sound where steps cost something: it
+    overestimates every real step cost (MultiRooms' −0.01) by that cost. It is the "no reward
+    model" control of the ``mentor_reward`` setting (:data:`MENTOR_REWARDS`).
+    """
+
+    upper_bound = 0.0
+
+    def transition_reward(self, sources: torch.Tensor, successors: torch.Tensor) -> torch.Tensor:
+        sources = torch.as_tensor(sources)
+        if sources.shape != torch.as_tensor(successors).shape or sources.ndim != 1:
+            raise ValueError(
+                "ZeroReward.transition_reward: sources and successors must both be [n]"
+            )
+        return torch.zeros(sources.shape, dtype=torch.float64, device=sources.device)
+
+    def __repr__(self) -> str:
+        return "ZeroReward(r_m = 0)"
+
+
+#: The mentor-reward modules an experiment can name (``ExperimentConfig.mentor_reward``,
+#: ``himit run --mentor-reward``): ``"known"`` (:class:`KnownReward`, the paper's),
+#: ``"salience"`` (:class:`SalienceReward` with its defaults, fitted on each run's own
+#: demonstrations) and ``"none"`` (:class:`ZeroReward`).
+MENTOR_REWARDS = ("known", "salience", "none")
+
+
+def mentor_reward_module(name: str, world, demonstrations=None):
+    """The reward module named ``name`` (one of :data:`MENTOR_REWARDS`) for ``world``;
+    ``"salience"`` is fitted on ``demonstrations`` (required for it).
+
+    Raises:
+        ValueError: an unknown name, or ``"salience"`` without demonstrations.
+    """
+    if name == "known":
+        return KnownReward(world)
+    if name == "salience":
+        if demonstrations is None:
+            raise ValueError(
+                "mentor_reward='salience' is fitted on the mentor's demonstrations; "
+                "give demonstrations=…"
+            )
+        return SalienceReward(world, demonstrations)
+    if name == "none":
+        return ZeroReward()
+    raise ValueError(f"mentor_reward={name!r} is unknown; use one of {list(MENTOR_REWARDS)}")
 
 
 #: Salient event kinds of :class:`SalienceReward` (the keys of its ``weights``).
 SALIENCE_EVENTS = ("room", "end", "novelty", "stimulus")
 
 _DEFAULT_WEIGHTS = {"room": 1.0, "end": 1.0, "novelty": 0.25, "stimulus": 1.0}
-_NOT_STIMULI = ("room", "doorway")   # descriptive columns, not stimulus channels by default
-_SAME = 1e-9                         # feature values closer than this are "unchanged"
+_NOT_STIMULI = ("room", "doorway")  # descriptive columns, not stimulus channels by default
+_SAME = 1e-9  # feature values closer than this are "unchanged"
 
 
 class SalienceReward:
@@ -233,11 +307,20 @@ class SalienceReward:
             unknown weights or channels, bad settings, demonstrations of another world).
     """
 
-    def __init__(self, world, demonstrations=None, *, features: torch.Tensor | None = None,
-                 feature_names: Sequence[str] | None = None,
-                 stimulus_channels: Sequence[str] | None = None,
-                 weights: Mapping[str, float] | None = None, scale: float = 0.01,
-                 step_cost: float = 0.02, decay: float = 0.5, bound: float = 0.5):
+    def __init__(
+        self,
+        world,
+        demonstrations=None,
+        *,
+        features: torch.Tensor | None = None,
+        feature_names: Sequence[str] | None = None,
+        stimulus_channels: Sequence[str] | None = None,
+        weights: Mapping[str, float] | None = None,
+        scale: float = 0.01,
+        step_cost: float = 0.02,
+        decay: float = 0.5,
+        bound: float = 0.5,
+    ):
         self.world = world
         S = self.num_states = _positive_int(getattr(world, "num_states", None))
         self.features, self.feature_names = _features(world, S, features, feature_names)
@@ -246,17 +329,22 @@ class SalienceReward:
             stimulus_channels = [n for n in names if n not in _NOT_STIMULI]
         unknown = [c for c in stimulus_channels if c not in names]
         if unknown:
-            raise ValueError(f"SalienceReward: stimulus_channels {unknown} are not feature columns; "
-                             f"the columns are {names}")
+            raise ValueError(
+                f"SalienceReward: stimulus_channels {unknown} are not feature columns; "
+                f"the columns are {names}"
+            )
         self.stimulus_channels = tuple(stimulus_channels)
         self._room_column = names.index("room") if "room" in names else None
-        self._stimulus_columns = torch.tensor([names.index(c) for c in self.stimulus_channels],
-                                              dtype=torch.int64)
+        self._stimulus_columns = torch.tensor(
+            [names.index(c) for c in self.stimulus_channels], dtype=torch.int64
+        )
         self.weights = dict(_DEFAULT_WEIGHTS)
         for kind, w in (weights or {}).items():
             if kind not in SALIENCE_EVENTS:
-                raise ValueError(f"SalienceReward: unknown event kind {kind!r} in weights; use "
-                                 f"{list(SALIENCE_EVENTS)}")
+                raise ValueError(
+                    f"SalienceReward: unknown event kind {kind!r} in weights; use "
+                    f"{list(SALIENCE_EVENTS)}"
+                )
             self.weights[kind] = _non_negative(f"weights[{kind!r}]", w)
         self.scale = _non_negative("scale", scale)
         self.step_cost = _non_negative("step_cost", step_cost)
@@ -291,8 +379,10 @@ class SalienceReward:
                 raise ValueError(f"SalienceReward.fit: {err}") from None
         episodes = getattr(demonstrations, "episodes", demonstrations)
         if not isinstance(episodes, Iterable):
-            raise ValueError("SalienceReward.fit: demonstrations must be Demonstrations or a list of "
-                             "1-D state sequences (one per episode)")
+            raise ValueError(
+                "SalienceReward.fit: demonstrations must be Demonstrations or a list of "
+                "1-D state sequences (one per episode)"
+            )
         S = self.num_states
         visits = torch.zeros(S, dtype=torch.float64)
         arrivals, ends = torch.zeros_like(visits), torch.zeros_like(visits)
@@ -301,8 +391,10 @@ class SalienceReward:
         for i, ep in enumerate(episodes):
             ep = torch.as_tensor(ep)
             if ep.ndim != 1 or ep.numel() == 0 or ep.is_floating_point():
-                raise ValueError(f"SalienceReward.fit: episode {i} must be a non-empty 1-D sequence "
-                                 "of integer states")
+                raise ValueError(
+                    f"SalienceReward.fit: episode {i} must be a non-empty 1-D sequence "
+                    "of integer states"
+                )
             ep = ep.to(torch.int64).cpu()
             if int(ep.min()) < 0 or int(ep.max()) >= S:
                 raise ValueError(f"SalienceReward.fit: episode {i} holds states outside 0…{S - 1}")
@@ -318,8 +410,11 @@ class SalienceReward:
         self.num_episodes = count
         self._device_cache.clear()
         empty = torch.zeros(0, dtype=torch.int64)
-        self._arrival_pairs = ((torch.cat([p[0] for p in pairs]), torch.cat([p[1] for p in pairs]))
-                               if pairs else (empty, empty))   # a refit replaces everything
+        self._arrival_pairs = (
+            (torch.cat([p[0] for p in pairs]), torch.cat([p[1] for p in pairs]))
+            if pairs
+            else (empty, empty)
+        )  # a refit replaces everything
         return self
 
     @property
@@ -330,8 +425,11 @@ class SalienceReward:
     # -------------------------------------------------------------------------------- events
     def end_rate(self) -> torch.Tensor:
         """``[S]`` ``ε(s)``: share of the mentor's arrivals at ``s`` that ended its episode."""
-        return torch.where(self._arrivals > 0, self._ends / self._arrivals.clamp(min=1),
-                           torch.zeros_like(self._ends))
+        return torch.where(
+            self._arrivals > 0,
+            self._ends / self._arrivals.clamp(min=1),
+            torch.zeros_like(self._ends),
+        )
 
     def novelty(self) -> torch.Tensor:
         """``[S]`` ``decay ** (n(s) − 1)`` (1 where the mentor never was)."""
@@ -359,8 +457,9 @@ class SalienceReward:
 
     def _step_and_end(self, ev: dict[str, torch.Tensor]) -> tuple[torch.Tensor, torch.Tensor]:
         w = self.weights
-        sigma = (w["room"] * ev["room"] + w["novelty"] * ev["novelty"]
-                 + w["stimulus"] * ev["stimulus"]).clamp(0.0, 1.0)
+        sigma = (
+            w["room"] * ev["room"] + w["novelty"] * ev["novelty"] + w["stimulus"] * ev["stimulus"]
+        ).clamp(0.0, 1.0)
         end = (w["end"] * ev["end"]).clamp(0.0, 1.0)
         return sigma, end
 
@@ -400,7 +499,9 @@ class SalienceReward:
         S = self.num_states
         src, dst = self._arrival_pairs
         ev = self._events(src, dst, self.end_rate(), self.novelty())
-        total = torch.stack([self.weights[k] * ev[k] for k in SALIENCE_EVENTS]).sum(0).clamp(0.0, 1.0)
+        total = (
+            torch.stack([self.weights[k] * ev[k] for k in SALIENCE_EVENTS]).sum(0).clamp(0.0, 1.0)
+        )
         return _mean_over_arrivals(total, dst, self._arrivals, S)
 
     def event_maps(self) -> dict[str, torch.Tensor]:
@@ -409,37 +510,50 @@ class SalienceReward:
         self._require_fitted()
         src, dst = self._arrival_pairs
         ev = self._events(src, dst, self.end_rate(), self.novelty())
-        return {k: _mean_over_arrivals(ev[k], dst, self._arrivals, self.num_states)
-                for k in SALIENCE_EVENTS}
+        return {
+            k: _mean_over_arrivals(ev[k], dst, self._arrivals, self.num_states)
+            for k in SALIENCE_EVENTS
+        }
 
     # ------------------------------------------------------------------------------ checking
     def _require_fitted(self) -> None:
         if not self.fitted:
-            raise ValueError("SalienceReward: not fitted on any mentor episodes; pass "
-                             "demonstrations=… or call fit(demonstrations) first")
+            raise ValueError(
+                "SalienceReward: not fitted on any mentor episodes; pass "
+                "demonstrations=… or call fit(demonstrations) first"
+            )
 
     def _check_states(self, sources, successors) -> tuple[torch.Tensor, torch.Tensor]:
         src, dst = torch.as_tensor(sources), torch.as_tensor(successors)
         if src.ndim != 1 or src.shape != dst.shape:
-            raise ValueError(f"SalienceReward.transition_reward: sources {tuple(src.shape)} and "
-                             f"successors {tuple(dst.shape)} must both be [n]")
+            raise ValueError(
+                f"SalienceReward.transition_reward: sources {tuple(src.shape)} and "
+                f"successors {tuple(dst.shape)} must both be [n]"
+            )
         if src.is_floating_point() or dst.is_floating_point():
             raise ValueError("SalienceReward.transition_reward: states must be integer tensors")
         src, dst = src.to(torch.int64), dst.to(device=src.device, dtype=torch.int64)
-        if src.numel() and (int(torch.minimum(src.min(), dst.min())) < 0
-                            or int(torch.maximum(src.max(), dst.max())) >= self.num_states):
-            raise ValueError(f"SalienceReward.transition_reward: states outside 0…{self.num_states - 1}")
+        if src.numel() and (
+            int(torch.minimum(src.min(), dst.min())) < 0
+            or int(torch.maximum(src.max(), dst.max())) >= self.num_states
+        ):
+            raise ValueError(
+                f"SalienceReward.transition_reward: states outside 0…{self.num_states - 1}"
+            )
         return src, dst
 
     def __repr__(self) -> str:
         w = ", ".join(f"{k}={v:g}" for k, v in self.weights.items())
-        return (f"SalienceReward(bound={self.bound:g}, scale={self.scale:g}, "
-                f"step_cost={self.step_cost:g}, decay={self.decay:g}, weights=({w}), "
-                f"episodes={self.num_episodes})")
+        return (
+            f"SalienceReward(bound={self.bound:g}, scale={self.scale:g}, "
+            f"step_cost={self.step_cost:g}, decay={self.decay:g}, weights=({w}), "
+            f"episodes={self.num_episodes})"
+        )
 
 
-def _mean_over_arrivals(values: torch.Tensor, dst: torch.Tensor, arrivals: torch.Tensor,
-                        S: int) -> torch.Tensor:
+def _mean_over_arrivals(
+    values: torch.Tensor, dst: torch.Tensor, arrivals: torch.Tensor, S: int
+) -> torch.Tensor:
     """``[S]``: ``values`` of the arrivals ``dst`` averaged per state (0 where none)."""
     total = torch.zeros(S, dtype=torch.float64).index_add_(0, dst, values.double())
     return torch.where(arrivals > 0, total / arrivals.clamp(min=1), total)
@@ -470,15 +584,19 @@ def _features(world, S: int, features, names) -> tuple[torch.Tensor, tuple[str, 
     """The ``[S, F]`` float64 features and their column names, checked."""
     if features is None:
         if not hasattr(world, "stimulus_features"):
-            raise ValueError(f"SalienceReward: {type(world).__name__} has no stimulus_features(); "
-                             f"give features=[S={S}, F] of your own")
+            raise ValueError(
+                f"SalienceReward: {type(world).__name__} has no stimulus_features(); "
+                f"give features=[S={S}, F] of your own"
+            )
         features = world.stimulus_features()
         if names is None:
             names = getattr(world, "stimulus_feature_names", None)
     f = torch.as_tensor(features, dtype=torch.float64).detach().cpu()
     if f.ndim != 2 or f.shape[0] != S or f.shape[1] < 1:
-        raise ValueError(f"SalienceReward: features have shape {tuple(f.shape)}, expected "
-                         f"[S={S}, F] (one row per state of the world, F ≥ 1 columns)")
+        raise ValueError(
+            f"SalienceReward: features have shape {tuple(f.shape)}, expected "
+            f"[S={S}, F] (one row per state of the world, F ≥ 1 columns)"
+        )
     if not bool(torch.isfinite(f).all()):
         raise ValueError("SalienceReward: features hold NaN or infinite values")
     F = f.shape[1]
@@ -486,6 +604,8 @@ def _features(world, S: int, features, names) -> tuple[torch.Tensor, tuple[str, 
         names = tuple(f"channel{i}" for i in range(F))
     names = tuple(str(n) for n in names)
     if len(names) != F or len(set(names)) != F:
-        raise ValueError(f"SalienceReward: feature_names {list(names)} must be {F} distinct names, "
-                         f"one per feature column")
+        raise ValueError(
+            f"SalienceReward: feature_names {list(names)} must be {F} distinct names, "
+            f"one per feature column"
+        )
     return f, names

@@ -37,8 +37,9 @@ def seed_streams(seeds: torch.Tensor) -> torch.Tensor:
     return splitmix64(splitmix64(seeds.to(torch.int64)))
 
 
-def uniforms(keys: torch.Tensor, counter: int | torch.Tensor, lanes: int,
-             dtype=torch.float64) -> torch.Tensor:
+def uniforms(
+    keys: torch.Tensor, counter: int | torch.Tensor, lanes: int, dtype=torch.float64
+) -> torch.Tensor:
     """Uniforms in [0, 1) for draw number ``counter`` of each run's stream.
 
     Args:
@@ -51,7 +52,7 @@ def uniforms(keys: torch.Tensor, counter: int | torch.Tensor, lanes: int,
         raise ValueError(f"lanes={lanes}: at most 1024 numbers per draw")
     lane = torch.arange(lanes, device=keys.device, dtype=torch.int64)
     counter = torch.as_tensor(counter, device=keys.device, dtype=torch.int64)
-    salt = splitmix64(counter[..., None] * 1024 + lane)                    # [..., lanes]
-    x = keys[:, None] ^ salt[..., None, :]                                 # [..., B, lanes]
+    salt = splitmix64(counter[..., None] * 1024 + lane)  # [..., lanes]
+    x = keys[:, None] ^ salt[..., None, :]  # [..., B, lanes]
     bits = _shr(splitmix64(x), 11)
     return (bits.to(torch.float64) * _TWO_POW_MINUS_53).to(dtype)

@@ -54,8 +54,9 @@ class RowTable:
         self.num_rows, self.num_states, self.num_options = M, S, O
         first = torch.ones(M, dtype=torch.bool, device=dev)
         first[1:] = row_state[1:] != row_state[:-1]
-        starts = torch.cummax(torch.where(first, torch.arange(M, device=dev),
-                                          torch.zeros_like(row_state)), 0).values
+        starts = torch.cummax(
+            torch.where(first, torch.arange(M, device=dev), torch.zeros_like(row_state)), 0
+        ).values
         rank = torch.arange(M, device=dev) - starts
         J = int(rank.max()) + 1 if M else 1
         self.state_rows = torch.full((S + 1, J), M, dtype=torch.int64, device=dev)
@@ -66,16 +67,18 @@ class RowTable:
         def first_action(opts: torch.Tensor, states: torch.Tensor) -> torch.Tensor:
             # (never the dense [O, S, A] table: on 120×120 with corner options it is ~600 MB)
             policy = options.policy.to(dev)[opts, states]
-            return policy.argmax(-1) if options.stochastic else policy
+            return policy.argmax(-1) if options.stochastic else policy.long()
 
-        self.row_first_action = torch.cat([first_action(row_option, row_state),
-                                           torch.zeros(1, dtype=torch.int64, device=dev)])
+        self.row_first_action = torch.cat(
+            [first_action(row_option, row_state), torch.zeros(1, dtype=torch.int64, device=dev)]
+        )
         prim_option = torch.full((num_actions,), -1, dtype=torch.int64)
-        first_state = options.initiation.to(dev).float().argmax(1)
         primitives = [o for o, kind in enumerate(options.kinds) if kind == "primitive"]
         if primitives:
             index = torch.tensor(primitives, device=dev)
-            for o, a in zip(primitives, first_action(index, first_state[index]).tolist()):
+            # (the primitives' rows only: a float copy of the whole [O, S] table is 150 MB on 120×120)
+            first_state = options.initiation[index.cpu()].to(dev).to(torch.uint8).argmax(1)
+            for o, a in zip(primitives, first_action(index, first_state).tolist()):
                 prim_option[a] = o
         self.primitive_rows = torch.full((S + 1, num_actions), M, dtype=torch.int64, device=dev)
         for a, o in enumerate(prim_option.tolist()):
@@ -94,7 +97,10 @@ class RowTable:
             self.use_mentor[b] = mentor
             self.use_confidence[b] = confident
         if not bool(enabled.any(1).all()):
-            raise ValueError("an agent variant has no usable option (e.g. 'primitives' with no "
-                             "primitive options in the set)")
-        self.row_enabled = torch.cat([enabled[:, row_option],
-                                      torch.zeros(B, 1, dtype=torch.bool, device=dev)], 1)
+            raise ValueError(
+                "an agent variant has no usable option (e.g. 'primitives' with no "
+                "primitive options in the set)"
+            )
+        self.row_enabled = torch.cat(
+            [enabled[:, row_option], torch.zeros(B, 1, dtype=torch.bool, device=dev)], 1
+        )

@@ -25,9 +25,21 @@ class RunState:
     ``visits [B, S + 1]`` (states occupied after each primitive step).
     """
 
-    _INT = ("position", "option_start", "row", "duration", "goals", "window_goals", "episodes",
-            "episode_start", "window_episode_steps", "window_episodes", "backups_done",
-            "decisions", "first_goal_step")
+    _INT = (
+        "position",
+        "option_start",
+        "row",
+        "duration",
+        "goals",
+        "window_goals",
+        "episodes",
+        "episode_start",
+        "window_episode_steps",
+        "window_episodes",
+        "backups_done",
+        "decisions",
+        "first_goal_step",
+    )
     _FLOAT = ("discounted_return", "discount", "epsilon")
     _STATE = _INT + _FLOAT + ("found_goal", "visits")
     # The per-run tensors set by name in __init__ ([B] each; visits [B, S + 1]).
@@ -48,8 +60,15 @@ class RunState:
     discount: torch.Tensor
     epsilon: torch.Tensor
 
-    def __init__(self, batch: int, num_states: int, start: torch.Tensor, pad_row: int,
-                 eps_start: float, device):
+    def __init__(
+        self,
+        batch: int,
+        num_states: int,
+        start: torch.Tensor,
+        pad_row: int,
+        eps_start: float,
+        device,
+    ):
         dev = torch.device(device)
         for name in self._INT:
             setattr(self, name, torch.zeros(batch, dtype=torch.int64, device=dev))
@@ -73,8 +92,10 @@ class RunState:
             current = getattr(self, name)
             value = state[name]
             if value.shape != current.shape:
-                raise ValueError(f"run state {name} has shape {tuple(value.shape)}, this learner's "
-                                 f"{tuple(current.shape)}")
+                raise ValueError(
+                    f"run state {name} has shape {tuple(value.shape)}, this learner's "
+                    f"{tuple(current.shape)}"
+                )
             setattr(self, name, value.to(current.device).clone())
         self.t = int(state["t"])
 
@@ -104,10 +125,18 @@ class RunMetrics:
         self.goals_in_window.append(run.window_goals.cpu().clone())
         self.epsilon.append(run.epsilon.cpu().clone())
         self.episodes.append(run.episodes.cpu().clone())
-        self.mean_episode_steps.append(torch.where(
-            run.window_episodes > 0, run.window_episode_steps / run.window_episodes.clamp(min=1),
-            torch.full(run.window_episodes.shape, float("nan"), dtype=torch.float64,
-                       device=run.window_episodes.device)).cpu())
+        self.mean_episode_steps.append(
+            torch.where(
+                run.window_episodes > 0,
+                run.window_episode_steps / run.window_episodes.clamp(min=1),
+                torch.full(
+                    run.window_episodes.shape,
+                    float("nan"),
+                    dtype=torch.float64,
+                    device=run.window_episodes.device,
+                ),
+            ).cpu()
+        )
         self.backups.append(run.backups_done.cpu().clone())
         self.decisions.append(run.decisions.cpu().clone())
         self.mentor_term_wins.append(mentor_wins.cpu())

@@ -20,15 +20,17 @@ __all__ = ["BlockPriorityQueue", "Sweeper"]
 class BlockPriorityQueue:
     """Per-run max-priority queues over ``num_states`` states, batched over ``batch`` runs."""
 
-    def __init__(self, batch: int, num_states: int, device, block: int | None = None,
-                 typical_pop: int = 10):
+    def __init__(
+        self, batch: int, num_states: int, device, block: int | None = None, typical_pop: int = 10
+    ):
         if block is None:  # minimises S/G + n·G for pops of n states
             block = 1 << max(2, round(math.log2(math.sqrt(num_states / max(1, typical_pop)))))
         self.block = int(block)
         self.num_blocks = -(-num_states // self.block)
         self.num_states = num_states
-        self.priority = torch.zeros(batch, self.num_blocks * self.block, dtype=torch.float64,
-                                    device=device)
+        self.priority = torch.zeros(
+            batch, self.num_blocks * self.block, dtype=torch.float64, device=device
+        )
         self.block_max = torch.zeros(batch, self.num_blocks, dtype=torch.float64, device=device)
         self._offsets = torch.arange(self.block, device=device)
 
@@ -40,8 +42,9 @@ class BlockPriorityQueue:
         blocks = runs * self.num_blocks + torch.div(states, self.block, rounding_mode="floor")
         self.block_max.view(-1).scatter_reduce_(0, blocks, priorities, "amax")
 
-    def pop(self, runs: torch.Tensor, n: int, threshold: float,
-            limit: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+    def pop(
+        self, runs: torch.Tensor, n: int, threshold: float, limit: torch.Tensor | None = None
+    ) -> tuple[torch.Tensor, torch.Tensor]:
         """Remove and return the ``n`` highest-priority states of each of ``runs [R]``.
 
         Returns ``(states [R, n], valid [R, n])``; entries whose priority is not above
@@ -55,9 +58,12 @@ class BlockPriorityQueue:
         # n popped states are a prefix of it whatever n is (topk's tie order depends on n, which
         # would make a run's sweep depend on its batch). The best n states lie in the best n
         # blocks under (block max descending, block ascending).
-        best_blocks = self.block_max.index_select(0, runs).sort(
-            dim=1, descending=True, stable=True).indices[:, :n_blocks]
-        top_blocks = best_blocks.sort(dim=1).values                               # [R, nb]
+        best_blocks = (
+            self.block_max.index_select(0, runs)
+            .sort(dim=1, descending=True, stable=True)
+            .indices[:, :n_blocks]
+        )
+        top_blocks = best_blocks.sort(dim=1).values  # [R, nb]
         cells = (top_blocks[:, :, None] * self.block + self._offsets).view(R, -1)  # ascending
         flat_cells = (runs[:, None] * width + cells).view(-1)
         local = flat.index_select(0, flat_cells).view(R, -1)
@@ -71,13 +77,16 @@ class BlockPriorityQueue:
         local.scatter_(1, where, torch.where(valid, torch.zeros_like(values), values))
         flat.index_copy_(0, flat_cells, local.view(-1))
         new_max = local.view(R, n_blocks, self.block).amax(2)
-        self.block_max.view(-1).index_copy_(0, (runs[:, None] * self.num_blocks + top_blocks).view(-1),
-                                            new_max.view(-1))
+        self.block_max.view(-1).index_copy_(
+            0, (runs[:, None] * self.num_blocks + top_blocks).view(-1), new_max.view(-1)
+        )
         return states, valid
 
     def refresh_block_max(self) -> None:
         """Recompute the block maxima from the priorities (after they were written elsewhere)."""
-        self.block_max = self.priority.view(self.priority.shape[0], self.num_blocks, self.block).amax(2)
+        self.block_max = self.priority.view(
+            self.priority.shape[0], self.num_blocks, self.block
+        ).amax(2)
 
     def clear(self, runs: torch.Tensor | None = None) -> None:
         if runs is None:
@@ -99,14 +108,23 @@ class Sweeper:
     is the same in any batch. This class is the only one that touches the queue.
     """
 
-    def __init__(self, batch: int, num_states: int, device, backups: int, sweep_rounds: int,
-                 plan_every: int, threshold: float):
+    def __init__(
+        self,
+        batch: int,
+        num_states: int,
+        device,
+        backups: int,
+        sweep_rounds: int,
+        plan_every: int,
+        threshold: float,
+    ):
         self.backups, self.plan_every, self.threshold = backups, plan_every, threshold
         # States backed up together per round: a decision's budget in sweep_rounds rounds; with
         # plan_every > 1, the budget of plan_every decisions in as many rounds.
         self.round_size = -(-plan_every * backups // sweep_rounds)
-        self.queue = BlockPriorityQueue(batch, num_states + 1, device,
-                                        typical_pop=max(1, backups // sweep_rounds))
+        self.queue = BlockPriorityQueue(
+            batch, num_states + 1, device, typical_pop=max(1, backups // sweep_rounds)
+        )
         self.pending = torch.zeros(batch, dtype=torch.int64, device=device)
         self.num_states = num_states
 
@@ -116,8 +134,10 @@ class Sweeper:
     def load_state_dict(self, state: dict) -> None:
         priority = state["priority"].to(self.queue.priority.device)
         if priority.shape != self.queue.priority.shape:
-            raise ValueError(f"queue state has shape {tuple(priority.shape)}, this learner's "
-                             f"{tuple(self.queue.priority.shape)}")
+            raise ValueError(
+                f"queue state has shape {tuple(priority.shape)}, this learner's "
+                f"{tuple(self.queue.priority.shape)}"
+            )
         self.queue.priority = priority.clone()
         self.queue.refresh_block_max()
         self.pending = state["pending"].to(self.pending.device).clone()
@@ -126,8 +146,9 @@ class Sweeper:
         if runs.numel():
             self.queue.push(runs, states, priorities)
 
-    def sweep(self, runs: torch.Tensor, budget: torch.Tensor, backup, round_size: int | None = None
-              ) -> torch.Tensor:
+    def sweep(
+        self, runs: torch.Tensor, budget: torch.Tensor, backup, round_size: int | None = None
+    ) -> torch.Tensor:
         """Up to ``budget [R]`` backups for each of ``runs [R]``. ``backup(runs, states [R, n],
         valid [R, n])`` backs the states up and returns the predecessors' new priorities
         ``(runs, states, priorities)``. Returns the backups done per run."""

@@ -36,8 +36,14 @@ import torch
 
 from .world import DynamicsTable
 
-__all__ = ["TableWorld", "world_model", "transition_support", "describe_world",
-           "model_from_table", "table_probabilities"]
+__all__ = [
+    "TableWorld",
+    "world_model",
+    "transition_support",
+    "describe_world",
+    "model_from_table",
+    "table_probabilities",
+]
 
 
 def table_probabilities(table: DynamicsTable) -> torch.Tensor:
@@ -45,8 +51,9 @@ def table_probabilities(table: DynamicsTable) -> torch.Tensor:
     return torch.diff(table.cdf, dim=-1, prepend=torch.zeros_like(table.cdf[..., :1]))
 
 
-def model_from_table(table: DynamicsTable, terminal_mask: torch.Tensor
-                     ) -> tuple[torch.Tensor, torch.Tensor]:
+def model_from_table(
+    table: DynamicsTable, terminal_mask: torch.Tensor
+) -> tuple[torch.Tensor, torch.Tensor]:
     """The true model of a dynamics table: ``P [A, S, S]`` float64 sparse COO and the expected
     reward ``R [S, A]`` float64. Terminal states are absorbing with reward 0 (the convention of
     the exact planners: a terminal state's value is 0), whatever the table says about leaving
@@ -61,7 +68,7 @@ def model_from_table(table: DynamicsTable, terminal_mask: torch.Tensor
     idx = torch.stack([a_idx[live], s_idx[live], succ[live]])
     vals = prob[live]
     term = terminal.nonzero()[:, 0]
-    if term.numel():   # absorbing: P[a, t, t] = 1 for every action
+    if term.numel():  # absorbing: P[a, t, t] = 1 for every action
         ta = torch.arange(A).repeat_interleave(term.numel())
         tt = term.repeat(A)
         idx = torch.cat([idx, torch.stack([ta, tt, tt])], 1)
@@ -86,9 +93,11 @@ def world_model(world) -> tuple[torch.Tensor, torch.Tensor]:
         return P.double(), world.reward_model().double()
     if hasattr(world, "dynamics_table"):
         return model_from_table(world.dynamics_table(), world.terminal_mask)
-    raise ValueError(f"{type(world).__name__} has no true model to read: give it a "
-                     "dynamics_table() (a DynamicsTable; see TableWorld) or "
-                     "transition_model(sparse=True) [A, S, S] and reward_model() [S, A]")
+    raise ValueError(
+        f"{type(world).__name__} has no true model to read: give it a "
+        "dynamics_table() (a DynamicsTable; see TableWorld) or "
+        "transition_model(sparse=True) [A, S, S] and reward_model() [S, A]"
+    )
 
 
 def transition_support(world) -> torch.Tensor:
@@ -114,9 +123,11 @@ def transition_support(world) -> torch.Tensor:
         keep = P.values() > 0
         support[s[keep], t[keep]] = True
     else:
-        raise ValueError(f"{type(world).__name__} has neither dynamics_table() nor "
-                         "transition_model(): its transition support (which moves are possible) "
-                         "is unknown, so demonstrations cannot be checked against it")
+        raise ValueError(
+            f"{type(world).__name__} has neither dynamics_table() nor "
+            "transition_model(): its transition support (which moves are possible) "
+            "is unknown, so demonstrations cannot be checked against it"
+        )
     support[terminal] = False
     return support
 
@@ -135,8 +146,13 @@ def _fingerprint(*tensors: torch.Tensor) -> str:
 
 def table_fingerprint(table: DynamicsTable, terminal_mask, start) -> str:
     """A hash of a dynamics table, the terminal states and the start (distribution or state)."""
-    return _fingerprint(table.successors, table.cdf, table.rewards,
-                        torch.as_tensor(terminal_mask, dtype=torch.bool), torch.as_tensor(start))
+    return _fingerprint(
+        table.successors,
+        table.cdf,
+        table.rewards,
+        torch.as_tensor(terminal_mask, dtype=torch.bool),
+        torch.as_tensor(start),
+    )
 
 
 def model_fingerprint(world) -> str:
@@ -158,9 +174,14 @@ def describe_world(world) -> dict:
     if hasattr(world, "describe"):
         return json.loads(json.dumps(world.describe()))
     cls = type(world)
-    return {"kind": "custom", "class": f"{cls.__module__}.{cls.__qualname__}",
-            "num_states": int(world.num_states), "num_actions": int(world.num_actions),
-            "gamma": float(world.gamma), "fingerprint": model_fingerprint(world)}
+    return {
+        "kind": "custom",
+        "class": f"{cls.__module__}.{cls.__qualname__}",
+        "num_states": int(world.num_states),
+        "num_actions": int(world.num_actions),
+        "gamma": float(world.gamma),
+        "fingerprint": model_fingerprint(world),
+    }
 
 
 class TableWorld:
@@ -199,18 +220,30 @@ class TableWorld:
         name: a short label for ``repr``.
     """
 
-    def __init__(self, dynamics: DynamicsTable, start_distribution, terminal_mask, gamma: float = 0.99,
-                 action_names=None, description: dict | None = None, name: str = "TableWorld"):
+    def __init__(
+        self,
+        dynamics: DynamicsTable,
+        start_distribution,
+        terminal_mask,
+        gamma: float = 0.99,
+        action_names=None,
+        description: dict | None = None,
+        name: str = "TableWorld",
+    ):
         if not isinstance(dynamics, DynamicsTable):
-            raise ValueError(f"TableWorld: dynamics must be a DynamicsTable, got {type(dynamics).__name__}")
+            raise ValueError(
+                f"TableWorld: dynamics must be a DynamicsTable, got {type(dynamics).__name__}"
+            )
         S, A, _ = dynamics.successors.shape
         if dynamics.successors.dtype != torch.int64:
             raise ValueError("TableWorld: dynamics.successors must be int64 states")
         if int(dynamics.successors.min()) < 0 or int(dynamics.successors.max()) >= S:
             raise ValueError(f"TableWorld: dynamics.successors hold states outside 0…{S - 1}")
-        self._table = DynamicsTable(dynamics.successors.cpu().contiguous(),
-                                    dynamics.cdf.cpu().double().contiguous(),
-                                    dynamics.rewards.cpu().double().contiguous())
+        self._table = DynamicsTable(
+            dynamics.successors.cpu().contiguous(),
+            dynamics.cdf.cpu().double().contiguous(),
+            dynamics.rewards.cpu().double().contiguous(),
+        )
         self._tables: dict[torch.device, DynamicsTable] = {torch.device("cpu"): self._table}
         self.num_states, self.num_actions = int(S), int(A)
         if not 0.0 < float(gamma) <= 1.0:
@@ -218,23 +251,34 @@ class TableWorld:
         self.gamma = float(gamma)
         terminal = torch.as_tensor(terminal_mask).cpu()
         if terminal.shape != (S,) or terminal.dtype != torch.bool:
-            raise ValueError(f"TableWorld: terminal_mask must be a [S] = [{S}] bool tensor, got "
-                             f"{tuple(terminal.shape)} {terminal.dtype}")
+            raise ValueError(
+                f"TableWorld: terminal_mask must be a [S] = [{S}] bool tensor, got "
+                f"{tuple(terminal.shape)} {terminal.dtype}"
+            )
         self._terminal = terminal.clone()
         start = torch.as_tensor(start_distribution, dtype=torch.float64).cpu().clone()
         if start.shape != (S,):
-            raise ValueError(f"TableWorld: start_distribution must be [S] = [{S}], got {tuple(start.shape)}")
-        if not bool(torch.isfinite(start).all()) or bool((start < 0).any()) \
-                or abs(float(start.sum()) - 1.0) > 1e-9:
-            raise ValueError("TableWorld: start_distribution must hold probabilities ≥ 0 summing to 1 "
-                             f"(sum {float(start.sum())!r})")
+            raise ValueError(
+                f"TableWorld: start_distribution must be [S] = [{S}], got {tuple(start.shape)}"
+            )
+        if (
+            not bool(torch.isfinite(start).all())
+            or bool((start < 0).any())
+            or abs(float(start.sum()) - 1.0) > 1e-9
+        ):
+            raise ValueError(
+                "TableWorld: start_distribution must hold probabilities ≥ 0 summing to 1 "
+                f"(sum {float(start.sum())!r})"
+            )
         on_terminal = (start > 0) & terminal
         if bool(on_terminal.any()):
-            raise ValueError(f"TableWorld: the start distribution puts weight on terminal states "
-                             f"{on_terminal.nonzero()[:, 0].tolist()[:5]}; an episode cannot start "
-                             "where it ends")
+            raise ValueError(
+                f"TableWorld: the start distribution puts weight on terminal states "
+                f"{on_terminal.nonzero()[:, 0].tolist()[:5]}; an episode cannot start "
+                "where it ends"
+            )
         self.start_distribution = start
-        self.start_state = int(torch.argmax(start))   # first of the most likely starts
+        self.start_state = int(torch.argmax(start))  # first of the most likely starts
         if action_names is not None:
             action_names = tuple(str(n) for n in action_names)
             if len(action_names) != A:
@@ -256,14 +300,19 @@ class TableWorld:
         """The :class:`~himit_torch.DynamicsTable` that :meth:`step` uses (on the CPU)."""
         return self._table
 
-    def step(self, positions: torch.Tensor, actions: torch.Tensor,
-             uniforms: torch.Tensor | None = None, generator: torch.Generator | None = None
-             ) -> tuple[torch.Tensor, torch.Tensor]:
+    def step(
+        self,
+        positions: torch.Tensor,
+        actions: torch.Tensor,
+        uniforms: torch.Tensor | None = None,
+        generator: torch.Generator | None = None,
+    ) -> tuple[torch.Tensor, torch.Tensor]:
         """``positions [B], actions [B], uniforms [B] in [0, 1)`` → ``(next [B] int64, reward [B]
         float64)`` by :meth:`dynamics_table` (``uniforms`` drawn from ``generator`` if omitted)."""
         if uniforms is None:
-            uniforms = torch.rand(positions.shape, generator=generator, device=positions.device,
-                                  dtype=torch.float64)
+            uniforms = torch.rand(
+                positions.shape, generator=generator, device=positions.device, dtype=torch.float64
+            )
         table = self._tables.get(positions.device)
         if table is None:
             table = self._tables[positions.device] = self._table.to(positions.device)
@@ -288,8 +337,13 @@ class TableWorld:
         """A JSON-able description identifying the world (saved with demonstrations)."""
         if self._description is not None:
             return json.loads(json.dumps(self._description))
-        return {"kind": "TableWorld", "num_states": self.num_states, "num_actions": self.num_actions,
-                "gamma": self.gamma, "fingerprint": model_fingerprint(self)}
+        return {
+            "kind": "TableWorld",
+            "num_states": self.num_states,
+            "num_actions": self.num_actions,
+            "gamma": self.gamma,
+            "fingerprint": model_fingerprint(self),
+        }
 
     # ----------------------------------------------------------------------------- queries
     def _entering_reward(self) -> torch.Tensor | None:
@@ -299,15 +353,22 @@ class TableWorld:
         live = (table_probabilities(table) > 0) & ~self._terminal[:, None, None]
         succ, rew = table.successors[live], table.rewards[live]
         S = self.num_states
-        high = torch.full((S,), -float("inf"), dtype=torch.float64).scatter_reduce(0, succ, rew, "amax")
-        low = torch.full((S,), float("inf"), dtype=torch.float64).scatter_reduce(0, succ, rew, "amin")
+        high = torch.full((S,), -float("inf"), dtype=torch.float64).scatter_reduce(
+            0, succ, rew, "amax"
+        )
+        low = torch.full((S,), float("inf"), dtype=torch.float64).scatter_reduce(
+            0, succ, rew, "amin"
+        )
         entered = torch.isfinite(high)
         if bool((high[entered] != low[entered]).any()):
             return None
         # States never entered get the least reward of the world: never used, and never raises
         # the learner's bound on its best real reward.
-        return torch.where(entered, high, low[entered].min() if bool(entered.any()) else
-                           torch.zeros((), dtype=torch.float64))
+        return torch.where(
+            entered,
+            high,
+            low[entered].min() if bool(entered.any()) else torch.zeros((), dtype=torch.float64),
+        )
 
     @property
     def goal_mask(self) -> torch.Tensor:
@@ -320,12 +381,15 @@ class TableWorld:
         into = self._terminal[succ]
         goal = torch.zeros(self.num_states, dtype=torch.bool)
         if bool(into.any()):
-            best = torch.full((self.num_states,), -float("inf"), dtype=torch.float64).scatter_reduce(
-                0, succ[into], rew[into], "amax")
+            best = torch.full(
+                (self.num_states,), -float("inf"), dtype=torch.float64
+            ).scatter_reduce(0, succ[into], rew[into], "amax")
             goal = self._terminal & (best >= float(rew[into].max()))
         return goal
 
     def __repr__(self) -> str:
         starts = int((self.start_distribution > 0).sum())
-        return (f"{self.name}(S={self.num_states}, A={self.num_actions}, start states={starts}, "
-                f"terminal states={int(self._terminal.sum())}, gamma={self.gamma})")
+        return (
+            f"{self.name}(S={self.num_states}, A={self.num_actions}, start states={starts}, "
+            f"terminal states={int(self._terminal.sum())}, gamma={self.gamma})"
+        )

@@ -55,46 +55,47 @@ def tensorboard_command(logdir: str | os.PathLike) -> str:
         return f"{_shell_path(beside)} --logdir {log}"
     return f"{_shell_path(Path(sys.executable))} -m tensorboard.main --logdir {log}"
 
+
 #: What each scalar tag holds; written into the event files as the tag's description.
 SCALAR_DESCRIPTIONS = {
     "charts/goals_in_window": "Goals reached in the window of steps that ends at this step "
-                              "(per window, not cumulative; the paper's curves).",
+    "(per window, not cumulative; the paper's curves).",
     "charts/goals_total": "Goals reached since the start of the run (cumulative).",
     "charts/first_goal_step": "Step at which the run first reached the goal, logged once, at that "
-                              "step (x = y). No point: not found yet.",
+    "step (x = y). No point: not found yet.",
     "charts/epsilon": "Exploration rate ε at the end of the window (ε-greedy over the run's own "
-                      "options; decays only after the first goal).",
+    "options; decays only after the first goal).",
     "charts/episodes": "Episodes finished since the start (cumulative; an episode ends at the "
-                       "goal).",
+    "goal).",
     "charts/steps_per_episode": "Mean primitive steps of the episodes that ended in this window "
-                                "(per window; absent when none ended).",
+    "(per window; absent when none ended).",
     "planner/backups": "Bellman backups done since the start (cumulative).",
     "planner/decisions": "Option choices made since the start (cumulative).",
     "model/coverage": "Share of the run's usable (state, option) pairs it has tried at least "
-                      "once, now.",
+    "once, now.",
     "model/value_start": "V(start): the value the run's planner gives the start state now "
-                         "(compare model/value_start_true).",
+    "(compare model/value_start_true).",
     "model/value_start_true": "V*(start): the optimal value of the start state, exact from the "
-                              "world's true model (primitive actions); a constant reference for "
-                              "model/value_start — above it, the run is optimistic.",
+    "world's true model (primitive actions); a constant reference for "
+    "model/value_start — above it, the run is optimistic.",
     "mentor/term_wins": "Share of the mentor's observed states where the mentor term is the max "
-                        "of eq. 2, now (imitating runs only).",
+    "of eq. 2, now (imitating runs only).",
     "hparam/total_goals": "Goals reached over the whole run (cumulative; the HParams metric).",
     "hparam/final_window_goals": "Goals in the run's last window (the HParams metric).",
     "hparam/first_goal_step": "Step of the run's first goal; the run's length + 1 if it never "
-                              "found it (the HParams metric).",
+    "found it (the HParams metric).",
     "hparam/value_start": "V(start) at the end of the run (the HParams metric).",
 }
 
 #: What each map shows; written as the image tag's description.
 IMAGE_DESCRIPTIONS = {
     "maps/values": "The run's state values V(s) at this step (colorbar). Grey: still at the "
-                   "initial value −1 — the value of never reaching the goal, kept until the "
-                   "learned model links the cell to the goal. Walls black.",
+    "initial value −1 — the value of never reaching the goal, kept until the "
+    "learned model links the cell to the goal. Walls black.",
     "maps/greedy_option": "The run's greedy option per state at this step (legend): primitive "
-                          "direction or option kind; grey where nothing was tried. Walls black.",
+    "direction or option kind; grey where nothing was tried. Walls black.",
     "maps/visits": "How often the run has been in each cell up to this step (log colour scale; "
-                   "grey: never), with the states of the mentor episodes it watched (orange).",
+    "grey: never), with the states of the mentor episodes it watched (orange).",
 }
 
 
@@ -124,10 +125,20 @@ class TensorBoardLogger:
             ``overwrite`` — its curves would mix with this run's.
     """
 
-    def __init__(self, root: str | os.PathLike, names: Sequence[str], *, world=None, options=None,
-                 true_value_start: float | None = None, initial_value: float = -1.0,
-                 resume_step: int | None = None, overwrite: bool = False):
+    def __init__(
+        self,
+        root: str | os.PathLike,
+        names: Sequence[str],
+        *,
+        world=None,
+        options=None,
+        true_value_start: float | None = None,
+        initial_value: float = -1.0,
+        resume_step: int | None = None,
+        overwrite: bool = False,
+    ):
         from torch.utils.tensorboard import SummaryWriter
+
         root = Path(root)
         names = list(names)
         if len(set(names)) != len(names):
@@ -141,7 +152,8 @@ class TensorBoardLogger:
                     f"{root} already holds TensorBoard events of {len(used)} of these runs (e.g. "
                     f"{root / used[0]}); a new run would mix its curves with theirs. Log to "
                     f"another folder, resume the run, or overwrite it (overwrite=True; `himit run "
-                    f"--force`)")
+                    f"--force`)"
+                )
             for n in used:
                 shutil.rmtree(root / n)
         # On resume, TensorBoard drops the events of earlier files at steps ≥ purge_step: what
@@ -156,6 +168,7 @@ class TensorBoardLogger:
         self._renderer = None
         if world is not None:
             from .plotting import MapRenderer
+
             self._renderer = MapRenderer(world, options, initial_value=initial_value)
 
     # ------------------------------------------------------------------------------- writing
@@ -167,6 +180,7 @@ class TensorBoardLogger:
         value in this process."""
         from tensorboard.compat.proto.summary_pb2 import Summary
         from tensorboard.plugins.scalar.metadata import create_summary_metadata
+
         entry = Summary.Value(tag=tag, simple_value=float(value))
         if tag not in self._described[run]:
             entry.metadata.CopyFrom(create_summary_metadata(tag, SCALAR_DESCRIPTIONS.get(tag, "")))
@@ -177,6 +191,7 @@ class TensorBoardLogger:
         """Log one ``[H, W, 3]`` uint8 image with its description (:data:`IMAGE_DESCRIPTIONS`)."""
         from tensorboard.plugins.image.metadata import create_summary_metadata
         from torch.utils.tensorboard.summary import image
+
         summary = image(tag, rgb, dataformats="HWC")
         description = IMAGE_DESCRIPTIONS.get(tag, "")
         summary.value[0].metadata.CopyFrom(create_summary_metadata(tag, description))
@@ -192,7 +207,7 @@ class TensorBoardLogger:
         now (``learner.t``) — the model's state (``model/``)."""
         m = learner.metrics
         step = int(m.steps[index])
-        total = torch.stack(m.goals_in_window[:index + 1]).sum(0)
+        total = torch.stack(m.goals_in_window[: index + 1]).sum(0)
         first = learner.first_goal_step.tolist()
         now = step == learner.t
         if now:
@@ -222,39 +237,62 @@ class TensorBoardLogger:
                 if self._true_value_start is not None:
                     self.scalar(b, "model/value_start_true", self._true_value_start, step)
 
-    def maps(self, learner, runs: Sequence[int], step: int,
-             mentor_visits: Mapping[int, torch.Tensor] | torch.Tensor | None = None) -> None:
+    def maps(
+        self,
+        learner,
+        runs: Sequence[int],
+        step: int,
+        mentor_visits: Mapping[int, torch.Tensor] | torch.Tensor | None = None,
+    ) -> None:
         """Images ``maps/values``, ``maps/greedy_option`` and ``maps/visits`` of ``runs`` now
         (call it during training: TensorBoard's slider then steps through them).
         ``mentor_visits``: ``[S]`` counts for all runs, or ``{run: [S]}``."""
         if self._renderer is None:
             raise ValueError("TensorBoardLogger.maps needs the world (TensorBoardLogger(world=…))")
-        values, greedy, visits = (learner.state_values(), learner.greedy_options(),
-                                  learner.visit_counts())
+        values, greedy, visits = (
+            learner.state_values(),
+            learner.greedy_options(),
+            learner.visit_counts(),
+        )
         for b in runs:
             name, at = self.names[b], f"after {step:,} steps"
             mentor = mentor_visits.get(b) if isinstance(mentor_visits, Mapping) else mentor_visits
-            self.image(b, "maps/values",
-                       self._renderer.values(values[b], f"values V(s) {at}\n{name}"), step)
-            self.image(b, "maps/greedy_option",
-                       self._renderer.policy(greedy[b], f"greedy option {at}\n{name}"), step)
+            self.image(
+                b,
+                "maps/values",
+                self._renderer.values(values[b], f"values V(s) {at}\n{name}"),
+                step,
+            )
+            self.image(
+                b,
+                "maps/greedy_option",
+                self._renderer.policy(greedy[b], f"greedy option {at}\n{name}"),
+                step,
+            )
             title = f"visits up to {step:,} steps\n{name}"
             self.image(b, "maps/visits", self._renderer.visits(visits[b], mentor, title), step)
 
-    def hparams(self, hparams: Sequence[Mapping], metrics: Sequence[Mapping[str, float]],
-                step: int) -> None:
+    def hparams(
+        self, hparams: Sequence[Mapping], metrics: Sequence[Mapping[str, float]], step: int
+    ) -> None:
         """Per run, its settings (``hparams[b]``: the settings that tell its group apart, never
         the seed) and its final metrics (``metrics[b]``, tags ``hparam/…``). Runs with equal
         settings share a session group named after them, so TensorBoard's HParams dashboard
         shows the seeds of one agent together."""
         from tensorboard.plugins.hparams.plugin_data_pb2 import HParamsPluginData
         from torch.utils.tensorboard.summary import hparams as hparams_summaries
+
         for b, (hp, metric) in enumerate(zip(hparams, metrics)):
             if "seed" in hp:
-                raise ValueError("TensorBoardLogger.hparams: the seed is not a setting that tells "
-                                 "groups apart; leave it out (the run's folder names it)")
-            hp = {k: (v if isinstance(v, (int, float, str, bool)) else str(v))
-                  for k, v in hp.items() if v is not None}
+                raise ValueError(
+                    "TensorBoardLogger.hparams: the seed is not a setting that tells "
+                    "groups apart; leave it out (the run's folder names it)"
+                )
+            hp = {
+                k: (v if isinstance(v, (int, float, str, bool)) else str(v))
+                for k, v in hp.items()
+                if v is not None
+            }
             experiment, start, end = hparams_summaries(hp, {k: 0.0 for k in metric})
             # Sessions with one group name form one group (mean, min, max over its seeds).
             data = HParamsPluginData.FromString(start.value[0].metadata.plugin_data.content)

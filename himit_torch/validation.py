@@ -30,8 +30,15 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["as_int", "as_float", "as_tuple", "as_choice", "memory_limit", "check_memory",
-           "format_bytes"]
+__all__ = [
+    "as_int",
+    "as_float",
+    "as_tuple",
+    "as_choice",
+    "memory_limit",
+    "check_memory",
+    "format_bytes",
+]
 
 
 def _is_bool(value: Any) -> bool:
@@ -49,8 +56,10 @@ def as_int(where: str, value: Any, minimum: int | None = None, maximum: int | No
         if not math.isfinite(f):
             raise ValueError(f"{where} must be a whole number, got {value!r}")
         if f != int(f):
-            raise ValueError(f"{where}={value!r} is not a whole number (it is never rounded or "
-                             "truncated); give an integer")
+            raise ValueError(
+                f"{where}={value!r} is not a whole number (it is never rounded or "
+                "truncated); give an integer"
+            )
         out = int(f)
     else:
         raise ValueError(f"{where} must be a whole number, got {value!r} ({type(value).__name__})")
@@ -61,8 +70,14 @@ def as_int(where: str, value: Any, minimum: int | None = None, maximum: int | No
     return out
 
 
-def as_float(where: str, value: Any, low: float | None = None, high: float | None = None,
-             low_open: bool = False, high_open: bool = False) -> float:
+def as_float(
+    where: str,
+    value: Any,
+    low: float | None = None,
+    high: float | None = None,
+    low_open: bool = False,
+    high_open: bool = False,
+) -> float:
     """``value`` as a finite ``float`` by the module's rule for real numbers, within
     ``[low, high]`` (``low_open`` / ``high_open``: excluding that end)."""
     if _is_bool(value) or isinstance(value, (str, bytes)) or not isinstance(value, numbers.Real):
@@ -98,8 +113,18 @@ def as_choice(where: str, value: Any, choices: tuple[str, ...]) -> str:
 
 
 # ===================================================================================== memory
-_UNITS = {"": 1, "b": 1, "kb": 10**3, "mb": 10**6, "gb": 10**9, "tb": 10**12, "kib": 2**10,
-          "mib": 2**20, "gib": 2**30, "tib": 2**40}
+_UNITS = {
+    "": 1,
+    "b": 1,
+    "kb": 10**3,
+    "mb": 10**6,
+    "gb": 10**9,
+    "tb": 10**12,
+    "kib": 2**10,
+    "mib": 2**20,
+    "gib": 2**30,
+    "tib": 2**40,
+}
 
 
 def _available_bytes() -> int:
@@ -113,7 +138,7 @@ def _available_bytes() -> int:
     try:
         return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
     except (ValueError, OSError, AttributeError):
-        return 1 << 62   # unknown: no limit
+        return 1 << 62  # unknown: no limit
 
 
 def memory_limit() -> int | None:
@@ -135,13 +160,15 @@ def format_bytes(n: float) -> str:
         if abs(n) < 1024 or unit == "PiB":
             return f"{n:.1f} {unit}" if unit != "B" else f"{int(n)} B"
         n /= 1024
-    return f"{n:.1f} PiB"   # pragma: no cover
+    return f"{n:.1f} PiB"  # pragma: no cover
 
 
 def check_memory(what: str, estimate: float, hint: str = "") -> None:
     """Refuse building ``what`` when its estimated bytes exceed :func:`memory_limit`."""
     limit = memory_limit()
     if limit is not None and estimate > limit:
-        raise ValueError(f"{what} would need about {format_bytes(estimate)}, more than the limit "
-                         f"{format_bytes(limit)} (80 % of available memory, or "
-                         f"HIMIT_MEMORY_LIMIT){'; ' + hint if hint else ''}")
+        raise ValueError(
+            f"{what} would need about {format_bytes(estimate)}, more than the limit "
+            f"{format_bytes(limit)} (80 % of available memory, or "
+            f"HIMIT_MEMORY_LIMIT){'; ' + hint if hint else ''}"
+        )

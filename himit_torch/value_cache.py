@@ -47,17 +47,26 @@ def _take(x: torch.Tensor, flat: torch.Tensor) -> torch.Tensor:
 class ValueCache:
     """``V [B, S + 1]`` and the caches of eq. 2 for a batch, over its models and row table."""
 
-    def __init__(self, config: LearnerConfig, rows: RowTable, model: DirichletSMDPModel,
-                 mentor: DirichletMentorModel, terminal: torch.Tensor, gamma: float):
+    def __init__(
+        self,
+        config: LearnerConfig,
+        rows: RowTable,
+        model: DirichletSMDPModel,
+        mentor: DirichletMentorModel,
+        terminal: torch.Tensor,
+        gamma: float,
+    ):
         self.config, self.rows, self.model, self.mentor = config, rows, model, mentor
         self.terminal, self.gamma = terminal, gamma
         B, S, M = model.batch, rows.num_states, rows.num_rows
         dev = terminal.device
         self.batch, self.num_states, self.num_rows, self.device = B, S, M, dev
-        self.values = torch.full((B, S + 1), float(config.initial_value), dtype=torch.float64, device=dev)
+        self.values = torch.full(
+            (B, S + 1), float(config.initial_value), dtype=torch.float64, device=dev
+        )
         self.values[:, terminal] = 0.0
         self.q_numerator = torch.zeros(B, M + 1, dtype=torch.float64, device=dev)
-        self.q_second = torch.zeros_like(self.q_numerator)        # Σ (γ^k)² V² / c per row
+        self.q_second = torch.zeros_like(self.q_numerator)  # Σ (γ^k)² V² / c per row
         self.mentor_numerator = torch.zeros(B, S + 1, dtype=torch.float64, device=dev)
         self.mentor_second = torch.zeros_like(self.mentor_numerator)
         self.mentor_edge_reward = torch.zeros(B, mentor.capacity, dtype=torch.float64, device=dev)
@@ -66,25 +75,37 @@ class ValueCache:
         self.any_mentor = bool(rows.use_mentor.any())
         self._neg_inf = torch.tensor(float("-inf"), dtype=torch.float64, device=dev)
         self._zero = torch.zeros((), dtype=torch.float64, device=dev)
-        self._untried = torch.tensor(float(config.untried_value if config.untried_value is not None
-                                           else 0.0), dtype=torch.float64, device=dev)
+        self._untried = torch.tensor(
+            float(config.untried_value if config.untried_value is not None else 0.0),
+            dtype=torch.float64,
+            device=dev,
+        )
 
-    _STATE = ("values", "q_numerator", "q_second", "mentor_numerator", "mentor_second",
-              "mentor_edge_reward")
+    _STATE = (
+        "values",
+        "q_numerator",
+        "q_second",
+        "mentor_numerator",
+        "mentor_second",
+        "mentor_edge_reward",
+    )
 
     def state_dict(self) -> dict:
         out = {name: getattr(self, name).clone() for name in self._STATE}
-        out["mentor_edge_reward"] = self.mentor_edge_reward[:, :self.mentor.used].clone()
+        out["mentor_edge_reward"] = self.mentor_edge_reward[:, : self.mentor.used].clone()
         return out
 
     def load_state_dict(self, state: dict) -> None:
         """Restore (after the mentor model, whose capacity the edge rewards follow)."""
         for name in self._STATE:
             value, current = state[name], getattr(self, name)
-            if value.shape[0] != current.shape[0] or (name != "mentor_edge_reward"
-                                                      and value.shape != current.shape):
-                raise ValueError(f"value cache {name} has shape {tuple(value.shape)}, this "
-                                 f"learner's {tuple(current.shape)}")
+            if value.shape[0] != current.shape[0] or (
+                name != "mentor_edge_reward" and value.shape != current.shape
+            ):
+                raise ValueError(
+                    f"value cache {name} has shape {tuple(value.shape)}, this "
+                    f"learner's {tuple(current.shape)}"
+                )
             setattr(self, name, value.to(self.device).clone())
         self._grow_mentor_reward(self.mentor.capacity)
 
@@ -128,7 +149,9 @@ class ValueCache:
         rsum = _take(self.model.row_reward, flat)
         rbar = torch.where(n > 0, rsum / n.clamp(min=1), torch.zeros_like(n))
         cont = _take(self.q_numerator, flat) - rsum
-        second = (n * rbar * rbar + 2 * rbar * cont + _take(self.q_second, flat) + a * v0 * v0) / (n + a)
+        second = (n * rbar * rbar + 2 * rbar * cont + _take(self.q_second, flat) + a * v0 * v0) / (
+            n + a
+        )
         var = (second - q * q).clamp(min=0) / (n + a + 1)
         # A row with no posterior at all (untried, no prior) valued by ``untried_value``: its
         # value is unbounded above, so no mentor term can be confidently better.
@@ -170,22 +193,31 @@ class ValueCache:
         mentor_ok = self.rows.use_mentor[runs] & (n_m > 0)
         m = self._mentor_at(flat, n_m)
         if cfg.mentor_override_after is not None:
-            mentor_ok = mentor_ok & (_take(self.model.state_tries, flat) < cfg.mentor_override_after)
+            mentor_ok = mentor_ok & (
+                _take(self.model.state_tries, flat) < cfg.mentor_override_after
+            )
         if self.any_confidence and bool(self.rows.use_confidence[runs].any()):
             z = cfg.confidence_z
             var = self._row_variance(flat_rows, n_rows, q)
             upper = torch.where(usable, q + z * var.sqrt(), self._neg_inf).amax(-1)
             confident = (m - z * self._mentor_variance(flat, n_m, m).sqrt()) > upper
             mentor_ok = mentor_ok & (confident | ~self.rows.use_confidence[runs])
+        if cfg.mentor_fade is not None:
+            # The mentor's evidence weighs as mentor_fade own executions (LearnerConfig.mentor_fade).
+            k, n = cfg.mentor_fade, _take(self.model.state_tries, flat)
+            m = torch.where(torch.isfinite(own), (k * m + n * own) / (k + n), m)
         m = torch.where(mentor_ok, m, self._neg_inf)
         best = torch.maximum(own, m)
         # Terminal states (and the padding state) keep V = 0.
-        has_value = torch.isfinite(best) & ~self.terminal.index_select(0, states.reshape(-1)).view_as(states)
+        has_value = torch.isfinite(best) & ~self.terminal.index_select(
+            0, states.reshape(-1)
+        ).view_as(states)
         return best, has_value, mentor_ok & (m > own)
 
     # ================================================================================ updates
-    def backup_and_propagate(self, runs: torch.Tensor, states: torch.Tensor, valid: torch.Tensor
-                             ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    def backup_and_propagate(
+        self, runs: torch.Tensor, states: torch.Tensor, valid: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """Back up ``states [R, n]`` of ``runs [R]`` together (where ``valid``), then push each
         change ``δ`` into the caches of the states' predecessors. Returns the predecessors'
         new priorities ``(runs, states, |ΔQ|)`` for the sweeper."""
@@ -219,13 +251,15 @@ class ValueCache:
         gd = g * d
         flat = self._row_flat(r, rows)
         self.q_numerator.view(-1).index_add_(0, flat, gd)
-        if self.any_confidence:       # (second moments only for the confidence-tested runs)
+        if self.any_confidence:  # (second moments only for the confidence-tested runs)
             c = _take(model.edge_count, flat_e).clamp(min=1)
             v_old = old.index_select(0, owner)
-            term = g * g / c * ((v_old + d) ** 2 - v_old ** 2)
+            term = g * g / c * ((v_old + d) ** 2 - v_old**2)
             keep = self.rows.use_confidence.index_select(0, r)
             self.q_second.view(-1).index_add_(0, flat[keep], term[keep])
-        prio = gd.abs() / (_take(model.row_count, flat) + self.config.concentration).clamp(min=1e-300)
+        prio = gd.abs() / (_take(model.row_count, flat) + self.config.concentration).clamp(
+            min=1e-300
+        )
         push = (prio > self.config.priority_threshold) & _take(self.rows.row_enabled, flat)
         return r[push], self.rows.row_state.index_select(0, rows[push]), prio[push]
 
@@ -245,10 +279,12 @@ class ValueCache:
         self.mentor_numerator.view(-1).index_add_(0, flat, cd)
         if self.any_confidence:
             u_old = _take(self.mentor_edge_reward, flat_e) + self.gamma * old.index_select(0, owner)
-            term = c * ((u_old + gd) ** 2 - u_old ** 2)
+            term = c * ((u_old + gd) ** 2 - u_old**2)
             keep = self.rows.use_confidence.index_select(0, r)
             self.mentor_second.view(-1).index_add_(0, flat[keep], term[keep])
-        prio = cd.abs() / (_take(mentor.row_count, flat) + self.config.mentor_concentration).clamp(min=1e-300)
+        prio = cd.abs() / (_take(mentor.row_count, flat) + self.config.mentor_concentration).clamp(
+            min=1e-300
+        )
         push = prio > self.config.priority_threshold
         return r[push], src[push], prio[push]
 

@@ -18,8 +18,14 @@ import torch
 
 from .validation import as_float, as_int, check_memory
 
-__all__ = ["MultiRooms", "TabularWorld", "DynamicsTable", "ACTION_NAMES", "ACTION_DELTAS",
-           "STIMULUS_FEATURES"]
+__all__ = [
+    "MultiRooms",
+    "TabularWorld",
+    "DynamicsTable",
+    "ACTION_NAMES",
+    "ACTION_DELTAS",
+    "STIMULUS_FEATURES",
+]
 
 #: Primitive actions: 0 = north (row − 1), 1 = south, 2 = west (col − 1), 3 = east.
 ACTION_NAMES = ("N", "S", "W", "E")
@@ -48,8 +54,9 @@ class TabularWorld(Protocol):
     def terminal_mask(self) -> torch.Tensor:  # [S] bool: reaching one ends the episode
         ...
 
-    def step(self, positions: torch.Tensor, actions: torch.Tensor, uniforms: torch.Tensor
-             ) -> tuple[torch.Tensor, torch.Tensor]:
+    def step(
+        self, positions: torch.Tensor, actions: torch.Tensor, uniforms: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
         """``positions [B], actions [B], uniforms [B] in [0, 1)`` → ``(next [B], reward [B])``."""
         ...
 
@@ -73,32 +80,45 @@ class DynamicsTable:
     rewards: torch.Tensor
 
     def __post_init__(self):
-        if not (self.successors.shape == self.cdf.shape == self.rewards.shape) or self.cdf.dim() != 3:
-            raise ValueError(f"DynamicsTable: successors {tuple(self.successors.shape)}, cdf "
-                             f"{tuple(self.cdf.shape)} and rewards {tuple(self.rewards.shape)} must "
-                             "share one shape [S, A, K]")
+        if (
+            not (self.successors.shape == self.cdf.shape == self.rewards.shape)
+            or self.cdf.dim() != 3
+        ):
+            raise ValueError(
+                f"DynamicsTable: successors {tuple(self.successors.shape)}, cdf "
+                f"{tuple(self.cdf.shape)} and rewards {tuple(self.rewards.shape)} must "
+                "share one shape [S, A, K]"
+            )
         if not bool(torch.isfinite(self.rewards).all()):
             raise ValueError("DynamicsTable: rewards must be finite")
         if bool((self.cdf.diff(dim=-1) < 0).any()) or not bool((self.cdf[..., -1] == 1.0).all()):
-            raise ValueError("DynamicsTable: cdf must be non-decreasing along its last axis and end at 1")
+            raise ValueError(
+                "DynamicsTable: cdf must be non-decreasing along its last axis and end at 1"
+            )
 
-    def step(self, positions: torch.Tensor, actions: torch.Tensor, uniforms: torch.Tensor
-             ) -> tuple[torch.Tensor, torch.Tensor]:
+    def step(
+        self, positions: torch.Tensor, actions: torch.Tensor, uniforms: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
         """``positions [B], actions [B], uniforms [B]`` → ``(next [B] int64, reward [B] float64)``."""
-        cdf = self.cdf[positions, actions]                                         # [B, K]
+        actions = actions.long()  # e.g. an Options.policy entry (int8)
+        cdf = self.cdf[positions, actions]  # [B, K]
         slot = (cdf <= uniforms.to(torch.float64)[:, None]).sum(1).clamp(max=cdf.shape[1] - 1)
         flat = (positions * self.cdf.shape[1] + actions) * self.cdf.shape[2] + slot
-        return (self.successors.view(-1).index_select(0, flat),
-                self.rewards.view(-1).index_select(0, flat))
+        return (
+            self.successors.view(-1).index_select(0, flat),
+            self.rewards.view(-1).index_select(0, flat),
+        )
 
     def to(self, device: torch.device | str) -> DynamicsTable:
-        return DynamicsTable(self.successors.to(device), self.cdf.to(device), self.rewards.to(device))
+        return DynamicsTable(
+            self.successors.to(device), self.cdf.to(device), self.rewards.to(device)
+        )
 
 
 @dataclass(frozen=True)
 class _Layout:
-    wall: np.ndarray                      # [N, N] bool
-    room_of: np.ndarray                   # [S] int, −1 on walls and doorways
+    wall: np.ndarray  # [N, N] bool
+    room_of: np.ndarray  # [S] int, −1 on walls and doorways
     doorway_rooms: dict[int, tuple[int, int]] = field(default_factory=dict)
 
 
@@ -115,8 +135,8 @@ def _build_layout(size: int, rooms: int, closed: frozenset[int]) -> _Layout:
         hi = (i + 1) * room_size
         mid = (lo + hi) // 2
         for k in range(1, rooms):
-            horizontal = k * room_size * size + mid          # wall row k·rs, column mid
-            vertical = mid * size + k * room_size            # row mid, wall column k·rs
+            horizontal = k * room_size * size + mid  # wall row k·rs, column mid
+            vertical = mid * size + k * room_size  # row mid, wall column k·rs
             doorway_rooms[horizontal] = ((k - 1) * rooms + i, k * rooms + i)
             doorway_rooms[vertical] = (i * rooms + k - 1, i * rooms + k)
     for cell in list(doorway_rooms):
@@ -171,40 +191,59 @@ class MultiRooms:
     #: the up-front size check multiplies by the number of states.
     BYTES_PER_STATE = 512
 
-    def __init__(self, size: int = 40, rooms: int = 10, slip: float = 0.1,
-                 start: int | tuple[int, int] | None = None,
-                 goal: int | tuple[int, int] | None = None,
-                 closed_doorways: Iterable[int | tuple[int, int]] = (),
-                 step_reward: float = -0.01, goal_reward: float = 1.0, gamma: float = 0.99,
-                 stimuli: Mapping[str, object] | None = None):
+    def __init__(
+        self,
+        size: int = 40,
+        rooms: int = 10,
+        slip: float = 0.1,
+        start: int | tuple[int, int] | None = None,
+        goal: int | tuple[int, int] | None = None,
+        closed_doorways: Iterable[int | tuple[int, int]] = (),
+        step_reward: float = -0.01,
+        goal_reward: float = 1.0,
+        gamma: float = 0.99,
+        stimuli: Mapping[str, object] | None = None,
+    ):
         size, rooms = _check_int("size", size), _check_int("rooms", rooms)
         if size % rooms != 0:
-            raise ValueError(f"size={size} is not a multiple of rooms={rooms}: each of the "
-                             f"{rooms}×{rooms} rooms must be size/rooms cells wide (e.g. size="
-                             f"{rooms * max(2, round(size / rooms))})")
+            raise ValueError(
+                f"size={size} is not a multiple of rooms={rooms}: each of the "
+                f"{rooms}×{rooms} rooms must be size/rooms cells wide (e.g. size="
+                f"{rooms * max(2, round(size / rooms))})"
+            )
         if size // rooms < 2:
-            raise ValueError(f"size/rooms = {size // rooms} is too small: each room needs at least "
-                             f"2 cells per side (one wall row and one free row); use size ≥ {2 * rooms}")
-        check_memory(f"MultiRooms(size={size}) ({size * size:,} states)",
-                     size * size * self.BYTES_PER_STATE,
-                     f"about {self.BYTES_PER_STATE} bytes a state; choose a smaller size")
+            raise ValueError(
+                f"size/rooms = {size // rooms} is too small: each room needs at least "
+                f"2 cells per side (one wall row and one free row); use size ≥ {2 * rooms}"
+            )
+        check_memory(
+            f"MultiRooms(size={size}) ({size * size:,} states)",
+            size * size * self.BYTES_PER_STATE,
+            f"about {self.BYTES_PER_STATE} bytes a state; choose a smaller size",
+        )
         slip = as_float("MultiRooms slip", slip, 0.0, 1.0, high_open=True)
         gamma = as_float("MultiRooms gamma", gamma, 0.0, 1.0, low_open=True)
         step_reward = as_float("MultiRooms step_reward", step_reward)
         goal_reward = as_float("MultiRooms goal_reward", goal_reward)
         if isinstance(closed_doorways, (str, bytes)) or not isinstance(closed_doorways, Iterable):
-            raise ValueError(f"closed_doorways must be a list of cells (indices or (row, col) "
-                             f"pairs), got {closed_doorways!r}")
+            raise ValueError(
+                f"closed_doorways must be a list of cells (indices or (row, col) "
+                f"pairs), got {closed_doorways!r}"
+            )
         self.size, self.rooms, self.room_size = size, rooms, size // rooms
         self.slip, self.gamma = float(slip), float(gamma)
         self.step_reward, self.goal_reward = float(step_reward), float(goal_reward)
         self.num_states = size * size
-        closed = frozenset(self._cell("closed doorway", c, allow_wall=True) for c in closed_doorways)
+        closed = frozenset(
+            self._cell("closed doorway", c, allow_wall=True) for c in closed_doorways
+        )
         layout = _build_layout(size, rooms, frozenset())
         unknown = sorted(closed - set(layout.doorway_rooms))
         if unknown:
-            raise ValueError(f"closed_doorways {[self.coords(c) for c in unknown]} are not doorways; "
-                             f"doorways are {sorted(self.coords(c) for c in layout.doorway_rooms)[:6]}…")
+            raise ValueError(
+                f"closed_doorways {[self.coords(c) for c in unknown]} are not doorways; "
+                f"doorways are {sorted(self.coords(c) for c in layout.doorway_rooms)[:6]}…"
+            )
         layout = _build_layout(size, rooms, closed)
         self.closed_doorways = tuple(sorted(closed))
         self._wall = layout.wall
@@ -213,14 +252,16 @@ class MultiRooms:
         self.start_state = self._cell("start", 0 if start is None else start)
         self.goal_state = self._cell("goal", self.num_states - 1 if goal is None else goal)
         if self.start_state == self.goal_state:
-            raise ValueError(f"start and goal are the same cell {self.coords(self.start_state)}; "
-                             "choose two different free cells")
+            raise ValueError(
+                f"start and goal are the same cell {self.coords(self.start_state)}; "
+                "choose two different free cells"
+            )
         self._next = self._successor_table()
         self._check_reachable()
         self._tables: dict[torch.device, DynamicsTable] = {}
         self._table: DynamicsTable | None = None
-        self._transition: torch.Tensor | None = None   # built on first use; the world is immutable
-        self._stimuli: dict[str, torch.Tensor] = {}    # perception only: never used by the dynamics
+        self._transition: torch.Tensor | None = None  # built on first use; the world is immutable
+        self._stimuli: dict[str, torch.Tensor] = {}  # perception only: never used by the dynamics
         for name, values in (stimuli or {}).items():
             self.set_stimulus(name, values)
 
@@ -231,18 +272,23 @@ class MultiRooms:
                 raise ValueError(f"{what} must be a cell index or a (row, col) pair, got {cell!r}")
             r, c = (as_int(f"{what} {name}", v) for name, v in zip(("row", "column"), cell))
             if not (0 <= r < self.size and 0 <= c < self.size):
-                raise ValueError(f"{what} {tuple(cell)} lies outside the {self.size}×{self.size} grid")
+                raise ValueError(
+                    f"{what} {tuple(cell)} lies outside the {self.size}×{self.size} grid"
+                )
             cell = r * self.size + c
         elif isinstance(cell, (int, np.integer)) and not isinstance(cell, bool):
             cell = int(cell)
             if not (0 <= cell < self.num_states):
                 raise ValueError(f"{what} {cell} is not a cell index in [0, {self.num_states})")
         else:
-            raise ValueError(f"{what} must be a cell index or a (row, col) pair of integers, got "
-                             f"{cell!r}")
+            raise ValueError(
+                f"{what} must be a cell index or a (row, col) pair of integers, got {cell!r}"
+            )
         if not allow_wall and self._wall.flat[cell]:
-            raise ValueError(f"{what} {self.coords(cell)} is a wall cell; choose a free cell "
-                             f"(rows/columns that are multiples of {self.room_size} are walls)")
+            raise ValueError(
+                f"{what} {self.coords(cell)} is a wall cell; choose a free cell "
+                f"(rows/columns that are multiples of {self.room_size} are walls)"
+            )
         return cell
 
     def coords(self, state: int) -> tuple[int, int]:
@@ -271,9 +317,11 @@ class MultiRooms:
                     seen[t] = True
                     queue.append(int(t))
         if not seen[self.goal_state]:
-            raise ValueError(f"goal {self.coords(self.goal_state)} cannot be reached from start "
-                             f"{self.coords(self.start_state)} (closed_doorways={len(self.closed_doorways)} "
-                             "cut every path); open a doorway on some path between them")
+            raise ValueError(
+                f"goal {self.coords(self.goal_state)} cannot be reached from start "
+                f"{self.coords(self.start_state)} (closed_doorways={len(self.closed_doorways)} "
+                "cut every path); open a doorway on some path between them"
+            )
 
     @property
     def wall_mask(self) -> torch.Tensor:
@@ -335,24 +383,41 @@ class MultiRooms:
 
     def describe(self) -> dict:
         """A JSON-able description that identifies the world (saved with demonstrations)."""
-        return {"kind": "MultiRooms", "size": self.size, "rooms": self.rooms, "slip": self.slip,
-                "start": self.start_state, "goal": self.goal_state,
-                "closed_doorways": list(self.closed_doorways), "step_reward": self.step_reward,
-                "goal_reward": self.goal_reward, "gamma": self.gamma}
+        return {
+            "kind": "MultiRooms",
+            "size": self.size,
+            "rooms": self.rooms,
+            "slip": self.slip,
+            "start": self.start_state,
+            "goal": self.goal_state,
+            "closed_doorways": list(self.closed_doorways),
+            "step_reward": self.step_reward,
+            "goal_reward": self.goal_reward,
+            "gamma": self.gamma,
+        }
 
     @classmethod
     def from_description(cls, desc: dict) -> MultiRooms:
         if desc.get("kind") != "MultiRooms":
             raise ValueError(f"description is of a {desc.get('kind')!r} world, not MultiRooms")
-        return cls(size=desc["size"], rooms=desc["rooms"], slip=desc["slip"], start=desc["start"],
-                   goal=desc["goal"], closed_doorways=desc["closed_doorways"],
-                   step_reward=desc["step_reward"], goal_reward=desc["goal_reward"],
-                   gamma=desc["gamma"])
+        return cls(
+            size=desc["size"],
+            rooms=desc["rooms"],
+            slip=desc["slip"],
+            start=desc["start"],
+            goal=desc["goal"],
+            closed_doorways=desc["closed_doorways"],
+            step_reward=desc["step_reward"],
+            goal_reward=desc["goal_reward"],
+            gamma=desc["gamma"],
+        )
 
     def __repr__(self) -> str:
-        return (f"MultiRooms(size={self.size}, rooms={self.rooms}, slip={self.slip}, "
-                f"start={self.coords(self.start_state)}, goal={self.coords(self.goal_state)}, "
-                f"closed_doorways={len(self.closed_doorways)})")
+        return (
+            f"MultiRooms(size={self.size}, rooms={self.rooms}, slip={self.slip}, "
+            f"start={self.coords(self.start_state)}, goal={self.coords(self.goal_state)}, "
+            f"closed_doorways={len(self.closed_doorways)})"
+        )
 
     # ----------------------------------------------------------------------------- dynamics
     def slipped_actions(self, actions: torch.Tensor, uniforms: torch.Tensor) -> torch.Tensor:
@@ -369,11 +434,15 @@ class MultiRooms:
             nxt = torch.from_numpy(self._next)
             actions = torch.arange(4)
             dirs = torch.stack([(actions + 1 + k) % 4 for k in range(3)] + [actions], 1)  # [A, K]
-            successors = nxt[:, dirs]                                                  # [S, A, K]
-            cdf = torch.tensor([self.slip / 3, 2 * self.slip / 3, self.slip, 1.0], dtype=torch.float64)
-            self._table = DynamicsTable(successors.contiguous(),
-                                        cdf.expand_as(successors).contiguous(),
-                                        self.state_reward[successors].contiguous())
+            successors = nxt[:, dirs]  # [S, A, K]
+            cdf = torch.tensor(
+                [self.slip / 3, 2 * self.slip / 3, self.slip, 1.0], dtype=torch.float64
+            )
+            self._table = DynamicsTable(
+                successors.contiguous(),
+                cdf.expand_as(successors).contiguous(),
+                self.state_reward[successors].contiguous(),
+            )
         return self._table
 
     def _device_table(self, device: torch.device) -> DynamicsTable:
@@ -382,9 +451,13 @@ class MultiRooms:
             table = self._tables[device] = self.dynamics_table().to(device)
         return table
 
-    def step(self, positions: torch.Tensor, actions: torch.Tensor,
-             uniforms: torch.Tensor | None = None, generator: torch.Generator | None = None
-             ) -> tuple[torch.Tensor, torch.Tensor]:
+    def step(
+        self,
+        positions: torch.Tensor,
+        actions: torch.Tensor,
+        uniforms: torch.Tensor | None = None,
+        generator: torch.Generator | None = None,
+    ) -> tuple[torch.Tensor, torch.Tensor]:
         """Advance ``B`` agents one primitive step (by :meth:`dynamics_table`).
 
         Args:
@@ -411,7 +484,9 @@ class MultiRooms:
         """
         if self._transition is None:
             self._transition = self._build_transition_model()
-        P = self._transition.clone()  # cheap next to the coalesce in the build (planners call often)
+        P = (
+            self._transition.clone()
+        )  # cheap next to the coalesce in the build (planners call often)
         return P if sparse else P.to_dense()
 
     def _build_transition_model(self) -> torch.Tensor:
@@ -430,10 +505,12 @@ class MultiRooms:
                 idx_s.append(states)
                 idx_t.append(target)
                 vals.append(np.where(absorbing, 1.0 if a == b else 0.0, p))
-        indices = torch.from_numpy(np.stack([np.concatenate(idx_a), np.concatenate(idx_s),
-                                             np.concatenate(idx_t)]))
-        return torch.sparse_coo_tensor(indices, torch.from_numpy(np.concatenate(vals)),
-                                       (A, S, S), check_invariants=False).coalesce()
+        indices = torch.from_numpy(
+            np.stack([np.concatenate(idx_a), np.concatenate(idx_s), np.concatenate(idx_t)])
+        )
+        return torch.sparse_coo_tensor(
+            indices, torch.from_numpy(np.concatenate(vals)), (A, S, S), check_invariants=False
+        ).coalesce()
 
     def reward_model(self) -> torch.Tensor:
         """Expected reward ``R [S, A]`` (float64) of each action; 0 at walls and the goal."""
@@ -462,15 +539,19 @@ class MultiRooms:
         Only what an observer perceives changes; dynamics, rewards and :meth:`describe` do not.
         """
         if name not in _SETTABLE_STIMULI:
-            raise ValueError(f"MultiRooms.set_stimulus: unknown channel {name!r}; the settable "
-                             f"channels are {list(_SETTABLE_STIMULI)}")
+            raise ValueError(
+                f"MultiRooms.set_stimulus: unknown channel {name!r}; the settable "
+                f"channels are {list(_SETTABLE_STIMULI)}"
+            )
         if values is None:
             self._stimuli.pop(name, None)
             return
         v = torch.as_tensor(values, dtype=torch.float64).detach().cpu().clone()
         if v.shape != (self.num_states,):
-            raise ValueError(f"MultiRooms.set_stimulus({name!r}): got shape {tuple(v.shape)}, "
-                             f"expected [S] = [{self.num_states}] (one value per state)")
+            raise ValueError(
+                f"MultiRooms.set_stimulus({name!r}): got shape {tuple(v.shape)}, "
+                f"expected [S] = [{self.num_states}] (one value per state)"
+            )
         if not bool(torch.isfinite(v).all()):
             raise ValueError(f"MultiRooms.set_stimulus({name!r}): values hold NaN or infinity")
         self._stimuli[name] = v

@@ -1,6 +1,6 @@
-"""Write ``quickstart.ipynb``, ``intrinsic_reward.ipynb`` and ``your_own_world.ipynb`` from the
-cells below, and (with ``--execute``) run them top to bottom in place so that they are committed
-with their outputs.
+"""Write ``quickstart.ipynb``, ``intrinsic_reward.ipynb``, ``your_own_world.ipynb`` and
+``option_discovery.ipynb`` from the cells below, and (with ``--execute``) run them top to bottom
+in place so that they are committed with their outputs.
 
     .venv/bin/python notebooks/build_notebooks.py --execute     # about a minute on a laptop CPU
 
@@ -923,9 +923,137 @@ plot_goals(taxi_learner, "Taxi-v4 through ht.from_gymnasium")"""),
   TensorBoard logs; the committed results are in `experiments/results/gymnasium/`."""),
 ]
 
+# ========================================================================= option discovery
+OPTION_DISCOVERY = [
+    new_markdown_cell("""\
+# Options discovered from the mentor's states
+
+The paper's learner is *given* its doorway options, built from the world's true layout. Here the
+learner finds them itself:
+
+1. **Subgoals from state-only demonstrations** (`ht.discover_subgoals`): in the mentor's state
+   graph (visited states, an edge for each observed move) a subgoal is a state that lies on every
+   episode, is a cut vertex (no demonstrated way around it) and is narrow (few demonstrated
+   neighbours); narrowest first, each suppressing candidates within `separation` moves.
+2. **Options to them from what the learner knows** (`ht.learned_subgoal_options`): its own
+   counts of its primitive steps (`ht.one_step_counts`) give a one-step model; each option heads
+   for its subgoal by the fewest expected steps *in that model*, usable where the model says the
+   subgoal is near. Nothing of the true layout is read.
+
+Budgets: `HIMIT_NOTEBOOK_STEPS` steps per run and `HIMIT_NOTEBOOK_SEEDS` seeds (the tests run
+this notebook with tiny ones). The full comparison, 10 seeds on experiment 1's and 2's worlds,
+is `himit run discovery` (results in `experiments/results/discovery/`)."""),
+    new_code_cell("""\
+import os
+
+import matplotlib.pyplot as plt
+import numpy as np
+import torch
+
+import himit_torch as ht
+from himit_torch.plotting import plot_goal_curves, plot_subgoals
+
+STEPS = int(os.environ.get("HIMIT_NOTEBOOK_STEPS", 40_000))   # primitive steps per run
+SEEDS = int(os.environ.get("HIMIT_NOTEBOOK_SEEDS", 3))
+WINDOW = 2000 if STEPS >= 8000 else max(STEPS // 4, 1)       # goals are counted per window
+WARMUP = WINDOW * max(1, STEPS // WINDOW // 4)               # the primitives-only phase
+torch.set_num_threads(1)
+plt.rcParams["figure.dpi"] = 100
+
+world = ht.MultiRooms(size=40, rooms=10)                     # experiment 2's world
+mentor = ht.mentor_policy(world, ht.mentor_options(world))
+demos = {s: ht.record_demonstrations(world, mentor, episodes=20, seed=s) for s in range(SEEDS)}
+SEPARATION = world.size // world.rooms - 1                   # the room spacing − 1
+print(f"{STEPS} steps per run, warm-up {WARMUP}, {SEEDS} seed(s), separation {SEPARATION}")"""),
+    new_markdown_cell("""\
+## Subgoals found vs the true doorways
+
+Precision: the share of subgoals that are doorways. Recall: the share of the doorways the
+mentor passed through that were found (no method can find a doorway it was never shown)."""),
+    new_code_cell("""\
+found = {}
+for s in range(SEEDS):
+    found[s] = ht.discover_subgoals(demos[s], separation=SEPARATION)
+    pr = found[s].precision_recall(world.doorways)
+    print(f"seed {s}: {pr['found']} subgoals, {pr['hits']} of them doorways; the mentor passed "
+          f"{pr['true']} doorways → precision {pr['precision']:.2f}, recall {pr['recall']:.2f}")
+fig, ax = plt.subplots(figsize=(6, 6.6))
+plot_subgoals(world, found[0], demonstrations=demos[0], ax=ax,
+              title="subgoals found in 20 mentor episodes (seed 0)")
+plt.show()"""),
+    new_markdown_cell("""\
+## How many demonstrations does discovery need?"""),
+    new_code_cell("""\
+for n in (1, 2, 5, 10, 20):
+    prs = [ht.discover_subgoals(ht.record_demonstrations(world, mentor, n, seed=s),
+                                separation=SEPARATION).precision_recall(world.doorways)
+           for s in range(SEEDS)]
+    print(f"{n:>2} episodes: precision {np.mean([p['precision'] for p in prs]):.2f}, "
+          f"recall {np.mean([p['recall'] for p in prs]):.2f}")"""),
+    new_markdown_cell("""\
+## Options built from the learner's own one-step model
+
+Each seed runs `imitation_primitives` (primitives + the mentor term) for `WARMUP` steps; the
+options are built from its counts. Shaded: how many options may start in a cell; arrows: each
+option's action there, all from the learned model."""),
+    new_code_cell("""\
+config = ht.LearnerConfig(window=WINDOW, plan_every=4, sweep_rounds=1)
+prims = ht.primitive_options(world)
+seeds = list(range(SEEDS))
+
+def with_demos(learner, run_seeds):
+    for s in sorted(set(run_seeds)):
+        learner.add_demonstrations(demos[s], runs=[b for b, x in enumerate(run_seeds) if x == s])
+    return learner
+
+phase1 = with_demos(ht.Learner(world, prims, ["imitation_primitives"] * SEEDS, seeds, config=config), seeds)
+phase1.run(WARMUP)
+usable = world.free_mask & ~world.terminal_mask
+discovered = {s: ht.learned_subgoal_options(ht.one_step_counts(phase1, s), world.num_actions, found[s],
+                                            terminal=world.terminal_mask, max_steps=2 * SEPARATION,
+                                            usable=usable) for s in seeds}
+for s in seeds:
+    opts = discovered[s]
+    print(f"seed {s}: {0 if opts is None else opts.num_options} options built after {WARMUP} steps"
+          + ("" if opts is None else f", usable in {int(opts.initiation.any(0).sum())} states"))
+if discovered[0] is not None:
+    fig, ax = plt.subplots(figsize=(6, 6.6))
+    plot_subgoals(world, found[0], options=discovered[0], ax=ax,
+                  title=f"options built from the learner's model after {WARMUP} steps (seed 0)")
+    plt.show()"""),
+    new_markdown_cell("""\
+## Learning curves
+
+The discovered-options imitator continues from its warm-up phase with a new learner (its models
+start empty; what the warm-up learned reaches it through its options). It is compared with the
+hand-built doorway options and with primitives-only imitation over the same steps."""),
+    new_code_cell("""\
+phase1.run(STEPS - WARMUP)                       # the primitives-only imitators, to the end
+early = phase1.metrics.goals_in_window[:WARMUP // WINDOW]
+hand = with_demos(ht.Learner(world, ht.Options.concat(prims, ht.doorway_options(world)),
+                             ["imitation"] * SEEDS, seeds, config=config), seeds)
+hand.run(STEPS)
+curves = {"imitation_primitives": torch.stack(phase1.metrics.goals_in_window, 1).numpy(),
+          "doorway_imitation": torch.stack(hand.metrics.goals_in_window, 1).numpy()}
+runs = []
+for s in seeds:
+    opts = prims if discovered[s] is None else ht.Options.concat(prims, discovered[s])
+    learner = with_demos(ht.Learner(world, opts, ["imitation"], [s], config=config), [s])
+    learner.run(STEPS - WARMUP)
+    runs.append(torch.cat([torch.stack(early, 1)[s], torch.stack(learner.metrics.goals_in_window, 1)[0]]))
+curves["discovered_imitation"] = torch.stack(runs).numpy()
+for name, g in curves.items():
+    print(f"{name:>22}: total goals per run {g.sum(1).astype(int).tolist()}")
+steps = np.arange(1, STEPS // WINDOW + 1) * WINDOW
+fig, ax = plt.subplots(figsize=(10, 4))
+plot_goal_curves(ax, steps, curves, window=WINDOW)
+ax.axvline(WARMUP, color="0.5", ls=":", lw=1)
+plt.show()"""),
+]
+
 
 NOTEBOOKS = (("quickstart", QUICKSTART), ("intrinsic_reward", INTRINSIC),
-             ("your_own_world", YOUR_OWN_WORLD))
+             ("your_own_world", YOUR_OWN_WORLD), ("option_discovery", OPTION_DISCOVERY))
 
 
 def build() -> dict[str, nbformat.NotebookNode]:

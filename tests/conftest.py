@@ -1,6 +1,7 @@
 """Shared test set-up: one torch thread (tiny tensors; two threads only add contention on a busy
 2-core machine), a seeded generator fixture, and a live malicious pickle for the tests that files
 are read without unpickling code."""
+
 import os
 import shlex
 from pathlib import Path
@@ -51,4 +52,7 @@ def mentor_demos12(world12):
     """5 demonstrations of the optimal mentor on ``world12`` (the engine-parity tests' batch)."""
     from himit_torch.mentor import mentor_policy, record_demonstrations
     from himit_torch.options import mentor_options
-    return record_demonstrations(world12, mentor_policy(world12, mentor_options(world12)), 5, seed=0)
+
+    return record_demonstrations(
+        world12, mentor_policy(world12, mentor_options(world12)), 5, seed=0
+    )

@@ -44,24 +44,32 @@ def bools(gen, *shape, p=0.5):
 def test_option_backup_hand_case():
     # Q = r + Σ_k w_k V_k = −0.5 + (0.5·2 + 0.3·(−1) + 0·100) = −0.5 + 1.0 − 0.3 = 0.2
     # (the third slot is padding: weight 0, whatever its value).
-    q = option_backup(torch.tensor(-0.5, dtype=torch.float64),
-                      torch.tensor([0.5, 0.3, 0.0], dtype=torch.float64),
-                      torch.tensor([2.0, -1.0, 100.0], dtype=torch.float64))
+    q = option_backup(
+        torch.tensor(-0.5, dtype=torch.float64),
+        torch.tensor([0.5, 0.3, 0.0], dtype=torch.float64),
+        torch.tensor([2.0, -1.0, 100.0], dtype=torch.float64),
+    )
     assert q.item() == pytest.approx(0.2, abs=1e-12)
 
 
 def test_option_backup_two_rows():
     # Row 0: 1 + 0.9·10 = 10;  row 1: 0 + 0.45·(−2) + 0.45·4 = 0.9.
-    q = option_backup(torch.tensor([1.0, 0.0]), torch.tensor([[0.9, 0.0], [0.45, 0.45]]),
-                      torch.tensor([[10.0, 5.0], [-2.0, 4.0]]))
+    q = option_backup(
+        torch.tensor([1.0, 0.0]),
+        torch.tensor([[0.9, 0.0], [0.45, 0.45]]),
+        torch.tensor([[10.0, 5.0], [-2.0, 4.0]]),
+    )
     assert torch.allclose(q, torch.tensor([10.0, 0.9]))
 
 
 def test_mentor_backup_hand_case():
     # R_m + γ Σ p V = 0.1 + 0.9·(0.25·4 + 0.75·0) = 0.1 + 0.9 = 1.0
-    m = mentor_backup(torch.tensor(0.1, dtype=torch.float64),
-                      torch.tensor([0.25, 0.75], dtype=torch.float64),
-                      torch.tensor([4.0, 0.0], dtype=torch.float64), gamma=0.9)
+    m = mentor_backup(
+        torch.tensor(0.1, dtype=torch.float64),
+        torch.tensor([0.25, 0.75], dtype=torch.float64),
+        torch.tensor([4.0, 0.0], dtype=torch.float64),
+        gamma=0.9,
+    )
     assert m.item() == pytest.approx(1.0, abs=1e-12)
 
 
@@ -87,8 +95,12 @@ def test_augmented_option_backup_hand_case():
 
 def test_augmented_option_backup_mentor_only_state():
     # No own option but the mentor was seen: V = the mentor term.
-    v = augmented_option_backup(torch.tensor([[1.0, 2.0]], dtype=torch.float64), torch.tensor([[False, False]]),
-                                torch.tensor([-0.3], dtype=torch.float64), torch.tensor([True]))
+    v = augmented_option_backup(
+        torch.tensor([[1.0, 2.0]], dtype=torch.float64),
+        torch.tensor([[False, False]]),
+        torch.tensor([-0.3], dtype=torch.float64),
+        torch.tensor([True]),
+    )
     assert v.tolist() == [-0.3]
 
 
@@ -111,8 +123,9 @@ def test_augmented_primitive_backup_hand_case():
     m_probs = torch.tensor([[0.5, 0.5]] * 3)
     m_values = torch.tensor([[20.0, 6.0], [20.0, 6.0], [0.0, 6.0]])
     m_ok = torch.tensor([True, False, True])
-    v = augmented_primitive_backup(torch.full((3,), -0.01), probs, values, m_probs, m_values,
-                                   m_ok, gamma=0.9)
+    v = augmented_primitive_backup(
+        torch.full((3,), -0.01), probs, values, m_probs, m_values, m_ok, gamma=0.9
+    )
     assert torch.allclose(v, torch.tensor([11.69, 8.99, 8.99]), atol=1e-6)
 
 
@@ -159,7 +172,7 @@ def _loop_max(values, mask):
 def test_options_only_and_augmented_backup_match_loop(gen):
     J = 5
     q, avail = randn(gen, *BATCH, J), bools(gen, *BATCH, J, p=0.6)
-    avail[0, 0] = False                                   # one state with no own option
+    avail[0, 0] = False  # one state with no own option
     m, m_ok = randn(gen, *BATCH), bools(gen, *BATCH)
     m_ok[0, 0] = True
     own = options_only_backup(q, avail)
@@ -181,14 +194,17 @@ def test_primitives_backups_match_loop(gen):
     r_obs = randn(gen, *BATCH)
     pm = rand(gen, *BATCH, K)
     pm = pm / pm.sum(-1, keepdim=True)
-    vm = randn(gen, *BATCH, K) + 0.5                      # so that the mentor wins sometimes
+    vm = randn(gen, *BATCH, K) + 0.5  # so that the mentor wins sometimes
     m_ok = bools(gen, *BATCH)
     plain = primitives_only_backup(r_sa, p, v, gamma)
     aug = augmented_primitive_backup(r_obs, p, v, pm, vm, m_ok, gamma)
     mentor_won = 0
     for i, j in itertools.product(range(BATCH[0]), range(BATCH[1])):
-        qs = [float(r_sa[i, j, a]) + gamma * sum(float(p[i, j, a, k] * v[i, j, a, k])
-                                                 for k in range(K)) for a in range(A)]
+        qs = [
+            float(r_sa[i, j, a])
+            + gamma * sum(float(p[i, j, a, k] * v[i, j, a, k]) for k in range(K))
+            for a in range(A)
+        ]
         assert plain[i, j].item() == pytest.approx(max(qs), abs=1e-12)
         own = max(sum(float(p[i, j, a, k] * v[i, j, a, k]) for k in range(K)) for a in range(A))
         ment = sum(float(pm[i, j, k] * vm[i, j, k]) for k in range(K))
@@ -220,8 +236,9 @@ def test_eq2_reduces_to_eq1_for_primitive_options(gen):
 def test_dirichlet_value_moments_hand_case():
     # α = (1, 1), u = (0, 1): Σ p u = p_1 ~ Beta(1, 1): mean 1/2, variance 1/12.
     # Formula: ᾱ = (1/2, 1/2), E = 1/2, Σ ᾱ u² = 1/2, var = (1/2 − 1/4) / 3 = 1/12.
-    mean, var = dirichlet_value_moments(torch.tensor([1.0, 1.0], dtype=torch.float64),
-                                        torch.tensor([0.0, 1.0], dtype=torch.float64))
+    mean, var = dirichlet_value_moments(
+        torch.tensor([1.0, 1.0], dtype=torch.float64), torch.tensor([0.0, 1.0], dtype=torch.float64)
+    )
     assert mean.item() == pytest.approx(0.5)
     assert var.item() == pytest.approx(1 / 12)
 
@@ -231,8 +248,8 @@ def test_dirichlet_value_moments_match_covariance_quadratic_form(gen):
     diagonal, scipy's ``var`` on it), on the categories with positive counts."""
     K = 5
     counts = rand(gen, 20, K) * 4
-    counts[counts < 0.8] = 0.0                      # absent outcomes
-    counts[:, 0] += 0.5                             # at least one present outcome per row
+    counts[counts < 0.8] = 0.0  # absent outcomes
+    counts[:, 0] += 0.5  # at least one present outcome per row
     u = randn(gen, 20, K)
     u_absent = torch.where(counts > 0, u, torch.full_like(u, 1e6))  # absent values must not matter
     mean, var = dirichlet_value_moments(counts, u_absent)
@@ -245,7 +262,7 @@ def test_dirichlet_value_moments_match_covariance_quadratic_form(gen):
             dist_mean = scipy.stats.dirichlet.mean(a)
             dist_var = scipy.stats.dirichlet.var(a)
             a0 = a.sum()
-            cov = -np.outer(a, a) / (a0 ** 2 * (a0 + 1))
+            cov = -np.outer(a, a) / (a0**2 * (a0 + 1))
             np.fill_diagonal(cov, dist_var)
             exp_mean, exp_var = dist_mean @ x, x @ cov @ x
         assert mean[i].item() == pytest.approx(exp_mean, abs=1e-10)
@@ -281,19 +298,23 @@ def test_confident_mentor_hand_cases():
     m_mean = torch.tensor([1.0, 1.0, 1.0, 1.0], dtype=torch.float64)
     m_var = torch.full((4,), 0.04, dtype=torch.float64)
     own_mean = torch.tensor([[0.5, 0.2]] * 4, dtype=torch.float64)
-    own_var = torch.tensor([
-        [0.0025, 0.09],    # upper bounds 0.6, 0.8 → max 0.8 > 0.6: not confident
-        [0.0025, 0.0001],  # 0.6, 0.22 → 0.6: lower 0.6 is not *above* 0.6: not confident
-        [0.0001, 0.0001],  # 0.52, 0.22 → 0.52 < 0.6: confident
-        [0.0025, 0.09],    # as row 0 but no own option available: confident
-    ], dtype=torch.float64)
+    own_var = torch.tensor(
+        [
+            [0.0025, 0.09],  # upper bounds 0.6, 0.8 → max 0.8 > 0.6: not confident
+            [0.0025, 0.0001],  # 0.6, 0.22 → 0.6: lower 0.6 is not *above* 0.6: not confident
+            [0.0001, 0.0001],  # 0.52, 0.22 → 0.52 < 0.6: confident
+            [0.0025, 0.09],  # as row 0 but no own option available: confident
+        ],
+        dtype=torch.float64,
+    )
     avail = torch.tensor([[True, True], [True, True], [True, True], [False, False]])
     got = confident_mentor(m_mean, m_var, own_mean, own_var, avail, z=2.0)
     assert got.tolist() == [False, False, True, True]
     # Row 0 with only the first option available: upper 0.6 → still not strictly above.
     # With the second only (0.8): no. With z = 0 the test compares means: 1 > 0.5 → True.
-    assert confident_mentor(m_mean[:1], m_var[:1], own_mean[:1], own_var[:1],
-                            torch.tensor([[True, False]]), z=2.0).tolist() == [False]
+    assert confident_mentor(
+        m_mean[:1], m_var[:1], own_mean[:1], own_var[:1], torch.tensor([[True, False]]), z=2.0
+    ).tolist() == [False]
     assert confident_mentor(m_mean, m_var, own_mean, own_var, avail, z=0.0).tolist() == [True] * 4
 
 
@@ -303,8 +324,11 @@ def test_confident_mentor_matches_loop(gen):
     om, ov, avail = randn(gen, *BATCH, J), rand(gen, *BATCH, J) * 0.2, bools(gen, *BATCH, J)
     got = confident_mentor(mm, mv, om, ov, avail, z)
     for i, j in itertools.product(range(BATCH[0]), range(BATCH[1])):
-        uppers = [float(om[i, j, k]) + z * math.sqrt(float(ov[i, j, k])) for k in range(J)
-                  if avail[i, j, k]]
+        uppers = [
+            float(om[i, j, k]) + z * math.sqrt(float(ov[i, j, k]))
+            for k in range(J)
+            if avail[i, j, k]
+        ]
         lower = float(mm[i, j]) - z * math.sqrt(float(mv[i, j]))
         assert got[i, j].item() == (lower > max(uppers, default=NEG_INF))
     assert 0 < got.sum() < got.numel(), "the random case should give both answers"

@@ -36,6 +36,7 @@ from himit_torch.options import learner_options, mentor_options
 @pytest.fixture
 def malicious(plants_marker):
     """``malicious(kind, marker)``: the bytes of a file whose unpickling creates ``marker``."""
+
     def make(kind: str, marker: Path) -> bytes:
         obj = {"learner": plants_marker(marker)}
         if kind == "pickle":
@@ -43,6 +44,7 @@ def malicious(plants_marker):
         buffer = io.BytesIO()
         torch.save(obj, buffer)
         return buffer.getvalue()
+
     return make
 
 
@@ -60,12 +62,17 @@ BATCH = BatchShape(("imitation", "primitives"), (0, 0), 64)
 
 def small_payload() -> dict:
     """A payload of every allowed kind, 16 kB (so that a cut to 5000 bytes falls inside it)."""
-    return {"learner": {"values": torch.arange(2000.0, dtype=torch.float64).reshape(2, 1000),
-                        "t": 7, "pending": False,
-                        "metrics": {"steps": [5, 10], "goals": [torch.tensor([1, 2])]},
-                        "identity": {"agents": ["a", "b"], "config": {"x": None, "y": 0.5}},
-                        "pair": (1, "two")},
-            "elapsed": 1.5}
+    return {
+        "learner": {
+            "values": torch.arange(2000.0, dtype=torch.float64).reshape(2, 1000),
+            "t": 7,
+            "pending": False,
+            "metrics": {"steps": [5, 10], "goals": [torch.tensor([1, 2])]},
+            "identity": {"agents": ["a", "b"], "config": {"x": None, "y": 0.5}},
+            "pair": (1, "two"),
+        },
+        "elapsed": 1.5,
+    }
 
 
 def assert_same(a, b):
@@ -102,8 +109,11 @@ def test_a_learners_whole_state_loads_weights_only_and_continues_exactly(world8)
     demos = record_demonstrations(world8, mentor_policy(world8, mentor_options(world8)), 2, seed=0)
 
     def make():
-        learner = Learner(world8, options, ["imitation", "primitives"], [0, 1], demonstrations=demos)
+        learner = Learner(
+            world8, options, ["imitation", "primitives"], [0, 1], demonstrations=demos
+        )
         return learner
+
     a = make()
     a.run(300)
     data = encode({"learner": a.state_dict()}, step=a.t, batch=BATCH, state_layout_version=1)
@@ -120,11 +130,14 @@ class _Stats:
     goals: int
 
 
-@pytest.mark.parametrize("value, where, what", [
-    (_Stats(3), "payload.learner.metrics", "_Stats"),
-    ([1, {"x": __import__("numpy").int64(2)}], "payload.learner.metrics[1].x", "numpy.int64"),
-    ({(1, 2): 3}, "payload.learner.metrics", "key (1, 2)"),
-])
+@pytest.mark.parametrize(
+    "value, where, what",
+    [
+        (_Stats(3), "payload.learner.metrics", "_Stats"),
+        ([1, {"x": __import__("numpy").int64(2)}], "payload.learner.metrics[1].x", "numpy.int64"),
+        ({(1, 2): 3}, "payload.learner.metrics", "key (1, 2)"),
+    ],
+)
 def test_encode_refuses_what_would_need_code_to_load(value, where, what):
     with pytest.raises(TypeError) as err:
         encode({"learner": {"metrics": value}}, step=0, batch=BATCH, state_layout_version=1)
@@ -134,15 +147,24 @@ def test_encode_refuses_what_would_need_code_to_load(value, where, what):
 #: kind of damage → how to make it from a good file's bytes (``bad`` makes a live pickle that
 #: creates ``marker``), and the words of the reason given.
 DAMAGE = {
-    "malicious pickle": (lambda data, marker, bad: bad("pickle", marker), "without the himit_torch"),
+    "malicious pickle": (
+        lambda data, marker, bad: bad("pickle", marker),
+        "without the himit_torch",
+    ),
     "cut to 5000 bytes": (lambda data, marker, bad: data[:5000], "cut short"),
-    "random bytes": (lambda data, marker, bad: random.Random(0).randbytes(len(data)),
-                     "not a himit_torch checkpoint"),
+    "random bytes": (
+        lambda data, marker, bad: random.Random(0).randbytes(len(data)),
+        "not a himit_torch checkpoint",
+    ),
     "empty": (lambda data, marker, bad: b"", "the file is empty"),
-    "one byte flipped": (lambda data, marker, bad: data[:-100] + bytes([data[-100] ^ 1]) + data[-99:],
-                         "checksum mismatch"),
-    "header cut": (lambda data, marker, bad: data[:len(ckpt.MAGIC) + 10],
-                   "cut short inside its header"),
+    "one byte flipped": (
+        lambda data, marker, bad: data[:-100] + bytes([data[-100] ^ 1]) + data[-99:],
+        "checksum mismatch",
+    ),
+    "header cut": (
+        lambda data, marker, bad: data[: len(ckpt.MAGIC) + 10],
+        "cut short inside its header",
+    ),
 }
 
 
@@ -179,7 +201,9 @@ def test_a_forged_checksum_still_never_runs_code(tmp_path, malicious):
 def test_other_format_layout_or_batch_is_refused_naming_both(tmp_path):
     path = tmp_path / "c.pt"
     write_checkpoint(path, small_payload(), step=10, batch=BATCH, state_layout_version=1)
-    with pytest.raises(IncompatibleCheckpoint, match=r"state layout version 1.*state layout version 2"):
+    with pytest.raises(
+        IncompatibleCheckpoint, match=r"state layout version 1.*state layout version 2"
+    ):
         read_checkpoint(path, expect_layout=2)
     other = BatchShape(("imitation",), (3,), 64)
     with pytest.raises(IncompatibleCheckpoint) as err:
@@ -193,8 +217,12 @@ def test_other_format_layout_or_batch_is_refused_naming_both(tmp_path):
 
 # ------------------------------------------------------------------------------ generations
 def save(generations: CheckpointGenerations, step: int):
-    return generations.save({"step": step, "x": torch.full((1000,), float(step))}, step=step,
-                            batch=BATCH, state_layout_version=1)
+    return generations.save(
+        {"step": step, "x": torch.full((1000,), float(step))},
+        step=step,
+        batch=BATCH,
+        state_layout_version=1,
+    )
 
 
 def test_generations_keep_the_newest_and_the_previous(tmp_path):
@@ -238,11 +266,13 @@ def test_no_good_generation_names_each_file(tmp_path):
 
 def half_then_disk_full(calls: list):
     """A ``_write_file`` that writes half the bytes, then fails as a full disk does."""
+
     def write(path: Path, data: bytes) -> None:
         calls.append(path)
         with path.open("wb") as f:
             f.write(data[: len(data) // 2])
         raise OSError(errno.ENOSPC, "No space left on device")
+
     return write
 
 
@@ -270,8 +300,15 @@ SIZE = 16
 
 def small_config(**changes):
     """A 16×16 world, 2 runs, 4 windows of 500 steps with a checkpoint after each: seconds."""
-    settings = dict(sizes=(SIZE,), seeds=1, steps=2000, window=500, checkpoint_every=500,
-                    mentor_episodes=3, agents=("imitation", "primitives"))
+    settings = dict(
+        sizes=(SIZE,),
+        seeds=1,
+        steps=2000,
+        window=500,
+        checkpoint_every=500,
+        mentor_episodes=3,
+        agents=("imitation", "primitives"),
+    )
     return replace(EXPERIMENTS["exp2"], **{**settings, **changes})
 
 
@@ -297,8 +334,16 @@ def newest_and_previous(run_dir: Path) -> tuple[Path, Path]:
 
 
 def resume_argv(run_dir: Path) -> list[str]:
-    return ["run", "exp2", "--config", str(run_dir / "config.json"), "--logdir",
-            str(run_dir.parent), "--quiet", "--resume"]
+    return [
+        "run",
+        "exp2",
+        "--config",
+        str(run_dir / "config.json"),
+        "--logdir",
+        str(run_dir.parent),
+        "--quiet",
+        "--resume",
+    ]
 
 
 def one_line_error(capsys, argv, status=2) -> str:
@@ -311,12 +356,16 @@ def one_line_error(capsys, argv, status=2) -> str:
     return err
 
 
-@pytest.mark.parametrize("kind, redo", [
-    ("cut to 5000 bytes", "500 steps will be redone"),  # its header still says step 2000
-    ("malicious pickle", "the steps after it (up to checkpoint_every=500) will be redone"),
-])
+@pytest.mark.parametrize(
+    "kind, redo",
+    [
+        ("cut to 5000 bytes", "500 steps will be redone"),  # its header still says step 2000
+        ("malicious pickle", "the steps after it (up to checkpoint_every=500) will be redone"),
+    ],
+)
 def test_resume_falls_back_to_the_previous_generation_and_ends_with_the_same_curves(
-        reference, tmp_path, capsys, malicious, kind, redo):
+    reference, tmp_path, capsys, malicious, kind, redo
+):
     run_dir = unfinished_copy(reference, tmp_path)
     newest, previous = newest_and_previous(run_dir)
     marker = tmp_path / "marker"
@@ -334,7 +383,8 @@ def test_resume_falls_back_to_the_previous_generation_and_ends_with_the_same_cur
 
 @pytest.mark.parametrize("kind", ["malicious pickle", "cut to 5000 bytes", "random bytes", "empty"])
 def test_no_good_checkpoint_left_is_one_line_naming_the_file_and_exit_2(
-        reference, tmp_path, capsys, malicious, kind):
+    reference, tmp_path, capsys, malicious, kind
+):
     run_dir = unfinished_copy(reference, tmp_path)
     marker = tmp_path / "marker"
     make, reason = DAMAGE[kind]
@@ -350,8 +400,13 @@ def test_a_checkpoint_of_another_batch_is_refused_naming_both_shapes(reference, 
     run_dir = unfinished_copy(reference, tmp_path)
     newest, _ = newest_and_previous(run_dir)
     other = BatchShape(("imitation", "options", "primitives"), (0, 0, 0), SIZE * SIZE)
-    write_checkpoint(newest, small_payload(), step=2000, batch=other,
-                     state_layout_version=Learner.STATE_LAYOUT_VERSION)
+    write_checkpoint(
+        newest,
+        small_payload(),
+        step=2000,
+        batch=other,
+        state_layout_version=Learner.STATE_LAYOUT_VERSION,
+    )
     err = one_line_error(capsys, resume_argv(run_dir))
     mine = BatchShape(("imitation", "primitives"), (0, 0), SIZE * SIZE)
     assert other.describe() in err and mine.describe() in err and "--force" in err
@@ -367,8 +422,9 @@ def test_another_configuration_is_refused_in_one_line(reference, tmp_path, capsy
     assert str(run_dir / "config.json") in err and "--force" in err
 
 
-def test_a_checkpoint_of_an_older_state_layout_is_refused_naming_both(reference, tmp_path, capsys,
-                                                                     monkeypatch):
+def test_a_checkpoint_of_an_older_state_layout_is_refused_naming_both(
+    reference, tmp_path, capsys, monkeypatch
+):
     run_dir = unfinished_copy(reference, tmp_path)
     written = read_header(newest_and_previous(run_dir)[0]).state_layout_version
     monkeypatch.setattr(Learner, "STATE_LAYOUT_VERSION", written + 1, raising=False)
@@ -378,7 +434,8 @@ def test_a_checkpoint_of_an_older_state_layout_is_refused_naming_both(reference,
 
 
 def test_a_failed_save_stops_the_run_in_one_line_and_keeps_the_last_good_checkpoints(
-        reference, tmp_path, capsys, monkeypatch):
+    reference, tmp_path, capsys, monkeypatch
+):
     cfg = tmp_path / "cfg.json"
     cfg.write_text(small_config().to_json())
     run_dir = tmp_path / "exp2"
@@ -393,6 +450,7 @@ def test_a_failed_save_stops_the_run_in_one_line_and_keeps_the_last_good_checkpo
             return real_write(path, data)
         snapshot.update({p: p.read_bytes() for p in (newest, previous)})
         failing(path, data)
+
     monkeypatch.setattr(ckpt, "_write_file", third_save_fails)
     argv = ["run", "exp2", "--config", str(cfg), "--logdir", str(tmp_path), "--quiet"]
     err = one_line_error(capsys, argv, status=1)

@@ -56,18 +56,23 @@ def test_info_small_world_is_exact(capsys):
     world = MultiRooms(size=20, rooms=2, slip=0.2)
     prims = primitive_options(world)
     policy = smdp_value_iteration(option_models(world, prims)).policy
-    steps = expected_steps(option_durations(world, prims), policy, world.start_state, world.terminal_mask)
+    steps = expected_steps(
+        option_durations(world, prims), policy, world.start_state, world.terminal_mask
+    )
     assert table_row(out, "primitives only") == (round(steps, 1), round(5000 / steps, 1))
     assert "slip 0.2" in out and "states     400" in out
     assert "paper" not in out  # not one of the paper's worlds
 
 
-@pytest.mark.parametrize("flags, learner", [
-    ([], "12 options (4 primitive, 8 doorway"),
-    (["--corner-options"], "44 options (4 primitive, 8 doorway, 32 corner"),
-    (["--no-doorway-options"], "4 options (4 primitive;"),
-    (["--no-doorway-options", "--corner-options"], "36 options (4 primitive, 32 corner"),
-])
+@pytest.mark.parametrize(
+    "flags, learner",
+    [
+        ([], "12 options (4 primitive, 8 doorway"),
+        (["--corner-options"], "44 options (4 primitive, 8 doorway, 32 corner"),
+        (["--no-doorway-options"], "4 options (4 primitive;"),
+        (["--no-doorway-options", "--corner-options"], "36 options (4 primitive, 32 corner"),
+    ],
+)
 def test_info_option_sets(capsys, flags, learner):
     out = run_ok(capsys, ["info", "--size", "12", "--rooms", "2", *flags])
     assert re.search(r"^learner\s+" + re.escape(learner), out, flags=re.M), out
@@ -77,14 +82,17 @@ def test_info_option_sets(capsys, flags, learner):
 
 
 # ---------------------------------------------------------------------------------- errors
-@pytest.mark.parametrize("argv, what", [
-    (["info", "--size", "x"], "argument --size: invalid int value"),
-    (["info", "--size", "10", "--rooms", "3"], "size=10 is not a multiple of rooms=3"),
-    (["info", "--slip", "1.5"], "slip=1.5 must lie in [0, 1)"),
-    (["demo", "--episodes", "0"], "argument --episodes: must be ≥ 1"),
-    (["bogus"], "invalid choice: 'bogus'"),
-    ([], "the following arguments are required: command"),
-])
+@pytest.mark.parametrize(
+    "argv, what",
+    [
+        (["info", "--size", "x"], "argument --size: invalid int value"),
+        (["info", "--size", "10", "--rooms", "3"], "size=10 is not a multiple of rooms=3"),
+        (["info", "--slip", "1.5"], "slip=1.5 must lie in [0, 1)"),
+        (["demo", "--episodes", "0"], "argument --episodes: must be ≥ 1"),
+        (["bogus"], "invalid choice: 'bogus'"),
+        ([], "the following arguments are required: command"),
+    ],
+)
 def test_user_mistakes_are_one_line_and_exit_2(capsys, argv, what):
     assert what in run_error(capsys, argv)
 
@@ -100,7 +108,9 @@ def test_help_exits_0(capsys):
 # ------------------------------------------------------------------------------------ demo
 def test_demo_writes_demonstrations_and_figure(capsys, tmp_path):
     out_dir = tmp_path / "demo"
-    out = run_ok(capsys, ["demo", "--out", str(out_dir), "--episodes", "2", "--seed", "3", "--steps", "0"])
+    out = run_ok(
+        capsys, ["demo", "--out", str(out_dir), "--episodes", "2", "--seed", "3", "--steps", "0"]
+    )
     npz, png = out_dir / "demonstrations.npz", out_dir / "world_mentor.png"
     assert str(npz) in out and str(png) in out
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 5000
@@ -113,8 +123,20 @@ def test_demo_writes_demonstrations_and_figure(capsys, tmp_path):
 
 def test_demo_is_deterministic_per_seed(capsys, tmp_path):
     for name, seed in (("a", "5"), ("b", "5"), ("c", "6")):
-        run_ok(capsys, ["demo", "--out", str(tmp_path / name), "--episodes", "2", "--seed", seed,
-                        "--steps", "0"])
+        run_ok(
+            capsys,
+            [
+                "demo",
+                "--out",
+                str(tmp_path / name),
+                "--episodes",
+                "2",
+                "--seed",
+                seed,
+                "--steps",
+                "0",
+            ],
+        )
     a, b, c = (np.load(tmp_path / n / "demonstrations.npz")["states"] for n in "abc")
     assert np.array_equal(a, b)
     assert not np.array_equal(a, c)
@@ -126,18 +148,25 @@ def test_info_of_a_gymnasium_world_is_exact(capsys):
     out = run_ok(capsys, ["info", "--env", "cliffwalking"])
     assert "states     48 (start states 1, terminal 1, goal 1)" in out
     assert "to top-left (0,0), to top-right (0,11)" in out
-    assert f"V*(start distribution)      {-(1 - 0.99 ** 13) / 0.01:.3f}" in out
-    assert re.search(r"steps per episode\s+13\.0\n", out) and re.search(r"goals per 5000 steps\s+384\.6", out)
-    out = run_ok(capsys, ["info", "--env", "FrozenLake-v1", "--env-kwargs", '{"is_slippery": false}'])
+    assert f"V*(start distribution)      {-(1 - 0.99**13) / 0.01:.3f}" in out
+    assert re.search(r"steps per episode\s+13\.0\n", out) and re.search(
+        r"goals per 5000 steps\s+384\.6", out
+    )
+    out = run_ok(
+        capsys, ["info", "--env", "FrozenLake-v1", "--env-kwargs", '{"is_slippery": false}']
+    )
     assert "(4 primitive)" in out and re.search(r"steps per episode\s+6\.0\n", out)
 
 
-@pytest.mark.parametrize("argv, what", [
-    (["info", "--env", "Nope-v0"], "cannot make the Gymnasium environment 'Nope-v0'"),
-    (["info", "--env", "CartPole-v1"], "Discrete observation and action spaces"),
-    (["info", "--env", "taxi", "--env-kwargs", '{"is_rainy": true}'], "give --env Taxi-v4"),
-    (["info", "--env", "Taxi-v4", "--env-kwargs", "[1]"], "must be a JSON object"),
-    (["run", "gymnasium", "--resume"], "takes no --config or --resume"),
-])
+@pytest.mark.parametrize(
+    "argv, what",
+    [
+        (["info", "--env", "Nope-v0"], "cannot make the Gymnasium environment 'Nope-v0'"),
+        (["info", "--env", "CartPole-v1"], "Discrete observation and action spaces"),
+        (["info", "--env", "taxi", "--env-kwargs", '{"is_rainy": true}'], "give --env Taxi-v4"),
+        (["info", "--env", "Taxi-v4", "--env-kwargs", "[1]"], "must be a JSON object"),
+        (["run", "gymnasium", "--resume"], "takes no --config or --resume"),
+    ],
+)
 def test_gymnasium_mistakes_are_one_line(capsys, argv, what):
     assert what in run_error(capsys, argv)

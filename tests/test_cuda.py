@@ -19,6 +19,7 @@ of one batch may differ. So the tests below check (a) 1000 ticks from the start,
 from exact CPU states taken late in a run (many edges, goals, mentor terms), and (c) a CUDA
 checkpoint resumed on the CPU, each within that horizon.
 """
+
 import pytest
 import torch
 
@@ -35,24 +36,44 @@ CONFIGS = {
 VALUES_ATOL = 1e-9
 #: float64 tensors that hold counts (sums of ones: exact in any order) or ε (no sums): compared exactly
 EXACT_FLOATS = {"epsilon", "row_count", "state_tries", "model.edge_count", "mentor.edge_count"}
-TICKS = 1000            # one whole metrics window, inside the horizon where runs agree tick for tick
+TICKS = 1000  # one whole metrics window, inside the horizon where runs agree tick for tick
 
 
 def _make(world, demos, config, device, engine) -> Learner:
-    return Learner(world, learner_options(world), AGENT_MIX, range(len(AGENT_MIX)), config=config,
-                   demonstrations=demos, device=device, engine=engine)
+    return Learner(
+        world,
+        learner_options(world),
+        AGENT_MIX,
+        range(len(AGENT_MIX)),
+        config=config,
+        demonstrations=demos,
+        device=device,
+        engine=engine,
+    )
 
 
 def _state(learner: Learner) -> dict[str, torch.Tensor]:
     """The learner's state, on the CPU."""
     run, cache = learner.run_state, learner.cache
-    state = {"position": run.position, "row": run.row, "decisions": run.decisions,
-             "goals": run.goals, "first_goal_step": run.first_goal_step, "epsilon": run.epsilon,
-             "backups_done": run.backups_done, "visits": run.visits, "values": cache.values,
-             "q_numerator": cache.q_numerator, "q_second": cache.q_second,
-             "mentor_numerator": cache.mentor_numerator, "mentor_second": cache.mentor_second,
-             "priority": learner.sweeper.queue.priority, "pending": learner.sweeper.pending,
-             "row_count": learner.model.row_count, "state_tries": learner.model.state_tries}
+    state = {
+        "position": run.position,
+        "row": run.row,
+        "decisions": run.decisions,
+        "goals": run.goals,
+        "first_goal_step": run.first_goal_step,
+        "epsilon": run.epsilon,
+        "backups_done": run.backups_done,
+        "visits": run.visits,
+        "values": cache.values,
+        "q_numerator": cache.q_numerator,
+        "q_second": cache.q_second,
+        "mentor_numerator": cache.mentor_numerator,
+        "mentor_second": cache.mentor_second,
+        "priority": learner.sweeper.queue.priority,
+        "pending": learner.sweeper.pending,
+        "row_count": learner.model.row_count,
+        "state_tries": learner.model.state_tries,
+    }
     for prefix, store in (("model", learner.model), ("mentor", learner.mentor)):
         E = int(store.num_edges.max())
         state[f"{prefix}.num_edges"] = store.num_edges
@@ -67,8 +88,13 @@ def assert_same_run(cpu: Learner, other: Learner) -> None:
     a, b = _state(cpu), _state(other)
     for name in a:
         if a[name].dtype == torch.float64 and name not in EXACT_FLOATS:
-            torch.testing.assert_close(b[name], a[name], atol=VALUES_ATOL, rtol=0,
-                                       msg=lambda m, name=name: f"t={cpu.t} {name}: {m}")
+            torch.testing.assert_close(
+                b[name],
+                a[name],
+                atol=VALUES_ATOL,
+                rtol=0,
+                msg=lambda m, name=name: f"t={cpu.t} {name}: {m}",
+            )
         else:
             assert torch.equal(a[name], b[name]), f"t={cpu.t} {name}"
     assert torch.equal(cpu.metrics.curve(), other.metrics.curve()), f"t={cpu.t} curve"

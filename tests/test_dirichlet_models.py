@@ -39,20 +39,27 @@ def test_dirichlet_mean_and_variance_match_scipy(gen):
     for i in range(6):
         a = alpha[i].numpy()
         np.testing.assert_allclose(post.mean[i].numpy(), scipy.stats.dirichlet.mean(a), rtol=1e-12)
-        np.testing.assert_allclose(post.variance[i].numpy(), scipy.stats.dirichlet.var(a), rtol=1e-12)
+        np.testing.assert_allclose(
+            post.variance[i].numpy(), scipy.stats.dirichlet.var(a), rtol=1e-12
+        )
     np.testing.assert_allclose(post.total.numpy(), alpha.sum(-1).numpy(), rtol=1e-12)
 
 
 def test_dirichlet_zero_concentration_categories(gen):
     """Padding / absent categories (α = 0) get mean 0 and variance 0; the others are the Dirichlet
     of the positive categories alone (scipy); a row with no mass at all is all zeros."""
-    alpha = torch.tensor([[2.0, 0.0, 3.0, 0.5], [0.0, 0.0, 0.0, 0.0], [0.0, 4.0, 0.0, 0.0]],
-                         dtype=torch.float64)
+    alpha = torch.tensor(
+        [[2.0, 0.0, 3.0, 0.5], [0.0, 0.0, 0.0, 0.0], [0.0, 4.0, 0.0, 0.0]], dtype=torch.float64
+    )
     successors = torch.tensor([[1, -1, 2], [-1, -1, -1], [-1, 5, -1]])
     post = SuccessorDirichlet(alpha, successors)
     keep = alpha[0] > 0
-    np.testing.assert_allclose(post.mean[0][keep].numpy(), scipy.stats.dirichlet.mean(alpha[0][keep].numpy()))
-    np.testing.assert_allclose(post.variance[0][keep].numpy(), scipy.stats.dirichlet.var(alpha[0][keep].numpy()))
+    np.testing.assert_allclose(
+        post.mean[0][keep].numpy(), scipy.stats.dirichlet.mean(alpha[0][keep].numpy())
+    )
+    np.testing.assert_allclose(
+        post.variance[0][keep].numpy(), scipy.stats.dirichlet.var(alpha[0][keep].numpy())
+    )
     assert post.mean[0, 1].item() == 0.0 and post.variance[0, 1].item() == 0.0
     assert post.mean[1].tolist() == [0.0] * 4 and post.variance[1].tolist() == [0.0] * 4
     assert post.mean[2].tolist() == [0.0, 1.0, 0.0, 0.0] and post.variance[2].tolist() == [0.0] * 4
@@ -94,7 +101,9 @@ def test_dirichlet_sample_moments_match_scipy(gen):
 
 
 def test_posterior_is_a_torch_dirichlet_with_batch_and_event_shapes():
-    alpha = torch.rand(2, 3, 5, generator=torch.Generator().manual_seed(1), dtype=torch.float64) + 0.1
+    alpha = (
+        torch.rand(2, 3, 5, generator=torch.Generator().manual_seed(1), dtype=torch.float64) + 0.1
+    )
     post = SuccessorDirichlet(alpha, torch.zeros(2, 3, 4, dtype=torch.int64))
     assert isinstance(post, torch.distributions.Dirichlet)
     assert isinstance(post, torch.distributions.Distribution)
@@ -115,8 +124,11 @@ def test_posterior_log_prob_and_entropy_match_scipy(gen):
     for i in range(5):
         a = alpha[i].numpy()
         assert post.log_prob(x)[i].item() == pytest.approx(
-            scipy.stats.dirichlet.logpdf(x[i].numpy(), a), rel=1e-10)
-        assert post.entropy()[i].item() == pytest.approx(scipy.stats.dirichlet.entropy(a), rel=1e-10)
+            scipy.stats.dirichlet.logpdf(x[i].numpy(), a), rel=1e-10
+        )
+        assert post.entropy()[i].item() == pytest.approx(
+            scipy.stats.dirichlet.entropy(a), rel=1e-10
+        )
 
 
 def test_posterior_log_prob_with_zero_categories_is_the_positive_categories_dirichlet():
@@ -125,17 +137,21 @@ def test_posterior_log_prob_with_zero_categories_is_the_positive_categories_diri
     x = torch.tensor([[0.3, 0.0, 0.5, 0.2], [0.0, 0.0, 0.0, 0.0]], dtype=torch.float64)
     keep = [0, 2, 3]
     assert post.log_prob(x)[0].item() == pytest.approx(
-        scipy.stats.dirichlet.logpdf(x[0, keep].numpy(), alpha[0, keep].numpy()), rel=1e-10)
+        scipy.stats.dirichlet.logpdf(x[0, keep].numpy(), alpha[0, keep].numpy()), rel=1e-10
+    )
     assert post.log_prob(x)[1].item() == 0.0
     assert post.entropy()[0].item() == pytest.approx(
-        scipy.stats.dirichlet.entropy(alpha[0, keep].numpy()), rel=1e-10)
+        scipy.stats.dirichlet.entropy(alpha[0, keep].numpy()), rel=1e-10
+    )
     # mass on a zero-concentration category is impossible
     y = torch.tensor([[0.3, 0.1, 0.4, 0.2], [1.0, 0.0, 0.0, 0.0]], dtype=torch.float64)
     assert post.log_prob(y).tolist() == [float("-inf"), float("-inf")]
 
 
 def test_posterior_sample_keyword_generator_equals_positional_and_refuses_bad_concentration():
-    post = SuccessorDirichlet(torch.tensor([[1.0, 2.0, 0.5]], dtype=torch.float64), long(3, 4)[None])
+    post = SuccessorDirichlet(
+        torch.tensor([[1.0, 2.0, 0.5]], dtype=torch.float64), long(3, 4)[None]
+    )
     a = post.sample(generator=torch.Generator().manual_seed(8))
     b = post.sample(torch.Generator().manual_seed(8))
     assert torch.equal(a, b)
@@ -160,14 +176,15 @@ def _check_store(store: EdgeStore, run: int, expected: dict[tuple[int, int], int
     index = store.index()
     for e in range(E):
         r, s = int(store.edge_row[run, e]), int(store.edge_successor[run, e])
-        fwd = index.forward[run, r, :index.forward_len[run, r]].tolist()
-        rev = index.reverse[run, s, :index.reverse_len[run, s]].tolist()
+        fwd = index.forward[run, r, : index.forward_len[run, r]].tolist()
+        rev = index.reverse[run, s, : index.reverse_len[run, s]].tolist()
         assert fwd.count(e) == 1 and rev.count(e) == 1
     assert int(index.forward_len[run].sum()) == E and int(index.reverse_len[run].sum()) == E
     # find() returns each edge's own id, and a rebuilt index equals the incremental one.
     runs = torch.full((E,), run)
-    assert torch.equal(index.find(runs, store.edge_row[run, :E], store.edge_successor[run, :E]),
-                       torch.arange(E))
+    assert torch.equal(
+        index.find(runs, store.edge_row[run, :E], store.edge_successor[run, :E]), torch.arange(E)
+    )
     rebuilt = DenseEdgeIndex(store)
     for name in ("forward", "forward_len", "reverse", "reverse_len"):
         a, b = getattr(index, name), getattr(rebuilt, name)
@@ -195,13 +212,13 @@ def test_edge_store_grows_capacity_width_and_fan_in():
     store.on_grow.append(grown.append)
     expected = set()
     start = 0
-    for chunk in (1, 3, 37, 2, 60, 97):          # many successors of one row, in chunks
+    for chunk in (1, 3, 37, 2, 60, 97):  # many successors of one row, in chunks
         succ = torch.arange(start, start + chunk)
         store.find_or_add(torch.ones(chunk, dtype=torch.int64), torch.full((chunk,), 7), succ)
         expected |= {(7, s) for s in range(start, start + chunk)}
         start += chunk
     store.find_or_add(torch.ones(R, dtype=torch.int64), torch.arange(R), torch.full((R,), 123))
-    expected |= {(r, 123) for r in range(R)}                # many rows into one successor
+    expected |= {(r, 123) for r in range(R)}  # many rows into one successor
     index = store.index()
     assert index.forward_len[1, 7] == 200 and index.reverse_len[1, 123] == R
     assert store.capacity >= len(expected) and int(store.num_edges[0]) == 0
@@ -232,15 +249,24 @@ def test_edge_store_matches_dict_under_random_inserts(gen):
 def test_edge_index_incoming_matches_reverse_lists(gen):
     S, R = 30, 20
     store = EdgeStore(num_rows=R, num_states=S, batch=2, device=CPU, concentration=0.0)
-    store.find_or_add(torch.randint(0, 2, (200,), generator=gen), torch.randint(0, R, (200,), generator=gen),
-                      torch.randint(0, S, (200,), generator=gen))
+    store.find_or_add(
+        torch.randint(0, 2, (200,), generator=gen),
+        torch.randint(0, R, (200,), generator=gen),
+        torch.randint(0, S, (200,), generator=gen),
+    )
     runs, states = torch.tensor([0, 1, 0, 1, 0]), torch.tensor([3, 0, 3, 29, 7])
     owner, edges = store.index().incoming(runs, states)
     got = sorted(zip(owner.tolist(), edges.tolist()))
-    expected = sorted((i, e) for i, (b, s) in enumerate(zip(runs.tolist(), states.tolist()))
-                      for e in range(int(store.num_edges[b])) if int(store.edge_successor[b, e]) == s)
+    expected = sorted(
+        (i, e)
+        for i, (b, s) in enumerate(zip(runs.tolist(), states.tolist()))
+        for e in range(int(store.num_edges[b]))
+        if int(store.edge_successor[b, e]) == s
+    )
     assert got == expected and len(expected) > 0
-    owner, edges = store.index().incoming(torch.zeros(0, dtype=torch.int64), torch.zeros(0, dtype=torch.int64))
+    owner, edges = store.index().incoming(
+        torch.zeros(0, dtype=torch.int64), torch.zeros(0, dtype=torch.int64)
+    )
     assert owner.numel() == 0 and edges.numel() == 0
 
 
@@ -253,10 +279,11 @@ def test_smdp_model_hand_case():
     for alpha, denom in ((0.0, 3.0), (1.0, 4.0)):
         model = DirichletSMDPModel(num_rows=4, num_states=10, batch=2, concentration=alpha)
         for run, row, end, k, r in ((0, 2, 5, 1, 1.0), (0, 2, 5, 2, 2.0), (0, 2, 7, 1, 3.0)):
-            model.update(long(run), long(row), long(0), long(end), torch.tensor([0.5 ** k]),
-                         torch.tensor([r]))
+            model.update(
+                long(run), long(row), long(0), long(end), torch.tensor([0.5**k]), torch.tensor([r])
+            )
         reward, succ, w = model.mean(long(0, 1), long(2, 2))
-        assert reward.tolist() == [pytest.approx(2.0), 0.0]        # run 1 saw nothing
+        assert reward.tolist() == [pytest.approx(2.0), 0.0]  # run 1 saw nothing
         k5, k7 = succ[0].tolist().index(5), succ[0].tolist().index(7)
         assert w[0, k5].item() == pytest.approx(0.75 / denom)
         assert w[0, k7].item() == pytest.approx(0.5 / denom)
@@ -265,8 +292,10 @@ def test_smdp_model_hand_case():
         post = model.posterior(long(0, 1), long(2, 2))
         assert post.concentration[0, k5].item() == 2.0 and post.concentration[0, k7].item() == 1.0
         assert post.concentration[0, -1].item() == alpha
-        assert post.concentration[1, :-1].sum().item() == 0.0   # run 1 has no edges
-        assert post.successors[0].tolist().count(5) == 1 and post.successors[0].tolist().count(7) == 1
+        assert post.concentration[1, :-1].sum().item() == 0.0  # run 1 has no edges
+        assert (
+            post.successors[0].tolist().count(5) == 1 and post.successors[0].tolist().count(7) == 1
+        )
         # An untried row: no edges, reward 0.
         r3, s3, w3 = model.mean(long(0), long(3))
         assert r3.item() == 0.0 and (s3 == -1).all() and (w3 == 0).all()
@@ -275,15 +304,21 @@ def test_smdp_model_hand_case():
 def test_smdp_model_counts_are_per_run():
     model = DirichletSMDPModel(num_rows=3, num_states=6, batch=3)
     for run, end, k, r in ((0, 4, 1, -1.0), (2, 4, 1, 0.5), (2, 5, 1, 0.5), (0, 4, 3, -3.0)):
-        model.update(long(run), long(1), long(0), long(end), torch.tensor([0.9 ** k], dtype=torch.float64),
-                     torch.tensor([r], dtype=torch.float64))
+        model.update(
+            long(run),
+            long(1),
+            long(0),
+            long(end),
+            torch.tensor([0.9**k], dtype=torch.float64),
+            torch.tensor([r], dtype=torch.float64),
+        )
     assert model.state_tries[:, 0].tolist() == [2.0, 0.0, 2.0]
     assert model.row_count[:, 1].tolist() == [2.0, 0.0, 2.0]
     assert model.row_reward[:, 1].tolist() == [-4.0, 0.0, 1.0]
     reward, succ, w = model.mean(long(0, 1, 2), long(1, 1, 1))
     assert reward.tolist() == [pytest.approx(-2.0), 0.0, pytest.approx(0.5)]
     k4 = succ[0].tolist().index(4)
-    assert w[0, k4].item() == pytest.approx((0.9 + 0.9 ** 3) / 2)
+    assert w[0, k4].item() == pytest.approx((0.9 + 0.9**3) / 2)
     assert w[2, k4].item() == pytest.approx(0.9 / 2)
 
 
@@ -309,7 +344,9 @@ def _execute(world, options, option, start, n, gen):
         ret[live] += world.gamma ** steps[live].double() * r.double()
         steps[live] += 1
         pos[live] = nxt
-        stop = terminal[nxt] | (torch.rand(nxt.shape, generator=gen, dtype=torch.float64) < beta[nxt])
+        stop = terminal[nxt] | (
+            torch.rand(nxt.shape, generator=gen, dtype=torch.float64) < beta[nxt]
+        )
         idx = live.nonzero()[:, 0]
         done[idx[stop]] = True
     return pos, steps, ret
@@ -326,21 +363,34 @@ def test_smdp_posterior_mean_converges_to_exact_option_model(gen):
     P = exact.transition.to_dense()
     names = options.names
     door = {name: i for i, name in enumerate(names)}
-    cases = [(9, 0), (9, 3), (3, 3), (55, 1),                   # primitives (3→E hits a wall)
-             (0, door["doorway room(0,0)->door(2, 4)"]),
-             (9, door["doorway room(0,0)->door(4, 2)"]),
-             (54, door["doorway room(1,1)->door(4, 6)"])]        # may slip into the goal
+    cases = [
+        (9, 0),
+        (9, 3),
+        (3, 3),
+        (55, 1),  # primitives (3→E hits a wall)
+        (0, door["doorway room(0,0)->door(2, 4)"]),
+        (9, door["doorway room(0,0)->door(4, 2)"]),
+        (54, door["doorway room(1,1)->door(4, 6)"]),
+    ]  # may slip into the goal
     n = 3000
     model = DirichletSMDPModel(num_rows=len(cases), num_states=world.num_states, batch=1)
     stds = []
     for row, (s, o) in enumerate(cases):
         assert bool(options.initiation[o, s])
         end, k, ret = _execute(world, options, o, s, n, gen)
-        for j in range(n):              # update() takes one outcome per run at a time
-            model.update(long(0), long(row), long(s), end[j:j + 1], world.gamma ** k[j:j + 1].double(),
-                         ret[j:j + 1])
+        for j in range(n):  # update() takes one outcome per run at a time
+            model.update(
+                long(0),
+                long(row),
+                long(s),
+                end[j : j + 1],
+                world.gamma ** k[j : j + 1].double(),
+                ret[j : j + 1],
+            )
         stds.append(ret.std().item())
-    reward, succ, w = model.mean(torch.zeros(len(cases), dtype=torch.int64), torch.arange(len(cases)))
+    reward, succ, w = model.mean(
+        torch.zeros(len(cases), dtype=torch.int64), torch.arange(len(cases))
+    )
     multi_step = 0
     for row, (s, o) in enumerate(cases):
         m = int(((exact.row_state == s) & (exact.row_option == o)).nonzero()[0, 0])
@@ -354,7 +404,7 @@ def test_smdp_posterior_mean_converges_to_exact_option_model(gen):
         assert abs(reward[row].item() - exact.reward[m].item()) <= r_tol, (names[o], s)
         multi_step += int(P[m].sum() < world.gamma - 1e-6)
     assert multi_step >= 2, "the doorway options should run several steps (Σ p^o < γ)"
-    assert int(model.row_count[0, :len(cases)].sum()) == n * len(cases)
+    assert int(model.row_count[0, : len(cases)].sum()) == n * len(cases)
 
 
 # ================================================================== DirichletMentorModel
@@ -377,8 +427,10 @@ def test_mentor_model_counts_and_means():
     assert mentor.observed()[:, 4].tolist() == [False, True, False]
     assert mentor.row_count[:, 4].tolist() == [0.0, 2.0, 0.0]
     succ, p = mentor.mean(long(0, 1, 2), long(0, 0, 0))
-    got = [{int(s): round(float(q), 12) for s, q in zip(succ[b], p[b]) if s >= 0 and q > 0}
-           for b in range(3)]
+    got = [
+        {int(s): round(float(q), 12) for s, q in zip(succ[b], p[b]) if s >= 0 and q > 0}
+        for b in range(3)
+    ]
     assert got[0] == got[2] == {1: round(2 / 3, 12), 2: round(1 / 3, 12)}
     assert got[1] == {1: 0.5, 2: 0.5}
     _check_store(mentor, 0, {(0, 1), (0, 2), (3, 0)})

@@ -28,22 +28,56 @@ CONFIGS = {
     "default": LearnerConfig(window=1000),
     "plan_every4_one_round": LearnerConfig(window=1000, plan_every=4, sweep_rounds=1),
     "plan_every3_rounds3": LearnerConfig(window=1000, plan_every=3, sweep_rounds=3, backups=7),
-    "priors_override_first": LearnerConfig(window=1000, concentration=0.5, mentor_concentration=1.0,
-                                           untried_value=0.0, mentor_override_after=4,
-                                           tie_break="first", confidence_z=0.5),
-    "match_optimistic": LearnerConfig(window=1000, mentor_choice="match", initial_value=0.0,
-                                      untried_value=0.0, max_option_steps=30),
+    "priors_override_first": LearnerConfig(
+        window=1000,
+        concentration=0.5,
+        mentor_concentration=1.0,
+        untried_value=0.0,
+        mentor_override_after=4,
+        tie_break="first",
+        confidence_z=0.5,
+    ),
+    "match_optimistic": LearnerConfig(
+        window=1000,
+        mentor_choice="match",
+        initial_value=0.0,
+        untried_value=0.0,
+        max_option_steps=30,
+    ),
+    # settings of issue 11's factorial studies
+    "eps_step": LearnerConfig(window=1000, eps_schedule="step", eps_decay=0.9995),
+    "eps_goals_fade": LearnerConfig(
+        window=1000, eps_schedule="goals", eps_goals=3, mentor_fade=3.0
+    ),
+    "eps_paper_exact_models": LearnerConfig(
+        window=1000,
+        eps_schedule="paper",
+        eps_decay=0.9,
+        option_models="exact",
+        exact_model_count=50.0,
+    ),
 }
 
 
 def _state(learner: Learner) -> dict[str, torch.Tensor]:
     run, cache = learner.run_state, learner.cache
-    return {"position": run.position, "row": run.row, "decisions": run.decisions,
-            "goals": run.goals, "first_goal_step": run.first_goal_step, "epsilon": run.epsilon,
-            "backups_done": run.backups_done, "visits": run.visits, "values": cache.values,
-            "q_numerator": cache.q_numerator, "q_second": cache.q_second,
-            "mentor_numerator": cache.mentor_numerator, "priority": learner.sweeper.queue.priority,
-            "row_count": learner.model.row_count, "state_tries": learner.model.state_tries}
+    return {
+        "position": run.position,
+        "row": run.row,
+        "decisions": run.decisions,
+        "goals": run.goals,
+        "first_goal_step": run.first_goal_step,
+        "epsilon": run.epsilon,
+        "backups_done": run.backups_done,
+        "visits": run.visits,
+        "values": cache.values,
+        "q_numerator": cache.q_numerator,
+        "q_second": cache.q_second,
+        "mentor_numerator": cache.mentor_numerator,
+        "priority": learner.sweeper.queue.priority,
+        "row_count": learner.model.row_count,
+        "state_tries": learner.model.state_tries,
+    }
 
 
 def assert_same_run(a: Learner, b: Learner, values_atol: float = 1e-9) -> None:
@@ -52,8 +86,13 @@ def assert_same_run(a: Learner, b: Learner, values_atol: float = 1e-9) -> None:
     sa, sb = _state(a), _state(b)
     for name in sa:
         if sa[name].dtype == torch.float64 and name != "epsilon":
-            torch.testing.assert_close(sa[name], sb[name], atol=values_atol, rtol=0,
-                                       msg=lambda m, name=name: f"{name}: {m}")
+            torch.testing.assert_close(
+                sa[name],
+                sb[name],
+                atol=values_atol,
+                rtol=0,
+                msg=lambda m, name=name: f"{name}: {m}",
+            )
         else:
             assert torch.equal(sa[name], sb[name]), name
     assert torch.equal(a.metrics.curve(), b.metrics.curve())
@@ -69,8 +108,18 @@ def test_engines_agree_on_the_small_world(world12, mentor_demos12, name):
     """5000 ticks of every agent variant under every setting family: identical on both engines."""
     options = learner_options(world12)
     seeds = list(range(len(AGENT_MIX)))
-    runs = {engine: Learner(world12, options, AGENT_MIX, seeds, config=CONFIGS[name],
-                            demonstrations=mentor_demos12, engine=engine) for engine in ("numba", "torch")}
+    runs = {
+        engine: Learner(
+            world12,
+            options,
+            AGENT_MIX,
+            seeds,
+            config=CONFIGS[name],
+            demonstrations=mentor_demos12,
+            engine=engine,
+        )
+        for engine in ("numba", "torch")
+    }
     for learner in runs.values():
         learner.run(5000)
     assert_same_run(runs["numba"], runs["torch"])
@@ -80,12 +129,26 @@ def test_engines_agree_on_the_small_world(world12, mentor_demos12, name):
 def test_engines_agree_with_stochastic_option_policies(world12, mentor_demos12):
     """Options with ``[O, S, A]`` policies go through the sampling path of both engines."""
     usable = world12.free_mask & ~world12.terminal_mask
-    walk = Options.from_policy(usable, torch.full((world12.num_states, 4), 0.25),
-                               termination=torch.full((world12.num_states,), 0.5), name="random walk")
+    walk = Options.from_policy(
+        usable,
+        torch.full((world12.num_states, 4), 0.25),
+        termination=torch.full((world12.num_states,), 0.5),
+        name="random walk",
+    )
     options = learner_options(world12) + walk
     config = LearnerConfig(window=1000, mentor_choice="match")
-    runs = [Learner(world12, options, ["imitation", "options"], [0, 1], config=config,
-                    demonstrations=mentor_demos12, engine=engine) for engine in ("numba", "torch")]
+    runs = [
+        Learner(
+            world12,
+            options,
+            ["imitation", "options"],
+            [0, 1],
+            config=config,
+            demonstrations=mentor_demos12,
+            engine=engine,
+        )
+        for engine in ("numba", "torch")
+    ]
     for learner in runs:
         learner.run(3000)
     assert_same_run(*runs)
@@ -97,11 +160,21 @@ def test_engines_agree_on_the_paper_40x40_world():
     world = MultiRooms(40, 10)
     demos = record_demonstrations(world, mentor_policy(world, mentor_options(world)), 20, seed=0)
     config = LearnerConfig(plan_every=4, sweep_rounds=1)
-    runs = [Learner(world, learner_options(world), ["imitation", "options", "primitives"], [0, 1, 2],
-                    config=config, demonstrations=demos, engine=engine) for engine in ("numba", "torch")]
+    runs = [
+        Learner(
+            world,
+            learner_options(world),
+            ["imitation", "options", "primitives"],
+            [0, 1, 2],
+            config=config,
+            demonstrations=demos,
+            engine=engine,
+        )
+        for engine in ("numba", "torch")
+    ]
     for learner in runs:
         learner.run(5000)
-    assert runs[0].model.capacity > 256           # grew at least once
+    assert runs[0].model.capacity > 256  # grew at least once
     assert_same_run(*runs)
 
 
@@ -111,12 +184,20 @@ def test_run_in_a_batch_equals_run_alone(world12, mentor_demos12, engine):
     config = CONFIGS["plan_every3_rounds3"]
     options = learner_options(world12)
     agents, seeds = ["imitation_confident", "options", "imitation"], [11, 12, 13]
-    batch = Learner(world12, options, agents, seeds, config=config, demonstrations=mentor_demos12,
-                    engine=engine)
+    batch = Learner(
+        world12, options, agents, seeds, config=config, demonstrations=mentor_demos12, engine=engine
+    )
     batch.run(3000)
     for b, (agent, seed) in enumerate(zip(agents, seeds)):
-        alone = Learner(world12, options, [agent], [seed], config=config, demonstrations=mentor_demos12,
-                        engine=engine)
+        alone = Learner(
+            world12,
+            options,
+            [agent],
+            [seed],
+            config=config,
+            demonstrations=mentor_demos12,
+            engine=engine,
+        )
         alone.run(3000)
         for name, value in _state(alone).items():
             assert torch.equal(_state(batch)[name][b], value[0]), (b, name)
@@ -126,8 +207,15 @@ def test_switching_engines_mid_run_changes_nothing(world12, mentor_demos12):
     """The state is shared: numba → torch → numba gives the run that one engine gives."""
     config = CONFIGS["plan_every4_one_round"]
     options = learner_options(world12)
-    make = lambda: Learner(world12, options, AGENT_MIX, range(5), config=config,  # noqa: E731
-                           demonstrations=mentor_demos12, engine="numba")
+    make = lambda: Learner(
+        world12,
+        options,
+        AGENT_MIX,
+        range(5),
+        config=config,  # noqa: E731
+        demonstrations=mentor_demos12,
+        engine="numba",
+    )
     straight, switched = make(), make()
     straight.run(4500)
     switched.run(1500)
@@ -143,8 +231,15 @@ def test_state_dict_moves_between_engines(world12, mentor_demos12):
     """A checkpoint of a numba run resumes on the torch engine to the same run."""
     config = CONFIGS["default"]
     options = learner_options(world12)
-    make = lambda engine: Learner(world12, options, AGENT_MIX, range(5), config=config,  # noqa: E731
-                                  demonstrations=mentor_demos12, engine=engine)
+    make = lambda engine: Learner(
+        world12,
+        options,
+        AGENT_MIX,
+        range(5),
+        config=config,  # noqa: E731
+        demonstrations=mentor_demos12,
+        engine=engine,
+    )
     straight, first = make("numba"), make("numba")
     straight.run(3000)
     first.run(1200)
@@ -155,7 +250,7 @@ def test_state_dict_moves_between_engines(world12, mentor_demos12):
 
 
 def test_engine_choice_is_explained():
-    class CorridorWorld:       # the TabularWorld protocol without a dynamics table
+    class CorridorWorld:  # the TabularWorld protocol without a dynamics table
         num_states, num_actions, start_state, gamma = 3, 2, 0, 0.9
         terminal_mask = torch.tensor([False, False, True])
 
@@ -163,11 +258,15 @@ def test_engine_choice_is_explained():
             nxt = (positions + torch.where(actions == 1, 1, -1)).clamp(0, 2)
             return nxt, torch.where(nxt == 2, 1.0, -0.1).double()
 
-    options = Options(initiation=torch.tensor([[True, True, False]] * 2), termination=torch.ones(2, 3),
-                      policy=torch.tensor([[0] * 3, [1] * 3]), names=("left", "right"),
-                      kinds=("primitive", "primitive"))
+    options = Options(
+        initiation=torch.tensor([[True, True, False]] * 2),
+        termination=torch.ones(2, 3),
+        policy=torch.tensor([[0] * 3, [1] * 3]),
+        names=("left", "right"),
+        kinds=("primitive", "primitive"),
+    )
     learner = Learner(CorridorWorld(), options, ["options"], [0])
-    assert learner.engine.name == "torch"                 # auto: no table, so the torch engine
+    assert learner.engine.name == "torch"  # auto: no table, so the torch engine
     with pytest.raises(ValueError, match="dynamics_table"):
         Learner(CorridorWorld(), options, ["options"], [0], engine="numba")
     with pytest.raises(ValueError, match="engine='fast'"):
@@ -187,8 +286,15 @@ def test_engine_curves_agree_statistically_over_20_seeds():
     seeds = [s for s in range(20) for _ in range(3)]
     totals = {}
     for engine in ("numba", "torch"):
-        learner = Learner(world, learner_options(world), agents, seeds, config=config,
-                          demonstrations=demos, engine=engine)
+        learner = Learner(
+            world,
+            learner_options(world),
+            agents,
+            seeds,
+            config=config,
+            demonstrations=demos,
+            engine=engine,
+        )
         learner.run(30_000)
         totals[engine] = learner.goals.numpy()
     for k in range(3):
@@ -199,8 +305,14 @@ def test_engine_curves_agree_statistically_over_20_seeds():
 
 def test_mentor_win_share_is_the_same_from_either_engine(world12, mentor_demos12):
     """The compiled count of states where the mentor term wins equals the batched one."""
-    learner = Learner(world12, learner_options(world12), AGENT_MIX, range(5),
-                      config=CONFIGS["priors_override_first"], demonstrations=mentor_demos12)
+    learner = Learner(
+        world12,
+        learner_options(world12),
+        AGENT_MIX,
+        range(5),
+        config=CONFIGS["priors_override_first"],
+        demonstrations=mentor_demos12,
+    )
     learner.run(2000)
     compiled = learner.mentor_win_share()
     learner.use_engine("torch")
@@ -208,3 +320,26 @@ def test_mentor_win_share_is_the_same_from_either_engine(world12, mentor_demos12
     assert torch.equal(compiled.isnan(), ~learner.rows.use_mentor)
     torch.testing.assert_close(compiled, batched, equal_nan=True, rtol=0, atol=0)
     assert float(compiled.nan_to_num(0).max()) > 0
+
+
+def test_engines_agree_with_the_exact_mentor_model(world12):
+    """The mentor's exact transition model (fractional counts) on both engines: the same run."""
+    from himit_torch import exact_mentor_transitions
+
+    exact = exact_mentor_transitions(world12, mentor_policy(world12, mentor_options(world12)), 5.0)
+    runs = [
+        Learner(
+            world12,
+            learner_options(world12),
+            AGENT_MIX,
+            range(5),
+            config=CONFIGS["default"],
+            demonstrations=exact,
+            engine=engine,
+        )
+        for engine in ("numba", "torch")
+    ]
+    for learner in runs:
+        learner.run(3000)
+    assert_same_run(*runs)
+    assert int(runs[0].goals.sum()) > 0

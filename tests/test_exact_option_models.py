@@ -25,14 +25,21 @@ def world() -> MultiRooms:
 
 @dataclass
 class Rollouts:
-    start: torch.Tensor      # [B] start state
-    end: torch.Tensor        # [B] termination state
-    steps: torch.Tensor      # [B] primitive steps k
-    ret: torch.Tensor        # [B] Σ_{j<k} γ^j r_{j+1}, float64
+    start: torch.Tensor  # [B] start state
+    end: torch.Tensor  # [B] termination state
+    steps: torch.Tensor  # [B] primitive steps k
+    ret: torch.Tensor  # [B] Σ_{j<k} γ^j r_{j+1}, float64
 
 
-def rollout_option(world: MultiRooms, options: Options, o: int, starts: torch.Tensor, n: int,
-                   generator: torch.Generator, max_steps: int = 2000) -> Rollouts:
+def rollout_option(
+    world: MultiRooms,
+    options: Options,
+    o: int,
+    starts: torch.Tensor,
+    n: int,
+    generator: torch.Generator,
+    max_steps: int = 2000,
+) -> Rollouts:
     """``n`` rollouts of option ``o`` from each of ``starts``, with the world's batched step.
 
     The option terminates on arriving in ``s'`` with probability β(s'), and always at the goal.
@@ -54,8 +61,9 @@ def rollout_option(world: MultiRooms, options: Options, o: int, starts: torch.Te
         discount = torch.where(active, discount * world.gamma, discount)
         steps += active.long()
         pos = torch.where(active, nxt, pos)
-        stop = (torch.rand(B, generator=generator, dtype=torch.float64) < beta[nxt]) \
-            | (nxt == world.goal_state)
+        stop = (torch.rand(B, generator=generator, dtype=torch.float64) < beta[nxt]) | (
+            nxt == world.goal_state
+        )
         active &= ~stop
         if not active.any():
             return Rollouts(start, pos, steps, ret)
@@ -68,12 +76,21 @@ def model_rows(models: OptionModels, o: int) -> dict[int, int]:
     return {int(models.row_state[r]): int(r) for r in rows}
 
 
-def check_against_monte_carlo(world: MultiRooms, options: Options, o: int, starts: list[int],
-                              generator: torch.Generator, n: int = 20_000) -> None:
+def check_against_monte_carlo(
+    world: MultiRooms,
+    options: Options,
+    o: int,
+    starts: list[int],
+    generator: torch.Generator,
+    n: int = 20_000,
+) -> None:
     models = option_models(world, options)
     durations = option_durations(world, options)
-    rows, dense, dur_dense = model_rows(models, o), models.transition.to_dense(), \
-        durations.transition.to_dense()
+    rows, dense, dur_dense = (
+        model_rows(models, o),
+        models.transition.to_dense(),
+        durations.transition.to_dense(),
+    )
     mc = rollout_option(world, options, o, torch.tensor(starts), n, generator)
     gamma_k = torch.tensor(world.gamma, dtype=torch.float64) ** mc.steps
     for i, s in enumerate(starts):
@@ -81,22 +98,23 @@ def check_against_monte_carlo(world: MultiRooms, options: Options, o: int, start
         row = rows[s]
         # Discounted reward r(s, o).
         ret = mc.ret[sel]
-        assert abs(ret.mean() - models.reward[row]) <= Z * ret.std() / n ** 0.5 + 1e-12, s
+        assert abs(ret.mean() - models.reward[row]) <= Z * ret.std() / n**0.5 + 1e-12, s
         # Multi-time weights P^o[s, s'] = E[γ^k 1{end = s'}]; X ∈ [0, 1] so Var X ≤ E X.
         ends = mc.end[sel]
-        weights = torch.zeros(world.num_states, dtype=torch.float64).index_add_(
-            0, ends, gamma_k[sel]) / n
+        weights = (
+            torch.zeros(world.num_states, dtype=torch.float64).index_add_(0, ends, gamma_k[sel]) / n
+        )
         exact = dense[row]
         tol = Z * (torch.maximum(exact, weights) / n).sqrt() + 1e-12
         assert ((weights - exact).abs() <= tol).all(), (s, (weights - exact).abs().max())
-        assert weights.sum() > 0.2        # the test is not vacuous
+        assert weights.sum() > 0.2  # the test is not vacuous
         # Undiscounted: termination probabilities and the expected duration.
         freq = torch.bincount(ends, minlength=world.num_states).double() / n
         p = dur_dense[rows[s]]
         assert ((freq - p).abs() <= Z * (torch.maximum(p, freq) / n).sqrt() + 1e-12).all(), s
         assert p.sum().item() == pytest.approx(1.0, abs=1e-12)
         k = mc.steps[sel].double()
-        assert abs(k.mean() - durations.reward[rows[s]]) <= Z * k.std() / n ** 0.5, s
+        assert abs(k.mean() - durations.reward[rows[s]]) <= Z * k.std() / n**0.5, s
 
 
 def test_primitive_models_are_one_step(world):
@@ -121,7 +139,7 @@ def test_doorway_option_into_goal_room_matches_monte_carlo(world, generator):
     """Room (1,1) holds the goal: slips end the option there, at the target, or outside."""
     doors = doorway_options(world)
     o = doors.names.index("doorway room(1,1)->door(6, 4)")
-    starts = [5 * 8 + 5, 7 * 8 + 5, 5 * 8 + 7, 4 * 8 + 6]   # (5,5), (7,5), (5,7), doorway (4,6)
+    starts = [5 * 8 + 5, 7 * 8 + 5, 5 * 8 + 7, 4 * 8 + 6]  # (5,5), (7,5), (5,7), doorway (4,6)
     assert all(doors.initiation[o, s] for s in starts)
     check_against_monte_carlo(world, doors, o, starts, generator)
 
@@ -148,12 +166,12 @@ def test_durations_without_slip_are_path_lengths():
     durations = option_durations(world, doors)
     o = doors.names.index("doorway room(0,0)->door(2, 4)")
     rows = model_rows(durations, o)
-    assert durations.reward[rows[0]] == pytest.approx(2 + 4)       # (0,0) → (2,4)
+    assert durations.reward[rows[0]] == pytest.approx(2 + 4)  # (0,0) → (2,4)
     assert durations.transition.to_dense()[rows[0], 2 * 8 + 4] == pytest.approx(1.0)
     models = option_models(world, doors)
-    assert models.transition.to_dense()[rows[0], 2 * 8 + 4] == pytest.approx(0.99 ** 6)
+    assert models.transition.to_dense()[rows[0], 2 * 8 + 4] == pytest.approx(0.99**6)
     # r = −0.01 · (1 + γ + … + γ⁵)
-    assert models.reward[rows[0]] == pytest.approx(-0.01 * (1 - 0.99 ** 6) / (1 - 0.99))
+    assert models.reward[rows[0]] == pytest.approx(-0.01 * (1 - 0.99**6) / (1 - 0.99))
 
 
 def test_q_values_and_dense(world):
@@ -162,8 +180,9 @@ def test_q_values_and_dense(world):
     expected = models.reward + models.transition.to_dense() @ values
     torch.testing.assert_close(models.q_values(values), expected)
     P_o, r_o = models.dense()
-    torch.testing.assert_close(P_o[models.row_option, models.row_state],
-                               models.transition.to_dense())
+    torch.testing.assert_close(
+        P_o[models.row_option, models.row_state], models.transition.to_dense()
+    )
     torch.testing.assert_close(r_o[models.row_option, models.row_state], models.reward)
 
 
@@ -172,11 +191,12 @@ def test_never_terminating_option_is_rejected():
     # Always push north from the top row of room 0: never leaves, β = 0 everywhere.
     init = torch.zeros(36, dtype=torch.bool)
     init[0] = True
-    stuck = Options.from_policy(init, torch.zeros(36, dtype=torch.int64),
-                                termination=torch.zeros(36))
+    stuck = Options.from_policy(
+        init, torch.zeros(36, dtype=torch.int64), termination=torch.zeros(36)
+    )
     with pytest.raises(ValueError, match="may never terminate"):
         option_durations(world, stuck)
-    models = option_models(world, stuck)     # discounted, it is fine: r = −0.01 / (1 − γ)
+    models = option_models(world, stuck)  # discounted, it is fine: r = −0.01 / (1 − γ)
     assert models.reward[0] == pytest.approx(-0.01 / (1 - 0.99))
     assert models.transition.to_dense().abs().sum() == 0
 

@@ -67,8 +67,10 @@ def test_value_iteration_short_horizon_changes_the_choice():
     # with γ = 0.3: V1 = 2 / (1 − 0.045), γ·V1 ≈ 0.628 < 1, so s0 takes a1: V0 = 1 and
     # V1 = 2 + γ·½·V0 = 2.15 (a0 at s0 would now give γ·V1 = 0.645 < 1).
     P, R = three_state_mdp()
-    torch.testing.assert_close(value_iteration(P, R, gamma=0.5, tol=1e-13).values,
-                               torch.tensor([8 / 7, 16 / 7, 0.0], dtype=torch.float64))
+    torch.testing.assert_close(
+        value_iteration(P, R, gamma=0.5, tol=1e-13).values,
+        torch.tensor([8 / 7, 16 / 7, 0.0], dtype=torch.float64),
+    )
     result = value_iteration(P, R, gamma=0.3, tol=1e-13)
     torch.testing.assert_close(result.values, torch.tensor([1.0, 2.15, 0.0], dtype=torch.float64))
     assert result.policy.tolist() == [1, 0, 0]
@@ -85,8 +87,9 @@ def test_dense_and_sparse_agree(small_world):
 
 
 def test_smdp_with_primitive_options_equals_value_iteration(small_world):
-    vi = value_iteration(small_world.transition_model(), small_world.reward_model(),
-                         small_world.gamma, tol=1e-12)
+    vi = value_iteration(
+        small_world.transition_model(), small_world.reward_model(), small_world.gamma, tol=1e-12
+    )
     models = option_models(small_world, primitive_options(small_world))
     smdp = smdp_value_iteration(models, tol=1e-12)
     torch.testing.assert_close(smdp.values, vi.values, rtol=0, atol=1e-8)
@@ -102,10 +105,12 @@ def test_smdp_with_primitive_options_equals_value_iteration(small_world):
 
 def test_options_cannot_beat_primitives(small_world):
     """Options are built from primitive moves: with them in the set, V* stays the same."""
-    vi = value_iteration(small_world.transition_model(), small_world.reward_model(),
-                         small_world.gamma, tol=1e-12)
-    smdp = smdp_value_iteration(option_models(small_world, learner_options(small_world, corners=True)),
-                                tol=1e-12)
+    vi = value_iteration(
+        small_world.transition_model(), small_world.reward_model(), small_world.gamma, tol=1e-12
+    )
+    smdp = smdp_value_iteration(
+        option_models(small_world, learner_options(small_world, corners=True)), tol=1e-12
+    )
     torch.testing.assert_close(smdp.values, vi.values, rtol=0, atol=1e-8)
 
 
@@ -115,9 +120,13 @@ def hand_models() -> OptionModels:
     row_state = torch.tensor([0, 0, 0, 1, 1])
     row_option = torch.tensor([0, 1, 2, 1, 0])
     transition = csr_from_scipy(sp.csr_matrix((5, 3), dtype=np.float64))
-    return OptionModels(row_state=row_state, row_option=row_option,
-                        reward=torch.zeros(5, dtype=torch.float64), transition=transition,
-                        num_options=3)
+    return OptionModels(
+        row_state=row_state,
+        row_option=row_option,
+        reward=torch.zeros(5, dtype=torch.float64),
+        transition=transition,
+        num_options=3,
+    )
 
 
 def test_greedy_option_policy_tolerance():
@@ -141,9 +150,13 @@ def test_smdp_value_iteration_on_hand_models():
     # and ends nowhere (E[γ^k] = 0). State 1: option 0 gives 1 and stops. So V1 = 1 and
     # V0 = max(0 + 0.9·1, 0.5) = 0.9.
     T = sp.csr_matrix(np.array([[0.0, 0.9], [0.0, 0.0], [0.0, 0.0]]))
-    models = OptionModels(row_state=torch.tensor([0, 0, 1]), row_option=torch.tensor([0, 1, 0]),
-                          reward=torch.tensor([0.0, 0.5, 1.0], dtype=torch.float64),
-                          transition=csr_from_scipy(T), num_options=2)
+    models = OptionModels(
+        row_state=torch.tensor([0, 0, 1]),
+        row_option=torch.tensor([0, 1, 0]),
+        reward=torch.tensor([0.0, 0.5, 1.0], dtype=torch.float64),
+        transition=csr_from_scipy(T),
+        num_options=2,
+    )
     result = smdp_value_iteration(models)
     torch.testing.assert_close(result.values, torch.tensor([0.9, 1.0], dtype=torch.float64))
     assert result.policy.tolist() == [0, 0]
@@ -162,12 +175,15 @@ def test_expected_steps_closed_form_with_slip():
     p = 0.1
     world = MultiRooms(size=2, rooms=1, slip=p, goal=(0, 1))
     durations = option_durations(world, primitive_options(world))
-    policy = torch.tensor([3, -1, 0, 0])            # (0,0) east; (1,0) and (1,1) north
+    policy = torch.tensor([3, -1, 0, 0])  # (0,0) east; (1,0) and (1,1) north
     q = 1 - 2 * p / 3
     t00 = (1 + p / (3 * q)) / (1 - p)
-    assert expected_steps(durations, policy, 0, world.terminal_mask) == pytest.approx(t00, rel=1e-12)
-    assert expected_steps(durations, policy, 2, world.terminal_mask) == pytest.approx(1 / q + t00,
-                                                                                      rel=1e-12)
+    assert expected_steps(durations, policy, 0, world.terminal_mask) == pytest.approx(
+        t00, rel=1e-12
+    )
+    assert expected_steps(durations, policy, 2, world.terminal_mask) == pytest.approx(
+        1 / q + t00, rel=1e-12
+    )
     assert expected_steps(durations, policy, 1, world.terminal_mask) == 0.0
 
 
@@ -177,12 +193,14 @@ def test_expected_steps_without_slip_is_the_shortest_path():
     vi = value_iteration(world.transition_model(), world.reward_model(), world.gamma)
     policy = torch.where(prim.initiation[0], vi.policy, -1)
     # Start (0,0) to goal (5,5) through either pair of doorways: 10 moves, the Manhattan distance.
-    assert expected_steps(option_durations(world, prim), policy, 0, world.terminal_mask) == \
-        pytest.approx(10.0, abs=1e-9)
+    assert expected_steps(
+        option_durations(world, prim), policy, 0, world.terminal_mask
+    ) == pytest.approx(10.0, abs=1e-9)
     opts = learner_options(world)
     plan = smdp_value_iteration(option_models(world, opts))
-    assert expected_steps(option_durations(world, opts), plan.policy, 0, world.terminal_mask) == \
-        pytest.approx(10.0, abs=1e-9)
+    assert expected_steps(
+        option_durations(world, opts), plan.policy, 0, world.terminal_mask
+    ) == pytest.approx(10.0, abs=1e-9)
 
 
 def test_expected_steps_is_infinite_when_the_goal_is_never_reached():
@@ -191,7 +209,9 @@ def test_expected_steps_is_infinite_when_the_goal_is_never_reached():
     north_forever = torch.tensor([0, -1, 0, 0])
     assert expected_steps(durations, north_forever, 0, world.terminal_mask) == math.inf
     # A state without an option on the way.
-    assert expected_steps(durations, torch.tensor([1, -1, -1, 0]), 0, world.terminal_mask) == math.inf
+    assert (
+        expected_steps(durations, torch.tensor([1, -1, -1, 0]), 0, world.terminal_mask) == math.inf
+    )
 
 
 def test_expected_steps_on_the_papers_40x40_world():
@@ -200,8 +220,9 @@ def test_expected_steps_on_the_papers_40x40_world():
     prim = primitive_options(world)
     vi = value_iteration(world.transition_model(), world.reward_model(), world.gamma)
     policy = torch.where(prim.initiation[0], vi.policy, -1)
-    steps = expected_steps(option_durations(world, prim), policy, world.start_state,
-                           world.terminal_mask)
+    steps = expected_steps(
+        option_durations(world, prim), policy, world.start_state, world.terminal_mask
+    )
     assert steps == pytest.approx(91.37, abs=0.05)
     assert abs(steps - 5000 / 53.2) / (5000 / 53.2) < 0.1
     assert vi.values[world.start_state] == pytest.approx(-0.192, abs=0.001)
@@ -212,8 +233,9 @@ def test_optimal_baseline_without_slip_is_the_shortest_path_by_hand():
     best = optimal_baseline(MultiRooms(size=6, rooms=2, slip=0.0))
     gamma = 0.99
     assert best.steps_to_goal == pytest.approx(10.0, abs=1e-9)
-    assert best.value_start == pytest.approx(-0.01 * (1 - gamma ** 9) / (1 - gamma) + gamma ** 9,
-                                             abs=1e-9)
+    assert best.value_start == pytest.approx(
+        -0.01 * (1 - gamma**9) / (1 - gamma) + gamma**9, abs=1e-9
+    )
     assert best.goals_per(5000) == pytest.approx(500.0)
 
 
@@ -225,16 +247,28 @@ def test_optimal_baseline_of_the_papers_40x40_world_is_ours_not_the_papers():
 
 
 # ---------------------------------------------------------------------------- bad inputs
-@pytest.mark.parametrize("make, match", [
-    (lambda P, R: (P[0], R, 0.9), r"P must be \[A, S, S\]"),
-    (lambda P, R: (P[:, :, :2], R, 0.9), r"P must be \[A, S, S\]"),
-    (lambda P, R: (P, R.T, 0.9), r"R must be \[S, A\] = \[3, 2\]"),
-    (lambda P, R: (P, R, 1.0), r"gamma=1.0 must lie in \[0, 1\)"),
-    (lambda P, R: (P, R, -0.1), r"must lie in \[0, 1\)"),
-    (lambda P, R: (P, R.index_put((torch.tensor([0]), torch.tensor([0])),
-                                  torch.tensor([math.nan], dtype=torch.float64)), 0.9), "NaN"),
-    (lambda P, R: (P, R + math.inf, 0.9), "infinite"),
-])
+@pytest.mark.parametrize(
+    "make, match",
+    [
+        (lambda P, R: (P[0], R, 0.9), r"P must be \[A, S, S\]"),
+        (lambda P, R: (P[:, :, :2], R, 0.9), r"P must be \[A, S, S\]"),
+        (lambda P, R: (P, R.T, 0.9), r"R must be \[S, A\] = \[3, 2\]"),
+        (lambda P, R: (P, R, 1.0), r"gamma=1.0 must lie in \[0, 1\)"),
+        (lambda P, R: (P, R, -0.1), r"must lie in \[0, 1\)"),
+        (
+            lambda P, R: (
+                P,
+                R.index_put(
+                    (torch.tensor([0]), torch.tensor([0])),
+                    torch.tensor([math.nan], dtype=torch.float64),
+                ),
+                0.9,
+            ),
+            "NaN",
+        ),
+        (lambda P, R: (P, R + math.inf, 0.9), "infinite"),
+    ],
+)
 def test_value_iteration_bad_inputs(make, match):
     P, R, gamma = make(*three_state_mdp())
     with pytest.raises(ValueError, match=match):

@@ -23,8 +23,15 @@ from himit_torch.experiment import EXPERIMENTS, ExperimentConfig, load_config, r
 
 def tiny(name: str, **changes) -> ExperimentConfig:
     base = EXPERIMENTS[name]
-    defaults = dict(seeds=1, steps=2000, window=1000, checkpoint_every=1000, mentor_episodes=3,
-                    sizes=base.sizes[:1], agents=("imitation", "options"))
+    defaults = dict(
+        seeds=1,
+        steps=2000,
+        window=1000,
+        checkpoint_every=1000,
+        mentor_episodes=3,
+        sizes=base.sizes[:1],
+        agents=("imitation", "options"),
+    )
     defaults.update(changes)
     return replace(base, **defaults)
 
@@ -55,9 +62,10 @@ def test_each_experiment_runs_and_writes_its_outputs(name, tmp_path):
     assert any("curves" in f for f in figures)
     assert any(f.startswith("first_goal_world") for f in figures)
     from PIL import Image
+
     for f in (run_dir / "figures").iterdir():
         assert f.read_bytes()[:4] == b"\x89PNG"
-        with Image.open(f) as image:                     # readable: at least 100 dpi
+        with Image.open(f) as image:  # readable: at least 100 dpi
             assert min(image.info["dpi"]) >= 99.9, (f.name, image.info["dpi"])
 
 
@@ -81,6 +89,7 @@ def small_run(tmp_path_factory):
 
 def accumulate(folder: Path):
     from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
     acc = EventAccumulator(str(folder), size_guidance={"images": 0, "scalars": 0, "tensors": 0})
     acc.Reload()
     return acc
@@ -103,16 +112,22 @@ def test_tensorboard_holds_first_goal_true_value_descriptions_and_maps(small_run
         # The first goal: one point at (step, step), or none for a run that never found it.
         first = result.first_goal_step[b]
         if first >= 0:
-            assert [(e.step, e.value) for e in acc.Scalars("charts/first_goal_step")] == [(first, first)]
+            assert [(e.step, e.value) for e in acc.Scalars("charts/first_goal_step")] == [
+                (first, first)
+            ]
         else:
             assert "charts/first_goal_step" not in scalars
         # V*(start) beside V(start), at every window.
         true_v = acc.Scalars("model/value_start_true")
-        assert [e.step for e in true_v] == [e.step for e in acc.Scalars("model/value_start")] \
+        assert (
+            [e.step for e in true_v]
+            == [e.step for e in acc.Scalars("model/value_start")]
             == [1000, 2000, 3000]
+        )
         assert all(e.value == pytest.approx(result.true_value_start, abs=1e-6) for e in true_v)
-        assert acc.Scalars("model/value_start")[-1].value == pytest.approx(result.value_start[b],
-                                                                           abs=1e-6)
+        assert acc.Scalars("model/value_start")[-1].value == pytest.approx(
+            result.value_start[b], abs=1e-6
+        )
         # Maps during training (half-way — the checkpoint nearest it — not only at the end), for
         # both seeds, with colorbars or legends drawn in: wide enough to read.
         images = set(acc.Tags()["images"])
@@ -132,12 +147,21 @@ def test_hparams_group_the_seeds_of_one_agent(small_run):
     run_dir, result = small_run
     groups = {}
     for a, s in zip(result.agents, result.seeds):
-        content = accumulate(run_dir / "tb" / f"world16__{a}__seed{s}").PluginTagToContent("hparams")
-        start = HParamsPluginData.FromString(content["_hparams_/session_start_info"]).session_start_info
+        content = accumulate(run_dir / "tb" / f"world16__{a}__seed{s}").PluginTagToContent(
+            "hparams"
+        )
+        start = HParamsPluginData.FromString(
+            content["_hparams_/session_start_info"]
+        ).session_start_info
         assert "seed" not in start.hparams and start.hparams["agent"].string_value == a
         groups[a, s] = start.group_name
     # Seeds of one agent share a group; the agents' groups differ.
-    assert groups["imitation", 0] == groups["imitation", 1] != groups["options", 0] == groups["options", 1]
+    assert (
+        groups["imitation", 0]
+        == groups["imitation", 1]
+        != groups["options", 0]
+        == groups["options", 1]
+    )
 
 
 def test_a_forced_rerun_with_another_budget_keeps_none_of_the_old_events(tmp_path):
@@ -234,6 +258,7 @@ def test_runs_killed_at_random_moments_resume_to_exactly_the_uninterrupted_curve
         acc = EventAccumulator(str(root / "tb" / "world16__imitation__seed0"))
         acc.Reload()
         return [(e.step, e.value) for e in acc.Scalars("charts/goals_in_window")]
+
     assert [s for s, _ in scalars(killed)] == list(range(250, 3501, 250))
     assert scalars(killed) == scalars(whole)
 
@@ -272,26 +297,47 @@ def one_line_error(capsys, argv) -> str:
 def test_cli_run_plot_and_errors(capsys, tmp_path):
     cfg_path = tmp_path / "cfg.json"
     cfg_path.write_text(tiny("exp2", steps=1000).to_json())
-    assert main(["run", "exp2", "--config", str(cfg_path), "--logdir", str(tmp_path), "--quiet"]) == 0
+    assert (
+        main(["run", "exp2", "--config", str(cfg_path), "--logdir", str(tmp_path), "--quiet"]) == 0
+    )
     assert (tmp_path / "exp2" / "results.md").exists()
     capsys.readouterr()
     assert main(["plot", str(tmp_path / "exp2")]) == 0
     assert "results.md" in capsys.readouterr().out
-    assert "finished run" in one_line_error(capsys, ["run", "exp2", "--config", str(cfg_path),
-                                                     "--logdir", str(tmp_path), "--quiet"])
-    assert "does not exist" in one_line_error(capsys, ["run", "exp1", "--config", str(tmp_path / "no.json")])
+    assert "finished run" in one_line_error(
+        capsys, ["run", "exp2", "--config", str(cfg_path), "--logdir", str(tmp_path), "--quiet"]
+    )
+    assert "does not exist" in one_line_error(
+        capsys, ["run", "exp1", "--config", str(tmp_path / "no.json")]
+    )
     assert "is for 'exp2'" in one_line_error(capsys, ["run", "exp1", "--config", str(cfg_path)])
     if not torch.cuda.is_available():
-        assert "CUDA" in one_line_error(capsys, ["run", "exp2", "--device", "cuda", "--logdir",
-                                                 str(tmp_path)])
+        assert "CUDA" in one_line_error(
+            capsys, ["run", "exp2", "--device", "cuda", "--logdir", str(tmp_path)]
+        )
     assert "invalid choice" in one_line_error(capsys, ["run", "exp7"])
     assert "does not exist" in one_line_error(capsys, ["plot", str(tmp_path)])
 
 
 def test_cli_demo_learning_run(capsys, tmp_path):
     out = tmp_path / "demo"
-    assert main(["demo", "--out", str(out), "--episodes", "2", "--steps", "2000", "--seeds", "1",
-                 "--quiet"]) == 0
+    assert (
+        main(
+            [
+                "demo",
+                "--out",
+                str(out),
+                "--episodes",
+                "2",
+                "--steps",
+                "2000",
+                "--seeds",
+                "1",
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     text = capsys.readouterr().out
     assert "goals in the last 2000 steps" in text and "tensorboard --logdir" in text
     assert (out / "learning" / "results.md").exists()
@@ -299,8 +345,76 @@ def test_cli_demo_learning_run(capsys, tmp_path):
 
 
 def test_cli_bench_prints_a_rate(capsys):
-    assert main(["bench", "--batch", "2", "--steps", "50", "--warmup", "0", "--size", "12",
-                 "--rooms", "2"]) == 0
+    assert (
+        main(
+            [
+                "bench",
+                "--batch",
+                "2",
+                "--steps",
+                "50",
+                "--warmup",
+                "0",
+                "--size",
+                "12",
+                "--rooms",
+                "2",
+            ]
+        )
+        == 0
+    )
     line = capsys.readouterr().out
     assert "steps/s" in line and "B=2" in line
     assert "agent" in one_line_error(capsys, ["bench", "--agent", "nobody"])
+
+
+def test_mentor_reward_is_a_setting_of_the_runner_and_the_cli(tmp_path, capsys):
+    """``mentor_reward`` changes only the imitators: the options runs (no mentor term) are the same
+    in every batch, the imitators' curves differ between the world's reward and r_m = 0."""
+    with pytest.raises(ValueError, match="mentor_reward='bogus'.*known"):
+        tiny("exp2", mentor_reward="bogus")
+    runs = {}
+    for name in ("known", "salience", "none"):
+        config = tiny("exp2", mentor_reward=name, steps=3000)
+        run_experiment(config, tmp_path / name, progress=False, workers=1)
+        assert load_config(tmp_path / name / "config.json").mentor_reward == name
+        runs[name] = {
+            (r["agent"], r["step"]): r["goals_in_window"]
+            for r in read_curves(tmp_path / name / "curves.csv")
+        }
+    own = {k: v for k, v in runs["known"].items() if k[0] == "options"}
+    for name in ("salience", "none"):
+        assert {k: v for k, v in runs[name].items() if k[0] == "options"} == own
+    # the mentor term's values differ with its reward: compare the learners' start values
+    starts = {
+        n: json.loads((tmp_path / n / "worlds" / "world40.json").read_text())["value_start"][0]
+        for n in runs
+    }
+    assert len(set(starts.values())) == 3
+    assert "mentor reward `none`" in (tmp_path / "none" / "results.md").read_text()
+    assert "mentor reward" not in (tmp_path / "known" / "results.md").read_text()
+    # the CLI flag
+    cfg = tmp_path / "cfg.json"
+    cfg.write_text(tiny("exp2", steps=1000).to_json())
+    assert (
+        main(
+            [
+                "run",
+                "exp2",
+                "--config",
+                str(cfg),
+                "--mentor-reward",
+                "salience",
+                "--logdir",
+                str(tmp_path / "cli"),
+                "--quiet",
+            ]
+        )
+        == 0
+    )
+    assert load_config(tmp_path / "cli" / "exp2" / "config.json").mentor_reward == "salience"
+    capsys.readouterr()
+    assert "invalid choice" in one_line_error(capsys, ["run", "exp2", "--mentor-reward", "x"])
+    assert "no --mentor-reward" in one_line_error(
+        capsys, ["run", "gymnasium", "--mentor-reward", "none"]
+    )

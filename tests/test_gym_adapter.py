@@ -37,7 +37,7 @@ def gym_outcomes(env, s, a):
     for p, t, r, term in env.P[s][a]:
         if p > 0:
             q, r0, t0 = out.get(t, (0.0, r, term))
-            assert (r0, t0) == (r, term) or t not in out   # one reward per successor here
+            assert (r0, t0) == (r, term) or t not in out  # one reward per successor here
             out[t] = (q + p, r, term)
     return out
 
@@ -84,7 +84,11 @@ def test_same_uniforms_give_gymnasiums_transitions(worlds, key):
     cumulative probability exceeds it — the DynamicsTable rule — so with the same uniforms the
     adapter makes exactly Gymnasium's transitions."""
     world = worlds[key] if key == "frozen8" else from_gymnasium("CliffWalking-v1", is_slippery=True)
-    env = raw_env(key) if key == "frozen8" else gymnasium.make("CliffWalking-v1", is_slippery=True).unwrapped
+    env = (
+        raw_env(key)
+        if key == "frozen8"
+        else gymnasium.make("CliffWalking-v1", is_slippery=True).unwrapped
+    )
     env.reset(seed=0)
     env.np_random = np.random.default_rng(11)
     uniforms = np.random.default_rng(11)
@@ -99,11 +103,12 @@ def test_same_uniforms_give_gymnasiums_transitions(worlds, key):
         gym_next.append(nxt)
         gym_reward.append(r)
         u.append(uniforms.random())
-    got, rewards = world.step(torch.from_numpy(states), torch.from_numpy(actions),
-                              torch.tensor(u, dtype=torch.float64))
+    got, rewards = world.step(
+        torch.from_numpy(states), torch.from_numpy(actions), torch.tensor(u, dtype=torch.float64)
+    )
     assert got.tolist() == gym_next
     assert rewards.tolist() == [float(r) for r in gym_reward]
-    assert len(set(zip(states.tolist(), actions.tolist(), got.tolist()))) > 400   # stochastic
+    assert len(set(zip(states.tolist(), actions.tolist(), got.tolist()))) > 400  # stochastic
 
 
 def test_successor_distribution_matches_gymnasium_statistically(worlds):
@@ -125,8 +130,11 @@ def test_successor_distribution_matches_gymnasium_statistically(worlds):
             assert mine.keys() == truth.keys()
             for t, (p, _r, _) in truth.items():
                 assert mine[t] == pytest.approx(p, abs=1e-12)
-            got, _ = world.step(torch.full((n,), int(s)), torch.full((n,), a),
-                                torch.rand(n, generator=gen, dtype=torch.float64))
+            got, _ = world.step(
+                torch.full((n,), int(s)),
+                torch.full((n,), a),
+                torch.rand(n, generator=gen, dtype=torch.float64),
+            )
             theirs = []
             for _ in range(n):
                 env.s = int(s)
@@ -134,8 +142,9 @@ def test_successor_distribution_matches_gymnasium_statistically(worlds):
             succ = sorted(truth)
             if len(succ) < 2:
                 continue
-            table_counts = np.array([[int((got == t).sum()) for t in succ],
-                                     [theirs.count(t) for t in succ]])
+            table_counts = np.array(
+                [[int((got == t).sum()) for t in succ], [theirs.count(t) for t in succ]]
+            )
             keep = table_counts.sum(0) > 0
             c, _, d, _ = stats.chi2_contingency(table_counts[:, keep], correction=False)
             chi2, dof = chi2 + c, dof + d
@@ -155,7 +164,7 @@ def test_start_distribution_terminal_and_goal_states(worlds):
     assert cliff.terminal_mask.nonzero()[:, 0].tolist() == [47] and cliff.start_state == 36
     holes = np.flatnonzero(raw_env("frozen8").desc.ravel() == b"H").tolist()
     assert frozen.terminal_mask.nonzero()[:, 0].tolist() == sorted(holes + [63])
-    assert frozen.goal_mask.nonzero()[:, 0].tolist() == [63]            # holes are not goals
+    assert frozen.goal_mask.nonzero()[:, 0].tolist() == [63]  # holes are not goals
     # rewards for entering a state: only where that is the whole reward
     assert taxi.state_reward is None and cliff.state_reward is None
     assert frozen.state_reward[63] == 1.0 and float(frozen.state_reward[:63].abs().sum()) == 0.0
@@ -168,7 +177,7 @@ def test_true_model_value_iteration_and_option_models(worlds):
     P, R = world_model(cliff)
     plan = ht.value_iteration(P, R, cliff.gamma)
     g = cliff.gamma
-    assert float(plan.values[36]) == pytest.approx(-(1 - g ** 13) / (1 - g), abs=1e-8)
+    assert float(plan.values[36]) == pytest.approx(-(1 - g**13) / (1 - g), abs=1e-8)
     dense = cliff.transition_model(sparse=False)
     assert torch.allclose(dense.sum(-1), torch.ones(4, 48, dtype=torch.float64))
     assert float(dense[:, 47, 47].min()) == 1.0 and float(cliff.reward_model()[47].abs().max()) == 0
@@ -186,7 +195,7 @@ def test_taxi_navigation_options_drive_by_shortest_paths(worlds):
     nav = taxi_navigation_options(taxi)
     assert nav.names == ("drive to R", "drive to G", "drive to Y", "drive to B")
     assert set(nav.kinds) == {"subgoal"}
-    assert int(nav.policy.max()) <= 3                       # moves only; pickup/dropoff stay primitive
+    assert int(nav.policy.max()) <= 3  # moves only; pickup/dropoff stay primitive
     dur = ht.option_durations(taxi, nav)
     # from (row 4, col 4): to R (0, 0) the taxi goes up to row 0 then west past the walls: 8 steps
     s = env.encode(4, 4, 0, 1)
@@ -195,7 +204,9 @@ def test_taxi_navigation_options_drive_by_shortest_paths(worlds):
     target = env.encode(0, 0, 0, 1)
     assert float(dur.transition.to_dense()[row, target]) == pytest.approx(1.0)
     # not usable where the taxi already is at the landmark, nor in terminal states
-    assert not bool(nav.initiation[0, target]) and not bool((nav.initiation & taxi.terminal_mask).any())
+    assert not bool(nav.initiation[0, target]) and not bool(
+        (nav.initiation & taxi.terminal_mask).any()
+    )
 
 
 # ------------------------------------------------------------------------------- refusals
@@ -212,24 +223,38 @@ class TinyEnv(gymnasium.Env):
 
 def test_termination_per_transition_is_refused_and_terminal_states_can_be_given():
     # 0 -a0-> 1 ends the episode, 0 -a1-> 1 does not: not expressible as terminal states.
-    P = {0: {0: [(1.0, 1, 1.0, True)], 1: [(1.0, 1, 0.0, False)]},
-         1: {0: [(1.0, 2, 0.0, False)], 1: [(1.0, 2, 0.0, False)]},
-         2: {0: [(1.0, 2, 0.0, True)], 1: [(1.0, 2, 0.0, True)]}}
-    with pytest.raises(ValueError, match=r"per transition.*0 -\(0\)-> 1 ends the episode but "
-                                         r"0 -\(1\)-> 1.*terminal_states="):
+    P = {
+        0: {0: [(1.0, 1, 1.0, True)], 1: [(1.0, 1, 0.0, False)]},
+        1: {0: [(1.0, 2, 0.0, False)], 1: [(1.0, 2, 0.0, False)]},
+        2: {0: [(1.0, 2, 0.0, True)], 1: [(1.0, 2, 0.0, True)]},
+    }
+    with pytest.raises(
+        ValueError,
+        match=r"per transition.*0 -\(0\)-> 1 ends the episode but "
+        r"0 -\(1\)-> 1.*terminal_states=",
+    ):
         from_gymnasium(TinyEnv(P))
     world = from_gymnasium(TinyEnv(P), terminal_states=[2])
     assert world.terminal_mask.tolist() == [False, False, True]
 
 
-@pytest.mark.parametrize("env, match", [
-    (TinyEnv(None), "has no tabular model"),
-    (TinyEnv({0: {0: [(1.0, 0, 0.0, False)]}}), r"P\[0\]\[a\] is missing"),
-    (TinyEnv({s: {a: [(0.5, 0, 0.0, False)] for a in range(2)} for s in range(3)}), "sum to 0.5"),
-    (TinyEnv({s: {a: [(1.0, 7, 0.0, False)] for a in range(2)} for s in range(3)}), "outside 0…2"),
-    (TinyEnv({s: {a: [(1.0, 0, 0.0)] for a in range(2)} for s in range(3)}), "entries must be"),
-    (TinyEnv(None, gymnasium.spaces.Box(0, 1, (2,))), "Discrete observation and action spaces"),
-])
+@pytest.mark.parametrize(
+    "env, match",
+    [
+        (TinyEnv(None), "has no tabular model"),
+        (TinyEnv({0: {0: [(1.0, 0, 0.0, False)]}}), r"P\[0\]\[a\] is missing"),
+        (
+            TinyEnv({s: {a: [(0.5, 0, 0.0, False)] for a in range(2)} for s in range(3)}),
+            "sum to 0.5",
+        ),
+        (
+            TinyEnv({s: {a: [(1.0, 7, 0.0, False)] for a in range(2)} for s in range(3)}),
+            "outside 0…2",
+        ),
+        (TinyEnv({s: {a: [(1.0, 0, 0.0)] for a in range(2)} for s in range(3)}), "entries must be"),
+        (TinyEnv(None, gymnasium.spaces.Box(0, 1, (2,))), "Discrete observation and action spaces"),
+    ],
+)
 def test_environments_without_a_usable_model_are_refused(env, match):
     with pytest.raises(ValueError, match=match):
         from_gymnasium(env)
@@ -247,14 +272,26 @@ def test_other_refusals():
 def test_description_identifies_the_world(worlds):
     frozen = worlds["frozen8"]
     d = frozen.describe()
-    assert (d["kind"], d["id"], d["kwargs"]) == ("gymnasium", "FrozenLake-v1",
-                                                 {"map_name": "8x8", "is_slippery": True})
-    assert d == from_gymnasium(gymnasium.make("FrozenLake-v1", map_name="8x8", is_slippery=True)).describe()
+    assert (d["kind"], d["id"], d["kwargs"]) == (
+        "gymnasium",
+        "FrozenLake-v1",
+        {"map_name": "8x8", "is_slippery": True},
+    )
+    assert (
+        d
+        == from_gymnasium(
+            gymnasium.make("FrozenLake-v1", map_name="8x8", is_slippery=True)
+        ).describe()
+    )
     # the kwargs as given: the defaults left out describe the same model, but not the same way
     default = from_gymnasium("FrozenLake-v1", map_name="8x8").describe()
     assert default["kwargs"] == {"map_name": "8x8"} and default["fingerprint"] == d["fingerprint"]
-    assert d["fingerprint"] != from_gymnasium("FrozenLake-v1", map_name="8x8",
-                                              is_slippery=False).describe()["fingerprint"]
+    assert (
+        d["fingerprint"]
+        != from_gymnasium("FrozenLake-v1", map_name="8x8", is_slippery=False).describe()[
+            "fingerprint"
+        ]
+    )
 
 
 # ------------------------------------------------------------------- rewards per transition
@@ -263,8 +300,9 @@ def tiny_world(start=None) -> TableWorld:
     the reward of 0 → 1 depends on the unseen action. From 1 both lead to 2 paying +10. From 3
     both lead to 0 paying 0. Start: state 3 (or ``start``)."""
     succ = torch.tensor([[[1], [1]], [[2], [2]], [[2], [2]], [[0], [0]]])
-    rewards = torch.tensor([[[-1.0], [-5.0]], [[10.0], [10.0]], [[0.0], [0.0]], [[0.0], [0.0]]],
-                           dtype=torch.float64)
+    rewards = torch.tensor(
+        [[[-1.0], [-5.0]], [[10.0], [10.0]], [[0.0], [0.0]], [[0.0], [0.0]]], dtype=torch.float64
+    )
     table = DynamicsTable(succ, torch.ones(4, 2, 1, dtype=torch.float64), rewards)
     start = torch.tensor([0.0, 0.0, 0.0, 1.0]) if start is None else start
     return TableWorld(table, start, torch.tensor([False, False, True, False]), gamma=0.9)
@@ -288,8 +326,9 @@ def test_transition_rewards_in_the_mentor_term_by_hand():
     world = tiny_world()
     demos = ht.Demonstrations([[3, 0, 1, 2]], world)
     options = ht.primitive_options(world)
-    learner = ht.Learner(world, options, ["imitation"], [0], demonstrations=demos,
-                         reward=ht.KnownReward(world))
+    learner = ht.Learner(
+        world, options, ["imitation"], [0], demonstrations=demos, reward=ht.KnownReward(world)
+    )
     learner.plan()
     v = learner.state_values()[0]
     assert v[[1, 0, 3]].tolist() == pytest.approx([10.0, 4.0, 3.6])
@@ -307,8 +346,13 @@ def test_learner_starts_are_drawn_per_run_and_reproducible():
     options = ht.primitive_options(world)
 
     def starts(seeds, steps=300):
-        learner = ht.Learner(world, options, ["primitives"] * len(seeds), seeds,
-                             config=ht.LearnerConfig(window=steps))
+        learner = ht.Learner(
+            world,
+            options,
+            ["primitives"] * len(seeds),
+            seeds,
+            config=ht.LearnerConfig(window=steps),
+        )
         firsts, restarts = learner.run_state.position.clone(), []
         for _ in range(steps):
             learner.step()
@@ -339,13 +383,16 @@ def test_mentor_episodes_start_from_the_distribution(worlds):
     firsts = [int(e[0]) for e in a.states]
     assert firsts == [int(e[0]) for e in b.states] and len(set(firsts)) > 20
     assert all(taxi.start_distribution[s] > 0 for s in firsts)
-    assert all(bool(taxi.goal_mask[int(e[-1])]) for e in a.states)   # every episode delivers
+    assert all(bool(taxi.goal_mask[int(e[-1])]) for e in a.states)  # every episode delivers
 
 
 def test_transition_support(worlds):
     support = transition_support(worlds["cliff"])
-    assert support[36].nonzero()[:, 0].tolist() == [24, 36]   # up, or stay (down/left bump, the cliff)
-    assert not bool(support[47].any())                        # nothing leaves the terminal state
+    assert support[36].nonzero()[:, 0].tolist() == [
+        24,
+        36,
+    ]  # up, or stay (down/left bump, the cliff)
+    assert not bool(support[47].any())  # nothing leaves the terminal state
 
 
 def test_table_world_validates_its_parts():

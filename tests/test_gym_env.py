@@ -24,7 +24,7 @@ def test_check_env_without_warnings(render_mode):
 
 
 def test_make_through_registered_id():
-    register_envs()                     # idempotent: a second registration changes nothing
+    register_envs()  # idempotent: a second registration changes nothing
     spec = gymnasium.spec(ENV_ID)
     env = gymnasium.make(ENV_ID, size=8, rooms=2, slip=0.0, goal=(3, 3))
     assert env.spec.max_episode_steps == spec.max_episode_steps == 10_000
@@ -40,7 +40,7 @@ def test_make_through_registered_id():
 def test_time_limit_truncates():
     env = gymnasium.make(ENV_ID, size=6, rooms=2, max_episode_steps=3)
     env.reset(seed=0)
-    outcomes = [env.step(0)[2:4] for _ in range(3)]   # north from (0,0): stays put
+    outcomes = [env.step(0)[2:4] for _ in range(3)]  # north from (0,0): stays put
     assert outcomes == [(False, False), (False, False), (False, True)]
 
 
@@ -62,8 +62,8 @@ def rollout(seed: int, steps: int = 300) -> list[tuple]:
 def test_same_seed_same_rollout():
     first, second = rollout(11), rollout(11)
     assert first == second
-    assert first != rollout(12)          # same actions, other slips
-    assert len({step[0] for step in first[1:] if isinstance(step, tuple)}) > 5   # it moved
+    assert first != rollout(12)  # same actions, other slips
+    assert len({step[0] for step in first[1:] if isinstance(step, tuple)}) > 5  # it moved
 
 
 def test_slip_comes_from_np_random_and_matches_the_world():
@@ -71,14 +71,15 @@ def test_slip_comes_from_np_random_and_matches_the_world():
     env = MultiRoomsEnv(size=8, rooms=2, slip=0.5)
     world = MultiRooms(size=8, rooms=2, slip=0.5)
     env.reset(seed=3)
-    shadow = np.random.default_rng(3)   # Gymnasium seeds np_random with default_rng(seed)
+    shadow = np.random.default_rng(3)  # Gymnasium seeds np_random with default_rng(seed)
     pos = world.start_state
     slipped = 0
     for t in range(200):
         a = t % 4
         u = shadow.random()
-        nxt, reward = world.step(torch.tensor([pos]), torch.tensor([a]),
-                                 torch.tensor([u], dtype=torch.float64))
+        nxt, reward = world.step(
+            torch.tensor([pos]), torch.tensor([a]), torch.tensor([u], dtype=torch.float64)
+        )
         obs, r, terminated, _, info = env.step(a)
         assert obs == int(nxt[0]) and r == pytest.approx(float(reward[0]))
         slipped += info["executed_action"] != a
@@ -109,15 +110,15 @@ def test_render_modes():
     env.reset(seed=0)
     image = env.render()
     assert isinstance(image, np.ndarray) and image.dtype == np.uint8 and image.shape == (24, 24, 3)
-    wall = image[3 * 4 + 2, 0 * 4 + 2]           # cell (3,0)
-    free = image[0 * 4 + 2, 1 * 4 + 2]           # cell (0,1)
-    door = image[1 * 4 + 2, 3 * 4 + 2]           # cell (1,3)
+    wall = image[3 * 4 + 2, 0 * 4 + 2]  # cell (3,0)
+    free = image[0 * 4 + 2, 1 * 4 + 2]  # cell (0,1)
+    door = image[1 * 4 + 2, 3 * 4 + 2]  # cell (1,3)
     goal = image[5 * 4 + 2, 5 * 4 + 2]
-    agent = image[0 * 4 + 2, 0 * 4 + 2]          # agent on the start cell, drawn inset
+    agent = image[0 * 4 + 2, 0 * 4 + 2]  # agent on the start cell, drawn inset
     start_edge = image[0, 0]
     colours = {tuple(c) for c in (wall, free, door, goal, agent, start_edge)}
     assert len(colours) == 6
-    assert wall.sum() < free.sum()               # walls dark
+    assert wall.sum() < free.sum()  # walls dark
     env.step(E)
     assert not np.array_equal(env.render(), image)
 
@@ -138,13 +139,15 @@ def test_render_without_mode_warns():
 def test_true_model_accessors():
     env = gymnasium.make(ENV_ID, size=6, rooms=2)
     base = env.unwrapped
-    assert torch.equal(base.transition_model(sparse=False), base.world.transition_model(sparse=False))
+    assert torch.equal(
+        base.transition_model(sparse=False), base.world.transition_model(sparse=False)
+    )
     torch.testing.assert_close(base.reward_model(), base.world.reward_model())
     P = base.P
     assert set(P) == set(base.world.free_mask.nonzero().flatten().tolist())
     assert sum(p for p, *_ in P[0][E]) == pytest.approx(1.0)
     assert (0.9, 1, -0.01, False) in P[0][E]
-    assert P[35][0] == [(1.0, 35, 0.0, True)]    # the goal is absorbing
+    assert P[35][0] == [(1.0, 35, 0.0, True)]  # the goal is absorbing
     # Toy-text expected rewards equal the world's R.
     R = base.reward_model()
     for s in (0, 29, 34):

@@ -35,7 +35,7 @@ def test_greedy_evaluation_is_exact(cliff):
     world, options = cliff
     ev = GreedyEvaluator(world, options)
     g = world.gamma
-    assert ev.optimal_value == pytest.approx(-(1 - g ** 13) / (1 - g))
+    assert ev.optimal_value == pytest.approx(-(1 - g**13) / (1 - g))
     # the optimal primitive policy as a greedy option policy (primitives are options 0…3)
     assert ev.value(ev.optimal.policy) == pytest.approx(ev.optimal_value, abs=1e-9)
     # "up" forever from the start bumps at the top edge: −1 a step, never ending
@@ -43,7 +43,7 @@ def test_greedy_evaluation_is_exact(cliff):
     # the option to the top-right corner, then primitives: 14 steps up and right, 3 down
     policy = ev.optimal.policy.clone()
     policy[36] = 5
-    up_right = -(1 - g ** 14) / (1 - g) + g ** 14 * float(ev.optimal.values[11])
+    up_right = -(1 - g**14) / (1 - g) + g**14 * float(ev.optimal.values[11])
     assert ev.value(policy) == pytest.approx(up_right)
     # nothing tried anywhere: a uniformly random primitive, against a dense solve
     P, R = world_model(world)
@@ -74,16 +74,31 @@ def test_task_settings(cliff):
 
 
 def test_the_script_runs_and_writes_curves_figures_and_results(tmp_path):
-    out = subprocess.run([sys.executable, str(ROOT / "experiments" / "gymnasium_worlds.py"),
-                          "--tasks", "cliffwalking", "--seeds", "2", "--steps", "400",
-                          "--window", "200", "--logdir", str(tmp_path)],
-                         capture_output=True, text=True, timeout=300)
+    out = subprocess.run(
+        [
+            sys.executable,
+            str(ROOT / "experiments" / "gymnasium_worlds.py"),
+            "--tasks",
+            "cliffwalking",
+            "--seeds",
+            "2",
+            "--steps",
+            "400",
+            "--window",
+            "200",
+            "--logdir",
+            str(tmp_path),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert out.returncode == 0, out.stderr[-2000:]
     run = tmp_path / "gymnasium"
     assert "## cliffwalking" in out.stdout and "| imitation | 2 |" in out.stdout
     with (run / "curves.csv").open() as f:
         rows = list(csv.DictReader(f))
-    assert len(rows) == 2 * 3 * 2                                   # windows × agents × seeds
+    assert len(rows) == 2 * 3 * 2  # windows × agents × seeds
     assert all(float(r["value_gap"]) >= 0 and 0 <= int(r["goals"]) <= 200 for r in rows)
     summary = json.loads((run / "tasks" / "cliffwalking.json").read_text())
     assert summary["initial_value"] == pytest.approx(-100.0) and summary["steps"] == 400

@@ -43,8 +43,12 @@ class RawDemos:
 def exact_rows(learner: Learner) -> dict[tuple[int, int], int]:
     """(state, option) → the learner's row index."""
     M = learner.num_rows
-    return {(int(s), int(o)): m for m, (s, o) in
-            enumerate(zip(learner.rows.row_state[:M].tolist(), learner.rows.row_option[:M].tolist()))}
+    return {
+        (int(s), int(o)): m
+        for m, (s, o) in enumerate(
+            zip(learner.rows.row_state[:M].tolist(), learner.rows.row_option[:M].tolist())
+        )
+    }
 
 
 def load_exact_model(learner: Learner, exact, runs) -> None:
@@ -53,11 +57,13 @@ def load_exact_model(learner: Learner, exact, runs) -> None:
     from them (``q_numerator = r + Σ p^o V``)."""
     row_of = exact_rows(learner)
     P = exact.transition.to_dense()
-    rows = torch.tensor([row_of[(int(s), int(o))] for s, o in zip(exact.row_state, exact.row_option)])
+    rows = torch.tensor(
+        [row_of[(int(s), int(o))] for s, o in zip(exact.row_state, exact.row_option)]
+    )
     m_idx, succ = P.nonzero(as_tuple=True)
     model = learner.model
     for b in runs:
-        e = model.find_or_add(torch.full_like(succ, b), rows[m_idx], succ)   # may grow the lists
+        e = model.find_or_add(torch.full_like(succ, b), rows[m_idx], succ)  # may grow the lists
         model.edge_count[b, e] = 1.0
         model.edge_discount[b, e] = P[m_idx, succ]
         model.row_count[b, rows] = 1.0
@@ -74,8 +80,9 @@ def mentor_counts(demos) -> dict[int, Counter]:
     return counts
 
 
-def augmented_value_iteration(world, exact, usable_option, mentor: dict[int, Counter] | None,
-                              tol=1e-13) -> np.ndarray:
+def augmented_value_iteration(
+    world, exact, usable_option, mentor: dict[int, Counter] | None, tol=1e-13
+) -> np.ndarray:
     """Eq. 2 by plain value iteration in Python/NumPy: own options with the exact models,
     ``max`` with the mentor term ``Σ_{s'} c/n (r(s') + γ V(s'))`` from raw counts."""
     S, gamma = world.num_states, world.gamma
@@ -105,15 +112,18 @@ def learned_model_value_iteration(learner: Learner, b: int, tol=1e-12) -> np.nda
     model, mentor, cfg = learner.model, learner.mentor, learner.config
     S, gamma, v0 = learner.num_states, learner.gamma, cfg.initial_value
     E = int(model.num_edges[b])
-    rows = [[] for _ in range(S)]           # per state: (Σr, n, [(Σγ^k, s')])
+    rows = [[] for _ in range(S)]  # per state: (Σr, n, [(Σγ^k, s')])
     edges_of = {}
     for e in range(E):
         edges_of.setdefault(int(model.edge_row[b, e]), []).append(e)
     for m in range(learner.num_rows):
         n = float(model.row_count[b, m])
         if n > 0 and bool(learner.rows.row_enabled[b, m]):
-            succ = [(float(model.edge_discount[b, e]), int(model.edge_successor[b, e]))
-                    for e in edges_of.get(m, []) if model.edge_count[b, e] > 0]
+            succ = [
+                (float(model.edge_discount[b, e]), int(model.edge_successor[b, e]))
+                for e in edges_of.get(m, [])
+                if model.edge_count[b, e] > 0
+            ]
             rows[int(learner.rows.row_state[m])].append((float(model.row_reward[b, m]), n, succ))
     ment = {}
     if bool(learner.rows.use_mentor[b]):
@@ -121,7 +131,12 @@ def learned_model_value_iteration(learner: Learner, b: int, tol=1e-12) -> np.nda
             c = float(mentor.edge_count[b, e])
             if c > 0:
                 ment.setdefault(int(mentor.edge_row[b, e]), []).append(
-                    (c, float(learner.cache.mentor_edge_reward[b, e]), int(mentor.edge_successor[b, e])))
+                    (
+                        c,
+                        float(learner.cache.mentor_edge_reward[b, e]),
+                        int(mentor.edge_successor[b, e]),
+                    )
+                )
     terminal = learner.terminal[:S].numpy()
     V = np.where(terminal, 0.0, v0)
     for _ in range(100_000):
@@ -172,12 +187,21 @@ def test_planner_with_true_model_equals_value_iteration(size):
     demos = record_demonstrations(world, mentor_options(world), episodes=5, seed=1)
     exact = option_models(world, options)
     agents = ["options", "primitives", "imitation", "imitation_primitives"]
-    learner = Learner(world, options, agents, [0, 1, 2, 3], demonstrations=demos,
-                      config=LearnerConfig(priority_threshold=1e-13, backups=64, sweep_rounds=1))
+    learner = Learner(
+        world,
+        options,
+        agents,
+        [0, 1, 2, 3],
+        demonstrations=demos,
+        config=LearnerConfig(priority_threshold=1e-13, backups=64, sweep_rounds=1),
+    )
     load_exact_model(learner, exact, range(4))
     S = world.num_states
-    learner.sweeper.push(torch.arange(4).repeat_interleave(S), torch.arange(S).repeat(4),
-                       torch.full((4 * S,), 1e9, dtype=torch.float64))
+    learner.sweeper.push(
+        torch.arange(4).repeat_interleave(S),
+        torch.arange(S).repeat(4),
+        torch.full((4 * S,), 1e9, dtype=torch.float64),
+    )
     rounds = learner.plan()
     assert 0 < rounds < 1_000_000
     values = learner.state_values()
@@ -199,7 +223,9 @@ def test_planner_with_true_model_equals_value_iteration(size):
     # The mentor term matters: its empirical one-step model (5 episodes) is optimistic in places,
     # so eq. 2 lies above the own-option optimum somewhere (never below: it maxes over more).
     assert (values[2][free] >= star[free] - 1e-8).all() and (values[2] - star).max() > 1e-4
-    assert (values[3][free] >= prim_star[free] - 1e-8).all() and (values[3] - prim_star).max() > 1e-4
+    assert (values[3][free] >= prim_star[free] - 1e-8).all() and (
+        values[3] - prim_star
+    ).max() > 1e-4
 
     # The caches after planning equal their recomputation from the (exact) model.
     q, _, m, _ = recomputed_caches(learner)
@@ -220,8 +246,14 @@ def test_planner_with_true_model_equals_value_iteration(size):
 # ======================================================================== determinism, batches
 def test_same_seeds_give_identical_runs(world8, demos8):
     def make(seeds):
-        return Learner(world8, learner_options(world8), ["imitation", "options"], seeds,
-                       config=LearnerConfig(window=500), demonstrations=demos8)
+        return Learner(
+            world8,
+            learner_options(world8),
+            ["imitation", "options"],
+            seeds,
+            config=LearnerConfig(window=500),
+            demonstrations=demos8,
+        )
 
     a, b, c = make([3, 4]), make([3, 4]), make([3, 5])
     for learner in (a, b, c):
@@ -230,30 +262,51 @@ def test_same_seeds_give_identical_runs(world8, demos8):
     assert torch.equal(a.state_values(), b.state_values())
     assert torch.equal(a.greedy_options(), b.greedy_options())
     assert a.summary() == b.summary()
-    assert a.decisions.min() > 100 and a.goals.max() > 0          # they did something
+    assert a.decisions.min() > 100 and a.goals.max() > 0  # they did something
     # Another seed for run 1 changes run 1 only.
     assert torch.equal(c.state_values()[0], a.state_values()[0])
     assert not torch.equal(c.state_values()[1], a.state_values()[1])
 
 
 def _per_tick_state(learner: Learner, b: int) -> dict[str, torch.Tensor]:
-    return {"position": learner.run_state.position[b], "row": learner.run_state.row[b],
-            "decisions": learner.decisions[b], "goals": learner.goals[b],
-            "epsilon": learner.epsilon[b], "backups_done": learner.backups_done[b],
-            "values": learner.state_values()[b], "q_numerator": learner.cache.q_numerator[b],
-            "mentor_numerator": learner.cache.mentor_numerator[b]}
+    return {
+        "position": learner.run_state.position[b],
+        "row": learner.run_state.row[b],
+        "decisions": learner.decisions[b],
+        "goals": learner.goals[b],
+        "epsilon": learner.epsilon[b],
+        "backups_done": learner.backups_done[b],
+        "values": learner.state_values()[b],
+        "q_numerator": learner.cache.q_numerator[b],
+        "mentor_numerator": learner.cache.mentor_numerator[b],
+    }
 
 
-@pytest.mark.parametrize("agents,config", [
-    (["imitation", "options", "imitation_primitives"], LearnerConfig(window=500)),
-    # budgets that differ between runs (plan_every > 1), rounds that do not divide the budget,
-    # and confidence-tested and plain imitators side by side
-    (["imitation_confident", "options", "imitation"],
-     LearnerConfig(window=500, plan_every=3, sweep_rounds=3)),
-    (["imitation", "primitives", "imitation_primitives_confident"],
-     LearnerConfig(window=500, concentration=0.5, mentor_concentration=1.0, untried_value=0.0,
-                   mentor_override_after=4, tie_break="first", confidence_z=0.5)),
-], ids=["default", "plan_every3_rounds3_confident", "priors_override"])
+@pytest.mark.parametrize(
+    "agents,config",
+    [
+        (["imitation", "options", "imitation_primitives"], LearnerConfig(window=500)),
+        # budgets that differ between runs (plan_every > 1), rounds that do not divide the budget,
+        # and confidence-tested and plain imitators side by side
+        (
+            ["imitation_confident", "options", "imitation"],
+            LearnerConfig(window=500, plan_every=3, sweep_rounds=3),
+        ),
+        (
+            ["imitation", "primitives", "imitation_primitives_confident"],
+            LearnerConfig(
+                window=500,
+                concentration=0.5,
+                mentor_concentration=1.0,
+                untried_value=0.0,
+                mentor_override_after=4,
+                tie_break="first",
+                confidence_z=0.5,
+            ),
+        ),
+    ],
+    ids=["default", "plan_every3_rounds3_confident", "priors_override"],
+)
 def test_run_in_a_batch_equals_run_alone(world12, demos12, agents, config):
     """Run b inside a batch of 3 (different seeds and agents) is tick for tick the run alone.
     Steps all learners in lockstep so that a failure names the first tick and quantity that
@@ -261,8 +314,10 @@ def test_run_in_a_batch_equals_run_alone(world12, demos12, agents, config):
     options = learner_options(world12)
     seeds = [11, 12, 13]
     batch = Learner(world12, options, agents, seeds, config=config, demonstrations=demos12)
-    alone = [Learner(world12, options, [a], [s], config=config, demonstrations=demos12)
-             for a, s in zip(agents, seeds)]
+    alone = [
+        Learner(world12, options, [a], [s], config=config, demonstrations=demos12)
+        for a, s in zip(agents, seeds)
+    ]
     for t in range(2000):
         batch.step()
         for b, single in enumerate(alone):
@@ -271,8 +326,10 @@ def test_run_in_a_batch_equals_run_alone(world12, demos12, agents, config):
             for name in want:
                 if not torch.equal(got[name], want[name]):
                     diff = (got[name].double() - want[name].double()).abs().max().item()
-                    pytest.fail(f"run {b} ({agents[b]}) diverged first at tick {t + 1} in "
-                                f"{name} (max |diff| {diff:.3g})")
+                    pytest.fail(
+                        f"run {b} ({agents[b]}) diverged first at tick {t + 1} in "
+                        f"{name} (max |diff| {diff:.3g})"
+                    )
     for b, single in enumerate(alone):
         assert torch.equal(batch.metrics.curve()[:, b], single.metrics.curve()[:, 0])
         assert torch.equal(batch.greedy_options()[b], single.greedy_options()[0])
@@ -304,7 +361,7 @@ def test_uniforms_depend_only_on_own_seed_and_counter():
     keys = seed_streams(torch.tensor([5, 6, 7]))
     u = uniforms(keys, 17, 9)
     assert u.shape == (3, 9) and ((u >= 0) & (u < 1)).all()
-    assert torch.equal(uniforms(keys[1:2], 17, 9)[0], u[1])          # batch-independent
+    assert torch.equal(uniforms(keys[1:2], 17, 9)[0], u[1])  # batch-independent
     assert torch.equal(uniforms(keys, torch.arange(15, 20), 9)[2], u)  # chunked = one by one
     assert not torch.equal(uniforms(keys, 18, 9), u)
     assert len(set(u.flatten().tolist())) == u.numel()
@@ -341,25 +398,54 @@ def test_demonstrations_of_another_world_are_refused(world8, world12, demos12):
     with pytest.raises(ValueError, match="different world"):
         Learner(world8, opts, ["imitation"], [0], demonstrations=demos12)
     with pytest.raises(ValueError, match="different world"):
-        Learner(MultiRooms(12, 2, slip=0.2), learner_options(world12), ["imitation"], [0],
-                demonstrations=demos12)
+        Learner(
+            MultiRooms(12, 2, slip=0.2),
+            learner_options(world12),
+            ["imitation"],
+            [0],
+            demonstrations=demos12,
+        )
 
 
-@pytest.mark.parametrize("field,value", [
-    ("backups", 0), ("sweep_rounds", 0), ("sweep_rounds", 11), ("concentration", -1.0),
-    ("concentration", float("nan")), ("mentor_concentration", -0.5), ("priority_threshold", -1e-3),
-    ("eps_start", 1.5), ("eps_min", -0.1), ("eps_decay", 2.0), ("confidence_z", -1.0), ("confidence_z", float("nan")),
-    ("tie_break", "last"), ("window", 0), ("plan_every", 0), ("rng_chunk", 0),
-    ("initial_value", float("inf")), ("initial_value", float("nan")),
-])
+@pytest.mark.parametrize(
+    "field,value",
+    [
+        ("backups", 0),
+        ("sweep_rounds", 0),
+        ("sweep_rounds", 11),
+        ("concentration", -1.0),
+        ("concentration", float("nan")),
+        ("mentor_concentration", -0.5),
+        ("priority_threshold", -1e-3),
+        ("eps_start", 1.5),
+        ("eps_min", -0.1),
+        ("eps_decay", 2.0),
+        ("confidence_z", -1.0),
+        ("confidence_z", float("nan")),
+        ("tie_break", "last"),
+        ("window", 0),
+        ("plan_every", 0),
+        ("rng_chunk", 0),
+        ("initial_value", float("inf")),
+        ("initial_value", float("nan")),
+    ],
+)
 def test_learner_config_rejects_bad_values(field, value):
     with pytest.raises(ValueError, match=f"LearnerConfig.{field}="):
         LearnerConfig(**{field: value})
 
 
 def test_learner_config_accepts_boundaries():
-    LearnerConfig(backups=1, sweep_rounds=1, concentration=0.0, eps_start=1.0, eps_min=0.0,
-                  eps_decay=1.0, confidence_z=0.0, priority_threshold=0.0)
+    LearnerConfig(
+        backups=1,
+        sweep_rounds=1,
+        concentration=0.0,
+        eps_start=1.0,
+        eps_min=0.0,
+        eps_decay=1.0,
+        confidence_z=0.0,
+        priority_threshold=0.0,
+    )
 
 
 def test_reward_modules_checked(world8):
@@ -380,8 +466,14 @@ def learned8(world8, demos8):
     """Four seeds of every agent on MultiRooms(8, 2), run until every run has found the goal
     (at most 20,000 steps; seeds 100–103 needed 8,000 when written: options-only is slow)."""
     agents = [a for a in AGENT_ORDER for _ in SEEDS]
-    learner = Learner(world8, learner_options(world8), agents, SEEDS * len(AGENT_ORDER),
-                      config=LearnerConfig(window=1000), demonstrations=demos8)
+    learner = Learner(
+        world8,
+        learner_options(world8),
+        agents,
+        SEEDS * len(AGENT_ORDER),
+        config=LearnerConfig(window=1000),
+        demonstrations=demos8,
+    )
     for _ in range(20):
         learner.run(1000)
         if bool(learner.found_goal.all()):
@@ -413,17 +505,23 @@ def test_incremental_caches_equal_recomputation(learned8):
     torch.testing.assert_close(learned8.cache.q_numerator[:, :M], q[:, :M], atol=1e-9, rtol=0)
     imitators = learned8.rows.use_mentor
     assert imitators.sum() == 2 * len(SEEDS)
-    torch.testing.assert_close(learned8.cache.mentor_numerator[imitators, :S], m[imitators, :S],
-                               atol=1e-9, rtol=0)
+    torch.testing.assert_close(
+        learned8.cache.mentor_numerator[imitators, :S], m[imitators, :S], atol=1e-9, rtol=0
+    )
     # mean and row_q agree with the model's own posterior mean.
     runs = torch.arange(learned8.batch)[:, None]
     rows = torch.arange(M)[None].expand(learned8.batch, -1)
     tried = learned8.model.row_count[:, :M] > 0
     reward, succ, w = learned8.model.mean(runs.expand_as(rows), rows)
-    v_succ = torch.where(succ >= 0, learned8.values.gather(1, succ.clamp(min=0).flatten(1)).view_as(succ),
-                         torch.zeros((), dtype=torch.float64))
+    v_succ = torch.where(
+        succ >= 0,
+        learned8.values.gather(1, succ.clamp(min=0).flatten(1)).view_as(succ),
+        torch.zeros((), dtype=torch.float64),
+    )
     q_mean = reward + (w * v_succ).sum(-1)
-    torch.testing.assert_close(learned8.cache.row_q(runs, rows)[tried], q_mean[tried], atol=1e-9, rtol=0)
+    torch.testing.assert_close(
+        learned8.cache.row_q(runs, rows)[tried], q_mean[tried], atol=1e-9, rtol=0
+    )
 
 
 def test_planning_to_convergence_reaches_the_learned_models_fixed_point(learned8):
@@ -431,9 +529,10 @@ def test_planning_to_convergence_reaches_the_learned_models_fixed_point(learned8
     plain value iteration over the counts), up to what the priority threshold lets through
     (changes below 1e-6 are not propagated: ≲ 1e-6 / (1 − γ) = 1e-4)."""
     import copy
+
     learner = copy.deepcopy(learned8)
     learner.plan()
-    for b in (0, len(SEEDS), 2 * len(SEEDS), 3 * len(SEEDS)):     # one run of each agent
+    for b in (0, len(SEEDS), 2 * len(SEEDS), 3 * len(SEEDS)):  # one run of each agent
         ref = learned_model_value_iteration(learner, b)
         got = learner.state_values()[b].numpy()
         err = np.abs(got - ref).max()
@@ -447,17 +546,27 @@ def test_every_agent_converges_near_the_optimal_rate(world8, demos8):
     primitives-only and with doorway options in this world), mean of 3 seeds."""
     from himit_torch.exact_option_models import option_durations
     from himit_torch.exact_planning import expected_steps
+
     opts = learner_options(world8)
     plan = smdp_value_iteration(option_models(world8, opts))
-    steps = expected_steps(option_durations(world8, opts), plan.policy, world8.start_state,
-                           world8.terminal_mask)
+    steps = expected_steps(
+        option_durations(world8, opts), plan.policy, world8.start_state, world8.terminal_mask
+    )
     optimal = 1000 / steps
     seeds = [1, 2, 3]
-    learner = Learner(world8, opts, [a for a in AGENT_ORDER for _ in seeds], seeds * 4,
-                      config=LearnerConfig(window=1000), demonstrations=demos8)
+    learner = Learner(
+        world8,
+        opts,
+        [a for a in AGENT_ORDER for _ in seeds],
+        seeds * 4,
+        config=LearnerConfig(window=1000),
+        demonstrations=demos8,
+    )
     learner.run(15_000)
     last = learner.metrics.curve()[-3:].double().mean(0).view(4, len(seeds)).mean(1)
-    assert (last >= 0.9 * optimal).all(), f"goals/1000 steps per agent {AGENT_ORDER}: {last}, optimal {optimal:.1f}"
+    assert (last >= 0.9 * optimal).all(), (
+        f"goals/1000 steps per agent {AGENT_ORDER}: {last}, optimal {optimal:.1f}"
+    )
 
 
 # ================================================================================= confidence
@@ -468,8 +577,14 @@ def test_confidence_cache_and_test_equal_slow_computation(world8, demos8):
     from the model's counts, and for the plain run the bare comparison of means."""
     z = 1.0
     agents = ["imitation_confident", "imitation_confident", "imitation"]
-    learner = Learner(world8, learner_options(world8), agents, [7, 8, 9],
-                      demonstrations=demos8, config=LearnerConfig(confidence_z=z))
+    learner = Learner(
+        world8,
+        learner_options(world8),
+        agents,
+        [7, 8, 9],
+        demonstrations=demos8,
+        config=LearnerConfig(confidence_z=z),
+    )
     learner.run(1500)
     q, q2, m, m2 = recomputed_caches(learner)
     M, S = learner.num_rows, learner.num_states
@@ -482,7 +597,7 @@ def test_confidence_cache_and_test_equal_slow_computation(world8, demos8):
 
     # Slow path: per observed state, the moments of each own row and of the mentor term.
     model, mentor, V = learner.model, learner.mentor, learner.values
-    TIE = 1e-9   # decisions this close to a tie may go either way in floating point
+    TIE = 1e-9  # decisions this close to a tie may go either way in floating point
     low, high = [], []
     for b, agent in enumerate(agents):
         sure = maybe = observed = 0
@@ -500,7 +615,10 @@ def test_confidence_cache_and_test_equal_slow_computation(world8, demos8):
                 means.append(mean)
                 variances.append(var)
             es = [e for e in range(int(mentor.num_edges[b])) if mentor.edge_row[b, e] == s]
-            u = learner.cache.mentor_edge_reward[b, es] + learner.gamma * V[b, mentor.edge_successor[b, es]]
+            u = (
+                learner.cache.mentor_edge_reward[b, es]
+                + learner.gamma * V[b, mentor.edge_successor[b, es]]
+            )
             m_mean, m_var = dirichlet_value_moments(mentor.edge_count[b, es], u)
             # (one unavailable dummy option keeps J ≥ 1 where nothing was tried)
             own_mean = torch.stack(means + [torch.zeros((), dtype=torch.float64)])
@@ -511,7 +629,9 @@ def test_confidence_cache_and_test_equal_slow_computation(world8, demos8):
             ok = True
             if agent.endswith("_confident"):
                 ok = bool(confident_mentor(m_mean, m_var, own_mean, own_var, available, z))
-                upper = (own_mean + z * own_var.sqrt())[available].max().item() if means else -np.inf
+                upper = (
+                    (own_mean + z * own_var.sqrt())[available].max().item() if means else -np.inf
+                )
                 margins.append((m_mean - z * m_var.sqrt()).item() - upper)
             won = ok and m_mean.item() > own
             if min(abs(x) for x in margins) < TIE:
@@ -524,7 +644,13 @@ def test_confidence_cache_and_test_equal_slow_computation(world8, demos8):
         assert maybe <= observed // 4, f"run {b}: {maybe} of {observed} states are ties"
     share = learner.mentor_win_share().tolist()
     for b in range(len(agents)):
-        assert low[b] - 1e-12 <= share[b] <= high[b] + 1e-12, (b, agents[b], low[b], share[b], high[b])
+        assert low[b] - 1e-12 <= share[b] <= high[b] + 1e-12, (
+            b,
+            agents[b],
+            low[b],
+            share[b],
+            high[b],
+        )
     shares = low
     assert shares[2] > 0, "the plain imitator should follow the mentor somewhere"
 
@@ -535,17 +661,26 @@ def test_confidence_test_reduces_mentor_use_and_optimism(world8, demos8):
     optimum V*) is reduced. Means over 4 seeds of each after 2000 steps; plain and tested runs
     share a batch (batch independence makes that the same as separate learners)."""
     seeds = [21, 22, 23, 24]
-    learner = Learner(world8, learner_options(world8),
-                      ["imitation"] * 4 + ["imitation_confident"] * 4, seeds * 2,
-                      demonstrations=demos8, config=LearnerConfig(confidence_z=1.0))
+    learner = Learner(
+        world8,
+        learner_options(world8),
+        ["imitation"] * 4 + ["imitation_confident"] * 4,
+        seeds * 2,
+        demonstrations=demos8,
+        config=LearnerConfig(confidence_z=1.0),
+    )
     learner.run(2000)
     share = learner.mentor_win_share()
     start = world8.start_state
     v = learner.state_values()[:, start]
-    v_star = smdp_value_iteration(option_models(world8, learner_options(world8))).values[start].item()
+    v_star = (
+        smdp_value_iteration(option_models(world8, learner_options(world8))).values[start].item()
+    )
     share_plain, share_tested = share[:4].mean().item(), share[4:].mean().item()
     v_plain, v_tested = v[:4].mean().item(), v[4:].mean().item()
-    assert v_plain > v_star, f"expected the plain mentor term to be optimistic: {v_plain} vs V* {v_star}"
+    assert v_plain > v_star, (
+        f"expected the plain mentor term to be optimistic: {v_plain} vs V* {v_star}"
+    )
     assert share_tested <= share_plain, (share_plain, share_tested)
     assert v_tested <= v_plain, (v_plain, v_tested, v_star)
 
@@ -558,8 +693,13 @@ def test_imitation_finds_the_goal_sooner_on_the_paper_40x40_world():
     world = MultiRooms(40, 10)
     options = learner_options(world)
     seeds = [0, 1, 2]
-    learner = Learner(world, options, ["imitation"] * 3 + ["options"] * 3, seeds + seeds,
-                      config=LearnerConfig(sweep_rounds=1, plan_every=4))
+    learner = Learner(
+        world,
+        options,
+        ["imitation"] * 3 + ["options"] * 3,
+        seeds + seeds,
+        config=LearnerConfig(sweep_rounds=1, plan_every=4),
+    )
     mentor = mentor_policy(world, mentor_options(world))
     for s in seeds:
         learner.add_demonstrations(record_demonstrations(world, mentor, 20, seed=s), runs=[s])
@@ -576,8 +716,14 @@ def test_match_mentor_choice_picks_an_option_reproducing_the_mentors_move(world8
     """mentor_choice="match": in a state where the mentor term wins and every primitive was tried,
     a greedy choice takes an option whose first action's learned one-step model best reproduces
     the mentor's observed move (Σ p̂(s'|s,a) p_m(s'|s), computed here by brute force)."""
-    learner = Learner(world8, learner_options(world8), ["imitation"], [0], demonstrations=demos8,
-                      config=LearnerConfig(mentor_choice="match"))
+    learner = Learner(
+        world8,
+        learner_options(world8),
+        ["imitation"],
+        [0],
+        demonstrations=demos8,
+        config=LearnerConfig(mentor_choice="match"),
+    )
     learner.run(3000)
     runs = torch.zeros(1, dtype=torch.int64)
     checked = 0
@@ -590,8 +736,9 @@ def test_match_mentor_choice_picks_an_option_reproducing_the_mentors_move(world8
         mentor_p = {}
         for e in range(int(learner.mentor.num_edges[0])):
             if int(learner.mentor.edge_row[0, e]) == s:
-                mentor_p[int(learner.mentor.edge_successor[0, e])] = \
-                    float(learner.mentor.edge_count[0, e] / learner.mentor.row_count[0, s])
+                mentor_p[int(learner.mentor.edge_successor[0, e])] = float(
+                    learner.mentor.edge_count[0, e] / learner.mentor.row_count[0, s]
+                )
         scores = []
         for a in range(4):
             row = int(prim[a])
@@ -601,9 +748,17 @@ def test_match_mentor_choice_picks_an_option_reproducing_the_mentors_move(world8
                     p = float(learner.model.edge_count[0, e] / learner.model.row_count[0, row])
                     total += p * mentor_p.get(int(learner.model.edge_successor[0, e]), 0.0)
             scores.append(total)
-        u = torch.tensor([[1.0, 0.5]], dtype=torch.float64)          # ε-test fails: greedy
-        row = int(choose_rows(learner.cache, runs, torch.tensor([s]), u, learner.epsilon[runs],
-                              mentor_choice="match")[0])
+        u = torch.tensor([[1.0, 0.5]], dtype=torch.float64)  # ε-test fails: greedy
+        row = int(
+            choose_rows(
+                learner.cache,
+                runs,
+                torch.tensor([s]),
+                u,
+                learner.epsilon[runs],
+                mentor_choice="match",
+            )[0]
+        )
         option = int(learner.rows.row_option[row])
         first_action = int(learner.options.policy[option, s])
         assert scores[first_action] == pytest.approx(max(scores)), (s, scores, first_action)
@@ -629,22 +784,29 @@ class ChainWorld:
 
 def chain_options() -> Options:
     usable = torch.tensor([True, True, True, True, False])
-    return Options(initiation=usable[None].repeat(2, 1), termination=torch.ones(2, 5),
-                   policy=torch.tensor([[0] * 5, [1] * 5]), names=("left", "right"),
-                   kinds=("primitive", "primitive"))
+    return Options(
+        initiation=usable[None].repeat(2, 1),
+        termination=torch.ones(2, 5),
+        policy=torch.tensor([[0] * 5, [1] * 5]),
+        names=("left", "right"),
+        kinds=("primitive", "primitive"),
+    )
 
 
 def test_learner_runs_on_any_tabular_world():
     world = ChainWorld()
-    learner = Learner(world, chain_options(), ["options", "primitives"], [0, 1],
-                      config=LearnerConfig(window=100))
+    learner = Learner(
+        world, chain_options(), ["options", "primitives"], [0, 1], config=LearnerConfig(window=100)
+    )
     learner.run(2000)
     assert bool((learner.goals > 50).all())
     # the greedy option everywhere is "right" (option 1), and the values are the chain's:
     # V(3) = 1, V(2) = −0.1 + 0.9·1, …
     assert learner.greedy_options()[:, :4].eq(1).all()
-    expected = torch.tensor([-0.1 + 0.9 * (-0.1 + 0.9 * (-0.1 + 0.9)), -0.1 + 0.9 * (-0.1 + 0.9),
-                             -0.1 + 0.9, 1.0], dtype=torch.float64)
+    expected = torch.tensor(
+        [-0.1 + 0.9 * (-0.1 + 0.9 * (-0.1 + 0.9)), -0.1 + 0.9 * (-0.1 + 0.9), -0.1 + 0.9, 1.0],
+        dtype=torch.float64,
+    )
     learner.plan()
     assert torch.allclose(learner.state_values()[:, :4], expected.expand(2, -1), atol=0.05)
     assert len(learner.greedy_trajectory(0, max_steps=50)) == 5
@@ -663,6 +825,7 @@ def test_terminal_states_keep_value_zero_even_with_demonstrations_through_the_go
         def transitions(self):
             states = torch.cat(list(demos.episodes))
             return states[:-1], states[1:]
+
     learner = Learner(world8, learner_options(world8), ["imitation"], [0], demonstrations=Stream())
     learner.run(1000)
     learner.plan()
@@ -676,12 +839,22 @@ def test_stochastic_policy_options_run_match_and_draw(world8, demos8):
     trajectories sample actions."""
     base = learner_options(world8)
     usable = world8.free_mask & ~world8.terminal_mask
-    walk = Options.from_policy(usable, torch.full((world8.num_states, 4), 0.25),
-                               termination=torch.full((world8.num_states,), 0.5), name="random walk")
+    walk = Options.from_policy(
+        usable,
+        torch.full((world8.num_states, 4), 0.25),
+        termination=torch.full((world8.num_states,), 0.5),
+        name="random walk",
+    )
     options = base + walk
     assert options.stochastic
-    learner = Learner(world8, options, ["imitation", "options"], [0, 1], demonstrations=demos8,
-                      config=LearnerConfig(mentor_choice="match"))
+    learner = Learner(
+        world8,
+        options,
+        ["imitation", "options"],
+        [0, 1],
+        demonstrations=demos8,
+        config=LearnerConfig(mentor_choice="match"),
+    )
     assert bool((learner.rows.primitive_rows[world8.start_state] < learner.num_rows).all())
     learner.run(3000)
     assert bool((learner.goals > 0).all())
@@ -692,8 +865,12 @@ def test_stochastic_policy_options_run_match_and_draw(world8, demos8):
 def test_an_option_that_never_terminates_is_stopped(world8):
     """max_option_steps: a run whose option could loop forever still makes decisions."""
     usable = world8.free_mask & ~world8.terminal_mask
-    north = Options.from_policy(usable, torch.zeros(world8.num_states, dtype=torch.int64),
-                                termination=torch.zeros(world8.num_states), name="north forever")
+    north = Options.from_policy(
+        usable,
+        torch.zeros(world8.num_states, dtype=torch.int64),
+        termination=torch.zeros(world8.num_states),
+        name="north forever",
+    )
     learner = Learner(world8, north, ["options"], [0], config=LearnerConfig(max_option_steps=50))
     learner.run(1000)
     assert int(learner.decisions[0]) == 1000 // 50
@@ -701,17 +878,41 @@ def test_an_option_that_never_terminates_is_stopped(world8):
 
 def test_state_dict_round_trip_in_process(world8, demos8):
     config = LearnerConfig(plan_every=4, window=500)
-    a = Learner(world8, learner_options(world8), ["imitation", "options"], [0, 1], config=config,
-                demonstrations=demos8)
+    a = Learner(
+        world8,
+        learner_options(world8),
+        ["imitation", "options"],
+        [0, 1],
+        config=config,
+        demonstrations=demos8,
+    )
     a.run(1700)
-    b = Learner(world8, learner_options(world8), ["imitation", "options"], [0, 1], config=config,
-                demonstrations=demos8)
+    b = Learner(
+        world8,
+        learner_options(world8),
+        ["imitation", "options"],
+        [0, 1],
+        config=config,
+        demonstrations=demos8,
+    )
     b.run(650)
-    c = Learner(world8, learner_options(world8), ["imitation", "options"], [0, 1], config=config,
-                demonstrations=demos8)
+    c = Learner(
+        world8,
+        learner_options(world8),
+        ["imitation", "options"],
+        [0, 1],
+        config=config,
+        demonstrations=demos8,
+    )
     c.load_state_dict(b.state_dict())
     c.run(1050)
     assert torch.equal(a.values, c.values) and torch.equal(a.metrics.curve(), c.metrics.curve())
     with pytest.raises(ValueError, match="does not match"):
-        Learner(world8, learner_options(world8), ["options", "options"], [0, 1], config=config,
-                demonstrations=demos8).load_state_dict(b.state_dict())
+        Learner(
+            world8,
+            learner_options(world8),
+            ["options", "options"],
+            [0, 1],
+            config=config,
+            demonstrations=demos8,
+        ).load_state_dict(b.state_dict())

@@ -30,7 +30,7 @@ def perimeter_mask(world: MultiRooms) -> np.ndarray:
     near = np.zeros_like(wall)
     for dr in (-1, 0, 1):
         for dc in (-1, 0, 1):
-            near |= padded[1 + dr:1 + dr + N, 1 + dc:1 + dc + N]
+            near |= padded[1 + dr : 1 + dr + N, 1 + dc : 1 + dc + N]
     return (near & ~wall).ravel()
 
 
@@ -90,7 +90,9 @@ def test_preference_picks_extended_options_within_tolerance(world, policy):
     extended = ~opts.is_primitive
     best_extended = q[extended][:, states].max(0).values
     kept_primitive = ~policy.extended[states]
-    assert (best_extended[kept_primitive] < plan.values[states][kept_primitive] - policy.tolerance).all()
+    assert (
+        best_extended[kept_primitive] < plan.values[states][kept_primitive] - policy.tolerance
+    ).all()
     # The preference matters: somewhere the strict optimum takes a primitive and the mentor doesn't.
     strict_primitive = (plan.policy >= 0) & opts.is_primitive[plan.policy.clamp(min=0)]
     assert (policy.extended & strict_primitive).any()

@@ -18,15 +18,17 @@ def execute(name: str, workdir: Path) -> nbformat.NotebookNode:
     nb = nbformat.read(NOTEBOOKS / f"{name}.ipynb", as_version=4)
     nb.cells.append(nbformat.v4.new_code_cell("import sys; print(sys.prefix)"))
     # kernel.json says "python": jupyter_client runs it as sys.executable, this interpreter.
-    client = nbclient.NotebookClient(nb, timeout=120, kernel_name="python3",
-                                     resources={"metadata": {"path": str(workdir)}})
+    client = nbclient.NotebookClient(
+        nb, timeout=120, kernel_name="python3", resources={"metadata": {"path": str(workdir)}}
+    )
     client.execute()
     return nb
 
 
 def outputs(nb: nbformat.NotebookNode, kind: str) -> list:
-    return [o for c in nb.cells if c.cell_type == "code" for o in c.outputs
-            if o.output_type == kind]
+    return [
+        o for c in nb.cells if c.cell_type == "code" for o in c.outputs if o.output_type == kind
+    ]
 
 
 @pytest.fixture
@@ -38,13 +40,16 @@ def tiny_budget(monkeypatch, tmp_path):
     return tmp_path
 
 
-@pytest.mark.parametrize("name", ["quickstart", "intrinsic_reward", "your_own_world"])
+@pytest.mark.parametrize(
+    "name", ["quickstart", "intrinsic_reward", "your_own_world", "option_discovery"]
+)
 def test_notebook_runs_with_a_tiny_budget(name, tiny_budget):
     earlier = tiny_budget / "runs/intrinsic_reward/tb/world40__known__seed0"
     if name == "intrinsic_reward":
         # An earlier execution with another budget left its events here; the notebook must
         # replace them, not append (the bug: one folder held 5000…100000, then 500…2000).
         from himit_torch import TensorBoardLogger
+
         old = TensorBoardLogger(earlier.parent, [earlier.name])
         for step in (5000, 10000):
             old.scalar(0, "charts/goals_in_window", 7.0, step)
@@ -55,28 +60,33 @@ def test_notebook_runs_with_a_tiny_budget(name, tiny_budget):
     assert pngs, f"{name}: no figure was drawn"
     streams = outputs(nb, "stream")
     assert streams[-1]["text"].strip() == sys.prefix, "the kernel ran another interpreter"
-    assert not [s for s in streams if s["name"] == "stderr"], \
+    assert not [s for s in streams if s["name"] == "stderr"], (
         f"{name} wrote to stderr: {[s['text'][:300] for s in streams if s['name'] == 'stderr']}"
+    )
     text = "".join(s["text"] for s in streams)
     if name == "quickstart":
         assert "364 options" in text and "first goal at step" in text
-        assert "54.7 goals per 5000 steps" in text           # our exact optimum, computed
-        assert text.count("steps in the goal's room") == 6   # the reach of every run, measured
+        assert "54.7 goals per 5000 steps" in text  # our exact optimum, computed
+        assert text.count("steps in the goal's room") == 6  # the reach of every run, measured
+    elif name == "option_discovery":
+        assert "400 steps per run, warm-up 100, 1 seed(s), separation 3" in text
+        assert "seed 0:" in text and "precision" in text and "20 episodes: precision" in text
+        assert text.count("total goals per run") == 3  # all three learners ran
     elif name == "your_own_world":
         assert "104 states; True for the TabularWorld protocol" in text
         assert "refused: Demonstrations: episode 0, index 2: state 50 follows 1" in text
         assert "Taxi-v4(S=500, A=6, start states=300" in text and "drive to B" in text
         assert "V* from the start distribution: 6.327" in text
-        assert "first goal at step" in text and "deliveries per run" in text   # both batches ran
+        assert "first goal at step" in text and "deliveries per run" in text  # both batches ran
     else:
-        assert "8 runs × 400 steps" in text                 # 8 variants × 1 seed, the tiny budget
+        assert "8 runs × 400 steps" in text  # 8 variants × 1 seed, the tiny budget
         assert len(list((tiny_budget / "runs/intrinsic_reward/tb").glob("world40__*"))) == 8
         assert "cycle-safe: True" in text
-        assert "20 of them into the goal" in text           # computed, not a hard-coded "all"
+        assert "20 of them into the goal" in text  # computed, not a hard-coded "all"
         # Every claim of "What we see" is checked by a cell (True/False at any budget).
         assert sum(line.strip().startswith(("True ", "False ")) for line in text.splitlines()) == 12
         from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
         acc = EventAccumulator(str(earlier))
         acc.Reload()
         assert [e.step for e in acc.Scalars("charts/goals_in_window")] == [100, 200, 300, 400]
-

@@ -7,6 +7,7 @@ import torch
 
 from himit_torch.options import (
     Options,
+    action_dtype,
     corner_options,
     doorway_options,
     learner_options,
@@ -47,8 +48,9 @@ def follow(world: MultiRooms, options: Options, o: int, s: int, max_steps: int =
 
 def perimeter(world: MultiRooms) -> torch.Tensor:
     """``[S]`` bool: free cells with a wall or the grid's edge among their 8 neighbours."""
-    wall = torch.nn.functional.pad(world.wall_mask.view(world.size, world.size).float(), (1, 1, 1, 1),
-                                   value=1.0)
+    wall = torch.nn.functional.pad(
+        world.wall_mask.view(world.size, world.size).float(), (1, 1, 1, 1), value=1.0
+    )
     near_wall = torch.nn.functional.max_pool2d(wall[None, None], 3, stride=1)[0, 0] > 0
     return near_wall.flatten() & world.free_mask
 
@@ -126,7 +128,7 @@ def test_walls_style_keeps_to_the_perimeter(world16):
         count = 0
         for o, name in enumerate(opts.names):
             target = target_of(world16, name)
-            for d in world16.doorways.tolist():   # start at the room's other doorways
+            for d in world16.doorways.tolist():  # start at the room's other doorways
                 if not opts.initiation[o, d]:
                     continue
                 path = follow(world16, opts, o, d)
@@ -151,26 +153,36 @@ def make_tensors(O: int = 2, S: int = 5, A: int = 4):
     return init, beta, policy, tuple(f"o{i}" for i in range(O)), ("custom",) * O
 
 
-@pytest.mark.parametrize("change, match", [
-    (lambda t: t.__setitem__(0, t[0].int()), r"initiation must be a \[O, S\] bool"),
-    (lambda t: t.__setitem__(0, t[0][0]), r"initiation must be a \[O, S\] bool"),
-    (lambda t: t.__setitem__(0, torch.ones(0, 5, dtype=torch.bool)), "at least one option"),
-    (lambda t: t[0][1].fill_(False), "empty initiation set"),
-    (lambda t: t.__setitem__(1, torch.zeros(2, 4)), r"termination must be a \[O, S\]"),
-    (lambda t: t.__setitem__(1, torch.zeros(2, 5, dtype=torch.int64)), "termination must be"),
-    (lambda t: t[1].__setitem__((0, 0), 1.5), r"probabilities in \[0, 1\]"),
-    (lambda t: t[1].__setitem__((0, 0), -0.1), r"probabilities in \[0, 1\]"),
-    (lambda t: t[1].__setitem__((0, 0), float("nan")), r"probabilities in \[0, 1\]"),
-    (lambda t: t.__setitem__(2, t[2].int()), "int64 actions"),
-    (lambda t: t.__setitem__(2, torch.zeros(2, 4, dtype=torch.int64)), "int64 actions"),
-    (lambda t: t[2].__setitem__((1, 1), -1), "negative action"),
-    (lambda t: t.__setitem__(2, torch.zeros(2, dtype=torch.int64)), "2 or 3 dimensions"),
-    (lambda t: t.__setitem__(2, torch.full((2, 5, 4), 0.3)), "sum to 1"),
-    (lambda t: t.__setitem__(2, torch.tensor([1.5, -0.5, 0, 0]).repeat(2, 5, 1)), "≥ 0 and sum to 1"),
-    (lambda t: t.__setitem__(2, torch.ones(2, 5, 4, dtype=torch.int64)), "probabilities must be"),
-    (lambda t: t.__setitem__(3, ("only one",)), "one name and one kind"),
-    (lambda t: t.__setitem__(4, ("custom", "bogus")), "unknown option kinds"),
-])
+@pytest.mark.parametrize(
+    "change, match",
+    [
+        (lambda t: t.__setitem__(0, t[0].int()), r"initiation must be a \[O, S\] bool"),
+        (lambda t: t.__setitem__(0, t[0][0]), r"initiation must be a \[O, S\] bool"),
+        (lambda t: t.__setitem__(0, torch.ones(0, 5, dtype=torch.bool)), "at least one option"),
+        (lambda t: t[0][1].fill_(False), "empty initiation set"),
+        (lambda t: t.__setitem__(1, torch.zeros(2, 4)), r"termination must be a \[O, S\]"),
+        (lambda t: t.__setitem__(1, torch.zeros(2, 5, dtype=torch.int64)), "termination must be"),
+        (lambda t: t[1].__setitem__((0, 0), 1.5), r"probabilities in \[0, 1\]"),
+        (lambda t: t[1].__setitem__((0, 0), -0.1), r"probabilities in \[0, 1\]"),
+        (lambda t: t[1].__setitem__((0, 0), float("nan")), r"probabilities in \[0, 1\]"),
+        (lambda t: t.__setitem__(2, t[2].to(torch.uint8)), "integer actions"),
+        (lambda t: t.__setitem__(2, t[2].bool()), "integer actions"),
+        (lambda t: t.__setitem__(2, torch.zeros(2, 4, dtype=torch.int64)), "integer actions"),
+        (lambda t: t[2].__setitem__((1, 1), -1), "negative action"),
+        (lambda t: t.__setitem__(2, torch.zeros(2, dtype=torch.int64)), "2 or 3 dimensions"),
+        (lambda t: t.__setitem__(2, torch.full((2, 5, 4), 0.3)), "sum to 1"),
+        (
+            lambda t: t.__setitem__(2, torch.tensor([1.5, -0.5, 0, 0]).repeat(2, 5, 1)),
+            "≥ 0 and sum to 1",
+        ),
+        (
+            lambda t: t.__setitem__(2, torch.ones(2, 5, 4, dtype=torch.int64)),
+            "probabilities must be",
+        ),
+        (lambda t: t.__setitem__(3, ("only one",)), "one name and one kind"),
+        (lambda t: t.__setitem__(4, ("custom", "bogus")), "unknown option kinds"),
+    ],
+)
 def test_options_validation(change, match):
     tensors = list(make_tensors())
     change(tensors)
@@ -182,7 +194,7 @@ def test_stochastic_policy_only_checked_inside_initiation():
     init, beta, _, names, kinds = make_tensors()
     init[:, 0] = False
     policy = torch.full((2, 5, 4), 0.25)
-    policy[:, 0] = 0.0                       # outside I: anything non-negative goes
+    policy[:, 0] = 0.0  # outside I: anything non-negative goes
     opts = Options(init, beta, policy, names, kinds)
     assert opts.stochastic and opts.num_options == 2 and opts.num_states == 5
 
@@ -222,8 +234,9 @@ def test_from_policy_and_concat_with_stochastic(world6):
     torch.testing.assert_close(joined.policy[4], uniform)
     onehot = primitive_options(world6).action_probabilities(4)
     assert onehot.shape == (4, 36, 4) and (onehot.sum(-1) == 1).all()
-    custom_beta = Options.from_policy(room, torch.zeros(36, dtype=torch.int64),
-                                      termination=torch.full((36,), 0.5))
+    custom_beta = Options.from_policy(
+        room, torch.zeros(36, dtype=torch.int64), termination=torch.full((36,), 0.5)
+    )
     assert (custom_beta.termination == 0.5).all() and not custom_beta.stochastic
 
 
@@ -252,14 +265,20 @@ def test_concat_takes_a_list_as_well(world6):
 
 def test_from_policy_kind():
     usable = torch.tensor([True, True, True, True, False])
-    left = Options.from_policy(usable, torch.zeros(5, dtype=torch.int64), name="left", kind="primitive")
-    assert left.kinds == ("primitive",) and bool((left.termination == 1).all())   # β = 1 by default
+    left = Options.from_policy(
+        usable, torch.zeros(5, dtype=torch.int64), name="left", kind="primitive"
+    )
+    assert left.kinds == ("primitive",) and bool((left.termination == 1).all())  # β = 1 by default
     assert Options.from_policy(usable, torch.ones(5, dtype=torch.int64)).kinds == ("custom",)
     with pytest.raises(ValueError, match=r"kind='macro' is unknown; use one of \('primitive'"):
         Options.from_policy(usable, torch.zeros(5, dtype=torch.int64), kind="macro")
     with pytest.raises(ValueError, match="termination must be 1 in every state"):
-        Options.from_policy(usable, torch.zeros(5, dtype=torch.int64), termination=(~usable).float(),
-                            kind="primitive")
+        Options.from_policy(
+            usable,
+            torch.zeros(5, dtype=torch.int64),
+            termination=(~usable).float(),
+            kind="primitive",
+        )
     with pytest.raises(ValueError, match="one fixed action"):
         Options.from_policy(usable, torch.tensor([0, 1, 0, 1, 0]), kind="primitive")
     with pytest.raises(ValueError, match="one fixed action"):
@@ -273,14 +292,48 @@ def test_own_primitives_run_the_primitives_agent_on_any_world():
 
     world = Corridor()
     usable = ~world.terminal_mask
-    own = Options.concat([Options.from_policy(usable, torch.full((5,), a), name=n, kind="primitive")
-                          for a, n in enumerate(("left", "right"))])
+    own = Options.concat(
+        [
+            Options.from_policy(usable, torch.full((5,), a), name=n, kind="primitive")
+            for a, n in enumerate(("left", "right"))
+        ]
+    )
     builtin = primitive_options(world)
     assert builtin.names == ("primitive 0", "primitive 1") and builtin.kinds == own.kinds
-    assert torch.equal(builtin.initiation, own.initiation) and torch.equal(builtin.policy, own.policy)
+    assert torch.equal(builtin.initiation, own.initiation) and torch.equal(
+        builtin.policy, own.policy
+    )
     learner = Learner(world, own, ["primitives"], [0], config=LearnerConfig(window=200))
     learner.run(600)
     assert int(learner.goals[0]) > 20
     custom = Options.from_policy(usable, torch.ones(5, dtype=torch.int64))
     with pytest.raises(ValueError, match="no usable option"):
         Learner(world, custom, ["primitives"], [0])
+
+
+@pytest.mark.parametrize("corners", [False, True])
+def test_sets_written_once_equal_the_joined_parts(world6, corners):
+    """learner_options/mentor_options write their tables once (memory); the result must be what
+    joining the separately built parts gives, in the smallest action dtype."""
+    for style, build in (
+        ("direct", lambda: learner_options(world6, corners=corners)),
+        ("walls", lambda: mentor_options(world6, corners=corners)),
+    ):
+        parts = [primitive_options(world6), doorway_options(world6, style)]
+        if corners:
+            parts.append(corner_options(world6, style))
+        joined, built = Options.concat(parts), build()
+        assert built.policy.dtype == torch.int8 and joined.policy.dtype == torch.int8
+        assert built.names == joined.names and built.kinds == joined.kinds
+        assert torch.equal(built.initiation, joined.initiation)
+        assert torch.equal(built.termination, joined.termination)
+        assert torch.equal(built.policy, joined.policy)
+        # β: 1 outside each room option's initiation set, 0 inside; its policy 0 outside
+        room = torch.tensor([k != "primitive" for k in built.kinds])
+        assert torch.equal(built.termination[room], (~built.initiation[room]).float())
+        assert (built.policy[room][~built.initiation[room]] == 0).all()
+
+
+def test_action_dtype():
+    assert action_dtype(4) == torch.int8 and action_dtype(128) == torch.int8
+    assert action_dtype(129) == torch.int16 and action_dtype(40_000) == torch.int32

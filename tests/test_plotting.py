@@ -11,7 +11,7 @@ from himit_torch.plotting import LEARNER_COLOR, MENTOR_COLOR, plot_world, save_w
 from himit_torch.world import MultiRooms
 
 N = 8
-EPISODES = [[0, 1, 9, 17, 25, 26], [0, 8, 16, 17]]     # cells r·8 + c, top-left room only
+EPISODES = [[0, 1, 9, 17, 25, 26], [0, 8, 16, 17]]  # cells r·8 + c, top-left room only
 
 
 @pytest.fixture
@@ -21,6 +21,7 @@ def world() -> MultiRooms:
 
 def lines_of(fig: Figure, color: str):
     from matplotlib.colors import same_color
+
     return [ln for ln in fig.axes[0].get_lines() if same_color(ln.get_color(), color)]
 
 
@@ -31,7 +32,9 @@ def test_mentor_episodes_and_learner_are_drawn_through_cell_centres(world):
     mentor = lines_of(fig, MENTOR_COLOR)
     assert len(mentor) == 2
     rows, cols = np.divmod(np.array(EPISODES[0]), N)
-    assert np.array_equal(mentor[0].get_xdata(), cols) and np.array_equal(mentor[0].get_ydata(), rows)
+    assert np.array_equal(mentor[0].get_xdata(), cols) and np.array_equal(
+        mentor[0].get_ydata(), rows
+    )
     assert 0 < mentor[0].get_alpha() < 1  # semi-transparent, so overlaps read darker
     (learner_line,) = lines_of(fig, LEARNER_COLOR)
     assert np.array_equal(learner_line.get_xdata(), [0, 1, 2, 3])
@@ -71,8 +74,9 @@ def test_state_map_keeps_never_visited_apart_from_low_values(world):
     from matplotlib.colors import to_rgba
 
     from himit_torch.plotting import NO_DATA_COLOR, WALL_COLOR, plot_state_map
+
     field = np.zeros(world.num_states)
-    field[[0, 1, 2]] = [0.0, 0.5, 1.0]       # visited, salience 0 / 0.5 / 1
+    field[[0, 1, 2]] = [0.0, 0.5, 1.0]  # visited, salience 0 / 0.5 / 1
     never = np.ones(world.num_states, dtype=bool)
     never[[0, 1, 2]] = False
     fig = Figure()
@@ -83,14 +87,17 @@ def test_state_map_keeps_never_visited_apart_from_low_values(world):
     # and drawn in the no-data grey, which is not a colour of the scale.
     assert not data.mask[0, 0] and data.mask[0, 3] and data.mask[4, 0]
     assert image.cmap.get_bad() == pytest.approx(to_rgba(NO_DATA_COLOR))
-    assert all(image.cmap(x) != pytest.approx(to_rgba(NO_DATA_COLOR)) for x in np.linspace(0, 1, 11))
+    assert all(
+        image.cmap(x) != pytest.approx(to_rgba(NO_DATA_COLOR)) for x in np.linspace(0, 1, 11)
+    )
     walls = ax.get_images()[1]
     assert walls.cmap(0.0) == pytest.approx(to_rgba(WALL_COLOR))
-    assert fig.axes[-1].get_ylabel() == "salience"      # the colorbar says what it measures
+    assert fig.axes[-1].get_ylabel() == "salience"  # the colorbar says what it measures
 
 
 def test_log_map_shows_zero_counts_as_no_data(world):
     from himit_torch.plotting import plot_state_map
+
     visits = np.zeros(world.num_states)
     visits[[0, 1]] = [1, 100]
     fig = Figure()
@@ -101,32 +108,43 @@ def test_log_map_shows_zero_counts_as_no_data(world):
 # --------------------------------------------------------------------------- learning curves
 def test_runs_split_when_some_seeds_end_far_below_the_others():
     from himit_torch.plotting import runs_split
+
     assert runs_split(np.array([[0, 50], [0, 52], [0, 1]]))
     assert not runs_split(np.array([[0, 50], [0, 52], [0, 40]]))
-    assert not runs_split(np.array([[0, 0], [0, 0]]))        # all failed alike: no split
+    assert not runs_split(np.array([[0, 0], [0, 0]]))  # all failed alike: no split
 
 
 def test_goal_curves_state_n_outcomes_median_and_our_optimum():
     from matplotlib.collections import PolyCollection
 
     from himit_torch.plotting import plot_goal_curves
+
     fig = Figure()
     ax = fig.add_subplot()
     steps = np.array([5000, 10000])
-    plot_goal_curves(ax, steps, {"known": np.array([[30, 50], [35, 52], [20, 48]]),
-                                 "none": np.array([[0, 52], [10, 51], [0, 0]])},
-                     optimum=54.72, paper_optimum=53.2, window=5000)
+    plot_goal_curves(
+        ax,
+        steps,
+        {
+            "known": np.array([[30, 50], [35, 52], [20, 48]]),
+            "none": np.array([[0, 52], [10, 51], [0, 0]]),
+        },
+        optimum=54.72,
+        paper_optimum=53.2,
+        window=5000,
+    )
     labels = [t.get_text() for t in ax.get_legend().get_texts()]
     assert "known: mean of n=3, 3/3 found the goal" in labels
     assert "none: mean of n=3, 2/3 found the goal; median dashed" in labels
     assert "optimal policy, exact: 54.7" in labels and "the paper's optimum: ≈ 53.2" in labels
     dashed = [ln for ln in ax.get_lines() if ln.get_linestyle() == "--"]
-    assert len(dashed) == 1 and list(dashed[0].get_ydata()) == [0, 51]   # only "none" split
-    assert len([c for c in ax.collections if isinstance(c, PolyCollection)]) == 2   # two bands
+    assert len(dashed) == 1 and list(dashed[0].get_ydata()) == [0, 51]  # only "none" split
+    assert len([c for c in ax.collections if isinstance(c, PolyCollection)]) == 2  # two bands
 
 
 def test_first_goals_show_never_and_the_median():
     from himit_torch.plotting import plot_first_goals
+
     fig = Figure()
     ax = fig.add_subplot()
     plot_first_goals(ax, {"known": [876, 2953, 4451], "none": [-1, 97145, 31118]}, 100_000)
@@ -140,11 +158,12 @@ def test_value_map_greys_out_cells_still_at_the_initial_value():
     from matplotlib.colors import to_rgb
 
     from himit_torch.plotting import NO_DATA_COLOR, MapRenderer
+
     world = MultiRooms(size=16, rooms=4)
     renderer = MapRenderer(world)
     grey = (np.array(to_rgb(NO_DATA_COLOR)) * 255).round()
     values = torch.full((world.num_states,), -0.5, dtype=torch.float64)
-    values[:128] = -1.0                                    # the top half: no route known yet
+    values[:128] = -1.0  # the top half: no route known yet
     with_unknown = renderer.values(values, "half unknown")
     all_known = renderer.values(torch.full_like(values, -0.5), "all known")
     count = lambda rgb: int((np.abs(rgb.astype(float) - grey).sum(-1) < 8).sum())
@@ -154,15 +173,21 @@ def test_value_map_greys_out_cells_still_at_the_initial_value():
 
 
 # ------------------------------------------------------------------------- titles fit
-LONG_TITLE = ("a very long title that names the world, the mentor's episodes, the learner's "
-              "greedy path and every setting of the run, far wider than any figure ") * 2
+LONG_TITLE = (
+    "a very long title that names the world, the mentor's episodes, the learner's "
+    "greedy path and every setting of the run, far wider than any figure "
+) * 2
 
 
 def _inside(fig: Figure, text) -> bool:
     renderer = fig.canvas.get_renderer()
     box, frame = text.get_window_extent(renderer), fig.bbox
-    return box.x0 >= frame.x0 - 0.5 and box.x1 <= frame.x1 + 0.5 and \
-        box.y0 >= frame.y0 - 0.5 and box.y1 <= frame.y1 + 0.5
+    return (
+        box.x0 >= frame.x0 - 0.5
+        and box.x1 <= frame.x1 + 0.5
+        and box.y0 >= frame.y0 - 0.5
+        and box.y1 <= frame.y1 + 0.5
+    )
 
 
 def test_long_titles_are_wrapped_inside_the_figure(world, tmp_path):
@@ -177,7 +202,7 @@ def test_long_titles_are_wrapped_inside_the_figure(world, tmp_path):
     fit_titles(fig)
     fig.canvas.draw()
     assert _inside(fig, fig.axes[0].title)
-    assert fig.axes[0].title.get_text().split() == LONG_TITLE.split()   # nothing dropped
+    assert fig.axes[0].title.get_text().split() == LONG_TITLE.split()  # nothing dropped
     # the saved figure, the TensorBoard maps and the report's curves do it themselves
     save_world_figure(tmp_path / "w.png", world, title=LONG_TITLE)
     renderer = MapRenderer(world)
@@ -211,7 +236,7 @@ def test_tensorboard_hint_runs_as_typed(monkeypatch, tmp_path):
 
     command = shlex.split(tensorboard_command(tmp_path / "tb"))
     assert command[-2:] == ["--logdir", str(tmp_path / "tb")] and runnable(command[0])
-    monkeypatch.setenv("PATH", "")   # not on PATH: the script beside this Python, or -m
+    monkeypatch.setenv("PATH", "")  # not on PATH: the script beside this Python, or -m
     command = shlex.split(tensorboard_command("runs/x/tb"))
     assert "/" in command[0] and runnable(command[0]), command
     if "-m" in command:

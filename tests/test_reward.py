@@ -21,8 +21,8 @@ from himit_torch.world import STIMULUS_FEATURES, MultiRooms
 #   row 3   # + # # # +
 #   row 4   . . . # . .     light = 1 on room 3 (28, 29, 34, 35); sound = 0.5 on state 16
 #   row 5   . . . + . G
-EPISODE_A = [0, 1, 2, 8, 9, 10, 16, 16, 17, 23, 29, 35]           # bumps at 16 (wall below)
-EPISODE_B = [0, 1, 2, 8, 9, 10, 9, 10, 11, 17, 23, 29, 35]        # steps back into doorway 9
+EPISODE_A = [0, 1, 2, 8, 9, 10, 16, 16, 17, 23, 29, 35]  # bumps at 16 (wall below)
+EPISODE_B = [0, 1, 2, 8, 9, 10, 9, 10, 11, 17, 23, 29, 35]  # steps back into doorway 9
 
 
 @pytest.fixture(scope="module")
@@ -49,15 +49,17 @@ def salience6(world6, demos6) -> SalienceReward:
 def test_stimulus_features_of_the_tiny_world(world6):
     f = world6.stimulus_features()
     assert f.shape == (36, 4) and f.dtype == torch.float64
-    assert world6.stimulus_feature_names == STIMULUS_FEATURES == ("room", "doorway", "light", "sound")
+    assert (
+        world6.stimulus_feature_names == STIMULUS_FEATURES == ("room", "doorway", "light", "sound")
+    )
     assert f[0, 0] == 0.25 and f[4, 0] == 0.5 and f[24, 0] == 0.75 and f[35, 0] == 1.0
-    assert f[9, 0] == 0.0 and f[3, 0] == 0.0                        # doorway, wall: no room
+    assert f[9, 0] == 0.0 and f[3, 0] == 0.0  # doorway, wall: no room
     assert f[:, 1].nonzero().flatten().tolist() == [9, 19, 23, 33]
     assert f[:, 2].nonzero().flatten().tolist() == [28, 29, 34, 35]
     assert f[16, 3] == 0.5 and f[:, 3].sum() == 0.5
     plain = MultiRooms(6, 2)
-    assert (plain.stimulus_features()[:, 2:] == 0).all()           # channels off unless set
-    assert plain.describe() == world6.describe()                   # stimuli are not dynamics
+    assert (plain.stimulus_features()[:, 2:] == 0).all()  # channels off unless set
+    assert plain.describe() == world6.describe()  # stimuli are not dynamics
 
 
 def test_set_stimulus_rejects_bad_channels(world6):
@@ -95,12 +97,14 @@ def test_salience_reward_by_hand(salience6):
     """
     src = torch.tensor([9, 10, 0, 10, 16, 16, 10, 23, 29, 35, 33])
     dst = torch.tensor([10, 9, 1, 16, 16, 17, 11, 29, 35, 28, 34])
-    expected = torch.tensor([0.08, -0.01375, -0.0075, 0.0425, -0.0075, 0.0425, 0.005, 0.08, 0.8,
-                             0.005, 0.08], dtype=torch.float64)
+    expected = torch.tensor(
+        [0.08, -0.01375, -0.0075, 0.0425, -0.0075, 0.0425, 0.005, 0.08, 0.8, 0.005, 0.08],
+        dtype=torch.float64,
+    )
     got = salience6.transition_reward(src, dst)
     torch.testing.assert_close(got, expected, atol=1e-12, rtol=0)
     assert salience6.upper_bound == 0.8
-    assert not salience6.cycle_safe              # scale 0.1 > step_cost 0.02: doorway steps pay
+    assert not salience6.cycle_safe  # scale 0.1 > step_cost 0.02: doorway steps pay
     ev = salience6.events(torch.tensor([9, 23, 10]), torch.tensor([10, 29, 16]))
     assert ev["room"].tolist() == [1.0, 1.0, 0.0]
     assert ev["stimulus"].tolist() == [0.0, 1.0, 0.5]
@@ -115,8 +119,18 @@ def test_salience_map_by_hand(salience6):
     17: from 16 (.625) and 11 (.125) → .375;   11: .25;   0: never arrived → 0."""
     m = salience6.salience_map()
     assert m.shape == (36,)
-    expected = {35: 1.0, 10: 1.0, 9: 0.0625, 16: 0.375, 17: 0.375, 11: 0.25, 1: 0.125, 0: 0.0,
-                29: 1.0, 5: 0.0}
+    expected = {
+        35: 1.0,
+        10: 1.0,
+        9: 0.0625,
+        16: 0.375,
+        17: 0.375,
+        11: 0.25,
+        1: 0.125,
+        0: 0.0,
+        29: 1.0,
+        5: 0.0,
+    }
     for s, v in expected.items():
         assert m[s].item() == pytest.approx(v, abs=1e-12), f"state {s}"
     maps = salience6.event_maps()
@@ -143,7 +157,7 @@ def test_salience_reward_never_reads_the_world_reward(demos6):
     steps = r[dst != 35]
     assert (steps <= plain.step_reward + 1e-12).all() and (steps >= -0.02).all()
     assert (r[dst == 35] == 0.5).all()
-    assert steps.min() < steps.max()           # salience does change the cost of a step
+    assert steps.min() < steps.max()  # salience does change the cost of a step
 
 
 def test_user_features_and_channels(world6, demos6):
@@ -162,29 +176,38 @@ def test_user_features_and_channels(world6, demos6):
     torch.testing.assert_close(r, torch.tensor([-0.02, -0.01], dtype=torch.float64))
 
 
-@pytest.mark.parametrize("features, match", [
-    (torch.zeros(35, 4), r"SalienceReward: features have shape \(35, 4\), expected \[S=36, F\]"),
-    (torch.zeros(36), r"SalienceReward: features have shape \(36,\), expected \[S=36, F\]"),
-    (torch.zeros(36, 0), r"expected \[S=36, F\]"),
-    (torch.full((36, 2), float("nan")), "SalienceReward: features hold NaN"),
-])
+@pytest.mark.parametrize(
+    "features, match",
+    [
+        (
+            torch.zeros(35, 4),
+            r"SalienceReward: features have shape \(35, 4\), expected \[S=36, F\]",
+        ),
+        (torch.zeros(36), r"SalienceReward: features have shape \(36,\), expected \[S=36, F\]"),
+        (torch.zeros(36, 0), r"expected \[S=36, F\]"),
+        (torch.full((36, 2), float("nan")), "SalienceReward: features hold NaN"),
+    ],
+)
 def test_features_of_the_wrong_size_are_refused(world6, features, match):
     with pytest.raises(ValueError, match=match):
         SalienceReward(world6, features=features)
 
 
-@pytest.mark.parametrize("kwargs, match", [
-    ({"weights": {"smell": 1.0}}, "unknown event kind 'smell'"),
-    ({"weights": {"room": -1.0}}, r"weights\['room'\]"),
-    ({"scale": float("nan")}, "scale"),
-    ({"step_cost": -0.1}, "step_cost"),
-    ({"bound": -1.0}, "bound"),
-    ({"decay": 1.5}, "decay"),
-    ({"decay": -0.5}, "decay"),
-    ({"bound": "high"}, "bound='high'"),
-    ({"stimulus_channels": ["smell"]}, "stimulus_channels"),
-    ({"feature_names": ["a", "b"]}, "feature_names"),
-])
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"weights": {"smell": 1.0}}, "unknown event kind 'smell'"),
+        ({"weights": {"room": -1.0}}, r"weights\['room'\]"),
+        ({"scale": float("nan")}, "scale"),
+        ({"step_cost": -0.1}, "step_cost"),
+        ({"bound": -1.0}, "bound"),
+        ({"decay": 1.5}, "decay"),
+        ({"decay": -0.5}, "decay"),
+        ({"bound": "high"}, "bound='high'"),
+        ({"stimulus_channels": ["smell"]}, "stimulus_channels"),
+        ({"feature_names": ["a", "b"]}, "feature_names"),
+    ],
+)
 def test_bad_settings_are_refused(world6, kwargs, match):
     with pytest.raises(ValueError, match=f"SalienceReward.*{match}"):
         SalienceReward(world6, **kwargs)
@@ -232,28 +255,45 @@ def demos8(world8):
 
 
 def make(world, demos, reward, check="error", agents=("imitation",)):
-    return Learner(world, learner_options(world), list(agents), [0] * len(agents),
-                   config=LearnerConfig(reward_bound_check=check), demonstrations=demos,
-                   reward=reward)
+    return Learner(
+        world,
+        learner_options(world),
+        list(agents),
+        [0] * len(agents),
+        config=LearnerConfig(reward_bound_check=check),
+        demonstrations=demos,
+        reward=reward,
+    )
 
 
 def test_bound_above_the_real_reward_is_an_error_or_a_warning(world8, demos8):
-    greedy = SalienceReward(world8, demos8, bound=2.0)            # real best reward: +1.0
-    with pytest.raises(ValueError, match=r"SalienceReward\(bound=2.*upper_bound=2.*best real reward"):
+    greedy = SalienceReward(world8, demos8, bound=2.0)  # real best reward: +1.0
+    with pytest.raises(
+        ValueError, match=r"SalienceReward\(bound=2.*upper_bound=2.*best real reward"
+    ):
         make(world8, demos8, greedy)
     with pytest.warns(UserWarning, match="upper_bound=2"):
         learner = make(world8, demos8, greedy, check="warn")
-    assert learner.cache.mentor_edge_reward.max().item() == 2.0          # used as given
-    make(world8, demos8, greedy, check="off")                      # no error, no warning
+    assert learner.cache.mentor_edge_reward.max().item() == 2.0  # used as given
+    make(world8, demos8, greedy, check="off")  # no error, no warning
     make(world8, demos8, SalienceReward(world8, demos8, bound=1.0))  # equal to the real best: fine
 
 
-@pytest.mark.parametrize("module, match", [
-    (ConstantReward(0.5, 0.1), r"ConstantReward\(0.5, bound=0.1\) returned 0.5, above its declared upper_bound=0.1"),
-    (ConstantReward(float("nan"), 0.1), r"ConstantReward\(nan.*NaN"),
-    (ConstantReward(float("inf"), 0.1), "NaN or infinite"),
-    (ConstantReward(0.0, 0.1, shape_offset=1), r"ConstantReward\(0.0, bound=0.1\) returned shape"),
-])
+@pytest.mark.parametrize(
+    "module, match",
+    [
+        (
+            ConstantReward(0.5, 0.1),
+            r"ConstantReward\(0.5, bound=0.1\) returned 0.5, above its declared upper_bound=0.1",
+        ),
+        (ConstantReward(float("nan"), 0.1), r"ConstantReward\(nan.*NaN"),
+        (ConstantReward(float("inf"), 0.1), "NaN or infinite"),
+        (
+            ConstantReward(0.0, 0.1, shape_offset=1),
+            r"ConstantReward\(0.0, bound=0.1\) returned shape",
+        ),
+    ],
+)
 def test_bad_module_output_is_an_error(world8, demos8, module, match):
     with pytest.raises(ValueError, match=match):
         make(world8, demos8, module)
@@ -266,17 +306,24 @@ def test_known_intrinsic_and_no_mentor_reward_in_one_batch(world8, demos8):
     exactly as it does alone (a run's module never leaks into another)."""
     known, intrinsic = KnownReward(world8), SalienceReward(world8, demos8)
     agents = ["imitation", "imitation", "options"]
-    batch = Learner(world8, learner_options(world8), agents, [3, 3, 3], demonstrations=demos8,
-                    reward=[known, intrinsic, known])
-    E = int(batch.mentor.num_edges[0])       # every run watched the same demonstrations
+    batch = Learner(
+        world8,
+        learner_options(world8),
+        agents,
+        [3, 3, 3],
+        demonstrations=demos8,
+        reward=[known, intrinsic, known],
+    )
+    E = int(batch.mentor.num_edges[0])  # every run watched the same demonstrations
     src, dst = batch.mentor.edge_row[0, :E], batch.mentor.edge_successor[0, :E]
     reward = batch.cache.mentor_edge_reward
     assert torch.equal(reward[0, :E], known.transition_reward(src, dst))
     assert torch.equal(reward[1, :E], intrinsic.transition_reward(src, dst))
     assert not torch.equal(reward[0, :E], reward[1, :E])
     batch.run(3000)
-    alone = Learner(world8, learner_options(world8), ["imitation"], [3], demonstrations=demos8,
-                    reward=intrinsic)
+    alone = Learner(
+        world8, learner_options(world8), ["imitation"], [3], demonstrations=demos8, reward=intrinsic
+    )
     alone.run(3000)
     assert torch.equal(batch.values[1], alone.values[0])
     assert batch.goals[1] == alone.goals[0] and int(batch.goals[1]) > 0
@@ -293,9 +340,15 @@ def test_intrinsic_reward_alone_reaches_the_goal(world8, demos8):
     safe = SalienceReward(world8, demos8)
     paying = SalienceReward(world8, demos8, scale=0.1, step_cost=0.0)
     assert safe.cycle_safe and not paying.cycle_safe
-    learner = Learner(world8, learner_options(world8), ["imitation"] * 8, seeds * 2,
-                      config=LearnerConfig(window=1000), demonstrations=demos8,
-                      reward=[safe] * 4 + [paying] * 4)
+    learner = Learner(
+        world8,
+        learner_options(world8),
+        ["imitation"] * 8,
+        seeds * 2,
+        config=LearnerConfig(window=1000),
+        demonstrations=demos8,
+        reward=[safe] * 4 + [paying] * 4,
+    )
     learner.run(6000)
     first = learner.first_goal_step[:4]
     assert ((first > 0) & (first <= 1500)).all(), f"first goals: {first.tolist()}"
@@ -317,6 +370,7 @@ def test_salience_refit_replaces_the_previous_fit():
         mentor_policy,
         record_demonstrations,
     )
+
     world = MultiRooms(8, 2)
     demos = record_demonstrations(world, mentor_policy(world, mentor_options(world)), 2, seed=0)
     module = SalienceReward(world, demos)
@@ -324,3 +378,37 @@ def test_salience_refit_replaces_the_previous_fit():
     still = Demonstrations([torch.tensor([world.start_state])], world)
     module.fit(still)
     assert float(module.salience_map().abs().sum()) == 0.0
+
+
+def test_zero_reward_and_modules_by_name(world8, demos8):
+    from himit_torch.reward import MENTOR_REWARDS, ZeroReward, mentor_reward_module
+
+    src, dst = demos8.transitions()
+    zero = mentor_reward_module("none", world8)
+    assert isinstance(zero, ZeroReward) and zero.upper_bound == 0.0
+    r = zero.transition_reward(src, dst)
+    assert r.shape == src.shape and r.dtype == torch.float64 and bool((r == 0).all())
+    known = mentor_reward_module("known", world8)
+    assert torch.equal(known.transition_reward(src, dst), world8.state_reward.double()[dst])
+    salience = mentor_reward_module("salience", world8, demos8)
+    assert salience.fitted and salience.num_episodes == demos8.num_episodes
+    with pytest.raises(ValueError, match="demonstrations"):
+        mentor_reward_module("salience", world8)
+    with pytest.raises(ValueError, match="unknown; use one of"):
+        mentor_reward_module("extrinsic", world8)
+    assert MENTOR_REWARDS == ("known", "salience", "none")
+    # In a learner: the world's reward carries the goal's +1 back along the mentor's path;
+    # r_m = 0 carries no reward at all, so no value rises above 0.
+    values = {}
+    for name in ("known", "none"):
+        learner = Learner(
+            world8,
+            ht.learner_options(world8),
+            ["imitation"],
+            [0],
+            reward=mentor_reward_module(name, world8, demos8),
+        )
+        learner.add_demonstrations(demos8)
+        learner.plan()
+        values[name] = learner.state_values()[0, world8.start_state]
+    assert values["known"] > 0.5 and values["none"] <= 0.0

@@ -16,7 +16,7 @@ def naive_pop(prio: dict[int, float], n: int, threshold: float) -> list[int]:
 
 
 def queue_contents(q: BlockPriorityQueue, run: int) -> dict[int, float]:
-    p = q.priority[run, :q.num_states]
+    p = q.priority[run, : q.num_states]
     return {int(s): float(p[s]) for s in (p > 0).nonzero()[:, 0]}
 
 
@@ -38,7 +38,9 @@ def test_pop_matches_naive_sort(block):
             reference[r][s] = max(reference[r].get(s, 0.0), p)
         # pop from a random subset of runs
         n = int(torch.randint(1, 8, (1,), generator=gen))
-        pop_runs = torch.randperm(B, generator=gen)[:int(torch.randint(1, B + 1, (1,), generator=gen))]
+        pop_runs = torch.randperm(B, generator=gen)[
+            : int(torch.randint(1, B + 1, (1,), generator=gen))
+        ]
         popped, valid = q.pop(pop_runs, n, threshold)
         assert popped.shape == valid.shape == (pop_runs.numel(), min(n, q.num_blocks * q.block))
         for i, r in enumerate(pop_runs.tolist()):
@@ -71,7 +73,7 @@ def test_pop_with_tied_priorities_takes_a_top_n(block):
         got = states[0][valid[0]]
         assert got.unique().numel() == n
         popped = sorted(prios[got].tolist(), reverse=True)
-        assert popped == expected_sorted[len(taken):len(taken) + n]
+        assert popped == expected_sorted[len(taken) : len(taken) + n]
         left = q.priority[0, :S]
         assert (left[got] == 0).all()
         assert float(left.max()) <= min(popped)
@@ -87,8 +89,11 @@ def test_push_takes_the_max():
     q.push(run, torch.tensor([3]), torch.tensor([0.9], dtype=torch.float64))
     assert q.priority[0, 3].item() == 0.9
     # several pushes of one state in one call: the largest wins
-    q.push(torch.zeros(3, dtype=torch.int64), torch.tensor([7, 7, 7]),
-           torch.tensor([0.2, 0.8, 0.4], dtype=torch.float64))
+    q.push(
+        torch.zeros(3, dtype=torch.int64),
+        torch.tensor([7, 7, 7]),
+        torch.tensor([0.2, 0.8, 0.4], dtype=torch.float64),
+    )
     assert q.priority[0, 7].item() == 0.8
     states, valid = q.pop(run, 2, 0.0)
     assert states[0].tolist() == [3, 7] and valid.all()
@@ -97,8 +102,11 @@ def test_push_takes_the_max():
 def test_threshold_keeps_low_priorities_queued():
     q = BlockPriorityQueue(1, 20, CPU, block=4)
     run = torch.zeros(1, dtype=torch.int64)
-    q.push(torch.zeros(4, dtype=torch.int64), torch.tensor([1, 5, 9, 13]),
-           torch.tensor([0.5, 1e-7, 2.0, 1e-6], dtype=torch.float64))
+    q.push(
+        torch.zeros(4, dtype=torch.int64),
+        torch.tensor([1, 5, 9, 13]),
+        torch.tensor([0.5, 1e-7, 2.0, 1e-6], dtype=torch.float64),
+    )
     states, valid = q.pop(run, 4, threshold=1e-6)
     # 2.0 and 0.5 pass; 1e-6 is not *above* the threshold, 1e-7 neither: both stay queued.
     assert states[0][valid[0]].tolist() == [9, 1]
@@ -112,8 +120,11 @@ def test_threshold_keeps_low_priorities_queued():
 def test_popped_states_are_cleared_and_infinite_priority_first():
     q = BlockPriorityQueue(1, 30, CPU, block=8)
     run = torch.zeros(1, dtype=torch.int64)
-    q.push(torch.zeros(3, dtype=torch.int64), torch.tensor([2, 20, 29]),
-           torch.tensor([0.1, float("inf"), 3.0], dtype=torch.float64))
+    q.push(
+        torch.zeros(3, dtype=torch.int64),
+        torch.tensor([2, 20, 29]),
+        torch.tensor([0.1, float("inf"), 3.0], dtype=torch.float64),
+    )
     states, valid = q.pop(run, 1, 0.0)
     assert states.tolist() == [[20]] and valid.all()
     assert q.priority[0, 20].item() == 0.0
@@ -127,8 +138,11 @@ def test_popped_states_are_cleared_and_infinite_priority_first():
 def test_pop_limit_per_run():
     q = BlockPriorityQueue(2, 16, CPU, block=4)
     runs = torch.tensor([0, 0, 0, 1, 1, 1])
-    q.push(runs, torch.tensor([1, 2, 3, 1, 2, 3]),
-           torch.tensor([3.0, 2.0, 1.0, 3.0, 2.0, 1.0], dtype=torch.float64))
+    q.push(
+        runs,
+        torch.tensor([1, 2, 3, 1, 2, 3]),
+        torch.tensor([3.0, 2.0, 1.0, 3.0, 2.0, 1.0], dtype=torch.float64),
+    )
     states, valid = q.pop(torch.tensor([0, 1]), 3, 0.0, limit=torch.tensor([1, 3]))
     assert states[0][valid[0]].tolist() == [1]
     assert states[1][valid[1]].tolist() == [1, 2, 3]
@@ -176,7 +190,7 @@ def test_pop_is_a_prefix_whatever_n_with_ties():
     (torch.topk's tie order depends on n, which made a run's sweep depend on its batch)."""
     torch.manual_seed(0)
     for block in (2, 4, 16):
-        priorities = torch.randint(0, 4, (3, 50)).double()      # many ties, some zeros
+        priorities = torch.randint(0, 4, (3, 50)).double()  # many ties, some zeros
         results = {}
         for n in (1, 3, 7, 12):
             q = BlockPriorityQueue(3, 50, "cpu", block=block)
@@ -190,6 +204,8 @@ def test_pop_is_a_prefix_whatever_n_with_ties():
         # And the order is (priority desc, state asc), checked against a Python sort.
         s, v = results[12]
         for r in range(3):
-            expect = sorted((int(x) for x in range(50) if priorities[r, x] > 0),
-                            key=lambda x: (-priorities[r, x].item(), x))[:12]
+            expect = sorted(
+                (int(x) for x in range(50) if priorities[r, x] > 0),
+                key=lambda x: (-priorities[r, x].item(), x),
+            )[:12]
             assert s[r][v[r]].tolist() == expect

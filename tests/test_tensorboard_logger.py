@@ -8,7 +8,8 @@ import torch
 from himit_torch.tensorboard_logger import SCALAR_DESCRIPTIONS, TensorBoardLogger
 
 EventAccumulator = pytest.importorskip(
-    "tensorboard.backend.event_processing.event_accumulator").EventAccumulator
+    "tensorboard.backend.event_processing.event_accumulator"
+).EventAccumulator
 
 
 def read(folder):
@@ -28,7 +29,10 @@ def test_a_second_run_into_a_used_folder_is_refused(tmp_path):
     with pytest.raises(FileExistsError, match="would mix its curves"):
         TensorBoardLogger(tmp_path, ["run"])
     # Nothing was written by the refused attempt: still only the first run's history.
-    assert [e.step for e in read(tmp_path / "run").Scalars("charts/goals_in_window")] == [5000, 10000]
+    assert [e.step for e in read(tmp_path / "run").Scalars("charts/goals_in_window")] == [
+        5000,
+        10000,
+    ]
 
 
 def test_overwrite_starts_a_fresh_history(tmp_path):
@@ -44,7 +48,12 @@ def test_resume_replaces_what_was_logged_after_the_checkpoint(tmp_path):
     # Checkpoint at 2000: the killed process's 3000 is purged, the resumed one logs it again.
     log_goals(TensorBoardLogger(tmp_path, ["run"], resume_step=2000), [3000, 4000], 2.0)
     events = read(tmp_path / "run").Scalars("charts/goals_in_window")
-    assert [(e.step, e.value) for e in events] == [(1000, 1.0), (2000, 1.0), (3000, 2.0), (4000, 2.0)]
+    assert [(e.step, e.value) for e in events] == [
+        (1000, 1.0),
+        (2000, 1.0),
+        (3000, 2.0),
+        (4000, 2.0),
+    ]
 
 
 def test_scalars_carry_their_descriptions(tmp_path):
@@ -67,8 +76,14 @@ def test_the_seed_is_refused_as_a_hyperparameter(tmp_path):
 
 def test_every_description_names_whether_a_count_is_cumulative():
     # planner/ and charts/ counts are cumulative or per window; a reader must not have to guess.
-    for tag in ("charts/goals_in_window", "charts/goals_total", "charts/episodes",
-                "planner/backups", "planner/decisions", "charts/steps_per_episode"):
+    for tag in (
+        "charts/goals_in_window",
+        "charts/goals_total",
+        "charts/episodes",
+        "planner/backups",
+        "planner/decisions",
+        "charts/steps_per_episode",
+    ):
         assert "cumulative" in SCALAR_DESCRIPTIONS[tag] or "per window" in SCALAR_DESCRIPTIONS[tag]
 
 

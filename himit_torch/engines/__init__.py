@@ -27,6 +27,7 @@ def numba_available() -> bool:
 def __getattr__(name):
     if name == "NumbaEngine":
         from .numba_engine import NumbaEngine
+
         return NumbaEngine
     raise AttributeError(name)
 
@@ -44,8 +45,11 @@ def make_engine(name: str, learner):
         name = "torch" if why_not else "numba"
     if name == "numba":
         if why_not:
-            raise ValueError(f"engine='numba' cannot run this learner: {why_not}; use engine='torch'")
+            raise ValueError(
+                f"engine='numba' cannot run this learner: {why_not}; use engine='torch'"
+            )
         from .numba_engine import NumbaEngine
+
         return NumbaEngine(learner)
     return TorchEngine(learner)
 
@@ -54,8 +58,10 @@ def _numba_unusable(learner) -> str | None:
     if learner.device.type != "cpu":
         return f"it runs on the CPU only (this learner is on {learner.device})"
     if learner.dynamics is None:
-        return ("the world has no dynamics_table() (a DynamicsTable of successors, cdf and "
-                "rewards); the compiled loop cannot call a Python step()")
+        return (
+            "the world has no dynamics_table() (a DynamicsTable of successors, cdf and "
+            "rewards); the compiled loop cannot call a Python step()"
+        )
     if not numba_available():
         return "numba is not installed (pip install numba)"
     return None

@@ -26,8 +26,27 @@ _TWO_POW_MINUS_53 = 1.0 / 9007199254740992.0
 
 # Indices of the scalar settings in ``cfg_f`` (float64) and ``cfg_i`` (int64).
 F_GAMMA, F_EPS_DECAY, F_EPS_MIN, F_THRESHOLD, F_V0, F_CONC, F_MCONC, F_UNTRIED, F_Z = range(9)
-(I_BACKUPS, I_ROUND, I_PLAN_EVERY, I_MAX_STEPS, I_UNTRIED_MODE, I_OVERRIDE, I_MATCH, I_TIE_FIRST,
- I_ANY_CONF, I_ANY_MENTOR, I_STOCHASTIC, I_START) = range(12)
+(
+    I_BACKUPS,
+    I_ROUND,
+    I_PLAN_EVERY,
+    I_MAX_STEPS,
+    I_UNTRIED_MODE,
+    I_OVERRIDE,
+    I_MATCH,
+    I_TIE_FIRST,
+    I_ANY_CONF,
+    I_ANY_MENTOR,
+    I_STOCHASTIC,
+    I_START,
+) = range(12)
+# (appended settings, issue 11) ε schedule: 0 decision, 1 step, 2 goals, 3 paper
+# (``learner.EPS_SCHEDULES``), and the goals of the "goals" schedule.
+I_EPS_SCHEDULE, I_EPS_GOALS = 12, 13
+N_CFG_I = 14
+# (appended, issue 11) the mentor term's fading weight (LearnerConfig.mentor_fade; 0 = off)
+F_FADE = 9
+N_CFG_F = 10
 
 
 @njit(inline="always")
@@ -156,7 +175,7 @@ def _row_value(cfg_f, cfg_i, q_num, row_count, row_enabled, b, row):
     n = row_count[b, row]
     q = (q_num[b, row] + conc * cfg_f[F_V0]) / (n + conc)
     enabled = row_enabled[b, row]
-    mode = cfg_i[I_UNTRIED_MODE]        # 0: prior (concentration > 0), 1: skip, 2: a value
+    mode = cfg_i[I_UNTRIED_MODE]  # 0: prior (concentration > 0), 1: skip, 2: a value
     if mode == 0:
         usable = enabled
     elif mode == 1:
@@ -169,8 +188,25 @@ def _row_value(cfg_f, cfg_i, q_num, row_count, row_enabled, b, row):
 
 
 @njit(inline="always")
-def _state_backup(cfg_f, cfg_i, state_rows, terminal, use_mentor, use_conf, q_num, q_sec,
-                  row_count, row_reward, row_enabled, state_tries, m_num, m_sec, m_row_count, b, s):
+def _state_backup(
+    cfg_f,
+    cfg_i,
+    state_rows,
+    terminal,
+    use_mentor,
+    use_conf,
+    q_num,
+    q_sec,
+    row_count,
+    row_reward,
+    row_enabled,
+    state_tries,
+    m_num,
+    m_sec,
+    m_row_count,
+    b,
+    s,
+):
     """Eq. 2 at ``s`` for run ``b`` (``ValueCache.state_backup``): ``(best, has_value, won)``."""
     M = q_num.shape[1] - 1
     conc = cfg_f[F_CONC]
@@ -193,9 +229,11 @@ def _state_backup(cfg_f, cfg_i, state_rows, terminal, use_mentor, use_conf, q_nu
                 rbar = rsum / max(n, 1.0) if n > 0 else 0.0
                 cont = q_num[b, row] - rsum
                 if n + conc > 0:
-                    second = (n * rbar * rbar + 2 * rbar * cont + q_sec[b, row] + conc * v0 * v0) / (n + conc)
+                    second = (
+                        n * rbar * rbar + 2 * rbar * cont + q_sec[b, row] + conc * v0 * v0
+                    ) / (n + conc)
                     var = max(second - q * q, 0.0) / (n + conc + 1)
-                else:                   # untried, valued by untried_value: unbounded above
+                else:  # untried, valued by untried_value: unbounded above
                     var = _INF
                 up = q + z * np.sqrt(var)
                 if up > upper:
@@ -212,6 +250,11 @@ def _state_backup(cfg_f, cfg_i, state_rows, terminal, use_mentor, use_conf, q_nu
         mvar = max(second - m * m, 0.0) / (n_m + mconc + 1)
         if not (m - z * np.sqrt(mvar)) > upper:
             ok = False
+    # ---- (issue 11) LearnerConfig.mentor_fade: shrink m towards own by own experience
+    fade = cfg_f[F_FADE]
+    if fade > 0 and np.isfinite(own):
+        n_own = state_tries[b, s]
+        m = (fade * m + n_own * own) / (fade + n_own)
     if not ok:
         m = -_INF
     best = own if own >= m else m
@@ -221,9 +264,30 @@ def _state_backup(cfg_f, cfg_i, state_rows, terminal, use_mentor, use_conf, q_nu
 
 # ==================================================================== propagation and sweeping
 @njit(inline="always")
-def _propagate_options(cfg_f, cfg_i, use_conf, row_state, row_enabled, q_num, q_sec, row_count, edge_row,
-                       edge_disc, edge_count, succ_head, succ_next, heap, hkey, hpos, hsize, prio,
-                       b, x, d, v_old):
+def _propagate_options(
+    cfg_f,
+    cfg_i,
+    use_conf,
+    row_state,
+    row_enabled,
+    q_num,
+    q_sec,
+    row_count,
+    edge_row,
+    edge_disc,
+    edge_count,
+    succ_head,
+    succ_next,
+    heap,
+    hkey,
+    hpos,
+    hsize,
+    prio,
+    b,
+    x,
+    d,
+    v_old,
+):
     """``V(x) += d``: every row with an edge to ``x`` gets ``Σγ^k d``; queue its state."""
     thr = cfg_f[F_THRESHOLD]
     conc = cfg_f[F_CONC]
@@ -236,7 +300,7 @@ def _propagate_options(cfg_f, cfg_i, use_conf, row_state, row_enabled, q_num, q_
         q_num[b, row] += gd
         if any_conf:
             c = max(edge_count[b, e], 1.0)
-            q_sec[b, row] += g * g / c * ((v_old + d) ** 2 - v_old ** 2)
+            q_sec[b, row] += g * g / c * ((v_old + d) ** 2 - v_old**2)
         p = abs(gd) / max(row_count[b, row] + conc, 1e-300)
         if p > thr and row_enabled[b, row]:
             _push(heap, hkey, hpos, hsize, prio, b, row_state[row], p)
@@ -244,9 +308,28 @@ def _propagate_options(cfg_f, cfg_i, use_conf, row_state, row_enabled, q_num, q_
 
 
 @njit(inline="always")
-def _propagate_mentor(cfg_f, cfg_i, use_conf, m_num, m_sec, m_row_count, m_edge_row, m_edge_count,
-                      m_edge_reward, m_succ_head, m_succ_next, heap, hkey, hpos, hsize, prio,
-                      b, x, d, v_old):
+def _propagate_mentor(
+    cfg_f,
+    cfg_i,
+    use_conf,
+    m_num,
+    m_sec,
+    m_row_count,
+    m_edge_row,
+    m_edge_count,
+    m_edge_reward,
+    m_succ_head,
+    m_succ_next,
+    heap,
+    hkey,
+    hpos,
+    hsize,
+    prio,
+    b,
+    x,
+    d,
+    v_old,
+):
     """The same for the mentor term of every state the mentor left towards ``x``."""
     thr = cfg_f[F_THRESHOLD]
     gamma = cfg_f[F_GAMMA]
@@ -261,7 +344,7 @@ def _propagate_mentor(cfg_f, cfg_i, use_conf, m_num, m_sec, m_row_count, m_edge_
         m_num[b, src] += cd
         if any_conf:
             u_old = m_edge_reward[b, e] + gamma * v_old
-            m_sec[b, src] += c * ((u_old + gd) ** 2 - u_old ** 2)
+            m_sec[b, src] += c * ((u_old + gd) ** 2 - u_old**2)
         p = abs(cd) / max(m_row_count[b, src] + mconc, 1e-300)
         if p > thr:
             _push(heap, hkey, hpos, hsize, prio, b, src, p)
@@ -269,30 +352,99 @@ def _propagate_mentor(cfg_f, cfg_i, use_conf, m_num, m_sec, m_row_count, m_edge_
 
 
 # ============================================================================ the tick loop
-@njit(cache=True)
-def _run(b, t_end, t_reached, keys, cfg_f, cfg_i,
-            # the world and the options (shared, read only)
-            dyn_succ, dyn_cdf, dyn_rew, terminal, start_cdf, termination, policy, policy_cdf,
-            # the row table (shared, read only)
-            state_rows, row_state, row_option, row_first_action, primitive_rows, row_enabled,
-            use_mentor, use_conf,
-            # the value cache
-            values, q_num, q_sec, m_num, m_sec, m_edge_reward,
-            # the option model and its linked lists
-            edge_row, edge_succ, edge_count, edge_disc, num_edges, row_count, row_reward,
-            state_tries, row_head, row_next, succ_head, succ_next,
-            # the mentor model and its linked lists (read only)
-            m_edge_row, m_edge_succ, m_edge_count, m_row_count, m_row_head, m_row_next,
-            m_succ_head, m_succ_next,
-            # the sweeper
-            pending, heap, hkey, hpos, hsize, prio,
-            # the run state
-            position, option_start, row_of, duration, disc_return, discount, epsilon, found_goal,
-            goals, window_goals, episodes, episode_start, window_episode_steps, window_episodes,
-            backups_done, decisions, first_goal_step, visits,
-            # scratch
-            round_states, round_best, round_old, round_delta, q_buf, usable_buf, enabled_buf,
-            score_buf):
+# error_model="numpy": a division by zero gives inf/nan (as in the parallel loop that runs it,
+# where Numba compiles with that model) instead of raising
+@njit(cache=True, error_model="numpy")
+def _run(
+    b,
+    t_end,
+    t_reached,
+    keys,
+    cfg_f,
+    cfg_i,
+    # the world and the options (shared, read only)
+    dyn_succ,
+    dyn_cdf,
+    dyn_rew,
+    terminal,
+    start_cdf,
+    termination,
+    policy,
+    policy_cdf,
+    # the row table (shared, read only)
+    state_rows,
+    row_state,
+    row_option,
+    row_first_action,
+    primitive_rows,
+    row_enabled,
+    use_mentor,
+    use_conf,
+    # the value cache
+    values,
+    q_num,
+    q_sec,
+    m_num,
+    m_sec,
+    m_edge_reward,
+    # the option model and its linked lists
+    edge_row,
+    edge_succ,
+    edge_count,
+    edge_disc,
+    num_edges,
+    row_count,
+    row_reward,
+    state_tries,
+    row_head,
+    row_next,
+    succ_head,
+    succ_next,
+    # the mentor model and its linked lists (read only)
+    m_edge_row,
+    m_edge_succ,
+    m_edge_count,
+    m_row_count,
+    m_row_head,
+    m_row_next,
+    m_succ_head,
+    m_succ_next,
+    # the sweeper
+    pending,
+    heap,
+    hkey,
+    hpos,
+    hsize,
+    prio,
+    # the run state
+    position,
+    option_start,
+    row_of,
+    duration,
+    disc_return,
+    discount,
+    epsilon,
+    found_goal,
+    goals,
+    window_goals,
+    episodes,
+    episode_start,
+    window_episode_steps,
+    window_episodes,
+    backups_done,
+    decisions,
+    first_goal_step,
+    visits,
+    # scratch
+    round_states,
+    round_best,
+    round_old,
+    round_delta,
+    q_buf,
+    usable_buf,
+    enabled_buf,
+    score_buf,
+):
     """Run ``b``'s ticks from ``t_reached[b]`` to ``t_end`` (the body of :func:`advance`):
     act, learn, plan, choose — :meth:`TorchEngine.tick <himit_torch.engines.TorchEngine.tick>`
     for one run. (Sweep and choice are written out here rather than called: a call with this
@@ -343,8 +495,9 @@ def _run(b, t_end, t_reached, keys, cfg_f, cfg_i,
         duration[b] += 1
         t += 1
         at_goal = terminal[nxt]
-        ended = at_goal or termination[option * S + nxt] > stop_u or \
-            duration[b] >= cfg_i[I_MAX_STEPS]
+        ended = (
+            at_goal or termination[option * S + nxt] > stop_u or duration[b] >= cfg_i[I_MAX_STEPS]
+        )
         position[b] = nxt
         visits[b, nxt] += 1
         if at_goal:
@@ -357,6 +510,16 @@ def _run(b, t_end, t_reached, keys, cfg_f, cfg_i,
             window_episode_steps[b] += t - episode_start[b]
             window_episodes[b] += 1
             episode_start[b] = t
+        # ---- ε schedules other than "decision" (LearnerConfig.eps_schedule; TorchEngine._eps_tick)
+        eps_schedule = cfg_i[I_EPS_SCHEDULE]
+        if eps_schedule == 1:
+            if found_goal[b]:
+                epsilon[b] = max(epsilon[b] * cfg_f[F_EPS_DECAY], cfg_f[F_EPS_MIN])
+        elif at_goal and eps_schedule == 2:
+            if goals[b] >= cfg_i[I_EPS_GOALS]:
+                epsilon[b] = cfg_f[F_EPS_MIN]
+        elif at_goal and eps_schedule == 3:
+            epsilon[b] = max(epsilon[b] * cfg_f[F_EPS_DECAY], cfg_f[F_EPS_MIN])
         # ---- learn: count the option's outcome (DirichletSMDPModel.update) -----------------
         if ended:
             start = option_start[b]
@@ -391,7 +554,7 @@ def _run(b, t_end, t_reached, keys, cfg_f, cfg_i,
                 g_new = g_old + g
                 old_term = g_old * g_old / max(c_old, 1.0) if c_old > 0 else 0.0
                 q_sec[b, row] += (g_new * g_new / c_new - old_term) * v_end * v_end
-            _push(heap, hkey, hpos, hsize, prio, b, start, _INF)      # the start state goes first
+            _push(heap, hkey, hpos, hsize, prio, b, start, _INF)  # the start state goes first
             pending[b] += 1
             decisions[b] += 1
         # ---- plan: prioritized sweeping (Sweeper.sweep + ValueCache.backup_and_propagate) --
@@ -407,38 +570,91 @@ def _run(b, t_end, t_reached, keys, cfg_f, cfg_i,
                     k += 1
                 if k == 0:
                     break
-                for i in range(k):             # the round's states are backed up together...
+                for i in range(k):  # the round's states are backed up together...
                     s = round_states[b, i]
                     best, has_value, _ = _state_backup(
-                        cfg_f, cfg_i, state_rows, terminal, use_mentor, use_conf, q_num, q_sec,
-                        row_count, row_reward, row_enabled, state_tries, m_num, m_sec,
-                        m_row_count, b, s)
+                        cfg_f,
+                        cfg_i,
+                        state_rows,
+                        terminal,
+                        use_mentor,
+                        use_conf,
+                        q_num,
+                        q_sec,
+                        row_count,
+                        row_reward,
+                        row_enabled,
+                        state_tries,
+                        m_num,
+                        m_sec,
+                        m_row_count,
+                        b,
+                        s,
+                    )
                     round_old[b, i] = values[b, s]
                     round_delta[b, i] = best - values[b, s] if has_value else 0.0
                     round_best[b, i] = best if has_value else values[b, s]
                 for i in range(k):
                     values[b, round_states[b, i]] = round_best[b, i]
                 backups_done[b] += k
-                for i in range(k):             # ...then their changes propagate
+                for i in range(k):  # ...then their changes propagate
                     d = round_delta[b, i]
                     if d != 0:
-                        _propagate_options(cfg_f, cfg_i, use_conf, row_state, row_enabled, q_num, q_sec,
-                                           row_count, edge_row, edge_disc, edge_count, succ_head,
-                                           succ_next, heap, hkey, hpos, hsize, prio, b,
-                                           round_states[b, i], d, round_old[b, i])
+                        _propagate_options(
+                            cfg_f,
+                            cfg_i,
+                            use_conf,
+                            row_state,
+                            row_enabled,
+                            q_num,
+                            q_sec,
+                            row_count,
+                            edge_row,
+                            edge_disc,
+                            edge_count,
+                            succ_head,
+                            succ_next,
+                            heap,
+                            hkey,
+                            hpos,
+                            hsize,
+                            prio,
+                            b,
+                            round_states[b, i],
+                            d,
+                            round_old[b, i],
+                        )
                 if mentor_run:
                     for i in range(k):
                         d = round_delta[b, i]
                         if d != 0:
-                            _propagate_mentor(cfg_f, cfg_i, use_conf, m_num, m_sec, m_row_count, m_edge_row,
-                                              m_edge_count, m_edge_reward, m_succ_head,
-                                              m_succ_next, heap, hkey, hpos, hsize, prio, b,
-                                              round_states[b, i], d, round_old[b, i])
+                            _propagate_mentor(
+                                cfg_f,
+                                cfg_i,
+                                use_conf,
+                                m_num,
+                                m_sec,
+                                m_row_count,
+                                m_edge_row,
+                                m_edge_count,
+                                m_edge_reward,
+                                m_succ_head,
+                                m_succ_next,
+                                heap,
+                                hkey,
+                                hpos,
+                                hsize,
+                                prio,
+                                b,
+                                round_states[b, i],
+                                d,
+                                round_old[b, i],
+                            )
                 done += round_size
         if not ended:
             continue
         # ---- choose: ε-greedy over the run's own rows (choice.choose_rows) -------------------
-        if found_goal[b]:
+        if found_goal[b] and cfg_i[I_EPS_SCHEDULE] == 0:
             epsilon[b] = max(epsilon[b] * cfg_f[F_EPS_DECAY], cfg_f[F_EPS_MIN])
         duration[b] = 0
         disc_return[b] = 0.0
@@ -467,9 +683,25 @@ def _run(b, t_end, t_reached, keys, cfg_f, cfg_i,
         if match:
             # Where the mentor term wins, own options whose first action best reproduces the
             # mentor's move come first (choice._match_mentor).
-            _, _, won = _state_backup(cfg_f, cfg_i, state_rows, terminal, use_mentor, use_conf,
-                                      q_num, q_sec, row_count, row_reward, row_enabled,
-                                      state_tries, m_num, m_sec, m_row_count, b, here)
+            _, _, won = _state_backup(
+                cfg_f,
+                cfg_i,
+                state_rows,
+                terminal,
+                use_mentor,
+                use_conf,
+                q_num,
+                q_sec,
+                row_count,
+                row_reward,
+                row_enabled,
+                state_tries,
+                m_num,
+                m_sec,
+                m_row_count,
+                b,
+                here,
+            )
             if won:
                 n_m = max(m_row_count[b, here], 1.0)
                 for a in range(primitive_rows.shape[1]):
@@ -514,7 +746,7 @@ def _run(b, t_end, t_reached, keys, cfg_f, cfg_i,
                 cand = enabled_buf[b, j]
             else:
                 cand = usable_buf[b, j] and q_buf[b, j] >= top - _TIE
-            usable_buf[b, j] = cand              # from here on: the candidate mask
+            usable_buf[b, j] = cand  # from here on: the candidate mask
             if cand:
                 count += 1
         pick = min(np.int64(_uniform(key, t - 1, 4) * count), count - 1)
@@ -533,29 +765,95 @@ def _run(b, t_end, t_reached, keys, cfg_f, cfg_i,
 
 
 @njit(parallel=True, cache=True)
-def advance(t_end, t_reached, keys, cfg_f, cfg_i,
-            # the world and the options (shared, read only)
-            dyn_succ, dyn_cdf, dyn_rew, terminal, start_cdf, termination, policy, policy_cdf,
-            # the row table (shared, read only)
-            state_rows, row_state, row_option, row_first_action, primitive_rows, row_enabled,
-            use_mentor, use_conf,
-            # the value cache
-            values, q_num, q_sec, m_num, m_sec, m_edge_reward,
-            # the option model and its linked lists
-            edge_row, edge_succ, edge_count, edge_disc, num_edges, row_count, row_reward,
-            state_tries, row_head, row_next, succ_head, succ_next,
-            # the mentor model and its linked lists (read only)
-            m_edge_row, m_edge_succ, m_edge_count, m_row_count, m_row_head, m_row_next,
-            m_succ_head, m_succ_next,
-            # the sweeper
-            pending, heap, hkey, hpos, hsize, prio,
-            # the run state
-            position, option_start, row_of, duration, disc_return, discount, epsilon, found_goal,
-            goals, window_goals, episodes, episode_start, window_episode_steps, window_episodes,
-            backups_done, decisions, first_goal_step, visits,
-            # scratch
-            round_states, round_best, round_old, round_delta, q_buf, usable_buf, enabled_buf,
-            score_buf):
+def advance(
+    t_end,
+    t_reached,
+    keys,
+    cfg_f,
+    cfg_i,
+    # the world and the options (shared, read only)
+    dyn_succ,
+    dyn_cdf,
+    dyn_rew,
+    terminal,
+    start_cdf,
+    termination,
+    policy,
+    policy_cdf,
+    # the row table (shared, read only)
+    state_rows,
+    row_state,
+    row_option,
+    row_first_action,
+    primitive_rows,
+    row_enabled,
+    use_mentor,
+    use_conf,
+    # the value cache
+    values,
+    q_num,
+    q_sec,
+    m_num,
+    m_sec,
+    m_edge_reward,
+    # the option model and its linked lists
+    edge_row,
+    edge_succ,
+    edge_count,
+    edge_disc,
+    num_edges,
+    row_count,
+    row_reward,
+    state_tries,
+    row_head,
+    row_next,
+    succ_head,
+    succ_next,
+    # the mentor model and its linked lists (read only)
+    m_edge_row,
+    m_edge_succ,
+    m_edge_count,
+    m_row_count,
+    m_row_head,
+    m_row_next,
+    m_succ_head,
+    m_succ_next,
+    # the sweeper
+    pending,
+    heap,
+    hkey,
+    hpos,
+    hsize,
+    prio,
+    # the run state
+    position,
+    option_start,
+    row_of,
+    duration,
+    disc_return,
+    discount,
+    epsilon,
+    found_goal,
+    goals,
+    window_goals,
+    episodes,
+    episode_start,
+    window_episode_steps,
+    window_episodes,
+    backups_done,
+    decisions,
+    first_goal_step,
+    visits,
+    # scratch
+    round_states,
+    round_best,
+    round_old,
+    round_delta,
+    q_buf,
+    usable_buf,
+    enabled_buf,
+    score_buf,
+):
     """Advance every run ``b`` from tick ``t_reached[b]`` to ``t_end``, in place.
 
     A run stops early, at the start of a tick, when its edge list is full (``num_edges[b]`` equals
@@ -563,17 +861,90 @@ def advance(t_end, t_reached, keys, cfg_f, cfg_i,
     run stopped."""
     B = position.shape[0]
     for b in prange(B):
-        _run(b, t_end, t_reached, keys, cfg_f, cfg_i, dyn_succ, dyn_cdf, dyn_rew, terminal,
-             start_cdf, termination, policy, policy_cdf, state_rows, row_state, row_option,
-             row_first_action, primitive_rows, row_enabled, use_mentor, use_conf, values, q_num,
-             q_sec, m_num, m_sec, m_edge_reward, edge_row, edge_succ, edge_count, edge_disc,
-             num_edges, row_count, row_reward, state_tries, row_head, row_next, succ_head,
-             succ_next, m_edge_row, m_edge_succ, m_edge_count, m_row_count, m_row_head,
-             m_row_next, m_succ_head, m_succ_next, pending, heap, hkey, hpos, hsize, prio,
-             position, option_start, row_of, duration, disc_return, discount, epsilon,
-             found_goal, goals, window_goals, episodes, episode_start, window_episode_steps,
-             window_episodes, backups_done, decisions, first_goal_step, visits, round_states,
-             round_best, round_old, round_delta, q_buf, usable_buf, enabled_buf, score_buf)
+        # int64: Numba types a prange index int64 when it types the loop and uint64 when it
+        # lowers it, and would compile the whole of ``_run`` once for each (twice the compile time)
+        _run(
+            np.int64(b),
+            t_end,
+            t_reached,
+            keys,
+            cfg_f,
+            cfg_i,
+            dyn_succ,
+            dyn_cdf,
+            dyn_rew,
+            terminal,
+            start_cdf,
+            termination,
+            policy,
+            policy_cdf,
+            state_rows,
+            row_state,
+            row_option,
+            row_first_action,
+            primitive_rows,
+            row_enabled,
+            use_mentor,
+            use_conf,
+            values,
+            q_num,
+            q_sec,
+            m_num,
+            m_sec,
+            m_edge_reward,
+            edge_row,
+            edge_succ,
+            edge_count,
+            edge_disc,
+            num_edges,
+            row_count,
+            row_reward,
+            state_tries,
+            row_head,
+            row_next,
+            succ_head,
+            succ_next,
+            m_edge_row,
+            m_edge_succ,
+            m_edge_count,
+            m_row_count,
+            m_row_head,
+            m_row_next,
+            m_succ_head,
+            m_succ_next,
+            pending,
+            heap,
+            hkey,
+            hpos,
+            hsize,
+            prio,
+            position,
+            option_start,
+            row_of,
+            duration,
+            disc_return,
+            discount,
+            epsilon,
+            found_goal,
+            goals,
+            window_goals,
+            episodes,
+            episode_start,
+            window_episode_steps,
+            window_episodes,
+            backups_done,
+            decisions,
+            first_goal_step,
+            visits,
+            round_states,
+            round_best,
+            round_old,
+            round_delta,
+            q_buf,
+            usable_buf,
+            enabled_buf,
+            score_buf,
+        )
 
 
 @njit(cache=True)
@@ -593,22 +964,54 @@ def link_edges(edge_row, edge_succ, num_edges, row_head, row_next, succ_head, su
             succ_head[b, s] = e
 
 
-@njit(parallel=True, cache=True)
-def mentor_wins(cfg_f, cfg_i, state_rows, terminal, use_mentor, use_conf, q_num, q_sec, row_count,
-                row_reward, row_enabled, state_tries, m_num, m_sec, m_row_count, out):
+# Serial: once a window it costs microseconds, and a parallel loop costs seconds of compiling.
+@njit(cache=True, error_model="numpy")
+def mentor_wins(
+    cfg_f,
+    cfg_i,
+    state_rows,
+    terminal,
+    use_mentor,
+    use_conf,
+    q_num,
+    q_sec,
+    row_count,
+    row_reward,
+    row_enabled,
+    state_tries,
+    m_num,
+    m_sec,
+    m_row_count,
+    out,
+):
     """``out[b]``: how many of run ``b``'s mentor-observed states the mentor term wins eq. 2 in
     (:meth:`Learner.mentor_win_share`), by the kernel's own backup."""
     B = out.shape[0]
     S = terminal.shape[0] - 1
-    for b in prange(B):
+    for b in range(B):
         won_states = 0
         if use_mentor[b]:
             for s in range(S):
                 if m_row_count[b, s] > 0:
-                    _, _, won = _state_backup(cfg_f, cfg_i, state_rows, terminal, use_mentor,
-                                              use_conf, q_num, q_sec, row_count, row_reward,
-                                              row_enabled, state_tries, m_num, m_sec, m_row_count,
-                                              b, s)
+                    _, _, won = _state_backup(
+                        cfg_f,
+                        cfg_i,
+                        state_rows,
+                        terminal,
+                        use_mentor,
+                        use_conf,
+                        q_num,
+                        q_sec,
+                        row_count,
+                        row_reward,
+                        row_enabled,
+                        state_tries,
+                        m_num,
+                        m_sec,
+                        m_row_count,
+                        b,
+                        s,
+                    )
                     if won:
                         won_states += 1
         out[b] = won_states

@@ -31,7 +31,7 @@ class NumbaEngine:
         L = self.learner = learner
         cfg = L.config
         B, S = L.batch, L.num_states
-        cfg_f = np.zeros(9)
+        cfg_f = np.zeros(_kernel.N_CFG_F)
         cfg_f[_kernel.F_GAMMA] = L.gamma
         cfg_f[_kernel.F_EPS_DECAY] = cfg.eps_decay
         cfg_f[_kernel.F_EPS_MIN] = cfg.eps_min
@@ -41,41 +41,68 @@ class NumbaEngine:
         cfg_f[_kernel.F_MCONC] = cfg.mentor_concentration
         cfg_f[_kernel.F_UNTRIED] = 0.0 if cfg.untried_value is None else cfg.untried_value
         cfg_f[_kernel.F_Z] = cfg.confidence_z
-        cfg_i = np.zeros(12, dtype=np.int64)
+        cfg_i = np.zeros(_kernel.N_CFG_I, dtype=np.int64)
         cfg_i[_kernel.I_BACKUPS] = cfg.backups
         cfg_i[_kernel.I_ROUND] = L.sweeper.round_size
         cfg_i[_kernel.I_PLAN_EVERY] = cfg.plan_every
         cfg_i[_kernel.I_MAX_STEPS] = cfg.max_option_steps
-        cfg_i[_kernel.I_UNTRIED_MODE] = 0 if cfg.concentration > 0 else (
-            1 if cfg.untried_value is None else 2)
-        cfg_i[_kernel.I_OVERRIDE] = -1 if cfg.mentor_override_after is None else cfg.mentor_override_after
+        cfg_i[_kernel.I_UNTRIED_MODE] = (
+            0 if cfg.concentration > 0 else (1 if cfg.untried_value is None else 2)
+        )
+        cfg_i[_kernel.I_OVERRIDE] = (
+            -1 if cfg.mentor_override_after is None else cfg.mentor_override_after
+        )
         cfg_i[_kernel.I_MATCH] = cfg.mentor_choice == "match"
         cfg_i[_kernel.I_TIE_FIRST] = cfg.tie_break == "first"
         cfg_i[_kernel.I_ANY_CONF] = L.cache.any_confidence
         cfg_i[_kernel.I_ANY_MENTOR] = L.cache.any_mentor
         cfg_i[_kernel.I_STOCHASTIC] = L.policy is None
         cfg_i[_kernel.I_START] = -1 if L.start_cdf is not None else L.start_state
+        from ..learner import EPS_SCHEDULES
+
+        cfg_i[_kernel.I_EPS_SCHEDULE] = EPS_SCHEDULES.index(cfg.eps_schedule)
+        cfg_i[_kernel.I_EPS_GOALS] = cfg.eps_goals
+        cfg_f[_kernel.F_FADE] = 0.0 if cfg.mentor_fade is None else cfg.mentor_fade
         self.cfg_f, self.cfg_i = cfg_f, cfg_i
 
         table = L.dynamics
         rows = L.rows
         self.static = (
-            _np(table.successors.contiguous()), _np(table.cdf.contiguous()),
-            _np(table.rewards.contiguous()), _np(L.terminal),
+            _np(table.successors.contiguous()),
+            _np(table.cdf.contiguous()),
+            _np(table.rewards.contiguous()),
+            _np(L.terminal),
             _np(L.start_cdf) if L.start_cdf is not None else np.ones(1),
             _np(L.termination),
-            _np(L.policy) if L.policy is not None else np.zeros(1, dtype=np.int64),
+            _np(L.policy) if L.policy is not None else np.zeros(1, dtype=np.int8),
             _np(L.policy_cdf) if L.policy_cdf is not None else np.ones((1, 1)),
-            _np(rows.state_rows), _np(rows.row_state), _np(rows.row_option),
-            _np(rows.row_first_action), _np(rows.primitive_rows), _np(rows.row_enabled),
-            _np(rows.use_mentor), _np(rows.use_confidence))
+            _np(rows.state_rows),
+            _np(rows.row_state),
+            _np(rows.row_option),
+            _np(rows.row_first_action),
+            _np(rows.primitive_rows),
+            _np(rows.row_enabled),
+            _np(rows.use_mentor),
+            _np(rows.use_confidence),
+        )
         self.keys = _np(L.keys).view(np.uint64)
         J, A, R = rows.state_rows.shape[1], table.cdf.shape[1], L.sweeper.round_size
-        self.scratch = (np.zeros((B, R), dtype=np.int64), np.zeros((B, R)), np.zeros((B, R)),
-                        np.zeros((B, R)), np.zeros((B, J)), np.zeros((B, J), dtype=np.bool_),
-                        np.zeros((B, J), dtype=np.bool_), np.zeros((B, A)))
-        self.heap = (np.zeros((B, S + 1), dtype=np.int64), np.zeros((B, S + 1)),
-                     np.zeros((B, S + 1), dtype=np.int64), np.zeros(B, dtype=np.int64))
+        self.scratch = (
+            np.zeros((B, R), dtype=np.int64),
+            np.zeros((B, R)),
+            np.zeros((B, R)),
+            np.zeros((B, R)),
+            np.zeros((B, J)),
+            np.zeros((B, J), dtype=np.bool_),
+            np.zeros((B, J), dtype=np.bool_),
+            np.zeros((B, A)),
+        )
+        self.heap = (
+            np.zeros((B, S + 1), dtype=np.int64),
+            np.zeros((B, S + 1)),
+            np.zeros((B, S + 1), dtype=np.int64),
+            np.zeros(B, dtype=np.int64),
+        )
         self._links: dict[str, tuple] = {}
 
     def mentor_wins(self) -> torch.Tensor:
@@ -83,12 +110,24 @@ class NumbaEngine:
         L = self.learner
         cache, model, rows = L.cache, L.model, L.rows
         out = np.zeros(L.batch, dtype=np.int64)
-        _kernel.mentor_wins(self.cfg_f, self.cfg_i, _np(rows.state_rows), _np(L.terminal),
-                            _np(rows.use_mentor), _np(rows.use_confidence), _np(cache.q_numerator),
-                            _np(cache.q_second), _np(model.row_count), _np(model.row_reward),
-                            _np(rows.row_enabled), _np(model.state_tries),
-                            _np(cache.mentor_numerator), _np(cache.mentor_second),
-                            _np(L.mentor.row_count), out)
+        _kernel.mentor_wins(
+            self.cfg_f,
+            self.cfg_i,
+            _np(rows.state_rows),
+            _np(L.terminal),
+            _np(rows.use_mentor),
+            _np(rows.use_confidence),
+            _np(cache.q_numerator),
+            _np(cache.q_second),
+            _np(model.row_count),
+            _np(model.row_reward),
+            _np(rows.row_enabled),
+            _np(model.state_tries),
+            _np(cache.mentor_numerator),
+            _np(cache.mentor_second),
+            _np(L.mentor.row_count),
+            out,
+        )
         return torch.from_numpy(out)
 
     def invalidate(self) -> None:
@@ -98,13 +137,22 @@ class NumbaEngine:
     def _linked(self, key: str, store) -> tuple:
         """Linked lists over ``store``'s edges, rebuilt when its lists changed elsewhere."""
         cached = self._links.get(key)
-        if cached is not None and cached[0] == store.version and cached[1][1].shape[1] == store.capacity:
+        if (
+            cached is not None
+            and cached[0] == store.version
+            and cached[1][1].shape[1] == store.capacity
+        ):
             return cached[1]
         B, E = store.batch, store.capacity
-        lists = (np.empty((B, store.num_rows + 1), dtype=np.int64), np.empty((B, E), dtype=np.int64),
-                 np.empty((B, store.num_states + 1), dtype=np.int64), np.empty((B, E), dtype=np.int64))
-        _kernel.link_edges(_np(store.edge_row), _np(store.edge_successor), _np(store.num_edges),
-                           *lists)
+        lists = (
+            np.empty((B, store.num_rows + 1), dtype=np.int64),
+            np.empty((B, E), dtype=np.int64),
+            np.empty((B, store.num_states + 1), dtype=np.int64),
+            np.empty((B, E), dtype=np.int64),
+        )
+        _kernel.link_edges(
+            _np(store.edge_row), _np(store.edge_successor), _np(store.num_edges), *lists
+        )
         self._links[key] = (store.version, lists)
         return lists
 
@@ -121,26 +169,60 @@ class NumbaEngine:
             # to the threads one at a time, not in fixed blocks.
             with numba.parallel_chunksize(1):
                 _kernel.advance(  # type: ignore[call-arg]  # a numba dispatcher
-                    t_end, t_reached, self.keys, self.cfg_f, self.cfg_i, *self.static,
-                    _np(cache.values), _np(cache.q_numerator), _np(cache.q_second),
-                    _np(cache.mentor_numerator), _np(cache.mentor_second), _np(cache.mentor_edge_reward),
-                    _np(model.edge_row), _np(model.edge_successor), _np(model.edge_count),
-                    _np(model.edge_discount), _np(model.num_edges), _np(model.row_count),
-                    _np(model.row_reward), _np(model.state_tries), *option_links,
-                    _np(mentor.edge_row), _np(mentor.edge_successor), _np(mentor.edge_count),
-                    _np(mentor.row_count), *mentor_links,
-                    _np(sweeper.pending), *self.heap, _np(sweeper.queue.priority),
-                    _np(run.position), _np(run.option_start), _np(run.row), _np(run.duration),
-                    _np(run.discounted_return), _np(run.discount), _np(run.epsilon),
-                    _np(run.found_goal), _np(run.goals), _np(run.window_goals), _np(run.episodes),
-                    _np(run.episode_start), _np(run.window_episode_steps), _np(run.window_episodes),
-                    _np(run.backups_done), _np(run.decisions), _np(run.first_goal_step),
-                    _np(run.visits), *self.scratch)
+                    t_end,
+                    t_reached,
+                    self.keys,
+                    self.cfg_f,
+                    self.cfg_i,
+                    *self.static,
+                    _np(cache.values),
+                    _np(cache.q_numerator),
+                    _np(cache.q_second),
+                    _np(cache.mentor_numerator),
+                    _np(cache.mentor_second),
+                    _np(cache.mentor_edge_reward),
+                    _np(model.edge_row),
+                    _np(model.edge_successor),
+                    _np(model.edge_count),
+                    _np(model.edge_discount),
+                    _np(model.num_edges),
+                    _np(model.row_count),
+                    _np(model.row_reward),
+                    _np(model.state_tries),
+                    *option_links,
+                    _np(mentor.edge_row),
+                    _np(mentor.edge_successor),
+                    _np(mentor.edge_count),
+                    _np(mentor.row_count),
+                    *mentor_links,
+                    _np(sweeper.pending),
+                    *self.heap,
+                    _np(sweeper.queue.priority),
+                    _np(run.position),
+                    _np(run.option_start),
+                    _np(run.row),
+                    _np(run.duration),
+                    _np(run.discounted_return),
+                    _np(run.discount),
+                    _np(run.epsilon),
+                    _np(run.found_goal),
+                    _np(run.goals),
+                    _np(run.window_goals),
+                    _np(run.episodes),
+                    _np(run.episode_start),
+                    _np(run.window_episode_steps),
+                    _np(run.window_episodes),
+                    _np(run.backups_done),
+                    _np(run.decisions),
+                    _np(run.first_goal_step),
+                    _np(run.visits),
+                    *self.scratch,
+                )
             # The kernel kept its linked lists in step with the edges it added.
             model.version += 1
             self._links["model"] = (model.version, option_links)
             if (t_reached == t_end).all():
                 break
-            model.reserve(2 * model.capacity)     # some run filled its edge list: grow, go on
+            model.reserve(2 * model.capacity)  # some run filled its edge list: grow, go on
         run.t = t_end
         sweeper.queue.refresh_block_max()

@@ -48,6 +48,8 @@ class TorchEngine:
         cfg, run = L.config, L.run_state
         u = self._tick_uniforms(run.t)
         at_goal, ended = self._act(u)
+        if cfg.eps_schedule != "decision":
+            self._eps_tick(at_goal)
         runs = ended.nonzero()[:, 0] if bool(ended.any()) else None
         if runs is not None:
             self._learn(runs)
@@ -63,7 +65,7 @@ class TorchEngine:
         option = L.rows.row_option[run.row]
         flat = option * S + run.position
         if L.policy is not None:
-            action = L.policy[flat]
+            action = L.policy[flat].long()
             stop_u = u[:, 1]
         else:
             action = torch.searchsorted(L.policy_cdf[flat], u[:, 1:2].contiguous()).squeeze(1)
@@ -75,13 +77,31 @@ class TorchEngine:
         run.duration += 1
         run.t += 1
         at_goal = L.terminal[nxt]
-        ended = at_goal | (L.termination[option * S + nxt] > stop_u) \
+        ended = (
+            at_goal
+            | (L.termination[option * S + nxt] > stop_u)
             | (run.duration >= cfg.max_option_steps)
+        )
         run.position = nxt
         run.visits.view(-1).index_add_(0, L._visit_base + nxt, L._ones_b)
         if bool(at_goal.any()):
             self._goal_reached(at_goal)
         return at_goal, ended
+
+    def _eps_tick(self, at_goal: torch.Tensor) -> None:
+        """ε schedules that change ε at steps or goals, not decisions
+        (``LearnerConfig.eps_schedule``): "step" decays at every step once the goal was found,
+        "goals" drops to the floor at the ``eps_goals``-th goal, "paper" decays at every goal."""
+        L = self.learner
+        cfg, run = L.config, L.run_state
+        decayed = (run.epsilon * cfg.eps_decay).clamp(min=cfg.eps_min)
+        if cfg.eps_schedule == "step":
+            run.epsilon = torch.where(run.found_goal, decayed, run.epsilon)
+        elif cfg.eps_schedule == "goals":
+            drop = at_goal & (run.goals >= cfg.eps_goals)
+            run.epsilon = torch.where(drop, torch.full_like(run.epsilon, cfg.eps_min), run.epsilon)
+        elif cfg.eps_schedule == "paper":
+            run.epsilon = torch.where(at_goal, decayed, run.epsilon)
 
     def _learn(self, runs: torch.Tensor) -> None:
         """Runs whose option just ended count its outcome and queue its start state first."""
@@ -100,7 +120,9 @@ class TorchEngine:
         L = self.learner
         sweeper = L.sweeper
         runs = (sweeper.pending > 0).nonzero()[:, 0]
-        done = sweeper.sweep(runs, sweeper.pending[runs] * L.config.backups, L.cache.backup_and_propagate)
+        done = sweeper.sweep(
+            runs, sweeper.pending[runs] * L.config.backups, L.cache.backup_and_propagate
+        )
         sweeper.pending[runs] = 0
         L.run_state.backups_done.index_add_(0, runs, done)
 
@@ -108,29 +130,34 @@ class TorchEngine:
         """Runs whose option ended start the next one (at a new episode's start after a goal)."""
         L = self.learner
         cfg, run = L.config, L.run_state
-        eps = run.epsilon[runs]
-        run.epsilon[runs] = torch.where(run.found_goal[runs],
-                                        (eps * cfg.eps_decay).clamp(min=cfg.eps_min), eps)
+        if cfg.eps_schedule == "decision":
+            eps = run.epsilon[runs]
+            run.epsilon[runs] = torch.where(
+                run.found_goal[runs], (eps * cfg.eps_decay).clamp(min=cfg.eps_min), eps
+            )
         run.duration[runs] = 0
         run.discounted_return[runs] = 0.0
         run.discount[runs] = 1.0
         here = torch.where(at_goal, L.start_states(runs, u), run.position[runs])
         run.position[runs] = here
         run.option_start[runs] = here
-        run.row[runs] = choose_rows(L.cache, runs, here, u[:, 3:5], run.epsilon[runs],
-                                    cfg.mentor_choice, cfg.tie_break)
+        run.row[runs] = choose_rows(
+            L.cache, runs, here, u[:, 3:5], run.epsilon[runs], cfg.mentor_choice, cfg.tie_break
+        )
 
     def _goal_reached(self, at_goal: torch.Tensor) -> None:
         run = self.learner.run_state
         run.goals += at_goal
         run.window_goals += at_goal
         first = at_goal & ~run.found_goal
-        run.first_goal_step = torch.where(first, torch.full_like(run.first_goal_step, run.t),
-                                          run.first_goal_step)
+        run.first_goal_step = torch.where(
+            first, torch.full_like(run.first_goal_step, run.t), run.first_goal_step
+        )
         run.found_goal |= at_goal
         run.episodes += at_goal
         length = run.t - run.episode_start
         run.window_episode_steps += torch.where(at_goal, length, torch.zeros_like(length))
         run.window_episodes += at_goal
-        run.episode_start = torch.where(at_goal, torch.full_like(run.episode_start, run.t),
-                                        run.episode_start)
+        run.episode_start = torch.where(
+            at_goal, torch.full_like(run.episode_start, run.t), run.episode_start
+        )
