@@ -451,8 +451,17 @@ def _junk(kind):
             "auto",
             "numba",
             "torch",
+            "decision",
+            "step",
+            "goals",
+            "paper",
+            "learned",
+            "exact",
+            "known",
+            "salience",
+            "none",
         }
-        return st.one_of(*base).filter(lambda v: v not in valid)
+        return st.one_of(*base).filter(lambda v: not (isinstance(v, str) and v in valid))
     return st.one_of(*base, st.lists(st.floats(), max_size=2))  # float
 
 
