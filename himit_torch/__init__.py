@@ -24,6 +24,7 @@ from .exact_planning import (
     smdp_value_iteration,
     value_iteration,
 )
+from .gym_adapter import from_gymnasium, taxi_navigation_options
 from .gym_env import ENV_ID, MultiRoomsEnv, register_envs
 from .learner import AGENTS, Learner, LearnerConfig
 from .mentor import (
@@ -55,6 +56,7 @@ from .reward import (
     mentor_reward_module,
 )
 from .sweep_queue import BlockPriorityQueue
+from .table_world import TableWorld, describe_world, transition_support, world_model
 from .tensorboard_logger import TensorBoardLogger
 from .world import STIMULUS_FEATURES, DynamicsTable, MultiRooms, TabularWorld
 
