@@ -464,6 +464,129 @@ if e3:
     say()
 
 
+# ------------------------------------------------------------- the factors added later (all experiments)
+def same_rows(sweep_a, cell_a, sweep_b, cell_b, agents):
+    """How many per-window rows of (cell_a in sweep_a) equal those of (cell_b in sweep_b) for the
+    given agents, over the runs both have: (equal, compared) — a rerun at another commit must
+    reproduce every row (goals, ε, episodes, backups, decisions, mentor-term wins)."""
+    keys = ("goals_in_window", "epsilon", "episodes", "backups", "decisions", "mentor_term_wins")
+
+    def load(sweep, cell):
+        path = root / sweep / "results.csv"
+        if not path.exists():
+            return {}
+        return {
+            (r["world"], r["agent"], r["seed"], r["step"]): tuple(r[k] for k in keys)
+            for r in csv.DictReader(path.open())
+            if r["cell"] == cell and r["agent"] in agents
+        }
+
+    a, b = load(sweep_a, cell_a), load(sweep_b, cell_b)
+    common = set(a) & set(b)
+    return sum(a[k] == b[k] for k in common), len(common)
+
+
+LATER = (  # (experiment, schedules sweep, exact-mentor sweep, the earlier sweep of its baseline)
+    ("exp1", "exp1_schedules", "exp1_mentor_exact", "exp1_factors"),
+    ("exp2", "exp2_schedules", "exp2_mentor_exact", "exp2_factors"),
+    ("exp3", "exp3_schedules", "exp3_mentor_exact", "exp3_baseline"),
+)
+if any(runs(s) for _, s, _, _ in LATER):
+    say("## The factors added later: ε schedules, exact option models, the mentor's exact model")
+    say()
+    say(
+        "One factor at a time around the baseline, rerun in the same sweep (seed by seed the same "
+        "mentor episodes and random numbers). `ε schedule`: `decision` (baseline, ×0.999 per "
+        "decision after the first goal), `step` (×0.999 per primitive step after the first goal), "
+        "`goals` (0.75 until 10 goals, then the floor 0.01), `paper` (×0.999 per goal reached: the "
+        "paper's sentence read literally); `option_models=exact`: every row preloaded with the exact "
+        "model as 10⁶ pseudo-executions; `mentor_model=exact`: the imitator's mentor model is the "
+        "mentor's exact transition model (same total mass as 20 episodes). Failures: runs that "
+        "never reached the goal."
+    )
+    say()
+for exp, sched, mexact, earlier in LATER:
+    rs = runs(sched)
+    if not rs:
+        continue
+    add_sums(rs, windows(sched))
+    worlds = sorted({int(r["world"]) for r in rs})
+    eq, n = same_rows(sched, "baseline", earlier, "baseline", ("imitation", "options"))
+    say(f"### {exp} ({provenance(sched)})")
+    say()
+    say(
+        f"Reproduction: the baseline cell equals the earlier sweep `{earlier}` ({provenance(earlier)}) "
+        f"in {eq} of {n} per-window rows (imitation and options-only, every seed and world)."
+    )
+    say()
+    say(
+        "| world | cell | imitation early / late / total | options early / late / total | "
+        "late: imitation − options | imitation late vs baseline | options late vs baseline | "
+        "failures imitation / options |"
+    )
+    say("|---|---|---|---|---|---|---|---|")
+    for size in worlds:
+        bi, bo = pick(rs, "baseline", "imitation", size), pick(rs, "baseline", "options", size)
+        for cell in dict.fromkeys(r["cell"] for r in rs):
+            i, o = pick(rs, cell, "imitation", size), pick(rs, cell, "options", size)
+
+            def three(d):
+                return " / ".join(
+                    fmt_ci([float(r[k]) for r in d.values()], "{:.0f}")
+                    for k in ("early_goals", "late_goals", "total_goals")
+                )
+
+            f = [sum(int(r["first_goal_step"]) < 0 for r in d.values()) for d in (i, o)]
+            vs_i = "–" if cell == "baseline" else paired(i, bi, "late_goals")
+            vs_o = "–" if cell == "baseline" else paired(o, bo, "late_goals")
+            say(
+                f"| {size} | {cell} | {three(i)} | {three(o)} | {paired(i, o, 'late_goals')} | "
+                f"{vs_i} | {vs_o} | {f[0]} / {f[1]} of {len(i)} |"
+            )
+    say()
+    if len(worlds) > 1:  # experiment 3: does imitation − options grow with the side, per cell?
+        for cell in dict.fromkeys(r["cell"] for r in rs):
+            gx, gy = [], []
+            for size in worlds:
+                i, o = pick(rs, cell, "imitation", size), pick(rs, cell, "options", size)
+                gx += [size] * len(i)
+                gy += [float(i[k]["total_goals"]) - float(o[k]["total_goals"]) for k in i]
+            lr = stats.linregress(gx, gy)
+            half = stats.t.ppf(0.975, len(gx) - 2) * lr.stderr
+            say(
+                f"* `{cell}`: imitation − options (total goals) grows by {lr.slope:.2f} goals per "
+                f"cell of side [{lr.slope - half:.2f}, {lr.slope + half:.2f}] (p = {lr.pvalue:.2g})."
+            )
+        say()
+    ms = runs(mexact)
+    if ms:
+        add_sums(ms, windows(mexact))
+        say(f"Mentor's exact model ({mexact}, {provenance(mexact)}), the imitator against the ")
+        say("baseline imitator and against options-only at the baseline, seed by seed:")
+        say()
+        say(
+            "| world | early: exact − learned mentor | late: exact − learned mentor | "
+            "total: exact − learned mentor | late: exact-mentor imitation − options | V(start) − V*, exact vs learned |"
+        )
+        say("|---|---|---|---|---|---|")
+        for size in worlds:
+            m = pick(ms, "mentor_model=exact", "imitation", size)
+            bi, bo = pick(rs, "baseline", "imitation", size), pick(rs, "baseline", "options", size)
+
+            def bias(d):
+                return fmt_ci(
+                    [float(r["value_start"]) - float(r["true_value_start"]) for r in d.values()],
+                    "{:+.3f}",
+                )
+
+            say(
+                f"| {size} | {paired(m, bi, 'early_goals')} | {paired(m, bi, 'late_goals')} | "
+                f"{paired(m, bi, 'total_goals', '{:.0f}')} | {paired(m, bo, 'late_goals')} | "
+                f"{bias(m)} vs {bias(bi)} |"
+            )
+        say()
+
+
 # ------------------------------------------------------------------------------ figures
 def curve_figure(series, optimal, title, path):
     """Mean goals per window over seeds with its 95 % Student-t band (not the seeds' range)."""
