@@ -585,6 +585,28 @@ for exp, sched, mexact, earlier in LATER:
                 f"{bias(m)} vs {bias(bi)} |"
             )
         say()
+    fs = runs(f"{exp}_fade")
+    if fs:
+        add_sums(fs, windows(f"{exp}_fade"))
+        say(
+            f"The remedy through the sweep runner ({exp}_fade, `learner.mentor_fade = 20`, "
+            f"{provenance(exp + '_fade')}), the fading imitator against the baseline imitator and "
+            "options-only of the same seeds:"
+        )
+        say()
+        say(
+            "| world | early: fade − plain imitation | late: fade − plain imitation | "
+            "late: fade − options | total: fade − options |"
+        )
+        say("|---|---|---|---|---|")
+        for size in worlds:
+            f = pick(fs, "mentor_fade=20.0", "imitation", size)
+            bi, bo = pick(rs, "baseline", "imitation", size), pick(rs, "baseline", "options", size)
+            say(
+                f"| {size} | {paired(f, bi, 'early_goals')} | {paired(f, bi, 'late_goals')} | "
+                f"{paired(f, bo, 'late_goals')} | {paired(f, bo, 'total_goals', '{:.0f}')} |"
+            )
+        say()
 
 
 # ------------------------------------------------------------------------------ figures
