@@ -36,6 +36,7 @@ from .mentor import (
     record_demonstrations,
     run_mentor,
 )
+from .option_refresh import with_options
 from .options import (
     OPTION_KINDS,
     Options,
@@ -130,6 +131,7 @@ __all__ = [
     "discover_subgoals",
     "learned_subgoal_options",
     "one_step_counts",
+    "with_options",
     # logging
     "TensorBoardLogger",
 ]

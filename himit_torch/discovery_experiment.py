@@ -12,12 +12,15 @@ Per world and seed (each seed records its own mentor episodes, as in the other e
   term.
 * ``discovered_options``, ``discovered_imitation`` — the first ``warmup`` steps are those of
   ``primitives`` / ``imitation_primitives`` (the same runs); then the subgoals found in the
-  seed's demonstrations and options to them built from that run's one-step counts; then a new
-  learner with primitives + those options (``options`` / ``imitation`` variant, same seed) for
-  the remaining steps. The new learner starts with empty models: what the first phase learned
-  reaches it only through its options (the learner cannot swap options in a live run).
+  seed's demonstrations and options to them built from that run's one-step counts, and *the same
+  run* goes on with primitives + those options (``options`` / ``imitation`` variant:
+  :func:`~himit_torch.option_refresh.with_options` carries its models, values, counters, ε and
+  random stream). Every ``refresh_every`` steps after that the options are built again from the
+  run's latest one-step counts and swapped in the same way (options that came out unchanged keep
+  their models; changed ones start empty). The subgoals are not searched again: they come from
+  the demonstrations, which do not change.
 
-Goals are counted over both phases. Results: ``config.json``, ``curves.csv``, ``subgoals.csv``
+Goals are counted over the whole run. Results: ``config.json``, ``curves.csv``, ``subgoals.csv``
 (per seed: the subgoals found, precision/recall against the world's doorways, time),
 ``demonstrations_needed.csv`` (precision/recall against the number of mentor episodes),
 ``results.md`` and ``figures/``.
@@ -38,6 +41,7 @@ from .discovery import discover_subgoals, learned_subgoal_options, one_step_coun
 from .experiment import EXPERIMENTS, source_commit
 from .learner import Learner, LearnerConfig
 from .mentor import mentor_policy, record_demonstrations
+from .option_refresh import with_options
 from .options import Options, doorway_options, mentor_options, primitive_options
 
 __all__ = ["DiscoveryConfig", "DISCOVERY_AGENTS", "run_discovery", "mean_ci"]
@@ -67,6 +71,9 @@ class DiscoveryConfig:
     warmup: int = 20_000
     """Steps of the primitives-only phase whose one-step model the options are built from (a
     multiple of the window)."""
+    refresh_every: int | None = None
+    """Steps between rebuilds of a discovered run's options from its latest one-step counts after
+    the warm-up (a multiple of the window); ``None``: built once, at the warm-up."""
     max_steps_factor: float = 2.0
     """An option's initiation set: where its subgoal lies within ``max_steps_factor ×
     separation`` expected steps in the learned model."""
@@ -93,6 +100,15 @@ class DiscoveryConfig:
             if steps % window:
                 raise ValueError(
                     f"DiscoveryConfig.steps={steps}: must be a multiple of the window ({window})"
+                )
+        if self.refresh_every is not None:
+            window = min(EXPERIMENTS[w].window for w in self.worlds)
+            if self.refresh_every < 1 or any(
+                self.refresh_every % EXPERIMENTS[w].window for w in self.worlds
+            ):
+                raise ValueError(
+                    f"DiscoveryConfig.refresh_every={self.refresh_every}: must be a positive "
+                    f"multiple of the window ({window}), or None (options built once)"
                 )
         if not self.max_steps_factor > 0:
             raise ValueError("DiscoveryConfig.max_steps_factor must be > 0")
@@ -132,6 +148,17 @@ def mean_ci(values) -> tuple[float, float]:
 def _window_goals(learner: Learner) -> np.ndarray:
     """``[B, W]`` goals per window so far."""
     return np.asarray([[int(g) for g in row] for row in learner.metrics.goals_in_window]).T
+
+
+def _paired_p(diff: np.ndarray) -> float:
+    """Two-sided p of the paired t-test of ``diff`` against 0 (1 when all differences are 0)."""
+    from scipy import stats
+
+    if diff.size < 2 or not np.any(diff):
+        return 1.0
+    if np.all(diff == diff[0]):
+        return 0.0
+    return float(stats.ttest_1samp(diff, 0.0).pvalue)
 
 
 def _run_world(config: DiscoveryConfig, exp: str, out: Path, progress: bool) -> dict:
@@ -199,19 +226,73 @@ def _run_world(config: DiscoveryConfig, exp: str, out: Path, progress: bool) -> 
     agents = ["primitives"] * len(seeds) + ["imitation_primitives"] * len(seeds)
     run_seeds = seeds + seeds
     t0 = time.perf_counter()
-    learner = batch(prims, agents, run_seeds)
-    learner.run(warmup)
-    counts = {
-        (a, s): one_step_counts(learner, b) for b, (a, s) in enumerate(zip(agents, run_seeds))
-    }
-    early = _window_goals(learner)
-    early_first = learner.first_goal_step.tolist()
-    learner.run(steps - warmup)
+    phase1 = batch(prims, agents, run_seeds)
+    phase1.run(warmup)
     wall = {"primitives phase": time.perf_counter() - t0}
-    g = _window_goals(learner)
+    usable = world.free_mask & ~world.terminal_mask
+    refreshes: list[int] = []
+
+    def discovered(learner: Learner, run: int, seed: int) -> Options:
+        """Primitives + options to ``seed``'s subgoals from the latest one-step counts of run
+        ``run`` of ``learner``."""
+        tb = time.perf_counter()
+        built = learned_subgoal_options(
+            one_step_counts(learner, run),
+            world.num_actions,
+            found[seed],
+            terminal=world.terminal_mask,
+            max_steps=config.max_steps_factor * sep,
+            gamma=world.gamma,
+            usable=usable,
+        )
+        build_seconds.append(time.perf_counter() - tb)
+        return prims if built is None else Options.concat(prims, built)
+
+    # ---- discovered options: the primitives runs go on, their options rebuilt as they learn
+    t0 = time.perf_counter()
+    for variant, source, agent in (
+        ("discovered_options", "primitives", "options"),
+        ("discovered_imitation", "imitation_primitives", "imitation"),
+    ):
+        for i, s in enumerate(seeds):
+            run = (0 if source == "primitives" else len(seeds)) + i
+            opts = discovered(phase1, run, s)
+            n_ext = opts.num_options - prims.num_options
+            option_counts[(variant, s)] = n_ext
+            if s == seeds[0] and n_ext:
+                _subgoal_figure(
+                    out / "figures" / f"options_{variant}_{exp}.png",
+                    world,
+                    found[s],
+                    demos[s],
+                    opts.select(list(range(prims.num_options, opts.num_options))),
+                    f"{exp}'s world, seed {s}: subgoals and options built\nfrom "
+                    f"{source}'s model after {warmup:,} steps",
+                )
+            learner = with_options(phase1, opts, runs=[run], agents=[agent])
+            n_swaps = 0
+            while learner.t < steps:
+                ahead = steps - learner.t
+                if config.refresh_every is not None:
+                    ahead = min(ahead, config.refresh_every)
+                learner.run(ahead)
+                if learner.t < steps:
+                    learner = with_options(learner, discovered(learner, 0, s))
+                    n_swaps += 1
+            refreshes.append(n_swaps)
+            goals[variant][s] = _window_goals(learner)[0]
+            first_goal[variant][s] = int(learner.first_goal_step[0])
+    wall["discovered options"] = time.perf_counter() - t0
+    log(f"discovered options done ({wall['discovered options']:.0f} s)")
+
+    # ---- the primitives runs to the end
+    t0 = time.perf_counter()
+    phase1.run(steps - warmup)
+    wall["primitives phase"] += time.perf_counter() - t0
+    g = _window_goals(phase1)
     for b, (a, s) in enumerate(zip(agents, run_seeds)):
         goals[a][s] = g[b]
-        first_goal[a][s] = int(learner.first_goal_step[b])
+        first_goal[a][s] = int(phase1.first_goal_step[b])
     log(f"primitives done ({wall['primitives phase']:.0f} s)")
 
     # ---- hand-built doorway options
@@ -227,50 +308,7 @@ def _run_world(config: DiscoveryConfig, exp: str, out: Path, progress: bool) -> 
         goals[name][s] = g[b]
         first_goal[name][s] = int(learner.first_goal_step[b])
     log(f"doorway options done ({wall['doorway options']:.0f} s)")
-
-    # ---- discovered options: built from each run's own first-phase counts
-    t0 = time.perf_counter()
-    usable = world.free_mask & ~world.terminal_mask
-    for variant, source, agent in (
-        ("discovered_options", "primitives", "options"),
-        ("discovered_imitation", "imitation_primitives", "imitation"),
-    ):
-        for i, s in enumerate(seeds):
-            b0 = (0 if source == "primitives" else len(seeds)) + i
-            tb = time.perf_counter()
-            found_opts = learned_subgoal_options(
-                counts[(source, s)],
-                world.num_actions,
-                found[s],
-                terminal=world.terminal_mask,
-                max_steps=config.max_steps_factor * sep,
-                gamma=world.gamma,
-                usable=usable,
-            )
-            build_seconds.append(time.perf_counter() - tb)
-            option_counts[(variant, s)] = 0 if found_opts is None else found_opts.num_options
-            opts = prims if found_opts is None else Options.concat(prims, found_opts)
-            if s == seeds[0] and found_opts is not None:
-                _subgoal_figure(
-                    out / "figures" / f"options_{variant}_{exp}.png",
-                    world,
-                    found[s],
-                    demos[s],
-                    found_opts,
-                    f"{exp}'s world, seed {s}: subgoals and options built\nfrom "
-                    f"{source}'s model after {warmup:,} steps",
-                )
-            learner = batch(opts, [agent], [s])
-            learner.run(steps - warmup)
-            g2 = _window_goals(learner)[0]
-            goals[variant][s] = np.concatenate([early[b0], g2])
-            f2 = int(learner.first_goal_step[0])
-            first_goal[variant][s] = (
-                early_first[b0] if early_first[b0] >= 0 else (warmup + f2 if f2 >= 0 else -1)
-            )
-    wall["discovered options"] = time.perf_counter() - t0
     engine = learner.engine.name
-    log(f"discovered options done ({wall['discovered options']:.0f} s)")
     _subgoal_figure(
         out / "figures" / f"subgoals_{exp}.png",
         world,
@@ -290,6 +328,7 @@ def _run_world(config: DiscoveryConfig, exp: str, out: Path, progress: bool) -> 
         "subgoals": subgoal_rows,
         "needed": needed_rows,
         "build_seconds": build_seconds,
+        "refreshes": refreshes,
         "option_counts": option_counts,
         "wall": wall,
         "separation": sep,
@@ -391,11 +430,18 @@ def _write_results(out: Path, config: DiscoveryConfig, results: list[dict], tota
         "`imitation_primitives` — primitive options only, without / with the mentor term; "
         "`doorway_options` / `doorway_imitation` — primitives + the hand-built doorway options "
         "(shortest path, from the true layout; no corner options, also on exp1's world); "
-        "`discovered_options` / `discovered_imitation` — the first `warmup` steps are those of "
-        "the primitives-only run of the same seed and variant, then a new learner with "
-        "primitives + options to the subgoals discovered in that seed's demonstrations, built "
-        "from that run's own one-step counts, for the remaining steps (its models start empty). "
-        "Goals count over both phases. Each world uses its experiment's steps, mentor episodes "
+        "`discovered_options` / `discovered_imitation` — the primitives-only run of the same "
+        "seed and variant for the first `warmup` steps, then *the same run* continued "
+        "(`option_refresh.with_options`: models, values, counters, ε, random stream carried) "
+        "with primitives + options to the subgoals discovered in that seed's demonstrations, "
+        "built from the run's own one-step counts, "
+        + (
+            "built once"
+            if config.refresh_every is None
+            else f"rebuilt from its latest counts every {config.refresh_every:,} steps "
+            "(unchanged options keep their models, changed ones start empty)"
+        )
+        + ". Goals count over the whole run. Each world uses its experiment's steps, mentor episodes "
         "and learner settings; each seed its own mentor episodes.",
         "",
     ]
@@ -436,8 +482,9 @@ def _write_results(out: Path, config: DiscoveryConfig, results: list[dict], tota
         n_opts = [v for (variant, _), v in r["option_counts"].items()]
         lines += [
             "",
-            f"Options built per run: {_fmt(n_opts)} (min {min(n_opts)}); building them "
-            f"took {1000 * np.mean(r['build_seconds']):.0f} ms a run.",
+            f"Options built at the warm-up per run: {_fmt(n_opts)} (min {min(n_opts)}); "
+            f"building them took {1000 * np.mean(r['build_seconds']):.0f} ms a time, "
+            f"{np.mean(r['refreshes']):.0f} rebuilds a run after the warm-up.",
             "",
             "### Learning",
             "",
@@ -452,12 +499,21 @@ def _write_results(out: Path, config: DiscoveryConfig, results: list[dict], tota
             np.mean(tot["imitation_primitives"]),
         )
         ratio = disc / hand if hand else float("nan")
+        # Paired over seeds: a seed's two runs share its mentor episodes and, here, its warm-up.
+        diff = np.asarray(tot["discovered_imitation"], float) - np.asarray(
+            tot["imitation_primitives"], float
+        )
+        d_mean, d_half = mean_ci(diff)
+        p_value = _paired_p(diff)
+        beats = d_mean - d_half > 0
         lines += [
             "",
             f"Discovered-options imitator / hand-built imitator (total goals): "
             f"**{100 * ratio:.0f} %** (target ≥ 80 % on exp2's world); vs primitives-only "
-            f"imitation: {disc:.0f} vs {prim:.0f} "
-            f"({'beats it' if disc > prim else 'does not beat it'}).",
+            f"imitation: {disc:.0f} vs {prim:.0f}, paired difference {d_mean:+.1f} ± "
+            f"{d_half:.1f} goals (paired t-test p = {p_value:.3g}; "
+            f"{'beats it' if beats else 'does not beat it'}: the interval "
+            f"{'lies above' if beats else 'does not lie above'} 0).",
             "",
             "Wall time: " + ", ".join(f"{k} {v:.0f} s" for k, v in r["wall"].items()),
             "",

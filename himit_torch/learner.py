@@ -571,23 +571,8 @@ class Learner:
             model.row_count[b, exact_rows[enabled_exact]] = N
             model.row_reward[b, exact_rows[enabled_exact]] = N * disc.reward.to(dev)[enabled_exact]
         model.version += 1
-        # Q caches as add_outcome would have built them: Σr + Σ_e Σγ^k V(s'), and the second
-        # moments Σ_e (Σγ^k)² / c · V(s')² of the confidence test.
-        cache.q_numerator.copy_(model.row_reward)
-        for b in range(self.batch):
-            E = int(model.num_edges[b])
-            rows_b, succ_b = model.edge_row[b, :E], model.edge_successor[b, :E]
-            v = cache.values[b].index_select(0, succ_b)
-            g_b, c_b = model.edge_discount[b, :E], model.edge_count[b, :E]
-            cache.q_numerator[b].index_add_(0, rows_b, g_b * v)
-            if bool(self.rows.use_confidence[b]):
-                cache.q_second[b].index_add_(0, rows_b, g_b * g_b / c_b.clamp(min=1e-300) * v * v)
-        runs = torch.arange(self.batch, device=dev)
-        states = torch.arange(S, device=dev)
-        best, has_value, _ = cache.state_backup(runs[:, None], states[None].expand(self.batch, -1))
-        change = torch.where(has_value, (best - cache.values[:, :S]).abs(), torch.zeros_like(best))
-        rr, ss = (change > self.config.priority_threshold).nonzero(as_tuple=True)
-        self.sweeper.push(rr, ss, change[rr, ss])
+        cache.rebuild_options()
+        self.sweeper.push(*cache.value_changes())
 
     def _check_world_rewards(self, world) -> None:
         probe = torch.full((1,), self.start_state, dtype=torch.int64, device=self.device)

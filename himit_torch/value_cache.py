@@ -302,6 +302,41 @@ class ValueCache:
             keep = self.rows.use_confidence.index_select(0, runs)
             self.q_second.view(-1).index_add_(0, flat_r[keep], term[keep])
 
+    def rebuild_options(self) -> None:
+        """Recompute the ``Q`` caches from the option model's counts and ``V``, as
+        :meth:`add_outcome` and the propagation would have built them: ``Σr + Σ_e Σγ^k V(s')``
+        per row and the second moments ``Σ_e (Σγ^k)² / c · V(s')²`` of the confidence test (after
+        a model was written wholesale, e.g. preloaded exact models). The sums run in edge order,
+        not in the order the increments arrived: equal to the incremental caches up to rounding."""
+        model = self.model
+        self.q_numerator.copy_(model.row_reward)
+        self.q_second.zero_()
+        for b in range(self.batch):
+            E = int(model.num_edges[b])
+            rows_b, succ_b = model.edge_row[b, :E], model.edge_successor[b, :E]
+            v = self.values[b].index_select(0, succ_b)
+            g_b, c_b = model.edge_discount[b, :E], model.edge_count[b, :E]
+            self.q_numerator[b].index_add_(0, rows_b, g_b * v)
+            if bool(self.rows.use_confidence[b]):
+                self.q_second[b].index_add_(0, rows_b, g_b * g_b / c_b.clamp(min=1e-300) * v * v)
+
+    def value_changes(
+        self, where: torch.Tensor | None = None
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Where a backup (eq. 2) would change ``V`` by more than the priority threshold:
+        ``(runs, states, |new V − V|)``, for the sweeper to queue. ``where [B, S]`` bool limits
+        the search (default: every state of every run)."""
+        S = self.num_states
+        runs = torch.arange(self.batch, device=self.device)
+        states = torch.arange(S, device=self.device)
+        best, has_value, _ = self.state_backup(runs[:, None], states[None].expand(self.batch, -1))
+        change = torch.where(has_value, (best - self.values[:, :S]).abs(), torch.zeros_like(best))
+        queue = change > self.config.priority_threshold
+        if where is not None:
+            queue &= where
+        rr, ss = queue.nonzero(as_tuple=True)
+        return rr, ss, change[rr, ss]
+
     def rebuild_mentor(self) -> None:
         """Recompute the mentor caches from the mentor model's counts, its edge rewards and ``V``."""
         mentor = self.mentor

@@ -218,5 +218,30 @@ def test_himit_run_discovery_quick(tmp_path, capsys):
     assert "takes no --mentor-reward" in capsys.readouterr().err
     with pytest.raises(ValueError, match="warmup"):
         DiscoveryConfig(steps=20_000, warmup=20_000)
+    with pytest.raises(ValueError, match="refresh_every"):
+        DiscoveryConfig(refresh_every=3000)  # not a multiple of the window (5000)
     m, h = mean_ci([1.0, 2.0, 3.0])  # t(0.975, 2) = 4.303, sd = 1
     assert m == 2.0 and h == pytest.approx(4.302653 / 3**0.5, rel=1e-5)
+
+
+def test_discovered_runs_continue_the_primitives_runs_and_refresh(tmp_path):
+    """The discovered-options runs are the primitives runs up to the warm-up (the same curve), then
+    go on with options rebuilt every ``refresh_every`` steps."""
+    from dataclasses import replace
+
+    from himit_torch.discovery_experiment import DiscoveryConfig, run_discovery
+
+    config = replace(DiscoveryConfig().quick(), seeds=1, steps=15_000, refresh_every=5000)
+    (result,) = run_discovery(config, tmp_path / "d", progress=False)
+    goals, window = result["goals"], config.warmup // 5000
+    for variant, source in (
+        ("discovered_options", "primitives"),
+        ("discovered_imitation", "imitation_primitives"),
+    ):
+        assert len(goals[variant][0]) == 3
+        assert list(goals[variant][0][:window]) == list(goals[source][0][:window])
+    assert result["refreshes"] == [1, 1]  # at 10,000 steps (the warm-up build is not counted)
+    assert (
+        "rebuilt from its latest counts every 5,000 steps"
+        in (tmp_path / "d" / "results.md").read_text()
+    )
