@@ -30,10 +30,10 @@ When the model is drawn:
 resample number, the kind of draw and a slot (edge id or row), through the counter-based
 uniforms of :mod:`himit_torch.rng` — independent of the batch. The Gamma sampler is Marsaglia &
 Tsang (2000) with a Marsaglia polar normal, and uses only ``+ − × ÷``, ``sqrt`` (all correctly
-rounded IEEE operations) and the :func:`fixed_log` / :func:`fixed_exp` below, written out in that
-same arithmetic: libm's and torch's (SLEEF) ``log``/``exp`` differ in the last bit, which could
-flip an acceptance test. :mod:`himit_torch.engines._kernel` repeats each function operation for
-operation, and sums over a row's edges in the same (descending edge id) order, so a run's sample
+rounded IEEE operations; :func:`exact_sqrt`, as torch's own CPU ``sqrt`` is not always) and
+the :func:`fixed_log` / :func:`fixed_exp` below, written out in that same arithmetic: libm's
+and torch's (SLEEF) ``log``/``exp`` differ in the last bit, which could flip an acceptance test.
+:mod:`himit_torch.engines._kernel` repeats each function operation for operation, and sums over a row's edges in the same (descending edge id) order, so a run's sample
 is bit for bit the same on either engine.
 """
 
@@ -48,6 +48,7 @@ from .rng import _shr, splitmix64
 __all__ = [
     "fixed_log",
     "fixed_exp",
+    "exact_sqrt",
     "sample_keys",
     "stream_uniforms",
     "gamma_draws",
@@ -119,6 +120,17 @@ def fixed_exp(x: torch.Tensor) -> torch.Tensor:
     return torch.where(x > 709.0, torch.full_like(out, float("inf")), out)
 
 
+def exact_sqrt(x: torch.Tensor) -> torch.Tensor:
+    """Correctly rounded ``√x`` (IEEE), as the kernel's ``np.sqrt``: torch's CPU ``sqrt`` on
+    AVX-512 (SLEEF) is off by one ulp now and then (measured), so on a CPU NumPy's is used; CUDA's
+    double ``sqrt`` is correctly rounded."""
+    if x.device.type == "cpu":
+        import numpy as np
+
+        return torch.from_numpy(np.sqrt(x.detach().contiguous().numpy()))
+    return torch.sqrt(x)
+
+
 def sample_keys(keys: torch.Tensor, events: torch.Tensor, kind: int) -> torch.Tensor:
     """Stream keys of draw kind ``kind`` at resample number ``events`` (``keys``, ``events``
     broadcast; int64): unrelated to the tick uniforms' streams and to each other."""
@@ -146,7 +158,7 @@ def gamma_draws(keys: torch.Tensor, slots: torch.Tensor, shape: torch.Tensor) ->
     boost = shape < 1.0
     a = torch.where(boost, shape + 1.0, shape)
     d = a - 1.0 / 3.0
-    c = 1.0 / torch.sqrt(9.0 * d.clamp(min=1e-300))
+    c = 1.0 / exact_sqrt(9.0 * d.clamp(min=1e-300))
     g = d.clone()
     active = pos.clone()
     for i in range(MAX_ATTEMPTS):
@@ -159,7 +171,7 @@ def gamma_draws(keys: torch.Tensor, slots: torch.Tensor, shape: torch.Tensor) ->
         s = x1 * x1 + x2 * x2
         ok = (s < 1.0) & (s > 0.0)
         s_safe = torch.where(ok, s, torch.full_like(s, 0.5))
-        x = x1 * torch.sqrt(-2.0 * fixed_log(s_safe) / s_safe)
+        x = x1 * exact_sqrt(-2.0 * fixed_log(s_safe) / s_safe)
         di, ci = d.index_select(0, idx), c.index_select(0, idx)
         v = 1.0 + ci * x
         ok = ok & (v > 0.0)
