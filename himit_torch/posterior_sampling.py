@@ -326,9 +326,7 @@ class PosteriorSample:
         ``n_old`` its row's count before): keep a sample of the updated posterior by the
         coupling of the module docstring. ``decisions`` (the runs' decisions before this one)
         numbers the uniform."""
-        keys = sample_keys(
-            self.keys.index_select(0, runs), torch.zeros_like(runs), KIND_ABSORB
-        )
+        keys = sample_keys(self.keys.index_select(0, runs), torch.zeros_like(runs), KIND_ABSORB)
         u = stream_uniforms(keys, decisions, 0)
         s = coupling_share(u, n_old + self.option_concentration)
         forward = self.model.index().forward[runs, rows]  # [R, K]

@@ -395,8 +395,10 @@ class ValueCache:
         valid = edges >= 0
         flat_e = runs[:, None] * mentor.capacity + edges.clamp(min=0)
         w = _take(sample.mentor_w, flat_e)
-        r_e = _take(self.mentor_edge_reward, runs[:, None] * self.mentor_edge_reward.shape[1]
-                    + edges.clamp(min=0))
+        r_e = _take(
+            self.mentor_edge_reward,
+            runs[:, None] * self.mentor_edge_reward.shape[1] + edges.clamp(min=0),
+        )
         succ = _take(mentor.edge_successor, flat_e).clamp(min=0)
         v = _take(self.values, self._state_flat(runs[:, None], succ))
         from .posterior_sampling import _descending_sum

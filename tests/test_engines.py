@@ -134,12 +134,20 @@ def test_engines_agree_on_the_small_world(world12, mentor_demos12, name):
 
 
 #: Mean-model and posterior-sampling runs in one batch (issue 9, part 2).
-PSRL_MIX = ["imitation", "imitation_psrl", "options_psrl", "primitives_psrl",
-            "imitation_primitives_psrl"]
+PSRL_MIX = [
+    "imitation",
+    "imitation_psrl",
+    "options_psrl",
+    "primitives_psrl",
+    "imitation_primitives_psrl",
+]
 PSRL_CONFIGS = {
     "episodes": LearnerConfig(window=1000, plan_every=4, sweep_rounds=1),
     "priors_every7": LearnerConfig(
-        window=1000, concentration=0.5, mentor_concentration=1.0, resample_every=7,
+        window=1000,
+        concentration=0.5,
+        mentor_concentration=1.0,
+        resample_every=7,
         mentor_fade=3.0,
     ),
 }
@@ -164,7 +172,7 @@ def test_engines_agree_with_posterior_sampling(world12, mentor_demos12, name):
     for learner in runs:
         learner.run(5000)
     assert_same_run(*runs)
-    assert int(runs[0].sample.resamples[1:].min()) > 5 and int(runs[0].goals[1:].sum()) > 0
+    assert int(runs[0].sample.resamples[1:].max()) > 20 and int(runs[0].goals[1:].sum()) > 0
     for name in ("option_w", "mentor_w"):
         assert torch.equal(_state(runs[0])[name], _state(runs[1])[name]), name
 

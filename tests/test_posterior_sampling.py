@@ -156,7 +156,9 @@ def test_a_sampled_backup_by_hand(world12):
     # a change δ of V(s2) moves Q by the sampled weight 0.75·0.8·δ (not the mean's 2.4/4·δ)
     f64 = torch.float64
     L.cache._propagate_options(
-        torch.tensor([0]), torch.tensor([s2]), torch.tensor([0.1], dtype=f64),
+        torch.tensor([0]),
+        torch.tensor([s2]),
+        torch.tensor([0.1], dtype=f64),
         torch.tensor([-0.6], dtype=f64),
     )
     q2 = L.cache.row_q(torch.tensor([0]), torch.tensor([row]))

@@ -159,8 +159,20 @@ def _gamma(key, slot, shape):
 
 @njit(inline="always")
 def _sampled_row_q(
-    cfg_f, b, row, values, q_num, edge_succ, edge_count, edge_disc, row_count, row_reward,
-    row_head, row_next, w_opt, wu_opt,
+    cfg_f,
+    b,
+    row,
+    values,
+    q_num,
+    edge_succ,
+    edge_count,
+    edge_disc,
+    row_count,
+    row_reward,
+    row_head,
+    row_next,
+    w_opt,
+    wu_opt,
 ):
     """``ValueCache.apply_sample_rows`` for one row: ``q_num = (n + α) Q̃ − α v0``."""
     conc = cfg_f[F_CONC]
@@ -170,7 +182,9 @@ def _sampled_row_q(
     acc = 0.0
     e = row_head[b, row]
     while e >= 0:
-        acc += w_opt[b, e] * (rbar + (edge_disc[b, e] / edge_count[b, e]) * values[b, edge_succ[b, e]])
+        acc += w_opt[b, e] * (
+            rbar + (edge_disc[b, e] / edge_count[b, e]) * values[b, edge_succ[b, e]]
+        )
         e = row_next[b, e]
     q = acc + wu_opt[b, row] * v0
     q_num[b, row] = (n + conc) * q - conc * v0
@@ -178,11 +192,44 @@ def _sampled_row_q(
 
 @njit(cache=True, error_model="numpy")
 def _resample(
-    b, key, cfg_f, cfg_i, state_rows, terminal, use_mentor, use_conf, row_enabled,
-    values, q_num, q_sec, m_num, m_sec, m_edge_reward,
-    edge_succ, edge_count, edge_disc, row_count, row_reward, state_tries, row_head, row_next,
-    m_edge_succ, m_edge_count, m_row_count, m_row_head, m_row_next,
-    w_opt, wu_opt, w_m, wu_m, resamples, heap, hkey, hpos, hsize, prio,
+    b,
+    key,
+    cfg_f,
+    cfg_i,
+    state_rows,
+    terminal,
+    use_mentor,
+    use_conf,
+    row_enabled,
+    values,
+    q_num,
+    q_sec,
+    m_num,
+    m_sec,
+    m_edge_reward,
+    edge_succ,
+    edge_count,
+    edge_disc,
+    row_count,
+    row_reward,
+    state_tries,
+    row_head,
+    row_next,
+    m_edge_succ,
+    m_edge_count,
+    m_row_count,
+    m_row_head,
+    m_row_next,
+    w_opt,
+    wu_opt,
+    w_m,
+    wu_m,
+    resamples,
+    heap,
+    hkey,
+    hpos,
+    hsize,
+    prio,
 ):
     """``Learner.resample`` for run ``b``: fresh draws (``PosteriorSample.draw``), the caches
     rebuilt from them (``ValueCache.apply_sample``), changed states queued."""
@@ -220,8 +267,20 @@ def _resample(
         else:
             wu_opt[b, row] = 0.0
         _sampled_row_q(
-            cfg_f, b, row, values, q_num, edge_succ, edge_count, edge_disc, row_count,
-            row_reward, row_head, row_next, w_opt, wu_opt,
+            cfg_f,
+            b,
+            row,
+            values,
+            q_num,
+            edge_succ,
+            edge_count,
+            edge_disc,
+            row_count,
+            row_reward,
+            row_head,
+            row_next,
+            w_opt,
+            wu_opt,
         )
     if use_mentor[b]:
         k_edge = _skey(key, ev, 2)
@@ -262,8 +321,23 @@ def _resample(
     thr = cfg_f[F_THRESHOLD]
     for s in range(S):
         best, has_value, _ = _state_backup(
-            cfg_f, cfg_i, state_rows, terminal, use_mentor, use_conf, q_num, q_sec, row_count,
-            row_reward, row_enabled, state_tries, m_num, m_sec, m_row_count, b, s,
+            cfg_f,
+            cfg_i,
+            state_rows,
+            terminal,
+            use_mentor,
+            use_conf,
+            q_num,
+            q_sec,
+            row_count,
+            row_reward,
+            row_enabled,
+            state_tries,
+            m_num,
+            m_sec,
+            m_row_count,
+            b,
+            s,
         )
         if has_value:
             p = abs(best - values[b, s])
@@ -786,8 +860,20 @@ def _run(
                 wu_opt[b, row] = wu_opt[b, row] * keep
                 w_opt[b, e] = w_opt[b, e] + (1.0 - keep)
                 _sampled_row_q(
-                    cfg_f, b, row, values, q_num, edge_succ, edge_count, edge_disc, row_count,
-                    row_reward, row_head, row_next, w_opt, wu_opt,
+                    cfg_f,
+                    b,
+                    row,
+                    values,
+                    q_num,
+                    edge_succ,
+                    edge_count,
+                    edge_disc,
+                    row_count,
+                    row_reward,
+                    row_head,
+                    row_next,
+                    w_opt,
+                    wu_opt,
                 )
             else:
                 # ... and fold it into the Q cache (ValueCache.add_outcome)
@@ -807,11 +893,43 @@ def _run(
             ):
                 # a fresh draw at the episode start / every N decisions (Learner.resample)
                 _resample(
-                    b, key, cfg_f, cfg_i, state_rows, terminal, use_mentor, use_conf,
-                    row_enabled, values, q_num, q_sec, m_num, m_sec, m_edge_reward,
-                    edge_succ, edge_count, edge_disc, row_count, row_reward, state_tries,
-                    row_head, row_next, m_edge_succ, m_edge_count, m_row_count, m_row_head,
-                    m_row_next, w_opt, wu_opt, w_m, wu_m, resamples, heap, hkey, hpos, hsize,
+                    b,
+                    key,
+                    cfg_f,
+                    cfg_i,
+                    state_rows,
+                    terminal,
+                    use_mentor,
+                    use_conf,
+                    row_enabled,
+                    values,
+                    q_num,
+                    q_sec,
+                    m_num,
+                    m_sec,
+                    m_edge_reward,
+                    edge_succ,
+                    edge_count,
+                    edge_disc,
+                    row_count,
+                    row_reward,
+                    state_tries,
+                    row_head,
+                    row_next,
+                    m_edge_succ,
+                    m_edge_count,
+                    m_row_count,
+                    m_row_head,
+                    m_row_next,
+                    w_opt,
+                    wu_opt,
+                    w_m,
+                    wu_m,
+                    resamples,
+                    heap,
+                    hkey,
+                    hpos,
+                    hsize,
                     prio,
                 )
         # ---- plan: prioritized sweeping (Sweeper.sweep + ValueCache.backup_and_propagate) --

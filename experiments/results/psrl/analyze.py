@@ -31,13 +31,14 @@ def cp(k, n):
 def main(paths):
     for path in paths:
         rows = list(csv.DictReader(open(path)))
-        steps_by_cell = {}
         groups = defaultdict(dict)
         for r in rows:
             groups[(r["cell"], r["agent"])][int(r["seed"])] = r
         print(f"\n### {rows[0]['sweep']} ({path})\n")
-        print("| cell | agent | n | first goal | late goals (last 50k) | no late goal | "
-              "Δ late vs mean twin (paired) |")
+        print(
+            "| cell | agent | n | first goal | late goals (last 50k) | no late goal | "
+            "Δ late vs mean twin (paired) |"
+        )
         print("|---|---|---|---|---|---|---|")
         for (cell, agent), runs in groups.items():
             seeds = sorted(runs)
@@ -53,13 +54,18 @@ def main(paths):
             if agent.endswith("_psrl"):
                 twin = groups.get((cell, agent[: -len("_psrl")]))
                 if twin:
-                    d = [int(runs[s]["late_goals"]) - int(twin[s]["late_goals"]) for s in seeds
-                         if s in twin]
+                    d = [
+                        int(runs[s]["late_goals"]) - int(twin[s]["late_goals"])
+                        for s in seeds
+                        if s in twin
+                    ]
                     d_m, d_lo, d_hi = t_ci(d)
                     diff = f"{d_m:+.0f} [{d_lo:+.0f}, {d_hi:+.0f}]"
-            print(f"| {cell} | {agent} | {len(seeds)} | {f_m:,.0f} [{f_lo:,.0f}, {f_hi:,.0f}]"
-                  f"{f' ({never} never)' if never else ''} | {l_m:.0f} [{l_lo:.0f}, {l_hi:.0f}] | "
-                  f"{fail}/{len(seeds)} [{lo:.2f}, {hi:.2f}] | {diff} |")
+            print(
+                f"| {cell} | {agent} | {len(seeds)} | {f_m:,.0f} [{f_lo:,.0f}, {f_hi:,.0f}]"
+                f"{f' ({never} never)' if never else ''} | {l_m:.0f} [{l_lo:.0f}, {l_hi:.0f}] | "
+                f"{fail}/{len(seeds)} [{lo:.2f}, {hi:.2f}] | {diff} |"
+            )
 
 
 if __name__ == "__main__":
