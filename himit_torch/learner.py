@@ -12,6 +12,8 @@ The state has one owner per piece, each with its own ``state_dict``:
   counts (only they write counts);
 * :class:`~himit_torch.value_cache.ValueCache` — ``V`` and the cached numerators of eq. 2 (only it
   writes ``V``);
+* :class:`~himit_torch.posterior_sampling.PosteriorSample` — the sampled successor probabilities
+  of the runs that plan on a posterior draw (the ``…_psrl`` agents);
 * :class:`~himit_torch.sweep_queue.Sweeper` — the prioritized-sweeping queue and schedule (only it
   touches the queue);
 * :class:`~himit_torch.run_state.RunState` — the executing options, exploration and counters;
@@ -727,7 +729,10 @@ class Learner:
     def resample(self, runs: torch.Tensor) -> None:
         """Draw a fresh model from the posteriors of ``runs`` (sampling runs), rebuild their value
         caches from it and queue the states whose values it changes (posterior sampling; the
-        engines call this at each episode start or every ``resample_every`` decisions)."""
+        engines call this at each episode start or every ``resample_every`` decisions). Runs
+        that do not sample are left alone (their caches hold the posterior means)."""
+        runs = torch.as_tensor(runs, dtype=torch.int64, device=self.device).reshape(-1)
+        runs = runs[self.rows.use_sampling.index_select(0, runs)]
         if runs.numel() == 0:
             return
         self.sample.draw(runs)
