@@ -39,6 +39,7 @@ from .exact_planning import expected_steps, smdp_value_iteration
 from .mentor import mentor_policy, run_mentor
 from .options import Options, learner_options, mentor_options, primitive_options
 from .reward import MENTOR_REWARDS
+from .rows import AGENTS
 from .tensorboard_logger import tensorboard_command
 from .world import MultiRooms
 
@@ -365,6 +366,11 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     from .experiment import EXPERIMENTS, load_config, run_experiment
 
+    if args.experiment in ("gymnasium", "discovery") and args.agents is not None:
+        raise ValueError(
+            f"himit run {args.experiment} takes no --agents (its agents are fixed by "
+            "its design); --agents is for exp1, exp2 and exp3"
+        )
     if args.experiment == "gymnasium":
         return _run_gymnasium(args)
     if args.experiment == "discovery":
@@ -393,6 +399,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         changes["engine"] = args.engine
     if args.mentor_reward is not None:
         changes["mentor_reward"] = args.mentor_reward
+    if args.agents is not None:
+        changes["agents"] = tuple(args.agents)
     if changes:
         config = replace(config, **changes)
     if config.device.startswith("cuda") and not torch.cuda.is_available():
@@ -504,6 +512,15 @@ def _add_run(sub: argparse.ArgumentParser) -> None:
         "discovery: options discovered from the mentor's states)",
     )
     sub.add_argument("--seeds", type=_positive_int, help="runs per agent (default 5)")
+    sub.add_argument(
+        "--agents",
+        nargs="+",
+        choices=sorted(AGENTS),
+        metavar="AGENT",
+        help="agent variants to run (default: the experiment's), from: "
+        + ", ".join(sorted(AGENTS))
+        + " (…_psrl: posterior sampling)",
+    )
     sub.add_argument(
         "--steps", type=_positive_int, help="steps per run (default: the experiment's)"
     )

@@ -12,6 +12,8 @@ The state has one owner per piece, each with its own ``state_dict``:
   counts (only they write counts);
 * :class:`~himit_torch.value_cache.ValueCache` — ``V`` and the cached numerators of eq. 2 (only it
   writes ``V``);
+* :class:`~himit_torch.posterior_sampling.PosteriorSample` — the sampled successor probabilities
+  of the runs that plan on a posterior draw (the ``…_psrl`` agents);
 * :class:`~himit_torch.sweep_queue.Sweeper` — the prioritized-sweeping queue and schedule (only it
   touches the queue);
 * :class:`~himit_torch.run_state.RunState` — the executing options, exploration and counters;
@@ -36,6 +38,7 @@ import torch
 from .dirichlet_models import DirichletMentorModel, DirichletSMDPModel
 from .engines import make_engine
 from .options import Options, action_dtype
+from .posterior_sampling import PosteriorSample
 from .reward import KnownReward
 from .rng import seed_streams, uniforms
 from .rows import AGENTS, RowTable
@@ -168,6 +171,13 @@ class LearnerConfig:
     max_option_steps: int = 100_000
     """An option still running after this many primitive steps is stopped (and learned from as
     if it had terminated there), so an option that never terminates cannot freeze its run."""
+    resample_every: int = 0
+    """When the ``…_psrl`` agents (posterior sampling, :mod:`himit_torch.posterior_sampling`) draw
+    a fresh model from their posteriors: 0 = at each episode start (after each goal; PSRL's
+    "one sample per episode"), ``N ≥ 1`` = every ``N`` decisions (own options executed) instead.
+    A run also draws when it is created and when it is given demonstrations. Between draws a row
+    with a new outcome keeps a sample of its updated posterior (a coupling that moves it only by
+    the new outcome's share). Other agents ignore it."""
     reward_bound_check: str = "error"
     """What to do when a mentor-reward module's declared ``upper_bound`` exceeds the learner's
     real best reward per step (the guarantee of eq. 2 needs ``R_m`` not to overestimate it):
@@ -176,7 +186,15 @@ class LearnerConfig:
 
     #: Field kinds for the input rules of :mod:`himit_torch.validation` (whole numbers are never
     #: truncated, bools and strings never taken for numbers, every number finite).
-    _INTS = ("backups", "sweep_rounds", "plan_every", "rng_chunk", "window", "max_option_steps")
+    _INTS = (
+        "backups",
+        "sweep_rounds",
+        "plan_every",
+        "rng_chunk",
+        "window",
+        "max_option_steps",
+        "resample_every",
+    )
     _FLOATS = (
         "priority_threshold",
         "initial_value",
@@ -248,6 +266,8 @@ class LearnerConfig:
             bad("rng_chunk", "must be ≥ 1 tick")
         if self.max_option_steps < 1:
             bad("max_option_steps", "must be ≥ 1 step")
+        if self.resample_every < 0:
+            bad("resample_every", "must be ≥ 0 (0 = at each episode start, N = every N decisions)")
         if not torch.isfinite(torch.tensor(float(self.initial_value))):
             bad("initial_value", "must be finite")
 
@@ -413,8 +433,10 @@ class Learner:
         self.num_rows = M = self.rows.num_rows
         self.model = DirichletSMDPModel(M, S, B, dev, config.concentration)
         self.mentor = DirichletMentorModel(S, B, dev, config.mentor_concentration)
+        self.keys = seed_streams(torch.tensor(seeds, dtype=torch.int64, device=dev))
+        self.sample = PosteriorSample(self.rows, self.model, self.mentor, self.keys, config)
         self.cache = ValueCache(
-            config, self.rows, self.model, self.mentor, self.terminal, self.gamma
+            config, self.rows, self.model, self.mentor, self.terminal, self.gamma, self.sample
         )
         self.sweeper = Sweeper(
             B,
@@ -425,7 +447,6 @@ class Learner:
             config.plan_every,
             config.priority_threshold,
         )
-        self.keys = seed_streams(torch.tensor(seeds, dtype=torch.int64, device=dev))
         first = uniforms(self.keys, -1, self.LANES)  # draw −1: the first start and option
         runs = torch.arange(B, device=dev)
         self.run_state = RunState(B, S, self.start_states(runs, first), M, config.eps_start, dev)
@@ -439,6 +460,7 @@ class Learner:
         self._check_world_rewards(world)
         if demonstrations is not None:
             self.add_demonstrations(demonstrations)
+        self.resample(self.sampling_runs())  # the sampling runs' first model
         from .choice import choose_rows
 
         self.run_state.row = choose_rows(
@@ -682,6 +704,25 @@ class Learner:
             states[keep],
             torch.ones(int(keep.sum()), dtype=torch.float64, device=self.device),
         )
+        # New mentor evidence: the sampling runs draw a model from their new posterior.
+        self.resample(self.sampling_runs())
+
+    def sampling_runs(self) -> torch.Tensor:
+        """``[R]`` the runs that plan on a posterior sample (the ``…_psrl`` agents)."""
+        return self.rows.use_sampling.nonzero()[:, 0]
+
+    def resample(self, runs: torch.Tensor) -> None:
+        """Draw a fresh model from the posteriors of ``runs`` (sampling runs), rebuild their value
+        caches from it and queue the states whose values it changes (posterior sampling; the
+        engines call this at each episode start or every ``resample_every`` decisions). Runs
+        that do not sample are left alone (their caches hold the posterior means)."""
+        runs = torch.as_tensor(runs, dtype=torch.int64, device=self.device).reshape(-1)
+        runs = runs[self.rows.use_sampling.index_select(0, runs)]
+        if runs.numel() == 0:
+            return
+        self.sample.draw(runs)
+        rr, ss, change = self.cache.apply_sample(runs)
+        self.sweeper.push(rr, ss, change)
 
     def _real_reward_bound(self) -> float | None:
         """The learner's best real reward for one step (``None`` if the world does not say)."""
@@ -754,6 +795,7 @@ class Learner:
             "cache": self.cache.state_dict(),
             "sweeper": self.sweeper.state_dict(),
             "metrics": self.metrics.state_dict(),
+            "sample": self.sample.state_dict(),
         }
 
     def load_state_dict(self, state: dict) -> None:
@@ -772,6 +814,10 @@ class Learner:
         self.mentor.load_state_dict(state["mentor"])
         self.cache.load_state_dict(state["cache"])
         self.sweeper.load_state_dict(state["sweeper"])
+        if "sample" in state:
+            self.sample.load_state_dict(state["sample"])
+        elif self.sample.any:  # (a checkpoint from before posterior sampling has no draws)
+            raise ValueError("checkpoint has no posterior sample for this learner's psrl runs")
         self.run_state.load_state_dict(state["run"])
         self.metrics = RunMetrics(**{k: list(v) for k, v in state["metrics"].items()})
         self.engine.invalidate()

@@ -34,6 +34,8 @@ AGENT_COLORS = {
     "primitives": CURVE_COLORS[2],
     "imitation_primitives": CURVE_COLORS[4],
     "imitation_primitives_confident": CURVE_COLORS[6],
+    "imitation_psrl": CURVE_COLORS[5],
+    "options_psrl": CURVE_COLORS[7],
 }
 
 #: The paper's optimal goals per 5000 steps, by world size (both worlds have 10×10 rooms).

@@ -18,14 +18,21 @@ __all__ = ["RowTable", "AGENTS"]
 #: is confidence-tested. ``imitation`` — options + mentor (eq. 2); ``options`` — options only;
 #: ``primitives`` — primitive options only; ``imitation_primitives`` — primitives + mentor (eq. 1,
 #: Price & Boutilier); ``…_confident`` — the same with Price & Boutilier's confidence test
-#: (:attr:`LearnerConfig.confidence_z`).
+#: (:attr:`LearnerConfig.confidence_z`); ``…_psrl`` — the same options and mentor term, planned on
+#: a model drawn from the posterior instead of its mean (posterior sampling,
+#: :mod:`himit_torch.posterior_sampling`; resampled per :attr:`LearnerConfig.resample_every`).
+#: Fields: options, mentor term, confidence test, posterior sampling.
 AGENTS = {
-    "imitation": ("all", True, False),
-    "imitation_confident": ("all", True, True),
-    "options": ("all", False, False),
-    "primitives": ("primitive", False, False),
-    "imitation_primitives": ("primitive", True, False),
-    "imitation_primitives_confident": ("primitive", True, True),
+    "imitation": ("all", True, False, False),
+    "imitation_confident": ("all", True, True, False),
+    "options": ("all", False, False, False),
+    "primitives": ("primitive", False, False, False),
+    "imitation_primitives": ("primitive", True, False, False),
+    "imitation_primitives_confident": ("primitive", True, True, False),
+    "imitation_psrl": ("all", True, False, True),
+    "options_psrl": ("all", False, False, True),
+    "primitives_psrl": ("primitive", False, False, True),
+    "imitation_primitives_psrl": ("primitive", True, False, True),
 }
 
 
@@ -41,6 +48,7 @@ class RowTable:
             where that primitive is not available).
         row_enabled: ``[B, M + 1]`` whether run ``b``'s agent variant may use the row.
         use_mentor, use_confidence: ``[B]`` the variant's mentor term and confidence test.
+        use_sampling: ``[B]`` whether the variant plans on a posterior sample (``…_psrl``).
     """
 
     def __init__(self, options: Options, num_actions: int, agents: Sequence[str], device):
@@ -91,8 +99,10 @@ class RowTable:
         enabled = torch.zeros(B, O, dtype=torch.bool, device=dev)
         self.use_mentor = torch.zeros(B, dtype=torch.bool, device=dev)
         self.use_confidence = torch.zeros(B, dtype=torch.bool, device=dev)
+        self.use_sampling = torch.zeros(B, dtype=torch.bool, device=dev)
         for b, agent in enumerate(agents):
-            which, mentor, confident = AGENTS[agent]
+            which, mentor, confident, sampling = AGENTS[agent]
+            self.use_sampling[b] = sampling
             enabled[b] = True if which == "all" else primitive
             self.use_mentor[b] = mentor
             self.use_confidence[b] = confident

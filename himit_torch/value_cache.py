@@ -15,6 +15,13 @@ is evaluated from caches rather than from the models' successor lists (the pure 
 * ``mentor_numerator [B, S + 1]`` likewise holds ``Σ_{s'} c(s→s') (r_m + γ V(s'))``.
 * ``q_second``/``mentor_second`` hold the second moments the confidence test needs.
 
+Runs that plan on a posterior sample (the ``…_psrl`` agents, :mod:`himit_torch.posterior_sampling`)
+keep the same caches in the same form — ``q_numerator = (n + α)·Q̃ − α v0``, so that the formula
+above yields the sampled value ``Q̃`` and every reader (backups, choice, diagnostics) is unchanged
+— and propagate along the sampled weights ``(n + α) w_e Σγ^k/c_e`` (mentor: ``(n + α) w_e``)
+instead of ``Σγ^k`` (``c``). A row's numerator is rebuilt from the sample whenever the sample
+changes (:meth:`ValueCache.apply_sample_rows`, :meth:`ValueCache.apply_sample`).
+
 A backup of ``s`` is then a max over its cached rows and its mentor term. The functions here are
 the batched tensor-op path (the torch engine, diagnostics); the compiled engine computes the same
 numbers in the same order on the same arrays.
@@ -31,6 +38,7 @@ from .rows import RowTable
 
 if TYPE_CHECKING:
     from .learner import LearnerConfig
+    from .posterior_sampling import PosteriorSample
 
 __all__ = ["ValueCache", "TIE"]
 
@@ -55,8 +63,11 @@ class ValueCache:
         mentor: DirichletMentorModel,
         terminal: torch.Tensor,
         gamma: float,
+        sample: PosteriorSample | None = None,
     ):
         self.config, self.rows, self.model, self.mentor = config, rows, model, mentor
+        self.sample = sample
+        self.any_sampling = sample is not None and sample.any
         self.terminal, self.gamma = terminal, gamma
         B, S, M = model.batch, rows.num_states, rows.num_rows
         dev = terminal.device
@@ -248,6 +259,16 @@ class ValueCache:
         flat_e = r * model.capacity + e
         rows = _take(model.edge_row, flat_e)
         g = _take(model.edge_discount, flat_e)
+        if self.any_sampling:  # sampled runs: the sampled weight (n + α) w_e Σγ^k / c_e
+            assert self.sample is not None
+            n_row = _take(model.row_count, self._row_flat(r, rows))
+            w = _take(self.sample.option_w, r * model.capacity + e)
+            c_e = _take(model.edge_count, flat_e).clamp(min=1e-300)
+            g = torch.where(
+                self.rows.use_sampling.index_select(0, r),
+                ((n_row + self.config.concentration) * w) * (g / c_e),
+                g,
+            )
         gd = g * d
         flat = self._row_flat(r, rows)
         self.q_numerator.view(-1).index_add_(0, flat, gd)
@@ -274,6 +295,15 @@ class ValueCache:
         flat_e = r * mentor.capacity + e
         src = _take(mentor.edge_row, flat_e)
         c = _take(mentor.edge_count, flat_e)
+        if self.any_sampling:  # sampled runs: the sampled weight (n + α) w_e
+            assert self.sample is not None
+            n_src = _take(mentor.row_count, self._state_flat(r, src))
+            w = _take(self.sample.mentor_w, flat_e)
+            c = torch.where(
+                self.rows.use_sampling.index_select(0, r),
+                (n_src + self.config.mentor_concentration) * w,
+                c,
+            )
         cd = c * gd
         flat = self._state_flat(r, src)
         self.mentor_numerator.view(-1).index_add_(0, flat, cd)
@@ -353,3 +383,84 @@ class ValueCache:
         self.mentor_numerator.scatter_add_(1, src, c * u)
         second = torch.where(self.rows.use_confidence[:, None], c * u * u, self._zero)
         self.mentor_second.scatter_add_(1, src, second)
+
+    # ======================================================================= posterior samples
+    def apply_sample_rows(self, runs: torch.Tensor, rows: torch.Tensor) -> None:
+        """Rebuild the ``Q`` numerators of ``(runs[i], rows[i])`` (sampling runs) from their
+        posterior sample: ``Q̃ = Σ_e w_e (r̄ + Σγ^k_e / c_e · V(s'_e)) + w_unseen v0`` (summed
+        over the row's edges newest first, as the compiled kernel does), stored as
+        ``(n + α) Q̃ − α v0``."""
+        assert self.sample is not None
+        model, sample, cfg = self.model, self.sample, self.config
+        alpha, v0 = cfg.concentration, cfg.initial_value
+        forward = model.index().forward
+        K = forward.shape[2]
+        cells = (runs * forward.shape[1] + rows)[:, None] * K + torch.arange(K, device=self.device)
+        edges = forward.view(-1).index_select(0, cells.reshape(-1)).view(-1, K)
+        valid = edges >= 0
+        flat_e = runs[:, None] * model.capacity + edges.clamp(min=0)
+        w = _take(sample.option_w, flat_e)
+        g = _take(model.edge_discount, flat_e)
+        c = torch.where(valid, _take(model.edge_count, flat_e), torch.ones_like(g))
+        succ = _take(model.edge_successor, flat_e).clamp(min=0)
+        v = _take(self.values, self._state_flat(runs[:, None], succ))
+        flat_r = self._row_flat(runs, rows)
+        n = _take(model.row_count, flat_r)
+        rsum = _take(model.row_reward, flat_r)
+        rbar = torch.where(n > 0, rsum / torch.where(n > 0, n, torch.ones_like(n)), self._zero)
+        from .posterior_sampling import _descending_sum
+
+        acc = _descending_sum(w * (rbar[:, None] + (g / c) * v), valid)
+        q = acc + _take(sample.option_unseen, flat_r) * v0
+        self.q_numerator.view(-1).index_put_((flat_r,), (n + alpha) * q - alpha * v0)
+
+    def apply_sample_mentor(self, runs: torch.Tensor, states: torch.Tensor) -> None:
+        """The same for the mentor numerators of ``(runs[i], states[i])`` (observed states):
+        ``m̃ = Σ_e w_e (R_m(s, s'_e) + γ V(s'_e)) + w_unseen v0``, stored as
+        ``(n + α_m) m̃ − α_m v0``."""
+        assert self.sample is not None
+        mentor, sample, cfg = self.mentor, self.sample, self.config
+        alpha, v0 = cfg.mentor_concentration, cfg.initial_value
+        forward = mentor.index().forward
+        K = forward.shape[2]
+        cells = (runs * forward.shape[1] + states)[:, None] * K + torch.arange(
+            K, device=self.device
+        )
+        edges = forward.view(-1).index_select(0, cells.reshape(-1)).view(-1, K)
+        valid = edges >= 0
+        flat_e = runs[:, None] * mentor.capacity + edges.clamp(min=0)
+        w = _take(sample.mentor_w, flat_e)
+        r_e = _take(
+            self.mentor_edge_reward,
+            runs[:, None] * self.mentor_edge_reward.shape[1] + edges.clamp(min=0),
+        )
+        succ = _take(mentor.edge_successor, flat_e).clamp(min=0)
+        v = _take(self.values, self._state_flat(runs[:, None], succ))
+        from .posterior_sampling import _descending_sum
+
+        acc = _descending_sum(w * (r_e + self.gamma * v), valid)
+        flat_s = self._state_flat(runs, states)
+        m = acc + _take(sample.mentor_unseen, flat_s) * v0
+        n = _take(mentor.row_count, flat_s)
+        self.mentor_numerator.view(-1).index_put_((flat_s,), (n + alpha) * m - alpha * v0)
+
+    def apply_sample(self, runs: torch.Tensor):
+        """After a fresh draw for ``runs``: rebuild all their ``Q`` (and, for imitating runs,
+        mentor) numerators from the sample, and return the states whose backup now differs
+        from ``V`` — ``(runs, states, |ΔV|)`` above the priority threshold — for the sweeper."""
+        M, S = self.num_rows, self.num_states
+        R = runs.numel()
+        rows = torch.arange(M, device=self.device)
+        self.apply_sample_rows(runs.repeat_interleave(M), rows.repeat(R))
+        imitating = runs[self.rows.use_mentor.index_select(0, runs)]
+        if imitating.numel():
+            observed = self.mentor.row_count.index_select(0, imitating)[:, :S] > 0
+            rr, ss = observed.nonzero(as_tuple=True)
+            if rr.numel():
+                self.apply_sample_mentor(imitating[rr], ss)
+        states = torch.arange(S, device=self.device)
+        best, has_value, _ = self.state_backup(runs[:, None], states[None].expand(R, -1))
+        old = self.values.index_select(0, runs)[:, :S]
+        change = torch.where(has_value, (best - old).abs(), torch.zeros_like(best))
+        ri, si = (change > self.config.priority_threshold).nonzero(as_tuple=True)
+        return runs[ri], si, change[ri, si]

@@ -89,6 +89,8 @@ def test_info_option_sets(capsys, flags, learner):
         (["info", "--size", "10", "--rooms", "3"], "size=10 is not a multiple of rooms=3"),
         (["info", "--slip", "1.5"], "slip=1.5 must lie in [0, 1)"),
         (["demo", "--episodes", "0"], "argument --episodes: must be ≥ 1"),
+        (["run", "exp2", "--agents", "psrl"], "argument --agents: invalid choice: 'psrl'"),
+        (["run", "discovery", "--agents", "options_psrl"], "takes no --agents"),
         (["bogus"], "invalid choice: 'bogus'"),
         ([], "the following arguments are required: command"),
     ],

@@ -60,8 +60,15 @@ CONFIGS = {
 
 
 def _state(learner: Learner) -> dict[str, torch.Tensor]:
-    run, cache = learner.run_state, learner.cache
+    run, cache, sample = learner.run_state, learner.cache, learner.sample
+    E, Em = learner.model.used, learner.mentor.used
     return {
+        # posterior sampling (the …_psrl agents): the draws and how many were made
+        "option_w": sample.option_w[:, :E],
+        "option_unseen": sample.option_unseen,
+        "mentor_w": sample.mentor_w[:, :Em],
+        "mentor_unseen": sample.mentor_unseen,
+        "resamples": sample.resamples,
         "position": run.position,
         "row": run.row,
         "decisions": run.decisions,
@@ -126,6 +133,50 @@ def test_engines_agree_on_the_small_world(world12, mentor_demos12, name):
     assert int(runs["numba"].decisions.min()) > 300 and int(runs["numba"].goals.sum()) > 0
 
 
+#: Mean-model and posterior-sampling runs in one batch (issue 9, part 2).
+PSRL_MIX = [
+    "imitation",
+    "imitation_psrl",
+    "options_psrl",
+    "primitives_psrl",
+    "imitation_primitives_psrl",
+]
+PSRL_CONFIGS = {
+    "episodes": LearnerConfig(window=1000, plan_every=4, sweep_rounds=1),
+    "priors_every7": LearnerConfig(
+        window=1000,
+        concentration=0.5,
+        mentor_concentration=1.0,
+        resample_every=7,
+        mentor_fade=3.0,
+    ),
+}
+
+
+@pytest.mark.parametrize("name", list(PSRL_CONFIGS))
+def test_engines_agree_with_posterior_sampling(world12, mentor_demos12, name):
+    """5000 ticks of mean and sampling runs together: the same draws (bit for bit), decisions,
+    goals and values on both engines."""
+    runs = [
+        Learner(
+            world12,
+            learner_options(world12),
+            PSRL_MIX,
+            range(len(PSRL_MIX)),
+            config=PSRL_CONFIGS[name],
+            demonstrations=mentor_demos12,
+            engine=engine,
+        )
+        for engine in ("numba", "torch")
+    ]
+    for learner in runs:
+        learner.run(5000)
+    assert_same_run(*runs)
+    assert int(runs[0].sample.resamples[1:].max()) > 20 and int(runs[0].goals[1:].sum()) > 0
+    for name in ("option_w", "mentor_w"):
+        assert torch.equal(_state(runs[0])[name], _state(runs[1])[name]), name
+
+
 def test_engines_agree_with_stochastic_option_policies(world12, mentor_demos12):
     """Options with ``[O, S, A]`` policies go through the sampling path of both engines."""
     usable = world12.free_mask & ~world12.terminal_mask
@@ -183,7 +234,8 @@ def test_run_in_a_batch_equals_run_alone(world12, mentor_demos12, engine):
     """Run b inside a batch is bit for bit the same run alone, on each engine."""
     config = CONFIGS["plan_every3_rounds3"]
     options = learner_options(world12)
-    agents, seeds = ["imitation_confident", "options", "imitation"], [11, 12, 13]
+    agents = ["imitation_confident", "options", "imitation", "imitation_psrl", "options_psrl"]
+    seeds = [11, 12, 13, 14, 15]
     batch = Learner(
         world12, options, agents, seeds, config=config, demonstrations=mentor_demos12, engine=engine
     )
@@ -200,7 +252,11 @@ def test_run_in_a_batch_equals_run_alone(world12, mentor_demos12, engine):
         )
         alone.run(3000)
         for name, value in _state(alone).items():
-            assert torch.equal(_state(batch)[name][b], value[0]), (b, name)
+            mine = _state(batch)[name][b]
+            if name in ("option_w", "mentor_w"):  # per-edge: as wide as the batch's fullest run
+                k = int((alone.model if name == "option_w" else alone.mentor).num_edges[0])
+                mine, value = mine[:k], value[:, :k]
+            assert torch.equal(mine, value[0]), (b, name)
 
 
 def test_switching_engines_mid_run_changes_nothing(world12, mentor_demos12):

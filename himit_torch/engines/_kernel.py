@@ -14,8 +14,12 @@ decisions and their values agree to rounding.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit, prange
+
+from .. import posterior_sampling as _ps
 
 _INF = np.inf
 _TIE = 1e-12
@@ -43,10 +47,24 @@ F_GAMMA, F_EPS_DECAY, F_EPS_MIN, F_THRESHOLD, F_V0, F_CONC, F_MCONC, F_UNTRIED, 
 # (appended settings, issue 11) ε schedule: 0 decision, 1 step, 2 goals, 3 paper
 # (``learner.EPS_SCHEDULES``), and the goals of the "goals" schedule.
 I_EPS_SCHEDULE, I_EPS_GOALS = 12, 13
-N_CFG_I = 14
 # (appended, issue 11) the mentor term's fading weight (LearnerConfig.mentor_fade; 0 = off)
 F_FADE = 9
 N_CFG_F = 10
+# (appended, issue 9 part 2) posterior sampling: LearnerConfig.resample_every (0 = per episode)
+I_RESAMPLE_EVERY = 14
+N_CFG_I = 15
+
+# ---- posterior sampling (himit_torch.posterior_sampling, operation for operation) ------------
+_LN2 = _ps.LN2
+_SQRT_HALF = _ps.SQRT_HALF
+_ATANH = np.array(_ps.ATANH_COEFFS)
+_INV_LN2 = _ps.INV_LN2
+_LN2_HI = _ps.LN2_HI
+_LN2_LO = _ps.LN2_LO
+_EXPC = np.array(_ps.EXP_COEFFS)
+_MAX_ATTEMPTS = _ps.MAX_ATTEMPTS
+_BOOST_LANE = _ps.BOOST_LANE
+_SAMPLE_TAG = np.uint64(_ps.SAMPLE_TAG)
 
 
 @njit(inline="always")
@@ -62,6 +80,269 @@ def _uniform(key, counter, lane):
     """Lane ``lane`` of draw ``counter`` of the stream ``key`` (:func:`himit_torch.rng.uniforms`)."""
     salt = _splitmix(np.uint64(counter * 1024 + lane))
     return np.float64(_splitmix(key ^ salt) >> np.uint64(11)) * _TWO_POW_MINUS_53
+
+
+@njit(inline="always")
+def _flog(x):
+    """:func:`himit_torch.posterior_sampling.fixed_log` (x ≥ 0)."""
+    if x == 0.0:
+        return -_INF
+    m, e = math.frexp(x)
+    ef = float(e)
+    if m < _SQRT_HALF:
+        m = m * 2.0
+        ef = ef - 1.0
+    else:
+        ef = ef - 0.0
+    z = (m - 1.0) / (m + 1.0)
+    z2 = z * z
+    p = _ATANH[12]
+    for j in range(11, -1, -1):
+        p = p * z2 + _ATANH[j]
+    return ef * _LN2 + (2.0 * z) * p
+
+
+@njit(inline="always")
+def _fexp(x):
+    """:func:`himit_torch.posterior_sampling.fixed_exp`."""
+    if x < -708.0:
+        return 0.0
+    if x > 709.0:
+        return _INF
+    k = np.floor(x * _INV_LN2 + 0.5)
+    r = (x - k * _LN2_HI) - k * _LN2_LO
+    p = _EXPC[13]
+    for j in range(12, -1, -1):
+        p = p * r + _EXPC[j]
+    return math.ldexp(p, int(k))
+
+
+@njit(inline="always")
+def _skey(key, event, kind):
+    """:func:`himit_torch.posterior_sampling.sample_keys`."""
+    return _splitmix(key ^ _splitmix(np.uint64(event * 8 + kind) + _SAMPLE_TAG))
+
+
+@njit
+def _gamma(key, slot, shape):
+    """:func:`himit_torch.posterior_sampling.gamma_draws` for one element."""
+    if not shape > 0:
+        return 0.0
+    boost = shape < 1.0
+    a = shape + 1.0 if boost else shape
+    d = a - 1.0 / 3.0
+    c = 1.0 / np.sqrt(9.0 * d)
+    g = d
+    for i in range(_MAX_ATTEMPTS):
+        x1 = 2.0 * _uniform(key, slot, 3 * i) - 1.0
+        x2 = 2.0 * _uniform(key, slot, 3 * i + 1) - 1.0
+        s = x1 * x1 + x2 * x2
+        if not (s < 1.0 and s > 0.0):
+            continue
+        x = x1 * np.sqrt(-2.0 * _flog(s) / s)
+        v = 1.0 + c * x
+        if not v > 0.0:
+            continue
+        v = v * v * v
+        u = _uniform(key, slot, 3 * i + 2)
+        xx = x * x
+        if u < 1.0 - 0.0331 * xx * xx:
+            g = d * v
+            break
+        if _flog(u) < 0.5 * xx + d * (1.0 - v + _flog(v)):
+            g = d * v
+            break
+    if boost:
+        g = g * _fexp(_flog(_uniform(key, slot, _BOOST_LANE)) / shape)
+    return g
+
+
+@njit(inline="always")
+def _sampled_row_q(
+    cfg_f,
+    b,
+    row,
+    values,
+    q_num,
+    edge_succ,
+    edge_count,
+    edge_disc,
+    row_count,
+    row_reward,
+    row_head,
+    row_next,
+    w_opt,
+    wu_opt,
+):
+    """``ValueCache.apply_sample_rows`` for one row: ``q_num = (n + α) Q̃ − α v0``."""
+    conc = cfg_f[F_CONC]
+    v0 = cfg_f[F_V0]
+    n = row_count[b, row]
+    rbar = row_reward[b, row] / n if n > 0 else 0.0
+    acc = 0.0
+    e = row_head[b, row]
+    while e >= 0:
+        acc += w_opt[b, e] * (
+            rbar + (edge_disc[b, e] / edge_count[b, e]) * values[b, edge_succ[b, e]]
+        )
+        e = row_next[b, e]
+    q = acc + wu_opt[b, row] * v0
+    q_num[b, row] = (n + conc) * q - conc * v0
+
+
+@njit(cache=True, error_model="numpy")
+def _resample(
+    b,
+    key,
+    cfg_f,
+    cfg_i,
+    state_rows,
+    terminal,
+    use_mentor,
+    use_conf,
+    row_enabled,
+    values,
+    q_num,
+    q_sec,
+    m_num,
+    m_sec,
+    m_edge_reward,
+    edge_succ,
+    edge_count,
+    edge_disc,
+    row_count,
+    row_reward,
+    state_tries,
+    row_head,
+    row_next,
+    m_edge_succ,
+    m_edge_count,
+    m_row_count,
+    m_row_head,
+    m_row_next,
+    w_opt,
+    wu_opt,
+    w_m,
+    wu_m,
+    resamples,
+    heap,
+    hkey,
+    hpos,
+    hsize,
+    prio,
+):
+    """``Learner.resample`` for run ``b``: fresh draws (``PosteriorSample.draw``), the caches
+    rebuilt from them (``ValueCache.apply_sample``), changed states queued."""
+    conc = cfg_f[F_CONC]
+    mconc = cfg_f[F_MCONC]
+    v0 = cfg_f[F_V0]
+    gamma = cfg_f[F_GAMMA]
+    M = q_num.shape[1] - 1
+    S = terminal.shape[0] - 1
+    ev = resamples[b]
+    k_edge = _skey(key, ev, 0)
+    k_unseen = _skey(key, ev, 1)
+    for row in range(M):
+        total = 0.0
+        e = row_head[b, row]
+        while e >= 0:
+            gd = _gamma(k_edge, e, edge_count[b, e])
+            w_opt[b, e] = gd
+            total += gd
+            e = row_next[b, e]
+        gu = _gamma(k_unseen, row, conc) if conc > 0 else 0.0
+        total += gu
+        n = row_count[b, row]
+        e = row_head[b, row]
+        while e >= 0:
+            if total > 0:
+                w_opt[b, e] = w_opt[b, e] / total
+            else:
+                w_opt[b, e] = edge_count[b, e] / max(n + conc, 1e-300)
+            e = row_next[b, e]
+        if total > 0:
+            wu_opt[b, row] = gu / total
+        elif n + conc > 0:
+            wu_opt[b, row] = conc / max(n + conc, 1e-300)
+        else:
+            wu_opt[b, row] = 0.0
+        _sampled_row_q(
+            cfg_f,
+            b,
+            row,
+            values,
+            q_num,
+            edge_succ,
+            edge_count,
+            edge_disc,
+            row_count,
+            row_reward,
+            row_head,
+            row_next,
+            w_opt,
+            wu_opt,
+        )
+    if use_mentor[b]:
+        k_edge = _skey(key, ev, 2)
+        k_unseen = _skey(key, ev, 3)
+        for s in range(S):
+            total = 0.0
+            e = m_row_head[b, s]
+            while e >= 0:
+                gd = _gamma(k_edge, e, m_edge_count[b, e])
+                w_m[b, e] = gd
+                total += gd
+                e = m_row_next[b, e]
+            gu = _gamma(k_unseen, s, mconc) if mconc > 0 else 0.0
+            total += gu
+            n = m_row_count[b, s]
+            e = m_row_head[b, s]
+            while e >= 0:
+                if total > 0:
+                    w_m[b, e] = w_m[b, e] / total
+                else:
+                    w_m[b, e] = m_edge_count[b, e] / max(n + mconc, 1e-300)
+                e = m_row_next[b, e]
+            if total > 0:
+                wu_m[b, s] = gu / total
+            elif n + mconc > 0:
+                wu_m[b, s] = mconc / max(n + mconc, 1e-300)
+            else:
+                wu_m[b, s] = 0.0
+            if n > 0:
+                acc = 0.0
+                e = m_row_head[b, s]
+                while e >= 0:
+                    acc += w_m[b, e] * (m_edge_reward[b, e] + gamma * values[b, m_edge_succ[b, e]])
+                    e = m_row_next[b, e]
+                m = acc + wu_m[b, s] * v0
+                m_num[b, s] = (n + mconc) * m - mconc * v0
+    resamples[b] += 1
+    thr = cfg_f[F_THRESHOLD]
+    for s in range(S):
+        best, has_value, _ = _state_backup(
+            cfg_f,
+            cfg_i,
+            state_rows,
+            terminal,
+            use_mentor,
+            use_conf,
+            q_num,
+            q_sec,
+            row_count,
+            row_reward,
+            row_enabled,
+            state_tries,
+            m_num,
+            m_sec,
+            m_row_count,
+            b,
+            s,
+        )
+        if has_value:
+            p = abs(best - values[b, s])
+            if p > thr:
+                _push(heap, hkey, hpos, hsize, prio, b, s, p)
 
 
 # ================================================================================ the heap
@@ -287,8 +568,11 @@ def _propagate_options(
     x,
     d,
     v_old,
+    sampled,
+    w_opt,
 ):
-    """``V(x) += d``: every row with an edge to ``x`` gets ``Σγ^k d``; queue its state."""
+    """``V(x) += d``: every row with an edge to ``x`` gets ``Σγ^k d`` (a sampling run: its
+    sampled weight ``(n + α) w_e Σγ^k / c_e``); queue its state."""
     thr = cfg_f[F_THRESHOLD]
     conc = cfg_f[F_CONC]
     any_conf = cfg_i[I_ANY_CONF] != 0 and use_conf[b]
@@ -296,6 +580,8 @@ def _propagate_options(
     while e >= 0:
         row = edge_row[b, e]
         g = edge_disc[b, e]
+        if sampled:
+            g = ((row_count[b, row] + conc) * w_opt[b, e]) * (g / edge_count[b, e])
         gd = g * d
         q_num[b, row] += gd
         if any_conf:
@@ -329,8 +615,11 @@ def _propagate_mentor(
     x,
     d,
     v_old,
+    sampled,
+    w_m,
 ):
-    """The same for the mentor term of every state the mentor left towards ``x``."""
+    """The same for the mentor term of every state the mentor left towards ``x`` (a sampling
+    run: weight ``(n + α_m) w_e`` in place of the count)."""
     thr = cfg_f[F_THRESHOLD]
     gamma = cfg_f[F_GAMMA]
     mconc = cfg_f[F_MCONC]
@@ -340,6 +629,8 @@ def _propagate_mentor(
     while e >= 0:
         src = m_edge_row[b, e]
         c = m_edge_count[b, e]
+        if sampled:
+            c = (m_row_count[b, src] + mconc) * w_m[b, e]
         cd = c * gd
         m_num[b, src] += cd
         if any_conf:
@@ -435,6 +726,13 @@ def _run(
     decisions,
     first_goal_step,
     visits,
+    # posterior sampling (PosteriorSample; use_sampling from the row table)
+    use_sampling,
+    w_opt,
+    wu_opt,
+    w_m,
+    wu_m,
+    resamples,
     # scratch
     round_states,
     round_best,
@@ -462,6 +760,8 @@ def _run(
     stochastic = cfg_i[I_STOCHASTIC] != 0
     match = cfg_i[I_MATCH] != 0 and cfg_i[I_ANY_MENTOR] != 0
     mentor_run = cfg_i[I_ANY_MENTOR] != 0 and use_mentor[b]
+    sampling_run = use_sampling[b]
+    resample_every = cfg_i[I_RESAMPLE_EVERY]
     _heapify(heap, hkey, hpos, hsize, prio, b, S + 1)
     key = np.uint64(keys[b])
     t = t_reached[b]
@@ -541,22 +841,97 @@ def _run(
                 succ_head[b, nxt] = e
             c_old = edge_count[b, e]
             g_old = edge_disc[b, e]
+            n_old = row_count[b, row]
             edge_count[b, e] = c_old + 1
             edge_disc[b, e] = g_old + g
             row_count[b, row] += 1
             row_reward[b, row] += ret
             state_tries[b, start] += 1
-            # ... and fold it into the Q cache (ValueCache.add_outcome)
-            v_end = values[b, nxt]
-            q_num[b, row] += ret + g * v_end
-            if use_conf[b]:
-                c_new = c_old + 1
-                g_new = g_old + g
-                old_term = g_old * g_old / max(c_old, 1.0) if c_old > 0 else 0.0
-                q_sec[b, row] += (g_new * g_new / c_new - old_term) * v_end * v_end
+            if sampling_run:
+                # ... a sampling run moves its sample to the updated posterior and rebuilds the
+                # row from it (PosteriorSample.absorb, ValueCache.apply_sample_rows)
+                u = _uniform(_skey(key, 0, 4), decisions[b], 0)
+                total = n_old + cfg_f[F_CONC]
+                keep = _fexp(_flog(u) / total) if total > 0 else 0.0
+                f = row_head[b, row]
+                while f >= 0:
+                    w_opt[b, f] = w_opt[b, f] * keep
+                    f = row_next[b, f]
+                wu_opt[b, row] = wu_opt[b, row] * keep
+                w_opt[b, e] = w_opt[b, e] + (1.0 - keep)
+                _sampled_row_q(
+                    cfg_f,
+                    b,
+                    row,
+                    values,
+                    q_num,
+                    edge_succ,
+                    edge_count,
+                    edge_disc,
+                    row_count,
+                    row_reward,
+                    row_head,
+                    row_next,
+                    w_opt,
+                    wu_opt,
+                )
+            else:
+                # ... and fold it into the Q cache (ValueCache.add_outcome)
+                v_end = values[b, nxt]
+                q_num[b, row] += ret + g * v_end
+                if use_conf[b]:
+                    c_new = c_old + 1
+                    g_new = g_old + g
+                    old_term = g_old * g_old / max(c_old, 1.0) if c_old > 0 else 0.0
+                    q_sec[b, row] += (g_new * g_new / c_new - old_term) * v_end * v_end
             _push(heap, hkey, hpos, hsize, prio, b, start, _INF)  # the start state goes first
             pending[b] += 1
             decisions[b] += 1
+            if sampling_run and (
+                (resample_every == 0 and at_goal)
+                or (resample_every > 0 and decisions[b] % resample_every == 0)
+            ):
+                # a fresh draw at the episode start / every N decisions (Learner.resample)
+                _resample(
+                    b,
+                    key,
+                    cfg_f,
+                    cfg_i,
+                    state_rows,
+                    terminal,
+                    use_mentor,
+                    use_conf,
+                    row_enabled,
+                    values,
+                    q_num,
+                    q_sec,
+                    m_num,
+                    m_sec,
+                    m_edge_reward,
+                    edge_succ,
+                    edge_count,
+                    edge_disc,
+                    row_count,
+                    row_reward,
+                    state_tries,
+                    row_head,
+                    row_next,
+                    m_edge_succ,
+                    m_edge_count,
+                    m_row_count,
+                    m_row_head,
+                    m_row_next,
+                    w_opt,
+                    wu_opt,
+                    w_m,
+                    wu_m,
+                    resamples,
+                    heap,
+                    hkey,
+                    hpos,
+                    hsize,
+                    prio,
+                )
         # ---- plan: prioritized sweeping (Sweeper.sweep + ValueCache.backup_and_propagate) --
         if pending[b] > 0 and t % plan_every == 0:
             budget = pending[b] * backups
@@ -623,6 +998,8 @@ def _run(
                             round_states[b, i],
                             d,
                             round_old[b, i],
+                            sampling_run,
+                            w_opt,
                         )
                 if mentor_run:
                     for i in range(k):
@@ -649,6 +1026,8 @@ def _run(
                                 round_states[b, i],
                                 d,
                                 round_old[b, i],
+                                sampling_run,
+                                w_m,
                             )
                 done += round_size
         if not ended:
@@ -844,6 +1223,13 @@ def advance(
     decisions,
     first_goal_step,
     visits,
+    # posterior sampling (PosteriorSample; use_sampling from the row table)
+    use_sampling,
+    w_opt,
+    wu_opt,
+    w_m,
+    wu_m,
+    resamples,
     # scratch
     round_states,
     round_best,
@@ -936,6 +1322,12 @@ def advance(
             decisions,
             first_goal_step,
             visits,
+            use_sampling,
+            w_opt,
+            wu_opt,
+            w_m,
+            wu_m,
+            resamples,
             round_states,
             round_best,
             round_old,

@@ -63,6 +63,7 @@ class NumbaEngine:
         cfg_i[_kernel.I_EPS_SCHEDULE] = EPS_SCHEDULES.index(cfg.eps_schedule)
         cfg_i[_kernel.I_EPS_GOALS] = cfg.eps_goals
         cfg_f[_kernel.F_FADE] = 0.0 if cfg.mentor_fade is None else cfg.mentor_fade
+        cfg_i[_kernel.I_RESAMPLE_EVERY] = cfg.resample_every
         self.cfg_f, self.cfg_i = cfg_f, cfg_i
 
         table = L.dynamics
@@ -216,6 +217,12 @@ class NumbaEngine:
                     _np(run.decisions),
                     _np(run.first_goal_step),
                     _np(run.visits),
+                    _np(L.rows.use_sampling),
+                    _np(L.sample.option_w),
+                    _np(L.sample.option_unseen),
+                    _np(L.sample.mentor_w),
+                    _np(L.sample.mentor_unseen),
+                    _np(L.sample.resamples),
                     *self.scratch,
                 )
             # The kernel kept its linked lists in step with the edges it added.

@@ -53,6 +53,8 @@ class TorchEngine:
         runs = ended.nonzero()[:, 0] if bool(ended.any()) else None
         if runs is not None:
             self._learn(runs)
+            if L.sample.any:
+                self._resample(runs, at_goal[runs])
         if run.t % cfg.plan_every == 0 and bool((L.sweeper.pending > 0).any()):
             self._plan()
         if runs is not None:
@@ -109,11 +111,34 @@ class TorchEngine:
         run = L.run_state
         end, rows, starts = run.position[runs], run.row[runs], run.option_start[runs]
         discounts, returns = run.discount[runs], run.discounted_return[runs]
-        _, c_old, g_old = L.model.update(runs, rows, starts, end, discounts, returns)
-        L.cache.add_outcome(runs, rows, end, discounts, returns, c_old, g_old)
+        n_old = L.model.row_count[runs, rows]
+        edges, c_old, g_old = L.model.update(runs, rows, starts, end, discounts, returns)
+        if not L.sample.any:
+            L.cache.add_outcome(runs, rows, end, discounts, returns, c_old, g_old)
+        else:
+            # Mean runs fold the outcome into their caches; sampling runs move their sample to
+            # the updated posterior and rebuild the row from it (posterior_sampling).
+            s = L.rows.use_sampling[runs]
+            m = ~s
+            L.cache.add_outcome(
+                runs[m], rows[m], end[m], discounts[m], returns[m], c_old[m], g_old[m]
+            )
+            if bool(s.any()):
+                L.sample.absorb(runs[s], rows[s], edges[s], n_old[s], run.decisions[runs[s]])
+                L.cache.apply_sample_rows(runs[s], rows[s])
         L.sweeper.push(runs, starts, torch.full_like(returns, float("inf")))
         L.sweeper.pending[runs] += 1
         run.decisions[runs] += 1
+
+    def _resample(self, runs: torch.Tensor, at_goal: torch.Tensor) -> None:
+        """Sampling runs draw a fresh model at an episode start (``resample_every = 0``) or every
+        ``resample_every`` decisions, before this tick's sweep (so it plans on the new draw)."""
+        L = self.learner
+        every = L.config.resample_every
+        due = at_goal if every == 0 else (L.run_state.decisions[runs] % every == 0)
+        due = due & L.rows.use_sampling[runs]
+        if bool(due.any()):
+            L.resample(runs[due])
 
     def _plan(self) -> None:
         """Runs with pending decisions sweep ``backups`` per decision."""

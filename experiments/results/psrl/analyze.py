@@ -1,0 +1,72 @@
+"""Issue 9 part 2: first goal, end performance and reliability of the psrl agents against their
+mean-model twins, from a sweep's runs.csv (one row per run).
+
+Usage: python experiments/results/psrl/analyze.py runs/sweeps/psrl_exp2/runs.csv [...]
+Prints a markdown table per sweep: means with 95 % t intervals; `no late goal`: runs with no goal
+in the last 50k steps (Clopper–Pearson 95 %); `Δ late (paired)`: psrl − mean-model twin, same
+seed and cell, with its 95 % t interval."""
+
+import csv
+import sys
+from collections import defaultdict
+
+import numpy as np
+import scipy.stats
+
+
+def t_ci(x):
+    x = np.asarray(x, dtype=float)
+    m = x.mean()
+    if len(x) < 2 or x.std() == 0:
+        return m, m, m
+    h = scipy.stats.t.ppf(0.975, len(x) - 1) * x.std(ddof=1) / np.sqrt(len(x))
+    return m, m - h, m + h
+
+
+def cp(k, n):
+    ci = scipy.stats.binomtest(k, n).proportion_ci(0.95, method="exact")
+    return ci.low, ci.high
+
+
+def main(paths):
+    for path in paths:
+        rows = list(csv.DictReader(open(path)))
+        groups = defaultdict(dict)
+        for r in rows:
+            groups[(r["cell"], r["agent"])][int(r["seed"])] = r
+        print(f"\n### {rows[0]['sweep']} ({path})\n")
+        print(
+            "| cell | agent | n | first goal | late goals (last 50k) | no late goal | "
+            "Δ late vs mean twin (paired) |"
+        )
+        print("|---|---|---|---|---|---|---|")
+        for (cell, agent), runs in groups.items():
+            seeds = sorted(runs)
+            first = [int(runs[s]["first_goal_step"]) for s in seeds]
+            never = sum(f < 0 for f in first)
+            late = [int(runs[s]["late_goals"]) for s in seeds]
+            fail = sum(v == 0 for v in late)
+            fm = [f for f in first if f >= 0]
+            f_m, f_lo, f_hi = t_ci(fm) if fm else (float("nan"),) * 3
+            l_m, l_lo, l_hi = t_ci(late)
+            lo, hi = cp(fail, len(seeds))
+            diff = ""
+            if agent.endswith("_psrl"):
+                twin = groups.get((cell, agent[: -len("_psrl")]))
+                if twin:
+                    d = [
+                        int(runs[s]["late_goals"]) - int(twin[s]["late_goals"])
+                        for s in seeds
+                        if s in twin
+                    ]
+                    d_m, d_lo, d_hi = t_ci(d)
+                    diff = f"{d_m:+.0f} [{d_lo:+.0f}, {d_hi:+.0f}]"
+            print(
+                f"| {cell} | {agent} | {len(seeds)} | {f_m:,.0f} [{f_lo:,.0f}, {f_hi:,.0f}]"
+                f"{f' ({never} never)' if never else ''} | {l_m:.0f} [{l_lo:.0f}, {l_hi:.0f}] | "
+                f"{fail}/{len(seeds)} [{lo:.2f}, {hi:.2f}] | {diff} |"
+            )
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
