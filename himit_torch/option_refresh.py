@@ -175,8 +175,16 @@ def _check(learner: Learner, options: Options, runs: list[int], agents: list[str
     if unknown:
         raise ValueError(f"unknown agent variant(s) {unknown}; use one of {sorted(AGENTS)}")
     for b, agent in zip(runs, agents):
-        _, mentor, confident = AGENTS[agent]
-        _, old_mentor, old_confident = AGENTS[learner.agents[b]]
+        _, mentor, confident, sampling = AGENTS[agent]
+        _, old_mentor, old_confident, old_sampling = AGENTS[learner.agents[b]]
+        if sampling or old_sampling:
+            # The posterior draw (PosteriorSample) is per edge of the old option set; carrying
+            # it across a change of options is not implemented, and redrawing would silently
+            # change the run.
+            raise ValueError(
+                f"run {b} ({learner.agents[b]} → {agent}): posterior-sampling (…_psrl) runs "
+                "cannot be carried to a new option set; use the mean-model variant"
+            )
         if (mentor, confident) != (old_mentor, old_confident):
             raise ValueError(
                 f"run {b} ({learner.agents[b]}) cannot become {agent!r}: a new variant may change "

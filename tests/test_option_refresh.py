@@ -234,6 +234,11 @@ def test_bad_swaps_are_refused(world12, mentor_demos12):
         with_options(learner, options, runs=[0], agents=["imitation", "options"])
     with pytest.raises(ValueError, match="Options bundle"):
         with_options(learner, "doorways")
+    with pytest.raises(ValueError, match="posterior-sampling"):
+        with_options(learner, options, agents=["imitation_psrl", "primitives"])
+    sampling = Learner(world12, options, ["options_psrl"], [0])
+    with pytest.raises(ValueError, match="posterior-sampling"):
+        with_options(sampling, options)
     exact = Learner(
         world12,
         options,
