@@ -353,8 +353,12 @@ def _propagate_mentor(
 
 # ============================================================================ the tick loop
 # error_model="numpy": a division by zero gives inf/nan (as in the parallel loop that runs it,
-# where Numba compiles with that model) instead of raising
-@njit(cache=True, error_model="numpy")
+# where Numba compiles with that model) instead of raising.
+# _nrt=False: no reference counting in the loop. The inlined helpers take whole arrays, and Numba
+# would otherwise incref and decref every one of them at every call (atomic operations on
+# counters shared by the threads, ≈ 30 of them per backup and per predecessor push). The loop
+# allocates nothing, and with the runtime off it cannot: Numba refuses to compile it if it did.
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _run(
     b,
     t_end,
