@@ -359,7 +359,7 @@ def _propagate_mentor(
 # would otherwise incref and decref every one of them at every call (atomic operations on
 # counters shared by the threads, ≈ 30 of them per backup and per predecessor push). The loop
 # allocates nothing, and with the runtime off it cannot: Numba refuses to compile it if it did.
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)  # type: ignore[call-overload]  # (not in the stubs)
 def _run(
     b,
     t_end,
