@@ -351,8 +351,13 @@ def _resample(
 # queued), ``hsize[b]``; ``prio[b, s]`` is the learner's priority array, kept equal.
 @njit(inline="always")
 def _before(k1, s1, k2, s2):
-    """Pop order: priority descending, then state ascending (the torch queue's order)."""
-    return k1 > k2 or (k1 == k2 and s1 < s2)
+    """Pop order: priority descending, then state ascending (the torch queue's order).
+
+    A strict total order over the queued states (each state is queued at most once), so the pop
+    sequence does not depend on how the heap is laid out. Bitwise ``|``/``&``, not ``or``/``and``:
+    one condition without short-circuit branches, which the compiler can turn into a select
+    where the heap picks a child (a coin flip for the branch predictor)."""
+    return (k1 > k2) | ((k1 == k2) & (s1 < s2))
 
 
 @njit(inline="always")
@@ -472,7 +477,7 @@ def _row_value(cfg_f, cfg_i, q_num, row_count, row_enabled, b, row):
 def _state_backup(
     cfg_f,
     cfg_i,
-    state_rows,
+    row_begin,
     terminal,
     use_mentor,
     use_conf,
@@ -489,17 +494,13 @@ def _state_backup(
     s,
 ):
     """Eq. 2 at ``s`` for run ``b`` (``ValueCache.state_backup``): ``(best, has_value, won)``."""
-    M = q_num.shape[1] - 1
     conc = cfg_f[F_CONC]
     v0 = cfg_f[F_V0]
     z = cfg_f[F_Z]
     confident_run = use_conf[b]
     own = -_INF
     upper = -_INF
-    for j in range(state_rows.shape[1]):
-        row = state_rows[s, j]
-        if row == M:
-            break
+    for row in range(row_begin[s], row_begin[s + 1]):
         q, usable, _ = _row_value(cfg_f, cfg_i, q_num, row_count, row_enabled, b, row)
         if usable:
             if q > own:
@@ -644,8 +645,12 @@ def _propagate_mentor(
 
 # ============================================================================ the tick loop
 # error_model="numpy": a division by zero gives inf/nan (as in the parallel loop that runs it,
-# where Numba compiles with that model) instead of raising
-@njit(cache=True, error_model="numpy")
+# where Numba compiles with that model) instead of raising.
+# _nrt=False: no reference counting in the loop. The inlined helpers take whole arrays, and Numba
+# would otherwise incref and decref every one of them at every call (atomic operations on
+# counters shared by the threads, ≈ 30 of them per backup and per predecessor push). The loop
+# allocates nothing, and with the runtime off it cannot: Numba refuses to compile it if it did.
+@njit(cache=True, error_model="numpy", _nrt=False)  # type: ignore[call-overload]  # (not in the stubs)
 def _run(
     b,
     t_end,
@@ -663,7 +668,7 @@ def _run(
     policy,
     policy_cdf,
     # the row table (shared, read only)
-    state_rows,
+    row_begin,
     row_state,
     row_option,
     row_first_action,
@@ -749,7 +754,6 @@ def _run(
     many arrays costs more than a whole tick.)"""
     S = terminal.shape[0] - 1
     M = q_num.shape[1] - 1
-    J = state_rows.shape[1]
     K = dyn_cdf.shape[2]
     capacity = edge_row.shape[1]
     gamma = cfg_f[F_GAMMA]
@@ -950,7 +954,7 @@ def _run(
                     best, has_value, _ = _state_backup(
                         cfg_f,
                         cfg_i,
-                        state_rows,
+                        row_begin,
                         terminal,
                         use_mentor,
                         use_conf,
@@ -1049,23 +1053,22 @@ def _run(
                     here += 1
         position[b] = here
         option_start[b] = here
-        n_rows = 0
-        for j in range(J):
-            r = state_rows[here, j]
-            if r == M:
-                break
-            q, usable, enabled = _row_value(cfg_f, cfg_i, q_num, row_count, row_enabled, b, r)
+        first = row_begin[here]  # the rows of ``here``: first, first + 1, ..., first + n_rows - 1
+        n_rows = row_begin[here + 1] - first
+        for j in range(n_rows):
+            q, usable, enabled = _row_value(
+                cfg_f, cfg_i, q_num, row_count, row_enabled, b, first + j
+            )
             q_buf[b, j] = q if usable else -_INF
             usable_buf[b, j] = usable
             enabled_buf[b, j] = enabled
-            n_rows += 1
         if match:
             # Where the mentor term wins, own options whose first action best reproduces the
             # mentor's move come first (choice._match_mentor).
             _, _, won = _state_backup(
                 cfg_f,
                 cfg_i,
-                state_rows,
+                row_begin,
                 terminal,
                 use_mentor,
                 use_conf,
@@ -1099,13 +1102,13 @@ def _run(
                 A_p = primitive_rows.shape[1]
                 best_score = 0.0
                 for j in range(n_rows):
-                    a = min(row_first_action[state_rows[here, j]], A_p - 1)
+                    a = min(row_first_action[first + j], A_p - 1)
                     sc = score_buf[b, a] if usable_buf[b, j] else 0.0
                     if sc > best_score:
                         best_score = sc
                 if best_score > 0:
                     for j in range(n_rows):
-                        a = min(row_first_action[state_rows[here, j]], A_p - 1)
+                        a = min(row_first_action[first + j], A_p - 1)
                         sc = score_buf[b, a] if usable_buf[b, j] else 0.0
                         if sc >= best_score - _TIE:
                             q_buf[b, j] += 1e6
@@ -1131,12 +1134,12 @@ def _run(
         pick = min(np.int64(_uniform(key, t - 1, 4) * count), count - 1)
         if cfg_i[I_TIE_FIRST] != 0 and not explore:
             pick = 0
-        chosen = state_rows[here, 0]
+        chosen = first if n_rows > 0 else M  # (M: no row, as the torch engine's padding)
         seen = 0
         for j in range(n_rows):
             if usable_buf[b, j]:
                 if seen == pick:
-                    chosen = state_rows[here, j]
+                    chosen = first + j
                     break
                 seen += 1
         row_of[b] = chosen
@@ -1160,7 +1163,7 @@ def advance(
     policy,
     policy_cdf,
     # the row table (shared, read only)
-    state_rows,
+    row_begin,
     row_state,
     row_option,
     row_first_action,
@@ -1264,7 +1267,7 @@ def advance(
             termination,
             policy,
             policy_cdf,
-            state_rows,
+            row_begin,
             row_state,
             row_option,
             row_first_action,
@@ -1361,7 +1364,7 @@ def link_edges(edge_row, edge_succ, num_edges, row_head, row_next, succ_head, su
 def mentor_wins(
     cfg_f,
     cfg_i,
-    state_rows,
+    row_begin,
     terminal,
     use_mentor,
     use_conf,
@@ -1388,7 +1391,7 @@ def mentor_wins(
                     _, _, won = _state_backup(
                         cfg_f,
                         cfg_i,
-                        state_rows,
+                        row_begin,
                         terminal,
                         use_mentor,
                         use_conf,

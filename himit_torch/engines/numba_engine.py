@@ -9,6 +9,9 @@ on disk (Numba ``cache=True``): a second process does not compile again.
 
 from __future__ import annotations
 
+import contextlib
+from collections.abc import Iterator
+
 import numba
 import numpy as np
 import torch
@@ -20,6 +23,35 @@ __all__ = ["NumbaEngine"]
 
 def _np(x: torch.Tensor) -> np.ndarray:
     return x.detach().numpy()
+
+
+@contextlib.contextmanager
+def _threads_at_most(n: int) -> Iterator[None]:
+    """Numba's threads capped at ``n`` inside the block. With fewer runs than threads the idle
+    threads have no work, and the caller would still wait at the loop's end until each of them
+    was scheduled (on a loaded machine, up to a time slice per call: B = 1 ran ≈ 1.3× slower)."""
+    threads = numba.get_num_threads()
+    numba.set_num_threads(max(1, min(n, threads)))
+    try:
+        yield
+    finally:
+        numba.set_num_threads(threads)
+
+
+def _row_begin(state_rows: torch.Tensor, num_rows: int) -> np.ndarray:
+    """``[S + 2]``: the rows of state ``s`` are ``row_begin[s]`` … ``row_begin[s + 1] − 1``.
+
+    :class:`~himit_torch.rows.RowTable` numbers rows by state, so each state's rows are
+    consecutive; the kernel loops over that range instead of reading ``state_rows`` (one
+    dependent load less per row in every backup)."""
+    counts = (state_rows != num_rows).sum(1)
+    begin = torch.zeros(state_rows.shape[0] + 1, dtype=torch.int64)
+    begin[1:] = counts.cumsum(0)
+    j = torch.arange(state_rows.shape[1])
+    consecutive = torch.where(j < counts[:, None], begin[:-1, None] + j, num_rows)
+    if not torch.equal(consecutive, state_rows.cpu()):
+        raise RuntimeError("the compiled engine needs each state's rows numbered consecutively")
+    return begin.numpy()
 
 
 class NumbaEngine:
@@ -68,6 +100,7 @@ class NumbaEngine:
 
         table = L.dynamics
         rows = L.rows
+        self.row_begin = _row_begin(rows.state_rows, rows.num_rows)
         self.static = (
             _np(table.successors.contiguous()),
             _np(table.cdf.contiguous()),
@@ -77,7 +110,7 @@ class NumbaEngine:
             _np(L.termination),
             _np(L.policy) if L.policy is not None else np.zeros(1, dtype=np.int8),
             _np(L.policy_cdf) if L.policy_cdf is not None else np.ones((1, 1)),
-            _np(rows.state_rows),
+            self.row_begin,
             _np(rows.row_state),
             _np(rows.row_option),
             _np(rows.row_first_action),
@@ -114,7 +147,7 @@ class NumbaEngine:
         _kernel.mentor_wins(
             self.cfg_f,
             self.cfg_i,
-            _np(rows.state_rows),
+            self.row_begin,
             _np(L.terminal),
             _np(rows.use_mentor),
             _np(rows.use_confidence),
@@ -168,7 +201,7 @@ class NumbaEngine:
             mentor_links = self._linked("mentor", mentor)
             # Runs differ in cost (an imitator plans more than a primitives-only run): hand them
             # to the threads one at a time, not in fixed blocks.
-            with numba.parallel_chunksize(1):
+            with numba.parallel_chunksize(1), _threads_at_most(L.batch):
                 _kernel.advance(  # type: ignore[call-arg]  # a numba dispatcher
                     t_end,
                     t_reached,
