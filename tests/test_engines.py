@@ -153,10 +153,20 @@ PSRL_CONFIGS = {
 }
 
 
-@pytest.mark.parametrize("name", list(PSRL_CONFIGS))
-def test_engines_agree_with_posterior_sampling(world12, mentor_demos12, name):
-    """5000 ticks of mean and sampling runs together: the same draws (bit for bit), decisions,
-    goals and values on both engines."""
+@pytest.mark.parametrize(
+    "name, ticks",
+    [
+        ("episodes", 5000),
+        # A draw every 7 decisions rebuilds every row's cache: the torch engine's eager ops make
+        # this the suite's slowest case (≈ 30 ms a tick), so CI runs 2000 ticks and the 5000-tick
+        # check goes with the slow ones (-m slow).
+        ("priors_every7", 2000),
+        pytest.param("priors_every7", 5000, marks=pytest.mark.slow),
+    ],
+)
+def test_engines_agree_with_posterior_sampling(world12, mentor_demos12, name, ticks):
+    """Mean and sampling runs together: the same draws (bit for bit), decisions, goals and
+    values on both engines."""
     runs = [
         Learner(
             world12,
@@ -170,7 +180,7 @@ def test_engines_agree_with_posterior_sampling(world12, mentor_demos12, name):
         for engine in ("numba", "torch")
     ]
     for learner in runs:
-        learner.run(5000)
+        learner.run(ticks)
     assert_same_run(*runs)
     assert int(runs[0].sample.resamples[1:].max()) > 20 and int(runs[0].goals[1:].sum()) > 0
     for name in ("option_w", "mentor_w"):
