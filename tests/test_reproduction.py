@@ -18,19 +18,19 @@ import pytest
 from himit_torch import LearnerConfig
 from himit_torch.experiment import ExperimentConfig, run_experiment
 
-SWEEPS = Path(__file__).resolve().parents[1] / "experiments" / "results" / "sweeps"
+RESULTS = Path(__file__).resolve().parents[1] / "experiments" / "results"
 COLUMNS = ("goals_in_window", "epsilon", "episodes", "backups", "decisions", "mentor_term_wins")
 
 
 def committed_config(sweep: str, cell: str) -> ExperimentConfig:
-    record = json.loads((SWEEPS / sweep / "sweep.json").read_text())
+    record = json.loads((RESULTS / sweep / "sweep.json").read_text())
     [data] = [c["config"] for c in record["cells"] if c["cell"] == cell]
     data = dict(data, learner=LearnerConfig(**data["learner"]))
     return ExperimentConfig(**data)
 
 
 def committed_rows(sweep: str, cell: str, seeds, last_step: int) -> dict:
-    with (SWEEPS / sweep / "results.csv").open() as f:
+    with (RESULTS / sweep / "results.csv").open() as f:
         return {
             (r["agent"], int(r["seed"]), int(r["step"])): tuple(r[k] for k in COLUMNS)
             for r in csv.DictReader(f)
@@ -41,9 +41,9 @@ def committed_rows(sweep: str, cell: str, seeds, last_step: int) -> dict:
 @pytest.mark.parametrize(
     "sweep, cell, steps",
     [
-        ("exp2_schedules", "baseline", 20_000),  # 40×40, imitation and options-only
-        ("exp2_schedules", "option_models=exact", 10_000),  # the exact option models' preload
-        ("exp1_mentor_exact", "mentor_model=exact", 10_000),  # 80×80 + corners, exact mentor
+        ("sweeps/exp2_schedules", "baseline", 20_000),  # 40×40, imitation and options-only
+        ("sweeps/exp2_schedules", "option_models=exact", 10_000),  # exact option models
+        ("sweeps/exp1_mentor_exact", "mentor_model=exact", 10_000),  # 80×80 + corners
     ],
 )
 def test_a_short_run_reproduces_the_committed_sweep_curves(tmp_path, sweep, cell, steps):
