@@ -651,11 +651,14 @@ class Learner:
             else torch.as_tensor(list(runs), dtype=torch.int64, device=self.device)
         )
         self.mentor.observe(src, dst, run_idx, counts)
-        self.refresh_mentor_reward()
+        self.refresh_mentor_reward(run_idx)
 
-    def refresh_mentor_reward(self) -> None:
+    def refresh_mentor_reward(self, changed: torch.Tensor | None = None) -> None:
         """Recompute every run's mentor-edge rewards from its reward module and rebuild the mentor
-        caches (after demonstrations were added or a reward module changed)."""
+        caches (after demonstrations were added or a reward module changed). ``changed``: the runs
+        whose mentor evidence changed (default: all) — only the sampling runs among them draw a
+        new model, so that a run's draws never depend on demonstrations given to other runs of
+        its batch."""
         real_best = self._real_reward_bound()
         mentor = self.mentor
         for b, module in enumerate(self.rewards):
@@ -704,8 +707,8 @@ class Learner:
             states[keep],
             torch.ones(int(keep.sum()), dtype=torch.float64, device=self.device),
         )
-        # New mentor evidence: the sampling runs draw a model from their new posterior.
-        self.resample(self.sampling_runs())
+        # New mentor evidence: the sampling runs among ``changed`` draw from their new posterior.
+        self.resample(self.sampling_runs() if changed is None else changed)
 
     def sampling_runs(self) -> torch.Tensor:
         """``[R]`` the runs that plan on a posterior sample (the ``…_psrl`` agents)."""

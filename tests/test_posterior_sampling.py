@@ -271,3 +271,30 @@ def test_resample_every_is_checked():
         LearnerConfig(resample_every=-1)
     with pytest.raises(ValueError, match="resample_every"):
         LearnerConfig(resample_every=2.5)
+
+
+def test_a_sampling_run_does_not_depend_on_other_runs_demonstrations(world12):
+    """Demonstrations given to run 1 leave run 0's draws alone (a regression: they used to redraw
+    every sampling run, so a psrl run in a batch of seeds, each with its own demonstrations, was
+    not the run alone)."""
+    from himit_torch.mentor import mentor_policy, record_demonstrations
+    from himit_torch.options import mentor_options
+
+    options = learner_options(world12)
+    policy = mentor_policy(world12, mentor_options(world12))
+    d0 = record_demonstrations(world12, policy, 3, seed=0)
+    d1 = record_demonstrations(world12, policy, 3, seed=1)
+    alone = Learner(world12, options, ["imitation_psrl"], [0], engine="numba")
+    alone.add_demonstrations(d0, runs=[0])
+    pair = Learner(world12, options, ["imitation_psrl", "imitation_psrl"], [0, 1], engine="numba")
+    pair.add_demonstrations(d0, runs=[0])
+    pair.add_demonstrations(d1, runs=[1])
+    k = int(alone.mentor.num_edges[0])
+    assert torch.equal(alone.sample.mentor_w[0, :k], pair.sample.mentor_w[0, :k])
+    assert int(alone.sample.resamples[0]) == int(pair.sample.resamples[0])
+    alone.run(2000)
+    pair.run(2000)
+    assert int(alone.decisions[0]) > 100  # it ran
+    assert torch.equal(alone.values[0], pair.values[0])
+    assert int(alone.decisions[0]) == int(pair.decisions[0])
+    assert int(alone.sample.resamples[0]) == int(pair.sample.resamples[0])
