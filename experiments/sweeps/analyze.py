@@ -92,6 +92,13 @@ def paired(a: dict, b: dict, key, f="{:.1f}"):
     )
 
 
+def slope_ci(x, y):
+    """Least-squares slope of y on x with its 95 % t-interval and p: (slope, lo, hi, p)."""
+    lr = stats.linregress(x, y)
+    half = stats.t.ppf(0.975, len(x) - 2) * lr.stderr
+    return lr.slope, lr.slope - half, lr.slope + half, lr.pvalue
+
+
 def cp(k, n):
     ci = stats.binomtest(k, n).proportion_ci(method="exact")
     return f"{k}/{n} = {k / n:.2f} [{ci.low:.2f}, {ci.high:.2f}]"
@@ -389,13 +396,12 @@ if e3:
         )
     say()
     for name, y in (("imitation − options", ys), ("imitation − best non-imitator", ys_best)):
-        lr = stats.linregress(xs, y)
-        half = stats.t.ppf(0.975, len(xs) - 2) * lr.stderr
+        b, lo, hi, p = slope_ci(xs, y)
         rho = stats.spearmanr(xs, y)
         say(
             f"* Growth of the benefit ({name}, total goals) with the world's side: slope "
-            f"{lr.slope:.2f} goals per cell [{lr.slope - half:.2f}, {lr.slope + half:.2f}] "
-            f"(least squares over {len(xs)} seed-level differences, p = {lr.pvalue:.2g}); Spearman "
+            f"{b:.2f} goals per cell [{lo:.2f}, {hi:.2f}] "
+            f"(least squares over {len(xs)} seed-level differences, p = {p:.2g}); Spearman "
             f"ρ = {rho.statistic:.2f} (p = {rho.pvalue:.2g})."
         )
     say()
@@ -426,11 +432,10 @@ if e3:
                 f"{f[0]} / {f[1]} of {len(i)} |"
             )
         say()
-        lr = stats.linregress(gx, gy)
-        half = stats.t.ppf(0.975, len(gx) - 2) * lr.stderr
+        b, lo, hi, p = slope_ci(gx, gy)
         say(
-            f"* Growth of imitation − options with the side: slope {lr.slope:.2f} goals per cell "
-            f"[{lr.slope - half:.2f}, {lr.slope + half:.2f}] (p = {lr.pvalue:.2g}); Spearman ρ = "
+            f"* Growth of imitation − options with the side: slope {b:.2f} goals per cell "
+            f"[{lo:.2f}, {hi:.2f}] (p = {p:.2g}); Spearman ρ = "
             f"{stats.spearmanr(gx, gy).statistic:.2f}."
         )
         say()
@@ -551,11 +556,10 @@ for exp, sched, mexact, earlier in LATER:
                 i, o = pick(rs, cell, "imitation", size), pick(rs, cell, "options", size)
                 gx += [size] * len(i)
                 gy += [float(i[k]["total_goals"]) - float(o[k]["total_goals"]) for k in i]
-            lr = stats.linregress(gx, gy)
-            half = stats.t.ppf(0.975, len(gx) - 2) * lr.stderr
+            b, lo, hi, p = slope_ci(gx, gy)
             say(
-                f"* `{cell}`: imitation − options (total goals) grows by {lr.slope:.2f} goals per "
-                f"cell of side [{lr.slope - half:.2f}, {lr.slope + half:.2f}] (p = {lr.pvalue:.2g})."
+                f"* `{cell}`: imitation − options (total goals) grows by {b:.2f} goals per "
+                f"cell of side [{lo:.2f}, {hi:.2f}] (p = {p:.2g})."
             )
         say()
     ms = runs(mexact)
