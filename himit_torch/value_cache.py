@@ -351,21 +351,24 @@ class ValueCache:
                 self.q_second[b].index_add_(0, rows_b, g_b * g_b / c_b.clamp(min=1e-300) * v * v)
 
     def value_changes(
-        self, where: torch.Tensor | None = None
+        self, where: torch.Tensor | None = None, runs: torch.Tensor | None = None
     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """Where a backup (eq. 2) would change ``V`` by more than the priority threshold:
-        ``(runs, states, |new V − V|)``, for the sweeper to queue. ``where [B, S]`` bool limits
-        the search (default: every state of every run)."""
+        ``(runs, states, |new V − V|)``, for the sweeper to queue. ``runs [R]`` (default: every
+        run) and ``where [R, S]`` bool limit the search."""
         S = self.num_states
-        runs = torch.arange(self.batch, device=self.device)
+        if runs is None:
+            runs = torch.arange(self.batch, device=self.device)
+        R = runs.numel()
         states = torch.arange(S, device=self.device)
-        best, has_value, _ = self.state_backup(runs[:, None], states[None].expand(self.batch, -1))
-        change = torch.where(has_value, (best - self.values[:, :S]).abs(), torch.zeros_like(best))
+        best, has_value, _ = self.state_backup(runs[:, None], states[None].expand(R, -1))
+        old = self.values.index_select(0, runs)[:, :S]
+        change = torch.where(has_value, (best - old).abs(), torch.zeros_like(best))
         queue = change > self.config.priority_threshold
         if where is not None:
             queue &= where
-        rr, ss = queue.nonzero(as_tuple=True)
-        return rr, ss, change[rr, ss]
+        ri, ss = queue.nonzero(as_tuple=True)
+        return runs[ri], ss, change[ri, ss]
 
     def rebuild_mentor(self) -> None:
         """Recompute the mentor caches from the mentor model's counts, its edge rewards and ``V``."""
@@ -458,9 +461,4 @@ class ValueCache:
             rr, ss = observed.nonzero(as_tuple=True)
             if rr.numel():
                 self.apply_sample_mentor(imitating[rr], ss)
-        states = torch.arange(S, device=self.device)
-        best, has_value, _ = self.state_backup(runs[:, None], states[None].expand(R, -1))
-        old = self.values.index_select(0, runs)[:, :S]
-        change = torch.where(has_value, (best - old).abs(), torch.zeros_like(best))
-        ri, si = (change > self.config.priority_threshold).nonzero(as_tuple=True)
-        return runs[ri], si, change[ri, si]
+        return self.value_changes(runs=runs)
