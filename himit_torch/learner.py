@@ -654,14 +654,18 @@ class Learner:
         self.refresh_mentor_reward(run_idx)
 
     def refresh_mentor_reward(self, changed: torch.Tensor | None = None) -> None:
-        """Recompute every run's mentor-edge rewards from its reward module and rebuild the mentor
-        caches (after demonstrations were added or a reward module changed). ``changed``: the runs
-        whose mentor evidence changed (default: all) — only the sampling runs among them draw a
-        new model, so that a run's draws never depend on demonstrations given to other runs of
-        its batch."""
+        """Recompute the mentor-edge rewards of the runs in ``changed`` (default: all) from their
+        reward modules, rebuild their mentor caches and queue their mentor states (after
+        demonstrations were added or a reward module changed); the sampling runs among them draw
+        a new model. Other runs are left exactly as they are, so that a run never depends on
+        demonstrations given to other runs of its batch."""
         real_best = self._real_reward_bound()
         mentor = self.mentor
-        for b, module in enumerate(self.rewards):
+        if changed is None:
+            changed = torch.arange(self.batch, device=self.device)
+        changed = torch.as_tensor(changed, dtype=torch.int64, device=self.device).reshape(-1)
+        for b in changed.tolist():
+            module = self.rewards[b]
             E = int(mentor.num_edges[b])
             if module is _NO_MENTOR_REWARD:  # a run without a mentor term: nothing to check
                 self.cache.mentor_edge_reward[b, :E] = 0.0
@@ -698,17 +702,16 @@ class Learner:
                     f"declared upper_bound={bound:g}"
                 )
             self.cache.mentor_edge_reward[b, :E] = r
-        self.cache.rebuild_mentor()
-        # Every mentor state is worth a backup now.
-        runs, states = mentor.observed().nonzero(as_tuple=True)
-        keep = self.rows.use_mentor[runs]
+        self.cache.rebuild_mentor(changed)
+        # Every mentor state of the changed runs is worth a backup now.
+        observed = mentor.observed().index_select(0, changed)
+        observed &= self.rows.use_mentor.index_select(0, changed)[:, None]
+        ri, states = observed.nonzero(as_tuple=True)
         self.sweeper.push(
-            runs[keep],
-            states[keep],
-            torch.ones(int(keep.sum()), dtype=torch.float64, device=self.device),
+            changed[ri], states, torch.ones(states.numel(), dtype=torch.float64, device=self.device)
         )
-        # New mentor evidence: the sampling runs among ``changed`` draw from their new posterior.
-        self.resample(self.sampling_runs() if changed is None else changed)
+        # New mentor evidence: the sampling runs among them draw from their new posterior.
+        self.resample(changed)
 
     def sampling_runs(self) -> torch.Tensor:
         """``[R]`` the runs that plan on a posterior sample (the ``…_psrl`` agents)."""

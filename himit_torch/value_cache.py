@@ -370,22 +370,29 @@ class ValueCache:
         ri, ss = queue.nonzero(as_tuple=True)
         return runs[ri], ss, change[ri, ss]
 
-    def rebuild_mentor(self) -> None:
-        """Recompute the mentor caches from the mentor model's counts, its edge rewards and ``V``."""
+    def rebuild_mentor(self, runs: torch.Tensor | None = None) -> None:
+        """Recompute the mentor caches of ``runs`` (default: every run) from the mentor model's
+        counts, its edge rewards and ``V``; other runs' caches are left as they are (a sampling
+        run's hold its draw)."""
         mentor = self.mentor
-        self.mentor_numerator.zero_()
-        self.mentor_second.zero_()
-        E = int(mentor.num_edges.max()) if self.batch else 0
-        if E == 0:
-            return
-        valid = torch.arange(E, device=self.device) < mentor.num_edges[:, None]
-        src = mentor.edge_row[:, :E].clamp(min=0)
-        dst = mentor.edge_successor[:, :E].clamp(min=0)
-        c = torch.where(valid, mentor.edge_count[:, :E], self._zero)
-        u = self.mentor_edge_reward[:, :E] + self.gamma * self.values.gather(1, dst)
-        self.mentor_numerator.scatter_add_(1, src, c * u)
-        second = torch.where(self.rows.use_confidence[:, None], c * u * u, self._zero)
-        self.mentor_second.scatter_add_(1, src, second)
+        if runs is None:
+            runs = torch.arange(self.batch, device=self.device)
+        numerator = torch.zeros_like(self.mentor_numerator.index_select(0, runs))
+        second = torch.zeros_like(numerator)
+        E = int(mentor.num_edges.index_select(0, runs).max()) if runs.numel() else 0
+        if E:
+            edges = torch.arange(E, device=self.device)
+            valid = edges < mentor.num_edges.index_select(0, runs)[:, None]
+            src = mentor.edge_row.index_select(0, runs)[:, :E].clamp(min=0)
+            dst = mentor.edge_successor.index_select(0, runs)[:, :E].clamp(min=0)
+            c = torch.where(valid, mentor.edge_count.index_select(0, runs)[:, :E], self._zero)
+            v = self.values.index_select(0, runs).gather(1, dst)
+            u = self.mentor_edge_reward.index_select(0, runs)[:, :E] + self.gamma * v
+            numerator.scatter_add_(1, src, c * u)
+            confident = self.rows.use_confidence.index_select(0, runs)[:, None]
+            second.scatter_add_(1, src, torch.where(confident, c * u * u, self._zero))
+        self.mentor_numerator.index_copy_(0, runs, numerator)
+        self.mentor_second.index_copy_(0, runs, second)
 
     # ======================================================================= posterior samples
     def apply_sample_rows(self, runs: torch.Tensor, rows: torch.Tensor) -> None:

@@ -274,9 +274,11 @@ def test_resample_every_is_checked():
 
 
 def test_a_sampling_run_does_not_depend_on_other_runs_demonstrations(world12):
-    """Demonstrations given to run 1 leave run 0's draws alone (a regression: they used to redraw
-    every sampling run, so a psrl run in a batch of seeds, each with its own demonstrations, was
-    not the run alone)."""
+    """Demonstrations given to run 1 leave run 0 alone — its draws, its caches and its queue —
+    whether they come before run 0 has learned anything or later (two regressions: they used to
+    redraw every sampling run, then to rebuild every run's mentor terms from the posterior
+    means, overwriting run 0's draw; in both, a psrl run in a batch of seeds, each with its own
+    demonstrations, was not the run alone)."""
     from himit_torch.mentor import mentor_policy, record_demonstrations
     from himit_torch.options import mentor_options
 
@@ -292,6 +294,13 @@ def test_a_sampling_run_does_not_depend_on_other_runs_demonstrations(world12):
     k = int(alone.mentor.num_edges[0])
     assert torch.equal(alone.sample.mentor_w[0, :k], pair.sample.mentor_w[0, :k])
     assert int(alone.sample.resamples[0]) == int(pair.sample.resamples[0])
+    alone.run(300)
+    pair.run(300)
+    assert not torch.all(alone.values[0] == alone.values[0, 0])  # V is no longer flat
+    pair.add_demonstrations(d1, runs=[1])  # later evidence for run 1 only
+    assert torch.equal(alone.cache.mentor_numerator[0], pair.cache.mentor_numerator[0])
+    assert torch.equal(alone.cache.q_numerator[0], pair.cache.q_numerator[0])
+    assert torch.equal(alone.sweeper.queue.priority[0], pair.sweeper.queue.priority[0])
     alone.run(2000)
     pair.run(2000)
     assert int(alone.decisions[0]) > 100  # it ran
