@@ -44,6 +44,8 @@ def committed_rows(sweep: str, cell: str, seeds, last_step: int) -> dict:
         ("sweeps/exp2_schedules", "baseline", 20_000),  # 40×40, imitation and options-only
         ("sweeps/exp2_schedules", "option_models=exact", 10_000),  # exact option models
         ("sweeps/exp1_mentor_exact", "mentor_model=exact", 10_000),  # 80×80 + corners
+        # posterior sampling: two seeds of a ten-seed batch, psrl runs beside mean-model runs
+        ("psrl/exp2", "eps_start=0.75", 10_000),
     ],
 )
 def test_a_short_run_reproduces_the_committed_sweep_curves(tmp_path, sweep, cell, steps):

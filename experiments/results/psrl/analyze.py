@@ -4,11 +4,15 @@ mean-model twins, from a sweep's runs.csv (one row per run).
 Usage: python experiments/results/psrl/analyze.py runs/sweeps/psrl_exp2/runs.csv [...]
 Prints a markdown table per sweep: means with 95 % t intervals; `no late goal`: runs with no goal
 in the last 50k steps (Clopper–Pearson 95 %); `Δ late (paired)`: psrl − mean-model twin, same
-seed and cell, with its 95 % t interval."""
+seed and cell, with its 95 % t interval. Below each table, per psrl agent and cell, the paired psrl − twin
+differences of total goals and of the first goal's step (a run that never found the goal counts
+as the sweep's steps + 1, from the `sweep.json` beside `runs.csv`) and the mean V(start)."""
 
 import csv
+import json
 import sys
 from collections import defaultdict
+from pathlib import Path
 
 import numpy as np
 import scipy.stats
@@ -40,6 +44,11 @@ def main(paths):
             "Δ late vs mean twin (paired) |"
         )
         print("|---|---|---|---|---|---|---|")
+        steps = {
+            c["cell"]: int(c["config"]["steps"])
+            for c in json.loads((Path(path).parent / "sweep.json").read_text())["cells"]
+        }
+        totals = []
         for (cell, agent), runs in groups.items():
             seeds = sorted(runs)
             first = [int(runs[s]["first_goal_step"]) for s in seeds]
@@ -59,13 +68,35 @@ def main(paths):
                         for s in seeds
                         if s in twin
                     ]
-                    d_m, d_lo, d_hi = t_ci(d)
-                    diff = f"{d_m:+.0f} [{d_lo:+.0f}, {d_hi:+.0f}]"
+                    diff = paired(d)
+                    totals.append((cell, agent, runs, twin))
             print(
                 f"| {cell} | {agent} | {len(seeds)} | {f_m:,.0f} [{f_lo:,.0f}, {f_hi:,.0f}]"
                 f"{f' ({never} never)' if never else ''} | {l_m:.0f} [{l_lo:.0f}, {l_hi:.0f}] | "
                 f"{fail}/{len(seeds)} [{lo:.2f}, {hi:.2f}] | {diff} |"
             )
+        print()
+        for cell, agent, runs, twin in totals:
+            seeds = [s for s in sorted(runs) if s in twin]
+
+            def first(r, never=steps[cell] + 1):
+                f = int(r["first_goal_step"])
+                return f if f >= 0 else never
+
+            d_total = [int(runs[s]["total_goals"]) - int(twin[s]["total_goals"]) for s in seeds]
+            d_first = [first(runs[s]) - first(twin[s]) for s in seeds]
+            v = np.mean([float(runs[s]["value_start"]) for s in seeds])
+            v_twin = np.mean([float(twin[s]["value_start"]) for s in seeds])
+            print(
+                f"- {cell}, {agent} − twin: total goals {paired(d_total)}, first goal "
+                f"{paired(d_first)} steps; V(start) {v:.3f} vs {v_twin:.3f} "
+                f"(truth {float(runs[seeds[0]]['true_value_start']):.3f})"
+            )
+
+
+def paired(d):
+    m, lo, hi = t_ci(d)
+    return f"{m:+,.0f} [{lo:+,.0f}, {hi:+,.0f}]"
 
 
 if __name__ == "__main__":
