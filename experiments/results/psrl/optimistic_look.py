@@ -1,0 +1,41 @@
+"""One look at the imitator under an optimistic prior (results.md, "Experiment 2 with an
+optimistic prior"): exp2's world, seed 0, near-greedy (ε = 0.01), concentration 1, initial value
+0, the mean-model imitator beside options-only in one batch, 30k steps. Prints goals, V(start),
+how many states each run has visited, and the imitator's greedy path from the start with V.
+
+Usage: python experiments/results/psrl/optimistic_look.py [steps]"""
+
+import sys
+from dataclasses import replace
+
+from himit_torch import Learner
+from himit_torch.experiment import EXPERIMENTS
+from himit_torch.mentor import mentor_policy, record_demonstrations
+from himit_torch.options import learner_options, mentor_options
+
+
+def main(steps: int = 30_000) -> None:
+    cfg = EXPERIMENTS["exp2"]
+    config = replace(cfg.learner, concentration=1.0, initial_value=0.0, eps_start=0.01)
+    world = cfg.world(40)
+    mentor = mentor_policy(
+        world, mentor_options(world, corners=cfg.corner_options), cfg.mentor_preference
+    )
+    demos = record_demonstrations(world, mentor, cfg.mentor_episodes, seed=0)
+    options = learner_options(world, corners=cfg.corner_options)
+    learner = Learner(world, options, ["imitation", "options"], [0, 0], config=config)
+    learner.add_demonstrations(demos, runs=[0])
+    learner.run(steps)
+    values = learner.state_values()
+    visited = (learner.visit_counts() > 0).sum(1).tolist()
+    print(f"after {learner.t} steps (imitation, options):")
+    print(f"  goals {learner.goals.tolist()}, V(start) {values[:, world.start_state].tolist()}")
+    print(f"  states visited {visited} of {world.num_states}")
+    path = learner.greedy_trajectory(0, 60).tolist()
+    print(
+        "  imitator's greedy path (state: V):", [(s, round(float(values[0, s]), 3)) for s in path]
+    )
+
+
+if __name__ == "__main__":
+    main(*(int(a) for a in sys.argv[1:]))
