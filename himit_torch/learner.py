@@ -91,8 +91,9 @@ class LearnerConfig:
     initial_value: float = -1.0
     """Initial ``V`` of every non-terminal state, and the value of the prior's unseen outcome.
     −1 = step reward / (1 − γ), the value of never reaching the goal in the paper's worlds: a
-    neutral start. 0 is optimistic there (true values are negative), which turns ε-greedy into
-    systematic exploration."""
+    neutral start. 0 is optimistic there at most states (true values are negative
+    except near the goal, up to the goal reward +1), which turns ε-greedy into systematic
+    exploration."""
     untried_value: float | None = None
     """Value of an option never tried in a state: ``None`` leaves it out of the max (and out of
     greedy choice unless nothing was tried there); a number counts it with that ``Q`` (0 =
