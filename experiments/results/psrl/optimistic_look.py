@@ -1,12 +1,15 @@
 """One look at the imitator under an optimistic prior (results.md, "Experiment 2 with an
 optimistic prior"): exp2's world, seed 0, near-greedy (ε = 0.01), concentration 1, initial value
 0, the mean-model imitator beside options-only in one batch, 30k steps. Prints goals, V(start),
-how many states each run has visited, and the imitator's greedy path from the start with V.
+how many states each run has visited, and the imitator's most visited states: their V, whether
+the mentor term wins there, and the Q and tries of their options.
 
 Usage: python experiments/results/psrl/optimistic_look.py [steps]"""
 
 import sys
 from dataclasses import replace
+
+import torch
 
 from himit_torch import Learner
 from himit_torch.experiment import EXPERIMENTS
@@ -31,10 +34,22 @@ def main(steps: int = 30_000) -> None:
     print(f"after {learner.t} steps (imitation, options):")
     print(f"  goals {learner.goals.tolist()}, V(start) {values[:, world.start_state].tolist()}")
     print(f"  states visited {visited} of {world.num_states}")
-    path = learner.greedy_trajectory(0, 60).tolist()
-    print(
-        "  imitator's greedy path (state: V):", [(s, round(float(values[0, s]), 3)) for s in path]
-    )
+    print("  the imitator's most visited states:")
+    visits = learner.visit_counts()[0]
+    for state in visits.argsort(descending=True)[:6].tolist():
+        runs, states = torch.tensor([[0]]), torch.tensor([[state]])
+        _, q, usable, _, _, tries = learner.cache.own_values(runs, states)
+        _, _, mentor_won = learner.cache.state_backup(runs, states)
+        tried = [
+            f"Q {float(qq):.3f} ×{int(n)}"
+            for qq, n, u in zip(q[0, 0], tries[0, 0], usable[0, 0])
+            if u and n > 0
+        ]
+        untried = int((usable[0, 0] & (tries[0, 0] == 0)).sum())
+        print(
+            f"    {state}: {int(visits[state])} visits, V {float(values[0, state]):.3f}, "
+            f"mentor term wins: {bool(mentor_won)}; tried {tried}; {untried} untried at Q = 0"
+        )
 
 
 if __name__ == "__main__":
