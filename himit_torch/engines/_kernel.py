@@ -1,5 +1,6 @@
 """The compiled tick loop (Numba): the algorithm of :class:`~himit_torch.engines.TorchEngine`,
-one run at a time, ``prange`` over the runs of a batch.
+one run at a time (:func:`_run`; the engine runs a batch's runs on parallel threads, the loop
+releases the GIL).
 
 Every array is allocated by the caller (:mod:`himit_torch.engines.numba_engine`) and worked on in
 place: the learner's tensors' memory, plus the engine's own derived structures — linked lists
@@ -17,7 +18,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from .. import posterior_sampling as _ps
 
@@ -424,17 +425,38 @@ def _push(heap, hkey, hpos, hsize, prio, b, s, p):
 
 @njit(inline="always")
 def _pop(heap, hkey, hpos, hsize, prio, b):
+    """Remove and return the first state (Floyd's variant: the hole left at the root goes down
+    to a leaf along the children that come first — one comparison a level instead of two —
+    and the last slot's state, which belongs near the bottom, sifts up from there). Any heap
+    of the same states pops them in the same order (:func:`_before` is a strict total order),
+    so the layout this leaves changes nothing that follows."""
     s = heap[b, 0]
     hsize[b] -= 1
     n = hsize[b]
     hpos[b, s] = -1
     prio[b, s] = 0.0
     if n > 0:
-        last = heap[b, n]
-        heap[b, 0] = last
-        hkey[b, 0] = hkey[b, n]
-        hpos[b, last] = 0
-        _sift_down(heap, hkey, hpos, hsize, b, 0)
+        i = 0
+        while True:
+            child = 2 * i + 1
+            if child >= n:
+                break
+            c = heap[b, child]
+            kc = hkey[b, child]
+            if child + 1 < n:
+                c2 = heap[b, child + 1]
+                k2 = hkey[b, child + 1]
+                if _before(k2, c2, kc, c):
+                    child += 1
+                    c = c2
+                    kc = k2
+            heap[b, i] = c
+            hkey[b, i] = kc
+            hpos[b, c] = i
+            i = child
+        heap[b, i] = heap[b, n]
+        hkey[b, i] = hkey[b, n]
+        _sift_up(heap, hkey, hpos, b, i)
     return s
 
 
@@ -546,6 +568,32 @@ def _state_backup(
 
 # ==================================================================== propagation and sweeping
 @njit(inline="always")
+def _index_predecessors(b, edge_succ, num_edges, succ_head, pred_begin, pred_edge):
+    """Run ``b``'s edges by successor: those into ``x`` are ``pred_edge[b, pred_begin[b, x]]``
+    … ``pred_edge[b, pred_begin[b, x + 1] − 1]`` (a counting sort, in creation order); the
+    lists from ``succ_head`` emptied (they hold the edges added after this). A contiguous run
+    per successor instead of a list through the edges: the propagation's loads no longer wait
+    for each other. Returns the number of edges indexed."""
+    n = num_edges[b]
+    X = succ_head.shape[1]
+    for x in range(X + 1):
+        pred_begin[b, x] = 0
+    for e in range(n):
+        pred_begin[b, edge_succ[b, e] + 1] += 1
+    for x in range(X):
+        pred_begin[b, x + 1] += pred_begin[b, x]
+    for x in range(X):  # succ_head as the write cursor of each successor, then emptied
+        succ_head[b, x] = pred_begin[b, x]
+    for e in range(n):
+        x = edge_succ[b, e]
+        pred_edge[b, succ_head[b, x]] = e
+        succ_head[b, x] += 1
+    for x in range(X):
+        succ_head[b, x] = -1
+    return n
+
+
+@njit(inline="always")
 def _propagate_options(
     cfg_f,
     cfg_i,
@@ -560,6 +608,8 @@ def _propagate_options(
     edge_count,
     succ_head,
     succ_next,
+    pred_begin,
+    pred_edge,
     heap,
     hkey,
     hpos,
@@ -573,12 +623,28 @@ def _propagate_options(
     w_opt,
 ):
     """``V(x) += d``: every row with an edge to ``x`` gets ``Σγ^k d`` (a sampling run: its
-    sampled weight ``(n + α) w_e Σγ^k / c_e``); queue its state."""
+    sampled weight ``(n + α) w_e Σγ^k / c_e``); queue its state.
+
+    The edges into ``x``: its range of ``pred_edge`` (edges that existed at the last
+    :func:`_index_predecessors`, read as a contiguous run), then the list from ``succ_head``
+    (edges added since). Their order changes nothing: each edge is another row (one edge per
+    row and successor), so each row gets one addition, and pushes raise priorities to a
+    maximum, whose pop order does not depend on the order of the pushes."""
     thr = cfg_f[F_THRESHOLD]
     conc = cfg_f[F_CONC]
     any_conf = cfg_i[I_ANY_CONF] != 0 and use_conf[b]
-    e = succ_head[b, x]
-    while e >= 0:
+    j = pred_begin[b, x]
+    end = pred_begin[b, x + 1]
+    f = succ_head[b, x]
+    while True:
+        if j < end:
+            e = np.int64(pred_edge[b, j])
+            j += 1
+        elif f >= 0:
+            e = f
+            f = succ_next[b, f]
+        else:
+            break
         row = edge_row[b, e]
         g = edge_disc[b, e]
         if sampled:
@@ -591,7 +657,6 @@ def _propagate_options(
         p = abs(gd) / max(row_count[b, row] + conc, 1e-300)
         if p > thr and row_enabled[b, row]:
             _push(heap, hkey, hpos, hsize, prio, b, row_state[row], p)
-        e = succ_next[b, e]
 
 
 @njit(inline="always")
@@ -644,13 +709,13 @@ def _propagate_mentor(
 
 
 # ============================================================================ the tick loop
-# error_model="numpy": a division by zero gives inf/nan (as in the parallel loop that runs it,
-# where Numba compiles with that model) instead of raising.
+# error_model="numpy": a division by zero gives inf/nan instead of raising.
 # _nrt=False: no reference counting in the loop. The inlined helpers take whole arrays, and Numba
 # would otherwise incref and decref every one of them at every call (atomic operations on
 # counters shared by the threads, ≈ 30 of them per backup and per predecessor push). The loop
 # allocates nothing, and with the runtime off it cannot: Numba refuses to compile it if it did.
-@njit(cache=True, error_model="numpy", _nrt=False)  # type: ignore[call-overload]  # (not in the stubs)
+# nogil=True: the engine calls it from several threads at once, one run each.
+@njit(cache=True, error_model="numpy", _nrt=False, nogil=True)  # type: ignore[call-overload]  # (not in the stubs)
 def _run(
     b,
     t_end,
@@ -696,6 +761,8 @@ def _run(
     row_next,
     succ_head,
     succ_next,
+    pred_begin,
+    pred_edge,
     # the mentor model and its linked lists (read only)
     m_edge_row,
     m_edge_succ,
@@ -748,10 +815,15 @@ def _run(
     enabled_buf,
     score_buf,
 ):
-    """Run ``b``'s ticks from ``t_reached[b]`` to ``t_end`` (the body of :func:`advance`):
-    act, learn, plan, choose — :meth:`TorchEngine.tick <himit_torch.engines.TorchEngine.tick>`
-    for one run. (Sweep and choice are written out here rather than called: a call with this
-    many arrays costs more than a whole tick.)"""
+    """Advance run ``b`` from tick ``t_reached[b]`` to ``t_end``, in place: act, learn, plan,
+    choose — :meth:`TorchEngine.tick <himit_torch.engines.TorchEngine.tick>` for one run.
+    (Sweep and choice are written out here rather than called: a call with this many arrays
+    costs more than a whole tick.)
+
+    The run stops early, at the start of a tick, when its edge list is full (``num_edges[b]``
+    equals the capacity): the caller grows the lists and calls again. ``t_reached[b]`` says
+    where it stopped. Runs touch only their own row of every per-run array, so any number of
+    them can run at once on separate threads."""
     S = terminal.shape[0] - 1
     M = q_num.shape[1] - 1
     K = dyn_cdf.shape[2]
@@ -767,6 +839,7 @@ def _run(
     sampling_run = use_sampling[b]
     resample_every = cfg_i[I_RESAMPLE_EVERY]
     _heapify(heap, hkey, hpos, hsize, prio, b, S + 1)
+    indexed = _index_predecessors(b, edge_succ, num_edges, succ_head, pred_begin, pred_edge)
     key = np.uint64(keys[b])
     t = t_reached[b]
     while t < t_end:
@@ -843,6 +916,10 @@ def _run(
                 row_head[b, row] = e
                 succ_next[b, e] = succ_head[b, nxt]
                 succ_head[b, nxt] = e
+                if e - indexed >= max(1024, indexed >> 3):  # many new edges: index them too
+                    indexed = _index_predecessors(
+                        b, edge_succ, num_edges, succ_head, pred_begin, pred_edge
+                    )
             c_old = edge_count[b, e]
             g_old = edge_disc[b, e]
             n_old = row_count[b, row]
@@ -993,6 +1070,8 @@ def _run(
                             edge_count,
                             succ_head,
                             succ_next,
+                            pred_begin,
+                            pred_edge,
                             heap,
                             hkey,
                             hpos,
@@ -1144,202 +1223,6 @@ def _run(
                 seen += 1
         row_of[b] = chosen
     t_reached[b] = t
-
-
-@njit(parallel=True, cache=True)
-def advance(
-    t_end,
-    t_reached,
-    keys,
-    cfg_f,
-    cfg_i,
-    # the world and the options (shared, read only)
-    dyn_succ,
-    dyn_cdf,
-    dyn_rew,
-    terminal,
-    start_cdf,
-    termination,
-    policy,
-    policy_cdf,
-    # the row table (shared, read only)
-    row_begin,
-    row_state,
-    row_option,
-    row_first_action,
-    primitive_rows,
-    row_enabled,
-    use_mentor,
-    use_conf,
-    # the value cache
-    values,
-    q_num,
-    q_sec,
-    m_num,
-    m_sec,
-    m_edge_reward,
-    # the option model and its linked lists
-    edge_row,
-    edge_succ,
-    edge_count,
-    edge_disc,
-    num_edges,
-    row_count,
-    row_reward,
-    state_tries,
-    row_head,
-    row_next,
-    succ_head,
-    succ_next,
-    # the mentor model and its linked lists (read only)
-    m_edge_row,
-    m_edge_succ,
-    m_edge_count,
-    m_row_count,
-    m_row_head,
-    m_row_next,
-    m_succ_head,
-    m_succ_next,
-    # the sweeper
-    pending,
-    heap,
-    hkey,
-    hpos,
-    hsize,
-    prio,
-    # the run state
-    position,
-    option_start,
-    row_of,
-    duration,
-    disc_return,
-    discount,
-    epsilon,
-    found_goal,
-    goals,
-    window_goals,
-    episodes,
-    episode_start,
-    window_episode_steps,
-    window_episodes,
-    backups_done,
-    decisions,
-    first_goal_step,
-    visits,
-    # posterior sampling (PosteriorSample; use_sampling from the row table)
-    use_sampling,
-    w_opt,
-    wu_opt,
-    w_m,
-    wu_m,
-    resamples,
-    # scratch
-    round_states,
-    round_best,
-    round_old,
-    round_delta,
-    q_buf,
-    usable_buf,
-    enabled_buf,
-    score_buf,
-):
-    """Advance every run ``b`` from tick ``t_reached[b]`` to ``t_end``, in place.
-
-    A run stops early, at the start of a tick, when its edge list is full (``num_edges[b]`` equals
-    the capacity): the caller grows the lists and calls again. ``t_reached[b]`` says where each
-    run stopped."""
-    B = position.shape[0]
-    for b in prange(B):
-        # int64: Numba types a prange index int64 when it types the loop and uint64 when it
-        # lowers it, and would compile the whole of ``_run`` once for each (twice the compile time)
-        _run(
-            np.int64(b),
-            t_end,
-            t_reached,
-            keys,
-            cfg_f,
-            cfg_i,
-            dyn_succ,
-            dyn_cdf,
-            dyn_rew,
-            terminal,
-            start_cdf,
-            termination,
-            policy,
-            policy_cdf,
-            row_begin,
-            row_state,
-            row_option,
-            row_first_action,
-            primitive_rows,
-            row_enabled,
-            use_mentor,
-            use_conf,
-            values,
-            q_num,
-            q_sec,
-            m_num,
-            m_sec,
-            m_edge_reward,
-            edge_row,
-            edge_succ,
-            edge_count,
-            edge_disc,
-            num_edges,
-            row_count,
-            row_reward,
-            state_tries,
-            row_head,
-            row_next,
-            succ_head,
-            succ_next,
-            m_edge_row,
-            m_edge_succ,
-            m_edge_count,
-            m_row_count,
-            m_row_head,
-            m_row_next,
-            m_succ_head,
-            m_succ_next,
-            pending,
-            heap,
-            hkey,
-            hpos,
-            hsize,
-            prio,
-            position,
-            option_start,
-            row_of,
-            duration,
-            disc_return,
-            discount,
-            epsilon,
-            found_goal,
-            goals,
-            window_goals,
-            episodes,
-            episode_start,
-            window_episode_steps,
-            window_episodes,
-            backups_done,
-            decisions,
-            first_goal_step,
-            visits,
-            use_sampling,
-            w_opt,
-            wu_opt,
-            w_m,
-            wu_m,
-            resamples,
-            round_states,
-            round_best,
-            round_old,
-            round_delta,
-            q_buf,
-            usable_buf,
-            enabled_buf,
-            score_buf,
-        )
 
 
 @njit(cache=True)
