@@ -425,38 +425,17 @@ def _push(heap, hkey, hpos, hsize, prio, b, s, p):
 
 @njit(inline="always")
 def _pop(heap, hkey, hpos, hsize, prio, b):
-    """Remove and return the first state (Floyd's variant: the hole left at the root goes down
-    to a leaf along the children that come first — one comparison a level instead of two —
-    and the last slot's state, which belongs near the bottom, sifts up from there). Any heap
-    of the same states pops them in the same order (:func:`_before` is a strict total order),
-    so the layout this leaves changes nothing that follows."""
     s = heap[b, 0]
     hsize[b] -= 1
     n = hsize[b]
     hpos[b, s] = -1
     prio[b, s] = 0.0
     if n > 0:
-        i = 0
-        while True:
-            child = 2 * i + 1
-            if child >= n:
-                break
-            c = heap[b, child]
-            kc = hkey[b, child]
-            if child + 1 < n:
-                c2 = heap[b, child + 1]
-                k2 = hkey[b, child + 1]
-                if _before(k2, c2, kc, c):
-                    child += 1
-                    c = c2
-                    kc = k2
-            heap[b, i] = c
-            hkey[b, i] = kc
-            hpos[b, c] = i
-            i = child
-        heap[b, i] = heap[b, n]
-        hkey[b, i] = hkey[b, n]
-        _sift_up(heap, hkey, hpos, b, i)
+        last = heap[b, n]
+        heap[b, 0] = last
+        hkey[b, 0] = hkey[b, n]
+        hpos[b, last] = 0
+        _sift_down(heap, hkey, hpos, hsize, b, 0)
     return s
 
 
@@ -568,32 +547,6 @@ def _state_backup(
 
 # ==================================================================== propagation and sweeping
 @njit(inline="always")
-def _index_predecessors(b, edge_succ, num_edges, succ_head, pred_begin, pred_edge):
-    """Run ``b``'s edges by successor: those into ``x`` are ``pred_edge[b, pred_begin[b, x]]``
-    … ``pred_edge[b, pred_begin[b, x + 1] − 1]`` (a counting sort, in creation order); the
-    lists from ``succ_head`` emptied (they hold the edges added after this). A contiguous run
-    per successor instead of a list through the edges: the propagation's loads no longer wait
-    for each other. Returns the number of edges indexed."""
-    n = num_edges[b]
-    X = succ_head.shape[1]
-    for x in range(X + 1):
-        pred_begin[b, x] = 0
-    for e in range(n):
-        pred_begin[b, edge_succ[b, e] + 1] += 1
-    for x in range(X):
-        pred_begin[b, x + 1] += pred_begin[b, x]
-    for x in range(X):  # succ_head as the write cursor of each successor, then emptied
-        succ_head[b, x] = pred_begin[b, x]
-    for e in range(n):
-        x = edge_succ[b, e]
-        pred_edge[b, succ_head[b, x]] = e
-        succ_head[b, x] += 1
-    for x in range(X):
-        succ_head[b, x] = -1
-    return n
-
-
-@njit(inline="always")
 def _propagate_options(
     cfg_f,
     cfg_i,
@@ -608,8 +561,6 @@ def _propagate_options(
     edge_count,
     succ_head,
     succ_next,
-    pred_begin,
-    pred_edge,
     heap,
     hkey,
     hpos,
@@ -623,28 +574,12 @@ def _propagate_options(
     w_opt,
 ):
     """``V(x) += d``: every row with an edge to ``x`` gets ``Σγ^k d`` (a sampling run: its
-    sampled weight ``(n + α) w_e Σγ^k / c_e``); queue its state.
-
-    The edges into ``x``: its range of ``pred_edge`` (edges that existed at the last
-    :func:`_index_predecessors`, read as a contiguous run), then the list from ``succ_head``
-    (edges added since). Their order changes nothing: each edge is another row (one edge per
-    row and successor), so each row gets one addition, and pushes raise priorities to a
-    maximum, whose pop order does not depend on the order of the pushes."""
+    sampled weight ``(n + α) w_e Σγ^k / c_e``); queue its state."""
     thr = cfg_f[F_THRESHOLD]
     conc = cfg_f[F_CONC]
     any_conf = cfg_i[I_ANY_CONF] != 0 and use_conf[b]
-    j = pred_begin[b, x]
-    end = pred_begin[b, x + 1]
-    f = succ_head[b, x]
-    while True:
-        if j < end:
-            e = np.int64(pred_edge[b, j])
-            j += 1
-        elif f >= 0:
-            e = f
-            f = succ_next[b, f]
-        else:
-            break
+    e = succ_head[b, x]
+    while e >= 0:
         row = edge_row[b, e]
         g = edge_disc[b, e]
         if sampled:
@@ -657,6 +592,7 @@ def _propagate_options(
         p = abs(gd) / max(row_count[b, row] + conc, 1e-300)
         if p > thr and row_enabled[b, row]:
             _push(heap, hkey, hpos, hsize, prio, b, row_state[row], p)
+        e = succ_next[b, e]
 
 
 @njit(inline="always")
@@ -761,8 +697,6 @@ def _run(
     row_next,
     succ_head,
     succ_next,
-    pred_begin,
-    pred_edge,
     # the mentor model and its linked lists (read only)
     m_edge_row,
     m_edge_succ,
@@ -839,7 +773,6 @@ def _run(
     sampling_run = use_sampling[b]
     resample_every = cfg_i[I_RESAMPLE_EVERY]
     _heapify(heap, hkey, hpos, hsize, prio, b, S + 1)
-    indexed = _index_predecessors(b, edge_succ, num_edges, succ_head, pred_begin, pred_edge)
     key = np.uint64(keys[b])
     t = t_reached[b]
     while t < t_end:
@@ -916,10 +849,6 @@ def _run(
                 row_head[b, row] = e
                 succ_next[b, e] = succ_head[b, nxt]
                 succ_head[b, nxt] = e
-                if e - indexed >= max(1024, indexed >> 3):  # many new edges: index them too
-                    indexed = _index_predecessors(
-                        b, edge_succ, num_edges, succ_head, pred_begin, pred_edge
-                    )
             c_old = edge_count[b, e]
             g_old = edge_disc[b, e]
             n_old = row_count[b, row]
@@ -1070,8 +999,6 @@ def _run(
                             edge_count,
                             succ_head,
                             succ_next,
-                            pred_begin,
-                            pred_edge,
                             heap,
                             hkey,
                             hpos,

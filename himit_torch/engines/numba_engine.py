@@ -1,11 +1,9 @@
 """The compiled engine: the learner's ticks as one Numba kernel per run, the runs on threads.
 
 The kernel (:mod:`himit_torch.engines._kernel`) works in place on the memory of the learner's
-tensors (``Tensor.numpy()`` shares it), plus derived structures the engine owns: linked lists
-over each run's model edges (rebuilt from the edge lists whenever they changed elsewhere), the
-option model's edges indexed by successor (rebuilt by the kernel at every call, and when many
-edges were added) and an indexed max-heap over the sweep priorities (rebuilt from them at every
-call). Kernels are cached
+tensors (``Tensor.numpy()`` shares it), plus two derived structures the engine owns: linked lists
+over each run's model edges (rebuilt from the edge lists whenever they changed elsewhere) and an
+indexed max-heap over the sweep priorities (rebuilt from them at every call). Kernels are cached
 on disk (Numba ``cache=True``): a second process does not compile again.
 """
 
@@ -207,7 +205,7 @@ class NumbaEngine:
         ):
             return cached[1]
         B, E = store.batch, store.capacity
-        lists: tuple[np.ndarray, ...] = (
+        lists = (
             np.empty((B, store.num_rows + 1), dtype=np.int64),
             np.empty((B, E), dtype=np.int64),
             np.empty((B, store.num_states + 1), dtype=np.int64),
@@ -216,11 +214,6 @@ class NumbaEngine:
         _kernel.link_edges(
             _np(store.edge_row), _np(store.edge_successor), _np(store.num_edges), *lists
         )
-        if key == "model":  # + its edges by successor, which the kernel keeps up to date
-            lists += (
-                np.empty((B, store.num_states + 2), dtype=np.int64),
-                np.empty((B, E), dtype=np.int32),
-            )
         self._links[key] = (store.version, lists)
         return lists
 
