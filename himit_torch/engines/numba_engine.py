@@ -56,6 +56,8 @@ def _run_all(batch: int, args: tuple) -> None:
             _kernel._run(b, *args)
 
     if _pool is None or _pool._max_workers < threads - 1:
+        if _pool is not None:  # (more threads were allowed since: a larger pool)
+            _pool.shutdown(wait=False)
         _pool = ThreadPoolExecutor(threads - 1, thread_name_prefix="himit-run")
     helpers = [_pool.submit(work) for _ in range(threads - 1)]
     try:
