@@ -388,8 +388,21 @@ def target_policy(
     style keeps off a room's middle). Among equally cheap moves it takes the one that closes the
     larger of the row/column gaps to the target, so paths run as straight as the grid allows.
     """
+    return _target_policy(world._next.tolist(), world.size, region, target, penalized, penalty)
+
+
+def _target_policy(
+    nxt: list[list[int]],
+    size: int,
+    region: Sequence[int],
+    target: int,
+    penalized: frozenset[int],
+    penalty: float = 10.0,
+) -> dict[int, int]:
+    """:func:`target_policy` on the world's successor table as lists (``world._next.tolist()``,
+    made once for all of a world's options: reading a numpy table one int at a time was most of
+    the cost of building them)."""
     allowed = set(region) | {target}
-    nxt = world._next
     cost = {c: 1.0 + (penalty if c in penalized else 0.0) for c in allowed}
     dist = {target: 0.0}
     queue = [(0.0, target)]
@@ -397,24 +410,22 @@ def target_policy(
         d, u = heapq.heappop(queue)
         if d > dist[u]:
             continue
+        nd = d + cost[u]
         for v in nxt[u]:
-            v = int(v)
             if v == u or v not in allowed or v == target:
                 continue
-            nd = d + cost[u]
             if nd < dist.get(v, np.inf):
                 dist[v] = nd
                 heapq.heappush(queue, (nd, v))
-    tr, tc = world.coords(target)
+    tr, tc = divmod(target, size)
     policy = {}
     for s in region:
-        r, c = world.coords(s)
+        r, c = divmod(s, size)
         best = None
-        for a, (dr, _dc) in enumerate(ACTION_DELTAS):
-            v = int(nxt[s, a])
+        for a, v in enumerate(nxt[s]):
             if v == s or v not in dist:
                 continue
-            along = abs(tr - r) if dr else abs(tc - c)  # the gap this move closes
+            along = abs(tr - r) if ACTION_DELTAS[a][0] else abs(tc - c)  # the gap it closes
             key = (cost[v] + dist[v], -along, a)
             if best is None or key < best[0]:
                 best = (key, a)
@@ -457,6 +468,7 @@ def _room_target_specs(
             "(along the room's walls, the mentor's)"
         )
     goal = world.goal_state
+    nxt = world._next.tolist()
     specs = []
     for room in range(world.num_rooms):
         cells = world.room_cells(room)
@@ -473,7 +485,7 @@ def _room_target_specs(
             region = sorted((set(cells) | set(doors)) - {target, goal})
             if not region:
                 continue
-            pol = target_policy(world, region, target, penalized=penalized - {target})
+            pol = _target_policy(nxt, world.size, region, target, penalized=penalized - {target})
             if not pol:
                 continue
             specs.append(

@@ -286,10 +286,16 @@ def fit_titles(fig: Figure, margin: float = 0.01) -> None:
         if hasattr(fig.canvas, "get_renderer")
         else FigureCanvasAgg(fig).get_renderer()
     )
-    with warnings.catch_warnings():  # the unwrapped titles may not leave the axes any room yet
-        warnings.filterwarnings("ignore", "constrained_layout not applied", UserWarning)
-        fig.draw_without_rendering()
+    # A draw places the axes (a layout engine) and their titles (at draw time); a figure of
+    # fixed boxes whose only titles are figure texts (the maps) needs neither draw: its texts
+    # stay where they were put, and its caller's draw shows them (a full draw each, 2 of the 3
+    # per map image).
+    laid_out = fig.get_layout_engine() is not None
     texts = [ax.title for ax in fig.axes if ax.title.get_text()]
+    if laid_out or texts:
+        with warnings.catch_warnings():  # the unwrapped titles may not leave the axes room yet
+            warnings.filterwarnings("ignore", "constrained_layout not applied", UserWarning)
+            fig.draw_without_rendering()
     texts += [t for t in (getattr(fig, "_suptitle", None),) if t is not None and t.get_text()]
     texts += [t for t in getattr(fig, "_himit_titles", []) if t.get_text()]
     width = fig.bbox.width
@@ -301,7 +307,8 @@ def fit_titles(fig: Figure, margin: float = 0.01) -> None:
         room = {"left": right, "right": left}.get(ha, 2 * min(left, right))
         if box.width > room or box.x0 < 0 or box.x1 > width:
             _wrap_to_width(text, max(room, 20.0), renderer)
-    fig.draw_without_rendering()
+    if laid_out:
+        fig.draw_without_rendering()
 
 
 def save_world_figure(
@@ -762,11 +769,14 @@ class MapRenderer:
         g = _numpy(greedy).reshape(-1).astype(np.int64)
         codes = np.full(g.shape, -1, dtype=np.int64)
         keys = parts["keys"]
-        for s in np.flatnonzero(g >= 0):
-            o = int(g[s])
-            kind = self.options.kinds[o]
-            key = self.options.names[o][-1] if kind == "primitive" else kind
-            codes[s] = keys.index(key) if key in keys else keys.index("custom")
+        if "codes" not in parts:  # the colour of each option, looked up once
+            option_codes = []
+            for kind, name in zip(self.options.kinds, self.options.names):
+                key = name[-1] if kind == "primitive" else kind
+                option_codes.append(keys.index(key) if key in keys else keys.index("custom"))
+            parts["codes"] = np.array(option_codes, dtype=np.int64)
+        tried = g >= 0
+        codes[tried] = parts["codes"][g[tried]]
         hide = (codes < 0) | self.world.wall_mask.numpy()
         N = self.world.size
         parts["image"].set_data(np.ma.masked_array(codes, hide).reshape(N, N))

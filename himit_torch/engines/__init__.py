@@ -2,8 +2,8 @@
 
 * :class:`TorchEngine` — batched tensor ops on any device: the readable reference, and the path
   for GPUs.
-* :class:`NumbaEngine` — a compiled per-run loop (``prange`` over the runs), working in place on
-  the same tensors' memory: the fast path on a CPU.
+* :class:`NumbaEngine` — a compiled per-run loop (the runs on parallel threads), working in
+  place on the same tensors' memory: the fast path on a CPU.
 
 Both carry out the same algorithm on the same state, draw the same random numbers, and are
 tested to make the same decisions.

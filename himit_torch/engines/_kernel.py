@@ -1,5 +1,6 @@
 """The compiled tick loop (Numba): the algorithm of :class:`~himit_torch.engines.TorchEngine`,
-one run at a time, ``prange`` over the runs of a batch.
+one run at a time (:func:`_run`; the engine runs a batch's runs on parallel threads, the loop
+releases the GIL).
 
 Every array is allocated by the caller (:mod:`himit_torch.engines.numba_engine`) and worked on in
 place: the learner's tensors' memory, plus the engine's own derived structures — linked lists
@@ -17,7 +18,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from .. import posterior_sampling as _ps
 
@@ -644,13 +645,13 @@ def _propagate_mentor(
 
 
 # ============================================================================ the tick loop
-# error_model="numpy": a division by zero gives inf/nan (as in the parallel loop that runs it,
-# where Numba compiles with that model) instead of raising.
+# error_model="numpy": a division by zero gives inf/nan instead of raising.
 # _nrt=False: no reference counting in the loop. The inlined helpers take whole arrays, and Numba
 # would otherwise incref and decref every one of them at every call (atomic operations on
 # counters shared by the threads, ≈ 30 of them per backup and per predecessor push). The loop
 # allocates nothing, and with the runtime off it cannot: Numba refuses to compile it if it did.
-@njit(cache=True, error_model="numpy", _nrt=False)  # type: ignore[call-overload]  # (not in the stubs)
+# nogil=True: the engine calls it from several threads at once, one run each.
+@njit(cache=True, error_model="numpy", _nrt=False, nogil=True)  # type: ignore[call-overload]  # (not in the stubs)
 def _run(
     b,
     t_end,
@@ -748,10 +749,15 @@ def _run(
     enabled_buf,
     score_buf,
 ):
-    """Run ``b``'s ticks from ``t_reached[b]`` to ``t_end`` (the body of :func:`advance`):
-    act, learn, plan, choose — :meth:`TorchEngine.tick <himit_torch.engines.TorchEngine.tick>`
-    for one run. (Sweep and choice are written out here rather than called: a call with this
-    many arrays costs more than a whole tick.)"""
+    """Advance run ``b`` from tick ``t_reached[b]`` to ``t_end``, in place: act, learn, plan,
+    choose — :meth:`TorchEngine.tick <himit_torch.engines.TorchEngine.tick>` for one run.
+    (Sweep and choice are written out here rather than called: a call with this many arrays
+    costs more than a whole tick.)
+
+    The run stops early, at the start of a tick, when its edge list is full (``num_edges[b]``
+    equals the capacity): the caller grows the lists and calls again. ``t_reached[b]`` says
+    where it stopped. Runs touch only their own row of every per-run array, so any number of
+    them can run at once on separate threads."""
     S = terminal.shape[0] - 1
     M = q_num.shape[1] - 1
     K = dyn_cdf.shape[2]
@@ -1144,202 +1150,6 @@ def _run(
                 seen += 1
         row_of[b] = chosen
     t_reached[b] = t
-
-
-@njit(parallel=True, cache=True)
-def advance(
-    t_end,
-    t_reached,
-    keys,
-    cfg_f,
-    cfg_i,
-    # the world and the options (shared, read only)
-    dyn_succ,
-    dyn_cdf,
-    dyn_rew,
-    terminal,
-    start_cdf,
-    termination,
-    policy,
-    policy_cdf,
-    # the row table (shared, read only)
-    row_begin,
-    row_state,
-    row_option,
-    row_first_action,
-    primitive_rows,
-    row_enabled,
-    use_mentor,
-    use_conf,
-    # the value cache
-    values,
-    q_num,
-    q_sec,
-    m_num,
-    m_sec,
-    m_edge_reward,
-    # the option model and its linked lists
-    edge_row,
-    edge_succ,
-    edge_count,
-    edge_disc,
-    num_edges,
-    row_count,
-    row_reward,
-    state_tries,
-    row_head,
-    row_next,
-    succ_head,
-    succ_next,
-    # the mentor model and its linked lists (read only)
-    m_edge_row,
-    m_edge_succ,
-    m_edge_count,
-    m_row_count,
-    m_row_head,
-    m_row_next,
-    m_succ_head,
-    m_succ_next,
-    # the sweeper
-    pending,
-    heap,
-    hkey,
-    hpos,
-    hsize,
-    prio,
-    # the run state
-    position,
-    option_start,
-    row_of,
-    duration,
-    disc_return,
-    discount,
-    epsilon,
-    found_goal,
-    goals,
-    window_goals,
-    episodes,
-    episode_start,
-    window_episode_steps,
-    window_episodes,
-    backups_done,
-    decisions,
-    first_goal_step,
-    visits,
-    # posterior sampling (PosteriorSample; use_sampling from the row table)
-    use_sampling,
-    w_opt,
-    wu_opt,
-    w_m,
-    wu_m,
-    resamples,
-    # scratch
-    round_states,
-    round_best,
-    round_old,
-    round_delta,
-    q_buf,
-    usable_buf,
-    enabled_buf,
-    score_buf,
-):
-    """Advance every run ``b`` from tick ``t_reached[b]`` to ``t_end``, in place.
-
-    A run stops early, at the start of a tick, when its edge list is full (``num_edges[b]`` equals
-    the capacity): the caller grows the lists and calls again. ``t_reached[b]`` says where each
-    run stopped."""
-    B = position.shape[0]
-    for b in prange(B):
-        # int64: Numba types a prange index int64 when it types the loop and uint64 when it
-        # lowers it, and would compile the whole of ``_run`` once for each (twice the compile time)
-        _run(
-            np.int64(b),
-            t_end,
-            t_reached,
-            keys,
-            cfg_f,
-            cfg_i,
-            dyn_succ,
-            dyn_cdf,
-            dyn_rew,
-            terminal,
-            start_cdf,
-            termination,
-            policy,
-            policy_cdf,
-            row_begin,
-            row_state,
-            row_option,
-            row_first_action,
-            primitive_rows,
-            row_enabled,
-            use_mentor,
-            use_conf,
-            values,
-            q_num,
-            q_sec,
-            m_num,
-            m_sec,
-            m_edge_reward,
-            edge_row,
-            edge_succ,
-            edge_count,
-            edge_disc,
-            num_edges,
-            row_count,
-            row_reward,
-            state_tries,
-            row_head,
-            row_next,
-            succ_head,
-            succ_next,
-            m_edge_row,
-            m_edge_succ,
-            m_edge_count,
-            m_row_count,
-            m_row_head,
-            m_row_next,
-            m_succ_head,
-            m_succ_next,
-            pending,
-            heap,
-            hkey,
-            hpos,
-            hsize,
-            prio,
-            position,
-            option_start,
-            row_of,
-            duration,
-            disc_return,
-            discount,
-            epsilon,
-            found_goal,
-            goals,
-            window_goals,
-            episodes,
-            episode_start,
-            window_episode_steps,
-            window_episodes,
-            backups_done,
-            decisions,
-            first_goal_step,
-            visits,
-            use_sampling,
-            w_opt,
-            wu_opt,
-            w_m,
-            wu_m,
-            resamples,
-            round_states,
-            round_best,
-            round_old,
-            round_delta,
-            q_buf,
-            usable_buf,
-            enabled_buf,
-            score_buf,
-        )
 
 
 @njit(cache=True)

@@ -1,4 +1,4 @@
-"""The compiled engine: the learner's ticks as one Numba kernel per call, ``prange`` over runs.
+"""The compiled engine: the learner's ticks as one Numba kernel per run, the runs on threads.
 
 The kernel (:mod:`himit_torch.engines._kernel`) works in place on the memory of the learner's
 tensors (``Tensor.numpy()`` shares it), plus two derived structures the engine owns: linked lists
@@ -9,8 +9,8 @@ on disk (Numba ``cache=True``): a second process does not compile again.
 
 from __future__ import annotations
 
-import contextlib
-from collections.abc import Iterator
+import threading
+from concurrent.futures import ThreadPoolExecutor
 
 import numba
 import numpy as np
@@ -25,17 +25,46 @@ def _np(x: torch.Tensor) -> np.ndarray:
     return x.detach().numpy()
 
 
-@contextlib.contextmanager
-def _threads_at_most(n: int) -> Iterator[None]:
-    """Numba's threads capped at ``n`` inside the block. With fewer runs than threads the idle
-    threads have no work, and the caller would still wait at the loop's end until each of them
-    was scheduled (on a loaded machine, up to a time slice per call: B = 1 ran ≈ 1.3× slower)."""
-    threads = numba.get_num_threads()
-    numba.set_num_threads(max(1, min(n, threads)))
+_pool: ThreadPoolExecutor | None = None
+
+
+def _run_all(batch: int, args: tuple) -> None:
+    """``_kernel._run(b, *args)`` for every run ``b`` of the batch, on up to
+    ``numba.get_num_threads()`` threads (this one included), never more than ``batch``.
+
+    The runs are independent (each touches only its own row of every per-run array), so which
+    thread runs which does not change anything. ``_run`` releases the GIL (``nogil``); threads
+    take the next run as they finish one (runs differ in cost: an imitator plans more than a
+    primitives-only run). Python threads rather than a ``prange`` loop around ``_run``: the
+    parallel wrapper of a function with ≈ 90 array arguments took ≈ 13 s to compile, over a
+    third of a cold start, and a call from here costs ≈ 0.1 ms per run."""
+    global _pool
+    threads = max(1, min(batch, numba.get_num_threads()))
+    if threads == 1:  # (B = 1: no thread to wait for)
+        for b in range(batch):
+            _kernel._run(b, *args)
+        return
+    runs = iter(range(batch))
+    lock = threading.Lock()
+
+    def work() -> None:
+        while True:
+            with lock:
+                b = next(runs, None)
+            if b is None:
+                return
+            _kernel._run(b, *args)
+
+    if _pool is None or _pool._max_workers < threads - 1:
+        if _pool is not None:  # (more threads were allowed since: a larger pool)
+            _pool.shutdown(wait=False)
+        _pool = ThreadPoolExecutor(threads - 1, thread_name_prefix="himit-run")
+    helpers = [_pool.submit(work) for _ in range(threads - 1)]
     try:
-        yield
+        work()
     finally:
-        numba.set_num_threads(threads)
+        for h in helpers:
+            h.result()
 
 
 def _row_begin(state_rows: torch.Tensor, num_rows: int) -> np.ndarray:
@@ -199,10 +228,9 @@ class NumbaEngine:
         while True:
             option_links = self._linked("model", model)
             mentor_links = self._linked("mentor", mentor)
-            # Runs differ in cost (an imitator plans more than a primitives-only run): hand them
-            # to the threads one at a time, not in fixed blocks.
-            with numba.parallel_chunksize(1), _threads_at_most(L.batch):
-                _kernel.advance(  # type: ignore[call-arg]  # a numba dispatcher
+            _run_all(
+                L.batch,
+                (
                     t_end,
                     t_reached,
                     self.keys,
@@ -257,7 +285,8 @@ class NumbaEngine:
                     _np(L.sample.mentor_unseen),
                     _np(L.sample.resamples),
                     *self.scratch,
-                )
+                ),
+            )
             # The kernel kept its linked lists in step with the edges it added.
             model.version += 1
             self._links["model"] = (model.version, option_links)
