@@ -26,6 +26,7 @@ def _np(x: torch.Tensor) -> np.ndarray:
 
 
 _pool: ThreadPoolExecutor | None = None
+_pool_size = 0  # its worker threads (ThreadPoolExecutor keeps the number private)
 
 
 def _run_all(batch: int, args: tuple) -> None:
@@ -38,7 +39,7 @@ def _run_all(batch: int, args: tuple) -> None:
     primitives-only run). Python threads rather than a ``prange`` loop around ``_run``: the
     parallel wrapper of a function with ≈ 90 array arguments took ≈ 13 s to compile, over a
     third of a cold start, and a call from here costs ≈ 0.1 ms per run."""
-    global _pool
+    global _pool, _pool_size
     threads = max(1, min(batch, numba.get_num_threads()))
     if threads == 1:  # (B = 1: no thread to wait for)
         for b in range(batch):
@@ -55,10 +56,11 @@ def _run_all(batch: int, args: tuple) -> None:
                 return
             _kernel._run(b, *args)
 
-    if _pool is None or _pool._max_workers < threads - 1:
+    if _pool is None or _pool_size < threads - 1:
         if _pool is not None:  # (more threads were allowed since: a larger pool)
             _pool.shutdown(wait=False)
         _pool = ThreadPoolExecutor(threads - 1, thread_name_prefix="himit-run")
+        _pool_size = threads - 1
     helpers = [_pool.submit(work) for _ in range(threads - 1)]
     try:
         work()
