@@ -209,10 +209,117 @@ def test_other_format_layout_or_batch_is_refused_naming_both(tmp_path):
     with pytest.raises(IncompatibleCheckpoint) as err:
         read_checkpoint(path, expect_batch=other)
     assert BATCH.describe() in str(err.value) and other.describe() in str(err.value)
-    future = path.read_bytes().replace(b'"format_version":1', b'"format_version":9')
+    current = f'"format_version":{ckpt.FORMAT_VERSION}'.encode()
+    future = path.read_bytes().replace(current, b'"format_version":9')
     path.write_bytes(future)
-    with pytest.raises(IncompatibleCheckpoint, match="format 9.*reads format 1"):
+    with pytest.raises(IncompatibleCheckpoint, match="format 9.*reads formats 1, 2"):
         read_checkpoint(path)
+
+
+# ------------------------------------------------------------------- mostly-zero tensors
+def mostly_zeros() -> dict:
+    """Tensors a learner's state is made of: big and mostly zero, with the bit patterns a sparse
+    store could lose (``-0.0``, NaN with a payload, ±inf), a dense one, and a small one."""
+    values = torch.zeros(3, 5000, dtype=torch.float64)
+    values[0, 7], values[1, 4999], values[2, 0] = -0.0, float("inf"), -float("inf")
+    values[2, 17] = torch.tensor(0x7FF8_0000_0000_1234, dtype=torch.int64).view(torch.float64)
+    values[1, 100:200] = torch.linspace(-1, 1, 100, dtype=torch.float64)
+    counts = torch.zeros(20_000, dtype=torch.int64)
+    counts[::97] = torch.arange(len(counts[::97])) - 50  # negative, zero and positive
+    flags = torch.zeros(64, 128, dtype=torch.bool)
+    flags[3, 5] = True
+    return {
+        "values": values,
+        "counts": counts,
+        "flags": flags,
+        "float32": torch.zeros(8192, dtype=torch.float32).index_fill_(0, torch.tensor([9]), -0.0),
+        "dense": torch.arange(10_000, dtype=torch.float64),
+        "small": torch.zeros(10),
+        "nested": [(torch.zeros(5000, dtype=torch.int16),)],
+    }
+
+
+def assert_same_bits(a, b):
+    """Equal bit for bit (``torch.equal`` treats -0.0 as 0.0 and NaN as unequal)."""
+    if isinstance(a, torch.Tensor):
+        assert b.layout == torch.strided and b.is_contiguous()
+        assert (a.dtype, a.shape) == (b.dtype, b.shape)
+        if a.is_floating_point():
+            ints = {2: torch.int16, 4: torch.int32, 8: torch.int64}[a.element_size()]
+            a, b = a.view(ints), b.view(ints)
+        assert torch.equal(a, b)
+    elif isinstance(a, dict):
+        assert a.keys() == b.keys()
+        for k in a:
+            assert_same_bits(a[k], b[k])
+    else:
+        assert type(a) is type(b) and len(a) == len(b)
+        for x, y in zip(a, b):
+            assert_same_bits(x, y)
+
+
+def test_mostly_zero_tensors_are_stored_sparse_and_read_back_bit_for_bit(tmp_path):
+    payload = mostly_zeros()
+    data = encode(payload, step=1, batch=BATCH, state_layout_version=1)
+    back = decode(data)
+    assert_same_bits(payload, back.payload)
+    # stored sparse: the file is far smaller than its tensors dense
+    dense_bytes = sum(
+        t.numel() * t.element_size()
+        for t in (
+            *[v for v in payload.values() if isinstance(v, torch.Tensor)],
+            payload["nested"][0][0],
+        )
+    )
+    assert len(data) < dense_bytes - 3 * 5000 * 8  # "values" alone saves most of its 120 kB
+    # ... and only those: what it holds as torch.save wrote it
+    stored = torch.load(
+        io.BytesIO(data[data.index(b"\n", len(ckpt.MAGIC)) + 1 :]), weights_only=True
+    )
+    layouts = {k: v.layout for k, v in stored.items() if isinstance(v, torch.Tensor)}
+    assert layouts == {
+        "values": torch.sparse_coo,
+        "counts": torch.sparse_coo,
+        "flags": torch.sparse_coo,
+        "float32": torch.sparse_coo,
+        "dense": torch.strided,
+        "small": torch.strided,
+    }
+    assert stored["nested"][0][0].layout == torch.sparse_coo
+
+
+def test_a_sparse_tensor_in_the_payload_is_refused_by_name():
+    payload = {"learner": {"q": torch.zeros(4).to_sparse()}}
+    with pytest.raises(TypeError, match=r"payload\.learner\.q: a torch\.sparse_coo tensor"):
+        encode(payload, step=1, batch=BATCH, state_layout_version=1)
+
+
+@pytest.mark.parametrize("index", [-1, 5000])
+def test_a_sparse_index_outside_its_tensor_is_a_damaged_file(tmp_path, index):
+    """Only an altered file (checksum forged) can hold one; it is refused, not wrapped round."""
+    bad = torch.sparse_coo_tensor(
+        torch.tensor([[0, index]]), torch.tensor([1.0, 2.0]), (5000,), check_invariants=False
+    )
+    buffer = io.BytesIO()
+    torch.save({"x": bad}, buffer)
+    body = buffer.getvalue()
+    header = ckpt.CheckpointHeader(ckpt.FORMAT_VERSION, 1, 10, BATCH, len(body))
+    header = replace(header, sha256=ckpt._checksum(header, body))
+    with pytest.raises(DamagedCheckpoint, match="could not be read"):
+        decode(ckpt.MAGIC + header.to_json() + b"\n" + body)
+
+
+def test_a_format_1_file_still_reads(tmp_path):
+    """Format 1 (every tensor dense, before sparse storage) is read as before."""
+    payload = mostly_zeros()
+    buffer = io.BytesIO()
+    torch.save(payload, buffer)
+    body = buffer.getvalue()
+    header = ckpt.CheckpointHeader(1, 1, 10, BATCH, len(body))
+    header = replace(header, sha256=ckpt._checksum(header, body))
+    back = decode(ckpt.MAGIC + header.to_json() + b"\n" + body)
+    assert back.header.format_version == 1
+    assert_same_bits(payload, back.payload)
 
 
 # ------------------------------------------------------------------------------ generations
