@@ -362,27 +362,61 @@ def _add_demo(sub: argparse.ArgumentParser) -> None:
 
 # -------------------------------------------------------------------------------------- run
 def cmd_run(args: argparse.Namespace) -> int:
-    from dataclasses import replace
-
-    from .experiment import EXPERIMENTS, load_config, run_experiment
+    from .experiment import run_experiments
 
     if args.experiment in ("gymnasium", "discovery") and args.agents is not None:
         raise ValueError(
             f"himit run {args.experiment} takes no --agents (its agents are fixed by "
-            "its design); --agents is for exp1, exp2 and exp3"
+            "its design); --agents is for exp1, exp2, exp3 and paper"
         )
     if args.experiment == "gymnasium":
         return _run_gymnasium(args)
     if args.experiment == "discovery":
         return _run_discovery(args)
+    if args.experiment == "paper" and args.config:
+        raise ValueError(
+            "himit run paper takes no --config (it runs exp1, exp2 and exp3, each with its "
+            "own configuration); run one experiment with --config instead"
+        )
+    names = PAPER_EXPERIMENTS if args.experiment == "paper" else (args.experiment,)
+    plans = []
+    for name in names:
+        config = _experiment_config(name, args)
+        run_dir = Path(args.logdir) / config.name
+        print(
+            f"{config.name}: worlds {list(config.sizes)}, agents {list(config.agents)}, "
+            f"{config.seeds} seeds, {config.steps:,} steps → {run_dir}"
+        )
+        plans.append((config, run_dir))
+    t0 = time.perf_counter()
+    run_experiments(
+        plans,
+        resume=args.resume,
+        force=args.force,
+        progress=not args.quiet,
+        workers=args.workers,
+    )
+    written = ", ".join(str(run_dir / "results.md") for _, run_dir in plans)
+    print(f"done in {time.perf_counter() - t0:.0f} s: {written}")
+    return 0
+
+
+#: ``himit run paper``: the paper's three experiments, their worlds in one pool.
+PAPER_EXPERIMENTS = ("exp1", "exp2", "exp3")
+
+
+def _experiment_config(name: str, args: argparse.Namespace):
+    """The configuration of experiment ``name`` with the command line's changes."""
+    from dataclasses import replace
+
+    from .experiment import EXPERIMENTS, load_config
+
     if args.config:
         config = load_config(args.config)
-        if args.experiment != config.name:
-            raise ValueError(
-                f"--config {args.config} is for {config.name!r}, not {args.experiment!r}"
-            )
+        if name != config.name:
+            raise ValueError(f"--config {args.config} is for {config.name!r}, not {name!r}")
     else:
-        config = EXPERIMENTS[args.experiment]
+        config = EXPERIMENTS[name]
     if args.quick:
         config = config.quick()
     changes = {}
@@ -408,22 +442,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             "--device cuda: no CUDA device is available here (install a CUDA build of "
             "torch, see README) — use --device cpu"
         )
-    run_dir = Path(args.logdir) / config.name
-    print(
-        f"{config.name}: worlds {list(config.sizes)}, agents {list(config.agents)}, "
-        f"{config.seeds} seeds, {config.steps:,} steps → {run_dir}"
-    )
-    t0 = time.perf_counter()
-    run_experiment(
-        config,
-        run_dir,
-        resume=args.resume,
-        force=args.force,
-        progress=not args.quiet,
-        workers=args.workers,
-    )
-    print(f"done in {time.perf_counter() - t0:.0f} s: {run_dir / 'results.md'}")
-    return 0
+    return config
 
 
 def _run_gymnasium(args: argparse.Namespace) -> int:
@@ -507,8 +526,9 @@ def _run_discovery(args: argparse.Namespace) -> int:
 def _add_run(sub: argparse.ArgumentParser) -> None:
     sub.add_argument(
         "experiment",
-        choices=["exp1", "exp2", "exp3", "gymnasium", "discovery"],
-        help="which experiment (gymnasium: Taxi, CliffWalking, FrozenLake 8×8; "
+        choices=["exp1", "exp2", "exp3", "paper", "gymnasium", "discovery"],
+        help="which experiment (paper: exp1, exp2 and exp3, their worlds shared out over "
+        "the cores together; gymnasium: Taxi, CliffWalking, FrozenLake 8×8; "
         "discovery: options discovered from the mentor's states)",
     )
     sub.add_argument("--seeds", type=_positive_int, help="runs per agent (default 5)")
@@ -554,7 +574,8 @@ def _add_run(sub: argparse.ArgumentParser) -> None:
         "--workers",
         type=_positive_int,
         help="worlds run in parallel, one process each (default: one per core, "
-        "at most one per world; the results do not depend on it)",
+        "at most one per world — with paper, the worlds of all three experiments; "
+        "the results do not depend on it)",
     )
 
 

@@ -21,7 +21,7 @@ import json
 import os
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 
@@ -43,6 +43,7 @@ __all__ = [
     "ExperimentConfig",
     "EXPERIMENTS",
     "run_experiment",
+    "run_experiments",
     "load_config",
     "WorldResult",
     "PAPER",
@@ -764,9 +765,102 @@ def run_experiment(
     compiled engine gets ``cores // workers`` threads. Each world is independent of the others,
     so the results are the same for any ``workers``. ``workers=1`` runs them in this process.
     """
-    config.check_size()
-    run_dir = Path(run_dir)
-    _check_run_dir(run_dir, resume, force)
+    return run_experiments([(config, run_dir)], resume, force, progress, workers)[0]
+
+
+def run_experiments(
+    plans: Sequence[tuple[ExperimentConfig, str | os.PathLike]],
+    resume: bool = False,
+    force: bool = False,
+    progress: bool = True,
+    workers: int | None = None,
+) -> list[list[WorldResult]]:
+    """Run several experiments, each into its own run directory, as one pool of worlds.
+
+    The worlds of all ``plans`` (``(config, run_dir)`` pairs) are shared out over ``workers``
+    processes together, the most expensive first (steps × runs × world side), so one
+    experiment's small world fills the time another's large world leaves free; each experiment
+    gets its figures and ``results.md`` as soon as its last world is done. Every world is
+    independent, so each run directory ends exactly as :func:`run_experiment` alone leaves it
+    (``himit run paper``: the paper's three experiments in one command). ``resume``, ``force``
+    and ``workers`` mean what they mean for :func:`run_experiment`; every run directory is
+    checked before any world starts.
+
+    Returns:
+        Per plan, its worlds' results in the order of its ``config.sizes``.
+    """
+    dirs = [Path(run_dir) for _, run_dir in plans]
+    if len(set(map(os.path.abspath, dirs))) != len(dirs):
+        raise ValueError(f"run_experiments: two plans share a run directory ({dirs})")
+    for (config, _), run_dir in zip(plans, dirs, strict=True):
+        config.check_size()
+        _check_run_dir(run_dir, resume, force)
+    finished: list[dict[int, WorldResult]] = [
+        _prepare_run_dir(config, run_dir, resume, force)
+        for (config, _), run_dir in zip(plans, dirs, strict=True)
+    ]
+    todo = [
+        (i, size)
+        for i, (config, _) in enumerate(plans)
+        for size in config.sizes
+        if size not in finished[i]
+    ]
+    # the most expensive worlds first (a longest-first schedule); stable, so one experiment's
+    # worlds of equal cost keep the order of its sizes, largest first as before
+    todo.sort(key=lambda job: _world_cost(plans[job[0]][0], job[1]), reverse=True)
+    results: list[list[WorldResult] | None] = [None] * len(plans)
+    cores = os.cpu_count() or 1
+    workers_used = min(len(todo), cores) if workers is None else min(int(workers), len(todo))
+
+    def world_done(i: int, size: int, result: WorldResult) -> None:
+        finished[i][size] = result
+        config = plans[i][0]
+        if progress and workers_used > 1:
+            print(f"{config.name}: world {size}×{size} done", file=sys.stderr, flush=True)
+        if all(s in finished[i] for s in config.sizes):
+            results[i] = _finish_run_dir(config, dirs[i], finished[i])
+
+    for i, (config, _) in enumerate(plans):  # nothing left to run (a resumed, finished run)
+        if all(s in finished[i] for s in config.sizes):
+            results[i] = _finish_run_dir(config, dirs[i], finished[i])
+    if workers_used > 1:
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor, as_completed
+
+        # "spawn": a forked child of a process whose OpenMP threads already ran can hang.
+        pool = ProcessPoolExecutor(
+            workers_used,
+            mp_context=multiprocessing.get_context("spawn"),
+            initializer=_share_cores,
+            initargs=(max(1, cores // workers_used),),
+        )
+        try:
+            futures = {
+                pool.submit(run_world, plans[i][0], size, dirs[i], resume, False): (i, size)
+                for i, size in todo
+            }
+            for future in as_completed(futures):
+                world_done(*futures[future], future.result())
+        finally:  # a failed world stops the rest instead of letting them run to the end
+            pool.shutdown(wait=True, cancel_futures=True)
+    else:
+        for i, size in todo:
+            world_done(i, size, run_world(plans[i][0], size, dirs[i], resume, progress))
+    assert all(r is not None for r in results)  # every world of every plan ran or was resumed
+    return [r for r in results if r is not None]
+
+
+def _world_cost(config: ExperimentConfig, size: int) -> int:
+    """A world's relative cost for scheduling: primitive steps of all its runs × its side (a
+    sweep's work grows with the states the options reach)."""
+    return config.steps * config.seeds * len(config.agents) * size
+
+
+def _prepare_run_dir(
+    config: ExperimentConfig, run_dir: Path, resume: bool, force: bool
+) -> dict[int, WorldResult]:
+    """Clear (``force``) or check (``resume``) ``run_dir``, save the configuration, and return
+    the worlds a resumed run already finished."""
     if force and run_dir.exists():
         import shutil
 
@@ -790,31 +884,13 @@ def run_experiment(
         done = run_dir / "worlds" / f"world{size}.json"
         if resume and done.exists():
             finished[size] = WorldResult(**json.loads(done.read_text()))
-    todo = [size for size in config.sizes if size not in finished]
-    cores = os.cpu_count() or 1
-    workers = min(len(todo), cores) if workers is None else min(int(workers), len(todo))
-    if workers > 1:
-        import multiprocessing
-        from concurrent.futures import ProcessPoolExecutor
+    return finished
 
-        # "spawn": a forked child of a process whose OpenMP threads already ran can hang.
-        with ProcessPoolExecutor(
-            workers,
-            mp_context=multiprocessing.get_context("spawn"),
-            initializer=_share_cores,
-            initargs=(max(1, cores // workers),),
-        ) as pool:
-            futures = {
-                size: pool.submit(run_world, config, size, run_dir, resume, False)
-                for size in sorted(todo, reverse=True)
-            }  # the largest worlds first
-            for size, future in futures.items():
-                finished[size] = future.result()
-                if progress:
-                    print(f"{config.name}: world {size}×{size} done", file=sys.stderr, flush=True)
-    else:
-        for size in todo:
-            finished[size] = run_world(config, size, run_dir, resume, progress)
+
+def _finish_run_dir(
+    config: ExperimentConfig, run_dir: Path, finished: dict[int, WorldResult]
+) -> list[WorldResult]:
+    """The finished experiment's ``curves.csv``, figures and ``results.md``."""
     results = [finished[size] for size in config.sizes]
     _merge_curves(run_dir, config)
     from .report import write_figures, write_results

@@ -18,7 +18,13 @@ import torch
 
 from himit_torch.checkpoints import DamagedCheckpoint, read_header
 from himit_torch.cli import main
-from himit_torch.experiment import EXPERIMENTS, ExperimentConfig, load_config, run_experiment
+from himit_torch.experiment import (
+    EXPERIMENTS,
+    ExperimentConfig,
+    load_config,
+    run_experiment,
+    run_experiments,
+)
 
 
 def tiny(name: str, **changes) -> ExperimentConfig:
@@ -417,4 +423,73 @@ def test_mentor_reward_is_a_setting_of_the_runner_and_the_cli(tmp_path, capsys):
     assert "invalid choice" in one_line_error(capsys, ["run", "exp2", "--mentor-reward", "x"])
     assert "no --mentor-reward" in one_line_error(
         capsys, ["run", "gymnasium", "--mentor-reward", "none"]
+    )
+
+
+# ------------------------------------------------------------------ several experiments at once
+def without_wall_time(run_dir: Path) -> dict:
+    """What a run directory says about its worlds, less the seconds they took."""
+    worlds = {}
+    for path in sorted((run_dir / "worlds").glob("world*.json")):
+        data = json.loads(path.read_text())
+        del data["wall_seconds"]
+        worlds[path.name] = data
+    return worlds
+
+
+def test_experiments_in_one_pool_end_as_each_alone(tmp_path):
+    """``run_experiments`` (``himit run paper``) shares the worlds of several experiments out over
+    the workers; each run directory ends as ``run_experiment`` alone leaves it."""
+    plans = [
+        (tiny("exp2", sizes=(16,)), "exp2"),
+        (tiny("exp3", sizes=(16, 24), room_size=8, corner_options=False), "exp3"),
+    ]
+    together = run_experiments(
+        [(config, tmp_path / "pool" / name) for config, name in plans], progress=False, workers=2
+    )
+    for (config, name), results in zip(plans, together):
+        alone = run_experiment(config, tmp_path / "alone" / name, progress=False, workers=1)
+        assert [r.size for r in results] == [r.size for r in alone] == list(config.sizes)
+        pool_dir, alone_dir = tmp_path / "pool" / name, tmp_path / "alone" / name
+        assert (pool_dir / "curves.csv").read_text() == (alone_dir / "curves.csv").read_text()
+        assert without_wall_time(pool_dir) == without_wall_time(alone_dir)
+        assert load_config(pool_dir / "config.json") == config
+        assert (pool_dir / "results.md").exists()
+    assert (tmp_path / "pool" / "exp3" / "figures" / "fig5_scaling.png").exists()
+
+
+def test_run_experiments_refuses_two_plans_in_one_directory(tmp_path):
+    config = tiny("exp2", sizes=(16,))
+    with pytest.raises(ValueError, match="two plans share a run directory"):
+        run_experiments([(config, tmp_path / "r"), (config, tmp_path / "r")], progress=False)
+    assert not (tmp_path / "r").exists()  # refused before anything was written
+
+
+def test_cli_run_paper_runs_the_three_experiments_with_the_options_given(
+    tmp_path, capsys, monkeypatch
+):
+    import himit_torch.experiment as experiment
+
+    seen = {}
+
+    def fake_run_experiments(plans, **kwargs):
+        seen["plans"], seen["kwargs"] = plans, kwargs
+        return [[] for _ in plans]
+
+    monkeypatch.setattr(experiment, "run_experiments", fake_run_experiments)
+    argv = ["run", "paper", "--seeds", "2", "--steps", "20000", "--logdir", str(tmp_path)]
+    assert main([*argv, "--workers", "2", "--quiet"]) == 0
+    names = [config.name for config, _ in seen["plans"]]
+    assert names == ["exp1", "exp2", "exp3"]
+    assert [Path(d) for _, d in seen["plans"]] == [tmp_path / n for n in names]
+    for config, _ in seen["plans"]:
+        expected = replace(EXPERIMENTS[config.name], seeds=2, steps=20_000)
+        assert config == replace(expected, checkpoint_every=20_000)
+    assert seen["kwargs"] == {"resume": False, "force": False, "progress": False, "workers": 2}
+    out = capsys.readouterr().out
+    assert all(str(tmp_path / n / "results.md") in out for n in names)
+    cfg = tmp_path / "cfg.json"
+    cfg.write_text(tiny("exp2").to_json())
+    assert "paper takes no --config" in one_line_error(
+        capsys, ["run", "paper", "--config", str(cfg)]
     )
