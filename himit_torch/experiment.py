@@ -835,10 +835,13 @@ def run_experiments(
             initargs=(max(1, cores // workers_used),),
         )
         try:
-            futures = {
-                pool.submit(run_world, plans[i][0], size, dirs[i], resume, False): (i, size)
-                for i, size in todo
-            }
+            # A cold Numba cache is compiled once, here, while the workers set up their worlds;
+            # they wait for it at their first tick instead of each compiling it too.
+            with _kernels_prepared_here([plans[i][0] for i, _ in todo]):
+                futures = {
+                    pool.submit(run_world, plans[i][0], size, dirs[i], resume, False): (i, size)
+                    for i, size in todo
+                }
             for future in as_completed(futures):
                 world_done(*futures[future], future.result())
         finally:  # a failed world stops the rest instead of letting them run to the end
@@ -848,6 +851,21 @@ def run_experiments(
             world_done(i, size, run_world(plans[i][0], size, dirs[i], resume, progress))
     assert all(r is not None for r in results)  # every world of every plan ran or was resumed
     return [r for r in results if r is not None]
+
+
+def _kernels_prepared_here(configs: Sequence[ExperimentConfig]):
+    """:func:`~himit_torch.engines.numba_engine.kernels_prepared_here` when some world will run
+    on the compiled engine, else nothing."""
+    from contextlib import nullcontext
+
+    from .engines import numba_available
+
+    compiled = any(c.engine != "torch" and c.device == "cpu" for c in configs)
+    if not (compiled and numba_available()):
+        return nullcontext()
+    from .engines.numba_engine import kernels_prepared_here
+
+    return kernels_prepared_here()
 
 
 def _world_cost(config: ExperimentConfig, size: int) -> int:

@@ -4,13 +4,20 @@ The kernel (:mod:`himit_torch.engines._kernel`) works in place on the memory of 
 tensors (``Tensor.numpy()`` shares it), plus two derived structures the engine owns: linked lists
 over each run's model edges (rebuilt from the edge lists whenever they changed elsewhere) and an
 indexed max-heap over the sweep priorities (rebuilt from them at every call). Kernels are cached
-on disk (Numba ``cache=True``): a second process does not compile again.
+on disk (Numba ``cache=True``): a second process does not compile again, and processes that
+start together compile once (:func:`prepare_kernels`).
 """
 
 from __future__ import annotations
 
+import hashlib
+import tempfile
 import threading
+import time
+from collections.abc import Iterator
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import contextmanager
+from pathlib import Path
 
 import numba
 import numpy as np
@@ -18,7 +25,7 @@ import torch
 
 from . import _kernel
 
-__all__ = ["NumbaEngine"]
+__all__ = ["NumbaEngine", "prepare_kernels", "kernels_prepared_here"]
 
 
 def _np(x: torch.Tensor) -> np.ndarray:
@@ -67,6 +74,101 @@ def _run_all(batch: int, args: tuple) -> None:
     finally:
         for h in helpers:
             h.result()
+
+
+# ------------------------------------------------------------------------ compiling once
+_kernels_ready = False
+_kernels_guard = threading.Lock()
+
+
+def _lock_path() -> Path:
+    """The lock file of this kernel cache (Numba's ``NUMBA_CACHE_DIR``, or beside the kernel's
+    source when that is unset): processes sharing a cache share the lock."""
+    cache = numba.config.CACHE_DIR or str(Path(_kernel.__file__).resolve().parent)  # type: ignore[attr-defined]
+    digest = hashlib.sha256(cache.encode()).hexdigest()[:16]
+    return Path(tempfile.gettempdir()) / f"himit_torch-kernels-{digest}.lock"
+
+
+@contextmanager
+def _cache_lock() -> Iterator[None]:
+    """Hold the kernel cache's lock (an ``flock`` on :func:`_lock_path`; no lock where ``fcntl``
+    does not exist: there each process compiles on its own, as before)."""
+    try:
+        import fcntl
+    except ImportError:
+        yield
+        return
+    with open(_lock_path(), "a") as f:
+        fcntl.flock(f, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(f, fcntl.LOCK_UN)
+
+
+def _run_tiny_learner() -> None:
+    """Call every kernel once, with the argument types every learner passes: a few hundred ticks
+    of an imitator and a posterior-sampling imitator on an 8×8 world, to a window's end."""
+    from ..learner import Learner, LearnerConfig
+    from ..mentor import mentor_policy, record_demonstrations
+    from ..options import learner_options, mentor_options
+    from ..world import MultiRooms
+
+    world = MultiRooms(8, 2)
+    demonstrations = record_demonstrations(
+        world, mentor_policy(world, mentor_options(world)), 1, seed=0
+    )
+    learner = Learner(
+        world,
+        learner_options(world),
+        ["imitation", "imitation_psrl"],
+        [0, 0],
+        LearnerConfig(window=200),
+        demonstrations=demonstrations,
+        engine="numba",
+    )
+    learner.run(200)
+
+
+def _prepare_locked() -> None:
+    global _kernels_ready
+    with _kernels_guard:
+        if _kernels_ready:
+            return
+        _kernels_ready = True  # (the tiny learner's own calls must not come back here)
+        try:
+            _run_tiny_learner()
+        except BaseException:
+            _kernels_ready = False
+            raise
+
+
+def prepare_kernels() -> float:
+    """Load the compiled kernels into this process — compiling them first if Numba's disk cache
+    has none — and return the seconds it took (0 once they are loaded).
+
+    One process compiles at a time per cache: another process that gets here meanwhile waits
+    for it, then loads what it cached, instead of compiling the same kernels on a core the
+    first one needs (a cold start of two world processes compiles once, not twice). The engine
+    calls this at its first tick; :func:`kernels_prepared_here` lets a parent process compile
+    while the processes it starts set up."""
+    if _kernels_ready:
+        return 0.0
+    start = time.perf_counter()
+    with _cache_lock():
+        _prepare_locked()
+    return time.perf_counter() - start
+
+
+@contextmanager
+def kernels_prepared_here() -> Iterator[None]:
+    """Take the kernel cache's lock now, and at the end of the block load (or compile) the
+    kernels in this process before letting it go. Processes started inside the block wait at
+    their first tick until then, and load the kernels from the cache instead of compiling them
+    too (``run_experiments`` starts its world processes this way)."""
+    with _cache_lock():
+        yield
+        _prepare_locked()
 
 
 def _row_begin(state_rows: torch.Tensor, num_rows: int) -> np.ndarray:
@@ -172,6 +274,7 @@ class NumbaEngine:
 
     def mentor_wins(self) -> torch.Tensor:
         """``[B]`` how many mentor-observed states the mentor term wins eq. 2 in, per run."""
+        prepare_kernels()
         L = self.learner
         cache, model, rows = L.cache, L.model, L.rows
         out = np.zeros(L.batch, dtype=np.int64)
@@ -223,6 +326,7 @@ class NumbaEngine:
 
     def advance(self, ticks: int) -> None:
         """Carry out ``ticks`` ticks for every run (no window boundary inside)."""
+        prepare_kernels()
         L = self.learner
         t_end = L.t + ticks
         t_reached = np.full(L.batch, L.t, dtype=np.int64)
