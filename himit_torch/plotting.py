@@ -714,6 +714,7 @@ class MapRenderer:
             )
         parts["title"] = fig.text(0.33, 0.975, "", ha="center", va="top", fontsize="medium")
         fig._himit_titles = [parts["title"]]  # type: ignore[attr-defined]  # read by fit_titles
+        self._mark_dynamic(parts)
         self._figures[kind] = parts
         return parts
 
@@ -721,9 +722,38 @@ class MapRenderer:
     def _render(parts, title: str) -> np.ndarray:
         parts["title"].set_text(title)
         parts["title"].set_fontsize("medium")
-        fit_titles(parts["fig"])
-        parts["canvas"].draw()
-        return np.asarray(parts["canvas"].buffer_rgba())[..., :3].copy()
+        fig, canvas = parts["fig"], parts["canvas"]
+        fit_titles(fig)
+        if "background" not in parts:
+            # The parts that never change (the figure's background, the legend, the axes' empty
+            # tick machinery) drawn once; each image redraws only the rest on top of them.
+            canvas.draw()
+            parts["background"] = canvas.copy_from_bbox(fig.bbox)
+        else:
+            canvas.restore_region(parts["background"])
+        for artist in parts["dynamic"]:
+            fig.draw_artist(artist)
+        return np.asarray(canvas.buffer_rgba())[..., :3].copy()
+
+    @staticmethod
+    def _mark_dynamic(parts) -> None:
+        """Mark what changes between images as animated (a full draw leaves it out) and list it
+        in the order a full draw draws it: the map's images, dots and frame (the frame lies
+        over the images), the colorbar (its ticks follow the colour range), the title. A full
+        draw would draw them in this order too, and none of them overlaps the parts that stay
+        (the legend lies outside the axes, colorbar and title), so the pixels are a full
+        draw's."""
+        fig, ax = parts["fig"], parts["ax"]
+        still = {ax.patch, ax.title, ax._left_title, ax._right_title, *ax._axis_map.values()}
+        # (axes children in Axes.draw's order: a stable sort by zorder)
+        mine = [a for a in sorted(ax.get_children(), key=lambda a: a.get_zorder()) if a not in still]
+        dynamic = [*mine]
+        if "colorbar" in parts:
+            dynamic.append(parts["colorbar"].ax)
+        dynamic.append(parts["title"])
+        for artist in dynamic:
+            artist.set_animated(True)
+        parts["dynamic"] = dynamic
 
     def _field(self, parts, values: np.ndarray, hide: np.ndarray, log: bool) -> None:
         N = self.world.size
