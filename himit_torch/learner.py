@@ -936,7 +936,7 @@ class Learner:
         untried options at random), with the world's slip; stops at the goal or after
         ``max_steps``. For pictures like the paper's Fig. 2."""
         gen = torch.Generator(device=self.device).manual_seed(seed)
-        greedy = self.greedy_options()[run]
+        greedy = self.greedy_options([run])[0]
         S = self.num_states
         s = torch.tensor([self.start_state], device=self.device)
         states = [int(s)]

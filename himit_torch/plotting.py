@@ -279,8 +279,8 @@ def _wrap_to_width(text: Text, width_px: float, renderer) -> None:
 def fit_titles(fig: Figure, margin: float = 0.01) -> None:
     """Make every title of ``fig`` (axes titles, the suptitle, and texts registered with
     ``fig._himit_titles``) fit inside the figure: lines are re-broken at spaces to the width
-    available around the title's anchor, then the figure is laid out again (a constrained
-    layout makes room above the axes for the extra lines). Call before saving."""
+    available around the title's anchor, then, if any was, the figure is laid out again (a
+    constrained layout makes room above the axes for the extra lines). Call before saving."""
     renderer = (
         fig.canvas.get_renderer()
         if hasattr(fig.canvas, "get_renderer")
@@ -299,6 +299,7 @@ def fit_titles(fig: Figure, margin: float = 0.01) -> None:
     texts += [t for t in (getattr(fig, "_suptitle", None),) if t is not None and t.get_text()]
     texts += [t for t in getattr(fig, "_himit_titles", []) if t.get_text()]
     width = fig.bbox.width
+    wrapped = False
     for text in texts:
         box = text.get_window_extent(renderer)
         ha = text.get_horizontalalignment()
@@ -307,7 +308,8 @@ def fit_titles(fig: Figure, margin: float = 0.01) -> None:
         room = {"left": right, "right": left}.get(ha, 2 * min(left, right))
         if box.width > room or box.x0 < 0 or box.x1 > width:
             _wrap_to_width(text, max(room, 20.0), renderer)
-    if laid_out:
+            wrapped = True
+    if laid_out and wrapped:  # (nothing re-broken: the first draw's layout stands)
         fig.draw_without_rendering()
 
 
@@ -714,7 +716,6 @@ class MapRenderer:
             )
         parts["title"] = fig.text(0.33, 0.975, "", ha="center", va="top", fontsize="medium")
         fig._himit_titles = [parts["title"]]  # type: ignore[attr-defined]  # read by fit_titles
-        self._mark_dynamic(parts)
         self._figures[kind] = parts
         return parts
 
@@ -724,36 +725,42 @@ class MapRenderer:
         parts["title"].set_fontsize("medium")
         fig, canvas = parts["fig"], parts["canvas"]
         fit_titles(fig)
+        dynamic = MapRenderer._dynamic(parts)
         if "background" not in parts:
-            # The parts that never change (the figure's background, the legend, the axes' empty
-            # tick machinery) drawn once; each image redraws only the rest on top of them.
+            # What never changes (the figure's background, the legend, the axes' patches and
+            # empty tick machinery) is drawn once; each image redraws the rest on top of it.
             canvas.draw()
             parts["background"] = canvas.copy_from_bbox(fig.bbox)
         else:
             canvas.restore_region(parts["background"])
-        for artist in parts["dynamic"]:
+        for artist in dynamic:
             fig.draw_artist(artist)
         return np.asarray(canvas.buffer_rgba())[..., :3].copy()
 
     @staticmethod
-    def _mark_dynamic(parts) -> None:
-        """Mark what changes between images as animated (a full draw leaves it out) and list it
-        in the order a full draw draws it: the map's images, dots and frame (the frame lies
-        over the images), the colorbar (its ticks follow the colour range), the title. A full
-        draw would draw them in this order too, and none of them overlaps the parts that stay
-        (the legend lies outside the axes, colorbar and title), so the pixels are a full
-        draw's."""
-        fig, ax = parts["fig"], parts["ax"]
-        still = {ax.patch, ax.title, ax._left_title, ax._right_title, *ax._axis_map.values()}
-        # (axes children in Axes.draw's order: a stable sort by zorder)
-        mine = [a for a in sorted(ax.get_children(), key=lambda a: a.get_zorder()) if a not in still]
-        dynamic = [*mine]
+    def _dynamic(parts) -> list:
+        """What changes between images, marked animated (a full draw leaves it out), in the
+        order a full draw draws it: the map's images, dots and frame (the frame lies over the
+        images); the colorbar's mesh, outline and long axis (its ticks follow the colour range;
+        the colorbar makes a new mesh when the range changes, hence a new list per image); the
+        title. None of it overlaps what stays (the legend lies outside the axes, the colorbar
+        and the title; the axes' patches lie beneath), so the pixels are a full draw's."""
+        ax = parts["ax"]
+        # (the axes' own patch and the tick machinery that draws nothing stay)
+        panels = [(ax, {ax.patch, *ax._axis_map.values()})]
         if "colorbar" in parts:
-            dynamic.append(parts["colorbar"].ax)
+            bar = parts["colorbar"]
+            panels.append((bar.ax, {bar.ax.patch, bar._short_axis()}))
+        dynamic: list = []
+        for panel, still in panels:
+            still |= {panel.title, panel._left_title, panel._right_title}
+            # (Axes.draw's order: a stable sort by zorder)
+            children = sorted(panel.get_children(), key=lambda a: a.get_zorder())
+            dynamic += [a for a in children if a not in still]
         dynamic.append(parts["title"])
         for artist in dynamic:
             artist.set_animated(True)
-        parts["dynamic"] = dynamic
+        return dynamic
 
     def _field(self, parts, values: np.ndarray, hide: np.ndarray, log: bool) -> None:
         N = self.world.size

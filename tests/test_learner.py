@@ -553,7 +553,11 @@ def test_tried_share_equals_torch_counts_on_any_layout():
     count = torch.randint(0, 3, (7, 1001), generator=gen).double()
     enabled = torch.rand(7, 1001, generator=gen) < 0.6
     enabled[4] = False
-    for c, e in ((count, enabled), (count[:, :1000], enabled[:, :1000]), (count[::2], enabled[::2])):
+    for c, e in (
+        (count, enabled),
+        (count[:, :1000], enabled[:, :1000]),
+        (count[::2], enabled[::2]),
+    ):
         torch_share = ((c > 0) & e).sum(1).double() / e.sum(1).clamp(min=1)
         assert torch.equal(tried_share(c, e), torch_share)
     assert tried_share(count, enabled)[4] == 0
