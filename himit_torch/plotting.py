@@ -279,8 +279,8 @@ def _wrap_to_width(text: Text, width_px: float, renderer) -> None:
 def fit_titles(fig: Figure, margin: float = 0.01) -> None:
     """Make every title of ``fig`` (axes titles, the suptitle, and texts registered with
     ``fig._himit_titles``) fit inside the figure: lines are re-broken at spaces to the width
-    available around the title's anchor, then, if any was, the figure is laid out again (a
-    constrained layout makes room above the axes for the extra lines). Call before saving."""
+    available around the title's anchor, then the figure is laid out again (a constrained
+    layout makes room above the axes for the extra lines). Call before saving."""
     renderer = (
         fig.canvas.get_renderer()
         if hasattr(fig.canvas, "get_renderer")
@@ -299,7 +299,6 @@ def fit_titles(fig: Figure, margin: float = 0.01) -> None:
     texts += [t for t in (getattr(fig, "_suptitle", None),) if t is not None and t.get_text()]
     texts += [t for t in getattr(fig, "_himit_titles", []) if t.get_text()]
     width = fig.bbox.width
-    wrapped = False
     for text in texts:
         box = text.get_window_extent(renderer)
         ha = text.get_horizontalalignment()
@@ -308,8 +307,7 @@ def fit_titles(fig: Figure, margin: float = 0.01) -> None:
         room = {"left": right, "right": left}.get(ha, 2 * min(left, right))
         if box.width > room or box.x0 < 0 or box.x1 > width:
             _wrap_to_width(text, max(room, 20.0), renderer)
-            wrapped = True
-    if laid_out and wrapped:  # (nothing re-broken: the first draw's layout stands)
+    if laid_out:
         fig.draw_without_rendering()
 
 
