@@ -33,6 +33,7 @@ from collections.abc import Iterable, Sequence
 from dataclasses import asdict, dataclass
 from typing import TYPE_CHECKING, Protocol
 
+import numpy as np
 import torch
 
 from .dirichlet_models import DirichletMentorModel, DirichletSMDPModel
@@ -52,10 +53,29 @@ if TYPE_CHECKING:
     from .reward import MentorReward
     from .world import TabularWorld
 
-__all__ = ["Learner", "LearnerConfig", "AGENTS", "EPS_SCHEDULES"]
+__all__ = ["Learner", "LearnerConfig", "AGENTS", "EPS_SCHEDULES", "tried_share"]
 
 #: ``LearnerConfig.eps_schedule`` values, in the order of their code in the compiled engine.
 EPS_SCHEDULES = ("decision", "step", "goals", "paper")
+
+
+def tried_share(row_count: torch.Tensor, enabled: torch.Tensor) -> torch.Tensor:
+    """``[B]`` share of the usable rows (``enabled [B, M]``) tried at least once
+    (``row_count [B, M] > 0``); 0 for a run with no usable row.
+
+    On a CPU the two counts are numpy's ``count_nonzero`` over views of the same memory: one
+    pass each, on one thread — 10-30× faster than torch's reductions, which on a busy 2-core
+    machine wait for their second thread (a [20, 82282] batch: ≈ 2 ms instead of 40-80 ms). The
+    counts are the same integers either way, so the shares are bit-identical."""
+    if row_count.device.type == "cpu":
+        usable_np = enabled.numpy()
+        n_tried = torch.from_numpy(np.count_nonzero((row_count.numpy() > 0) & usable_np, axis=1))
+        n_usable = torch.from_numpy(np.count_nonzero(usable_np, axis=1))
+    else:
+        # (counted in int32: exact, and ≈ 4× faster than torch's default int64 sum of bools)
+        n_tried = ((row_count > 0) & enabled).sum(1, dtype=torch.int32)
+        n_usable = enabled.sum(1, dtype=torch.int32)
+    return n_tried.double() / n_usable.clamp(min=1)
 
 
 class HasTransitions(Protocol):
@@ -888,17 +908,18 @@ class Learner:
         frac = wins.double() / observed.sum(1).clamp(min=1)
         return torch.where(self.rows.use_mentor, frac, out)
 
-    def greedy_options(self) -> torch.Tensor:
-        """``[B, S]`` greedy option per state (−1 where none is usable), ties to the lowest row."""
-        runs = torch.arange(self.batch, device=self.device)[:, None, None]
+    def greedy_options(self, runs: Sequence[int] | torch.Tensor | None = None) -> torch.Tensor:
+        """``[B, S]`` greedy option per state (−1 where none is usable), ties to the lowest row;
+        ``runs``: those runs' rows only (``[len(runs), S]``; default all)."""
+        which = torch.arange(self.batch) if runs is None else runs
+        r = torch.as_tensor(which, dtype=torch.int64, device=self.device).reshape(-1, 1, 1)
+        R = r.shape[0]
         rows = self.rows.state_rows[: self.num_states][None]
-        q = self.cache.row_q(runs, rows)
-        usable = self.rows.row_enabled[runs, rows] & (self.model.row_count[runs, rows] > 0)
+        q = self.cache.row_q(r, rows)
+        usable = self.rows.row_enabled[r, rows] & (self.model.row_count[r, rows] > 0)
         q = torch.where(usable, q, torch.full_like(q, float("-inf")))
         best = q.argmax(-1)
-        option = self.rows.row_option[
-            rows.expand(self.batch, -1, -1).gather(2, best[..., None])[..., 0]
-        ]
+        option = self.rows.row_option[rows.expand(R, -1, -1).gather(2, best[..., None])[..., 0]]
         return torch.where(usable.any(-1), option, torch.full_like(option, -1))
 
     def visit_counts(self) -> torch.Tensor:
@@ -907,18 +928,15 @@ class Learner:
 
     def model_coverage(self) -> torch.Tensor:
         """``[B]`` share of the run's usable ``(s, o)`` rows it has tried at least once."""
-        enabled = self.rows.row_enabled[:, : self.num_rows]
-        tried = (self.model.row_count[:, : self.num_rows] > 0) & enabled
-        # (counted in int32: exact, and ≈ 4× faster than torch's default int64 sum of bools)
-        n_tried = tried.sum(1, dtype=torch.int32).double()
-        return n_tried / enabled.sum(1, dtype=torch.int32).clamp(min=1)
+        M = self.num_rows
+        return tried_share(self.model.row_count[:, :M], self.rows.row_enabled[:, :M])
 
     def greedy_trajectory(self, run: int, max_steps: int, seed: int = 0) -> torch.Tensor:
         """States of one episode from the start following run ``run``'s greedy options (ε = 0,
         untried options at random), with the world's slip; stops at the goal or after
         ``max_steps``. For pictures like the paper's Fig. 2."""
         gen = torch.Generator(device=self.device).manual_seed(seed)
-        greedy = self.greedy_options()[run]
+        greedy = self.greedy_options([run])[0]
         S = self.num_states
         s = torch.tensor([self.start_state], device=self.device)
         states = [int(s)]

@@ -721,9 +721,44 @@ class MapRenderer:
     def _render(parts, title: str) -> np.ndarray:
         parts["title"].set_text(title)
         parts["title"].set_fontsize("medium")
-        fit_titles(parts["fig"])
-        parts["canvas"].draw()
-        return np.asarray(parts["canvas"].buffer_rgba())[..., :3].copy()
+        fig, canvas = parts["fig"], parts["canvas"]
+        fit_titles(fig)
+        dynamic = MapRenderer._dynamic(parts)
+        if "background" not in parts:
+            # What never changes (the figure's background, the legend, the axes' patches and
+            # empty tick machinery) is drawn once; each image redraws the rest on top of it.
+            canvas.draw()
+            parts["background"] = canvas.copy_from_bbox(fig.bbox)
+        else:
+            canvas.restore_region(parts["background"])
+        for artist in dynamic:
+            fig.draw_artist(artist)
+        return np.asarray(canvas.buffer_rgba())[..., :3].copy()
+
+    @staticmethod
+    def _dynamic(parts) -> list:
+        """What changes between images, marked animated (a full draw leaves it out), in the
+        order a full draw draws it: the map's images, dots and frame (the frame lies over the
+        images); the colorbar's mesh, outline and long axis (its ticks follow the colour range;
+        the colorbar makes a new mesh when the range changes, hence a new list per image); the
+        title. None of it overlaps what stays (the legend lies outside the axes, the colorbar
+        and the title; the axes' patches lie beneath), so the pixels are a full draw's."""
+        ax = parts["ax"]
+        # (the axes' own patch and the tick machinery that draws nothing stay)
+        panels = [(ax, {ax.patch, *ax._axis_map.values()})]
+        if "colorbar" in parts:
+            bar = parts["colorbar"]
+            panels.append((bar.ax, {bar.ax.patch, bar._short_axis()}))
+        dynamic: list = []
+        for panel, still in panels:
+            still |= {panel.title, panel._left_title, panel._right_title}
+            # (Axes.draw's order: a stable sort by zorder)
+            children = sorted(panel.get_children(), key=lambda a: a.get_zorder())
+            dynamic += [a for a in children if a not in still]
+        dynamic.append(parts["title"])
+        for artist in dynamic:
+            artist.set_animated(True)
+        return dynamic
 
     def _field(self, parts, values: np.ndarray, hide: np.ndarray, log: bool) -> None:
         N = self.world.size

@@ -178,21 +178,37 @@ class TensorBoardLogger:
     def scalar(self, run: int, tag: str, value: float, step: int) -> None:
         """Log one scalar; its description (:data:`SCALAR_DESCRIPTIONS`) goes with its first
         value in this process."""
+        self.scalars(run, {tag: value}, step)
+
+    def scalars(self, run: int, values: Mapping[str, float], step: int) -> None:
+        """Log several scalars of one run at one step, as one event (TensorBoard reads each value
+        as its own point, as if logged by :meth:`scalar`; one event instead of one per tag is
+        ≈ 3× cheaper to write)."""
         from tensorboard.compat.proto.summary_pb2 import Summary
         from tensorboard.plugins.scalar.metadata import create_summary_metadata
 
-        entry = Summary.Value(tag=tag, simple_value=float(value))
-        if tag not in self._described[run]:
-            entry.metadata.CopyFrom(create_summary_metadata(tag, SCALAR_DESCRIPTIONS.get(tag, "")))
-            self._described[run].add(tag)
-        self._file_writer(run).add_summary(Summary(value=[entry]), int(step))
+        entries = []
+        for tag, value in values.items():
+            entry = Summary.Value(tag=tag, simple_value=float(value))
+            if tag not in self._described[run]:
+                description = SCALAR_DESCRIPTIONS.get(tag, "")
+                entry.metadata.CopyFrom(create_summary_metadata(tag, description))
+                self._described[run].add(tag)
+            entries.append(entry)
+        if entries:
+            self._file_writer(run).add_summary(Summary(value=entries), int(step))
 
     def image(self, run: int, tag: str, rgb: np.ndarray, step: int) -> None:
         """Log one ``[H, W, 3]`` uint8 image with its description (:data:`IMAGE_DESCRIPTIONS`)."""
+        from tensorboard.compat.proto.summary_pb2 import Summary
         from tensorboard.plugins.image.metadata import create_summary_metadata
-        from torch.utils.tensorboard.summary import image
+        from torch.utils.tensorboard.summary import image, make_image
 
-        summary = image(tag, rgb, dataformats="HWC")
+        if isinstance(rgb, np.ndarray) and rgb.dtype == np.uint8 and rgb.ndim == 3:
+            # (what image() encodes for uint8 pixels, without its float32 round trip)
+            summary = Summary(value=[Summary.Value(tag=tag, image=make_image(rgb))])
+        else:
+            summary = image(tag, rgb, dataformats="HWC")
         description = IMAGE_DESCRIPTIONS.get(tag, "")
         summary.value[0].metadata.CopyFrom(create_summary_metadata(tag, description))
         self._file_writer(run).add_summary(summary, int(step))
@@ -207,35 +223,54 @@ class TensorBoardLogger:
         now (``learner.t``) — the model's state (``model/``)."""
         m = learner.metrics
         step = int(m.steps[index])
-        total = torch.stack(m.goals_in_window[: index + 1]).sum(0)
+        total = torch.stack(m.goals_in_window[: index + 1]).sum(0).tolist()
         first = learner.first_goal_step.tolist()
         now = step == learner.t
         if now:
             coverage = learner.model_coverage().tolist()
             value_start = learner.state_values()[:, learner.start_state].tolist()
+        # (each window's [B] records as Python numbers once, not one tensor index per run)
+        goals, epsilon, episodes, episode_steps, backups, decisions, term_wins = (
+            x[index].tolist()
+            for x in (
+                m.goals_in_window,
+                m.epsilon,
+                m.episodes,
+                m.mean_episode_steps,
+                m.backups,
+                m.decisions,
+                m.mentor_term_wins,
+            )
+        )
         for b in range(len(self._writers)):
-            self.scalar(b, "charts/goals_in_window", float(m.goals_in_window[index][b]), step)
-            self.scalar(b, "charts/goals_total", float(total[b]), step)
-            self.scalar(b, "charts/epsilon", float(m.epsilon[index][b]), step)
-            self.scalar(b, "charts/episodes", float(m.episodes[index][b]), step)
-            mean_steps = float(m.mean_episode_steps[index][b])
+            values = {
+                "charts/goals_in_window": goals[b],
+                "charts/goals_total": total[b],
+                "charts/epsilon": epsilon[b],
+                "charts/episodes": episodes[b],
+            }
+            mean_steps = float(episode_steps[b])
             if math.isfinite(mean_steps):
-                self.scalar(b, "charts/steps_per_episode", mean_steps, step)
-            self.scalar(b, "planner/backups", float(m.backups[index][b]), step)
-            self.scalar(b, "planner/decisions", float(m.decisions[index][b]), step)
-            wins = float(m.mentor_term_wins[index][b])
+                values["charts/steps_per_episode"] = mean_steps
+            values["planner/backups"] = backups[b]
+            values["planner/decisions"] = decisions[b]
+            wins = float(term_wins[b])
             if math.isfinite(wins):
-                self.scalar(b, "mentor/term_wins", wins, step)
+                values["mentor/term_wins"] = wins
             if not self._first_goal_logged[b] and 0 <= first[b] <= step:
                 # A first goal before the resume step was logged (and kept) by the earlier process.
                 if self.resume_step is None or first[b] > self.resume_step:
+                    # (after the window's charts, at its own step: the tags' order as before)
+                    self.scalars(b, values, step)
+                    values = {}
                     self.scalar(b, "charts/first_goal_step", first[b], first[b])
                 self._first_goal_logged[b] = True
             if now:
-                self.scalar(b, "model/coverage", coverage[b], step)
-                self.scalar(b, "model/value_start", value_start[b], step)
+                values["model/coverage"] = coverage[b]
+                values["model/value_start"] = value_start[b]
                 if self._true_value_start is not None:
-                    self.scalar(b, "model/value_start_true", self._true_value_start, step)
+                    values["model/value_start_true"] = self._true_value_start
+            self.scalars(b, values, step)
 
     def maps(
         self,
@@ -249,11 +284,9 @@ class TensorBoardLogger:
         ``mentor_visits``: ``[S]`` counts for all runs, or ``{run: [S]}``."""
         if self._renderer is None:
             raise ValueError("TensorBoardLogger.maps needs the world (TensorBoardLogger(world=…))")
-        values, greedy, visits = (
-            learner.state_values(),
-            learner.greedy_options(),
-            learner.visit_counts(),
-        )
+        runs = list(runs)
+        values, visits = learner.state_values(), learner.visit_counts()
+        greedy = dict(zip(runs, learner.greedy_options(runs)))  # (the runs drawn only)
         for b in runs:
             name, at = self.names[b], f"after {step:,} steps"
             mentor = mentor_visits.get(b) if isinstance(mentor_visits, Mapping) else mentor_visits
@@ -301,8 +334,7 @@ class TensorBoardLogger:
             writer = self._file_writer(b)
             for summary in (experiment, start, end):
                 writer.add_summary(summary)
-            for tag, value in metric.items():
-                self.scalar(b, tag, value, step)
+            self.scalars(b, metric, step)
 
     def flush(self) -> None:
         for w in self._writers:

@@ -121,6 +121,8 @@ def test_cuda_torch_engine_matches_cpu_numba(world12, mentor_demos12, name):
     gpu.run(TICKS)
     assert_same_run(cpu, gpu)
     assert int(cpu.decisions.min()) > 300 and int(cpu.goals.sum()) > 0
+    # torch's counts on the GPU, numpy's on the CPU: the same shares
+    assert torch.equal(gpu.model_coverage().cpu(), cpu.model_coverage())
 
 
 @pytest.mark.parametrize("name", list(CONFIGS))

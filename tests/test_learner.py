@@ -524,6 +524,45 @@ def test_incremental_caches_equal_recomputation(learned8):
     )
 
 
+def test_model_coverage_and_greedy_options_equal_slow_computation(learned8):
+    """Fast path = slow computation: ``model_coverage`` (numpy counts on a CPU) is, per run, the
+    tried usable rows over the usable rows, counted row by row; ``greedy_options(runs)`` is
+    those runs' rows of ``greedy_options()``."""
+    M = learned8.num_rows
+    count = learned8.model.row_count[:, :M].tolist()
+    enabled = learned8.rows.row_enabled[:, :M].tolist()
+    expected = []
+    for b in range(learned8.batch):
+        usable = [m for m in range(M) if enabled[b][m]]
+        expected.append(sum(count[b][m] > 0 for m in usable) / max(len(usable), 1))
+    coverage = learned8.model_coverage()
+    assert coverage.dtype == torch.float64 and coverage.tolist() == expected
+    # primitives-only runs use fewer rows: the denominators differ, the check can fail
+    assert len(set(expected)) > 1 and 0 < min(expected) and max(expected) < 1
+    everything = learned8.greedy_options()
+    for runs in ([3], [0, 5, 2], list(range(learned8.batch))):
+        assert torch.equal(learned8.greedy_options(runs), everything[runs])
+
+
+def test_tried_share_equals_torch_counts_on_any_layout():
+    """The numpy counts (CPU) equal torch's on strided views of random counts, with a run that
+    has no usable row (share 0)."""
+    from himit_torch.learner import tried_share
+
+    gen = torch.Generator().manual_seed(0)
+    count = torch.randint(0, 3, (7, 1001), generator=gen).double()
+    enabled = torch.rand(7, 1001, generator=gen) < 0.6
+    enabled[4] = False
+    for c, e in (
+        (count, enabled),
+        (count[:, :1000], enabled[:, :1000]),
+        (count[::2], enabled[::2]),
+    ):
+        torch_share = ((c > 0) & e).sum(1).double() / e.sum(1).clamp(min=1)
+        assert torch.equal(tried_share(c, e), torch_share)
+    assert tried_share(count, enabled)[4] == 0
+
+
 def test_planning_to_convergence_reaches_the_learned_models_fixed_point(learned8):
     """After a run, sweeping until the queue is empty gives eq. 2 on each run's learned model (a
     plain value iteration over the counts), up to what the priority threshold lets through
