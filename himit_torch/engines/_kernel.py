@@ -389,15 +389,14 @@ def _sift_down(heap, hkey, hpos, hsize, b, i):
         child = 2 * i + 1
         if child >= n:
             break
+        if child + 1 < n:
+            # the child that comes first, by arithmetic on the index rather than a branch
+            # (which child wins is a coin flip for the branch predictor)
+            child += np.int64(
+                _before(hkey[b, child + 1], heap[b, child + 1], hkey[b, child], heap[b, child])
+            )
         c = heap[b, child]
         kc = hkey[b, child]
-        if child + 1 < n:
-            c2 = heap[b, child + 1]
-            k2 = hkey[b, child + 1]
-            if _before(k2, c2, kc, c):
-                child += 1
-                c = c2
-                kc = k2
         if not _before(kc, c, k, s):
             break
         heap[b, i] = c
@@ -413,14 +412,21 @@ def _sift_down(heap, hkey, hpos, hsize, b, i):
 def _push(heap, hkey, hpos, hsize, prio, b, s, p):
     """Raise the priority of ``s`` to at least ``p`` (a scatter-max, as the torch queue)."""
     if p > prio[b, s]:
-        prio[b, s] = p
-        i = hpos[b, s]
-        if i < 0:
-            i = hsize[b]
-            hsize[b] += 1
-            heap[b, i] = s
-        hkey[b, i] = p
-        _sift_up(heap, hkey, hpos, b, i)
+        _raise(heap, hkey, hpos, hsize, prio, b, s, p)
+
+
+@njit(inline="always")
+def _raise(heap, hkey, hpos, hsize, prio, b, s, p):
+    """Set the priority of ``s`` to ``p``, which is above its priority now."""
+    prio[b, s] = p
+    i = hpos[b, s]
+    n = hsize[b]
+    new = i < 0  # (not queued: a new slot at the end; without a branch)
+    i = n if new else i
+    hsize[b] = n + np.int64(new)
+    heap[b, i] = s
+    hkey[b, i] = p
+    _sift_up(heap, hkey, hpos, b, i)
 
 
 @njit(inline="always")
@@ -501,26 +507,37 @@ def _state_backup(
     confident_run = use_conf[b]
     own = -_INF
     upper = -_INF
-    for row in range(row_begin[s], row_begin[s + 1]):
-        q, usable, _ = _row_value(cfg_f, cfg_i, q_num, row_count, row_enabled, b, row)
-        if usable:
+    if cfg_i[I_UNTRIED_MODE] == 1 and not confident_run:
+        # The common case (untried rows left out, no confidence test), without a branch per
+        # row: whether each of a state's rows has been tried goes either way.
+        for row in range(row_begin[s], row_begin[s + 1]):
+            n = row_count[b, row]
+            q = (q_num[b, row] + conc * v0) / (n + conc)
+            # + (−0.0) leaves every q as it is (−0.0 included); + (−∞) leaves it out
+            q = q + (-0.0 if row_enabled[b, row] & (n > 0) else -_INF)
             if q > own:
                 own = q
-            if confident_run:
-                n = row_count[b, row]
-                rsum = row_reward[b, row]
-                rbar = rsum / max(n, 1.0) if n > 0 else 0.0
-                cont = q_num[b, row] - rsum
-                if n + conc > 0:
-                    second = (
-                        n * rbar * rbar + 2 * rbar * cont + q_sec[b, row] + conc * v0 * v0
-                    ) / (n + conc)
-                    var = max(second - q * q, 0.0) / (n + conc + 1)
-                else:  # untried, valued by untried_value: unbounded above
-                    var = _INF
-                up = q + z * np.sqrt(var)
-                if up > upper:
-                    upper = up
+    else:
+        for row in range(row_begin[s], row_begin[s + 1]):
+            q, usable, _ = _row_value(cfg_f, cfg_i, q_num, row_count, row_enabled, b, row)
+            if usable:
+                if q > own:
+                    own = q
+                if confident_run:
+                    n = row_count[b, row]
+                    rsum = row_reward[b, row]
+                    rbar = rsum / max(n, 1.0) if n > 0 else 0.0
+                    cont = q_num[b, row] - rsum
+                    if n + conc > 0:
+                        second = (
+                            n * rbar * rbar + 2 * rbar * cont + q_sec[b, row] + conc * v0 * v0
+                        ) / (n + conc)
+                        var = max(second - q * q, 0.0) / (n + conc + 1)
+                    else:  # untried, valued by untried_value: unbounded above
+                        var = _INF
+                    up = q + z * np.sqrt(var)
+                    if up > upper:
+                        upper = up
     mconc = cfg_f[F_MCONC]
     n_m = m_row_count[b, s]
     ok = use_mentor[b] and n_m > 0
@@ -590,8 +607,11 @@ def _propagate_options(
             c = max(edge_count[b, e], 1.0)
             q_sec[b, row] += g * g / c * ((v_old + d) ** 2 - v_old**2)
         p = abs(gd) / max(row_count[b, row] + conc, 1e-300)
-        if p > thr and row_enabled[b, row]:
-            _push(heap, hkey, hpos, hsize, prio, b, row_state[row], p)
+        # queued if p > thr, the row is enabled and p raises its state's priority: one test
+        # (p above the larger of the two bounds) instead of three branches that go either way
+        s = row_state[row]
+        if p > max(thr if row_enabled[b, row] else _INF, prio[b, s]):
+            _raise(heap, hkey, hpos, hsize, prio, b, s, p)
         e = succ_next[b, e]
 
 
@@ -639,8 +659,8 @@ def _propagate_mentor(
             u_old = m_edge_reward[b, e] + gamma * v_old
             m_sec[b, src] += c * ((u_old + gd) ** 2 - u_old**2)
         p = abs(cd) / max(m_row_count[b, src] + mconc, 1e-300)
-        if p > thr:
-            _push(heap, hkey, hpos, hsize, prio, b, src, p)
+        if p > max(thr, prio[b, src]):  # (p > thr, and it raises the priority; one test)
+            _raise(heap, hkey, hpos, hsize, prio, b, src, p)
         e = m_succ_next[b, e]
 
 
