@@ -38,7 +38,10 @@ def reproduce(logdir: Path, cache: Path, sequential: bool) -> float:
     """Seconds of one full reproduction into ``logdir`` with Numba cache ``cache``."""
     env = {**os.environ, "NUMBA_CACHE_DIR": str(cache), "PYTHONPATH": str(ROOT)}
     commands = (
-        [[*HIMIT, "run", name, "--logdir", str(logdir), "--quiet"] for name in ("exp1", "exp2", "exp3")]
+        [
+            [*HIMIT, "run", name, "--logdir", str(logdir), "--quiet"]
+            for name in ("exp1", "exp2", "exp3")
+        ]
         if sequential
         else [[*HIMIT, "run", "paper", "--logdir", str(logdir), "--quiet"]]
     )
@@ -72,7 +75,9 @@ def main() -> None:
                 load = os.getloadavg()[0]
                 print(f"{kind} {r}: {seconds:.1f} s (load {load:.1f}); {world_seconds(logdir)}")
     for kind, values in times.items():
-        print(f"{kind}: median {statistics.median(values):.1f} s of {[round(v, 1) for v in values]}")
+        print(
+            f"{kind}: median {statistics.median(values):.1f} s of {[round(v, 1) for v in values]}"
+        )
 
 
 if __name__ == "__main__":
