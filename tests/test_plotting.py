@@ -242,3 +242,41 @@ def test_tensorboard_hint_runs_as_typed(monkeypatch, tmp_path):
     if "-m" in command:
         assert command[1:3] == ["-m", "tensorboard.main"]
         assert os.path.samefile(command[0], sys.executable)
+
+
+def test_each_map_image_is_the_figures_full_draw():
+    """The maps redraw only what changes over a background drawn once; every image must be
+    pixel for pixel what a full draw of the same figure gives (the obvious, slow path) —
+    across colour ranges, titles, mentor dots and greedy options that change between images."""
+    from himit_torch.options import learner_options
+    from himit_torch.plotting import MapRenderer
+
+    world = MultiRooms(size=16, rooms=4)
+    options = learner_options(world, corners=True)
+    renderer = MapRenderer(world, options)
+    gen = torch.Generator().manual_seed(0)
+    S = world.num_states
+
+    def full_draw(kind: str) -> np.ndarray:
+        parts = renderer._figures[kind]
+        for artist in parts["fig"].findobj():
+            artist.set_animated(False)
+        parts["canvas"].draw()
+        return np.asarray(parts["canvas"].buffer_rgba())[..., :3].copy()
+
+    images = 0
+    for k in range(3):
+        values = -torch.rand(S, generator=gen, dtype=torch.float64) * (k + 1)
+        values[: 5 * k] = -1.0  # some cells still at the initial value
+        visits = torch.randint(0, 10 ** (k + 1), (S,), generator=gen)
+        mentor = (torch.rand(S, generator=gen) < 0.1 * k).long()
+        greedy = torch.randint(-1, len(options.names), (S,), generator=gen)
+        title = "a title " * (1 + 6 * k)  # the longest wraps onto two lines
+        for kind, image in (
+            ("values", renderer.values(values, title)),
+            ("visits", renderer.visits(visits, mentor if k else None, title)),
+            ("policy", renderer.policy(greedy, title)),
+        ):
+            assert np.array_equal(image, full_draw(kind)), (kind, k)
+            images += 1
+    assert images == 9
