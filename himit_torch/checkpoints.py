@@ -245,9 +245,10 @@ def _stored(tensor: torch.Tensor) -> torch.Tensor:
     patterns (explicit ``-0.0`` values are kept; the reader assigns, never adds, them)."""
     if tensor.numel() < SPARSE_MIN_ELEMENTS or tensor.is_complex():
         return tensor
-    bits = tensor.contiguous()
+    dense = tensor.contiguous()
+    bits = dense
     if tensor.is_floating_point():
-        bits = bits.view(_SAME_SIZE_INT[tensor.element_size()])
+        bits = dense.view(_SAME_SIZE_INT[tensor.element_size()])
     if bits.device.type == "cpu":  # NumPy counts ≈ 20× faster than torch on a CPU
         flat = bits.numpy().reshape(-1)
         count = int(np.count_nonzero(flat))
@@ -255,7 +256,7 @@ def _stored(tensor: torch.Tensor) -> torch.Tensor:
             return tensor
         where = np.flatnonzero(flat) if count else np.zeros(0, dtype=np.int64)
         indices = torch.from_numpy(np.stack(np.unravel_index(where, tensor.shape)))
-        values = tensor.contiguous().view(-1)[torch.from_numpy(where)]
+        values = dense.view(-1)[torch.from_numpy(where)]
     else:
         nonzero = bits != 0
         if int(nonzero.sum()) > SPARSE_MAX_DENSITY * tensor.numel():

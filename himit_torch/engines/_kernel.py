@@ -462,11 +462,17 @@ def _heapify(heap, hkey, hpos, hsize, prio, b, num):
 
 # ========================================================================== eq. 2 at a state
 @njit(inline="always")
+def _row_q(conc, v0, q_num, row_count, b, row):
+    """Q of one cached row: ``(numerator + concentration · v0) / (n + concentration)``
+    (``ValueCache.row_q``)."""
+    return (q_num[b, row] + conc * v0) / (row_count[b, row] + conc)
+
+
+@njit(inline="always")
 def _row_value(cfg_f, cfg_i, q_num, row_count, row_enabled, b, row):
     """``(Q, usable, enabled)`` of one cached row (``ValueCache.own_values``)."""
-    conc = cfg_f[F_CONC]
     n = row_count[b, row]
-    q = (q_num[b, row] + conc * cfg_f[F_V0]) / (n + conc)
+    q = _row_q(cfg_f[F_CONC], cfg_f[F_V0], q_num, row_count, b, row)
     enabled = row_enabled[b, row]
     mode = cfg_i[I_UNTRIED_MODE]  # 0: prior (concentration > 0), 1: skip, 2: a value
     if mode == 0:
@@ -511,10 +517,9 @@ def _state_backup(
         # The common case (untried rows left out, no confidence test), without a branch per
         # row: whether each of a state's rows has been tried goes either way.
         for row in range(row_begin[s], row_begin[s + 1]):
-            n = row_count[b, row]
-            q = (q_num[b, row] + conc * v0) / (n + conc)
+            q = _row_q(conc, v0, q_num, row_count, b, row)
             # + (−0.0) leaves every q as it is (−0.0 included); + (−∞) leaves it out
-            q = q + (-0.0 if row_enabled[b, row] & (n > 0) else -_INF)
+            q = q + (-0.0 if row_enabled[b, row] & (row_count[b, row] > 0) else -_INF)
             if q > own:
                 own = q
     else:
