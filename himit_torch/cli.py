@@ -33,15 +33,16 @@ from typing import NoReturn
 
 import torch
 
-from .demonstrations import Demonstrations
-from .exact_option_models import option_durations, option_models
-from .exact_planning import expected_steps, smdp_value_iteration
-from .mentor import mentor_policy, run_mentor
-from .options import Options, learner_options, mentor_options, primitive_options
-from .reward import MENTOR_REWARDS
-from .rows import AGENTS
-from .tensorboard_logger import tensorboard_command
-from .world import MultiRooms
+from himit_torch.exact.option_models import option_durations, option_models
+from himit_torch.exact.planning import expected_steps, smdp_value_iteration
+from himit_torch.learner.agents import AGENTS
+from himit_torch.mentor.demonstrations import Demonstrations
+from himit_torch.mentor.policy import mentor_policy, run_mentor
+from himit_torch.mentor.reward import MENTOR_REWARDS
+from himit_torch.options.builders import learner_options, mentor_options, primitive_options
+from himit_torch.options.bundle import Options
+from himit_torch.viz.tensorboard import tensorboard_command
+from himit_torch.worlds.multirooms import MultiRooms
 
 __all__ = ["main", "build_parser", "COMMANDS"]
 
@@ -174,11 +175,11 @@ def _info_gymnasium(args: argparse.Namespace, t0: float) -> int:
     """``himit info --env``: a Gymnasium world through the adapter, exactly solved."""
     import json
 
-    from .exact_planning import value_iteration
-    from .gym_adapter import from_gymnasium
-    from .gym_experiment import TASKS, episode_statistics
-    from .reward import KnownReward
-    from .table_world import world_model
+    from himit_torch.exact.planning import value_iteration
+    from himit_torch.mentor.reward import KnownReward
+    from himit_torch.runs.gymnasium import TASKS, episode_statistics
+    from himit_torch.worlds.gymnasium import from_gymnasium
+    from himit_torch.worlds.table_world import world_model
 
     try:
         kwargs = json.loads(args.env_kwargs) if args.env_kwargs else {}
@@ -273,8 +274,10 @@ def cmd_demo(args: argparse.Namespace) -> int:
     batched learning run with TensorBoard logs and figures (about a minute on a laptop CPU)."""
     from dataclasses import replace
 
-    from .experiment import EXPERIMENTS, run_experiment
-    from .plotting import save_world_figure  # matplotlib only when a picture is wanted
+    from himit_torch.runs.experiment import EXPERIMENTS, run_experiment
+    from himit_torch.viz.plotting import (
+        save_world_figure,  # matplotlib only when a picture is wanted
+    )
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -362,7 +365,7 @@ def _add_demo(sub: argparse.ArgumentParser) -> None:
 
 # -------------------------------------------------------------------------------------- run
 def cmd_run(args: argparse.Namespace) -> int:
-    from .experiment import run_experiments
+    from himit_torch.runs.experiment import run_experiments
 
     if args.experiment in ("gymnasium", "discovery") and args.agents is not None:
         raise ValueError(
@@ -409,7 +412,7 @@ def _experiment_config(name: str, args: argparse.Namespace):
     """The configuration of experiment ``name`` with the command line's changes."""
     from dataclasses import replace
 
-    from .experiment import EXPERIMENTS, load_config
+    from himit_torch.runs.experiment import EXPERIMENTS, load_config
 
     if args.config:
         config = load_config(args.config)
@@ -446,10 +449,10 @@ def _experiment_config(name: str, args: argparse.Namespace):
 
 
 def _run_gymnasium(args: argparse.Namespace) -> int:
-    """``himit run gymnasium``: Taxi, CliffWalking, FrozenLake 8×8 (``gym_experiment``)."""
+    """``himit run gymnasium``: Taxi, CliffWalking, FrozenLake 8×8 (:mod:`himit_torch.runs.gymnasium`)."""
     from dataclasses import replace
 
-    from .gym_experiment import GymExperimentConfig, run_gym_experiment
+    from himit_torch.runs.gymnasium import GymExperimentConfig, run_gym_experiment
 
     if args.mentor_reward is not None:
         raise ValueError(
@@ -485,10 +488,10 @@ def _run_gymnasium(args: argparse.Namespace) -> int:
 
 def _run_discovery(args: argparse.Namespace) -> int:
     """``himit run discovery``: options discovered from the mentor's states
-    (``discovery_experiment``) on experiment 1's and 2's worlds."""
+    (:mod:`himit_torch.runs.discovery`) on experiment 1's and 2's worlds."""
     from dataclasses import replace
 
-    from .discovery_experiment import DiscoveryConfig, run_discovery
+    from himit_torch.runs.discovery import DiscoveryConfig, run_discovery
 
     refused = [
         flag
@@ -583,8 +586,8 @@ def _add_run(sub: argparse.ArgumentParser) -> None:
 def cmd_plot(args: argparse.Namespace) -> int:
     import json
 
-    from .experiment import WorldResult, load_config
-    from .report import write_figures, write_results
+    from himit_torch.runs.experiment import WorldResult, load_config
+    from himit_torch.viz.report import write_figures, write_results
 
     run_dir = Path(args.run_dir)
     config = load_config(run_dir / "config.json")
@@ -609,7 +612,7 @@ def _add_plot(sub: argparse.ArgumentParser) -> None:
 
 # ------------------------------------------------------------------------------------ sweep
 def cmd_sweep(args: argparse.Namespace) -> int:
-    from .sweep import load_spec, run_sweep
+    from himit_torch.runs.sweep import load_spec, run_sweep
 
     spec = load_spec(args.spec)
     out = Path(args.out) if args.out else Path("runs") / "sweeps" / spec.name
@@ -630,7 +633,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
 
 def _add_sweep(sub: argparse.ArgumentParser) -> None:
-    from . import sweep
+    from himit_torch.runs import sweep
 
     sub.formatter_class = argparse.RawDescriptionHelpFormatter
     doc = sweep.__doc__
@@ -665,7 +668,7 @@ def _add_sweep(sub: argparse.ArgumentParser) -> None:
 
 # ------------------------------------------------------------------------------------ bench
 def cmd_bench(args: argparse.Namespace) -> int:
-    from .bench import benchmark
+    from himit_torch.runs.bench import benchmark
 
     result = benchmark(
         size=args.size,

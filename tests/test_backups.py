@@ -1,4 +1,4 @@
-"""The Bellman backups of :mod:`himit_torch.backups`: hand-solved tiny cases (derivations in the
+"""The Bellman backups of :mod:`himit_torch.learner.backups`: hand-solved tiny cases (derivations in the
 comments) and the batched functions against naive Python loops over random tensors."""
 
 import itertools
@@ -9,7 +9,7 @@ import pytest
 import scipy.stats
 import torch
 
-from himit_torch.backups import (
+from himit_torch.learner.backups import (
     augmented_option_backup,
     augmented_primitive_backup,
     confident_mentor,

@@ -17,12 +17,14 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from himit_torch.cli import main
-from himit_torch.demonstrations import Demonstrations
-from himit_torch.experiment import ExperimentConfig, load_config, run_experiment
-from himit_torch.learner import Learner, LearnerConfig
-from himit_torch.options import Options, learner_options, primitive_options
+from himit_torch.learner.config import LearnerConfig
+from himit_torch.learner.learner import Learner
+from himit_torch.mentor.demonstrations import Demonstrations
+from himit_torch.options.builders import learner_options, primitive_options
+from himit_torch.options.bundle import Options
+from himit_torch.runs.experiment import ExperimentConfig, load_config, run_experiment
 from himit_torch.validation import as_float, as_int, memory_limit
-from himit_torch.world import MultiRooms
+from himit_torch.worlds.multirooms import MultiRooms
 
 FAST = settings(
     max_examples=25,
@@ -374,8 +376,8 @@ def valid_learner_configs(draw):
 def test_random_valid_configurations_build_step_and_keep_the_model_invariants(
     world, config, seed, steps, engine
 ):
-    from himit_torch.mentor import mentor_policy, record_demonstrations
-    from himit_torch.options import mentor_options
+    from himit_torch.mentor.policy import mentor_policy, record_demonstrations
+    from himit_torch.options.builders import mentor_options
 
     w = MultiRooms(**world)
     opts = learner_options(w)

@@ -12,8 +12,12 @@ from pathlib import Path
 import pytest
 import torch
 
-import himit_torch.checkpoints as ckpt
-from himit_torch.checkpoints import (
+import himit_torch.runs.checkpoints as ckpt
+from himit_torch.cli import main
+from himit_torch.learner.learner import Learner
+from himit_torch.mentor.policy import mentor_policy, record_demonstrations
+from himit_torch.options.builders import learner_options, mentor_options
+from himit_torch.runs.checkpoints import (
     BatchShape,
     CheckpointGenerations,
     CheckpointWriteError,
@@ -26,11 +30,7 @@ from himit_torch.checkpoints import (
     read_header,
     write_checkpoint,
 )
-from himit_torch.cli import main
-from himit_torch.experiment import EXPERIMENTS, run_experiment
-from himit_torch.learner import Learner
-from himit_torch.mentor import mentor_policy, record_demonstrations
-from himit_torch.options import learner_options, mentor_options
+from himit_torch.runs.experiment import EXPERIMENTS, run_experiment
 
 
 @pytest.fixture

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 import torch
 
-from himit_torch.demonstrations import DEMONSTRATIONS_FORMAT_VERSION, Demonstrations
-from himit_torch.world import MultiRooms
+from himit_torch.mentor.demonstrations import DEMONSTRATIONS_FORMAT_VERSION, Demonstrations
+from himit_torch.worlds.multirooms import MultiRooms
 
 # 8×8 cells, 2×2 rooms: wall row 4 and wall column 4; doorways (4, 2), (2, 4), (4, 6), (6, 4).
 N = 8
@@ -345,7 +345,7 @@ def test_check_world_names_the_fields(demos, world):
 # ---------------------------------------------------------------------------- any world
 @pytest.fixture(scope="module")
 def taxi():
-    from himit_torch.gym_adapter import from_gymnasium
+    from himit_torch.worlds.gymnasium import from_gymnasium
 
     return from_gymnasium("Taxi-v4")
 
@@ -380,7 +380,7 @@ def test_gymnasium_demonstrations_are_checked_saved_and_refused_elsewhere(taxi, 
     assert [e.tolist() for e in loaded] == [
         ok
     ] and loaded.make_world().describe() == taxi.describe()
-    from himit_torch.gym_adapter import from_gymnasium
+    from himit_torch.worlds.gymnasium import from_gymnasium
 
     with pytest.raises(
         ValueError,
@@ -402,7 +402,7 @@ class Ring:
     num_states, num_actions, start_state, gamma = 6, 2, 0, 0.95
 
     def __init__(self, forward: int = 1):
-        from himit_torch.world import DynamicsTable
+        from himit_torch.worlds.tabular import DynamicsTable
 
         s = torch.arange(6)
         succ = torch.stack([(s + forward) % 6, s], 1)[..., None]

@@ -8,16 +8,16 @@ import pytest
 import scipy.stats
 import torch
 
-from himit_torch.dirichlet_models import (
+from himit_torch.exact.option_models import option_models
+from himit_torch.learner.models import (
     DenseEdgeIndex,
     DirichletMentorModel,
     DirichletSMDPModel,
     EdgeStore,
     SuccessorDirichlet,
 )
-from himit_torch.exact_option_models import option_models
-from himit_torch.options import learner_options
-from himit_torch.world import MultiRooms
+from himit_torch.options.builders import learner_options
+from himit_torch.worlds.multirooms import MultiRooms
 
 Z = 5.0  # tolerance in standard errors
 CPU = torch.device("cpu")

@@ -1,21 +1,21 @@
 """Subgoal discovery from state-only demonstrations and options built from a learned one-step model
-(himit_torch.discovery), its figure, and the discovery experiment with a tiny budget."""
+(himit_torch.options.discovery), its figure, and the discovery experiment with a tiny budget."""
 
 import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from himit_torch.discovery import (
+from himit_torch.learner.learner import Learner
+from himit_torch.mentor.policy import record_demonstrations
+from himit_torch.options.builders import mentor_options, primitive_options
+from himit_torch.options.discovery import (
     discover_subgoals,
     fewest_steps_policy,
     learned_subgoal_options,
     mentor_graph,
     one_step_counts,
 )
-from himit_torch.learner import Learner
-from himit_torch.mentor import record_demonstrations
-from himit_torch.options import mentor_options, primitive_options
-from himit_torch.world import MultiRooms
+from himit_torch.worlds.multirooms import MultiRooms
 
 
 def two_rooms_episodes():
@@ -160,7 +160,7 @@ def test_learned_options_follow_the_evidence(world8):
 def test_subgoal_figure(world8, tmp_path):
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
-    from himit_torch.plotting import plot_subgoals
+    from himit_torch.viz.plotting import plot_subgoals
 
     demos = record_demonstrations(world8, mentor_options(world8), 5, seed=0)
     sg = discover_subgoals(demos, separation=1)
@@ -184,7 +184,7 @@ def test_himit_run_discovery_quick(tmp_path, capsys):
     import csv
 
     from himit_torch.cli import main
-    from himit_torch.discovery_experiment import DISCOVERY_AGENTS, DiscoveryConfig, mean_ci
+    from himit_torch.runs.discovery import DISCOVERY_AGENTS, DiscoveryConfig, mean_ci
 
     assert (
         main(
@@ -229,7 +229,7 @@ def test_discovered_runs_continue_the_primitives_runs_and_refresh(tmp_path):
     go on with options rebuilt every ``refresh_every`` steps."""
     from dataclasses import replace
 
-    from himit_torch.discovery_experiment import DiscoveryConfig, run_discovery
+    from himit_torch.runs.discovery import DiscoveryConfig, run_discovery
 
     config = replace(DiscoveryConfig().quick(), seeds=1, steps=15_000, refresh_every=5000)
     (result,) = run_discovery(config, tmp_path / "d", progress=False)

@@ -18,7 +18,7 @@ from himit_torch import (
     mentor_policy,
     record_demonstrations,
 )
-from himit_torch.engines import make_engine
+from himit_torch.learner.engines import make_engine
 
 pytest.importorskip("numba")
 

@@ -5,9 +5,10 @@ from dataclasses import dataclass
 import pytest
 import torch
 
-from himit_torch.exact_option_models import OptionModels, option_durations, option_models
-from himit_torch.options import Options, doorway_options, primitive_options
-from himit_torch.world import MultiRooms
+from himit_torch.exact.option_models import OptionModels, option_durations, option_models
+from himit_torch.options.builders import doorway_options, primitive_options
+from himit_torch.options.bundle import Options
+from himit_torch.worlds.multirooms import MultiRooms
 
 Z = 5.0  # tolerance in standard errors
 

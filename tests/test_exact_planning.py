@@ -7,21 +7,21 @@ import pytest
 import scipy.sparse as sp
 import torch
 
-from himit_torch.exact_option_models import (
+from himit_torch.exact.option_models import (
     OptionModels,
     csr_from_scipy,
     option_durations,
     option_models,
 )
-from himit_torch.exact_planning import (
+from himit_torch.exact.planning import (
     expected_steps,
     greedy_option_policy,
     optimal_baseline,
     smdp_value_iteration,
     value_iteration,
 )
-from himit_torch.options import learner_options, primitive_options
-from himit_torch.world import MultiRooms
+from himit_torch.options.builders import learner_options, primitive_options
+from himit_torch.worlds.multirooms import MultiRooms
 
 
 @pytest.fixture

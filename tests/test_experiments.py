@@ -16,9 +16,9 @@ from pathlib import Path
 import pytest
 import torch
 
-from himit_torch.checkpoints import DamagedCheckpoint, read_header
 from himit_torch.cli import main
-from himit_torch.experiment import (
+from himit_torch.runs.checkpoints import DamagedCheckpoint, read_header
+from himit_torch.runs.experiment import (
     EXPERIMENTS,
     ExperimentConfig,
     load_config,
@@ -102,7 +102,7 @@ def accumulate(folder: Path):
 
 
 def test_tensorboard_holds_first_goal_true_value_descriptions_and_maps(small_run):
-    from himit_torch.tensorboard_logger import IMAGE_DESCRIPTIONS, SCALAR_DESCRIPTIONS
+    from himit_torch.viz.tensorboard import IMAGE_DESCRIPTIONS, SCALAR_DESCRIPTIONS
 
     run_dir, result = small_run
     names = [f"world16__{a}__seed{s}" for a, s in zip(result.agents, result.seeds)]
@@ -179,7 +179,7 @@ def test_a_forced_rerun_with_another_budget_keeps_none_of_the_old_events(tmp_pat
 
 
 def test_run_world_refuses_a_folder_with_another_runs_events(tmp_path):
-    from himit_torch.experiment import run_world
+    from himit_torch.runs.experiment import run_world
 
     config = tiny("exp2", sizes=(16,), steps=1000)
     run_world(config, 16, tmp_path, resume=False, progress=False)
@@ -200,7 +200,7 @@ def test_a_finished_run_is_not_overwritten_without_force(tmp_path):
 _CHILD = """
 import sys
 from dataclasses import replace
-from himit_torch.experiment import EXPERIMENTS, run_experiment
+from himit_torch.runs.experiment import EXPERIMENTS, run_experiment
 # the torch engine: slow enough per window to be killed inside one (the compiled engine runs
 # these 3500 steps in a blink; the state it checkpoints is the same)
 config = replace(EXPERIMENTS["exp2"], sizes=(16,), seeds=1, steps=3500, window=250,
@@ -468,7 +468,7 @@ def test_run_experiments_refuses_two_plans_in_one_directory(tmp_path):
 def test_cli_run_paper_runs_the_three_experiments_with_the_options_given(
     tmp_path, capsys, monkeypatch
 ):
-    import himit_torch.experiment as experiment
+    import himit_torch.runs.experiment as experiment
 
     seen = {}
 

@@ -8,9 +8,10 @@ import torch
 from scipy import stats
 
 import himit_torch as ht
-from himit_torch.gym_adapter import from_gymnasium, taxi_navigation_options
-from himit_torch.table_world import TableWorld, transition_support, world_model
-from himit_torch.world import DynamicsTable
+from himit_torch.options.taxi import taxi_navigation_options
+from himit_torch.worlds.gymnasium import from_gymnasium
+from himit_torch.worlds.table_world import TableWorld, transition_support, world_model
+from himit_torch.worlds.tabular import DynamicsTable
 
 ENVS = {
     "taxi": ("Taxi-v4", {}),

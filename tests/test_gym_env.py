@@ -8,8 +8,8 @@ import pytest
 import torch
 from gymnasium.utils.env_checker import check_env
 
-from himit_torch.gym_env import ENV_ID, MultiRoomsEnv, register_envs
-from himit_torch.world import MultiRooms
+from himit_torch.worlds.gym_env import ENV_ID, MultiRoomsEnv, register_envs
+from himit_torch.worlds.multirooms import MultiRooms
 
 E, S = 3, 1
 
@@ -33,7 +33,7 @@ def test_make_through_registered_id():
     world = env.unwrapped.world
     assert (world.size, world.rooms, world.slip, world.goal_state) == (8, 2, 0.0, 27)
     # The "module:id" form imports the module itself.
-    again = gymnasium.make("himit_torch.gym_env:" + ENV_ID, size=6, rooms=2)
+    again = gymnasium.make("himit_torch.worlds.gym_env:" + ENV_ID, size=6, rooms=2)
     assert again.unwrapped.world.num_states == 36
 
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import torch
 
-from himit_torch.gym_experiment import (
+from himit_torch.runs.gymnasium import (
     TASKS,
     GreedyEvaluator,
     GymExperimentConfig,
@@ -20,7 +20,7 @@ from himit_torch.gym_experiment import (
     optimal_goals_per_window,
     run_gym_experiment,
 )
-from himit_torch.table_world import world_model
+from himit_torch.worlds.table_world import world_model
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -15,8 +15,8 @@ from himit_torch import (
     mentor_policy,
     record_demonstrations,
 )
-from himit_torch.exact_option_models import option_models
-from himit_torch.experiment import ExperimentConfig
+from himit_torch.exact.option_models import option_models
+from himit_torch.runs.experiment import ExperimentConfig
 
 
 @pytest.mark.parametrize(
@@ -183,7 +183,7 @@ def test_exact_option_models_give_the_exact_option_values(world8):
 def test_exact_option_models_plan_to_the_optimum(world8):
     """With exact models and exhaustive planning the options run's V(start) is the optimal SMDP
     value of its options."""
-    from himit_torch.exact_planning import smdp_value_iteration
+    from himit_torch.exact.planning import smdp_value_iteration
 
     options = learner_options(world8)
     learner = Learner(
@@ -204,7 +204,7 @@ def test_mentor_fade_mixes_the_mentor_term_with_own_experience(world8):
     """Eq. 2 with mentor_fade = k at each mentor state: max(own, (k·m + n·own) / (k + n)) where
     own options were tried (n own executions), m itself where none was; and the diagnostics
     report the raw margin m − own."""
-    from himit_torch.mentor_diagnostics import mentor_margin_summary, mentor_margins
+    from himit_torch.mentor.diagnostics import mentor_margin_summary, mentor_margins
 
     mentor = mentor_policy(world8, mentor_options(world8))
     demos = record_demonstrations(world8, mentor, 5, seed=0)

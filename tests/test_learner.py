@@ -8,15 +8,18 @@ import numpy as np
 import pytest
 import torch
 
-from himit_torch.backups import confident_mentor, dirichlet_value_moments
-from himit_torch.choice import choose_rows
-from himit_torch.exact_option_models import option_models
-from himit_torch.exact_planning import smdp_value_iteration
-from himit_torch.learner import AGENTS, Learner, LearnerConfig
-from himit_torch.mentor import mentor_policy, record_demonstrations
-from himit_torch.options import Options, learner_options, mentor_options, primitive_options
+from himit_torch.exact.option_models import option_models
+from himit_torch.exact.planning import smdp_value_iteration
+from himit_torch.learner.agents import AGENTS
+from himit_torch.learner.backups import confident_mentor, dirichlet_value_moments
+from himit_torch.learner.choice import choose_rows
+from himit_torch.learner.config import LearnerConfig
+from himit_torch.learner.learner import Learner
+from himit_torch.mentor.policy import mentor_policy, record_demonstrations
+from himit_torch.options.builders import learner_options, mentor_options, primitive_options
+from himit_torch.options.bundle import Options
 from himit_torch.rng import seed_streams, splitmix64, uniforms
-from himit_torch.world import MultiRooms
+from himit_torch.worlds.multirooms import MultiRooms
 
 
 @pytest.fixture(scope="module")
@@ -547,7 +550,7 @@ def test_model_coverage_and_greedy_options_equal_slow_computation(learned8):
 def test_tried_share_equals_torch_counts_on_any_layout():
     """The numpy counts (CPU) equal torch's on strided views of random counts, with a run that
     has no usable row (share 0)."""
-    from himit_torch.learner import tried_share
+    from himit_torch.learner.learner import tried_share
 
     gen = torch.Generator().manual_seed(0)
     count = torch.randint(0, 3, (7, 1001), generator=gen).double()
@@ -583,8 +586,8 @@ def test_every_agent_converges_near_the_optimal_rate(world8, demos8):
     """After 15,000 steps every agent reaches the goal at ≥ 90 % of the optimal policy's rate
     (window / expected steps of the optimal policy, :func:`expected_steps`; the same for
     primitives-only and with doorway options in this world), mean of 3 seeds."""
-    from himit_torch.exact_option_models import option_durations
-    from himit_torch.exact_planning import expected_steps
+    from himit_torch.exact.option_models import option_durations
+    from himit_torch.exact.planning import expected_steps
 
     opts = learner_options(world8)
     plan = smdp_value_iteration(option_models(world8, opts))

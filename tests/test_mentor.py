@@ -4,12 +4,12 @@ import numpy as np
 import pytest
 import torch
 
-from himit_torch.demonstrations import Demonstrations
-from himit_torch.exact_option_models import option_models
-from himit_torch.exact_planning import smdp_value_iteration
-from himit_torch.mentor import MentorPolicy, mentor_policy, record_demonstrations, run_mentor
-from himit_torch.options import learner_options, mentor_options
-from himit_torch.world import MultiRooms
+from himit_torch.exact.option_models import option_models
+from himit_torch.exact.planning import smdp_value_iteration
+from himit_torch.mentor.demonstrations import Demonstrations
+from himit_torch.mentor.policy import MentorPolicy, mentor_policy, record_demonstrations, run_mentor
+from himit_torch.options.builders import learner_options, mentor_options
+from himit_torch.worlds.multirooms import MultiRooms
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,4 @@
-"""Continuing a learner's runs with a new option set (himit_torch.option_refresh): what is kept is
+"""Continuing a learner's runs with a new option set (himit_torch.learner.option_refresh): what is kept is
 kept exactly, what changed starts empty, and a swap that changes nothing a run can use changes
 nothing about the run — on both engines, and through a checkpoint."""
 
@@ -6,8 +6,12 @@ import pytest
 import torch
 
 from himit_torch import Learner, LearnerConfig, MultiRooms, Options, learner_options
-from himit_torch.option_refresh import option_correspondence, row_correspondence, with_options
-from himit_torch.options import primitive_options
+from himit_torch.learner.option_refresh import (
+    option_correspondence,
+    row_correspondence,
+    with_options,
+)
+from himit_torch.options.builders import primitive_options
 
 pytest.importorskip("numba")
 

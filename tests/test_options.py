@@ -5,16 +5,15 @@ import re
 import pytest
 import torch
 
-from himit_torch.options import (
-    Options,
-    action_dtype,
+from himit_torch.options.builders import (
     corner_options,
     doorway_options,
     learner_options,
     mentor_options,
     primitive_options,
 )
-from himit_torch.world import MultiRooms
+from himit_torch.options.bundle import Options, action_dtype
+from himit_torch.worlds.multirooms import MultiRooms
 
 
 @pytest.fixture
@@ -288,7 +287,8 @@ def test_from_policy_kind():
 def test_own_primitives_run_the_primitives_agent_on_any_world():
     """Primitives built with from_policy(kind="primitive") are what the ``primitives`` agent
     uses (with kind "custom" it would have no usable option)."""
-    from himit_torch.learner import Learner, LearnerConfig
+    from himit_torch.learner.config import LearnerConfig
+    from himit_torch.learner.learner import Learner
 
     world = Corridor()
     usable = ~world.terminal_mask

@@ -6,9 +6,9 @@ import pytest
 import torch
 from matplotlib.figure import Figure
 
-from himit_torch.demonstrations import Demonstrations
-from himit_torch.plotting import LEARNER_COLOR, MENTOR_COLOR, plot_world, save_world_figure
-from himit_torch.world import MultiRooms
+from himit_torch.mentor.demonstrations import Demonstrations
+from himit_torch.viz.plotting import LEARNER_COLOR, MENTOR_COLOR, plot_world, save_world_figure
+from himit_torch.worlds.multirooms import MultiRooms
 
 N = 8
 EPISODES = [[0, 1, 9, 17, 25, 26], [0, 8, 16, 17]]  # cells r·8 + c, top-left room only
@@ -73,7 +73,7 @@ def test_save_world_figure_writes_a_png(world, tmp_path):
 def test_state_map_keeps_never_visited_apart_from_low_values(world):
     from matplotlib.colors import to_rgba
 
-    from himit_torch.plotting import NO_DATA_COLOR, WALL_COLOR, plot_state_map
+    from himit_torch.viz.plotting import NO_DATA_COLOR, WALL_COLOR, plot_state_map
 
     field = np.zeros(world.num_states)
     field[[0, 1, 2]] = [0.0, 0.5, 1.0]  # visited, salience 0 / 0.5 / 1
@@ -96,7 +96,7 @@ def test_state_map_keeps_never_visited_apart_from_low_values(world):
 
 
 def test_log_map_shows_zero_counts_as_no_data(world):
-    from himit_torch.plotting import plot_state_map
+    from himit_torch.viz.plotting import plot_state_map
 
     visits = np.zeros(world.num_states)
     visits[[0, 1]] = [1, 100]
@@ -107,7 +107,7 @@ def test_log_map_shows_zero_counts_as_no_data(world):
 
 # --------------------------------------------------------------------------- learning curves
 def test_runs_split_when_some_seeds_end_far_below_the_others():
-    from himit_torch.plotting import runs_split
+    from himit_torch.viz.plotting import runs_split
 
     assert runs_split(np.array([[0, 50], [0, 52], [0, 1]]))
     assert not runs_split(np.array([[0, 50], [0, 52], [0, 40]]))
@@ -117,7 +117,7 @@ def test_runs_split_when_some_seeds_end_far_below_the_others():
 def test_goal_curves_state_n_outcomes_median_and_our_optimum():
     from matplotlib.collections import PolyCollection
 
-    from himit_torch.plotting import plot_goal_curves
+    from himit_torch.viz.plotting import plot_goal_curves
 
     fig = Figure()
     ax = fig.add_subplot()
@@ -143,7 +143,7 @@ def test_goal_curves_state_n_outcomes_median_and_our_optimum():
 
 
 def test_first_goals_show_never_and_the_median():
-    from himit_torch.plotting import plot_first_goals
+    from himit_torch.viz.plotting import plot_first_goals
 
     fig = Figure()
     ax = fig.add_subplot()
@@ -157,7 +157,7 @@ def test_first_goals_show_never_and_the_median():
 def test_value_map_greys_out_cells_still_at_the_initial_value():
     from matplotlib.colors import to_rgb
 
-    from himit_torch.plotting import NO_DATA_COLOR, MapRenderer
+    from himit_torch.viz.plotting import NO_DATA_COLOR, MapRenderer
 
     world = MultiRooms(size=16, rooms=4)
     renderer = MapRenderer(world)
@@ -193,7 +193,7 @@ def _inside(fig: Figure, text) -> bool:
 def test_long_titles_are_wrapped_inside_the_figure(world, tmp_path):
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
-    from himit_torch.plotting import MapRenderer, fit_titles
+    from himit_torch.viz.plotting import MapRenderer, fit_titles
 
     fig = plot_world(world, title=LONG_TITLE)
     FigureCanvasAgg(fig)
@@ -227,7 +227,7 @@ def test_tensorboard_hint_runs_as_typed(monkeypatch, tmp_path):
     import shutil
     import sys
 
-    from himit_torch.tensorboard_logger import tensorboard_command
+    from himit_torch.viz.tensorboard import tensorboard_command
 
     def runnable(program: str) -> bool:
         if "/" in program:
@@ -248,8 +248,8 @@ def test_each_map_image_is_the_figures_full_draw():
     """The maps redraw only what changes over a background drawn once; every image must be
     pixel for pixel what a full draw of the same figure gives (the obvious, slow path) —
     across colour ranges, titles, mentor dots and greedy options that change between images."""
-    from himit_torch.options import learner_options
-    from himit_torch.plotting import MapRenderer
+    from himit_torch.options.builders import learner_options
+    from himit_torch.viz.plotting import MapRenderer
 
     world = MultiRooms(size=16, rooms=4)
     options = learner_options(world, corners=True)

@@ -7,7 +7,7 @@ import scipy.stats
 import torch
 
 from himit_torch import Learner, LearnerConfig, learner_options
-from himit_torch.posterior_sampling import (
+from himit_torch.learner.posterior_sampling import (
     coupling_share,
     fixed_exp,
     fixed_log,
@@ -25,7 +25,7 @@ def _streams(n: int, seed: int = 0, kind: int = 0):
 
 
 def test_fixed_log_and_exp_match_libm_and_the_kernel_bit_for_bit():
-    from himit_torch.engines import _kernel
+    from himit_torch.learner.engines import _kernel
 
     gen = torch.Generator().manual_seed(0)
     x = torch.cat(
@@ -61,7 +61,7 @@ def test_gamma_draws_have_the_gamma_distribution(shape):
 
 
 def test_gamma_draws_are_the_same_bits_in_the_kernel():
-    from himit_torch.engines import _kernel
+    from himit_torch.learner.engines import _kernel
 
     shapes = torch.tensor([0.05, 0.5, 1.0, 3.0, 17.0, 1e4] * 500, dtype=torch.float64)
     keys, slots = _streams(shapes.numel(), seed=3)
@@ -101,7 +101,7 @@ def test_the_coupling_turns_a_draw_into_a_draw_of_the_updated_posterior():
     )
     w = g / g.sum(1, keepdim=True)
     keys, slots = _streams(n, seed=6)
-    from himit_torch.posterior_sampling import stream_uniforms
+    from himit_torch.learner.posterior_sampling import stream_uniforms
 
     s = coupling_share(
         stream_uniforms(keys, slots, 0), torch.full((n,), alpha.sum(), dtype=torch.float64)
@@ -279,8 +279,8 @@ def test_a_sampling_run_does_not_depend_on_other_runs_demonstrations(world12):
     redraw every sampling run, then to rebuild every run's mentor terms from the posterior
     means, overwriting run 0's draw; in both, a psrl run in a batch of seeds, each with its own
     demonstrations, was not the run alone)."""
-    from himit_torch.mentor import mentor_policy, record_demonstrations
-    from himit_torch.options import mentor_options
+    from himit_torch.mentor.policy import mentor_policy, record_demonstrations
+    from himit_torch.options.builders import mentor_options
 
     options = learner_options(world12)
     policy = mentor_policy(world12, mentor_options(world12))

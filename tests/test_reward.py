@@ -6,11 +6,12 @@ import pytest
 import torch
 
 import himit_torch as ht
-from himit_torch.learner import Learner, LearnerConfig
-from himit_torch.mentor import record_demonstrations
-from himit_torch.options import learner_options, mentor_options
-from himit_torch.reward import SALIENCE_EVENTS, KnownReward, MentorReward, SalienceReward
-from himit_torch.world import STIMULUS_FEATURES, MultiRooms
+from himit_torch.learner.config import LearnerConfig
+from himit_torch.learner.learner import Learner
+from himit_torch.mentor.policy import record_demonstrations
+from himit_torch.mentor.reward import SALIENCE_EVENTS, KnownReward, MentorReward, SalienceReward
+from himit_torch.options.builders import learner_options, mentor_options
+from himit_torch.worlds.multirooms import STIMULUS_FEATURES, MultiRooms
 
 # ======================================================================= the tiny world by hand
 #   MultiRooms(6, 2), states s = 6·row + col      rooms: 0 top-left, 1 top-right,
@@ -381,7 +382,7 @@ def test_salience_refit_replaces_the_previous_fit():
 
 
 def test_zero_reward_and_modules_by_name(world8, demos8):
-    from himit_torch.reward import MENTOR_REWARDS, ZeroReward, mentor_reward_module
+    from himit_torch.mentor.reward import MENTOR_REWARDS, ZeroReward, mentor_reward_module
 
     src, dst = demos8.transitions()
     zero = mentor_reward_module("none", world8)

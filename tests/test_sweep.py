@@ -14,7 +14,7 @@ import pytest
 from scipy import stats
 
 from himit_torch.cli import main
-from himit_torch.sweep import load_spec, proportion_interval, run_sweep, t_interval
+from himit_torch.runs.sweep import load_spec, proportion_interval, run_sweep, t_interval
 
 # 16×16 world (rooms of 4 cells), 2 agents, 3000 steps: a trial runs in about a second.
 TINY = """
@@ -238,7 +238,7 @@ def test_tiny_sweep_on_a_local_ray_equals_the_in_process_one(tmp_path, monkeypat
 
 _CHILD = """
 import sys
-from himit_torch.sweep import run_sweep
+from himit_torch.runs.sweep import run_sweep
 run_sweep(sys.argv[1], sys.argv[2], use_ray=False)
 """
 

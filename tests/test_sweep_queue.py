@@ -3,7 +3,7 @@
 import pytest
 import torch
 
-from himit_torch.sweep_queue import BlockPriorityQueue
+from himit_torch.learner.prioritized_sweeping import BlockPriorityQueue
 
 CPU = torch.device("cpu")
 

@@ -5,7 +5,7 @@ TensorBoard's own EventAccumulator."""
 import pytest
 import torch
 
-from himit_torch.tensorboard_logger import SCALAR_DESCRIPTIONS, TensorBoardLogger
+from himit_torch.viz.tensorboard import SCALAR_DESCRIPTIONS, TensorBoardLogger
 
 EventAccumulator = pytest.importorskip(
     "tensorboard.backend.event_processing.event_accumulator"

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import torch
 
-from himit_torch.world import ACTION_DELTAS, MultiRooms
+from himit_torch.worlds.multirooms import ACTION_DELTAS, MultiRooms
 
 N, S, W, E = range(4)
 

@@ -23,13 +23,13 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from himit_torch.checkpoints import BatchShape, CheckpointGenerations
-from himit_torch.exact_option_models import option_models
-from himit_torch.exact_planning import smdp_value_iteration
-from himit_torch.experiment import _resume, _state_layout_version, load_config
-from himit_torch.learner import Learner
-from himit_torch.mentor import mentor_policy, record_demonstrations
-from himit_torch.options import learner_options, mentor_options
+from himit_torch.exact.option_models import option_models
+from himit_torch.exact.planning import smdp_value_iteration
+from himit_torch.learner.learner import Learner
+from himit_torch.mentor.policy import mentor_policy, record_demonstrations
+from himit_torch.options.builders import learner_options, mentor_options
+from himit_torch.runs.checkpoints import BatchShape, CheckpointGenerations
+from himit_torch.runs.experiment import _resume, _state_layout_version, load_config
 
 parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
 parser.add_argument("cell_dir", help="a sweep cell's folder (…/trials/<cell>)")
