@@ -43,9 +43,10 @@ from himit_torch.learner.posterior_sampling import PosteriorSample
 from himit_torch.learner.prioritized_sweeping import Sweeper
 from himit_torch.learner.rows import RowTable
 from himit_torch.learner.run_state import RunMetrics, RunState
+from himit_torch.learner.state import LANES, BatchState, WorldTables
 from himit_torch.learner.values import ValueCache
 from himit_torch.mentor.reward import KnownReward
-from himit_torch.options.bundle import Options, action_dtype
+from himit_torch.options.bundle import Options
 from himit_torch.rng import seed_streams, uniforms
 from himit_torch.validation import as_choice, as_float, as_int, check_memory
 
@@ -126,9 +127,8 @@ class Learner:
 
     #: Version of the layout of :meth:`state_dict` (1: batch-shared edge index, before engines).
     STATE_LAYOUT_VERSION = 2
-    #: Uniforms per run and tick: 0 slip, 1 termination or action, 2 termination (stochastic
-    #: policies), 3 ε, 4 which candidate option, 5 the next episode's start state.
-    LANES = 6
+    #: Uniforms per run and tick (:data:`himit_torch.learner.state.LANES`).
+    LANES = LANES
 
     #: Bytes per run and state / per run and ``(s, o)`` row that the up-front size check of a
     #: batch multiplies by (the value cache, models, queue and engine tables at the start; the
@@ -211,34 +211,16 @@ class Learner:
         )
         self.batch, self.num_states, self.num_options = B, S, O
         self.agents, self.seeds = agents, seeds
-        self.gamma = float(world.gamma)
-        self.terminal = torch.cat(
-            [world.terminal_mask.to(dev), torch.ones(1, dtype=torch.bool, device=dev)]
-        )
-        self.start_state = int(world.start_state)
-        self.start_cdf = self._start_cdf(world)
-
         # ---- the world and the options, as tables both engines read ---------------------
-        table = getattr(world, "dynamics_table", None)
-        self.dynamics = table().to(dev) if callable(table) else None
-        # β as given (float32 compares with the float64 uniforms exactly as float64 would)
-        self.termination = options.termination.to(dev).reshape(-1).contiguous()
-        if options.stochastic:
-            self.policy_cdf: torch.Tensor | None = (
-                options.policy.to(dev).double().cumsum(-1).reshape(O * S, -1).contiguous()
-            )
-            self.policy: torch.Tensor | None = None
-        else:
-            if int(options.policy.max()) >= world.num_actions:
-                raise ValueError(
-                    f"Options.policy holds action {int(options.policy.max())}; the "
-                    f"world has actions 0…{world.num_actions - 1}"
-                )
-            # one action dtype for every bundle (no copy of the builders' int8 tables), so the
-            # compiled kernel is specialised once
-            actions = action_dtype(world.num_actions)
-            self.policy = options.policy.to(dev, actions).reshape(-1).contiguous()
-            self.policy_cdf = None
+        self.tables = tables = WorldTables.build(world, options, dev)
+        self.gamma = tables.gamma
+        self.terminal = tables.terminal
+        self.start_state = tables.start_state
+        self.start_cdf = tables.start_cdf
+        self.dynamics = tables.dynamics
+        self.termination = tables.termination
+        self.policy = tables.policy
+        self.policy_cdf = tables.policy_cdf
 
         # ---- the state, one owner per piece ------------------------------------------------
         self.rows = RowTable(options, world.num_actions, agents, dev)
@@ -263,8 +245,18 @@ class Learner:
         runs = torch.arange(B, device=dev)
         self.run_state = RunState(B, S, self.start_states(runs, first), M, config.eps_start, dev)
         self.metrics = RunMetrics()
-        self._visit_base = torch.arange(B, device=dev) * (S + 1)
-        self._ones_b = torch.ones(B, dtype=torch.int64, device=dev)
+        self.state = BatchState(
+            config,
+            tables,
+            self.rows,
+            self.model,
+            self.mentor,
+            self.cache,
+            self.sample,
+            self.sweeper,
+            self.run_state,
+            self.keys,
+        )
 
         if config.option_models == "exact":
             self._load_exact_option_models()
@@ -284,51 +276,22 @@ class Learner:
             config.mentor_choice,
             config.tie_break,
         )
-        self.engine = make_engine(engine, self)
+        self.engine = make_engine(engine, self.state)
 
     # ============================================================================ engines
     def use_engine(self, engine: str) -> None:
         """Carry out the following ticks with ``engine`` (``"auto"``, ``"numba"``, ``"torch"``);
         the state is shared, so runs go on exactly where they are."""
-        self.engine = make_engine(engine, self)
+        self.engine = make_engine(engine, self.state)
 
     def step_world(self, positions: torch.Tensor, actions: torch.Tensor, u: torch.Tensor):
         """One primitive step of the world for ``positions [B]`` (its table when it has one)."""
-        if self.dynamics is not None:
-            return self.dynamics.step(positions, actions, u)
-        return self.world.step(positions, actions, u)
-
-    def _start_cdf(self, world) -> torch.Tensor | None:
-        dist = getattr(world, "start_distribution", None)
-        if dist is None:
-            return None
-        dist = torch.as_tensor(dist, dtype=torch.float64, device=self.device)
-        if (
-            dist.shape != (self.num_states,)
-            or not bool(torch.isfinite(dist).all())
-            or bool((dist < 0).any())
-            or abs(float(dist.sum()) - 1.0) > 1e-6
-        ):
-            raise ValueError(
-                f"world.start_distribution must be [S={self.num_states}] probabilities "
-                "summing to 1 (or None)"
-            )
-        if bool((dist[self.terminal[:-1]] > 0).any()):
-            raise ValueError("world.start_distribution puts mass on a terminal state")
-        cdf = dist.cumsum(0)
-        # From the last possible start on the cdf is exactly 1, so rounding can never draw a
-        # state of probability 0 beyond it.
-        cdf[int(dist.nonzero().max()) :] = 1.0
-        return cdf
+        return self.tables.step(positions, actions, u)
 
     def start_states(self, runs: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
         """Start states of a new episode for ``runs [R]`` from their uniforms ``u [R, LANES]``
         (lane 5): ``start_state``, or a draw from the world's ``start_distribution``."""
-        if self.start_cdf is None:
-            return torch.full_like(runs, self.start_state)
-        return torch.searchsorted(self.start_cdf, u[:, 5].contiguous(), right=True).clamp(
-            max=self.num_states - 1
-        )
+        return self.tables.start_states(runs, u)
 
     # ==================================================================================== setup
     def _reward_modules(self, reward, world, B):
@@ -534,13 +497,7 @@ class Learner:
         caches from it and queue the states whose values it changes (posterior sampling; the
         engines call this at each episode start or every ``resample_every`` decisions). Runs
         that do not sample are left alone (their caches hold the posterior means)."""
-        runs = torch.as_tensor(runs, dtype=torch.int64, device=self.device).reshape(-1)
-        runs = runs[self.rows.use_sampling.index_select(0, runs)]
-        if runs.numel() == 0:
-            return
-        self.sample.draw(runs)
-        rr, ss, change = self.cache.apply_sample(runs)
-        self.sweeper.push(rr, ss, change)
+        self.state.resample(runs)
 
     def _real_reward_bound(self) -> float | None:
         """The learner's best real reward for one step (``None`` if the world does not say)."""

@@ -9,7 +9,14 @@ Both carry out the same algorithm on the same state, draw the same random number
 tested to make the same decisions.
 """
 
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
 from himit_torch.learner.engines.torch_engine import TorchEngine
+
+if TYPE_CHECKING:
+    from himit_torch.learner.state import BatchState
 
 __all__ = ["TorchEngine", "NumbaEngine", "numba_available", "make_engine", "ENGINES"]
 
@@ -32,15 +39,15 @@ def __getattr__(name):
     raise AttributeError(name)
 
 
-def make_engine(name: str, learner):
-    """The engine ``name`` (``"auto"``, ``"numba"`` or ``"torch"``) for ``learner``.
+def make_engine(name: str, state: BatchState):
+    """The engine ``name`` (``"auto"``, ``"numba"`` or ``"torch"``) for a batch's ``state``.
 
     ``"auto"`` picks the compiled engine on a CPU when Numba is installed and the world has a
     :meth:`dynamics_table`, the torch engine otherwise.
     """
     if name not in ENGINES:
         raise ValueError(f"engine={name!r}: use one of {ENGINES}")
-    why_not = _numba_unusable(learner)
+    why_not = _numba_unusable(state)
     if name == "auto":
         name = "torch" if why_not else "numba"
     if name == "numba":
@@ -50,14 +57,14 @@ def make_engine(name: str, learner):
             )
         from himit_torch.learner.engines.numba_engine import NumbaEngine
 
-        return NumbaEngine(learner)
-    return TorchEngine(learner)
+        return NumbaEngine(state)
+    return TorchEngine(state)
 
 
-def _numba_unusable(learner) -> str | None:
-    if learner.device.type != "cpu":
-        return f"it runs on the CPU only (this learner is on {learner.device})"
-    if learner.dynamics is None:
+def _numba_unusable(state: BatchState) -> str | None:
+    if state.device.type != "cpu":
+        return f"it runs on the CPU only (this learner is on {state.device})"
+    if state.tables.dynamics is None:
         return (
             "the world has no dynamics_table() (a DynamicsTable of successors, cdf and "
             "rewards); the compiled loop cannot call a Python step()"

@@ -24,6 +24,7 @@ import numpy as np
 import torch
 
 from himit_torch.learner.engines import _kernel
+from himit_torch.learner.state import BatchState
 
 __all__ = ["NumbaEngine", "prepare_kernels", "kernels_prepared_here"]
 
@@ -193,12 +194,12 @@ class NumbaEngine:
 
     name = "numba"
 
-    def __init__(self, learner):
-        L = self.learner = learner
+    def __init__(self, state: BatchState):
+        L = self.state = state
         cfg = L.config
-        B, S = L.batch, L.num_states
+        B, S = L.batch, L.tables.num_states
         cfg_f = np.zeros(_kernel.N_CFG_F)
-        cfg_f[_kernel.F_GAMMA] = L.gamma
+        cfg_f[_kernel.F_GAMMA] = L.tables.gamma
         cfg_f[_kernel.F_EPS_DECAY] = cfg.eps_decay
         cfg_f[_kernel.F_EPS_MIN] = cfg.eps_min
         cfg_f[_kernel.F_THRESHOLD] = cfg.priority_threshold
@@ -222,8 +223,8 @@ class NumbaEngine:
         cfg_i[_kernel.I_TIE_FIRST] = cfg.tie_break == "first"
         cfg_i[_kernel.I_ANY_CONF] = L.cache.any_confidence
         cfg_i[_kernel.I_ANY_MENTOR] = L.cache.any_mentor
-        cfg_i[_kernel.I_STOCHASTIC] = L.policy is None
-        cfg_i[_kernel.I_START] = -1 if L.start_cdf is not None else L.start_state
+        cfg_i[_kernel.I_STOCHASTIC] = L.tables.policy is None
+        cfg_i[_kernel.I_START] = -1 if L.tables.start_cdf is not None else L.tables.start_state
         from himit_torch.learner.config import EPS_SCHEDULES
 
         cfg_i[_kernel.I_EPS_SCHEDULE] = EPS_SCHEDULES.index(cfg.eps_schedule)
@@ -232,18 +233,18 @@ class NumbaEngine:
         cfg_i[_kernel.I_RESAMPLE_EVERY] = cfg.resample_every
         self.cfg_f, self.cfg_i = cfg_f, cfg_i
 
-        table = L.dynamics
+        table = L.tables.dynamics
         rows = L.rows
         self.row_begin = _row_begin(rows.state_rows, rows.num_rows)
         self.static = (
             _np(table.successors.contiguous()),
             _np(table.cdf.contiguous()),
             _np(table.rewards.contiguous()),
-            _np(L.terminal),
-            _np(L.start_cdf) if L.start_cdf is not None else np.ones(1),
-            _np(L.termination),
-            _np(L.policy) if L.policy is not None else np.zeros(1, dtype=np.int8),
-            _np(L.policy_cdf) if L.policy_cdf is not None else np.ones((1, 1)),
+            _np(L.tables.terminal),
+            _np(L.tables.start_cdf) if L.tables.start_cdf is not None else np.ones(1),
+            _np(L.tables.termination),
+            _np(L.tables.policy) if L.tables.policy is not None else np.zeros(1, dtype=np.int8),
+            _np(L.tables.policy_cdf) if L.tables.policy_cdf is not None else np.ones((1, 1)),
             self.row_begin,
             _np(rows.row_state),
             _np(rows.row_option),
@@ -276,14 +277,14 @@ class NumbaEngine:
     def mentor_wins(self) -> torch.Tensor:
         """``[B]`` how many mentor-observed states the mentor term wins eq. 2 in, per run."""
         prepare_kernels()
-        L = self.learner
+        L = self.state
         cache, model, rows = L.cache, L.model, L.rows
         out = np.zeros(L.batch, dtype=np.int64)
         _kernel.mentor_wins(
             self.cfg_f,
             self.cfg_i,
             self.row_begin,
-            _np(L.terminal),
+            _np(L.tables.terminal),
             _np(rows.use_mentor),
             _np(rows.use_confidence),
             _np(cache.q_numerator),
@@ -328,10 +329,10 @@ class NumbaEngine:
     def advance(self, ticks: int) -> None:
         """Carry out ``ticks`` ticks for every run (no window boundary inside)."""
         prepare_kernels()
-        L = self.learner
-        t_end = L.t + ticks
-        t_reached = np.full(L.batch, L.t, dtype=np.int64)
-        model, mentor, cache, run, sweeper = L.model, L.mentor, L.cache, L.run_state, L.sweeper
+        L = self.state
+        t_end = L.run.t + ticks
+        t_reached = np.full(L.batch, L.run.t, dtype=np.int64)
+        model, mentor, cache, run, sweeper = L.model, L.mentor, L.cache, L.run, L.sweeper
         while True:
             option_links = self._linked("model", model)
             mentor_links = self._linked("mentor", mentor)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import torch
 
 from himit_torch.learner.choice import choose_rows
+from himit_torch.learner.state import LANES, BatchState
 from himit_torch.rng import uniforms
 
 __all__ = ["TorchEngine"]
@@ -15,8 +16,11 @@ class TorchEngine:
 
     name = "torch"
 
-    def __init__(self, learner):
-        self.learner = learner
+    def __init__(self, state: BatchState):
+        self.state = state
+        B, S = state.batch, state.tables.num_states
+        self._visit_base = torch.arange(B, device=state.device) * (S + 1)
+        self._ones_b = torch.ones(B, dtype=torch.int64, device=state.device)
         self._u_chunk: torch.Tensor | None = None
         self._u_chunk_start = -1
 
@@ -32,20 +36,20 @@ class TorchEngine:
     def _tick_uniforms(self, t: int) -> torch.Tensor:
         """``[B, lanes]`` uniforms of tick ``t``: 0 slip, 1 termination or action, 2 termination
         (stochastic policies), 3 ε, 4 which of the candidate options."""
-        L = self.learner
+        L = self.state
         chunk = L.config.rng_chunk
         i = t % chunk
         if self._u_chunk is None or self._u_chunk_start != t - i:
             self._u_chunk_start = t - i
             counters = torch.arange(t - i, t - i + chunk, device=L.device)
-            self._u_chunk = uniforms(L.keys, counters, L.LANES)
+            self._u_chunk = uniforms(L.keys, counters, LANES)
         return self._u_chunk[i]
 
     def tick(self) -> None:
         """Advance every run one primitive step: act; where an option ended, learn from it;
         plan (prioritized sweeping, every ``plan_every`` ticks); and choose the next option."""
-        L = self.learner
-        cfg, run = L.config, L.run_state
+        L = self.state
+        cfg, run = L.config, L.run
         u = self._tick_uniforms(run.t)
         at_goal, ended = self._act(u)
         if cfg.eps_schedule != "decision":
@@ -62,30 +66,32 @@ class TorchEngine:
 
     def _act(self, u: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """One primitive step of every run's option: ``(at_goal [B], option ended [B])``."""
-        L = self.learner
-        cfg, S, run = L.config, L.num_states, L.run_state
+        L = self.state
+        cfg, S, run = L.config, L.tables.num_states, L.run
         option = L.rows.row_option[run.row]
         flat = option * S + run.position
-        if L.policy is not None:
-            action = L.policy[flat].long()
+        if L.tables.policy is not None:
+            action = L.tables.policy[flat].long()
             stop_u = u[:, 1]
         else:
-            action = torch.searchsorted(L.policy_cdf[flat], u[:, 1:2].contiguous()).squeeze(1)
-            action = action.clamp(max=L.policy_cdf.shape[1] - 1)
+            action = torch.searchsorted(L.tables.policy_cdf[flat], u[:, 1:2].contiguous()).squeeze(
+                1
+            )
+            action = action.clamp(max=L.tables.policy_cdf.shape[1] - 1)
             stop_u = u[:, 2]
-        nxt, reward = L.step_world(run.position, action, u[:, 0])
+        nxt, reward = L.tables.step(run.position, action, u[:, 0])
         run.discounted_return += run.discount * reward
-        run.discount *= L.gamma
+        run.discount *= L.tables.gamma
         run.duration += 1
         run.t += 1
-        at_goal = L.terminal[nxt]
+        at_goal = L.tables.terminal[nxt]
         ended = (
             at_goal
-            | (L.termination[option * S + nxt] > stop_u)
+            | (L.tables.termination[option * S + nxt] > stop_u)
             | (run.duration >= cfg.max_option_steps)
         )
         run.position = nxt
-        run.visits.view(-1).index_add_(0, L._visit_base + nxt, L._ones_b)
+        run.visits.view(-1).index_add_(0, self._visit_base + nxt, self._ones_b)
         if bool(at_goal.any()):
             self._goal_reached(at_goal)
         return at_goal, ended
@@ -94,8 +100,8 @@ class TorchEngine:
         """ε schedules that change ε at steps or goals, not decisions
         (``LearnerConfig.eps_schedule``): "step" decays at every step once the goal was found,
         "goals" drops to the floor at the ``eps_goals``-th goal, "paper" decays at every goal."""
-        L = self.learner
-        cfg, run = L.config, L.run_state
+        L = self.state
+        cfg, run = L.config, L.run
         decayed = (run.epsilon * cfg.eps_decay).clamp(min=cfg.eps_min)
         if cfg.eps_schedule == "step":
             run.epsilon = torch.where(run.found_goal, decayed, run.epsilon)
@@ -107,8 +113,8 @@ class TorchEngine:
 
     def _learn(self, runs: torch.Tensor) -> None:
         """Runs whose option just ended count its outcome and queue its start state first."""
-        L = self.learner
-        run = L.run_state
+        L = self.state
+        run = L.run
         end, rows, starts = run.position[runs], run.row[runs], run.option_start[runs]
         discounts, returns = run.discount[runs], run.discounted_return[runs]
         n_old = L.model.row_count[runs, rows]
@@ -133,28 +139,28 @@ class TorchEngine:
     def _resample(self, runs: torch.Tensor, at_goal: torch.Tensor) -> None:
         """Sampling runs draw a fresh model at an episode start (``resample_every = 0``) or every
         ``resample_every`` decisions, before this tick's sweep (so it plans on the new draw)."""
-        L = self.learner
+        L = self.state
         every = L.config.resample_every
-        due = at_goal if every == 0 else (L.run_state.decisions[runs] % every == 0)
+        due = at_goal if every == 0 else (L.run.decisions[runs] % every == 0)
         due = due & L.rows.use_sampling[runs]
         if bool(due.any()):
             L.resample(runs[due])
 
     def _plan(self) -> None:
         """Runs with pending decisions sweep ``backups`` per decision."""
-        L = self.learner
+        L = self.state
         sweeper = L.sweeper
         runs = (sweeper.pending > 0).nonzero()[:, 0]
         done = sweeper.sweep(
             runs, sweeper.pending[runs] * L.config.backups, L.cache.backup_and_propagate
         )
         sweeper.pending[runs] = 0
-        L.run_state.backups_done.index_add_(0, runs, done)
+        L.run.backups_done.index_add_(0, runs, done)
 
     def _choose(self, runs: torch.Tensor, at_goal: torch.Tensor, u: torch.Tensor) -> None:
         """Runs whose option ended start the next one (at a new episode's start after a goal)."""
-        L = self.learner
-        cfg, run = L.config, L.run_state
+        L = self.state
+        cfg, run = L.config, L.run
         if cfg.eps_schedule == "decision":
             eps = run.epsilon[runs]
             run.epsilon[runs] = torch.where(
@@ -163,7 +169,7 @@ class TorchEngine:
         run.duration[runs] = 0
         run.discounted_return[runs] = 0.0
         run.discount[runs] = 1.0
-        here = torch.where(at_goal, L.start_states(runs, u), run.position[runs])
+        here = torch.where(at_goal, L.tables.start_states(runs, u), run.position[runs])
         run.position[runs] = here
         run.option_start[runs] = here
         run.row[runs] = choose_rows(
@@ -171,7 +177,7 @@ class TorchEngine:
         )
 
     def _goal_reached(self, at_goal: torch.Tensor) -> None:
-        run = self.learner.run_state
+        run = self.state.run
         run.goals += at_goal
         run.window_goals += at_goal
         first = at_goal & ~run.found_goal
