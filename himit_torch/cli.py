@@ -274,7 +274,8 @@ def cmd_demo(args: argparse.Namespace) -> int:
     batched learning run with TensorBoard logs and figures (about a minute on a laptop CPU)."""
     from dataclasses import replace
 
-    from himit_torch.runs.experiment import EXPERIMENTS, run_experiment
+    from himit_torch.runs.config import EXPERIMENTS
+    from himit_torch.runs.experiment import run_experiment
     from himit_torch.viz.plotting import (
         save_world_figure,  # matplotlib only when a picture is wanted
     )
@@ -412,7 +413,7 @@ def _experiment_config(name: str, args: argparse.Namespace):
     """The configuration of experiment ``name`` with the command line's changes."""
     from dataclasses import replace
 
-    from himit_torch.runs.experiment import EXPERIMENTS, load_config
+    from himit_torch.runs.config import EXPERIMENTS, load_config
 
     if args.config:
         config = load_config(args.config)
@@ -586,7 +587,8 @@ def _add_run(sub: argparse.ArgumentParser) -> None:
 def cmd_plot(args: argparse.Namespace) -> int:
     import json
 
-    from himit_torch.runs.experiment import WorldResult, load_config
+    from himit_torch.runs.config import load_config
+    from himit_torch.runs.experiment import WorldResult
     from himit_torch.viz.report import write_figures, write_results
 
     run_dir = Path(args.run_dir)
