@@ -214,7 +214,7 @@ def settings_of(cls: type) -> tuple[DeclaredSetting, ...]:
             raise TypeError(f"{cls.__name__}.{f.name}: a whole number is bounded by ge/le")
         if info.kernel and optional and info.kernel_none is None:
             raise TypeError(f"{cls.__name__}.{f.name}: a kernel setting needs kernel_none")
-        default = f.default if f.default is not dataclasses.MISSING else f.default_factory()  # type: ignore[misc]
+        default = f.default_factory() if callable(f.default_factory) else f.default
         out.append(DeclaredSetting(f.name, kind, item, optional, default, info))
     return tuple(out)
 
@@ -242,18 +242,23 @@ def _convert(where: str, value: Any, kind: Any, info: Setting) -> Any:
     raise TypeError(f"{where}: no input rule for {kind!r}")  # pragma: no cover (declaration bug)
 
 
+def _is_config_class(kind: Any) -> bool:
+    """A dataclass type (a nested configuration), as a plain bool (no type narrowing)."""
+    return isinstance(kind, type) and dataclasses.is_dataclass(kind)
+
+
 def check_settings(config: Any) -> None:
     """Convert and check every declared field of the dataclass instance ``config`` in place (the
     rules of this module, the declared ranges and choices); a refusal names
     ``ClassName.field``. Cross-field rules stay with the class."""
-    cls = type(config)
+    cls: type = type(config)
     for s in settings_of(cls):
         where = f"{cls.__name__}.{s.name}"
         value = getattr(config, s.name)
         try:
             if value is None and s.optional:
                 continue
-            if dataclasses.is_dataclass(s.kind):
+            if _is_config_class(s.kind):
                 if isinstance(value, dict):
                     refuse_unknown_fields(value, s.kind, where)
                     value = s.kind(**value)
