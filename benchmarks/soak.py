@@ -39,7 +39,7 @@ from himit_torch.learner.learner import Learner  # noqa: E402
 from himit_torch.mentor.policy import mentor_policy, record_demonstrations  # noqa: E402
 from himit_torch.options.builders import learner_options, mentor_options  # noqa: E402
 from himit_torch.runs.checkpoints import BatchShape, CheckpointGenerations  # noqa: E402
-from himit_torch.runs.experiment import EXPERIMENTS  # noqa: E402
+from himit_torch.runs.config import EXPERIMENTS  # noqa: E402
 
 
 def rss_mib() -> float:

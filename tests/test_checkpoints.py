@@ -30,7 +30,8 @@ from himit_torch.runs.checkpoints import (
     read_header,
     write_checkpoint,
 )
-from himit_torch.runs.experiment import EXPERIMENTS, run_experiment
+from himit_torch.runs.config import EXPERIMENTS
+from himit_torch.runs.experiment import run_experiment
 
 
 @pytest.fixture

@@ -18,13 +18,8 @@ import torch
 
 from himit_torch.cli import main
 from himit_torch.runs.checkpoints import DamagedCheckpoint, read_header
-from himit_torch.runs.experiment import (
-    EXPERIMENTS,
-    ExperimentConfig,
-    load_config,
-    run_experiment,
-    run_experiments,
-)
+from himit_torch.runs.config import EXPERIMENTS, ExperimentConfig, load_config
+from himit_torch.runs.experiment import run_experiment, run_experiments
 
 
 def tiny(name: str, **changes) -> ExperimentConfig:
@@ -200,7 +195,8 @@ def test_a_finished_run_is_not_overwritten_without_force(tmp_path):
 _CHILD = """
 import sys
 from dataclasses import replace
-from himit_torch.runs.experiment import EXPERIMENTS, run_experiment
+from himit_torch.runs.config import EXPERIMENTS
+from himit_torch.runs.experiment import run_experiment
 # the torch engine: slow enough per window to be killed inside one (the compiled engine runs
 # these 3500 steps in a blink; the state it checkpoints is the same)
 config = replace(EXPERIMENTS["exp2"], sizes=(16,), seeds=1, steps=3500, window=250,

@@ -16,7 +16,7 @@ from himit_torch import (
     record_demonstrations,
 )
 from himit_torch.exact.option_models import option_models
-from himit_torch.runs.experiment import ExperimentConfig
+from himit_torch.runs.config import ExperimentConfig
 
 
 @pytest.mark.parametrize(

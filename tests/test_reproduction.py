@@ -16,7 +16,8 @@ from pathlib import Path
 import pytest
 
 from himit_torch import LearnerConfig
-from himit_torch.runs.experiment import ExperimentConfig, run_experiment
+from himit_torch.runs.config import ExperimentConfig
+from himit_torch.runs.experiment import run_experiment
 
 RESULTS = Path(__file__).resolve().parents[1] / "experiments" / "results"
 COLUMNS = ("goals_in_window", "epsilon", "episodes", "backups", "decisions", "mentor_term_wins")

@@ -23,7 +23,8 @@ from himit_torch import (
     record_demonstrations,
 )
 from himit_torch.mentor.diagnostics import mentor_margin_summary
-from himit_torch.runs.experiment import EXPERIMENTS, _optimum
+from himit_torch.runs.config import EXPERIMENTS
+from himit_torch.runs.experiment import _optimum
 
 #: variant → (agents, LearnerConfig changes from the experiment's own learner settings)
 VARIANTS = {

@@ -29,7 +29,8 @@ from himit_torch.learner.learner import Learner
 from himit_torch.mentor.policy import mentor_policy, record_demonstrations
 from himit_torch.options.builders import learner_options, mentor_options
 from himit_torch.runs.checkpoints import BatchShape, CheckpointGenerations
-from himit_torch.runs.experiment import _resume, _state_layout_version, load_config
+from himit_torch.runs.config import load_config
+from himit_torch.runs.experiment import _resume, _state_layout_version
 
 parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
 parser.add_argument("cell_dir", help="a sweep cell's folder (…/trials/<cell>)")

@@ -38,7 +38,8 @@ from pathlib import Path
 import numpy as np
 
 from himit_torch.options.discovery import discover_subgoals, learned_subgoal_options, one_step_counts
-from himit_torch.runs.experiment import EXPERIMENTS, source_commit
+from himit_torch.runs.config import EXPERIMENTS
+from himit_torch.runs.experiment import source_commit
 from himit_torch.learner.learner import Learner
 from himit_torch.learner.config import LearnerConfig
 from himit_torch.mentor.policy import mentor_policy, record_demonstrations

@@ -22,31 +22,27 @@ import os
 import sys
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass, field, fields, replace
+from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 
-import numpy as np
 import torch
 
-from himit_torch.runs.checkpoints import BatchShape, CheckpointGenerations, NoGoodCheckpoint
 from himit_torch.exact.option_models import option_durations, option_models
 from himit_torch.exact.planning import expected_steps, smdp_value_iteration
 from himit_torch.learner.agents import AGENTS
-from himit_torch.learner.learner import Learner
 from himit_torch.learner.config import LearnerConfig
+from himit_torch.learner.learner import Learner
 from himit_torch.mentor.policy import exact_mentor_transitions, mentor_policy, record_demonstrations
+from himit_torch.mentor.reward import mentor_reward_module
 from himit_torch.options.builders import learner_options, mentor_options, primitive_options
-from himit_torch.mentor.reward import MENTOR_REWARDS, mentor_reward_module
+from himit_torch.runs.checkpoints import BatchShape, CheckpointGenerations, NoGoodCheckpoint
+from himit_torch.runs.config import ExperimentConfig, load_config
 from himit_torch.viz.tensorboard import TensorBoardLogger
-from himit_torch.validation import as_choice, as_float, as_int, as_tuple, check_memory
 from himit_torch.worlds.multirooms import MultiRooms
 
 __all__ = [
-    "ExperimentConfig",
-    "EXPERIMENTS",
     "run_experiment",
     "run_experiments",
-    "load_config",
     "WorldResult",
     "PAPER",
 ]
@@ -64,259 +60,6 @@ PAPER = {
         "only as a bar chart"
     },
 }
-
-
-@dataclass
-class ExperimentConfig:
-    """One experiment: which worlds, agents, seeds, budget and learner settings."""
-
-    name: str = "exp2"
-    """Experiment id (``exp1``, ``exp2``, ``exp3`` or your own)."""
-    sizes: tuple[int, ...] = (40,)
-    """World sizes N (N×N cells); each is one batch."""
-    room_size: int = 4
-    """Cells per room side, wall included: a world of size N has N / room_size rooms per side
-    (the paper: 40×40 with 10×10 rooms → 4; 80×80 with 10×10 rooms → 8)."""
-    corner_options: bool = False
-    """Give the option agents the 8 corner options per room (experiment 1's large library)."""
-    agents: tuple[str, ...] = ("imitation", "imitation_confident", "options", "primitives")
-    """Agent variants, each run with every seed (see ``himit_torch.AGENTS``)."""
-    seeds: int = 5
-    """Runs per agent."""
-    first_seed: int = 0
-    """Seeds are first_seed … first_seed + seeds − 1 (a seed also picks the mentor's episodes)."""
-    steps: int = 200_000
-    """Primitive steps per run."""
-    mentor_episodes: int = 20
-    """Mentor episodes recorded (states only) before learning, per seed."""
-    mentor_reward: str = "known"
-    """The reward ``R_m`` the imitating runs give the mentor's transitions (eq. 2): ``known``
-    (the world's own reward, the paper's), ``salience`` (``SalienceReward`` with its defaults,
-    fitted on each seed's own demonstrations: intrinsic, no knowledge of the world's reward) or
-    ``none`` (``ZeroReward``: r_m = 0). See ``himit_torch.mentor.reward``."""
-    mentor_preference: float | None = None
-    """The mentor takes an extended option within this of the best value (None: one step's cost)."""
-    mentor_model: str = "learned"
-    """Where the imitators' mentor model ``p_m(s'|s)`` comes from: ``"learned"`` — counts of the
-    ``mentor_episodes`` recorded demonstrations (the paper); ``"exact"`` — the mentor's exact
-    transition model (:func:`~himit_torch.mentor.policy.exact_mentor_transitions`: expected counts of
-    ``mentor_episodes`` episodes, so the same total mass, at every state the mentor reaches with
-    positive probability). Demonstrations are still recorded for the figures."""
-    slip: float = 0.1
-    """Probability that an action fails (the paper: 10 %)."""
-    window: int = 5000
-    """Goals are counted per window of this many steps (the paper's 5000)."""
-    checkpoint_every: int = 25_000
-    """Save the whole state every this many steps (a multiple of ``window``)."""
-    device: str = "cpu"
-    """Where the batch runs (``cpu`` or ``cuda``)."""
-    engine: str = "auto"
-    """Which engine carries out the ticks: ``auto`` (the compiled ``numba`` loop on a CPU, the
-    ``torch`` engine on a GPU), ``numba`` or ``torch``. Both give the same curves."""
-    learner: LearnerConfig = field(default_factory=LearnerConfig)
-    """Learner settings (see ``LearnerConfig``)."""
-
-    def __post_init__(self):
-        # Input rules of himit_torch.validation: lists become tuples, whole numbers are never
-        # truncated, bools and strings are not numbers, every number is finite.
-        if isinstance(self.learner, dict):
-            _refuse_unknown_fields(self.learner, LearnerConfig, "ExperimentConfig.learner")
-            self.learner = LearnerConfig(**self.learner)
-        if not isinstance(self.learner, LearnerConfig):
-            raise ValueError(
-                f"ExperimentConfig.learner must be a LearnerConfig or a dict, got "
-                f"{type(self.learner).__name__}"
-            )
-        if not isinstance(self.name, str) or not self.name:
-            raise ValueError(f"ExperimentConfig.name must be a non-empty string, got {self.name!r}")
-        self.sizes = tuple(
-            as_int(f"ExperimentConfig.sizes[{i}]", v, minimum=1)
-            for i, v in enumerate(as_tuple("ExperimentConfig.sizes", self.sizes))
-        )
-        self.agents = as_tuple("ExperimentConfig.agents", self.agents)
-        if not all(isinstance(a, str) for a in self.agents):
-            raise ValueError(f"ExperimentConfig.agents must be names, got {list(self.agents)}")
-        self.room_size = as_int("ExperimentConfig.room_size", self.room_size, minimum=2)
-        for name, minimum in (
-            ("seeds", 1),
-            ("first_seed", 0),
-            ("steps", 1),
-            ("mentor_episodes", 1),
-            ("window", 1),
-            ("checkpoint_every", 1),
-        ):
-            setattr(self, name, as_int(f"ExperimentConfig.{name}", getattr(self, name), minimum))
-        if not isinstance(self.corner_options, (bool, np.bool_)):
-            raise ValueError(
-                f"ExperimentConfig.corner_options must be true or false, got "
-                f"{self.corner_options!r}"
-            )
-        self.corner_options = bool(self.corner_options)
-        self.slip = as_float("ExperimentConfig.slip", self.slip, 0.0, 1.0, high_open=True)
-        if self.mentor_preference is not None:
-            self.mentor_preference = as_float(
-                "ExperimentConfig.mentor_preference", self.mentor_preference, low=0.0
-            )
-        as_choice("ExperimentConfig.engine", self.engine, ("auto", "numba", "torch"))
-        if not isinstance(self.device, str):
-            raise ValueError(
-                f"ExperimentConfig.device must be a string such as 'cpu' or 'cuda', "
-                f"got {self.device!r}"
-            )
-        try:
-            torch.device(self.device)
-        except RuntimeError as err:
-            raise ValueError(
-                f"ExperimentConfig.device={self.device!r} is not a torch device "
-                f"({err}); use e.g. 'cpu' or 'cuda'"
-            ) from None
-
-        def bad(name, why):
-            raise ValueError(f"ExperimentConfig.{name}={getattr(self, name)!r}: {why}")
-
-        if not self.sizes:
-            bad("sizes", "needs at least one world size")
-        for s in self.sizes:
-            if s <= 0 or s % self.room_size:
-                bad(
-                    "sizes", f"every size must be a positive multiple of room_size={self.room_size}"
-                )
-        unknown = sorted(set(self.agents) - set(AGENTS))
-        if unknown or not self.agents:
-            bad("agents", f"unknown or empty; use some of {sorted(AGENTS)}")
-        if self.seeds < 1:
-            bad("seeds", "needs at least one seed")
-        if self.steps < 1:
-            bad("steps", "must be ≥ 1")
-        if self.mentor_episodes < 1:
-            bad("mentor_episodes", "must be ≥ 1")
-        if self.mentor_model not in ("learned", "exact"):
-            bad("mentor_model", "use 'learned' or 'exact'")
-        if self.mentor_reward not in MENTOR_REWARDS:
-            bad("mentor_reward", f"use one of {list(MENTOR_REWARDS)}")
-        if self.window < 1 or self.checkpoint_every < 1 or self.checkpoint_every % self.window:
-            bad("checkpoint_every", f"must be a positive multiple of window={self.window}")
-        if self.learner.window != self.window:
-            self.learner = replace(self.learner, window=self.window)
-
-    def check_size(self) -> None:
-        """Refuse, before anything runs, a world of this experiment whose world, option tables
-        and batch would not fit in memory (:func:`himit_torch.validation.check_memory`): not
-        hours later when that world's turn comes. Called by :func:`run_experiment` (not on
-        construction, so that defining an experiment never depends on the memory free now)."""
-        for size in self.sizes:
-            check_memory(
-                f"ExperimentConfig: world {size}×{size} with its options and a batch of "
-                f"{len(self.agents) * self.seeds} runs",
-                self.estimate_bytes(size),
-                "use smaller sizes, fewer agents or seeds",
-            )
-
-    def estimate_bytes(self, size: int) -> int:
-        """Rough bytes one world of this experiment needs: the world, the learner's and the
-        mentor's dense option tables and the batch's per-run tables (the constants of
-        ``MultiRooms``, ``options`` and ``Learner``)."""
-        from himit_torch.options.builders import BYTES_PER_OPTION_STATE
-
-        S, R = size * size, size // self.room_size
-        options = 4 + 4 * R * (R - 1) + (8 * R * R if self.corner_options else 0)
-        rows = 4 * S + (options - 4) * (self.room_size - 1) ** 2
-        batch = len(self.agents) * self.seeds
-        return (
-            S * MultiRooms.BYTES_PER_STATE
-            + 2 * options * S * BYTES_PER_OPTION_STATE
-            + batch * (S * Learner.BYTES_PER_RUN_STATE + rows * Learner.BYTES_PER_RUN_ROW)
-        )
-
-    def to_json(self) -> str:
-        return json.dumps(asdict(self), indent=2)
-
-    def world(self, size: int) -> MultiRooms:
-        return MultiRooms(size=size, rooms=size // self.room_size, slip=self.slip)
-
-    def quick(self) -> ExperimentConfig:
-        """A tiny budget of the same experiment, for smoke tests and ``--quick``."""
-        return replace(
-            self,
-            seeds=min(self.seeds, 2),
-            steps=min(self.steps, 4 * self.window),
-            sizes=self.sizes[:2],
-            checkpoint_every=self.window,
-            mentor_episodes=min(self.mentor_episodes, 5),
-        )
-
-
-def _paper_learner() -> LearnerConfig:
-    """The experiments' learner: the library defaults, planning every 4 ticks in one round
-    (``plan_every=4, sweep_rounds=1``). On experiment 2, against planning at every decision in
-    two rounds, it gave the same totals at 200k steps (imitation 1903 vs 1898, options-only
-    identical failures) but a slower start (goals by 75k steps: imitation 615 vs 646); see
-    experiments/results/results.md."""
-    return LearnerConfig(plan_every=4, sweep_rounds=1)
-
-
-#: The paper's three experiments with our defaults (see ``experiments/results/results.md``).
-EXPERIMENTS: dict[str, ExperimentConfig] = {
-    "exp1": ExperimentConfig(
-        name="exp1",
-        sizes=(80,),
-        room_size=8,
-        corner_options=True,
-        steps=300_000,
-        learner=_paper_learner(),
-    ),
-    "exp2": ExperimentConfig(
-        name="exp2",
-        sizes=(40,),
-        room_size=4,
-        corner_options=False,
-        steps=200_000,
-        learner=_paper_learner(),
-    ),
-    "exp3": ExperimentConfig(
-        name="exp3",
-        sizes=(64, 80, 96, 120),
-        room_size=8,
-        corner_options=True,
-        steps=130_000,
-        agents=("imitation", "options", "primitives"),
-        learner=_paper_learner(),
-    ),
-}
-
-
-def _refuse_unknown_fields(data: dict, cls, where: str) -> None:
-    known = {f.name for f in fields(cls)}
-    unknown = sorted(set(data) - known)
-    if unknown:
-        raise ValueError(f"{where}: unknown fields {unknown}; known: {sorted(known)}")
-
-
-def load_config(path: str | os.PathLike) -> ExperimentConfig:
-    """An :class:`ExperimentConfig` from a JSON file (as saved in a run directory)."""
-    path = Path(path)
-    try:
-        data = json.loads(path.read_text())
-    except FileNotFoundError:
-        raise ValueError(f"config file {path} does not exist") from None
-    except json.JSONDecodeError as err:
-        raise ValueError(f"config file {path} is not valid JSON: {err}") from None
-    except UnicodeDecodeError as err:  # e.g. a binary file (a pickle) in its place
-        raise ValueError(f"config file {path} is not valid JSON: not UTF-8 text ({err})") from None
-    if not isinstance(data, dict):
-        raise ValueError(f"config file {path} must hold a JSON object")
-    _refuse_unknown_fields(data, ExperimentConfig, f"config file {path}")
-    learner = data.get("learner", {})
-    if not isinstance(learner, dict):
-        raise ValueError(f"config file {path}: 'learner' must be an object")
-    _refuse_unknown_fields(learner, LearnerConfig, f"config file {path}: learner")
-    try:
-        data["learner"] = LearnerConfig(**learner)
-        return ExperimentConfig(**data)
-    except ValueError as err:
-        raise ValueError(f"config file {path}: {err}") from None
-    except TypeError as err:
-        raise ValueError(f"config file {path}: {err}") from None
 
 
 # =========================================================================== one world's batch

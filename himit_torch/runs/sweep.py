@@ -21,7 +21,7 @@ A sweep is described by a spec file (TOML, or JSON with the same keys)::
 ``design = "factorial"`` runs every combination of the levels (here 2 × 2 = 4 cells);
 ``"one-at-a-time"`` runs one baseline cell, every factor at its *first* level, plus one cell per
 other level of each factor with the rest at baseline (here 1 + 1 + 1 = 3 cells). A setting is any
-field of :class:`~himit_torch.runs.experiment.ExperimentConfig` but those the sweep owns (``name``,
+field of :class:`~himit_torch.runs.config.ExperimentConfig` but those the sweep owns (``name``,
 ``sizes``, ``seeds``, ``first_seed``: use the spec's own keys), or ``learner.<field>`` of
 :class:`~himit_torch.LearnerConfig`. Every cell's configuration is built and checked before
 anything runs: an unknown key or setting, or a value the configurations refuse, is a
@@ -72,7 +72,8 @@ from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
 from typing import Any
 
-from himit_torch.runs.experiment import EXPERIMENTS, ExperimentConfig, load_config, source_commit
+from himit_torch.runs.config import EXPERIMENTS, ExperimentConfig, load_config
+from himit_torch.runs.experiment import source_commit
 from himit_torch.learner.config import LearnerConfig
 
 __all__ = ["SweepSpec", "Trial", "load_spec", "run_sweep", "summarize"]
