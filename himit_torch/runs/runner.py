@@ -266,23 +266,15 @@ def source_commit() -> str:
     """The git commit of the code that runs (``+dirty`` if it has uncommitted changes), or
     ``"unknown"`` outside a git checkout: recorded with every result."""
     root = Path(__file__).resolve().parents[2]  # the checkout (himit_torch/runs/runner.py)
+
+    def git(*args: str) -> str:
+        return subprocess.run(
+            ["git", *args], cwd=root, text=True, capture_output=True, timeout=10, check=True
+        ).stdout.strip()
+
     try:
-        commit = subprocess.run(
-            ["git", "rev-parse", "--short=12", "HEAD"],
-            cwd=root,
-            text=True,
-            capture_output=True,
-            timeout=10,
-            check=True,
-        ).stdout.strip()
-        dirty = subprocess.run(
-            ["git", "status", "--porcelain", "--untracked-files=no", "--", "himit_torch"],
-            cwd=root,
-            text=True,
-            capture_output=True,
-            timeout=10,
-            check=True,
-        ).stdout.strip()
+        commit = git("rev-parse", "--short=12", "HEAD")
+        dirty = git("status", "--porcelain", "--untracked-files=no", "--", "himit_torch")
     except (OSError, subprocess.SubprocessError):
         return "unknown"
     return commit + ("+dirty" if dirty else "")
