@@ -9,8 +9,8 @@ from dataclasses import dataclass
 import torch
 
 from himit_torch.learner.agents import AGENTS
-from himit_torch.learner.learner import Learner
 from himit_torch.learner.config import LearnerConfig
+from himit_torch.learner.learner import Learner
 from himit_torch.mentor.policy import mentor_policy, record_demonstrations
 from himit_torch.options.builders import learner_options, mentor_options
 from himit_torch.worlds.multirooms import MultiRooms

@@ -37,15 +37,19 @@ from pathlib import Path
 
 import numpy as np
 
-from himit_torch.options.discovery import discover_subgoals, learned_subgoal_options, one_step_counts
-from himit_torch.runs.config import EXPERIMENTS
-from himit_torch.runs.experiment import source_commit
-from himit_torch.learner.learner import Learner
 from himit_torch.learner.config import LearnerConfig
-from himit_torch.mentor.policy import mentor_policy, record_demonstrations
+from himit_torch.learner.learner import Learner
 from himit_torch.learner.option_refresh import with_options
-from himit_torch.options.bundle import Options
+from himit_torch.mentor.policy import mentor_policy, record_demonstrations
 from himit_torch.options.builders import doorway_options, mentor_options, primitive_options
+from himit_torch.options.bundle import Options
+from himit_torch.options.discovery import (
+    discover_subgoals,
+    learned_subgoal_options,
+    one_step_counts,
+)
+from himit_torch.runs.config import EXPERIMENTS
+from himit_torch.runs.runner import check_run_dir, run_windows, source_commit, watch_demonstrations
 
 __all__ = ["DiscoveryConfig", "DISCOVERY_AGENTS", "run_discovery", "mean_ci"]
 
@@ -218,10 +222,7 @@ def _run_world(config: DiscoveryConfig, exp: str, out: Path, progress: bool) -> 
 
     def batch(options: Options, agents: list[str], run_seeds: list[int]) -> Learner:
         learner = Learner(world, options, agents, run_seeds, config=lcfg, engine=config.engine)
-        for s in sorted(set(run_seeds)):
-            learner.add_demonstrations(
-                demos[s], runs=[b for b, rs in enumerate(run_seeds) if rs == s]
-            )
+        watch_demonstrations(learner, demos)
         return learner
 
     # ---- primitives only (and the first phase of the discovered-options runs)
@@ -230,7 +231,7 @@ def _run_world(config: DiscoveryConfig, exp: str, out: Path, progress: bool) -> 
     run_seeds = seeds + seeds
     t0 = time.perf_counter()
     phase1 = batch(prims, agents, run_seeds)
-    phase1.run(warmup)
+    run_windows(phase1, warmup)
     wall = {"primitives phase": time.perf_counter() - t0}
     usable = world.free_mask & ~world.terminal_mask
     refreshes: list[int] = []
@@ -275,10 +276,10 @@ def _run_world(config: DiscoveryConfig, exp: str, out: Path, progress: bool) -> 
             learner = with_options(phase1, opts, runs=[run], agents=[agent])
             n_swaps = 0
             while learner.t < steps:
-                ahead = steps - learner.t
+                stop = steps
                 if config.refresh_every is not None:
-                    ahead = min(ahead, config.refresh_every)
-                learner.run(ahead)
+                    stop = min(stop, learner.t + config.refresh_every)
+                run_windows(learner, stop)
                 if learner.t < steps:
                     learner = with_options(learner, discovered(learner, 0, s))
                     n_swaps += 1
@@ -290,7 +291,7 @@ def _run_world(config: DiscoveryConfig, exp: str, out: Path, progress: bool) -> 
 
     # ---- the primitives runs to the end
     t0 = time.perf_counter()
-    phase1.run(steps - warmup)
+    run_windows(phase1, steps)
     wall["primitives phase"] += time.perf_counter() - t0
     g = _window_goals(phase1)
     for b, (a, s) in enumerate(zip(agents, run_seeds)):
@@ -303,7 +304,7 @@ def _run_world(config: DiscoveryConfig, exp: str, out: Path, progress: bool) -> 
     hand = Options.concat(prims, doorway_options(world, "direct"))
     agents = ["options"] * len(seeds) + ["imitation"] * len(seeds)
     learner = batch(hand, agents, run_seeds)
-    learner.run(steps)
+    run_windows(learner, steps)
     wall["doorway options"] = time.perf_counter() - t0
     g = _window_goals(learner)
     for b, (a, s) in enumerate(zip(agents, run_seeds)):
@@ -384,11 +385,7 @@ def run_discovery(
     out = Path(run_dir)
     if config.steps is not None and config.steps <= config.warmup:
         raise ValueError(f"steps={config.steps} must exceed the warm-up ({config.warmup})")
-    if (out / "results.md").exists() and not force:
-        raise ValueError(
-            f"{out} already holds a finished run; choose another --logdir or pass "
-            "--force to overwrite it"
-        )
+    check_run_dir(out, force=force)
     out.mkdir(parents=True, exist_ok=True)
     (out / "config.json").write_text(config.to_json())
     t0 = time.perf_counter()

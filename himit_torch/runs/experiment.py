@@ -20,7 +20,6 @@ import csv
 import json
 import os
 import sys
-import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
@@ -35,8 +34,20 @@ from himit_torch.learner.learner import Learner
 from himit_torch.mentor.policy import exact_mentor_transitions, mentor_policy, record_demonstrations
 from himit_torch.mentor.reward import mentor_reward_module
 from himit_torch.options.builders import learner_options, mentor_options, primitive_options
-from himit_torch.runs.checkpoints import BatchShape, CheckpointGenerations, NoGoodCheckpoint
+from himit_torch.runs.checkpoints import BatchShape
 from himit_torch.runs.config import ExperimentConfig, load_config
+from himit_torch.runs.runner import (
+    Checkpoints,
+    Maps,
+    WindowHook,
+    batch_runs,
+    check_run_dir,
+    clear_run_dir,
+    run_names,
+    run_windows,
+    source_commit,
+    watch_demonstrations,
+)
 from himit_torch.viz.tensorboard import TensorBoardLogger
 from himit_torch.worlds.multirooms import MultiRooms
 
@@ -140,67 +151,6 @@ def _atomic_write(path: Path, text: str) -> None:
     os.replace(tmp, path)
 
 
-def _state_layout_version() -> int:
-    """The learner's state layout version (1 for learners from before it was declared): stored in
-    every checkpoint so that a checkpoint of another layout is refused by name."""
-    return int(getattr(Learner, "STATE_LAYOUT_VERSION", 1))
-
-
-def _resume(
-    generations: CheckpointGenerations,
-    learner: Learner,
-    batch: BatchShape,
-    layout: int,
-    config: ExperimentConfig,
-) -> float:
-    """Restore ``learner`` from the newest good checkpoint generation; returns the wall seconds
-    the run had used. Nothing saved yet: the learner is left as it is (a run killed before its
-    first checkpoint starts over). A damaged newest file: one line on stderr, then the previous
-    generation — the learner then redoes the lost interval exactly as it first ran it.
-
-    Raises:
-        ValueError: no generation is good, or the checkpoint is for another state layout or
-            batch, or it does not fit this learner; the message names the file.
-    """
-    try:
-        resumed = generations.load(
-            map_location=config.device, expect_batch=batch, expect_layout=layout
-        )
-    except NoGoodCheckpoint as err:
-        raise ValueError(f"--resume: {err}; start over with --force") from None
-    if resumed is None:
-        return 0.0
-    found = resumed.checkpoint
-    for skipped in resumed.skipped:
-        if skipped.step is not None and skipped.step > found.header.step:
-            redo = f"{skipped.step - found.header.step} steps will be redone"
-        else:
-            redo = (
-                f"the steps after it (up to checkpoint_every={config.checkpoint_every}) will "
-                "be redone"
-            )
-        print(
-            f"himit: warning: {skipped.path}: {skipped.reason}; resuming from "
-            f"{(found.path or generations.newest).name} at step {found.header.step}: {redo}",
-            file=sys.stderr,
-        )
-    payload = found.payload
-    if not isinstance(payload, dict) or not isinstance(payload.get("learner"), dict):
-        raise ValueError(f"{found.path} holds no learner state; start over with --force")
-    try:
-        learner.load_state_dict(payload["learner"])
-    except ValueError as err:
-        raise ValueError(f"{found.path}: {err}; start over with --force") from None
-    except (KeyError, TypeError, IndexError, AttributeError, RuntimeError) as err:
-        raise ValueError(
-            f"{found.path} (step {found.header.step}) could not be restored into this learner "
-            f"({type(err).__name__}: {err}) although its state layout version {layout} is this "
-            "himit_torch's: please report it; start over with --force"
-        ) from None
-    elapsed = payload.get("elapsed", 0.0)
-    return float(elapsed) if isinstance(elapsed, (int, float)) else 0.0
-
-
 def run_world(
     config: ExperimentConfig,
     size: int,
@@ -211,9 +161,7 @@ def run_world(
 ) -> WorldResult:
     """Run every agent × seed of one world in one batch (resuming from its checkpoint)."""
     world = config.world(size)
-    seeds = list(range(config.first_seed, config.first_seed + config.seeds))
-    agents = [a for a in config.agents for _ in seeds]
-    run_seeds = [s for _ in config.agents for s in seeds]
+    seeds, agents, run_seeds = batch_runs(config.agents, config.first_seed, config.seeds)
     # The mentor (its own [O, S] option tables: 0.23 GB on 120×120 with corners) records every
     # seed's episodes and is gone before the learner's tables are built, so the two never share
     # the process's peak memory. Each seed's episodes come from its own generator: the order
@@ -239,26 +187,20 @@ def run_world(
         device=config.device,
         engine=config.engine,
     )
-    for s in seeds:  # each seed watches its own mentor episodes
-        learner.add_demonstrations(
-            demos[s] if exact is None else exact,
-            runs=[b for b, rs in enumerate(run_seeds) if rs == s],
-        )
-    generations = CheckpointGenerations(run_dir / "checkpoints" / f"world{size}.pt")
-    batch = BatchShape(tuple(agents), tuple(run_seeds), world.num_states)
-    layout = _state_layout_version()
-    if resume:
-        elapsed = _resume(generations, learner, batch, layout, config)
-    else:
-        generations.clear()  # a fresh run: stale files must never become its "previous" one
-        elapsed = 0.0
-    names = [f"world{size}__{a}__seed{s}" for a, s in zip(agents, run_seeds)]
+    watch_demonstrations(learner, demos if exact is None else dict.fromkeys(seeds, exact))
+    checkpoints = Checkpoints(
+        run_dir / "checkpoints" / f"world{size}.pt",
+        BatchShape(tuple(agents), tuple(run_seeds), world.num_states),
+        config.checkpoint_every,
+        config.device,
+    )
+    elapsed = checkpoints.start(learner, resume)
     optimal_steps, true_v = _optimum(world)
     # A resumed run purges what it logged after its last checkpoint (windows up to t were logged
     # before the checkpoint); a fresh one refuses folders that hold another run's events.
     logger = TensorBoardLogger(
         run_dir / "tb",
-        names,
+        run_names(f"world{size}", agents, run_seeds),
         world=world,
         options=options,
         true_value_start=true_v,
@@ -281,42 +223,19 @@ def run_world(
         )
         for b in map_runs
     }
-    logged = len(learner.metrics.steps)
-    bar = None
-    if progress:
-        from tqdm.auto import tqdm
-
-        bar = tqdm(
-            total=config.steps,
-            initial=learner.t,
-            unit="step",
-            mininterval=1.0,
-            desc=f"{config.name} {size}×{size} B={learner.batch}",
-        )
-    start = time.perf_counter()
-    while learner.t < config.steps:
-        chunk = min(config.window - learner.t % config.window, config.steps - learner.t)
-        learner.run(chunk)
-        if bar is not None:
-            bar.update(chunk)
-        while logged < len(learner.metrics.steps):
-            logger.window(learner, logged)
-            logged += 1
-            if on_window is not None:
-                on_window(learner)
-        if learner.t % maps_every == 0 or learner.t == config.steps:
-            logger.maps(learner, map_runs, learner.t, mentor_visits)
-        if learner.t % config.checkpoint_every == 0 or learner.t == config.steps:
-            logger.flush()  # everything logged so far is on disk before the checkpoint says so
-            generations.save(
-                {"learner": learner.state_dict(), "elapsed": elapsed + time.perf_counter() - start},
-                step=learner.t,
-                batch=batch,
-                state_layout_version=layout,
-            )
-    if bar is not None:
-        bar.close()
-    wall = elapsed + time.perf_counter() - start
+    hooks: list[WindowHook] = [logger.window]
+    if on_window is not None:
+        hooks.append(lambda learner, _: on_window(learner))
+    wall = run_windows(
+        learner,
+        config.steps,
+        on_window=hooks,
+        logger=logger,
+        maps=Maps(map_runs, maps_every, mentor_visits),
+        checkpoints=checkpoints,
+        progress=f"{config.name} {size}×{size} B={learner.batch}" if progress else None,
+        elapsed=elapsed,
+    )
     m = learner.metrics
     result = WorldResult(
         size=size,
@@ -446,51 +365,6 @@ def _world_figure(run_dir, config, world, demos, learner, agents, run_seeds, see
 
 
 # ================================================================================ the runner
-def source_commit() -> str:
-    """The git commit of the code that runs (``+dirty`` if it has uncommitted changes), or
-    ``"unknown"`` outside a git checkout: recorded with every result."""
-    import subprocess
-
-    root = Path(__file__).resolve().parent.parent
-    try:
-        commit = subprocess.run(
-            ["git", "rev-parse", "--short=12", "HEAD"],
-            cwd=root,
-            text=True,
-            capture_output=True,
-            timeout=10,
-            check=True,
-        ).stdout.strip()
-        dirty = subprocess.run(
-            ["git", "status", "--porcelain", "--untracked-files=no", "--", "himit_torch"],
-            cwd=root,
-            text=True,
-            capture_output=True,
-            timeout=10,
-            check=True,
-        ).stdout.strip()
-    except (OSError, subprocess.SubprocessError):
-        return "unknown"
-    return commit + ("+dirty" if dirty else "")
-
-
-def _check_run_dir(run_dir: Path, resume: bool, force: bool) -> None:
-    finished = (run_dir / "results.md").exists()
-    started = (run_dir / "config.json").exists()
-    if force:
-        return
-    if finished and not resume:
-        raise ValueError(
-            f"{run_dir} already holds a finished run; choose another --logdir or pass "
-            "--force to overwrite it"
-        )
-    if started and not finished and not resume:
-        raise ValueError(
-            f"{run_dir} holds an unfinished run; pass --resume to continue it or "
-            "--force to start over"
-        )
-
-
 def run_experiment(
     config: ExperimentConfig,
     run_dir: str | os.PathLike,
@@ -539,7 +413,7 @@ def run_experiments(
         raise ValueError(f"run_experiments: two plans share a run directory ({dirs})")
     for (config, _), run_dir in zip(plans, dirs, strict=True):
         config.check_size()
-        _check_run_dir(run_dir, resume, force)
+        check_run_dir(run_dir, force=force, resume=bool(resume))
     finished: list[dict[int, WorldResult]] = [
         _prepare_run_dir(config, run_dir, resume, force)
         for (config, _), run_dir in zip(plans, dirs, strict=True)
@@ -624,13 +498,12 @@ def _prepare_run_dir(
 ) -> dict[int, WorldResult]:
     """Clear (``force``) or check (``resume``) ``run_dir``, save the configuration, and return
     the worlds a resumed run already finished."""
-    if force and run_dir.exists():
-        import shutil
-
-        for sub in ("checkpoints", "tb", "worlds", "figures"):
-            shutil.rmtree(run_dir / sub, ignore_errors=True)
-        for f in ("results.md", "curves.csv", "config.json"):
-            (run_dir / f).unlink(missing_ok=True)
+    if force:
+        clear_run_dir(
+            run_dir,
+            ("checkpoints", "tb", "worlds", "figures"),
+            ("results.md", "curves.csv", "config.json"),
+        )
     run_dir.mkdir(parents=True, exist_ok=True)
     cfg_path = run_dir / "config.json"
     if resume and cfg_path.exists():

@@ -30,7 +30,6 @@ import csv
 import json
 import math
 import os
-import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
@@ -43,18 +42,26 @@ import torch
 
 from himit_torch.exact.option_models import OptionModels, option_models
 from himit_torch.exact.planning import value_iteration
-from himit_torch.runs.experiment import source_commit
-from himit_torch.worlds.gymnasium import from_gymnasium
-from himit_torch.options.taxi import taxi_navigation_options
 from himit_torch.learner.agents import AGENTS
-from himit_torch.learner.learner import Learner
 from himit_torch.learner.config import LearnerConfig
+from himit_torch.learner.learner import Learner
 from himit_torch.mentor.policy import mentor_policy, record_demonstrations
-from himit_torch.options.bundle import Options
-from himit_torch.options.builders import primitive_options, subgoal_options
 from himit_torch.mentor.reward import KnownReward
+from himit_torch.options.builders import primitive_options, subgoal_options
+from himit_torch.options.bundle import Options
+from himit_torch.options.taxi import taxi_navigation_options
+from himit_torch.runs.runner import (
+    batch_runs,
+    check_run_dir,
+    clear_run_dir,
+    run_names,
+    run_windows,
+    source_commit,
+    watch_demonstrations,
+)
+from himit_torch.viz.tensorboard import TensorBoardLogger, tensorboard_command
+from himit_torch.worlds.gymnasium import from_gymnasium
 from himit_torch.worlds.table_world import TableWorld, world_model
-from himit_torch.viz.tensorboard import tensorboard_command
 
 __all__ = [
     "GymTask",
@@ -343,15 +350,11 @@ def run_task(
     config: GymExperimentConfig, task_name: str, run_dir: Path, progress: bool = True
 ) -> dict:
     """One task: every agent × seed in one batch; returns the task's summary (also written)."""
-    from torch.utils.tensorboard import SummaryWriter
-
     task = TASKS[task_name]
     world = task.world(config.gamma)
     options = task.options(world)
     mentor = mentor_policy(world, primitive_options(world), prefer_extended_within=0.0)
-    seeds = list(range(config.first_seed, config.first_seed + config.seeds))
-    agents = [a for a in config.agents for _ in seeds]
-    run_seeds = [s for _ in config.agents for s in seeds]
+    seeds, agents, run_seeds = batch_runs(config.agents, config.first_seed, config.seeds)
     known = KnownReward(world)
     learner_config = config.learner
     if config.neutral_initial_value:
@@ -365,30 +368,24 @@ def run_task(
         reward=[known if AGENTS[a][1] else None for a in agents],
         device=config.device,
     )
-    for s in seeds:  # each seed watches its own mentor episodes
-        demos = record_demonstrations(world, mentor, config.mentor_episodes, seed=s)
-        learner.add_demonstrations(demos, runs=[b for b, rs in enumerate(run_seeds) if rs == s])
+    watch_demonstrations(
+        learner,
+        {s: record_demonstrations(world, mentor, config.mentor_episodes, seed=s) for s in seeds},
+    )
     evaluator = GreedyEvaluator(world, options)
     optimal_rate = optimal_goals_per_window(world, evaluator.optimal.policy, config.window)
     goal = world.goal_mask.to(learner.device)
-    names = [f"{task_name}__{a}__seed{s}" for a, s in zip(agents, run_seeds)]
-    writers = [SummaryWriter(str(run_dir / "tb" / n)) for n in names]
+    # A task has no resume: a rerun starts its runs' TensorBoard folders over.
+    logger = TensorBoardLogger(
+        run_dir / "tb", run_names(task_name, agents, run_seeds), overwrite=True
+    )
     rows: list[dict[str, Any]] = []
     previous_goals = torch.zeros(learner.batch, dtype=torch.int64)
-    steps = config.steps_of(task_name)
-    bar = None
-    if progress:
-        from tqdm.auto import tqdm
 
-        bar = tqdm(total=steps, unit="step", mininterval=1.0, desc=f"{task_name} B={learner.batch}")
-    start = time.perf_counter()
-    while learner.t < steps:
-        chunk = min(config.window - learner.t % config.window, steps - learner.t)
-        learner.run(chunk)
-        if bar is not None:
-            bar.update(chunk)
-        if learner.t % config.window:
-            continue
+    def log_window(learner: Learner, index: int) -> None:
+        """The window's rows of ``curves.csv`` and its scalars: goals (arrivals at the goal
+        states, from the visit counts), episodes, ε, the greedy policy's exact value gap."""
+        nonlocal previous_goals
         reached = learner.visit_counts()[:, goal].sum(1).cpu()
         goals, previous_goals = reached - previous_goals, reached
         m = learner.metrics
@@ -401,24 +398,30 @@ def run_task(
                 "seed": run_seeds[b],
                 "step": learner.t,
                 "goals": int(goals[b]),
-                "episodes": int(m.goals_in_window[-1][b]),
-                "epsilon": float(m.epsilon[-1][b]),
+                "episodes": int(m.goals_in_window[index][b]),
+                "epsilon": float(m.epsilon[index][b]),
                 "value_gap": gap[b],
-                "mentor_term_wins": float(m.mentor_term_wins[-1][b]),
+                "mentor_term_wins": float(m.mentor_term_wins[index][b]),
             }
             rows.append(row)
-            w = writers[b]
-            w.add_scalar("charts/goals_in_window", row["goals"], learner.t)
-            w.add_scalar("charts/episodes_in_window", row["episodes"], learner.t)
-            w.add_scalar("charts/epsilon", row["epsilon"], learner.t)
-            w.add_scalar("eval/greedy_value_gap", gap[b], learner.t)
-            w.add_scalar("planner/backups", float(m.backups[-1][b]), learner.t)
-            w.add_scalar("model/coverage", float(coverage[b]), learner.t)
+            scalars = {
+                "charts/goals_in_window": row["goals"],
+                "charts/episodes_in_window": row["episodes"],
+                "charts/epsilon": row["epsilon"],
+                "eval/greedy_value_gap": gap[b],
+                "planner/backups": float(m.backups[index][b]),
+                "model/coverage": float(coverage[b]),
+            }
             if math.isfinite(row["mentor_term_wins"]):
-                w.add_scalar("mentor/term_wins", row["mentor_term_wins"], learner.t)
-    if bar is not None:
-        bar.close()
-    wall = time.perf_counter() - start
+                scalars["mentor/term_wins"] = row["mentor_term_wins"]
+            logger.scalars(b, scalars, learner.t)
+
+    wall = run_windows(
+        learner,
+        config.steps_of(task_name),
+        on_window=[log_window],
+        progress=f"{task_name} B={learner.batch}" if progress else None,
+    )
     last = [r for r in rows if r["step"] == learner.t] if rows else []
     summary = {
         "task": task_name,
@@ -450,23 +453,23 @@ def run_task(
         "ambiguous_reward_pairs": known.ambiguous_pairs,
         "known_reward": known.note,
     }
-    hp = {
-        k: (v if isinstance(v, (int, float, str, bool)) else str(v))
-        for k, v in asdict(learner_config).items()
-        if v is not None
-    }
-    for b, w in enumerate(writers):
-        w.add_hparams(
-            dict(hp, task=task_name, agent=agents[b], seed=run_seeds[b]),
+    # Settings without the seed, so that a task's seeds of one agent form one HParams group; the
+    # metrics at step 0, where SummaryWriter.add_hparams put them.
+    hp = {k: v for k, v in asdict(learner_config).items() if v is not None}
+    logger.hparams(
+        [dict(hp, task=task_name, agent=a) for a in agents],
+        [
             {
                 "hparam/total_goals": float(summary["total_goals"][b]),
                 "hparam/final_value_gap": float(summary["final_value_gap"][b])
                 if last
                 else float("nan"),
-            },
-            run_name=".",
-        )
-        w.close()
+            }
+            for b in range(learner.batch)
+        ],
+        0,
+    )
+    logger.close()
     (run_dir / "tasks").mkdir(parents=True, exist_ok=True)
     (run_dir / "tasks" / f"{task_name}.json").write_text(json.dumps(summary, indent=1))
     _write_rows(run_dir / "tasks" / f"{task_name}.csv", rows)
@@ -505,16 +508,9 @@ def run_gym_experiment(
     A directory holding a finished run is not overwritten unless ``force``.
     """
     run_dir = Path(run_dir)
-    if (run_dir / "results.md").exists() and not force:
-        raise ValueError(
-            f"{run_dir} already holds a finished run; choose another --logdir or pass "
-            "--force to overwrite it"
-        )
-    if force and run_dir.exists():
-        import shutil
-
-        for sub in ("tb", "tasks", "figures"):
-            shutil.rmtree(run_dir / sub, ignore_errors=True)
+    check_run_dir(run_dir, force=force)
+    if force:
+        clear_run_dir(run_dir, ("tb", "tasks", "figures"))
     run_dir.mkdir(parents=True, exist_ok=True)
     (run_dir / "config.json").write_text(config.to_json())
     summaries = [run_task(config, t, run_dir, progress) for t in config.tasks]
@@ -529,16 +525,6 @@ def run_gym_experiment(
 
 
 # ================================================================================ reporting
-def rewrite_gym_report(run_dir: str | os.PathLike) -> None:
-    """Redraw the figures and ``results.md`` of a finished run directory from its files."""
-    run_dir = Path(run_dir)
-    data = json.loads((run_dir / "config.json").read_text())
-    config = GymExperimentConfig(**data)
-    summaries = [json.loads((run_dir / "tasks" / f"{t}.json").read_text()) for t in config.tasks]
-    write_gym_figures(run_dir, config, summaries)
-    write_gym_results(run_dir, config, summaries)
-
-
 def read_gym_curves(run_dir: str | os.PathLike) -> dict:
     """``{task: {agent: (steps [W], goals [n, W], gaps [n, W])}}`` from ``curves.csv``."""
     acc: dict = {}

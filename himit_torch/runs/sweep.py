@@ -72,9 +72,9 @@ from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
 from typing import Any
 
+from himit_torch.learner.config import LearnerConfig
 from himit_torch.runs.config import EXPERIMENTS, ExperimentConfig, load_config
 from himit_torch.runs.experiment import source_commit
-from himit_torch.learner.config import LearnerConfig
 
 __all__ = ["SweepSpec", "Trial", "load_spec", "run_sweep", "summarize"]
 

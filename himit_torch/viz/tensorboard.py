@@ -1,8 +1,8 @@
 """TensorBoard logs of a batch of runs: one event folder per run (CleanRL-style names), scalars
 that say what they are, maps during training, and hyperparameters that group seeds.
 
-Used by :func:`himit_torch.runs.experiment.run_world` (``himit run``) and the notebooks, so every
-run directory reads the same in TensorBoard:
+Used by the runners of :mod:`himit_torch.runs` (``himit run``: the paper's experiments and
+Gymnasium) and the notebooks, so every run directory reads the same in TensorBoard:
 
 * **One run, one folder, one history.** A folder that already holds events is refused (or, with
   ``overwrite=True``, emptied first), so a second run never appends its steps to an earlier run's
@@ -63,6 +63,8 @@ SCALAR_DESCRIPTIONS = {
     "charts/goals_total": "Goals reached since the start of the run (cumulative).",
     "charts/first_goal_step": "Step at which the run first reached the goal, logged once, at that "
     "step (x = y). No point: not found yet.",
+    "charts/episodes_in_window": "Episodes ended in the window of steps that ends at this step "
+    "(per window; any terminal state, e.g. FrozenLake's holes too).",
     "charts/epsilon": "Exploration rate ε at the end of the window (ε-greedy over the run's own "
     "options; decays only after the first goal).",
     "charts/episodes": "Episodes finished since the start (cumulative; an episode ends at the "
@@ -71,6 +73,8 @@ SCALAR_DESCRIPTIONS = {
     "(per window; absent when none ended).",
     "planner/backups": "Bellman backups done since the start (cumulative).",
     "planner/decisions": "Option choices made since the start (cumulative).",
+    "eval/greedy_value_gap": "V*(μ) − V^π(μ): how far the run's greedy option policy now is from "
+    "the optimum, both exact on the true model from the start distribution (0 = optimal).",
     "model/coverage": "Share of the run's usable (state, option) pairs it has tried at least "
     "once, now.",
     "model/value_start": "V(start): the value the run's planner gives the start state now "
