@@ -22,11 +22,6 @@ __all__ = [
 ]
 
 
-def _check_finite(name: str, x: torch.Tensor) -> None:
-    if not bool(torch.isfinite(x).all()):
-        raise ValueError(f"{name} holds NaN or infinite values")
-
-
 def option_backup(
     reward: torch.Tensor, weights: torch.Tensor, successor_values: torch.Tensor
 ) -> torch.Tensor:

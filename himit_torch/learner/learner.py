@@ -354,20 +354,20 @@ class Learner:
         e_succ = (keys % Sp).to(dev)
         g, p = g.to(dev), p.to(dev)
         model, cache = self.model, self.cache
+        exact_reward = disc.reward.to(dev)
         for b in range(self.batch):
             use = self.rows.row_enabled[b, e_row]
-            rows_b, succ_b = e_row[use], e_succ[use]
-            E = rows_b.numel()
-            model.reserve(E)
-            model.edge_row[b, :E] = rows_b
-            model.edge_successor[b, :E] = succ_b
-            model.edge_count[b, :E] = N * p[use]
-            model.edge_discount[b, :E] = N * g[use]
-            model.num_edges[b] = E
             enabled_exact = self.rows.row_enabled[b, exact_rows]
-            model.row_count[b, exact_rows[enabled_exact]] = N
-            model.row_reward[b, exact_rows[enabled_exact]] = N * disc.reward.to(dev)[enabled_exact]
-        model.version += 1
+            model.preload(
+                b,
+                rows=e_row[use],
+                successors=e_succ[use],
+                counts=N * p[use],
+                discounts=N * g[use],
+                counted_rows=exact_rows[enabled_exact],
+                row_counts=N,
+                row_rewards=N * exact_reward[enabled_exact],
+            )
         cache.rebuild_options()
         self.sweeper.push(*cache.value_changes())
 
@@ -632,11 +632,6 @@ class Learner:
     @property
     def found_goal(self) -> torch.Tensor:
         return self.run_state.found_goal
-
-    @property
-    def values(self) -> torch.Tensor:
-        """``[B, S + 1]`` the value cache's ``V`` (last column: padding)."""
-        return self.cache.values
 
     # =============================================================================== diagnostics
     def mentor_win_share(self) -> torch.Tensor:

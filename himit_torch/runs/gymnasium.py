@@ -529,16 +529,6 @@ def run_gym_experiment(
 
 
 # ================================================================================ reporting
-def rewrite_gym_report(run_dir: str | os.PathLike) -> None:
-    """Redraw the figures and ``results.md`` of a finished run directory from its files."""
-    run_dir = Path(run_dir)
-    data = json.loads((run_dir / "config.json").read_text())
-    config = GymExperimentConfig(**data)
-    summaries = [json.loads((run_dir / "tasks" / f"{t}.json").read_text()) for t in config.tasks]
-    write_gym_figures(run_dir, config, summaries)
-    write_gym_results(run_dir, config, summaries)
-
-
 def read_gym_curves(run_dir: str | os.PathLike) -> dict:
     """``{task: {agent: (steps [W], goals [n, W], gaps [n, W])}}`` from ``curves.csv``."""
     acc: dict = {}
