@@ -47,6 +47,7 @@ from himit_torch.learner.state import LANES, BatchState, WorldTables
 from himit_torch.learner.values import ValueCache
 from himit_torch.mentor.reward import KnownReward
 from himit_torch.options.bundle import Options
+from himit_torch.options.execution import option_step
 from himit_torch.rng import seed_streams, uniforms
 from himit_torch.validation import as_choice, as_float, as_int, check_memory
 
@@ -695,25 +696,32 @@ class Learner:
                             rows[torch.randint(len(rows), (1,), generator=gen, device=self.device)]
                         ]
                     )
-            flat = option * S + s
-            if self.policy is not None:
-                action = self.policy[flat].long()
-            else:
-                assert self.policy_cdf is not None  # stochastic options
-                action = torch.multinomial(
+            actions = None
+            if self.policy_cdf is not None:  # stochastic options: drawn here, as always
+                actions = torch.multinomial(
                     torch.diff(
-                        self.policy_cdf[flat],
+                        self.policy_cdf[option * S + s],
                         prepend=torch.zeros(1, 1, dtype=torch.float64, device=self.device),
                     ),
                     1,
                     generator=gen,
                 )[:, 0]
             u = torch.rand(s.shape, generator=gen, device=self.device, dtype=torch.float64)
-            s, _ = self.step_world(s, action, u)
+            stop = torch.rand(1, generator=gen, device=self.device, dtype=torch.float64)
+            moved = option_step(
+                self.tables.option_tables,
+                torch.tensor([option], device=self.device),
+                s,
+                self.tables.step,
+                self.terminal,
+                slip_u=u,
+                stop_u=stop,
+                actions=actions,
+            )
+            s = moved.successors
             steps += 1
             states.append(int(s))
-            stop = torch.rand(1, generator=gen, device=self.device, dtype=torch.float64)
-            if bool(self.terminal[s]) or bool(self.termination[option * S + s] > stop):
+            if bool(moved.stopped):
                 option = -1
         return torch.tensor(states)
 
