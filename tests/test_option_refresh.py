@@ -191,7 +191,7 @@ def test_a_swap_moves_runs_between_engines_and_variants(world12, mentor_demos12)
         for engine in ENGINES
     }
     assert out["numba"].agents == ["options", "imitation"] and out["numba"].seeds == [2, 1]
-    assert torch.equal(out["numba"].values, first.values[[2, 1]])
+    assert torch.equal(out["numba"].state_values(), first.state_values()[[2, 1]])
     for learner in out.values():
         learner.run(1500)
     assert_same(out["numba"], out["torch"])

@@ -211,7 +211,9 @@ def test_with_counts_to_infinity_sampling_is_the_mean_agent(world12, engine):
             torch.testing.assert_close(m[sampled], m[mean], atol=1e-12, rtol=1e-12, equal_nan=True)
         L.plan()
         for mean, sampled in ((0, 1), (2, 3)):
-            torch.testing.assert_close(L.values[sampled], L.values[mean], atol=1e-9, rtol=0)
+            torch.testing.assert_close(
+                L.state_values()[sampled], L.state_values()[mean], atol=1e-9, rtol=0
+            )
         if phase == 0:
             L.run(1500)
             assert int(L.sample.resamples[1]) > 2  # it drew again along the way (goals)
@@ -297,7 +299,9 @@ def test_a_sampling_run_does_not_depend_on_other_runs_demonstrations(world12):
     assert int(alone.sample.resamples[0]) == int(pair.sample.resamples[0])
     alone.run(300)
     pair.run(300)
-    assert not torch.all(alone.values[0] == alone.values[0, 0])  # V is no longer flat
+    assert not torch.all(
+        alone.state_values()[0] == alone.state_values()[0, 0]
+    )  # V is no longer flat
     pair.add_demonstrations(d1, runs=[1])  # later evidence for run 1 only
     assert torch.equal(alone.cache.mentor_numerator[0], pair.cache.mentor_numerator[0])
     assert torch.equal(alone.cache.q_numerator[0], pair.cache.q_numerator[0])
@@ -305,6 +309,6 @@ def test_a_sampling_run_does_not_depend_on_other_runs_demonstrations(world12):
     alone.run(2000)
     pair.run(2000)
     assert int(alone.decisions[0]) > 100  # it ran
-    assert torch.equal(alone.values[0], pair.values[0])
+    assert torch.equal(alone.state_values()[0], pair.state_values()[0])
     assert int(alone.decisions[0]) == int(pair.decisions[0])
     assert int(alone.sample.resamples[0]) == int(pair.sample.resamples[0])
