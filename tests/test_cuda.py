@@ -116,7 +116,7 @@ def test_cuda_torch_engine_matches_cpu_numba(world12, mentor_demos12, name):
     """Every agent variant, one window of 1000 ticks: the CUDA run is the CPU run."""
     cpu = _make(world12, mentor_demos12, CONFIGS[name], "cpu", "numba")
     gpu = _make(world12, mentor_demos12, CONFIGS[name], "cuda", "torch")
-    assert gpu.values.is_cuda and gpu.engine.name == "torch"
+    assert gpu.state_values().is_cuda and gpu.engine.name == "torch"
     cpu.run(TICKS)
     gpu.run(TICKS)
     assert_same_run(cpu, gpu)
@@ -134,7 +134,7 @@ def test_cuda_ticks_from_late_cpu_states(world12, mentor_demos12, name):
     for until in (1500, 3000):
         cpu.run(until - cpu.t)
         gpu.load_state_dict(cpu.state_dict())
-        assert gpu.values.is_cuda and gpu.model.edge_row.is_cuda
+        assert gpu.state_values().is_cuda and gpu.model.edge_row.is_cuda
         cpu.run(40)
         gpu.run(40)
         assert_same_run(cpu, gpu)

@@ -71,7 +71,9 @@ def load_exact_model(learner: Learner, exact, runs) -> None:
         model.edge_discount[b, e] = P[m_idx, succ]
         model.row_count[b, rows] = 1.0
         model.row_reward[b, rows] = exact.reward
-        q = exact.reward.clone().index_add_(0, m_idx, P[m_idx, succ] * learner.values[b, succ])
+        q = exact.reward.clone().index_add_(
+            0, m_idx, P[m_idx, succ] * learner.cache.values[b, succ]
+        )
         learner.cache.q_numerator[b, rows] = q
 
 
@@ -160,7 +162,7 @@ def learned_model_value_iteration(learner: Learner, b: int, tol=1e-12) -> np.nda
 def recomputed_caches(learner: Learner):
     """``q_numerator`` and ``mentor_numerator`` (and their second moments) recomputed from the
     model's counts and the current values — the slow version of the learner's incremental caches."""
-    model, mentor, V, gamma = learner.model, learner.mentor, learner.values, learner.gamma
+    model, mentor, V, gamma = learner.model, learner.mentor, learner.cache.values, learner.gamma
     q, q2 = model.row_reward.clone(), torch.zeros_like(model.row_reward)
     m = torch.zeros(learner.batch, learner.num_states + 1, dtype=torch.float64)
     m2 = torch.zeros_like(m)
@@ -518,7 +520,7 @@ def test_incremental_caches_equal_recomputation(learned8):
     reward, succ, w = learned8.model.mean(runs.expand_as(rows), rows)
     v_succ = torch.where(
         succ >= 0,
-        learned8.values.gather(1, succ.clamp(min=0).flatten(1)).view_as(succ),
+        learned8.cache.values.gather(1, succ.clamp(min=0).flatten(1)).view_as(succ),
         torch.zeros((), dtype=torch.float64),
     )
     q_mean = reward + (w * v_succ).sum(-1)
@@ -638,7 +640,7 @@ def test_confidence_cache_and_test_equal_slow_computation(world8, demos8):
     assert not learner.cache.q_second[2].any() and not learner.cache.mentor_second[2].any()
 
     # Slow path: per observed state, the moments of each own row and of the mentor term.
-    model, mentor, V = learner.model, learner.mentor, learner.values
+    model, mentor, V = learner.model, learner.mentor, learner.cache.values
     TIE = 1e-9  # decisions this close to a tie may go either way in floating point
     low, high = [], []
     for b, agent in enumerate(agents):
@@ -948,7 +950,8 @@ def test_state_dict_round_trip_in_process(world8, demos8):
     )
     c.load_state_dict(b.state_dict())
     c.run(1050)
-    assert torch.equal(a.values, c.values) and torch.equal(a.metrics.curve(), c.metrics.curve())
+    assert torch.equal(a.state_values(), c.state_values())
+    assert torch.equal(a.metrics.curve(), c.metrics.curve())
     with pytest.raises(ValueError, match="does not match"):
         Learner(
             world8,

@@ -159,7 +159,7 @@ def test_changed_options_start_empty_and_an_option_in_flight_ends(world12, mento
     # the rest of the run state is carried
     for name in ("goals", "episodes", "epsilon", "decisions", "visits", "first_goal_step"):
         assert torch.equal(getattr(run, name), getattr(first.run_state, name)), name
-    assert torch.equal(swapped.values, first.values)
+    assert torch.equal(swapped.state_values(), first.state_values())
     # carried Q numerators are what a recomputation from the models gives (up to rounding)
     q = swapped.cache.q_numerator.clone()
     swapped.cache.rebuild_options()
@@ -191,7 +191,7 @@ def test_a_swap_moves_runs_between_engines_and_variants(world12, mentor_demos12)
         for engine in ENGINES
     }
     assert out["numba"].agents == ["options", "imitation"] and out["numba"].seeds == [2, 1]
-    assert torch.equal(out["numba"].values, first.values[[2, 1]])
+    assert torch.equal(out["numba"].state_values(), first.state_values()[[2, 1]])
     for learner in out.values():
         learner.run(1500)
     assert_same(out["numba"], out["torch"])

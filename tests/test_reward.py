@@ -326,7 +326,7 @@ def test_known_intrinsic_and_no_mentor_reward_in_one_batch(world8, demos8):
         world8, learner_options(world8), ["imitation"], [3], demonstrations=demos8, reward=intrinsic
     )
     alone.run(3000)
-    assert torch.equal(batch.values[1], alone.values[0])
+    assert torch.equal(batch.state_values()[1], alone.state_values()[0])
     assert batch.goals[1] == alone.goals[0] and int(batch.goals[1]) > 0
     assert int(batch.goals[0]) > 0
 

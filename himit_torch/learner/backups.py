@@ -2,29 +2,40 @@
 
 Naming follows rlax: a leading ``...`` is any batch shape (runs, states); ``K`` indexes successor
 slots (padding slots carry weight 0); ``J`` indexes the options available in a state; ``A``
-primitive actions. Each function cites the equation it implements. The learner evaluates the same
-expressions incrementally (cached numerators); tests check it against these functions.
+primitive actions. Each function cites the equation it implements.
+
+These functions are the learner's backups (the torch engine's and every diagnostic's): its value
+cache (:mod:`himit_torch.learner.values`) keeps the sums over successors as cached numerators,
+updated incrementally, and hands them to :func:`trusted_augmented_backup` (eq. 2 with the
+learner's rules for trusting the mentor term, :func:`confident_mentor`, :func:`mentor_override`
+and :func:`faded_mentor_term`). Where a sum over successors is computed from scratch it is the
+sparse form the models keep, per-run edge lists (:func:`option_backup_edges`). Tests check the
+incremental caches against these from-scratch sums.
 """
 
 from __future__ import annotations
+
+from typing import NamedTuple
 
 import torch
 
 __all__ = [
     "option_backup",
+    "option_backup_edges",
     "mentor_backup",
     "augmented_option_backup",
     "augmented_primitive_backup",
     "options_only_backup",
     "primitives_only_backup",
     "dirichlet_value_moments",
+    "dirichlet_variance",
     "confident_mentor",
+    "MentorConfidence",
+    "mentor_override",
+    "faded_mentor_term",
+    "augmented_backup",
+    "trusted_augmented_backup",
 ]
-
-
-def _check_finite(name: str, x: torch.Tensor) -> None:
-    if not bool(torch.isfinite(x).all()):
-        raise ValueError(f"{name} holds NaN or infinite values")
 
 
 def option_backup(
@@ -46,6 +57,40 @@ def option_backup(
             "must be [...], [..., K], [..., K]"
         )
     return reward + (weights * successor_values).sum(-1)
+
+
+def option_backup_edges(
+    reward: torch.Tensor,
+    runs: torch.Tensor,
+    rows: torch.Tensor,
+    weights: torch.Tensor,
+    successor_values: torch.Tensor,
+) -> torch.Tensor:
+    """:func:`option_backup` over the sparse form the models keep, a COO edge list batched over
+    runs (Sutton, Precup & Singh 1999; paper Sec. II):
+
+        Q[b, m] = r[b, m] + Σ_{e : runs_e = b, rows_e = m} w_e V_e
+
+    Each row's sum runs in edge order (so a row rebuilt from its edges is reproducible).
+
+    Args:
+        reward: ``[B, M]`` ``r(s, o)`` per run and row.
+        runs, rows: ``[N]`` int64, each edge's run and row.
+        weights: ``[N]`` ``p^o_{ss'}`` of each edge.
+        successor_values: ``[N]`` ``V(s')`` of each edge's successor.
+    Returns a new ``[B, M]`` tensor.
+    """
+    if reward.dim() != 2 or not (
+        runs.shape == rows.shape == weights.shape == successor_values.shape and runs.dim() == 1
+    ):
+        raise ValueError(
+            f"option_backup_edges: shapes reward {tuple(reward.shape)}, runs "
+            f"{tuple(runs.shape)}, rows {tuple(rows.shape)}, weights {tuple(weights.shape)}, "
+            f"successor_values {tuple(successor_values.shape)} must be [B, M] and four [N]"
+        )
+    out = reward.clone()
+    out.view(-1).index_add_(0, runs * reward.shape[1] + rows, weights * successor_values)
+    return out
 
 
 def mentor_backup(
@@ -102,7 +147,25 @@ def augmented_option_backup(
         mentor_available: ``[...]`` bool, where the mentor was observed (and its term is trusted).
     """
     own = options_only_backup(option_q, available)
-    return torch.where(mentor_available, torch.maximum(own, mentor_term), own)
+    return augmented_backup(own, mentor_term, mentor_available)[0]
+
+
+def augmented_backup(
+    own_value: torch.Tensor, mentor_term: torch.Tensor, mentor_available: torch.Tensor
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """The outer max of the paper's eq. 2: ``V(s) = max(own value, mentor term)`` where the
+    mentor term is available, else the own value.
+
+    Args:
+        own_value: ``[...]`` :func:`options_only_backup`; mentor_term: ``[...]``;
+        mentor_available: ``[...]`` bool.
+    Returns ``(V [...], mentor_won [...] bool)``: where the mentor term is available and above
+    the own value.
+    """
+    return (
+        torch.where(mentor_available, torch.maximum(own_value, mentor_term), own_value),
+        mentor_available & (mentor_term > own_value),
+    )
 
 
 def primitives_only_backup(
@@ -158,8 +221,20 @@ def dirichlet_value_moments(
     u = torch.where(counts > 0, outcome_values, torch.zeros_like(outcome_values))
     mean = (p * u).sum(-1)
     second = (p * u * u).sum(-1)
-    var = (second - mean * mean).clamp(min=0) / (total + 1)
+    var = dirichlet_variance(mean, second, total)
     return mean, torch.where(total > 0, var, torch.full_like(var, float("inf")))
+
+
+def dirichlet_variance(
+    mean: torch.Tensor, second_moment: torch.Tensor, total: torch.Tensor
+) -> torch.Tensor:
+    """Variance of ``Σ_k p_k u_k`` for ``p ~ Dirichlet(α)`` from the posterior-mean moments
+    ``mean = Σ ᾱ_k u_k`` and ``second_moment = Σ ᾱ_k u_k²`` and ``total = α_0``:
+    ``(second_moment − mean²)⁺ / (α_0 + 1)`` (the clamp absorbs rounding below 0).
+
+    All ``[...]``. (:func:`dirichlet_value_moments` from counts; the learner from its cached
+    numerators.)"""
+    return (second_moment - mean * mean).clamp(min=0) / (total + 1)
 
 
 def confident_mentor(
@@ -188,3 +263,93 @@ def confident_mentor(
         else torch.full(own_mean.shape[:-1], float("-inf"), dtype=own_mean.dtype)
     )
     return (mentor_mean - z * mentor_var.sqrt()) > upper
+
+
+class MentorConfidence(NamedTuple):
+    """The inputs of :func:`confident_mentor` for :func:`trusted_augmented_backup`."""
+
+    own_var: torch.Tensor
+    """``[..., J]`` posterior variances of the own options' values."""
+    mentor_var: torch.Tensor
+    """``[...]`` posterior variance of the mentor term."""
+    tested: torch.Tensor
+    """``[...]`` bool: where the test applies (elsewhere the mentor term passes)."""
+    z: float
+
+
+def mentor_override(
+    observed: torch.Tensor, own_tries: torch.Tensor | None, override_after: float | None
+) -> torch.Tensor:
+    """Where the mentor term takes part in eq. 2 once the learner's own experience overrides it
+    (``LearnerConfig.mentor_override_after``): where the mentor was ``observed`` and the learner
+    has started fewer than ``override_after`` own options there (all observed states if
+    ``None``).
+
+    Args:
+        observed: ``[...]`` bool; own_tries: ``[...]`` own options started at ``s`` (may be
+        ``None`` when ``override_after`` is ``None``).
+    """
+    if override_after is None:
+        return observed
+    if own_tries is None:
+        raise ValueError("mentor_override: override_after given, so own_tries is needed")
+    return observed & (own_tries < override_after)
+
+
+def faded_mentor_term(
+    mentor_term: torch.Tensor, own_value: torch.Tensor, own_tries: torch.Tensor, fade: float
+) -> torch.Tensor:
+    """The mentor term weighed against the own value as ``fade`` own executions
+    (``LearnerConfig.mentor_fade``): ``(k·M + n·V_own) / (k + n)`` with ``k = fade`` and
+    ``n`` own options started at ``s``; the plain mentor term where no own option has a value.
+
+    Args:
+        mentor_term, own_value, own_tries: ``[...]``.
+    """
+    k, n = fade, own_tries
+    return torch.where(
+        torch.isfinite(own_value), (k * mentor_term + n * own_value) / (k + n), mentor_term
+    )
+
+
+def trusted_augmented_backup(
+    option_q: torch.Tensor,
+    available: torch.Tensor,
+    mentor_term: torch.Tensor,
+    mentor_observed: torch.Tensor,
+    own_tries: torch.Tensor | None = None,
+    *,
+    override_after: float | None = None,
+    confidence: MentorConfidence | None = None,
+    fade: float | None = None,
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """The paper's eq. 2 as the learner evaluates it: :func:`augmented_option_backup` with the
+    mentor term available where it was observed, not yet overridden by own experience
+    (:func:`mentor_override`) and, with ``confidence``, confidently better than every own option
+    (:func:`confident_mentor`, Price & Boutilier 2003); with ``fade`` the term is first
+    weighed against the own value (:func:`faded_mentor_term`).
+
+    Args:
+        option_q: ``[..., J]`` option values; available: ``[..., J]`` bool.
+        mentor_term: ``[...]`` (:func:`mentor_backup`); mentor_observed: ``[...]`` bool.
+        own_tries: ``[...]`` own options started at ``s`` (needed by ``override_after`` and
+            ``fade``).
+    Returns ``(V [...], mentor_won [...] bool)``; ``V`` is ``-inf`` where nothing is known.
+    """
+    own = options_only_backup(option_q, available)
+    available_mentor = mentor_override(mentor_observed, own_tries, override_after)
+    if confidence is not None:
+        confident = confident_mentor(
+            mentor_term,
+            confidence.mentor_var,
+            option_q,
+            confidence.own_var,
+            available,
+            confidence.z,
+        )
+        available_mentor = available_mentor & (confident | ~confidence.tested)
+    if fade is not None:
+        if own_tries is None:
+            raise ValueError("trusted_augmented_backup: fade given, so own_tries is needed")
+        mentor_term = faded_mentor_term(mentor_term, own, own_tries, fade)
+    return augmented_backup(own, mentor_term, available_mentor)

@@ -47,6 +47,7 @@ from himit_torch.learner.state import LANES, BatchState, WorldTables
 from himit_torch.learner.values import ValueCache
 from himit_torch.mentor.reward import KnownReward
 from himit_torch.options.bundle import Options
+from himit_torch.options.execution import option_step
 from himit_torch.rng import seed_streams, uniforms
 from himit_torch.validation import as_choice, as_float, as_int, check_memory
 
@@ -354,20 +355,20 @@ class Learner:
         e_succ = (keys % Sp).to(dev)
         g, p = g.to(dev), p.to(dev)
         model, cache = self.model, self.cache
+        exact_reward = disc.reward.to(dev)
         for b in range(self.batch):
             use = self.rows.row_enabled[b, e_row]
-            rows_b, succ_b = e_row[use], e_succ[use]
-            E = rows_b.numel()
-            model.reserve(E)
-            model.edge_row[b, :E] = rows_b
-            model.edge_successor[b, :E] = succ_b
-            model.edge_count[b, :E] = N * p[use]
-            model.edge_discount[b, :E] = N * g[use]
-            model.num_edges[b] = E
             enabled_exact = self.rows.row_enabled[b, exact_rows]
-            model.row_count[b, exact_rows[enabled_exact]] = N
-            model.row_reward[b, exact_rows[enabled_exact]] = N * disc.reward.to(dev)[enabled_exact]
-        model.version += 1
+            model.preload(
+                b,
+                rows=e_row[use],
+                successors=e_succ[use],
+                counts=N * p[use],
+                discounts=N * g[use],
+                counted_rows=exact_rows[enabled_exact],
+                row_counts=N,
+                row_rewards=N * exact_reward[enabled_exact],
+            )
         cache.rebuild_options()
         self.sweeper.push(*cache.value_changes())
 
@@ -633,11 +634,6 @@ class Learner:
     def found_goal(self) -> torch.Tensor:
         return self.run_state.found_goal
 
-    @property
-    def values(self) -> torch.Tensor:
-        """``[B, S + 1]`` the value cache's ``V`` (last column: padding)."""
-        return self.cache.values
-
     # =============================================================================== diagnostics
     def mentor_win_share(self) -> torch.Tensor:
         """``[B]`` share of mentor-observed states where the mentor term is the max of eq. 2
@@ -700,25 +696,32 @@ class Learner:
                             rows[torch.randint(len(rows), (1,), generator=gen, device=self.device)]
                         ]
                     )
-            flat = option * S + s
-            if self.policy is not None:
-                action = self.policy[flat].long()
-            else:
-                assert self.policy_cdf is not None  # stochastic options
-                action = torch.multinomial(
+            actions = None
+            if self.policy_cdf is not None:  # stochastic options: drawn here, as always
+                actions = torch.multinomial(
                     torch.diff(
-                        self.policy_cdf[flat],
+                        self.policy_cdf[option * S + s],
                         prepend=torch.zeros(1, 1, dtype=torch.float64, device=self.device),
                     ),
                     1,
                     generator=gen,
                 )[:, 0]
             u = torch.rand(s.shape, generator=gen, device=self.device, dtype=torch.float64)
-            s, _ = self.step_world(s, action, u)
+            stop = torch.rand(1, generator=gen, device=self.device, dtype=torch.float64)
+            moved = option_step(
+                self.tables.option_tables,
+                torch.tensor([option], device=self.device),
+                s,
+                self.tables.step,
+                self.terminal,
+                slip_u=u,
+                stop_u=stop,
+                actions=actions,
+            )
+            s = moved.successors
             steps += 1
             states.append(int(s))
-            stop = torch.rand(1, generator=gen, device=self.device, dtype=torch.float64)
-            if bool(self.terminal[s]) or bool(self.termination[option * S + s] > stop):
+            if bool(moved.stopped):
                 option = -1
         return torch.tensor(states)
 

@@ -496,6 +496,43 @@ class DirichletSMDPModel(EdgeStore):
         self.state_tries[runs, starts] += 1
         return e, c_old, g_old
 
+    def preload(
+        self,
+        run: int,
+        rows: torch.Tensor,
+        successors: torch.Tensor,
+        counts: torch.Tensor,
+        discounts: torch.Tensor,
+        counted_rows: torch.Tensor,
+        row_counts: float,
+        row_rewards: torch.Tensor,
+    ) -> None:
+        """Replace run ``run``'s option model wholesale (exact models as pseudo-counts,
+        ``LearnerConfig.option_models = "exact"``): edge ``i`` is ``rows[i] → successors[i]``
+        with count ``counts[i]`` and summed ``γ^k`` ``discounts[i]``; each of ``counted_rows``
+        was executed ``row_counts`` times and collected ``row_rewards`` in total. The value
+        cache's ``Q`` numerators must be rebuilt afterwards (``ValueCache.rebuild_options``)."""
+        E = rows.numel()
+        if not (successors.numel() == counts.numel() == discounts.numel() == E):
+            raise ValueError(
+                f"preload: rows, successors, counts and discounts must all be [E], got "
+                f"{rows.numel()}, {successors.numel()}, {counts.numel()}, {discounts.numel()}"
+            )
+        if counted_rows.shape != row_rewards.shape:
+            raise ValueError(
+                f"preload: counted_rows {tuple(counted_rows.shape)} and row_rewards "
+                f"{tuple(row_rewards.shape)} must have the same shape"
+            )
+        self.reserve(E)
+        self.edge_row[run, :E] = rows
+        self.edge_successor[run, :E] = successors
+        self.edge_count[run, :E] = counts
+        self.edge_discount[run, :E] = discounts
+        self.num_edges[run] = E
+        self.row_count[run, counted_rows] = row_counts
+        self.row_reward[run, counted_rows] = row_rewards
+        self.version += 1
+
     def mean(self, runs: torch.Tensor, rows: torch.Tensor):
         """``(reward [...], successors [..., K], weights [..., K])``: posterior-mean reward and
         multi-time weights ``p^o_{ss'}`` of each row (zeros for untried rows)."""

@@ -9,6 +9,7 @@ queue, :class:`~himit_torch.learner.run_state.RunState` the runs' positions and 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from typing import TYPE_CHECKING
 
 import torch
@@ -21,6 +22,7 @@ from himit_torch.learner.rows import RowTable
 from himit_torch.learner.run_state import RunState
 from himit_torch.learner.values import ValueCache
 from himit_torch.options.bundle import Options, action_dtype
+from himit_torch.options.execution import OptionTables
 
 if TYPE_CHECKING:
     from himit_torch.worlds.tabular import DynamicsTable, TabularWorld
@@ -92,6 +94,11 @@ class WorldTables:
             policy=policy,
             policy_cdf=policy_cdf,
         )
+
+    @cached_property
+    def option_tables(self) -> OptionTables:
+        """The options' tables for :func:`~himit_torch.options.execution.option_step`."""
+        return OptionTables(self.num_states, self.termination, self.policy, self.policy_cdf)
 
     def step(self, positions: torch.Tensor, actions: torch.Tensor, u: torch.Tensor):
         """One primitive step of the world for ``positions [B]`` (its table when it has one):

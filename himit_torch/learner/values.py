@@ -33,6 +33,12 @@ from typing import TYPE_CHECKING
 
 import torch
 
+from himit_torch.learner.backups import (
+    MentorConfidence,
+    dirichlet_variance,
+    option_backup_edges,
+    trusted_augmented_backup,
+)
 from himit_torch.learner.models import DirichletMentorModel, DirichletSMDPModel
 from himit_torch.learner.rows import RowTable
 
@@ -163,7 +169,7 @@ class ValueCache:
         second = (n * rbar * rbar + 2 * rbar * cont + _take(self.q_second, flat) + a * v0 * v0) / (
             n + a
         )
-        var = (second - q * q).clamp(min=0) / (n + a + 1)
+        var = dirichlet_variance(q, second, n + a)
         # A row with no posterior at all (untried, no prior) valued by ``untried_value``: its
         # value is unbounded above, so no mentor term can be confidently better.
         return torch.where(n + a > 0, var, torch.full_like(var, float("inf")))
@@ -171,7 +177,7 @@ class ValueCache:
     def _mentor_variance(self, flat, n, m):
         a, v0 = self.config.mentor_concentration, self.config.initial_value
         second = (_take(self.mentor_second, flat) + a * v0 * v0) / (n + a)
-        return (second - m * m).clamp(min=0) / (n + a + 1)
+        return dirichlet_variance(m, second, n + a)
 
     def own_values(self, runs: torch.Tensor, states: torch.Tensor):
         """Cached ``Q`` of the rows at ``states`` (``runs`` broadcast, ``[..., J]`` out): returns
@@ -194,36 +200,44 @@ class ValueCache:
 
     def state_backup(self, runs: torch.Tensor, states: torch.Tensor):
         """Eq. 2 for ``states [R, n]`` of ``runs [R, 1]`` (or broadcastable): returns
-        ``(new V, has_value, mentor_won)``; ``-inf`` where nothing is known."""
+        ``(new V, has_value, mentor_won)``; ``-inf`` where nothing is known. The cache reads the
+        inputs (``Q`` per row, the mentor term, counts, variances) from its numerators;
+        :func:`~himit_torch.learner.backups.trusted_augmented_backup` evaluates the equation."""
         cfg = self.config
         _, q, usable, _, flat_rows, n_rows = self.own_values(runs, states)
-        own = torch.where(usable, q, self._neg_inf).amax(-1)
         flat = self._state_flat(runs, states)
         n_m = _take(self.mentor.row_count, flat)
         # The mentor term exists only where the mentor was seen (a prior does not create one).
-        mentor_ok = self.rows.use_mentor[runs] & (n_m > 0)
+        observed = self.rows.use_mentor[runs] & (n_m > 0)
         m = self._mentor_at(flat, n_m)
-        if cfg.mentor_override_after is not None:
-            mentor_ok = mentor_ok & (
-                _take(self.model.state_tries, flat) < cfg.mentor_override_after
-            )
+        tries = (
+            _take(self.model.state_tries, flat)
+            if cfg.mentor_override_after is not None or cfg.mentor_fade is not None
+            else None
+        )
+        confidence = None
         if self.any_confidence and bool(self.rows.use_confidence[runs].any()):
-            z = cfg.confidence_z
-            var = self._row_variance(flat_rows, n_rows, q)
-            upper = torch.where(usable, q + z * var.sqrt(), self._neg_inf).amax(-1)
-            confident = (m - z * self._mentor_variance(flat, n_m, m).sqrt()) > upper
-            mentor_ok = mentor_ok & (confident | ~self.rows.use_confidence[runs])
-        if cfg.mentor_fade is not None:
-            # The mentor's evidence weighs as mentor_fade own executions (LearnerConfig.mentor_fade).
-            k, n = cfg.mentor_fade, _take(self.model.state_tries, flat)
-            m = torch.where(torch.isfinite(own), (k * m + n * own) / (k + n), m)
-        m = torch.where(mentor_ok, m, self._neg_inf)
-        best = torch.maximum(own, m)
+            confidence = MentorConfidence(
+                own_var=self._row_variance(flat_rows, n_rows, q),
+                mentor_var=self._mentor_variance(flat, n_m, m),
+                tested=self.rows.use_confidence[runs],
+                z=cfg.confidence_z,
+            )
+        best, mentor_won = trusted_augmented_backup(
+            q,
+            usable,
+            m,
+            observed,
+            tries,
+            override_after=cfg.mentor_override_after,
+            confidence=confidence,
+            fade=cfg.mentor_fade,
+        )
         # Terminal states (and the padding state) keep V = 0.
         has_value = torch.isfinite(best) & ~self.terminal.index_select(
             0, states.reshape(-1)
         ).view_as(states)
-        return best, has_value, mentor_ok & (m > own)
+        return best, has_value, mentor_won
 
     # ================================================================================ updates
     def backup_and_propagate(
@@ -339,16 +353,25 @@ class ValueCache:
         a model was written wholesale, e.g. preloaded exact models). The sums run in edge order,
         not in the order the increments arrived: equal to the incremental caches up to rounding."""
         model = self.model
-        self.q_numerator.copy_(model.row_reward)
-        self.q_second.zero_()
-        for b in range(self.batch):
-            E = int(model.num_edges[b])
-            rows_b, succ_b = model.edge_row[b, :E], model.edge_successor[b, :E]
-            v = self.values[b].index_select(0, succ_b)
-            g_b, c_b = model.edge_discount[b, :E], model.edge_count[b, :E]
-            self.q_numerator[b].index_add_(0, rows_b, g_b * v)
-            if bool(self.rows.use_confidence[b]):
-                self.q_second[b].index_add_(0, rows_b, g_b * g_b / c_b.clamp(min=1e-300) * v * v)
+        valid = torch.arange(model.capacity, device=self.device) < model.num_edges[:, None]
+        runs, slots = valid.nonzero(as_tuple=True)  # run by run, each run's edges in order
+        flat_e = runs * model.capacity + slots
+        rows, succ = _take(model.edge_row, flat_e), _take(model.edge_successor, flat_e)
+        g, v = _take(model.edge_discount, flat_e), _take(self.values, self._state_flat(runs, succ))
+        self.q_numerator.copy_(option_backup_edges(model.row_reward, runs, rows, g, v))
+        # Σ_e (Σγ^k)² / c · V(s')²: the same edge sum, with weights (Σγ^k)² / c · V(s')
+        # (confidence-tested runs only).
+        tested = self.rows.use_confidence.index_select(0, runs)
+        c = _take(model.edge_count, flat_e)
+        self.q_second.copy_(
+            option_backup_edges(
+                torch.zeros_like(self.q_second),
+                runs[tested],
+                rows[tested],
+                (g * g / c.clamp(min=1e-300) * v)[tested],
+                v[tested],
+            )
+        )
 
     def value_changes(
         self, where: torch.Tensor | None = None, runs: torch.Tensor | None = None

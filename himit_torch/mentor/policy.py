@@ -16,6 +16,7 @@ from himit_torch.exact.option_models import option_models
 from himit_torch.exact.planning import greedy_option_policy, smdp_value_iteration
 from himit_torch.mentor.demonstrations import Demonstrations
 from himit_torch.options.bundle import Options
+from himit_torch.options.execution import OptionTables, option_step
 from himit_torch.worlds.multirooms import MultiRooms
 from himit_torch.worlds.tabular import TabularWorld
 
@@ -173,9 +174,19 @@ def run_mentor(
     if max_steps < 1:
         raise ValueError(f"max_steps_per_episode={max_steps_per_episode} must be ≥ 1")
     options = mentor.options
-    choice, beta, init = mentor.option, options.termination, options.initiation
-    probs = options.action_probabilities(world.num_actions) if options.stochastic else None
+    choice, init = mentor.option, options.initiation
+    cdf_total = None
+    if options.stochastic:
+        cdf = options.action_probabilities(world.num_actions).double().cumsum(-1).flatten(0, 1)
+        tables = OptionTables(S, options.termination.reshape(-1), None, cdf)
+        cdf_total = cdf[:, -1]
+    else:
+        tables = OptionTables(S, options.termination.reshape(-1), options.policy.reshape(-1), None)
     terminal = world.terminal_mask
+
+    def step(positions, actions, slip_u):
+        return world.step(positions, actions, uniforms=slip_u)
+
     E = episodes
 
     start_distribution = getattr(world, "start_distribution", None)
@@ -209,16 +220,14 @@ def run_mentor(
             decided_option.append(picked)
         u = torch.rand(3, E, generator=generator, dtype=torch.float64)
         o = current.clamp(min=0)
-        if probs is None:
-            action = options.policy[o, pos].long()
-        else:
-            cdf = probs[o, pos].double().cumsum(-1)
-            action = torch.searchsorted(cdf, u[0, :, None] * cdf[:, -1:]).flatten()
-            action = action.clamp(max=world.num_actions - 1)
-        nxt, _ = world.step(pos, action, uniforms=u[1].float())
-        nxt = torch.where(active, nxt, pos)
-        stop = (u[2] < beta[o, nxt].double()) | terminal[nxt]
-        current = torch.where(active & stop, torch.full_like(current, -1), current)
+        # (the cdf's rows need not end at exactly 1: the action uniform is scaled to the row)
+        action_u = None if cdf_total is None else u[0] * cdf_total[o * S + pos]
+        moved = option_step(
+            tables, o, pos, step, terminal, slip_u=u[1].float(), stop_u=u[2], action_u=action_u
+        )
+        # finished episodes stay where they are
+        nxt = torch.where(active, moved.successors, pos)
+        current = torch.where(active & moved.stopped, torch.full_like(current, -1), current)
         pos = nxt
         history.append(pos.clone())
         active = active & ~terminal[pos]

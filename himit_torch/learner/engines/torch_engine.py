@@ -6,6 +6,7 @@ import torch
 
 from himit_torch.learner.choice import choose_rows
 from himit_torch.learner.state import LANES, BatchState
+from himit_torch.options.execution import option_step
 from himit_torch.rng import uniforms
 
 __all__ = ["TorchEngine"]
@@ -67,29 +68,27 @@ class TorchEngine:
     def _act(self, u: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """One primitive step of every run's option: ``(at_goal [B], option ended [B])``."""
         L = self.state
-        cfg, S, run = L.config, L.tables.num_states, L.run
+        cfg, run = L.config, L.run
         option = L.rows.row_option[run.row]
-        flat = option * S + run.position
-        if L.tables.policy is not None:
-            action = L.tables.policy[flat].long()
-            stop_u = u[:, 1]
-        else:
-            action = torch.searchsorted(L.tables.policy_cdf[flat], u[:, 1:2].contiguous()).squeeze(
-                1
-            )
-            action = action.clamp(max=L.tables.policy_cdf.shape[1] - 1)
-            stop_u = u[:, 2]
-        nxt, reward = L.tables.step(run.position, action, u[:, 0])
+        # lanes: 0 slip; deterministic options stop on lane 1, stochastic ones act on lane 1
+        # and stop on lane 2
+        stop_lane = 1 if L.tables.policy is not None else 2
+        moved = option_step(
+            L.tables.option_tables,
+            option,
+            run.position,
+            L.tables.step,
+            L.tables.terminal,
+            slip_u=u[:, 0],
+            stop_u=u[:, stop_lane],
+            action_u=u[:, 1],
+        )
+        nxt, reward, at_goal = moved.successors, moved.rewards, moved.at_terminal
         run.discounted_return += run.discount * reward
         run.discount *= L.tables.gamma
         run.duration += 1
         run.t += 1
-        at_goal = L.tables.terminal[nxt]
-        ended = (
-            at_goal
-            | (L.tables.termination[option * S + nxt] > stop_u)
-            | (run.duration >= cfg.max_option_steps)
-        )
+        ended = moved.stopped | (run.duration >= cfg.max_option_steps)
         run.position = nxt
         run.visits.view(-1).index_add_(0, self._visit_base + nxt, self._ones_b)
         if bool(at_goal.any()):
