@@ -1,5 +1,6 @@
-"""Settings of the factorial studies (issue 11): ε schedules, the mentor's exact transition model,
-exact option models. Engine parity of each is in tests/test_engines.py; here what each does."""
+"""The learner's settings (LearnerConfig): their checks, and what each setting of the factorial
+studies (issue 11) does: ε schedules, the mentor's exact transition model, exact option models, the
+mentor fade. Engine parity of each is in tests/learner/engines/test_parity.py."""
 
 import math
 
@@ -59,7 +60,7 @@ def _run(
     return learner
 
 
-@pytest.mark.parametrize("engine", ["numba"])  # the torch engine: parity, test_engines.py
+@pytest.mark.parametrize("engine", ["numba"])  # the torch engine: parity, engines/test_parity.py
 def test_goals_schedule_explores_until_n_goals_then_drops_to_the_floor(world8, engine):
     config = LearnerConfig(window=500, eps_schedule="goals", eps_goals=4, eps_min=0.05)
     learner = _run(world8, config, 3000, engine)
@@ -71,7 +72,7 @@ def test_goals_schedule_explores_until_n_goals_then_drops_to_the_floor(world8, e
     assert torch.equal(eps, expected)
 
 
-@pytest.mark.parametrize("engine", ["numba"])  # the torch engine: parity, test_engines.py
+@pytest.mark.parametrize("engine", ["numba"])  # the torch engine: parity, engines/test_parity.py
 def test_paper_schedule_decays_once_per_goal(world8, engine):
     config = LearnerConfig(window=500, eps_schedule="paper", eps_decay=0.9, eps_min=0.01)
     learner = _run(world8, config, 2000, engine)
@@ -80,7 +81,7 @@ def test_paper_schedule_decays_once_per_goal(world8, engine):
     assert int(learner.goals.max()) > 0
 
 
-@pytest.mark.parametrize("engine", ["numba"])  # the torch engine: parity, test_engines.py
+@pytest.mark.parametrize("engine", ["numba"])  # the torch engine: parity, engines/test_parity.py
 def test_step_schedule_decays_once_per_step_from_the_first_goal(world8, engine):
     config = LearnerConfig(window=500, eps_schedule="step", eps_decay=0.999, eps_min=0.001)
     learner = _run(world8, config, 2000, engine)

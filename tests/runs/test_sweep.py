@@ -223,6 +223,7 @@ def test_a_changed_spec_does_not_reuse_finished_trials(tmp_path, monkeypatch):
         run_sweep(write_spec(tmp_path, steps=2000), out, log=lambda line: None)
 
 
+@pytest.mark.slow  # (starting a local Ray takes long; the in-process sweep is in the fast suite)
 def test_tiny_sweep_on_a_local_ray_equals_the_in_process_one(tmp_path, monkeypatch):
     pytest.importorskip("ray")
     spec = load_spec(write_spec(tmp_path, grid='[grid]\nlearner.tie_break = ["random", "first"]'))
@@ -243,6 +244,7 @@ run_sweep(sys.argv[1], sys.argv[2], use_ray=False)
 """
 
 
+@pytest.mark.slow  # (fast: the skip/resume of finished trials, tests above)
 def test_a_sweep_killed_mid_way_and_rerun_gives_the_uninterrupted_tables(tmp_path):
     # the torch engine: slow enough per window to be killed inside a trial
     spec = write_spec(tmp_path, steps=3000, engine="torch", grid="")  # one cell, two trials

@@ -244,7 +244,8 @@ def test_a_psrl_run_really_samples(world12):
     assert int(L.sample.resamples[0]) > 1
 
 
-@pytest.mark.parametrize("engine", ["numba", "torch"])
+# (the torch engine's run: -m slow; the fast suite's parity runs check its sampling)
+@pytest.mark.parametrize("engine", ["numba", pytest.param("torch", marks=pytest.mark.slow)])
 def test_checkpoint_resume_continues_the_same_sampling_run(world12, engine):
     make = lambda: _psrl(  # noqa: E731
         world12,

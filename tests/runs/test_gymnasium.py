@@ -22,7 +22,7 @@ from himit_torch.runs.gymnasium import (
 )
 from himit_torch.worlds.table_world import world_model
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")

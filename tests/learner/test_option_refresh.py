@@ -16,6 +16,9 @@ from himit_torch.options.builders import primitive_options
 pytest.importorskip("numba")
 
 ENGINES = ["numba", "torch"]
+#: The tests that run each engine on its own: the torch engine's runs (minutes of eager ticks) go
+#: under -m slow; test_a_swap_moves_runs_between_engines_and_variants keeps it in the fast suite.
+EACH_ENGINE = ["numba", pytest.param("torch", marks=pytest.mark.slow)]
 CONFIG = LearnerConfig(window=1000)
 MIX = ["imitation", "options", "imitation_confident", "primitives", "imitation_primitives"]
 
@@ -75,7 +78,7 @@ def _make(world, options, agents, demos, engine, seeds=None):
     )
 
 
-@pytest.mark.parametrize("engine", ENGINES)
+@pytest.mark.parametrize("engine", EACH_ENGINE)
 def test_swapping_to_the_same_options_continues_the_run_exactly(world12, mentor_demos12, engine):
     options = learner_options(world12)
     straight = _make(world12, options, MIX, mentor_demos12, engine)
@@ -92,7 +95,7 @@ def test_swapping_to_the_same_options_continues_the_run_exactly(world12, mentor_
     assert int(straight.goals.sum()) > 0
 
 
-@pytest.mark.parametrize("engine", ENGINES)
+@pytest.mark.parametrize("engine", EACH_ENGINE)
 def test_runs_that_cannot_use_the_new_options_are_not_changed(world12, mentor_demos12, engine):
     """Primitives-only runs, swapped to primitives + doorway options (which their variants do not
     use): the same run as without the swap; their primitive rows carried over as they were."""
@@ -122,7 +125,7 @@ def test_runs_that_cannot_use_the_new_options_are_not_changed(world12, mentor_de
     assert_same(straight, swapped)
 
 
-@pytest.mark.parametrize("engine", ENGINES)
+@pytest.mark.parametrize("engine", EACH_ENGINE)
 def test_changed_options_start_empty_and_an_option_in_flight_ends(world12, mentor_demos12, engine):
     options = learner_options(world12)
     first = _make(world12, options, ["imitation", "options"] * 3, mentor_demos12, engine)
@@ -199,7 +202,7 @@ def test_a_swap_moves_runs_between_engines_and_variants(world12, mentor_demos12)
     assert float(out["numba"].model.row_count[:, ext].sum()) > 0  # the new options were used
 
 
-@pytest.mark.parametrize("engine", ENGINES)
+@pytest.mark.parametrize("engine", EACH_ENGINE)
 def test_checkpoint_after_a_swap_resumes_exactly(world12, mentor_demos12, engine):
     prims = primitive_options(world12)
     richer = learner_options(world12)

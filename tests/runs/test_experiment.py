@@ -226,6 +226,7 @@ def kill_after(child: subprocess.Popen, newest: Path, step: int, pause: float) -
     child.wait()
 
 
+@pytest.mark.slow  # (fast: tests/runs/test_checkpoints.py resumes a run "killed" after a checkpoint)
 def test_runs_killed_at_random_moments_resume_to_exactly_the_uninterrupted_curve(tmp_path):
     """kill -9 at three random moments, each followed by --resume; then once more with the newest
     checkpoint cut short: the resume falls back to the previous one, says so in one line, and
