@@ -41,6 +41,14 @@ def _grow_columns(tensor: torch.Tensor, capacity: int, fill=0) -> torch.Tensor:
     return grown
 
 
+def _nonzero(total: torch.Tensor) -> torch.Tensor:
+    """``total`` where it is positive, 1 elsewhere: a divisor for the branch of a
+    ``torch.where(total > 0, …)`` that is taken. (Clamping at a tiny floor instead would divide a
+    subnormal total — a subnormal prior concentration, say 5e-324 — by the floor, not by itself:
+    posterior means summing to 1e-24.)"""
+    return torch.where(total > 0, total, torch.ones_like(total))
+
+
 class DenseEdgeIndex:
     """Per-run forward (edges of each row) and reverse (edges into each state) tables of an
     :class:`EdgeStore`, padded with −1: ``forward [B, R + 1, K]``, ``reverse [B, S + 1, P]``.
@@ -352,19 +360,16 @@ class SuccessorDirichlet(torch.distributions.Dirichlet):
         total = self.total[..., None]
         return torch.where(
             total > 0,
-            self.concentration / total.clamp(min=1e-300),
+            self.concentration / _nonzero(total),
             torch.zeros_like(self.concentration),
         )
 
     @property
     def variance(self) -> torch.Tensor:
-        """``Var[p_k] = α_k (α_0 − α_k) / (α_0² (α_0 + 1))``."""
-        a, total = self.concentration, self.total[..., None]
-        return torch.where(
-            total > 0,
-            a * (total - a) / (total.clamp(min=1e-300) ** 2 * (total + 1)),
-            torch.zeros_like(a),
-        )
+        """``Var[p_k] = α_k (α_0 − α_k) / (α_0² (α_0 + 1)) = m_k (1 − m_k) / (α_0 + 1)`` with
+        ``m`` the :attr:`mean` (the second form: ``α_0²`` underflows for a tiny total)."""
+        m, total = self.mean, self.total[..., None]
+        return torch.where(total > 0, m * (1.0 - m) / (total + 1), torch.zeros_like(m))
 
     @property
     def mode(self) -> torch.Tensor:
@@ -383,9 +388,7 @@ class SuccessorDirichlet(torch.distributions.Dirichlet):
             pos, torch.xlogy(a - 1.0, value) - torch.lgamma(safe), torch.zeros_like(a)
         ).sum(-1)
         total = self.total
-        norm = torch.where(
-            total > 0, torch.lgamma(total.clamp(min=1e-300)), torch.zeros_like(total)
-        )
+        norm = torch.where(total > 0, torch.lgamma(_nonzero(total)), torch.zeros_like(total))
         outside = ((~pos) & (value != 0)).any(-1)
         return torch.where(outside, torch.full_like(term, float("-inf")), term + norm)
 
@@ -427,7 +430,7 @@ class SuccessorDirichlet(torch.distributions.Dirichlet):
         g = torch.from_numpy(np.random.default_rng(seed).standard_gamma(a))
         g = g.to(self.concentration.device, self.concentration.dtype)
         total = g.sum(-1, keepdim=True)
-        return torch.where(total > 0, g / total.clamp(min=1e-300), torch.zeros_like(g))
+        return torch.where(total > 0, g / _nonzero(total), torch.zeros_like(g))
 
     def rsample(self, sample_shape: torch.Size | list[int] | tuple[int, ...] = ()) -> torch.Tensor:
         raise NotImplementedError(
@@ -545,7 +548,7 @@ class DirichletSMDPModel(EdgeStore):
             self.edge_discount[r, edge.clamp(min=0)],
             torch.zeros((), dtype=torch.float64, device=self.device),
         )
-        weights = torch.where(denom > 0, g / denom.clamp(min=1e-300), torch.zeros_like(g))
+        weights = torch.where(denom > 0, g / _nonzero(denom), torch.zeros_like(g))
         reward = torch.where(
             n > 0, self.row_reward[runs, rows] / n.clamp(min=1), torch.zeros_like(n)
         )

@@ -449,3 +449,16 @@ def test_mentor_model_prior_concentration():
     assert mean[-1].item() == pytest.approx(1 / 3)
     _, p = mentor.mean(long(0), long(0))
     assert p.sum().item() == pytest.approx(2 / 3)
+
+
+def test_a_subnormal_prior_concentration_still_gives_a_distribution():
+    """A prior mass as small as a float can be (5e-324, which hypothesis found) is still a
+    Dirichlet: its mean is the unseen outcome with probability 1, not 5e-324 / 1e-300."""
+    tiny = 5e-324
+    post = SuccessorDirichlet(
+        torch.tensor([[0.0, 0.0, tiny], [2.0, 1.0, tiny]], dtype=torch.float64),
+        torch.tensor([[-1, -1], [3, 4]]),
+    )
+    assert post.mean.sum(-1).tolist() == [1.0, 1.0]
+    assert post.mean[0].tolist() == [0.0, 0.0, 1.0]
+    assert bool((post.variance >= 0).all()) and bool(torch.isfinite(post.variance).all())
