@@ -40,10 +40,10 @@ def test_the_warm_up_compiles_the_signatures_real_learners_use(world12):
     demonstrations) calls no kernel with new argument types, so it compiles nothing."""
     from himit_torch.learner.config import LearnerConfig
     from himit_torch.learner.engines.numba_engine import KERNELS
-    from himit_torch.runs.kernels import prepare_kernels
     from himit_torch.learner.learner import Learner
     from himit_torch.mentor.policy import mentor_policy, record_demonstrations
     from himit_torch.options.builders import learner_options, mentor_options
+    from himit_torch.runs.kernels import prepare_kernels
 
     prepare_kernels()
     # (the loop's callees, e.g. ``resample``, are compiled into it: not called from Python)

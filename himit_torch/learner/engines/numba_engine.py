@@ -88,11 +88,11 @@ def cache_lock() -> Iterator[None]:
         finally:
             _depth -= 1
             if _depth == 0 and _held:
-                f = _held.pop()
                 import fcntl
 
-                fcntl.flock(f, fcntl.LOCK_UN)
-                f.close()
+                held = _held.pop()
+                fcntl.flock(held, fcntl.LOCK_UN)
+                held.close()
 
 
 def _call(kernel, *args) -> None:

@@ -113,7 +113,8 @@ def sampled_row_q(st, cache, model, sample, b, row):
     e = model.row_head[b, row]
     while e >= 0:
         acc += sample.w_opt[b, e] * (
-            rbar + (model.edge_disc[b, e] / model.edge_count[b, e]) * values[b, model.edge_succ[b, e]]
+            rbar
+            + (model.edge_disc[b, e] / model.edge_count[b, e]) * values[b, model.edge_succ[b, e]]
         )
         e = model.row_next[b, e]
     q = acc + sample.wu_opt[b, row] * v0

@@ -13,7 +13,13 @@ from himit_torch.learner.engines.kernel.backup import (
     state_backup,
 )
 from himit_torch.learner.engines.kernel.heap import heapify, pop, push
-from himit_torch.learner.engines.kernel.sampling import fexp, flog, resample, sample_key, sampled_row_q
+from himit_torch.learner.engines.kernel.sampling import (
+    fexp,
+    flog,
+    resample,
+    sample_key,
+    sampled_row_q,
+)
 from himit_torch.learner.engines.kernel.streams import uniform
 from himit_torch.learner.engines.settings import (
     EPS_DECISION,
@@ -336,7 +342,9 @@ def start_option(st, world, run, key, b, t, nxt, at_goal):
 # allocates nothing, and with the runtime off it cannot: Numba refuses to compile it if it did.
 # nogil=True: the engine calls it from several threads at once, one run each.
 @njit(cache=True, error_model="numpy", _nrt=False, nogil=True)  # type: ignore[call-overload]  # (not in the stubs)
-def run_ticks(b, t_end, t_reached, st, world, rows, cache, model, mentor, sweep, run, sample, scratch):
+def run_ticks(
+    b, t_end, t_reached, st, world, rows, cache, model, mentor, sweep, run, sample, scratch
+):
     """Advance run ``b`` from tick ``t_reached[b]`` to ``t_end``, in place: act, learn, plan,
     choose — :meth:`TorchEngine.tick <himit_torch.learner.engines.TorchEngine.tick>` for one run.
 
