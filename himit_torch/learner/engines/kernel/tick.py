@@ -13,6 +13,7 @@ from himit_torch.learner.engines.kernel.backup import (
     state_backup,
 )
 from himit_torch.learner.engines.kernel.heap import heapify, pop, push
+from himit_torch.learner.engines.kernel.jit import phase
 from himit_torch.learner.engines.kernel.sampling import (
     fexp,
     flog,
@@ -34,7 +35,7 @@ _INF = np.inf
 _TIE = 1e-12
 
 
-@njit(inline="always")
+@phase
 def act(st, world, rows, run, key, b, t):
     """One primitive step of run ``b``'s option at tick ``t`` (the torch engine's act phase):
     ``(row, nxt, at_goal, ended)``, the row executed, where it went, and whether the option
@@ -103,7 +104,7 @@ def decay_epsilon_per_step(st, run, b, at_goal):
         epsilon[b] = max(epsilon[b] * st.eps_decay, st.eps_min)
 
 
-@njit(inline="always")
+@phase
 def count_outcome(st, rows, cache, model, sweep, run, sample, key, b, row, nxt):
     """Learn: count the ended option's outcome (``DirichletSMDPModel.update``) and fold it into
     the Q cache (``ValueCache.add_outcome``; a sampling run: ``PosteriorSample.absorb`` and
@@ -171,7 +172,7 @@ def resample_due(st, rows, run, b, at_goal):
     )
 
 
-@njit(inline="always")
+@phase
 def plan(st, world, rows, cache, model, mentor, sweep, run, sample, scratch, b):
     """Prioritized sweeping of run ``b``'s pending budget (``Sweeper.sweep`` with
     ``ValueCache.backup_and_propagate``): rounds of up to ``round_size`` states above the
@@ -221,7 +222,7 @@ def plan(st, world, rows, cache, model, mentor, sweep, run, sample, scratch, b):
         done += round_size
 
 
-@njit(inline="always")
+@phase
 def _match_mentor(st, world, rows, cache, model, mentor, scratch, b, here):
     """The "match" rule (``choice._match_mentor``): where the mentor term wins eq. 2 at
     ``here``, own options whose first action best reproduces the mentor's move come first
@@ -262,7 +263,7 @@ def _match_mentor(st, world, rows, cache, model, mentor, scratch, b, here):
                 q_buf[b, j] += 1e6
 
 
-@njit(inline="always")
+@phase
 def choose(st, world, rows, cache, model, mentor, run, scratch, key, b, t, here):
     """ε-greedy over the own rows of ``here`` (``choice.choose_rows``) with the draws of tick
     ``t``: the run's next row, in ``run.row_of[b]``."""
@@ -310,7 +311,7 @@ def choose(st, world, rows, cache, model, mentor, run, scratch, key, b, t, here)
     run.row_of[b] = chosen
 
 
-@njit(inline="always")
+@phase
 def start_option(st, world, run, key, b, t, nxt, at_goal):
     """Where the next option starts: ``nxt``, or a start state after a goal (drawn with the
     uniforms of tick ``t``, ``WorldTables.start_states``); the option's counters reset."""
