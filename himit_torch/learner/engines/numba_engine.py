@@ -298,6 +298,10 @@ class NumbaEngine:
 
     def advance(self, ticks: int) -> None:
         """Carry out ``ticks`` ticks for every run (no window boundary inside)."""
+        if mentor_wins not in _called:
+            # loaded (or compiled) at the first tick, as the loop, not in the middle of a run at
+            # its first window's end; it only reads the state
+            self.mentor_wins()
         L = self.state
         t_end = L.run.t + ticks
         t_reached = np.full(L.batch, L.run.t, dtype=np.int64)
