@@ -11,6 +11,7 @@ from numba import njit
 from himit_torch.learner import posterior_sampling as _ps
 from himit_torch.learner.engines.kernel.backup import state_backup
 from himit_torch.learner.engines.kernel.heap import push
+from himit_torch.learner.engines.kernel.jit import phase
 from himit_torch.learner.engines.kernel.streams import splitmix, uniform
 
 _INF = np.inf
@@ -152,7 +153,7 @@ def _draw_row(k_edge, k_unseen, conc, b, row, heads, nexts, counts, row_count, w
     return n
 
 
-@njit(cache=True, error_model="numpy")
+@phase
 def resample(st, world, rows, cache, model, mentor, sweep, sample, key, b):
     """``BatchState.resample`` for run ``b``: fresh draws (``PosteriorSample.draw``), the caches
     rebuilt from them (``ValueCache.apply_sample``), the states whose eq. 2 changed queued."""

@@ -1,5 +1,6 @@
-"""The tick loop, one run at a time: act → learn → plan → choose, each phase one inlined
-function (:meth:`TorchEngine.tick <himit_torch.learner.engines.TorchEngine.tick>` for one run)."""
+"""The tick loop, one run at a time: act → learn → plan → choose, each phase one function
+(compiled on its own or inlined: :mod:`.jit`); :meth:`TorchEngine.tick
+<himit_torch.learner.engines.TorchEngine.tick>` for one run."""
 
 from __future__ import annotations
 
@@ -13,7 +14,7 @@ from himit_torch.learner.engines.kernel.backup import (
     state_backup,
 )
 from himit_torch.learner.engines.kernel.heap import heapify, pop, push
-from himit_torch.learner.engines.kernel.jit import phase
+from himit_torch.learner.engines.kernel.jit import entry, phase
 from himit_torch.learner.engines.kernel.sampling import (
     fexp,
     flog,
@@ -173,10 +174,11 @@ def resample_due(st, rows, run, b, at_goal):
 
 
 @phase
-def plan(st, world, rows, cache, model, mentor, sweep, run, sample, scratch, b):
+def plan(st, world, rows, cache, model, mentor, sweep, sample, scratch, b):
     """Prioritized sweeping of run ``b``'s pending budget (``Sweeper.sweep`` with
     ``ValueCache.backup_and_propagate``): rounds of up to ``round_size`` states above the
-    threshold, backed up together (eq. 2), then their changes propagated to predecessors."""
+    threshold, backed up together (eq. 2), then their changes propagated to predecessors.
+    Returns the number of states backed up."""
     sampled = rows.use_sampling[b]
     mentor_run = st.any_mentor and rows.use_mentor[b]
     round_size = st.round_size
@@ -187,6 +189,7 @@ def plan(st, world, rows, cache, model, mentor, sweep, run, sample, scratch, b):
     budget = sweep.pending[b] * st.backups
     sweep.pending[b] = 0
     done = 0
+    backed_up = 0
     while done < budget:
         n = min(round_size, budget - done)
         k = 0
@@ -203,7 +206,7 @@ def plan(st, world, rows, cache, model, mentor, sweep, run, sample, scratch, b):
             round_best[b, i] = best if has_value else values[b, s]
         for i in range(k):
             values[b, round_states[b, i]] = round_best[b, i]
-        run.backups_done[b] += k
+        backed_up += k
         for i in range(k):  # ...then their changes propagate
             d = round_delta[b, i]
             if d != 0:
@@ -220,6 +223,7 @@ def plan(st, world, rows, cache, model, mentor, sweep, run, sample, scratch, b):
                         round_old[b, i], sampled,
                     )  # fmt: skip
         done += round_size
+    return backed_up
 
 
 @phase
@@ -263,7 +267,7 @@ def _match_mentor(st, world, rows, cache, model, mentor, scratch, b, here):
                 q_buf[b, j] += 1e6
 
 
-@phase
+@njit(inline="always")
 def choose(st, world, rows, cache, model, mentor, run, scratch, key, b, t, here):
     """ε-greedy over the own rows of ``here`` (``choice.choose_rows``) with the draws of tick
     ``t``: the run's next row, in ``run.row_of[b]``."""
@@ -336,13 +340,7 @@ def start_option(st, world, run, key, b, t, nxt, at_goal):
     return here
 
 
-# error_model="numpy": a division by zero gives inf/nan instead of raising.
-# _nrt=False: no reference counting in the loop. The inlined helpers take whole arrays, and Numba
-# would otherwise incref and decref every one of them at every call (atomic operations on
-# counters shared by the threads, ≈ 30 of them per backup and per predecessor push). The loop
-# allocates nothing, and with the runtime off it cannot: Numba refuses to compile it if it did.
-# nogil=True: the engine calls it from several threads at once, one run each.
-@njit(cache=True, error_model="numpy", _nrt=False, nogil=True)  # type: ignore[call-overload]  # (not in the stubs)
+@entry  # (the flags: .jit)
 def run_ticks(
     b, t_end, t_reached, st, world, rows, cache, model, mentor, sweep, run, sample, scratch
 ):
@@ -368,7 +366,9 @@ def run_ticks(
             if resample_due(st, rows, run, b, at_goal):
                 resample(st, world, rows, cache, model, mentor, sweep, sample, key, b)
         if sweep.pending[b] > 0 and t % st.plan_every == 0:
-            plan(st, world, rows, cache, model, mentor, sweep, run, sample, scratch, b)
+            run.backups_done[b] += plan(
+                st, world, rows, cache, model, mentor, sweep, sample, scratch, b
+            )
         if ended:
             here = start_option(st, world, run, key, b, t - 1, nxt, at_goal)
             choose(st, world, rows, cache, model, mentor, run, scratch, key, b, t - 1, here)
