@@ -473,7 +473,7 @@ def run_experiments(
 
 
 def _kernels_prepared_here(configs: Sequence[ExperimentConfig]):
-    """:func:`~himit_torch.learner.engines.numba_engine.kernels_prepared_here` when some world will run
+    """:func:`~himit_torch.runs.kernels.kernels_prepared_here` when some world will run
     on the compiled engine, else nothing."""
     from contextlib import nullcontext
 
@@ -482,7 +482,7 @@ def _kernels_prepared_here(configs: Sequence[ExperimentConfig]):
     compiled = any(c.engine != "torch" and c.device == "cpu" for c in configs)
     if not (compiled and numba_available()):
         return nullcontext()
-    from himit_torch.learner.engines.numba_engine import kernels_prepared_here
+    from himit_torch.runs.kernels import kernels_prepared_here
 
     return kernels_prepared_here()
 

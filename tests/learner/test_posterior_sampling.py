@@ -25,7 +25,7 @@ def _streams(n: int, seed: int = 0, kind: int = 0):
 
 
 def test_fixed_log_and_exp_match_libm_and_the_kernel_bit_for_bit():
-    from himit_torch.learner.engines import _kernel
+    from himit_torch.learner.engines.kernel import sampling
 
     gen = torch.Generator().manual_seed(0)
     x = torch.cat(
@@ -41,8 +41,8 @@ def test_fixed_log_and_exp_match_libm_and_the_kernel_bit_for_bit():
     y = -torch.rand(2000, generator=gen, dtype=torch.float64) * 700
     torch.testing.assert_close(fixed_exp(y), torch.exp(y), rtol=1e-15, atol=0)
     assert fixed_exp(torch.tensor([float("-inf"), -800.0])).tolist() == [0.0, 0.0]
-    kernel_log = np.array([_kernel._flog(float(v)) for v in x[:300]])
-    kernel_exp = np.array([_kernel._fexp(float(v)) for v in y[:300]])
+    kernel_log = np.array([sampling.flog(float(v)) for v in x[:300]])
+    kernel_exp = np.array([sampling.fexp(float(v)) for v in y[:300]])
     assert np.array_equal(kernel_log, log[:300].numpy())
     assert np.array_equal(kernel_exp, fixed_exp(y[:300]).numpy())
 
@@ -61,13 +61,13 @@ def test_gamma_draws_have_the_gamma_distribution(shape):
 
 
 def test_gamma_draws_are_the_same_bits_in_the_kernel():
-    from himit_torch.learner.engines import _kernel
+    from himit_torch.learner.engines.kernel import sampling
 
     shapes = torch.tensor([0.05, 0.5, 1.0, 3.0, 17.0, 1e4] * 500, dtype=torch.float64)
     keys, slots = _streams(shapes.numel(), seed=3)
     torch_draws = gamma_draws(keys, slots, shapes).numpy()
     key = np.uint64(keys[0].numpy().view(np.uint64))
-    kernel = np.array([_kernel._gamma(key, int(s), float(a)) for s, a in zip(slots, shapes)])
+    kernel = np.array([sampling.gamma_draw(key, int(s), float(a)) for s, a in zip(slots, shapes)])
     assert np.array_equal(torch_draws, kernel)
     assert gamma_draws(keys[:2], slots[:2], torch.tensor([0.0, -1.0])).tolist() == [0.0, 0.0]
 

@@ -13,7 +13,7 @@ pytestmark = pytest.mark.skipif(not numba_available(), reason="numba is not inst
 
 WAITER = """
 import sys, time
-from himit_torch.learner.engines.numba_engine import prepare_kernels
+from himit_torch.runs.kernels import prepare_kernels
 print("waiting", flush=True)
 prepare_kernels()
 print(time.time(), flush=True)
@@ -21,7 +21,7 @@ print(time.time(), flush=True)
 
 
 def test_a_process_waits_for_the_one_preparing_the_kernels():
-    from himit_torch.learner.engines.numba_engine import kernels_prepared_here, prepare_kernels
+    from himit_torch.runs.kernels import kernels_prepared_here, prepare_kernels
 
     prepare_kernels()  # the cache is warm: the other process only has to load
     with kernels_prepared_here():
@@ -39,15 +39,15 @@ def test_the_warm_up_compiles_the_signatures_real_learners_use(world12):
     """After :func:`prepare_kernels`, an experiment-like batch (corner options, every agent kind,
     demonstrations) calls no kernel with new argument types, so it compiles nothing."""
     from himit_torch.learner.config import LearnerConfig
-    from himit_torch.learner.engines import _kernel
-    from himit_torch.learner.engines.numba_engine import prepare_kernels
+    from himit_torch.learner.engines.numba_engine import KERNELS
     from himit_torch.learner.learner import Learner
     from himit_torch.mentor.policy import mentor_policy, record_demonstrations
     from himit_torch.options.builders import learner_options, mentor_options
+    from himit_torch.runs.kernels import prepare_kernels
 
     prepare_kernels()
-    # (the loop's callees, e.g. ``_resample``, are compiled into it: not called from Python)
-    kernels = (_kernel._run, _kernel.link_edges, _kernel.mentor_wins)
+    # (the loop's callees, e.g. ``resample``, are compiled into it: not called from Python)
+    kernels = KERNELS
     before = [list(k.signatures) for k in kernels]
     assert all(len(s) >= 1 for s in before)
     demos = record_demonstrations(
