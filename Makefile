@@ -14,7 +14,7 @@ TORCH_SPEC ?= torch==2.13.0
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.himit-installed
 
-.PHONY: demo test test-all lint bench install clean
+.PHONY: demo test test-slow test-all lint bench install clean
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -40,6 +40,10 @@ lint: $(STAMP)
 	$(BIN)/ruff format --check .
 	$(BIN)/mypy
 	$(BIN)/lint-imports
+
+# the slow tests but the multi-seed statistical ones (CI runs make test, then this)
+test-slow: $(STAMP)
+	$(PYTEST) -m "slow and not statistical"
 
 test-all: $(STAMP)
 	$(PYTEST) -m "slow or not slow"

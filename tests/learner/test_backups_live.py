@@ -135,7 +135,7 @@ def torch_learner(world8):
         demonstrations=demos,
         engine="torch",
     )
-    learner.run(1500)
+    learner.run(600)
     return learner
 
 

@@ -584,6 +584,7 @@ def test_planning_to_convergence_reaches_the_learned_models_fixed_point(learned8
 
 
 @pytest.mark.slow
+@pytest.mark.statistical
 def test_every_agent_converges_near_the_optimal_rate(world8, demos8):
     """After 15,000 steps every agent reaches the goal at ≥ 90 % of the optimal policy's rate
     (window / expected steps of the optimal policy, :func:`expected_steps`; the same for

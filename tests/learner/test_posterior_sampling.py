@@ -176,7 +176,10 @@ class _HeavyDemonstrations:
         return self.src, self.dst
 
 
-@pytest.mark.parametrize("engine", ["numba", "torch"])
+@pytest.mark.parametrize(
+    "engine",
+    ["numba", pytest.param("torch", marks=pytest.mark.slow)],  # (the engines' parity
+)  # tests hold torch equal to numba for sampling runs in the fast suite)
 def test_with_counts_to_infinity_sampling_is_the_mean_agent(world12, engine):
     """Exact option models and a mentor model of 1e30 pseudo-counts: the posterior is a point
     mass, so a psrl run's sampled ``Q`` and mentor terms are its mean-model twin's (same seed),

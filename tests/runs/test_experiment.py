@@ -434,6 +434,7 @@ def without_wall_time(run_dir: Path) -> dict:
     return worlds
 
 
+@pytest.mark.slow
 def test_experiments_in_one_pool_end_as_each_alone(tmp_path):
     """``run_experiments`` (``himit run paper``) shares the worlds of several experiments out over
     the workers; each run directory ends as ``run_experiment`` alone leaves it."""

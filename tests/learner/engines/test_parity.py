@@ -359,6 +359,7 @@ def test_engine_choice_is_explained():
 
 
 @pytest.mark.slow
+@pytest.mark.statistical
 @pytest.mark.timeout(3600)
 def test_engine_curves_agree_statistically_over_20_seeds():
     """Experiment 2 (40×40), 20 seeds × 3 agents, 30k steps: per agent, the goals of the two
