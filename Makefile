@@ -1,7 +1,8 @@
 # Two entry points, each doing its own set-up on a fresh machine:
 #   make demo   — the main job (a short experiment-2 run: world, mentor demonstrations, figures)
-#   make lint   — ruff (lint + format check) and mypy; CI runs it before the tests
-#   make test   — the test suite (with Ray, the sweep extra: +250 MB, so the Ray test runs)
+#   make lint   — ruff (lint + format check), mypy and import-linter (the package's layers)
+#   make test   — the fast test suite, on both cores (with Ray, the sweep extra: +250 MB, so the
+#                 Ray test runs); make test-all adds the slow tests (long parity runs, 40×40, …)
 # The virtual environment lives in .venv. torch is installed first, on its own, as the build
 # named by TORCH_SPEC (default: torch==2.13.0, the CPU wheel on a CPU-only machine), so that the
 # package's plain "torch" requirement never pulls a multi-GB CUDA stack by accident. If .venv
@@ -13,7 +14,7 @@ TORCH_SPEC ?= torch==2.13.0
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.himit-installed
 
-.PHONY: demo test test-all lint bench install clean
+.PHONY: demo test test-slow test-all lint bench install clean
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -26,17 +27,26 @@ install: $(STAMP)
 demo: $(STAMP)
 	$(BIN)/himit demo
 
-test: $(STAMP)
-	$(BIN)/python -m pytest -q
+# pytest-xdist: PYTEST_WORKERS processes (default 2, the cores CI has; "0" runs in this process).
+PYTEST_WORKERS ?= 2
+PYTEST := $(BIN)/python -m pytest -q -n $(PYTEST_WORKERS)
 
-# ruff (lint rules and format check) and mypy, configured in pyproject.toml.
+test: $(STAMP)
+	$(PYTEST)
+
+# ruff (lint rules and format check), mypy and import-linter, configured in pyproject.toml.
 lint: $(STAMP)
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
 	$(BIN)/mypy
+	$(BIN)/lint-imports
+
+# the slow tests but the multi-seed statistical ones (CI runs make test, then this)
+test-slow: $(STAMP)
+	$(PYTEST) -m "slow and not statistical"
 
 test-all: $(STAMP)
-	$(BIN)/python -m pytest -q -m "slow or not slow"
+	$(PYTEST) -m "slow or not slow"
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_learner.py

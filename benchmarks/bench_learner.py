@@ -58,7 +58,7 @@ def measure(spec: str, batch: int, steps: int, engine: str, env=None) -> dict:
     size, rooms, corners = parse_world(spec)
     agent = "imitation" if batch == 1 else "mix"
     code = (
-        "import json, torch; from himit_torch.bench import benchmark; "
+        "import json, torch; from himit_torch.runs.bench import benchmark; "
         f"r = benchmark(size={size}, rooms={rooms}, corner_options={corners}, batch={batch}, "
         f"steps={steps}, agent={agent!r}, warmup=0, engine={engine!r}); "
         "print(json.dumps(dict(steps_per_second=r.steps_per_second, "

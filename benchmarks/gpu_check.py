@@ -54,7 +54,7 @@ cpu, gpu = runs["cpu"], runs["cuda"]
 same_rows = torch.equal(cpu.run_state.row, gpu.run_state.row.cpu())
 same_goals = torch.equal(cpu.goals, gpu.goals.cpu())
 same_curves = torch.equal(cpu.metrics.curve(), gpu.metrics.curve())
-drift = (cpu.values - gpu.values.cpu()).abs().max().item()
+drift = (cpu.state_values() - gpu.state_values().cpu()).abs().max().item()
 print(
     f"parity 12x12, 5 agents, 5000 ticks: same decisions {same_rows}, same goals {same_goals}, "
     f"same curves {same_curves}, max |V_cpu - V_cuda| = {drift:.3g}"

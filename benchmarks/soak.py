@@ -2,7 +2,7 @@
 
 Runs ``--total-steps`` primitive steps (summed over the batch) on experiment 1's world (80×80,
 10×10 rooms, the learner's corner options, 20 mentor episodes per seed) with experiment 1's
-agents and learner settings, saving a checkpoint generation (``himit_torch.checkpoints``) every
+agents and learner settings, saving a checkpoint generation (``himit_torch.runs.checkpoints``) every
 ``--checkpoint-every`` steps. At every checkpoint it records the process's current and peak
 resident memory (``/proc/self/statm``, ``getrusage``), the model sizes (edges of the fullest run)
 and the wall time. At the end it
@@ -35,11 +35,11 @@ import torch
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from himit_torch.checkpoints import BatchShape, CheckpointGenerations  # noqa: E402
-from himit_torch.experiment import EXPERIMENTS  # noqa: E402
-from himit_torch.learner import Learner  # noqa: E402
-from himit_torch.mentor import mentor_policy, record_demonstrations  # noqa: E402
-from himit_torch.options import learner_options, mentor_options  # noqa: E402
+from himit_torch.learner.learner import Learner  # noqa: E402
+from himit_torch.mentor.policy import mentor_policy, record_demonstrations  # noqa: E402
+from himit_torch.options.builders import learner_options, mentor_options  # noqa: E402
+from himit_torch.runs.checkpoints import BatchShape, CheckpointGenerations  # noqa: E402
+from himit_torch.runs.config import EXPERIMENTS  # noqa: E402
 
 
 def rss_mib() -> float:
@@ -218,7 +218,7 @@ def main() -> int:
         found = generations.load(expect_batch=batch, expect_layout=layout)
         assert found is not None
         prev = found.checkpoint.path
-        from himit_torch.checkpoints import read_checkpoint
+        from himit_torch.runs.checkpoints import read_checkpoint
 
         ckpt = read_checkpoint(generations.previous, expect_batch=batch, expect_layout=layout)
         resumed_learner.load_state_dict(ckpt.payload["learner"])

@@ -6,13 +6,14 @@ confidence-tested mentor term), options only, primitives only; 5 seeds each, one
 
     python experiments/exp1_large_library.py [--steps N] [--seeds K] [--logdir runs] [--resume]
 
-(the same as ``himit run exp1``). Settings: ``himit_torch.experiment.EXPERIMENTS["exp1"]``.
+(the same as ``himit run exp1``). Settings: ``himit_torch.runs.config.EXPERIMENTS["exp1"]``.
 """
 
 import argparse
 from dataclasses import replace
 
-from himit_torch.experiment import EXPERIMENTS, run_experiment
+from himit_torch.runs.config import EXPERIMENTS
+from himit_torch.runs.experiment import run_experiment
 
 parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
 parser.add_argument("--steps", type=int, default=EXPERIMENTS["exp1"].steps)

@@ -6,13 +6,14 @@ reliably; the non-imitating agent failed to find it in 4 of 5 runs.
 
     python experiments/exp2_insufficient_options.py [--steps N] [--seeds K] [--logdir runs]
 
-(the same as ``himit run exp2``). Settings: ``himit_torch.experiment.EXPERIMENTS["exp2"]``.
+(the same as ``himit run exp2``). Settings: ``himit_torch.runs.config.EXPERIMENTS["exp2"]``.
 """
 
 import argparse
 from dataclasses import replace
 
-from himit_torch.experiment import EXPERIMENTS, run_experiment
+from himit_torch.runs.config import EXPERIMENTS
+from himit_torch.runs.experiment import run_experiment
 
 parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
 parser.add_argument("--steps", type=int, default=EXPERIMENTS["exp2"].steps)

@@ -7,13 +7,14 @@ Add ``--sizes 64 80 96 120 240`` to go beyond the paper.
 
     python experiments/exp3_scaling.py [--sizes 64 80 96 120] [--steps N] [--seeds K]
 
-(the same as ``himit run exp3``). Settings: ``himit_torch.experiment.EXPERIMENTS["exp3"]``.
+(the same as ``himit run exp3``). Settings: ``himit_torch.runs.config.EXPERIMENTS["exp3"]``.
 """
 
 import argparse
 from dataclasses import replace
 
-from himit_torch.experiment import EXPERIMENTS, run_experiment
+from himit_torch.runs.config import EXPERIMENTS
+from himit_torch.runs.experiment import run_experiment
 
 parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
 parser.add_argument("--sizes", type=int, nargs="+", default=list(EXPERIMENTS["exp3"].sizes))

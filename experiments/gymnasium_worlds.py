@@ -7,14 +7,14 @@ seeds each, in one batch per task. Results: mean ± 95 % CI over seeds, figures,
     python experiments/gymnasium_worlds.py [--seeds K] [--steps N] [--tasks taxi,…] [--logdir runs]
 
 (the same as ``himit run gymnasium``; about 7 minutes on a 2-core CPU). Settings:
-``himit_torch.gym_experiment``; committed results: ``experiments/results/gymnasium/``.
+``himit_torch.runs.gymnasium``; committed results: ``experiments/results/gymnasium/``.
 """
 
 import argparse
 
 import torch
 
-from himit_torch.gym_experiment import TASKS, GymExperimentConfig, run_gym_experiment
+from himit_torch.runs.gymnasium import TASKS, GymExperimentConfig, run_gym_experiment
 
 parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
 parser.add_argument("--seeds", type=int, default=GymExperimentConfig.seeds)

@@ -5,17 +5,8 @@ Bellman equation with options (Friesen & Rao, "Imitation learning with hierarchi
 ``B`` independent runs advance together as tensors; see ``README.md`` for a tour.
 """
 
-from . import backups
-from .demonstrations import DEMONSTRATIONS_FORMAT_VERSION, Demonstrations
-from .dirichlet_models import (
-    DirichletMentorModel,
-    DirichletSMDPModel,
-    EdgeStore,
-    SuccessorDirichlet,
-)
-from .discovery import Subgoals, discover_subgoals, learned_subgoal_options, one_step_counts
-from .exact_option_models import OptionModels, option_durations, option_models
-from .exact_planning import (
+from himit_torch.exact.option_models import OptionModels, option_durations, option_models
+from himit_torch.exact.planning import (
     OptimalBaseline,
     PlanResult,
     expected_steps,
@@ -24,10 +15,20 @@ from .exact_planning import (
     smdp_value_iteration,
     value_iteration,
 )
-from .gym_adapter import from_gymnasium, taxi_navigation_options
-from .gym_env import ENV_ID, MultiRoomsEnv, register_envs
-from .learner import AGENTS, Learner, LearnerConfig
-from .mentor import (
+from himit_torch.learner import backups
+from himit_torch.learner.agents import AGENTS
+from himit_torch.learner.config import LearnerConfig
+from himit_torch.learner.learner import Learner
+from himit_torch.learner.models import (
+    DirichletMentorModel,
+    DirichletSMDPModel,
+    EdgeStore,
+    SuccessorDirichlet,
+)
+from himit_torch.learner.option_refresh import with_options
+from himit_torch.learner.prioritized_sweeping import BlockPriorityQueue
+from himit_torch.mentor.demonstrations import DEMONSTRATIONS_FORMAT_VERSION, Demonstrations
+from himit_torch.mentor.policy import (
     ExactMentorTransitions,
     MentorPolicy,
     MentorRollout,
@@ -36,18 +37,7 @@ from .mentor import (
     record_demonstrations,
     run_mentor,
 )
-from .option_refresh import with_options
-from .options import (
-    OPTION_KINDS,
-    Options,
-    corner_options,
-    doorway_options,
-    learner_options,
-    mentor_options,
-    primitive_options,
-    subgoal_options,
-)
-from .reward import (
+from himit_torch.mentor.reward import (
     MENTOR_REWARDS,
     SALIENCE_EVENTS,
     KnownReward,
@@ -56,10 +46,33 @@ from .reward import (
     ZeroReward,
     mentor_reward_module,
 )
-from .sweep_queue import BlockPriorityQueue
-from .table_world import TableWorld, describe_world, transition_support, world_model
-from .tensorboard_logger import TensorBoardLogger
-from .world import STIMULUS_FEATURES, DynamicsTable, MultiRooms, TabularWorld
+from himit_torch.options.builders import (
+    corner_options,
+    doorway_options,
+    learner_options,
+    mentor_options,
+    primitive_options,
+    subgoal_options,
+)
+from himit_torch.options.bundle import OPTION_KINDS, Options
+from himit_torch.options.discovery import (
+    Subgoals,
+    discover_subgoals,
+    learned_subgoal_options,
+    one_step_counts,
+)
+from himit_torch.options.taxi import taxi_navigation_options
+from himit_torch.viz.tensorboard import TensorBoardLogger
+from himit_torch.worlds.gym_env import ENV_ID, MultiRoomsEnv, register_envs
+from himit_torch.worlds.gymnasium import from_gymnasium
+from himit_torch.worlds.multirooms import STIMULUS_FEATURES, MultiRooms
+from himit_torch.worlds.table_world import (
+    TableWorld,
+    describe_world,
+    transition_support,
+    world_model,
+)
+from himit_torch.worlds.tabular import DynamicsTable, TabularWorld
 
 __version__ = "0.1.0"
 

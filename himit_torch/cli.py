@@ -23,25 +23,29 @@ and exit status 2, never a traceback.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import NoReturn
+from typing import Any, NoReturn
 
 import torch
 
-from .demonstrations import Demonstrations
-from .exact_option_models import option_durations, option_models
-from .exact_planning import expected_steps, smdp_value_iteration
-from .mentor import mentor_policy, run_mentor
-from .options import Options, learner_options, mentor_options, primitive_options
-from .reward import MENTOR_REWARDS
-from .rows import AGENTS
-from .tensorboard_logger import tensorboard_command
-from .world import MultiRooms
+from himit_torch.exact.option_models import option_durations, option_models
+from himit_torch.exact.planning import expected_steps, smdp_value_iteration
+from himit_torch.learner.config import LearnerConfig
+from himit_torch.learner.engines import ENGINES
+from himit_torch.mentor.demonstrations import Demonstrations
+from himit_torch.mentor.policy import mentor_policy, run_mentor
+from himit_torch.options.builders import learner_options, mentor_options, primitive_options
+from himit_torch.options.bundle import Options
+from himit_torch.runs.config import ExperimentConfig
+from himit_torch.validation import settings_of
+from himit_torch.viz.tensorboard import tensorboard_command
+from himit_torch.worlds.multirooms import MultiRooms
 
 __all__ = ["main", "build_parser", "COMMANDS"]
 
@@ -85,6 +89,81 @@ def _int_at_least(minimum: int) -> Callable[[str], int]:
 
 _positive_int = _int_at_least(1)
 _nonnegative_int = _int_at_least(0)
+
+
+# ------------------------------------------------------------------- flags from the settings
+# A small generator rather than tyro or simple-parsing: both build a whole config from the
+# library's defaults, so they cannot tell a given flag from an absent one — and the precedence
+# (the experiment's defaults < --config < flags) needs exactly that — and both would replace
+# argparse's one-line errors and the subcommands. Here each declared field becomes one argparse
+# flag whose value is only read from text; the config's own validation then judges it.
+def _setting_text(kind: Any, optional: bool) -> Callable[[str], Any]:
+    """An argparse type: the text of a flag as the number or string the config checks."""
+
+    def parse(text: str) -> Any:
+        if optional and text.lower() == "none":
+            return None
+        if kind is str:
+            return text
+        try:
+            return int(text) if kind is int and text.lstrip("+-").isdigit() else float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"invalid {'whole ' if kind is int else ''}number: {text!r}"
+                + (" (or none)" if optional else "")
+            ) from None
+
+    return parse
+
+
+def _add_setting_flags(
+    group: argparse._ArgumentGroup, config_class: type, prefix: str, skip: Sequence[str] = ()
+) -> None:
+    """One flag per declared field of ``config_class`` (``--mentor-fade`` for ``mentor_fade``),
+    its help the field's doc. A flag not given leaves no attribute (``argparse.SUPPRESS``), so
+    :func:`_given_settings` tells given flags from absent ones."""
+    for s in settings_of(config_class):
+        if s.name in skip or dataclasses.is_dataclass(s.kind):
+            continue
+        doc = " ".join(s.info.doc.split()).replace("%", "%%")
+        default = "none" if s.default is None else s.default
+        if isinstance(default, tuple):
+            default = " ".join(map(str, default))
+        options: dict[str, Any] = dict(
+            dest=f"{prefix}.{s.name}",
+            default=argparse.SUPPRESS,
+            help=f"{doc} (default: {default})",
+        )
+        if s.kind is bool:
+            options["action"] = argparse.BooleanOptionalAction
+        else:
+            options["type"] = _setting_text(s.item if s.kind is tuple else s.kind, s.optional)
+            options["metavar"] = s.name.upper()
+            if s.kind is tuple:
+                options["nargs"] = "+"
+                options["metavar"] = s.name.upper().removesuffix("S")
+            if s.info.choices:
+                options["choices"] = s.info.choices
+                if s.kind is not tuple:
+                    del options["metavar"]  # argparse shows {a,b,…}
+                else:
+                    options["help"] = (
+                        f"{doc} From: {', '.join(s.info.choices)} (default: {default})"
+                    )
+        group.add_argument(f"--{s.name.replace('_', '-')}", **options)
+
+
+def _given_settings(args: argparse.Namespace, prefix: str) -> dict[str, Any]:
+    """The fields given as flags by :func:`_add_setting_flags` under ``prefix``."""
+    return {
+        dest.split(".", 1)[1]: tuple(value) if isinstance(value, list) else value
+        for dest, value in vars(args).items()
+        if dest.startswith(prefix + ".")
+    }
+
+
+def _flag(field: str) -> str:
+    return "--" + field.replace("_", "-")
 
 
 # ------------------------------------------------------------------------------------- info
@@ -174,11 +253,11 @@ def _info_gymnasium(args: argparse.Namespace, t0: float) -> int:
     """``himit info --env``: a Gymnasium world through the adapter, exactly solved."""
     import json
 
-    from .exact_planning import value_iteration
-    from .gym_adapter import from_gymnasium
-    from .gym_experiment import TASKS, episode_statistics
-    from .reward import KnownReward
-    from .table_world import world_model
+    from himit_torch.exact.planning import value_iteration
+    from himit_torch.mentor.reward import KnownReward
+    from himit_torch.runs.gymnasium import TASKS, episode_statistics
+    from himit_torch.worlds.gymnasium import from_gymnasium
+    from himit_torch.worlds.table_world import world_model
 
     try:
         kwargs = json.loads(args.env_kwargs) if args.env_kwargs else {}
@@ -273,8 +352,11 @@ def cmd_demo(args: argparse.Namespace) -> int:
     batched learning run with TensorBoard logs and figures (about a minute on a laptop CPU)."""
     from dataclasses import replace
 
-    from .experiment import EXPERIMENTS, run_experiment
-    from .plotting import save_world_figure  # matplotlib only when a picture is wanted
+    from himit_torch.runs.config import EXPERIMENTS
+    from himit_torch.runs.experiment import run_experiment
+    from himit_torch.viz.plotting import (
+        save_world_figure,  # matplotlib only when a picture is wanted
+    )
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -362,17 +444,14 @@ def _add_demo(sub: argparse.ArgumentParser) -> None:
 
 # -------------------------------------------------------------------------------------- run
 def cmd_run(args: argparse.Namespace) -> int:
-    from .experiment import run_experiments
+    from himit_torch.runs.experiment import run_experiments
 
-    if args.experiment in ("gymnasium", "discovery") and args.agents is not None:
-        raise ValueError(
-            f"himit run {args.experiment} takes no --agents (its agents are fixed by "
-            "its design); --agents is for exp1, exp2, exp3 and paper"
-        )
     if args.experiment == "gymnasium":
         return _run_gymnasium(args)
     if args.experiment == "discovery":
         return _run_discovery(args)
+    if args.experiment == "paper" and "experiment.name" in args:
+        raise ValueError("himit run paper takes no --name (its three experiments keep theirs)")
     if args.experiment == "paper" and args.config:
         raise ValueError(
             "himit run paper takes no --config (it runs exp1, exp2 and exp3, each with its "
@@ -405,11 +484,15 @@ def cmd_run(args: argparse.Namespace) -> int:
 PAPER_EXPERIMENTS = ("exp1", "exp2", "exp3")
 
 
-def _experiment_config(name: str, args: argparse.Namespace):
-    """The configuration of experiment ``name`` with the command line's changes."""
-    from dataclasses import replace
+def _experiment_config(name: str, args: argparse.Namespace) -> ExperimentConfig:
+    """The configuration of experiment ``name`` with the command line's changes. Precedence,
+    lowest first: the library's defaults, the experiment's own (:data:`EXPERIMENTS`), a
+    ``--config`` file (a whole configuration, in their place), ``--quick``, the flags given.
 
-    from .experiment import EXPERIMENTS, load_config
+    A resumed run must be given the configuration it started with (the same flags, or
+    ``--config`` of its saved ``config.json``): :func:`~himit_torch.runs.experiment.run_experiments`
+    refuses any other."""
+    from himit_torch.runs.config import EXPERIMENTS, load_config
 
     if args.config:
         config = load_config(args.config)
@@ -419,24 +502,18 @@ def _experiment_config(name: str, args: argparse.Namespace):
         config = EXPERIMENTS[name]
     if args.quick:
         config = config.quick()
-    changes = {}
-    if args.seeds is not None:
-        changes["seeds"] = args.seeds
-    if args.steps is not None:
-        changes["steps"] = args.steps
-        changes["checkpoint_every"] = max(
-            config.window, min(config.checkpoint_every, args.steps // config.window * config.window)
+    changes = _given_settings(args, "experiment")
+    learner_changes = _given_settings(args, "learner")
+    if learner_changes:
+        changes["learner"] = dataclasses.replace(config.learner, **learner_changes)
+    config = dataclasses.replace(config, **changes)
+    if "steps" in changes and "checkpoint_every" not in changes:
+        # A shorter run still saves at least once before its end (at a window boundary).
+        window = config.window
+        checkpoint_every = max(
+            window, min(config.checkpoint_every, config.steps // window * window)
         )
-    if args.device is not None:
-        changes["device"] = args.device
-    if args.engine is not None:
-        changes["engine"] = args.engine
-    if args.mentor_reward is not None:
-        changes["mentor_reward"] = args.mentor_reward
-    if args.agents is not None:
-        changes["agents"] = tuple(args.agents)
-    if changes:
-        config = replace(config, **changes)
+        config = dataclasses.replace(config, checkpoint_every=checkpoint_every)
     if config.device.startswith("cuda") and not torch.cuda.is_available():
         raise ValueError(
             "--device cuda: no CUDA device is available here (install a CUDA build of "
@@ -445,30 +522,40 @@ def _experiment_config(name: str, args: argparse.Namespace):
     return config
 
 
+def _refuse_flags(args: argparse.Namespace, allowed: Sequence[str], why: str) -> dict[str, Any]:
+    """The setting flags of ``allowed`` that were given; any other setting flag is refused,
+    naming the flags, those allowed and ``why``."""
+    given = _given_settings(args, "experiment")
+    refused = [_flag(k) for k in given if k not in allowed]
+    refused += [_flag(k) for k in _given_settings(args, "learner")]
+    if refused:
+        raise ValueError(
+            f"himit run {args.experiment} takes no {', '.join(refused)} (of the settings only "
+            f"{', '.join(map(_flag, allowed))}: {why})"
+        )
+    return {k: v for k, v in given.items() if k in allowed}
+
+
 def _run_gymnasium(args: argparse.Namespace) -> int:
-    """``himit run gymnasium``: Taxi, CliffWalking, FrozenLake 8×8 (``gym_experiment``)."""
+    """``himit run gymnasium``: Taxi, CliffWalking, FrozenLake 8×8 (:mod:`himit_torch.runs.gymnasium`)."""
     from dataclasses import replace
 
-    from .gym_experiment import GymExperimentConfig, run_gym_experiment
+    from himit_torch.runs.gymnasium import GymExperimentConfig, run_gym_experiment
 
-    if args.mentor_reward is not None:
-        raise ValueError(
-            "himit run gymnasium takes no --mentor-reward (its imitators use the "
-            "world's own reward, KnownReward)"
-        )
     if args.config or args.resume:
         raise ValueError(
             "himit run gymnasium takes no --config or --resume (each task is one "
             "batch; rerun a task with --force)"
         )
+    changes = _refuse_flags(
+        args,
+        ("seeds", "steps", "device"),
+        "its agents are fixed by its design and its imitators use the world's own reward, "
+        "KnownReward",
+    )
     config = GymExperimentConfig()
     if args.quick:
         config = config.quick()
-    changes = {
-        k: v
-        for k, v in (("seeds", args.seeds), ("steps", args.steps), ("device", args.device))
-        if v is not None
-    }
     config = replace(config, **changes)
     if config.device.startswith("cuda") and not torch.cuda.is_available():
         raise ValueError("--device cuda: no CUDA device is available here — use --device cpu")
@@ -485,35 +572,33 @@ def _run_gymnasium(args: argparse.Namespace) -> int:
 
 def _run_discovery(args: argparse.Namespace) -> int:
     """``himit run discovery``: options discovered from the mentor's states
-    (``discovery_experiment``) on experiment 1's and 2's worlds."""
+    (:mod:`himit_torch.runs.discovery`) on experiment 1's and 2's worlds."""
     from dataclasses import replace
 
-    from .discovery_experiment import DiscoveryConfig, run_discovery
+    from himit_torch.runs.discovery import DiscoveryConfig, run_discovery
 
     refused = [
         flag
         for flag, value in (
             ("--config", args.config),
             ("--resume", args.resume),
-            ("--mentor-reward", args.mentor_reward),
-            ("--device", args.device),
             ("--workers", args.workers),
         )
         if value
     ]
     if refused:
         raise ValueError(
-            f"himit run discovery takes no {', '.join(refused)} (it runs on the CPU in "
-            "one process, with the world's own mentor reward; rerun with --force)"
+            f"himit run discovery takes no {', '.join(refused)} (it runs on the CPU in one "
+            "process; rerun with --force)"
         )
+    changes = _refuse_flags(
+        args,
+        ("seeds", "steps", "engine"),
+        "its agents are fixed by its design; it runs on the CPU with the world's own mentor reward",
+    )
     config = DiscoveryConfig()
     if args.quick:
         config = config.quick()
-    changes = {
-        k: v
-        for k, v in (("seeds", args.seeds), ("steps", args.steps), ("engine", args.engine))
-        if v is not None
-    }
     config = replace(config, **changes)
     run_dir = Path(args.logdir) / config.name
     print(f"{config.name}: worlds {list(config.worlds)}, {config.seeds} seeds → {run_dir}")
@@ -531,42 +616,18 @@ def _add_run(sub: argparse.ArgumentParser) -> None:
         "the cores together; gymnasium: Taxi, CliffWalking, FrozenLake 8×8; "
         "discovery: options discovered from the mentor's states)",
     )
-    sub.add_argument("--seeds", type=_positive_int, help="runs per agent (default 5)")
-    sub.add_argument(
-        "--agents",
-        nargs="+",
-        choices=sorted(AGENTS),
-        metavar="AGENT",
-        help="agent variants to run (default: the experiment's), from: "
-        + ", ".join(sorted(AGENTS))
-        + " (…_psrl: posterior sampling)",
-    )
-    sub.add_argument(
-        "--steps", type=_positive_int, help="steps per run (default: the experiment's)"
-    )
     sub.add_argument("--quick", action="store_true", help="tiny budget (smoke test)")
     sub.add_argument("--logdir", default="runs", help="parent folder of the run directory")
-    sub.add_argument("--device", help="cpu (default) or cuda")
-    sub.add_argument(
-        "--engine",
-        choices=["auto", "numba", "torch"],
-        help="auto (default): the compiled loop on a CPU, torch on a GPU",
-    )
-    sub.add_argument(
-        "--mentor-reward",
-        choices=list(MENTOR_REWARDS),
-        help="the reward R_m of the mentor's transitions in the imitators' mentor "
-        "term: known (the world's, default), salience (intrinsic, from the "
-        "mentor's states) or none (r_m = 0)",
-    )
     sub.add_argument(
         "--config",
-        help="a config.json (as saved in a run directory) to run instead of the defaults",
+        help="a config.json (as saved in a run directory) to run instead of the experiment's "
+        "defaults; flags given beside it change it",
     )
     sub.add_argument(
         "--resume",
         action="store_true",
-        help="continue an interrupted run from its newest good checkpoint",
+        help="continue an interrupted run from its newest good checkpoint (give the flags it "
+        "started with, or --config of its config.json)",
     )
     sub.add_argument("--force", action="store_true", help="overwrite a finished run")
     sub.add_argument("--quiet", action="store_true", help="no progress bars")
@@ -577,14 +638,36 @@ def _add_run(sub: argparse.ArgumentParser) -> None:
         "at most one per world — with paper, the worlds of all three experiments; "
         "the results do not depend on it)",
     )
+    _add_setting_flags(
+        sub.add_argument_group(
+            "experiment settings",
+            "Fields of ExperimentConfig. Defaults shown are the library's; exp1, exp2 and exp3 "
+            "set their own (himit_torch.runs.config.EXPERIMENTS), --config a file's. "
+            "gymnasium takes only --seeds, --steps and --device, discovery only --seeds, "
+            "--steps and --engine.",
+        ),
+        ExperimentConfig,
+        "experiment",
+    )
+    _add_setting_flags(
+        sub.add_argument_group(
+            "learner settings",
+            "Fields of LearnerConfig (exp1, exp2 and exp3 set plan_every=4, sweep_rounds=1). "
+            "Its window is the experiment's --window.",
+        ),
+        LearnerConfig,
+        "learner",
+        skip=("window",),
+    )
 
 
 # ------------------------------------------------------------------------------------- plot
 def cmd_plot(args: argparse.Namespace) -> int:
     import json
 
-    from .experiment import WorldResult, load_config
-    from .report import write_figures, write_results
+    from himit_torch.runs.config import load_config
+    from himit_torch.runs.experiment import WorldResult
+    from himit_torch.viz.report import write_figures, write_results
 
     run_dir = Path(args.run_dir)
     config = load_config(run_dir / "config.json")
@@ -609,7 +692,7 @@ def _add_plot(sub: argparse.ArgumentParser) -> None:
 
 # ------------------------------------------------------------------------------------ sweep
 def cmd_sweep(args: argparse.Namespace) -> int:
-    from .sweep import load_spec, run_sweep
+    from himit_torch.runs.sweep import load_spec, run_sweep
 
     spec = load_spec(args.spec)
     out = Path(args.out) if args.out else Path("runs") / "sweeps" / spec.name
@@ -630,7 +713,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
 
 def _add_sweep(sub: argparse.ArgumentParser) -> None:
-    from . import sweep
+    from himit_torch.runs import sweep
 
     sub.formatter_class = argparse.RawDescriptionHelpFormatter
     doc = sweep.__doc__
@@ -665,7 +748,7 @@ def _add_sweep(sub: argparse.ArgumentParser) -> None:
 
 # ------------------------------------------------------------------------------------ bench
 def cmd_bench(args: argparse.Namespace) -> int:
-    from .bench import benchmark
+    from himit_torch.runs.bench import benchmark
 
     result = benchmark(
         size=args.size,
@@ -705,7 +788,7 @@ def _add_bench(sub: argparse.ArgumentParser) -> None:
     sub.add_argument(
         "--engine",
         default="auto",
-        choices=["auto", "numba", "torch"],
+        choices=ENGINES,
         help="auto: the compiled loop on a CPU, torch on a GPU",
     )
 

@@ -13,6 +13,12 @@ Conversion rules (the same everywhere a number is read):
 
 Every refusal is a ``ValueError`` naming the field and what would be right.
 
+Settings (the fields of the configuration dataclasses) are declared once with :func:`setting`:
+type (the annotation), range, choices and doc, and whether the compiled engine reads them.
+:func:`check_settings` applies the rules above to every declared field, so a configuration's
+``__post_init__`` lists only its cross-field rules; the CLI's flags and the kernel's packed
+settings are generated from the same declarations (:func:`settings_of`).
+
 Sizes: before something large is allocated (a world's tables, a bundle of options, a batch of
 runs) its bytes are estimated and refused up front when they exceed :func:`memory_limit` —
 by default 80 % of the memory available when asked (``/proc/meminfo``'s ``MemAvailable``, or
@@ -22,10 +28,15 @@ with a unit: ``64GiB``, ``500MB``; ``0`` or ``off`` switches the check off) to c
 
 from __future__ import annotations
 
+import dataclasses
+import functools
+import inspect
 import math
 import numbers
 import os
 import re
+import types
+import typing
 from typing import Any
 
 import numpy as np
@@ -35,6 +46,12 @@ __all__ = [
     "as_float",
     "as_tuple",
     "as_choice",
+    "COUNT_MAX",
+    "Setting",
+    "setting",
+    "settings_of",
+    "check_settings",
+    "refuse_unknown_fields",
     "memory_limit",
     "check_memory",
     "format_bytes",
@@ -110,6 +127,167 @@ def as_choice(where: str, value: Any, choices: tuple[str, ...]) -> str:
     if not isinstance(value, str) or value not in choices:
         raise ValueError(f"{where}={value!r}: use one of {list(choices)}")
     return value
+
+
+# =================================================================================== settings
+#: Largest whole-number setting unless a field declares its own: the product of two counts
+#: (``plan_every · backups``, a sweep's budget) then still fits the engines' int64.
+COUNT_MAX = 2**31 - 1
+
+#: Key of a field's :class:`Setting` in its ``dataclasses.field`` metadata.
+_SETTING_KEY = "himit_setting"
+
+
+@dataclasses.dataclass(frozen=True)
+class Setting:
+    """What a configuration field is, beside its name, type (the annotation) and default.
+
+    ``ge``/``gt``/``le``/``lt`` bound a number (a whole number takes ``ge``/``le`` only, and
+    ``le`` defaults to :data:`COUNT_MAX`); ``choices`` are the strings a ``str`` field (or every
+    item of a ``tuple[str, ...]``) may take; ``hint`` is added to a refusal (what the value
+    means). ``kernel``: the compiled engine reads the field, encoded as a number — a choice as
+    its index in ``choices``, ``None`` as ``kernel_none``.
+    """
+
+    doc: str
+    ge: float | None = None
+    gt: float | None = None
+    le: float | None = None
+    lt: float | None = None
+    choices: tuple[str, ...] = ()
+    hint: str = ""
+    kernel: bool = False
+    kernel_none: int | float | None = None
+
+
+def setting(
+    default: Any = dataclasses.MISSING,
+    *,
+    doc: str,
+    default_factory: Any = dataclasses.MISSING,
+    **spec: Any,
+) -> Any:
+    """A dataclass field declared with its :class:`Setting` (``spec``: its other fields).
+
+    Typed ``Any`` so that ``backups: int = setting(10, …)`` reads as the field's default to a
+    type checker, as ``dataclasses.field`` does."""
+    info = Setting(doc=inspect.cleandoc(doc), **spec)
+    return dataclasses.field(
+        default=default, default_factory=default_factory, metadata={_SETTING_KEY: info}
+    )
+
+
+@dataclasses.dataclass(frozen=True)
+class DeclaredSetting:
+    """One declared field of a configuration class: its name, type, default and
+    :class:`Setting`. ``kind`` is the type without ``None``: ``int``, ``float``, ``str``,
+    ``bool``, ``tuple`` (of ``item``) or a dataclass; ``optional``: ``None`` is allowed."""
+
+    name: str
+    kind: Any
+    item: Any
+    optional: bool
+    default: Any
+    info: Setting
+
+
+@functools.cache
+def settings_of(cls: type) -> tuple[DeclaredSetting, ...]:
+    """The declared fields of the dataclass ``cls``, in order (fields without a
+    :class:`Setting` are left out)."""
+    hints = typing.get_type_hints(cls)
+    out = []
+    for f in dataclasses.fields(cls):
+        info = f.metadata.get(_SETTING_KEY)
+        if info is None:
+            continue
+        kind, optional = hints[f.name], False
+        if isinstance(kind, types.UnionType) or typing.get_origin(kind) is typing.Union:
+            members = [a for a in typing.get_args(kind) if a is not type(None)]
+            if len(members) != 1:
+                raise TypeError(f"{cls.__name__}.{f.name}: only `X | None` unions are settings")
+            kind, optional = members[0], True
+        item = None
+        if typing.get_origin(kind) is tuple:
+            item, kind = typing.get_args(kind)[0], tuple
+        if kind is int and (info.gt is not None or info.lt is not None):
+            raise TypeError(f"{cls.__name__}.{f.name}: a whole number is bounded by ge/le")
+        if info.kernel and optional and info.kernel_none is None:
+            raise TypeError(f"{cls.__name__}.{f.name}: a kernel setting needs kernel_none")
+        default = f.default_factory() if callable(f.default_factory) else f.default
+        out.append(DeclaredSetting(f.name, kind, item, optional, default, info))
+    return tuple(out)
+
+
+def _convert(where: str, value: Any, kind: Any, info: Setting) -> Any:
+    """``value`` of one field (or one tuple item) by the module's rules."""
+    if kind is bool:
+        if not isinstance(value, (bool, np.bool_)):
+            raise ValueError(f"{where} must be true or false, got {value!r}")
+        return bool(value)
+    if kind is int:
+        maximum = COUNT_MAX if info.le is None else int(info.le)
+        minimum = None if info.ge is None else int(info.ge)
+        return as_int(where, value, minimum, maximum)
+    if kind is float:
+        low = info.gt if info.gt is not None else info.ge
+        high = info.lt if info.lt is not None else info.le
+        return as_float(where, value, low, high, info.gt is not None, info.lt is not None)
+    if kind is str:
+        if info.choices:
+            return as_choice(where, value, info.choices)
+        if not isinstance(value, str) or not value:
+            raise ValueError(f"{where} must be a non-empty string, got {value!r}")
+        return value
+    raise TypeError(f"{where}: no input rule for {kind!r}")  # pragma: no cover (declaration bug)
+
+
+def _is_config_class(kind: Any) -> bool:
+    """A dataclass type (a nested configuration), as a plain bool (no type narrowing)."""
+    return isinstance(kind, type) and dataclasses.is_dataclass(kind)
+
+
+def check_settings(config: Any) -> None:
+    """Convert and check every declared field of the dataclass instance ``config`` in place (the
+    rules of this module, the declared ranges and choices); a refusal names
+    ``ClassName.field``. Cross-field rules stay with the class."""
+    cls: type = type(config)
+    for s in settings_of(cls):
+        where = f"{cls.__name__}.{s.name}"
+        value = getattr(config, s.name)
+        try:
+            if value is None and s.optional:
+                continue
+            if _is_config_class(s.kind):
+                if isinstance(value, dict):
+                    refuse_unknown_fields(value, s.kind, where)
+                    value = s.kind(**value)
+                elif not isinstance(value, s.kind):
+                    raise ValueError(
+                        f"{where} must be a {s.kind.__name__} or a dict, got {type(value).__name__}"
+                    )
+            elif s.kind is tuple:
+                items = as_tuple(where, value)
+                value = tuple(
+                    _convert(f"{where}[{i}]", v, s.item, s.info) for i, v in enumerate(items)
+                )
+                if not value:
+                    raise ValueError(f"{where}=(): needs at least one item")
+            else:
+                value = _convert(where, value, s.kind, s.info)
+        except ValueError as err:
+            if s.info.hint:
+                raise ValueError(f"{err} ({s.info.hint})") from None
+            raise
+        setattr(config, s.name, value)
+
+
+def refuse_unknown_fields(data: dict, cls: type, where: str) -> None:
+    """Refuse keys of ``data`` that are not fields of the dataclass ``cls``."""
+    known = {f.name for f in dataclasses.fields(cls)}
+    unknown = sorted(set(data) - known)
+    if unknown:
+        raise ValueError(f"{where}: unknown fields {unknown}; known: {sorted(known)}")
 
 
 # ===================================================================================== memory

@@ -40,8 +40,8 @@ import torch
 from matplotlib.lines import Line2D
 
 import himit_torch as ht
-from himit_torch.experiment import PAPER
-from himit_torch.plotting import map_legend, plot_goal_curves, plot_state_map, plot_world
+from himit_torch.runs.experiment import PAPER
+from himit_torch.viz.plotting import map_legend, plot_goal_curves, plot_state_map, plot_world
 
 STEPS = int(os.environ.get("HIMIT_NOTEBOOK_STEPS", 15_000))   # primitive steps per run
 WINDOW = 1000 if STEPS >= 4000 else max(STEPS // 4, 1)        # goals are counted per window
@@ -284,8 +284,8 @@ from matplotlib.patches import Rectangle
 from scipy import stats
 
 import himit_torch as ht
-from himit_torch.experiment import PAPER
-from himit_torch.plotting import (CURVE_COLORS, map_legend, plot_first_goals, plot_goal_curves,
+from himit_torch.runs.experiment import PAPER
+from himit_torch.viz.plotting import (CURVE_COLORS, map_legend, plot_first_goals, plot_goal_curves,
                                   plot_state_map)
 
 STEPS = int(os.environ.get("HIMIT_NOTEBOOK_STEPS", 100_000))  # primitive steps per run
@@ -951,7 +951,7 @@ import numpy as np
 import torch
 
 import himit_torch as ht
-from himit_torch.plotting import plot_goal_curves, plot_subgoals
+from himit_torch.viz.plotting import plot_goal_curves, plot_subgoals
 
 STEPS = int(os.environ.get("HIMIT_NOTEBOOK_STEPS", 40_000))   # primitive steps per run
 SEEDS = int(os.environ.get("HIMIT_NOTEBOOK_SEEDS", 3))

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 import torch
 
-from himit_torch.world import MultiRooms
+from himit_torch.worlds.multirooms import MultiRooms
 
 torch.set_num_threads(1)
 
@@ -50,8 +50,8 @@ def world12() -> MultiRooms:
 @pytest.fixture(scope="module")
 def mentor_demos12(world12):
     """5 demonstrations of the optimal mentor on ``world12`` (the engine-parity tests' batch)."""
-    from himit_torch.mentor import mentor_policy, record_demonstrations
-    from himit_torch.options import mentor_options
+    from himit_torch.mentor.policy import mentor_policy, record_demonstrations
+    from himit_torch.options.builders import mentor_options
 
     return record_demonstrations(
         world12, mentor_policy(world12, mentor_options(world12)), 5, seed=0

@@ -17,12 +17,15 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from himit_torch.cli import main
-from himit_torch.demonstrations import Demonstrations
-from himit_torch.experiment import ExperimentConfig, load_config, run_experiment
-from himit_torch.learner import Learner, LearnerConfig
-from himit_torch.options import Options, learner_options, primitive_options
-from himit_torch.validation import as_float, as_int, memory_limit
-from himit_torch.world import MultiRooms
+from himit_torch.learner.config import LearnerConfig
+from himit_torch.learner.learner import Learner
+from himit_torch.mentor.demonstrations import Demonstrations
+from himit_torch.options.builders import learner_options, primitive_options
+from himit_torch.options.bundle import Options
+from himit_torch.runs.config import ExperimentConfig, load_config
+from himit_torch.runs.experiment import run_experiment
+from himit_torch.validation import as_float, as_int, memory_limit, settings_of
+from himit_torch.worlds.multirooms import MultiRooms
 
 FAST = settings(
     max_examples=25,
@@ -87,12 +90,9 @@ MULTIROOMS = {
     "start": "cell",
     "goal": "cell",
 }
+#: Every declared field of LearnerConfig, by the kind of value it takes.
 LEARNER = {
-    **{f: "int" for f in LearnerConfig._INTS},
-    **{f: "float" for f in LearnerConfig._FLOATS},
-    **{f: "choice" for f in LearnerConfig._CHOICES},
-    "untried_value": "float",
-    "mentor_override_after": "int",
+    s.name: {int: "int", float: "float", str: "choice"}[s.kind] for s in settings_of(LearnerConfig)
 }
 EXPERIMENT = {
     "seeds": "int",
@@ -123,7 +123,14 @@ BAD = {
 
 
 def _nullable(kind_map, field):
-    return field in ("untried_value", "mentor_override_after", "mentor_preference", "start", "goal")
+    return field in (
+        "untried_value",
+        "mentor_override_after",
+        "mentor_fade",
+        "mentor_preference",
+        "start",
+        "goal",
+    )
 
 
 def _cases(target, spec):
@@ -374,8 +381,8 @@ def valid_learner_configs(draw):
 def test_random_valid_configurations_build_step_and_keep_the_model_invariants(
     world, config, seed, steps, engine
 ):
-    from himit_torch.mentor import mentor_policy, record_demonstrations
-    from himit_torch.options import mentor_options
+    from himit_torch.mentor.policy import mentor_policy, record_demonstrations
+    from himit_torch.options.builders import mentor_options
 
     w = MultiRooms(**world)
     opts = learner_options(w)

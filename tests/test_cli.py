@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 
 from himit_torch.cli import COMMANDS, main
-from himit_torch.demonstrations import Demonstrations
-from himit_torch.exact_option_models import option_durations, option_models
-from himit_torch.exact_planning import expected_steps, smdp_value_iteration
-from himit_torch.options import primitive_options
-from himit_torch.world import MultiRooms
+from himit_torch.exact.option_models import option_durations, option_models
+from himit_torch.exact.planning import expected_steps, smdp_value_iteration
+from himit_torch.mentor.demonstrations import Demonstrations
+from himit_torch.options.builders import primitive_options
+from himit_torch.worlds.multirooms import MultiRooms
 
 
 def table_row(out: str, label: str) -> tuple[float, float]:

@@ -40,8 +40,15 @@ def tiny_budget(monkeypatch, tmp_path):
     return tmp_path
 
 
+# The quickstart (a learner end to end) in the fast suite; the other three under -m slow.
 @pytest.mark.parametrize(
-    "name", ["quickstart", "intrinsic_reward", "your_own_world", "option_discovery"]
+    "name",
+    [
+        "quickstart",
+        pytest.param("intrinsic_reward", marks=pytest.mark.slow),
+        pytest.param("your_own_world", marks=pytest.mark.slow),
+        pytest.param("option_discovery", marks=pytest.mark.slow),
+    ],
 )
 def test_notebook_runs_with_a_tiny_budget(name, tiny_budget):
     earlier = tiny_budget / "runs/intrinsic_reward/tb/world40__known__seed0"

@@ -22,8 +22,9 @@ from himit_torch import (
     mentor_policy,
     record_demonstrations,
 )
-from himit_torch.experiment import EXPERIMENTS, _optimum
-from himit_torch.mentor_diagnostics import mentor_margin_summary
+from himit_torch.mentor.diagnostics import mentor_margin_summary
+from himit_torch.runs.config import EXPERIMENTS
+from himit_torch.runs.experiment import _optimum
 
 #: variant → (agents, LearnerConfig changes from the experiment's own learner settings)
 VARIANTS = {

@@ -23,13 +23,14 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from himit_torch.checkpoints import BatchShape, CheckpointGenerations
-from himit_torch.exact_option_models import option_models
-from himit_torch.exact_planning import smdp_value_iteration
-from himit_torch.experiment import _resume, _state_layout_version, load_config
-from himit_torch.learner import Learner
-from himit_torch.mentor import mentor_policy, record_demonstrations
-from himit_torch.options import learner_options, mentor_options
+from himit_torch.exact.option_models import option_models
+from himit_torch.exact.planning import smdp_value_iteration
+from himit_torch.learner.learner import Learner
+from himit_torch.mentor.policy import mentor_policy, record_demonstrations
+from himit_torch.options.builders import learner_options, mentor_options
+from himit_torch.runs.checkpoints import BatchShape
+from himit_torch.runs.config import load_config
+from himit_torch.runs.runner import Checkpoints
 
 parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
 parser.add_argument("cell_dir", help="a sweep cell's folder (…/trials/<cell>)")
@@ -55,13 +56,12 @@ for trial in sorted(Path(args.cell_dir).glob("world*_seeds*")):
     for s in seeds:
         demos[s] = record_demonstrations(world, mentor, config.mentor_episodes, seed=s)
         learner.add_demonstrations(demos[s], runs=[b for b, rs in enumerate(run_seeds) if rs == s])
-    _resume(
-        CheckpointGenerations(trial / "checkpoints" / f"world{size}.pt"),
-        learner,
+    Checkpoints(
+        trial / "checkpoints" / f"world{size}.pt",
         BatchShape(agents, run_seeds, world.num_states),
-        _state_layout_version(),
-        config,
-    )
+        config.checkpoint_every,
+        config.device,
+    ).resume(learner)
     assert learner.t == config.steps, f"{trial}: checkpoint at {learner.t}, not the end"
     models = option_models(world, options)
     S = world.num_states

@@ -12,9 +12,9 @@ from dataclasses import replace
 import torch
 
 from himit_torch import Learner
-from himit_torch.experiment import EXPERIMENTS
-from himit_torch.mentor import mentor_policy, record_demonstrations
-from himit_torch.options import learner_options, mentor_options
+from himit_torch.mentor.policy import mentor_policy, record_demonstrations
+from himit_torch.options.builders import learner_options, mentor_options
+from himit_torch.runs.config import EXPERIMENTS
 
 
 def main(steps: int = 30_000) -> None:

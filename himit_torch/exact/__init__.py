@@ -1,0 +1,1 @@
+"""The slow, obvious truth: exact option models and exact planning."""

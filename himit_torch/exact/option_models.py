@@ -1,0 +1,264 @@
+"""Exact option models from a world's true dynamics (for planning checks and the mentor).
+
+For an option ``o`` started in ``s`` (Sutton, Precup & Singh 1999, eqs. for multi-time models;
+the paper's Section II):
+
+* ``P^o[s, s'] = Σ_k γ^k Pr(o terminates in s' after exactly k steps)``
+* ``r(s, o)   = E[ Σ_{k=1}^{K} γ^{k-1} r_k ]``, the discounted reward collected while it runs.
+
+Both come from one absorbing-chain solve per option. With ``K[s, s']`` the one-step kernel of the
+option's policy, ``c = 1 − β`` (β forced to 1 at terminal states) and ``C`` the states where it
+may continue:
+
+    W_C = γ (I − γ K_CC diag(c_C))⁻¹ K_C diag(β)              (from a continuing state)
+    P^o[s, :] = γ K[s,:] diag(β) + γ K[s, C] diag(c_C) W_C
+    ρ_C = (I − γ K_CC diag(c_C))⁻¹ r1_C,  r(s, o) = r1[s] + γ K[s, C] diag(c_C) ρ_C
+
+where ``r1[s] = Σ_a π(a|s) R[s, a]``. With ``γ = 1`` and per-step reward 1 the same solve gives
+termination probabilities and expected durations (see :func:`option_durations`).
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+import torch
+
+from himit_torch.options.bundle import Options
+from himit_torch.worlds.table_world import world_model
+
+__all__ = ["OptionModels", "option_models", "option_durations", "csr_from_scipy"]
+
+
+def csr_from_scipy(matrix: sp.csr_matrix) -> torch.Tensor:
+    """A torch sparse CSR tensor holding a scipy CSR matrix."""
+    with warnings.catch_warnings():  # torch flags sparse CSR as beta on every construction
+        warnings.simplefilter("ignore", UserWarning)
+        return torch.sparse_csr_tensor(
+            torch.from_numpy(matrix.indptr.astype(np.int64)),
+            torch.from_numpy(matrix.indices.astype(np.int64)),
+            torch.from_numpy(matrix.data),
+            size=matrix.shape,
+            check_invariants=False,
+        )
+
+
+@dataclass(frozen=True)
+class OptionModels:
+    """Exact models of every available ``(s, o)``, flattened into ``M`` rows.
+
+    Attributes:
+        row_state: ``[M]`` int64 start state of each row.
+        row_option: ``[M]`` int64 option of each row.
+        reward: ``[M]`` float64 ``r(s, o)``.
+        transition: ``[M, S]`` float64 sparse CSR, ``P^o[s, s']`` (multi-time weights; rows sum
+            to ``E[γ^k] ≤ 1``).
+        num_options: ``O``.
+    """
+
+    row_state: torch.Tensor
+    row_option: torch.Tensor
+    reward: torch.Tensor
+    transition: torch.Tensor
+    num_options: int
+
+    @property
+    def num_states(self) -> int:
+        return self.transition.shape[1]
+
+    @property
+    def num_rows(self) -> int:
+        return self.row_state.shape[0]
+
+    def q_values(self, values: torch.Tensor) -> torch.Tensor:
+        """``[M]`` option values ``r(s, o) + Σ_{s'} P^o[s, s'] V(s')`` for ``values [S]``."""
+        return self.reward + (self.transition @ values.double()[:, None])[:, 0]
+
+    def dense(self) -> tuple[torch.Tensor, torch.Tensor]:
+        """``(P [O, S, S], r [O, S])`` dense, zero where an option is unavailable (small worlds)."""
+        O, S = self.num_options, self.num_states
+        P = torch.zeros(O, S, S, dtype=torch.float64)
+        r = torch.zeros(O, S, dtype=torch.float64)
+        P[self.row_option, self.row_state] = self.transition.to_dense()
+        r[self.row_option, self.row_state] = self.reward
+        return P, r
+
+
+#: Absorbing chains with up to this many continuing states are solved densely (room-sized
+#: options, microseconds each); larger ones with a sparse LU.
+_DENSE_LIMIT = 1024
+
+
+def _kernel_entries(
+    P_csr: tuple[np.ndarray, np.ndarray, np.ndarray], policy: np.ndarray, states: np.ndarray, S: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One-step kernel rows ``K[states, :]`` under a policy (actions [S] or probabilities [S, A])
+    as triplets ``(row, next_state, probability)``, ``row`` indexing ``states``; duplicates (one
+    per action of a stochastic policy) are meant to be summed.
+
+    Plain NumPy on the CSR arrays: scipy's per-call overhead dominated when this ran per option.
+    """
+    indptr, indices, data = P_csr
+    if policy.ndim == 1:
+        rows, owner, weight = policy[states] * S + states, np.arange(states.size), None
+    else:
+        owner, act = np.nonzero(policy[states] > 0)
+        rows, weight = act * S + states[owner], policy[states[owner], act]
+    counts = indptr[rows + 1] - indptr[rows]
+    first = np.repeat(indptr[rows] - (np.cumsum(counts) - counts), counts)
+    idx = first + np.arange(first.size)
+    prob = data[idx] if weight is None else data[idx] * np.repeat(weight, counts)
+    return np.repeat(owner, counts), indices[idx], prob
+
+
+def _dense(
+    rows: np.ndarray, cols: np.ndarray, vals: np.ndarray, shape: tuple[int, int]
+) -> np.ndarray:
+    """A dense matrix from triplets, summing duplicates."""
+    flat = np.bincount(rows * shape[1] + cols, weights=vals, minlength=shape[0] * shape[1])
+    return flat.reshape(shape)
+
+
+def _sparse(
+    rows: np.ndarray, cols: np.ndarray, vals: np.ndarray, shape: tuple[int, int]
+) -> sp.csr_matrix:
+    """A sparse CSR matrix from triplets, summing duplicates."""
+    return sp.csr_matrix((vals, (rows, cols)), shape=shape)
+
+
+def option_models(
+    world, options: Options, gamma: float | None = None, step_reward: torch.Tensor | None = None
+) -> OptionModels:
+    """Exact multi-time models of every option from every state of its initiation set.
+
+    Args:
+        world: provides ``terminal_mask [S]``, ``gamma`` and its true model: ``transition_model()
+            [A, S, S]`` and ``reward_model() [S, A]``, or a ``dynamics_table()`` to derive them
+            from (:func:`himit_torch.worlds.table_world.world_model`).
+        options: the options to model.
+        gamma: discount; the world's by default. ``1.0`` gives undiscounted termination
+            probabilities (requires every option to terminate with probability 1).
+        step_reward: ``[S, A]`` reward per step instead of the world's (ones → expected durations).
+    """
+    gamma = world.gamma if gamma is None else float(gamma)
+    P, R_world = world_model(world)
+    A, S, _ = P.shape
+    if options.num_states != S:
+        raise ValueError(f"options are over {options.num_states} states but the world has {S}")
+    idx = P.indices().numpy()
+    P_stack = sp.csr_matrix((P.values().numpy(), (idx[0] * S + idx[1], idx[2])), shape=(A * S, S))
+    P_stack.eliminate_zeros()
+    P_csr = (P_stack.indptr.astype(np.int64), P_stack.indices.astype(np.int64), P_stack.data)
+    R = (R_world if step_reward is None else torch.as_tensor(step_reward)).double().numpy()
+    if R.shape != (S, A):
+        raise ValueError(f"step_reward must be [S, A] = [{S}, {A}], got {R.shape}")
+    terminal = world.terminal_mask.numpy()
+    init_all = options.initiation.numpy()
+    beta_all = options.termination.double().numpy()
+    policy_all = options.policy.numpy()
+    if options.stochastic:  # float32 rows (checked to 1e-5) would let Σ_s' P^o exceed E[γ^k]
+        policy_all = options.policy.double().numpy()
+        sums = policy_all.sum(-1, keepdims=True)
+        policy_all = np.divide(policy_all, sums, out=np.zeros_like(policy_all), where=sums > 0)
+    local = np.full(S, -1, dtype=np.int64)  # scratch: state -> index in C (reset per option)
+
+    row_state, row_option, rewards = [], [], []
+    out_rows, out_cols, out_vals = [], [], []  # triplets of the stacked [M, S] transition
+    offset = 0
+    for o in range(options.num_options):
+        policy = policy_all[o] if options.stochastic else policy_all[o].astype(np.int64)
+        stop = np.where(terminal, 1.0, beta_all[o])
+        cont = 1.0 - stop
+        start = np.flatnonzero(init_all[o])
+        # Continuing states reachable from the initiation set: the transient states C.
+        in_C = np.zeros(S, dtype=bool)
+        frontier = start
+        while frontier.size:
+            _, cols, prob = _kernel_entries(P_csr, policy, frontier, S)
+            new = np.unique(cols[(prob > 0) & (cont[cols] > 0)])
+            new = new[~in_C[new]]
+            in_C[new] = True
+            frontier = new
+        C = np.flatnonzero(in_C)
+        nI, nC = start.size, C.size
+        r1 = (R * policy).sum(1) if policy.ndim == 2 else R[np.arange(S), policy]
+        own, cols, prob = _kernel_entries(P_csr, policy, np.concatenate([start, C]), S)
+        go_on, ends = prob * cont[cols], prob * stop[cols]
+        # Stopping at once: gamma K[s, s'] beta(s').
+        hit = (own < nI) & (ends > 0)
+        rows_o, cols_o, vals_o = [own[hit]], [cols[hit]], [gamma * ends[hit]]
+        r = r1[start].copy()
+        if nC:
+            local[C] = np.arange(nC)
+            on_C, on_I = (own >= nI) & (go_on > 0), (own < nI) & (go_on > 0)
+            out_C = (own >= nI) & (ends > 0)
+            exits, exit_col = np.unique(cols[out_C], return_inverse=True)
+            E_C = _dense(own[out_C] - nI, exit_col, ends[out_C], (nC, exits.size))
+            rhs = np.concatenate([gamma * E_C, r1[C][:, None]], axis=1)
+            try:
+                if nC <= _DENSE_LIMIT:
+                    T_CC = _dense(own[on_C] - nI, local[cols[on_C]], go_on[on_C], (nC, nC))
+                    sol = np.linalg.solve(np.eye(nC) - gamma * T_CC, rhs)
+                else:
+                    T_CC = _sparse(own[on_C] - nI, local[cols[on_C]], go_on[on_C], (nC, nC))
+                    sol = spla.splu((sp.identity(nC, format="csc") - gamma * T_CC).tocsc()).solve(
+                        rhs
+                    )
+            except (np.linalg.LinAlgError, RuntimeError) as err:
+                raise _never_terminates(options.names[o], gamma) from err
+            if not np.isfinite(sol).all():
+                raise _never_terminates(options.names[o], gamma)
+            W, rho = sol[:, :-1], sol[:, -1]
+            # Continuing first: gamma K[s, C] (1 - beta_C) W_C, only for starts that can continue.
+            J, j_row = np.unique(own[on_I], return_inverse=True)
+            T_JC = (_dense if nC <= _DENSE_LIMIT else _sparse)(
+                j_row, local[cols[on_I]], go_on[on_I], (J.size, nC)
+            )
+            via = np.asarray(gamma * (T_JC @ W))
+            jr, jc = np.nonzero(via)
+            rows_o.append(J[jr])
+            cols_o.append(exits[jc])
+            vals_o.append(via[jr, jc])
+            r[J] += gamma * (T_JC @ rho)
+            local[C] = -1
+        rows_a, cols_a, vals_a = (np.concatenate(x) for x in (rows_o, cols_o, vals_o))
+        out_rows.append(rows_a + offset)
+        out_cols.append(cols_a)
+        out_vals.append(vals_a)
+        row_state.append(start)
+        row_option.append(np.full(nI, o))
+        rewards.append(r)
+        offset += nI
+    T = sp.csr_matrix(
+        (np.concatenate(out_vals), (np.concatenate(out_rows), np.concatenate(out_cols))),
+        shape=(offset, S),
+    )
+    T.sum_duplicates()
+    T.eliminate_zeros()
+    T.sort_indices()
+    transition = csr_from_scipy(T)
+    return OptionModels(
+        row_state=torch.from_numpy(np.concatenate(row_state)),
+        row_option=torch.from_numpy(np.concatenate(row_option)),
+        reward=torch.from_numpy(np.concatenate(rewards)),
+        transition=transition,
+        num_options=options.num_options,
+    )
+
+
+def _never_terminates(name: str, gamma: float) -> ValueError:
+    return ValueError(
+        f"option {name!r} may never terminate from some state (its absorbing chain "
+        f"is singular at gamma={gamma}); use gamma < 1 or make it terminate"
+    )
+
+
+def option_durations(world, options: Options) -> OptionModels:
+    """Undiscounted models: ``transition`` holds termination probabilities ``Pr(s' | s, o)`` and
+    ``reward`` the expected number of primitive steps the option runs."""
+    ones = torch.ones(world.num_states, world.num_actions, dtype=torch.float64)
+    return option_models(world, options, gamma=1.0, step_reward=ones)

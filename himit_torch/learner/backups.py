@@ -1,0 +1,355 @@
+"""Bellman backups of the paper, as pure functions on batched tensors.
+
+Naming follows rlax: a leading ``...`` is any batch shape (runs, states); ``K`` indexes successor
+slots (padding slots carry weight 0); ``J`` indexes the options available in a state; ``A``
+primitive actions. Each function cites the equation it implements.
+
+These functions are the learner's backups (the torch engine's and every diagnostic's): its value
+cache (:mod:`himit_torch.learner.values`) keeps the sums over successors as cached numerators,
+updated incrementally, and hands them to :func:`trusted_augmented_backup` (eq. 2 with the
+learner's rules for trusting the mentor term, :func:`confident_mentor`, :func:`mentor_override`
+and :func:`faded_mentor_term`). Where a sum over successors is computed from scratch it is the
+sparse form the models keep, per-run edge lists (:func:`option_backup_edges`). Tests check the
+incremental caches against these from-scratch sums.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import torch
+
+__all__ = [
+    "option_backup",
+    "option_backup_edges",
+    "mentor_backup",
+    "augmented_option_backup",
+    "augmented_primitive_backup",
+    "options_only_backup",
+    "primitives_only_backup",
+    "dirichlet_value_moments",
+    "dirichlet_variance",
+    "confident_mentor",
+    "MentorConfidence",
+    "mentor_override",
+    "faded_mentor_term",
+    "augmented_backup",
+    "trusted_augmented_backup",
+]
+
+
+def option_backup(
+    reward: torch.Tensor, weights: torch.Tensor, successor_values: torch.Tensor
+) -> torch.Tensor:
+    """Option value with a multi-time model (Sutton, Precup & Singh 1999; paper Sec. II):
+
+        Q(s, o) = r(s, o) + Σ_{s'} p^o_{ss'} V(s')
+
+    Args:
+        reward: ``[...]`` expected discounted reward ``r(s, o)``.
+        weights: ``[..., K]`` multi-time weights ``p^o_{ss'} = Σ_k p(s', k) γ^k``.
+        successor_values: ``[..., K]`` ``V(s')`` of the same successors.
+    """
+    if weights.shape != successor_values.shape or weights.shape[:-1] != reward.shape:
+        raise ValueError(
+            f"option_backup: shapes reward {tuple(reward.shape)}, weights "
+            f"{tuple(weights.shape)}, successor_values {tuple(successor_values.shape)} "
+            "must be [...], [..., K], [..., K]"
+        )
+    return reward + (weights * successor_values).sum(-1)
+
+
+def option_backup_edges(
+    reward: torch.Tensor,
+    runs: torch.Tensor,
+    rows: torch.Tensor,
+    weights: torch.Tensor,
+    successor_values: torch.Tensor,
+) -> torch.Tensor:
+    """:func:`option_backup` over the sparse form the models keep, a COO edge list batched over
+    runs (Sutton, Precup & Singh 1999; paper Sec. II):
+
+        Q[b, m] = r[b, m] + Σ_{e : runs_e = b, rows_e = m} w_e V_e
+
+    Each row's sum runs in edge order (so a row rebuilt from its edges is reproducible).
+
+    Args:
+        reward: ``[B, M]`` ``r(s, o)`` per run and row.
+        runs, rows: ``[N]`` int64, each edge's run and row.
+        weights: ``[N]`` ``p^o_{ss'}`` of each edge.
+        successor_values: ``[N]`` ``V(s')`` of each edge's successor.
+    Returns a new ``[B, M]`` tensor.
+    """
+    if reward.dim() != 2 or not (
+        runs.shape == rows.shape == weights.shape == successor_values.shape and runs.dim() == 1
+    ):
+        raise ValueError(
+            f"option_backup_edges: shapes reward {tuple(reward.shape)}, runs "
+            f"{tuple(runs.shape)}, rows {tuple(rows.shape)}, weights {tuple(weights.shape)}, "
+            f"successor_values {tuple(successor_values.shape)} must be [B, M] and four [N]"
+        )
+    out = reward.clone()
+    out.view(-1).index_add_(0, runs * reward.shape[1] + rows, weights * successor_values)
+    return out
+
+
+def mentor_backup(
+    mentor_reward: torch.Tensor,
+    mentor_probs: torch.Tensor,
+    successor_values: torch.Tensor,
+    gamma: float,
+) -> torch.Tensor:
+    """Value of duplicating the mentor's (unseen) action (Price & Boutilier 2003; paper eq. 1–2):
+
+        R_m(s) + γ Σ_{s'} p_m(s' | s) V(s')
+
+    Args:
+        mentor_reward: ``[...]`` ``R_m(s)``, the reward the learner assigns to the mentor.
+        mentor_probs: ``[..., K]`` ``p_m(s' | s)``.
+        successor_values: ``[..., K]``.
+    """
+    if (
+        mentor_probs.shape != successor_values.shape
+        or mentor_probs.shape[:-1] != mentor_reward.shape
+    ):
+        raise ValueError(
+            "mentor_backup: mentor_reward [...], mentor_probs and successor_values "
+            "[..., K] must agree"
+        )
+    return mentor_reward + gamma * (mentor_probs * successor_values).sum(-1)
+
+
+def options_only_backup(option_q: torch.Tensor, available: torch.Tensor) -> torch.Tensor:
+    """SMDP Bellman optimality (paper Sec. II): ``V(s) = max_{o ∈ O(s)} Q(s, o)``.
+
+    Args:
+        option_q: ``[..., J]``; available: ``[..., J]`` bool. States with no available option get
+        ``-inf``.
+    """
+    neg_inf = torch.full_like(option_q, float("-inf"))
+    return torch.where(available, option_q, neg_inf).max(-1).values
+
+
+def augmented_option_backup(
+    option_q: torch.Tensor,
+    available: torch.Tensor,
+    mentor_term: torch.Tensor,
+    mentor_available: torch.Tensor,
+) -> torch.Tensor:
+    """The paper's eq. 2, the augmented Bellman equation with options:
+
+        V(s) = max( max_{o ∈ O_obs(s)} Q(s, o),  R_m(s) + γ Σ p_m(s'|s) V(s') )
+
+    Args:
+        option_q: ``[..., J]`` option values (:func:`option_backup`).
+        available: ``[..., J]`` bool.
+        mentor_term: ``[...]`` (:func:`mentor_backup`).
+        mentor_available: ``[...]`` bool, where the mentor was observed (and its term is trusted).
+    """
+    own = options_only_backup(option_q, available)
+    return augmented_backup(own, mentor_term, mentor_available)[0]
+
+
+def augmented_backup(
+    own_value: torch.Tensor, mentor_term: torch.Tensor, mentor_available: torch.Tensor
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """The outer max of the paper's eq. 2: ``V(s) = max(own value, mentor term)`` where the
+    mentor term is available, else the own value.
+
+    Args:
+        own_value: ``[...]`` :func:`options_only_backup`; mentor_term: ``[...]``;
+        mentor_available: ``[...]`` bool.
+    Returns ``(V [...], mentor_won [...] bool)``: where the mentor term is available and above
+    the own value.
+    """
+    return (
+        torch.where(mentor_available, torch.maximum(own_value, mentor_term), own_value),
+        mentor_available & (mentor_term > own_value),
+    )
+
+
+def primitives_only_backup(
+    reward: torch.Tensor, probs: torch.Tensor, successor_values: torch.Tensor, gamma: float
+) -> torch.Tensor:
+    """Bellman optimality with primitive actions (paper Sec. II, first equation):
+
+        V(s) = max_a r(s, a) + γ Σ_{s'} p(s' | s, a) V(s')
+
+    Args:
+        reward: ``[..., A]``; probs, successor_values: ``[..., A, K]``.
+    """
+    return (reward + gamma * (probs * successor_values).sum(-1)).max(-1).values
+
+
+def augmented_primitive_backup(
+    observer_reward: torch.Tensor,
+    probs: torch.Tensor,
+    successor_values: torch.Tensor,
+    mentor_probs: torch.Tensor,
+    mentor_successor_values: torch.Tensor,
+    mentor_available: torch.Tensor,
+    gamma: float,
+) -> torch.Tensor:
+    """The paper's eq. 1 (implicit imitation, Price & Boutilier 2003), primitives only:
+
+        V(s) = R_obs(s) + γ max( max_a Σ p_obs(s'|s,a) V(s'),  Σ p_m(s'|s) V(s') )
+
+    Args:
+        observer_reward: ``[...]`` ``R_obs(s)``.
+        probs, successor_values: ``[..., A, K]`` the observer's action models.
+        mentor_probs, mentor_successor_values: ``[..., K]``.
+        mentor_available: ``[...]`` bool.
+    """
+    own = (probs * successor_values).sum(-1).max(-1).values
+    mentor = (mentor_probs * mentor_successor_values).sum(-1)
+    return observer_reward + gamma * torch.where(mentor_available, torch.maximum(own, mentor), own)
+
+
+def dirichlet_value_moments(
+    counts: torch.Tensor, outcome_values: torch.Tensor
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Mean and variance of ``Σ_k p_k u_k`` for ``p ~ Dirichlet(counts)`` and fixed outcome
+    values ``u``: mean ``Σ ᾱ_k u_k`` and variance ``(Σ ᾱ_k u_k² − mean²) / (α_0 + 1)`` with
+    ``ᾱ = α / α_0``. Used for the confidence test of the mentor term (Price & Boutilier 2003).
+
+    Args:
+        counts: ``[..., K]`` Dirichlet concentrations (0 = absent outcome).
+        outcome_values: ``[..., K]``.
+    """
+    total = counts.sum(-1)
+    p = counts / total.clamp(min=1e-300)[..., None]
+    u = torch.where(counts > 0, outcome_values, torch.zeros_like(outcome_values))
+    mean = (p * u).sum(-1)
+    second = (p * u * u).sum(-1)
+    var = dirichlet_variance(mean, second, total)
+    return mean, torch.where(total > 0, var, torch.full_like(var, float("inf")))
+
+
+def dirichlet_variance(
+    mean: torch.Tensor, second_moment: torch.Tensor, total: torch.Tensor
+) -> torch.Tensor:
+    """Variance of ``Σ_k p_k u_k`` for ``p ~ Dirichlet(α)`` from the posterior-mean moments
+    ``mean = Σ ᾱ_k u_k`` and ``second_moment = Σ ᾱ_k u_k²`` and ``total = α_0``:
+    ``(second_moment − mean²)⁺ / (α_0 + 1)`` (the clamp absorbs rounding below 0).
+
+    All ``[...]``. (:func:`dirichlet_value_moments` from counts; the learner from its cached
+    numerators.)"""
+    return (second_moment - mean * mean).clamp(min=0) / (total + 1)
+
+
+def confident_mentor(
+    mentor_mean: torch.Tensor,
+    mentor_var: torch.Tensor,
+    own_mean: torch.Tensor,
+    own_var: torch.Tensor,
+    own_available: torch.Tensor,
+    z: float,
+) -> torch.Tensor:
+    """Price & Boutilier's confidence test: trust the mentor term at ``s`` only where its lower
+    bound beats the upper bound of every own option,
+
+        E[M] − z·sd[M]  >  max_o ( E[Q(s,o)] + z·sd[Q(s,o)] ).
+
+    Args:
+        mentor_mean, mentor_var: ``[...]``; own_mean, own_var, own_available: ``[..., J]``.
+        z: width of the bounds in standard deviations.
+    Returns ``[...]`` bool (True where no own option is available).
+    """
+    upper = (
+        torch.where(
+            own_available, own_mean + z * own_var.sqrt(), torch.full_like(own_mean, float("-inf"))
+        ).amax(-1)
+        if own_mean.shape[-1]
+        else torch.full(own_mean.shape[:-1], float("-inf"), dtype=own_mean.dtype)
+    )
+    return (mentor_mean - z * mentor_var.sqrt()) > upper
+
+
+class MentorConfidence(NamedTuple):
+    """The inputs of :func:`confident_mentor` for :func:`trusted_augmented_backup`."""
+
+    own_var: torch.Tensor
+    """``[..., J]`` posterior variances of the own options' values."""
+    mentor_var: torch.Tensor
+    """``[...]`` posterior variance of the mentor term."""
+    tested: torch.Tensor
+    """``[...]`` bool: where the test applies (elsewhere the mentor term passes)."""
+    z: float
+
+
+def mentor_override(
+    observed: torch.Tensor, own_tries: torch.Tensor | None, override_after: float | None
+) -> torch.Tensor:
+    """Where the mentor term takes part in eq. 2 once the learner's own experience overrides it
+    (``LearnerConfig.mentor_override_after``): where the mentor was ``observed`` and the learner
+    has started fewer than ``override_after`` own options there (all observed states if
+    ``None``).
+
+    Args:
+        observed: ``[...]`` bool; own_tries: ``[...]`` own options started at ``s`` (may be
+        ``None`` when ``override_after`` is ``None``).
+    """
+    if override_after is None:
+        return observed
+    if own_tries is None:
+        raise ValueError("mentor_override: override_after given, so own_tries is needed")
+    return observed & (own_tries < override_after)
+
+
+def faded_mentor_term(
+    mentor_term: torch.Tensor, own_value: torch.Tensor, own_tries: torch.Tensor, fade: float
+) -> torch.Tensor:
+    """The mentor term weighed against the own value as ``fade`` own executions
+    (``LearnerConfig.mentor_fade``): ``(k·M + n·V_own) / (k + n)`` with ``k = fade`` and
+    ``n`` own options started at ``s``; the plain mentor term where no own option has a value.
+
+    Args:
+        mentor_term, own_value, own_tries: ``[...]``.
+    """
+    k, n = fade, own_tries
+    return torch.where(
+        torch.isfinite(own_value), (k * mentor_term + n * own_value) / (k + n), mentor_term
+    )
+
+
+def trusted_augmented_backup(
+    option_q: torch.Tensor,
+    available: torch.Tensor,
+    mentor_term: torch.Tensor,
+    mentor_observed: torch.Tensor,
+    own_tries: torch.Tensor | None = None,
+    *,
+    override_after: float | None = None,
+    confidence: MentorConfidence | None = None,
+    fade: float | None = None,
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """The paper's eq. 2 as the learner evaluates it: :func:`augmented_option_backup` with the
+    mentor term available where it was observed, not yet overridden by own experience
+    (:func:`mentor_override`) and, with ``confidence``, confidently better than every own option
+    (:func:`confident_mentor`, Price & Boutilier 2003); with ``fade`` the term is first
+    weighed against the own value (:func:`faded_mentor_term`).
+
+    Args:
+        option_q: ``[..., J]`` option values; available: ``[..., J]`` bool.
+        mentor_term: ``[...]`` (:func:`mentor_backup`); mentor_observed: ``[...]`` bool.
+        own_tries: ``[...]`` own options started at ``s`` (needed by ``override_after`` and
+            ``fade``).
+    Returns ``(V [...], mentor_won [...] bool)``; ``V`` is ``-inf`` where nothing is known.
+    """
+    own = options_only_backup(option_q, available)
+    available_mentor = mentor_override(mentor_observed, own_tries, override_after)
+    if confidence is not None:
+        confident = confident_mentor(
+            mentor_term,
+            confidence.mentor_var,
+            option_q,
+            confidence.own_var,
+            available,
+            confidence.z,
+        )
+        available_mentor = available_mentor & (confident | ~confidence.tested)
+    if fade is not None:
+        if own_tries is None:
+            raise ValueError("trusted_augmented_backup: fade given, so own_tries is needed")
+        mentor_term = faded_mentor_term(mentor_term, own, own_tries, fade)
+    return augmented_backup(own, mentor_term, available_mentor)

@@ -1,0 +1,177 @@
+"""Eq. 2 at a state (SPEC.md), and the propagation of a state's new value to the cached Q of
+its predecessors: :class:`himit_torch.learner.values.ValueCache` for one run."""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from himit_torch.learner.engines.kernel.heap import raise_to
+from himit_torch.learner.engines.settings import UNTRIED_PRIOR, UNTRIED_SKIP
+
+_INF = np.inf
+
+
+@njit(inline="always")
+def row_q(st, cache, model, b, row):
+    """Q of one cached row: ``(numerator + concentration · v0) / (n + concentration)``
+    (``ValueCache.row_q``)."""
+    conc = st.concentration
+    return (cache.q_num[b, row] + conc * st.initial_value) / (model.row_count[b, row] + conc)
+
+
+@njit(inline="always")
+def row_value(st, rows, cache, model, b, row):
+    """``(Q, usable, enabled)`` of one cached row (``ValueCache.own_values``)."""
+    n = model.row_count[b, row]
+    q = row_q(st, cache, model, b, row)
+    enabled = rows.row_enabled[b, row]
+    mode = st.untried_mode
+    if mode == UNTRIED_PRIOR:
+        usable = enabled
+    elif mode == UNTRIED_SKIP:
+        usable = enabled and n > 0
+    else:
+        if not n > 0:
+            q = st.untried_value
+        usable = enabled
+    return q, usable, enabled
+
+
+@njit(inline="always")
+def state_backup(st, world, rows, cache, model, mentor, b, s):
+    """Eq. 2 at ``s`` for run ``b`` (``ValueCache.state_backup``): ``(best, has_value, won)``,
+    ``won`` when the mentor term is the maximum."""
+    conc = st.concentration
+    v0 = st.initial_value
+    z = st.confidence_z
+    row_count = model.row_count
+    confident_run = rows.use_conf[b]
+    own = -_INF
+    upper = -_INF
+    if st.untried_mode == UNTRIED_SKIP and not confident_run:
+        # The common case (untried rows left out, no confidence test), without a branch per
+        # row: whether each of a state's rows has been tried goes either way.
+        for row in range(rows.row_begin[s], rows.row_begin[s + 1]):
+            q = row_q(st, cache, model, b, row)
+            # + (−0.0) leaves every q as it is (−0.0 included); + (−∞) leaves it out
+            q = q + (-0.0 if rows.row_enabled[b, row] & (row_count[b, row] > 0) else -_INF)
+            if q > own:
+                own = q
+    else:
+        for row in range(rows.row_begin[s], rows.row_begin[s + 1]):
+            q, usable, _ = row_value(st, rows, cache, model, b, row)
+            if usable:
+                if q > own:
+                    own = q
+                if confident_run:
+                    n = row_count[b, row]
+                    rsum = model.row_reward[b, row]
+                    rbar = rsum / max(n, 1.0) if n > 0 else 0.0
+                    cont = cache.q_num[b, row] - rsum
+                    if n + conc > 0:
+                        second = (
+                            n * rbar * rbar + 2 * rbar * cont + cache.q_sec[b, row] + conc * v0 * v0
+                        ) / (n + conc)
+                        var = max(second - q * q, 0.0) / (n + conc + 1)
+                    else:  # untried, valued by untried_value: unbounded above
+                        var = _INF
+                    up = q + z * np.sqrt(var)
+                    if up > upper:
+                        upper = up
+    mconc = st.mentor_concentration
+    n_m = mentor.row_count[b, s]
+    ok = rows.use_mentor[b] and n_m > 0
+    m = (cache.m_num[b, s] + mconc * v0) / (n_m + mconc)
+    override = st.mentor_override_after
+    if override >= 0 and not model.state_tries[b, s] < override:
+        ok = False
+    if ok and confident_run:
+        second = (cache.m_sec[b, s] + mconc * v0 * v0) / (n_m + mconc)
+        mvar = max(second - m * m, 0.0) / (n_m + mconc + 1)
+        if not (m - z * np.sqrt(mvar)) > upper:
+            ok = False
+    # LearnerConfig.mentor_fade: shrink m towards own by own experience
+    fade = st.mentor_fade
+    if fade > 0 and np.isfinite(own):
+        n_own = model.state_tries[b, s]
+        m = (fade * m + n_own * own) / (fade + n_own)
+    if not ok:
+        m = -_INF
+    best = own if own >= m else m
+    has_value = np.isfinite(best) and not world.terminal[s]
+    return best, has_value, ok and m > own
+
+
+@njit(inline="always")
+def propagate_options(st, rows, cache, model, sweep, sample, b, x, d, v_old, sampled):
+    """``V(x) += d``: every row with an edge to ``x`` gets ``Σγ^k d`` (a sampling run: its
+    sampled weight ``(n + α) w_e Σγ^k / c_e``); queue its state
+    (``ValueCache.backup_and_propagate``, the options' half)."""
+    thr = st.priority_threshold
+    conc = st.concentration
+    any_conf = st.any_confidence and rows.use_conf[b]
+    row_count = model.row_count
+    prio = sweep.prio
+    e = model.succ_head[b, x]
+    while e >= 0:
+        row = model.edge_row[b, e]
+        g = model.edge_disc[b, e]
+        if sampled:
+            g = ((row_count[b, row] + conc) * sample.w_opt[b, e]) * (g / model.edge_count[b, e])
+        gd = g * d
+        cache.q_num[b, row] += gd
+        if any_conf:
+            c = max(model.edge_count[b, e], 1.0)
+            cache.q_sec[b, row] += g * g / c * ((v_old + d) ** 2 - v_old**2)
+        p = abs(gd) / max(row_count[b, row] + conc, 1e-300)
+        # queued if p > thr, the row is enabled and p raises its state's priority: one test
+        # (p above the larger of the two bounds) instead of three branches that go either way
+        s = rows.row_state[row]
+        if p > max(thr if rows.row_enabled[b, row] else _INF, prio[b, s]):
+            raise_to(sweep, b, s, p)
+        e = model.succ_next[b, e]
+
+
+@njit(inline="always")
+def propagate_mentor(st, rows, cache, mentor, sweep, sample, b, x, d, v_old, sampled):
+    """The same for the mentor term of every state the mentor left towards ``x`` (a sampling
+    run: weight ``(n + α_m) w_e`` in place of the count)."""
+    thr = st.priority_threshold
+    gamma = st.gamma
+    mconc = st.mentor_concentration
+    any_conf = st.any_confidence and rows.use_conf[b]
+    prio = sweep.prio
+    gd = gamma * d
+    e = mentor.succ_head[b, x]
+    while e >= 0:
+        src = mentor.edge_row[b, e]
+        c = mentor.edge_count[b, e]
+        if sampled:
+            c = (mentor.row_count[b, src] + mconc) * sample.w_m[b, e]
+        cd = c * gd
+        cache.m_num[b, src] += cd
+        if any_conf:
+            u_old = cache.m_edge_reward[b, e] + gamma * v_old
+            cache.m_sec[b, src] += c * ((u_old + gd) ** 2 - u_old**2)
+        p = abs(cd) / max(mentor.row_count[b, src] + mconc, 1e-300)
+        if p > max(thr, prio[b, src]):  # (p > thr, and it raises the priority; one test)
+            raise_to(sweep, b, src, p)
+        e = mentor.succ_next[b, e]
+
+
+# Serial: once a window it costs microseconds, and a parallel loop costs seconds of compiling.
+@njit(cache=True, error_model="numpy")
+def mentor_wins(st, world, rows, cache, model, mentor, out):
+    """``out[b]``: how many of run ``b``'s mentor-observed states the mentor term wins eq. 2 in
+    (:meth:`Learner.mentor_win_share`), by the kernel's own backup."""
+    S = world.terminal.shape[0] - 1
+    for b in range(out.shape[0]):
+        won_states = 0
+        if rows.use_mentor[b]:
+            for s in range(S):
+                if mentor.row_count[b, s] > 0:
+                    _, _, won = state_backup(st, world, rows, cache, model, mentor, b, s)
+                    if won:
+                        won_states += 1
+        out[b] = won_states

@@ -1,0 +1,392 @@
+"""The tick loop, one run at a time: act → learn → plan → choose, each phase one function
+(compiled on its own or inlined: :mod:`.jit`); :meth:`TorchEngine.tick
+<himit_torch.learner.engines.TorchEngine.tick>` for one run."""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from himit_torch.learner.engines.kernel.backup import (
+    propagate_mentor,
+    propagate_options,
+    row_value,
+    state_backup,
+)
+from himit_torch.learner.engines.kernel.heap import heapify, pop, push
+from himit_torch.learner.engines.kernel.jit import entry, phase
+from himit_torch.learner.engines.kernel.sampling import (
+    fexp,
+    flog,
+    resample,
+    sample_key,
+    sampled_row_q,
+)
+from himit_torch.learner.engines.kernel.streams import uniform
+from himit_torch.learner.engines.settings import (
+    EPS_DECISION,
+    EPS_GOALS,
+    EPS_PAPER,
+    EPS_STEP,
+    MATCH,
+    TIE_FIRST,
+)
+
+_INF = np.inf
+_TIE = 1e-12
+
+
+@phase
+def act(st, world, rows, run, key, b, t):
+    """One primitive step of run ``b``'s option at tick ``t`` (the torch engine's act phase):
+    ``(row, nxt, at_goal, ended)``, the row executed, where it went, and whether the option
+    ended there. Counts the step in the run state."""
+    S = world.terminal.shape[0] - 1
+    K = world.dyn_cdf.shape[2]
+    u0 = uniform(key, t, 0)
+    u1 = uniform(key, t, 1)
+    row = run.row_of[b]
+    option = rows.row_option[row]
+    pos = run.position[b]
+    flat = option * S + pos
+    if st.stochastic:
+        policy_cdf = world.policy_cdf
+        action = 0
+        while action < policy_cdf.shape[1] - 1 and policy_cdf[flat, action] < u1:
+            action += 1
+        stop_u = uniform(key, t, 2)
+    else:
+        action = world.policy[flat]
+        stop_u = u1
+    slot = 0
+    for k in range(K):
+        if world.dyn_cdf[pos, action, k] <= u0:
+            slot += 1
+    if slot > K - 1:
+        slot = K - 1
+    nxt = world.dyn_succ[pos, action, slot]
+    run.disc_return[b] += run.discount[b] * world.dyn_rew[pos, action, slot]
+    run.discount[b] *= st.gamma
+    run.duration[b] += 1
+    at_goal = world.terminal[nxt]
+    ended = (
+        at_goal
+        or world.termination[option * S + nxt] > stop_u
+        or run.duration[b] >= st.max_option_steps
+    )
+    run.position[b] = nxt
+    run.visits[b, nxt] += 1
+    if at_goal:
+        t_after = t + 1
+        run.goals[b] += 1
+        run.window_goals[b] += 1
+        if not run.found_goal[b]:
+            run.first_goal_step[b] = t_after
+        run.found_goal[b] = True
+        run.episodes[b] += 1
+        run.window_episode_steps[b] += t_after - run.episode_start[b]
+        run.window_episodes[b] += 1
+        run.episode_start[b] = t_after
+    return row, nxt, at_goal, ended
+
+
+@njit(inline="always")
+def decay_epsilon_per_step(st, run, b, at_goal):
+    """The ε schedules other than "decision", after each step (``TorchEngine._eps_tick``)."""
+    schedule = st.eps_schedule
+    epsilon = run.epsilon
+    if schedule == EPS_STEP:
+        if run.found_goal[b]:
+            epsilon[b] = max(epsilon[b] * st.eps_decay, st.eps_min)
+    elif at_goal and schedule == EPS_GOALS:
+        if run.goals[b] >= st.eps_goals:
+            epsilon[b] = st.eps_min
+    elif at_goal and schedule == EPS_PAPER:
+        epsilon[b] = max(epsilon[b] * st.eps_decay, st.eps_min)
+
+
+@phase
+def count_outcome(st, rows, cache, model, sweep, run, sample, key, b, row, nxt):
+    """Learn: count the ended option's outcome (``DirichletSMDPModel.update``) and fold it into
+    the Q cache (``ValueCache.add_outcome``; a sampling run: ``PosteriorSample.absorb`` and
+    ``ValueCache.apply_sample_rows``); queue its start state first."""
+    start = run.option_start[b]
+    ret = run.disc_return[b]
+    g = run.discount[b]
+    edge_succ, edge_count, edge_disc = model.edge_succ, model.edge_count, model.edge_disc
+    row_head, row_next = model.row_head, model.row_next
+    e = row_head[b, row]
+    while e >= 0 and edge_succ[b, e] != nxt:
+        e = row_next[b, e]
+    if e < 0:  # a new edge, linked at the heads of its row's and its successor's lists
+        e = model.num_edges[b]
+        model.num_edges[b] += 1
+        model.edge_row[b, e] = row
+        edge_succ[b, e] = nxt
+        edge_count[b, e] = 0.0
+        edge_disc[b, e] = 0.0
+        row_next[b, e] = row_head[b, row]
+        row_head[b, row] = e
+        model.succ_next[b, e] = model.succ_head[b, nxt]
+        model.succ_head[b, nxt] = e
+    c_old = edge_count[b, e]
+    g_old = edge_disc[b, e]
+    n_old = model.row_count[b, row]
+    edge_count[b, e] = c_old + 1
+    edge_disc[b, e] = g_old + g
+    model.row_count[b, row] += 1
+    model.row_reward[b, row] += ret
+    model.state_tries[b, start] += 1
+    if rows.use_sampling[b]:
+        # the sample moves to the updated posterior; the row is rebuilt from it
+        w_opt = sample.w_opt
+        u = uniform(sample_key(key, 0, 4), run.decisions[b], 0)
+        total = n_old + st.concentration
+        keep = fexp(flog(u) / total) if total > 0 else 0.0
+        f = row_head[b, row]
+        while f >= 0:
+            w_opt[b, f] = w_opt[b, f] * keep
+            f = row_next[b, f]
+        sample.wu_opt[b, row] = sample.wu_opt[b, row] * keep
+        w_opt[b, e] = w_opt[b, e] + (1.0 - keep)
+        sampled_row_q(st, cache, model, sample, b, row)
+    else:
+        v_end = cache.values[b, nxt]
+        cache.q_num[b, row] += ret + g * v_end
+        if rows.use_conf[b]:
+            c_new = c_old + 1
+            g_new = g_old + g
+            old_term = g_old * g_old / max(c_old, 1.0) if c_old > 0 else 0.0
+            cache.q_sec[b, row] += (g_new * g_new / c_new - old_term) * v_end * v_end
+    push(sweep, b, start, _INF)  # the start state goes first
+    sweep.pending[b] += 1
+    run.decisions[b] += 1
+
+
+@njit(inline="always")
+def resample_due(st, rows, run, b, at_goal):
+    """A sampling run draws afresh at each episode's start (``resample_every`` 0) or every
+    ``resample_every`` decisions (``BatchState.resample``)."""
+    every = st.resample_every
+    return rows.use_sampling[b] and (
+        (every == 0 and at_goal) or (every > 0 and run.decisions[b] % every == 0)
+    )
+
+
+@phase
+def plan(st, world, rows, cache, model, mentor, sweep, sample, scratch, b):
+    """Prioritized sweeping of run ``b``'s pending budget (``Sweeper.sweep`` with
+    ``ValueCache.backup_and_propagate``): rounds of up to ``round_size`` states above the
+    threshold, backed up together (eq. 2), then their changes propagated to predecessors.
+    Returns the number of states backed up."""
+    sampled = rows.use_sampling[b]
+    mentor_run = st.any_mentor and rows.use_mentor[b]
+    round_size = st.round_size
+    threshold = st.priority_threshold
+    values = cache.values
+    round_states, round_best = scratch.round_states, scratch.round_best
+    round_old, round_delta = scratch.round_old, scratch.round_delta
+    budget = sweep.pending[b] * st.backups
+    sweep.pending[b] = 0
+    done = 0
+    backed_up = 0
+    while done < budget:
+        n = min(round_size, budget - done)
+        k = 0
+        while k < n and sweep.hsize[b] > 0 and sweep.hkey[b, 0] > threshold:
+            round_states[b, k] = pop(sweep, b)
+            k += 1
+        if k == 0:
+            break
+        for i in range(k):  # the round's states are backed up together...
+            s = round_states[b, i]
+            best, has_value, _ = state_backup(st, world, rows, cache, model, mentor, b, s)
+            round_old[b, i] = values[b, s]
+            round_delta[b, i] = best - values[b, s] if has_value else 0.0
+            round_best[b, i] = best if has_value else values[b, s]
+        for i in range(k):
+            values[b, round_states[b, i]] = round_best[b, i]
+        backed_up += k
+        for i in range(k):  # ...then their changes propagate
+            d = round_delta[b, i]
+            if d != 0:
+                propagate_options(
+                    st, rows, cache, model, sweep, sample, b, round_states[b, i], d,
+                    round_old[b, i], sampled,
+                )  # fmt: skip
+        if mentor_run:
+            for i in range(k):
+                d = round_delta[b, i]
+                if d != 0:
+                    propagate_mentor(
+                        st, rows, cache, mentor, sweep, sample, b, round_states[b, i], d,
+                        round_old[b, i], sampled,
+                    )  # fmt: skip
+        done += round_size
+    return backed_up
+
+
+@phase
+def _match_mentor(st, world, rows, cache, model, mentor, scratch, b, here):
+    """The "match" rule (``choice._match_mentor``): where the mentor term wins eq. 2 at
+    ``here``, own options whose first action best reproduces the mentor's move come first
+    (their Q in ``scratch.q_buf`` raised by 10⁶)."""
+    _, _, won = state_backup(st, world, rows, cache, model, mentor, b, here)
+    if not won:
+        return
+    primitive_rows = rows.primitive_rows
+    score_buf, usable_buf, q_buf = scratch.score_buf, scratch.usable_buf, scratch.q_buf
+    first = rows.row_begin[here]
+    n_rows = rows.row_begin[here + 1] - first
+    n_m = max(mentor.row_count[b, here], 1.0)
+    for a in range(primitive_rows.shape[1]):
+        prow = primitive_rows[here, a]
+        total = 0.0
+        n_p = max(model.row_count[b, prow], 1.0)
+        e = model.row_head[b, prow]
+        while e >= 0:
+            f = mentor.row_head[b, here]
+            while f >= 0:
+                if mentor.edge_succ[b, f] == model.edge_succ[b, e]:
+                    total += (model.edge_count[b, e] / n_p) * (mentor.edge_count[b, f] / n_m)
+                f = mentor.row_next[b, f]
+            e = model.row_next[b, e]
+        score_buf[b, a] = total
+    A_p = primitive_rows.shape[1]
+    best_score = 0.0
+    for j in range(n_rows):
+        a = min(rows.row_first_action[first + j], A_p - 1)
+        sc = score_buf[b, a] if usable_buf[b, j] else 0.0
+        if sc > best_score:
+            best_score = sc
+    if best_score > 0:
+        for j in range(n_rows):
+            a = min(rows.row_first_action[first + j], A_p - 1)
+            sc = score_buf[b, a] if usable_buf[b, j] else 0.0
+            if sc >= best_score - _TIE:
+                q_buf[b, j] += 1e6
+
+
+@njit(inline="always")
+def choose(st, world, rows, cache, model, mentor, run, scratch, key, b, t, here):
+    """ε-greedy over the own rows of ``here`` (``choice.choose_rows``) with the draws of tick
+    ``t``: the run's next row, in ``run.row_of[b]``."""
+    M = cache.q_num.shape[1] - 1
+    q_buf, usable_buf, enabled_buf = scratch.q_buf, scratch.usable_buf, scratch.enabled_buf
+    first = rows.row_begin[here]  # the rows of ``here``: first, first + 1, ..., first + n_rows - 1
+    n_rows = rows.row_begin[here + 1] - first
+    for j in range(n_rows):
+        q, usable, enabled = row_value(st, rows, cache, model, b, first + j)
+        q_buf[b, j] = q if usable else -_INF
+        usable_buf[b, j] = usable
+        enabled_buf[b, j] = enabled
+    if st.mentor_choice == MATCH and st.any_mentor:
+        _match_mentor(st, world, rows, cache, model, mentor, scratch, b, here)
+    top = -_INF
+    for j in range(n_rows):
+        if q_buf[b, j] > top:
+            top = q_buf[b, j]
+    any_greedy = False
+    for j in range(n_rows):
+        if usable_buf[b, j] and q_buf[b, j] >= top - _TIE:
+            any_greedy = True
+            break
+    explore = uniform(key, t, 3) < run.epsilon[b]
+    count = 0
+    for j in range(n_rows):
+        if explore or not any_greedy:
+            cand = enabled_buf[b, j]
+        else:
+            cand = usable_buf[b, j] and q_buf[b, j] >= top - _TIE
+        usable_buf[b, j] = cand  # from here on: the candidate mask
+        if cand:
+            count += 1
+    pick = min(np.int64(uniform(key, t, 4) * count), count - 1)
+    if st.tie_break == TIE_FIRST and not explore:
+        pick = 0
+    chosen = first if n_rows > 0 else M  # (M: no row, as the torch engine's padding)
+    seen = 0
+    for j in range(n_rows):
+        if usable_buf[b, j]:
+            if seen == pick:
+                chosen = first + j
+                break
+            seen += 1
+    run.row_of[b] = chosen
+
+
+@phase
+def start_option(st, world, run, key, b, t, nxt, at_goal):
+    """Where the next option starts: ``nxt``, or a start state after a goal (drawn with the
+    uniforms of tick ``t``, ``WorldTables.start_states``); the option's counters reset."""
+    if run.found_goal[b] and st.eps_schedule == EPS_DECISION:
+        run.epsilon[b] = max(run.epsilon[b] * st.eps_decay, st.eps_min)
+    run.duration[b] = 0
+    run.disc_return[b] = 0.0
+    run.discount[b] = 1.0
+    here = nxt
+    if at_goal:
+        if st.start_state >= 0:
+            here = st.start_state
+        else:
+            start_cdf = world.start_cdf
+            S = world.terminal.shape[0] - 1
+            u5 = uniform(key, t, 5)
+            here = 0
+            while here < S - 1 and start_cdf[here] <= u5:
+                here += 1
+    run.position[b] = here
+    run.option_start[b] = here
+    return here
+
+
+@entry  # (the flags: .jit)
+def run_ticks(
+    b, t_end, t_reached, st, world, rows, cache, model, mentor, sweep, run, sample, scratch
+):
+    """Advance run ``b`` from tick ``t_reached[b]`` to ``t_end``, in place: act, learn, plan,
+    choose — :meth:`TorchEngine.tick <himit_torch.learner.engines.TorchEngine.tick>` for one run.
+
+    The run stops early, at the start of a tick, when its edge list is full (``num_edges[b]``
+    equals the capacity): the caller grows the lists and calls again. ``t_reached[b]`` says
+    where it stopped. Runs touch only their own row of every per-run array, so any number of
+    them can run at once on separate threads."""
+    capacity = model.edge_row.shape[1]
+    heapify(sweep, b, world.terminal.shape[0])
+    key = np.uint64(run.keys[b])
+    t = t_reached[b]
+    while t < t_end:
+        if model.num_edges[b] >= capacity:
+            break
+        row, nxt, at_goal, ended = act(st, world, rows, run, key, b, t)
+        t += 1
+        decay_epsilon_per_step(st, run, b, at_goal)
+        if ended:
+            count_outcome(st, rows, cache, model, sweep, run, sample, key, b, row, nxt)
+            if resample_due(st, rows, run, b, at_goal):
+                resample(st, world, rows, cache, model, mentor, sweep, sample, key, b)
+        if sweep.pending[b] > 0 and t % st.plan_every == 0:
+            run.backups_done[b] += plan(
+                st, world, rows, cache, model, mentor, sweep, sample, scratch, b
+            )
+        if ended:
+            here = start_option(st, world, run, key, b, t - 1, nxt, at_goal)
+            choose(st, world, rows, cache, model, mentor, run, scratch, key, b, t - 1, here)
+    t_reached[b] = t
+
+
+@njit(cache=True)
+def link_edges(edge_row, edge_succ, num_edges, row_head, row_next, succ_head, succ_next):
+    """Linked lists over each run's edges (by row and by successor), from the edge lists."""
+    row_head[:] = -1
+    succ_head[:] = -1
+    row_next[:] = -1
+    succ_next[:] = -1
+    for b in range(edge_row.shape[0]):
+        for e in range(num_edges[b]):
+            r = edge_row[b, e]
+            s = edge_succ[b, e]
+            row_next[b, e] = row_head[b, r]
+            row_head[b, r] = e
+            succ_next[b, e] = succ_head[b, s]
+            succ_head[b, s] = e

@@ -1,0 +1,361 @@
+"""The compiled engine: the learner's ticks as one Numba kernel call per run, the runs on threads.
+
+The kernels (:mod:`himit_torch.learner.engines.kernel`) work in place on the memory of the
+state's tensors (``Tensor.numpy()`` shares it), grouped by owner into the named tuples of
+:mod:`~himit_torch.learner.engines.kernel.arrays`, plus two derived structures the engine owns:
+linked lists over each run's model edges (rebuilt from the edge lists whenever they changed
+elsewhere) and an indexed max-heap over the sweep priorities (rebuilt from them at every call).
+Kernels are cached on disk (Numba ``cache=True``): a second process does not compile again, and
+processes that start together compile once (each kernel's first call in a process holds the
+cache's lock, :func:`cache_lock`).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import tempfile
+import threading
+from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
+from contextlib import contextmanager
+from pathlib import Path
+from typing import IO, Any
+
+import numba
+import numpy as np
+import torch
+
+from himit_torch.learner.engines import kernel as _kernel_package
+from himit_torch.learner.engines.kernel.arrays import (
+    CacheArrays,
+    MentorModelArrays,
+    OptionModelArrays,
+    RowArrays,
+    RunArrays,
+    SampleArrays,
+    Scratch,
+    SweepArrays,
+    WorldArrays,
+)
+from himit_torch.learner.engines.kernel.backup import mentor_wins
+from himit_torch.learner.engines.kernel.tick import link_edges, run_ticks
+from himit_torch.learner.engines.settings import kernel_settings
+from himit_torch.learner.state import BatchState
+
+__all__ = ["NumbaEngine", "cache_lock"]
+
+KERNELS = (run_ticks, link_edges, mentor_wins)  # every kernel called from Python
+
+
+def _np(x: torch.Tensor) -> np.ndarray:
+    return x.detach().numpy()
+
+
+# ------------------------------------------------------------------------ compiling once
+_holder = threading.RLock()  # this process's hold of the cache lock (re-entrant)
+_held: list[IO[str]] = []  # the lock file, open while this process holds it
+_depth = 0
+_called: set[Any] = set()  # the kernels called once (so loaded or compiled) in this process
+
+
+def _lock_path() -> Path:
+    """The lock file of this kernel cache (Numba's ``NUMBA_CACHE_DIR``, or beside the kernels'
+    source when that is unset): processes sharing a cache share the lock."""
+    cache = numba.config.CACHE_DIR or str(Path(_kernel_package.__file__).resolve().parent)  # type: ignore[attr-defined]
+    digest = hashlib.sha256(cache.encode()).hexdigest()[:16]
+    return Path(tempfile.gettempdir()) / f"himit_torch-kernels-{digest}.lock"
+
+
+@contextmanager
+def cache_lock() -> Iterator[None]:
+    """Hold the kernel cache's lock: an ``flock`` on :func:`_lock_path` between processes, and
+    re-entrant within this one (a thread already holding it goes on; other threads wait).
+    Without ``fcntl`` only this process's threads are held: each process compiles on its own."""
+    global _depth
+    with _holder:
+        if _depth == 0:
+            try:
+                import fcntl
+            except ImportError:
+                fcntl = None  # type: ignore[assignment]
+            if fcntl is not None:
+                f = open(_lock_path(), "a")  # noqa: SIM115 (closed when the last hold ends)
+                fcntl.flock(f, fcntl.LOCK_EX)
+                _held.append(f)
+        _depth += 1
+        try:
+            yield
+        finally:
+            _depth -= 1
+            if _depth == 0 and _held:
+                import fcntl
+
+                held = _held.pop()
+                fcntl.flock(held, fcntl.LOCK_UN)
+                held.close()
+
+
+def _call(kernel, *args) -> None:
+    """``kernel(*args)``; its first call in this process holds the cache's lock, so that a
+    process which gets there while another compiles the same kernel waits for it and loads what
+    it cached, instead of compiling it again on a core the other one needs."""
+    if kernel in _called:
+        kernel(*args)
+        return
+    with cache_lock():
+        kernel(*args)
+        _called.add(kernel)
+
+
+_pool: ThreadPoolExecutor | None = None
+_pool_size = 0  # its worker threads (ThreadPoolExecutor keeps the number private)
+
+
+def _run_all(batch: int, args: tuple) -> None:
+    """``run_ticks(b, *args)`` for every run ``b`` of the batch, on up to
+    ``numba.get_num_threads()`` threads (this one included), never more than ``batch``.
+
+    The runs are independent (each touches only its own row of every per-run array), so which
+    thread runs which does not change anything. ``run_ticks`` releases the GIL (``nogil``);
+    threads take the next run as they finish one (runs differ in cost: an imitator plans more
+    than a primitives-only run). Python threads rather than a ``prange`` loop: a parallel
+    wrapper of the loop took ≈ 13 s to compile, over a third of a cold start, and a call from
+    here costs ≈ 0.1 ms per run. The first call in a process runs run 0 alone, under the cache's
+    lock (:func:`_call`)."""
+    global _pool, _pool_size
+    first = 0
+    if run_ticks not in _called:
+        _call(run_ticks, 0, *args)
+        first = 1
+    threads = max(1, min(batch - first, numba.get_num_threads()))
+    if threads == 1:  # (one run left: no thread to wait for)
+        for b in range(first, batch):
+            run_ticks(b, *args)
+        return
+    runs = iter(range(first, batch))
+    lock = threading.Lock()
+
+    def work() -> None:
+        while True:
+            with lock:
+                b = next(runs, None)
+            if b is None:
+                return
+            run_ticks(b, *args)
+
+    if _pool is None or _pool_size < threads - 1:
+        if _pool is not None:  # (more threads were allowed since: a larger pool)
+            _pool.shutdown(wait=False)
+        _pool = ThreadPoolExecutor(threads - 1, thread_name_prefix="himit-run")
+        _pool_size = threads - 1
+    helpers = [_pool.submit(work) for _ in range(threads - 1)]
+    try:
+        work()
+    finally:
+        for h in helpers:
+            h.result()
+
+
+def _row_begin(state_rows: torch.Tensor, num_rows: int) -> np.ndarray:
+    """``[S + 2]``: the rows of state ``s`` are ``row_begin[s]`` … ``row_begin[s + 1] − 1``.
+
+    :class:`~himit_torch.learner.rows.RowTable` numbers rows by state, so each state's rows are
+    consecutive; the kernel loops over that range instead of reading ``state_rows`` (one
+    dependent load less per row in every backup)."""
+    counts = (state_rows != num_rows).sum(1)
+    begin = torch.zeros(state_rows.shape[0] + 1, dtype=torch.int64)
+    begin[1:] = counts.cumsum(0)
+    j = torch.arange(state_rows.shape[1])
+    consecutive = torch.where(j < counts[:, None], begin[:-1, None] + j, num_rows)
+    if not torch.equal(consecutive, state_rows.cpu()):
+        raise RuntimeError("the compiled engine needs each state's rows numbered consecutively")
+    return begin.numpy()
+
+
+class NumbaEngine:
+    """Compiled per-run loop on the CPU (see the module docstring)."""
+
+    name = "numba"
+
+    def __init__(self, state: BatchState):
+        L = self.state = state
+        B, S = L.batch, L.tables.num_states
+        self.settings = kernel_settings(L)
+        tables, rows = L.tables, L.rows
+        table = tables.dynamics
+        assert table is not None  # (make_engine checks it)
+        self.world = WorldArrays(
+            _np(table.successors.contiguous()),
+            _np(table.cdf.contiguous()),
+            _np(table.rewards.contiguous()),
+            _np(tables.terminal),
+            _np(tables.start_cdf) if tables.start_cdf is not None else np.ones(1),
+            _np(tables.termination),
+            _np(tables.policy) if tables.policy is not None else np.zeros(1, dtype=np.int8),
+            _np(tables.policy_cdf) if tables.policy_cdf is not None else np.ones((1, 1)),
+        )
+        self.row_begin = _row_begin(rows.state_rows, rows.num_rows)
+        J, A, R = rows.state_rows.shape[1], table.cdf.shape[1], L.sweeper.round_size
+        self.scratch = Scratch(
+            np.zeros((B, R), dtype=np.int64),
+            np.zeros((B, R)),
+            np.zeros((B, R)),
+            np.zeros((B, R)),
+            np.zeros((B, J)),
+            np.zeros((B, J), dtype=np.bool_),
+            np.zeros((B, J), dtype=np.bool_),
+            np.zeros((B, A)),
+        )
+        self.heap = (
+            np.zeros((B, S + 1), dtype=np.int64),
+            np.zeros((B, S + 1)),
+            np.zeros((B, S + 1), dtype=np.int64),
+            np.zeros(B, dtype=np.int64),
+        )
+        self._links: dict[str, tuple] = {}
+
+    def _rows(self) -> RowArrays:
+        rows = self.state.rows
+        return RowArrays(
+            self.row_begin,
+            _np(rows.row_state),
+            _np(rows.row_option),
+            _np(rows.row_first_action),
+            _np(rows.primitive_rows),
+            _np(rows.row_enabled),
+            _np(rows.use_mentor),
+            _np(rows.use_confidence),
+            _np(rows.use_sampling),
+        )
+
+    def _values_and_models(self) -> tuple[CacheArrays, OptionModelArrays, MentorModelArrays]:
+        """What eq. 2 reads, as the kernels take it (the models with up-to-date linked lists)."""
+        L = self.state
+        cache, model, mentor = L.cache, L.model, L.mentor
+        cache_arrays = CacheArrays(
+            _np(cache.values),
+            _np(cache.q_numerator),
+            _np(cache.q_second),
+            _np(cache.mentor_numerator),
+            _np(cache.mentor_second),
+            _np(cache.mentor_edge_reward),
+        )
+        model_arrays = OptionModelArrays(
+            _np(model.edge_row),
+            _np(model.edge_successor),
+            _np(model.edge_count),
+            _np(model.edge_discount),
+            _np(model.num_edges),
+            _np(model.row_count),
+            _np(model.row_reward),
+            _np(model.state_tries),
+            *self._linked("model", model),
+        )
+        mentor_arrays = MentorModelArrays(
+            _np(mentor.edge_row),
+            _np(mentor.edge_successor),
+            _np(mentor.edge_count),
+            _np(mentor.row_count),
+            *self._linked("mentor", mentor),
+        )
+        return cache_arrays, model_arrays, mentor_arrays
+
+    def mentor_wins(self) -> torch.Tensor:
+        """``[B]`` how many mentor-observed states the mentor term wins eq. 2 in, per run."""
+        out = np.zeros(self.state.batch, dtype=np.int64)
+        _call(mentor_wins, self.settings, self.world, self._rows(), *self._values_and_models(), out)
+        return torch.from_numpy(out)
+
+    def invalidate(self) -> None:
+        """The state was changed outside this engine: relink before the next call."""
+        self._links.clear()
+
+    def _linked(self, key: str, store) -> tuple:
+        """Linked lists over ``store``'s edges, rebuilt when its lists changed elsewhere."""
+        cached = self._links.get(key)
+        if (
+            cached is not None
+            and cached[0] == store.version
+            and cached[1][1].shape[1] == store.capacity
+        ):
+            return cached[1]
+        B, E = store.batch, store.capacity
+        lists = (
+            np.empty((B, store.num_rows + 1), dtype=np.int64),
+            np.empty((B, E), dtype=np.int64),
+            np.empty((B, store.num_states + 1), dtype=np.int64),
+            np.empty((B, E), dtype=np.int64),
+        )
+        _call(
+            link_edges,
+            _np(store.edge_row),
+            _np(store.edge_successor),
+            _np(store.num_edges),
+            *lists,
+        )
+        self._links[key] = (store.version, lists)
+        return lists
+
+    def advance(self, ticks: int) -> None:
+        """Carry out ``ticks`` ticks for every run (no window boundary inside)."""
+        if mentor_wins not in _called:
+            # loaded (or compiled) at the first tick, as the loop, not in the middle of a run at
+            # its first window's end; it only reads the state
+            self.mentor_wins()
+        L = self.state
+        t_end = L.run.t + ticks
+        t_reached = np.full(L.batch, L.run.t, dtype=np.int64)
+        model, run, sweeper, sample = L.model, L.run, L.sweeper, L.sample
+        while True:
+            cache_arrays, model_arrays, mentor_arrays = self._values_and_models()
+            _run_all(
+                L.batch,
+                (
+                    t_end,
+                    t_reached,
+                    self.settings,
+                    self.world,
+                    self._rows(),
+                    cache_arrays,
+                    model_arrays,
+                    mentor_arrays,
+                    SweepArrays(*self.heap, _np(sweeper.queue.priority), _np(sweeper.pending)),
+                    RunArrays(
+                        _np(L.keys).view(np.uint64),
+                        _np(run.position),
+                        _np(run.option_start),
+                        _np(run.row),
+                        _np(run.duration),
+                        _np(run.discounted_return),
+                        _np(run.discount),
+                        _np(run.epsilon),
+                        _np(run.found_goal),
+                        _np(run.goals),
+                        _np(run.window_goals),
+                        _np(run.episodes),
+                        _np(run.episode_start),
+                        _np(run.window_episode_steps),
+                        _np(run.window_episodes),
+                        _np(run.backups_done),
+                        _np(run.decisions),
+                        _np(run.first_goal_step),
+                        _np(run.visits),
+                    ),
+                    SampleArrays(
+                        _np(sample.option_w),
+                        _np(sample.option_unseen),
+                        _np(sample.mentor_w),
+                        _np(sample.mentor_unseen),
+                        _np(sample.resamples),
+                    ),
+                    self.scratch,
+                ),
+            )
+            # The kernel kept its linked lists in step with the edges it added.
+            model.version += 1
+            self._links["model"] = (model.version, tuple(model_arrays[-4:]))
+            if (t_reached == t_end).all():
+                break
+            model.reserve(2 * model.capacity)  # some run filled its edge list: grow, go on
+        run.t = t_end
+        sweeper.queue.refresh_block_max()

@@ -1,0 +1,494 @@
+"""The value caches: ``V`` and the cached numerators of eq. 2, the only writer of ``V``.
+
+The paper's eq. 2 (the augmented Bellman equation with options)
+
+    V(s) = max( max_o [ r(s,o) + Σ_s' p^o_ss' V(s') ],  R_m(s) + γ Σ_s' p_m(s'|s) V(s') )
+
+is evaluated from caches rather than from the models' successor lists (the pure functions of
+:mod:`himit_torch.learner.backups` are the slow reference the tests compare these with):
+
+* ``q_numerator [B, M + 1]`` holds ``Σ r + Σ_{s'} Σγ^k V(s')`` of every row, so that
+  ``Q = (q_numerator + α v0) / (n + α)`` is :func:`~himit_torch.learner.backups.option_backup` on the
+  posterior mean. When ``V(x)`` changes by ``δ``, every row with an edge to ``x`` gets
+  ``+ Σγ^k · δ`` (along the reverse edges), which also yields the prioritized-sweeping priority
+  ``|ΔQ|`` of the row's state.
+* ``mentor_numerator [B, S + 1]`` likewise holds ``Σ_{s'} c(s→s') (r_m + γ V(s'))``.
+* ``q_second``/``mentor_second`` hold the second moments the confidence test needs.
+
+Runs that plan on a posterior sample (the ``…_psrl`` agents, :mod:`himit_torch.learner.posterior_sampling`)
+keep the same caches in the same form — ``q_numerator = (n + α)·Q̃ − α v0``, so that the formula
+above yields the sampled value ``Q̃`` and every reader (backups, choice, diagnostics) is unchanged
+— and propagate along the sampled weights ``(n + α) w_e Σγ^k/c_e`` (mentor: ``(n + α) w_e``)
+instead of ``Σγ^k`` (``c``). A row's numerator is rebuilt from the sample whenever the sample
+changes (:meth:`ValueCache.apply_sample_rows`, :meth:`ValueCache.apply_sample`).
+
+A backup of ``s`` is then a max over its cached rows and its mentor term. The functions here are
+the batched tensor-op path (the torch engine, diagnostics); the compiled engine computes the same
+numbers in the same order on the same arrays.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import torch
+
+from himit_torch.learner.backups import (
+    MentorConfidence,
+    dirichlet_variance,
+    option_backup_edges,
+    trusted_augmented_backup,
+)
+from himit_torch.learner.models import DirichletMentorModel, DirichletSMDPModel
+from himit_torch.learner.rows import RowTable
+
+if TYPE_CHECKING:
+    from himit_torch.learner.config import LearnerConfig
+    from himit_torch.learner.posterior_sampling import PosteriorSample
+
+__all__ = ["ValueCache", "TIE"]
+
+#: Two values within this distance are a tie (greedy choice, mentor matching).
+TIE = 1e-12
+
+
+def _take(x: torch.Tensor, flat: torch.Tensor) -> torch.Tensor:
+    """``x`` (contiguous) read at flat indices of any shape: one ``index_select``, far cheaper
+    than multi-tensor advanced indexing."""
+    return x.view(-1).index_select(0, flat.reshape(-1)).view(flat.shape)
+
+
+class ValueCache:
+    """``V [B, S + 1]`` and the caches of eq. 2 for a batch, over its models and row table."""
+
+    def __init__(
+        self,
+        config: LearnerConfig,
+        rows: RowTable,
+        model: DirichletSMDPModel,
+        mentor: DirichletMentorModel,
+        terminal: torch.Tensor,
+        gamma: float,
+        sample: PosteriorSample | None = None,
+    ):
+        self.config, self.rows, self.model, self.mentor = config, rows, model, mentor
+        self.sample = sample
+        self.any_sampling = sample is not None and sample.any
+        self.terminal, self.gamma = terminal, gamma
+        B, S, M = model.batch, rows.num_states, rows.num_rows
+        dev = terminal.device
+        self.batch, self.num_states, self.num_rows, self.device = B, S, M, dev
+        self.values = torch.full(
+            (B, S + 1), float(config.initial_value), dtype=torch.float64, device=dev
+        )
+        self.values[:, terminal] = 0.0
+        self.q_numerator = torch.zeros(B, M + 1, dtype=torch.float64, device=dev)
+        self.q_second = torch.zeros_like(self.q_numerator)  # Σ (γ^k)² V² / c per row
+        self.mentor_numerator = torch.zeros(B, S + 1, dtype=torch.float64, device=dev)
+        self.mentor_second = torch.zeros_like(self.mentor_numerator)
+        self.mentor_edge_reward = torch.zeros(B, mentor.capacity, dtype=torch.float64, device=dev)
+        mentor.on_grow.append(self._grow_mentor_reward)
+        self.any_confidence = bool(rows.use_confidence.any())
+        self.any_mentor = bool(rows.use_mentor.any())
+        self._neg_inf = torch.tensor(float("-inf"), dtype=torch.float64, device=dev)
+        self._zero = torch.zeros((), dtype=torch.float64, device=dev)
+        self._untried = torch.tensor(
+            float(config.untried_value if config.untried_value is not None else 0.0),
+            dtype=torch.float64,
+            device=dev,
+        )
+
+    _STATE = (
+        "values",
+        "q_numerator",
+        "q_second",
+        "mentor_numerator",
+        "mentor_second",
+        "mentor_edge_reward",
+    )
+
+    def state_dict(self) -> dict:
+        out = {name: getattr(self, name).clone() for name in self._STATE}
+        out["mentor_edge_reward"] = self.mentor_edge_reward[:, : self.mentor.used].clone()
+        return out
+
+    def load_state_dict(self, state: dict) -> None:
+        """Restore (after the mentor model, whose capacity the edge rewards follow)."""
+        for name in self._STATE:
+            value, current = state[name], getattr(self, name)
+            if value.shape[0] != current.shape[0] or (
+                name != "mentor_edge_reward" and value.shape != current.shape
+            ):
+                raise ValueError(
+                    f"value cache {name} has shape {tuple(value.shape)}, this "
+                    f"learner's {tuple(current.shape)}"
+                )
+            setattr(self, name, value.to(self.device).clone())
+        self._grow_mentor_reward(self.mentor.capacity)
+
+    def _grow_mentor_reward(self, capacity: int) -> None:
+        """Keep one edge reward per slot of the mentor model's edge lists."""
+        if capacity != self.mentor_edge_reward.shape[1]:
+            grown = torch.zeros(self.batch, capacity, dtype=torch.float64, device=self.device)
+            keep = min(capacity, self.mentor_edge_reward.shape[1])
+            grown[:, :keep] = self.mentor_edge_reward[:, :keep]
+            self.mentor_edge_reward = grown
+
+    # ============================================================================ value queries
+    def _row_flat(self, runs, rows):
+        return runs * (self.num_rows + 1) + rows
+
+    def _state_flat(self, runs, states):
+        return runs * (self.num_states + 1) + states
+
+    def row_q(self, runs: torch.Tensor, rows: torch.Tensor) -> torch.Tensor:
+        """Posterior-mean option values ``Q`` of ``rows`` (``runs`` broadcast against them);
+        untried rows give the prior value ``v0`` if ``concentration > 0`` else ``NaN``."""
+        flat = self._row_flat(runs, rows)
+        return self._q_at(flat, _take(self.model.row_count, flat))
+
+    def _q_at(self, flat, n):
+        a, v0 = self.config.concentration, self.config.initial_value
+        return (_take(self.q_numerator, flat) + a * v0) / (n + a)
+
+    def mentor_term(self, runs: torch.Tensor, states: torch.Tensor) -> torch.Tensor:
+        """Posterior-mean mentor term ``R_m(s) + γ Σ p_m(s'|s) V(s')`` (NaN where not observed
+        and no prior)."""
+        flat = self._state_flat(runs, states)
+        return self._mentor_at(flat, _take(self.mentor.row_count, flat))
+
+    def _mentor_at(self, flat, n):
+        a, v0 = self.config.mentor_concentration, self.config.initial_value
+        return (_take(self.mentor_numerator, flat) + a * v0) / (n + a)
+
+    def _row_variance(self, flat, n, q):
+        a, v0 = self.config.concentration, self.config.initial_value
+        rsum = _take(self.model.row_reward, flat)
+        rbar = torch.where(n > 0, rsum / n.clamp(min=1), torch.zeros_like(n))
+        cont = _take(self.q_numerator, flat) - rsum
+        second = (n * rbar * rbar + 2 * rbar * cont + _take(self.q_second, flat) + a * v0 * v0) / (
+            n + a
+        )
+        var = dirichlet_variance(q, second, n + a)
+        # A row with no posterior at all (untried, no prior) valued by ``untried_value``: its
+        # value is unbounded above, so no mentor term can be confidently better.
+        return torch.where(n + a > 0, var, torch.full_like(var, float("inf")))
+
+    def _mentor_variance(self, flat, n, m):
+        a, v0 = self.config.mentor_concentration, self.config.initial_value
+        second = (_take(self.mentor_second, flat) + a * v0 * v0) / (n + a)
+        return dirichlet_variance(m, second, n + a)
+
+    def own_values(self, runs: torch.Tensor, states: torch.Tensor):
+        """Cached ``Q`` of the rows at ``states`` (``runs`` broadcast, ``[..., J]`` out): returns
+        ``(rows, q, usable, enabled, flat rows, counts)``; ``usable`` = the run may use the row
+        and it has a value (tried, or valued by the prior / ``untried_value``)."""
+        cfg = self.config
+        rows = self.rows.state_rows.index_select(0, states.reshape(-1)).view(*states.shape, -1)
+        flat = self._row_flat(runs[..., None], rows)
+        n = _take(self.model.row_count, flat)
+        q = self._q_at(flat, n)
+        enabled = _take(self.rows.row_enabled, flat)
+        if cfg.concentration > 0:
+            usable = enabled
+        elif cfg.untried_value is None:
+            usable = enabled & (n > 0)
+        else:
+            q = torch.where(n > 0, q, self._untried)
+            usable = enabled
+        return rows, q, usable, enabled, flat, n
+
+    def state_backup(self, runs: torch.Tensor, states: torch.Tensor):
+        """Eq. 2 for ``states [R, n]`` of ``runs [R, 1]`` (or broadcastable): returns
+        ``(new V, has_value, mentor_won)``; ``-inf`` where nothing is known. The cache reads the
+        inputs (``Q`` per row, the mentor term, counts, variances) from its numerators;
+        :func:`~himit_torch.learner.backups.trusted_augmented_backup` evaluates the equation."""
+        cfg = self.config
+        _, q, usable, _, flat_rows, n_rows = self.own_values(runs, states)
+        flat = self._state_flat(runs, states)
+        n_m = _take(self.mentor.row_count, flat)
+        # The mentor term exists only where the mentor was seen (a prior does not create one).
+        observed = self.rows.use_mentor[runs] & (n_m > 0)
+        m = self._mentor_at(flat, n_m)
+        tries = (
+            _take(self.model.state_tries, flat)
+            if cfg.mentor_override_after is not None or cfg.mentor_fade is not None
+            else None
+        )
+        confidence = None
+        if self.any_confidence and bool(self.rows.use_confidence[runs].any()):
+            confidence = MentorConfidence(
+                own_var=self._row_variance(flat_rows, n_rows, q),
+                mentor_var=self._mentor_variance(flat, n_m, m),
+                tested=self.rows.use_confidence[runs],
+                z=cfg.confidence_z,
+            )
+        best, mentor_won = trusted_augmented_backup(
+            q,
+            usable,
+            m,
+            observed,
+            tries,
+            override_after=cfg.mentor_override_after,
+            confidence=confidence,
+            fade=cfg.mentor_fade,
+        )
+        # Terminal states (and the padding state) keep V = 0.
+        has_value = torch.isfinite(best) & ~self.terminal.index_select(
+            0, states.reshape(-1)
+        ).view_as(states)
+        return best, has_value, mentor_won
+
+    # ================================================================================ updates
+    def backup_and_propagate(
+        self, runs: torch.Tensor, states: torch.Tensor, valid: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Back up ``states [R, n]`` of ``runs [R]`` together (where ``valid``), then push each
+        change ``δ`` into the caches of the states' predecessors. Returns the predecessors'
+        new priorities ``(runs, states, |ΔQ|)`` for the sweeper."""
+        best, has_value, _ = self.state_backup(runs[:, None], states)
+        flat = self._state_flat(runs[:, None], states)
+        old = _take(self.values, flat)
+        keep = valid & has_value
+        delta = torch.where(keep, best - old, self._zero)
+        self.values.view(-1).index_put_((flat[keep],), best[keep])
+        changed = delta != 0
+        if not bool(changed.any()):
+            empty = runs[:0]
+            return empty, empty, torch.zeros(0, dtype=torch.float64, device=self.device)
+        rr = runs[:, None].expand_as(states)[changed]
+        xs, dd, vo = states[changed], delta[changed], old[changed]
+        pushes = [self._propagate_options(rr, xs, dd, vo)]
+        if self.any_mentor:
+            pushes.append(self._propagate_mentor(rr, xs, dd, vo))
+        runs_out, states_out, priorities = (torch.cat(parts) for parts in zip(*pushes))
+        return runs_out, states_out, priorities
+
+    def _propagate_options(self, runs, states, delta, old):
+        """``V(x) += δ``: update the ``Q`` caches of every row with an edge to ``x``."""
+        model = self.model
+        owner, e = model.index().incoming(runs, states)
+        r = runs.index_select(0, owner)
+        d = delta.index_select(0, owner)
+        flat_e = r * model.capacity + e
+        rows = _take(model.edge_row, flat_e)
+        g = _take(model.edge_discount, flat_e)
+        if self.any_sampling:  # sampled runs: the sampled weight (n + α) w_e Σγ^k / c_e
+            assert self.sample is not None
+            n_row = _take(model.row_count, self._row_flat(r, rows))
+            w = _take(self.sample.option_w, r * model.capacity + e)
+            c_e = _take(model.edge_count, flat_e).clamp(min=1e-300)
+            g = torch.where(
+                self.rows.use_sampling.index_select(0, r),
+                ((n_row + self.config.concentration) * w) * (g / c_e),
+                g,
+            )
+        gd = g * d
+        flat = self._row_flat(r, rows)
+        self.q_numerator.view(-1).index_add_(0, flat, gd)
+        if self.any_confidence:  # (second moments only for the confidence-tested runs)
+            c = _take(model.edge_count, flat_e).clamp(min=1)
+            v_old = old.index_select(0, owner)
+            term = g * g / c * ((v_old + d) ** 2 - v_old**2)
+            keep = self.rows.use_confidence.index_select(0, r)
+            self.q_second.view(-1).index_add_(0, flat[keep], term[keep])
+        prio = gd.abs() / (_take(model.row_count, flat) + self.config.concentration).clamp(
+            min=1e-300
+        )
+        push = (prio > self.config.priority_threshold) & _take(self.rows.row_enabled, flat)
+        return r[push], self.rows.row_state.index_select(0, rows[push]), prio[push]
+
+    def _propagate_mentor(self, runs, states, delta, old):
+        """The same for the mentor term of every state the mentor left towards ``x``."""
+        keep = self.rows.use_mentor.index_select(0, runs)
+        runs, states, delta, old = runs[keep], states[keep], delta[keep], old[keep]
+        mentor = self.mentor
+        owner, e = mentor.index().incoming(runs, states)
+        r = runs.index_select(0, owner)
+        gd = self.gamma * delta.index_select(0, owner)
+        flat_e = r * mentor.capacity + e
+        src = _take(mentor.edge_row, flat_e)
+        c = _take(mentor.edge_count, flat_e)
+        if self.any_sampling:  # sampled runs: the sampled weight (n + α) w_e
+            assert self.sample is not None
+            n_src = _take(mentor.row_count, self._state_flat(r, src))
+            w = _take(self.sample.mentor_w, flat_e)
+            c = torch.where(
+                self.rows.use_sampling.index_select(0, r),
+                (n_src + self.config.mentor_concentration) * w,
+                c,
+            )
+        cd = c * gd
+        flat = self._state_flat(r, src)
+        self.mentor_numerator.view(-1).index_add_(0, flat, cd)
+        if self.any_confidence:
+            u_old = _take(self.mentor_edge_reward, flat_e) + self.gamma * old.index_select(0, owner)
+            term = c * ((u_old + gd) ** 2 - u_old**2)
+            keep = self.rows.use_confidence.index_select(0, r)
+            self.mentor_second.view(-1).index_add_(0, flat[keep], term[keep])
+        prio = cd.abs() / (_take(mentor.row_count, flat) + self.config.mentor_concentration).clamp(
+            min=1e-300
+        )
+        push = prio > self.config.priority_threshold
+        return r[push], src[push], prio[push]
+
+    def add_outcome(self, runs, rows, ends, discounts, returns, c_old, g_old) -> None:
+        """Fold one newly counted option outcome per run into the ``Q`` cache (after the model's
+        :meth:`~himit_torch.DirichletSMDPModel.update` returned the edge's old count ``c_old``
+        and summed ``γ^k`` ``g_old``)."""
+        v_end = _take(self.values, self._state_flat(runs, ends))
+        flat_r = self._row_flat(runs, rows)
+        self.q_numerator.view(-1).index_add_(0, flat_r, returns + discounts * v_end)
+        if self.any_confidence:
+            c_new, g_new = c_old + 1, g_old + discounts
+            old_term = torch.where(c_old > 0, g_old * g_old / c_old.clamp(min=1), self._zero)
+            term = (g_new * g_new / c_new - old_term) * v_end * v_end
+            keep = self.rows.use_confidence.index_select(0, runs)
+            self.q_second.view(-1).index_add_(0, flat_r[keep], term[keep])
+
+    def rebuild_options(self) -> None:
+        """Recompute the ``Q`` caches from the option model's counts and ``V``, as
+        :meth:`add_outcome` and the propagation would have built them: ``Σr + Σ_e Σγ^k V(s')``
+        per row and the second moments ``Σ_e (Σγ^k)² / c · V(s')²`` of the confidence test (after
+        a model was written wholesale, e.g. preloaded exact models). The sums run in edge order,
+        not in the order the increments arrived: equal to the incremental caches up to rounding."""
+        model = self.model
+        valid = torch.arange(model.capacity, device=self.device) < model.num_edges[:, None]
+        runs, slots = valid.nonzero(as_tuple=True)  # run by run, each run's edges in order
+        flat_e = runs * model.capacity + slots
+        rows, succ = _take(model.edge_row, flat_e), _take(model.edge_successor, flat_e)
+        g, v = _take(model.edge_discount, flat_e), _take(self.values, self._state_flat(runs, succ))
+        self.q_numerator.copy_(option_backup_edges(model.row_reward, runs, rows, g, v))
+        # Σ_e (Σγ^k)² / c · V(s')²: the same edge sum, with weights (Σγ^k)² / c · V(s')
+        # (confidence-tested runs only).
+        tested = self.rows.use_confidence.index_select(0, runs)
+        c = _take(model.edge_count, flat_e)
+        self.q_second.copy_(
+            option_backup_edges(
+                torch.zeros_like(self.q_second),
+                runs[tested],
+                rows[tested],
+                (g * g / c.clamp(min=1e-300) * v)[tested],
+                v[tested],
+            )
+        )
+
+    def value_changes(
+        self, where: torch.Tensor | None = None, runs: torch.Tensor | None = None
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Where a backup (eq. 2) would change ``V`` by more than the priority threshold:
+        ``(runs, states, |new V − V|)``, for the sweeper to queue. ``runs [R]`` (default: every
+        run) and ``where [R, S]`` bool limit the search."""
+        S = self.num_states
+        if runs is None:
+            runs = torch.arange(self.batch, device=self.device)
+        R = runs.numel()
+        states = torch.arange(S, device=self.device)
+        best, has_value, _ = self.state_backup(runs[:, None], states[None].expand(R, -1))
+        old = self.values.index_select(0, runs)[:, :S]
+        change = torch.where(has_value, (best - old).abs(), torch.zeros_like(best))
+        queue = change > self.config.priority_threshold
+        if where is not None:
+            queue &= where
+        ri, ss = queue.nonzero(as_tuple=True)
+        return runs[ri], ss, change[ri, ss]
+
+    def rebuild_mentor(self, runs: torch.Tensor | None = None) -> None:
+        """Recompute the mentor caches of ``runs`` (default: every run) from the mentor model's
+        counts, its edge rewards and ``V``; other runs' caches are left as they are (a sampling
+        run's hold its draw)."""
+        mentor = self.mentor
+        if runs is None:
+            runs = torch.arange(self.batch, device=self.device)
+        numerator = torch.zeros_like(self.mentor_numerator.index_select(0, runs))
+        second = torch.zeros_like(numerator)
+        E = int(mentor.num_edges.index_select(0, runs).max()) if runs.numel() else 0
+        if E:
+            edges = torch.arange(E, device=self.device)
+            valid = edges < mentor.num_edges.index_select(0, runs)[:, None]
+            src = mentor.edge_row.index_select(0, runs)[:, :E].clamp(min=0)
+            dst = mentor.edge_successor.index_select(0, runs)[:, :E].clamp(min=0)
+            c = torch.where(valid, mentor.edge_count.index_select(0, runs)[:, :E], self._zero)
+            v = self.values.index_select(0, runs).gather(1, dst)
+            u = self.mentor_edge_reward.index_select(0, runs)[:, :E] + self.gamma * v
+            numerator.scatter_add_(1, src, c * u)
+            confident = self.rows.use_confidence.index_select(0, runs)[:, None]
+            second.scatter_add_(1, src, torch.where(confident, c * u * u, self._zero))
+        self.mentor_numerator.index_copy_(0, runs, numerator)
+        self.mentor_second.index_copy_(0, runs, second)
+
+    # ======================================================================= posterior samples
+    def apply_sample_rows(self, runs: torch.Tensor, rows: torch.Tensor) -> None:
+        """Rebuild the ``Q`` numerators of ``(runs[i], rows[i])`` (sampling runs) from their
+        posterior sample: ``Q̃ = Σ_e w_e (r̄ + Σγ^k_e / c_e · V(s'_e)) + w_unseen v0`` (summed
+        over the row's edges newest first, as the compiled kernel does), stored as
+        ``(n + α) Q̃ − α v0``."""
+        assert self.sample is not None
+        model, sample, cfg = self.model, self.sample, self.config
+        alpha, v0 = cfg.concentration, cfg.initial_value
+        forward = model.index().forward
+        K = forward.shape[2]
+        cells = (runs * forward.shape[1] + rows)[:, None] * K + torch.arange(K, device=self.device)
+        edges = forward.view(-1).index_select(0, cells.reshape(-1)).view(-1, K)
+        valid = edges >= 0
+        flat_e = runs[:, None] * model.capacity + edges.clamp(min=0)
+        w = _take(sample.option_w, flat_e)
+        g = _take(model.edge_discount, flat_e)
+        c = torch.where(valid, _take(model.edge_count, flat_e), torch.ones_like(g))
+        succ = _take(model.edge_successor, flat_e).clamp(min=0)
+        v = _take(self.values, self._state_flat(runs[:, None], succ))
+        flat_r = self._row_flat(runs, rows)
+        n = _take(model.row_count, flat_r)
+        rsum = _take(model.row_reward, flat_r)
+        rbar = torch.where(n > 0, rsum / torch.where(n > 0, n, torch.ones_like(n)), self._zero)
+        from himit_torch.learner.posterior_sampling import _descending_sum
+
+        acc = _descending_sum(w * (rbar[:, None] + (g / c) * v), valid)
+        q = acc + _take(sample.option_unseen, flat_r) * v0
+        self.q_numerator.view(-1).index_put_((flat_r,), (n + alpha) * q - alpha * v0)
+
+    def apply_sample_mentor(self, runs: torch.Tensor, states: torch.Tensor) -> None:
+        """The same for the mentor numerators of ``(runs[i], states[i])`` (observed states):
+        ``m̃ = Σ_e w_e (R_m(s, s'_e) + γ V(s'_e)) + w_unseen v0``, stored as
+        ``(n + α_m) m̃ − α_m v0``."""
+        assert self.sample is not None
+        mentor, sample, cfg = self.mentor, self.sample, self.config
+        alpha, v0 = cfg.mentor_concentration, cfg.initial_value
+        forward = mentor.index().forward
+        K = forward.shape[2]
+        cells = (runs * forward.shape[1] + states)[:, None] * K + torch.arange(
+            K, device=self.device
+        )
+        edges = forward.view(-1).index_select(0, cells.reshape(-1)).view(-1, K)
+        valid = edges >= 0
+        flat_e = runs[:, None] * mentor.capacity + edges.clamp(min=0)
+        w = _take(sample.mentor_w, flat_e)
+        r_e = _take(
+            self.mentor_edge_reward,
+            runs[:, None] * self.mentor_edge_reward.shape[1] + edges.clamp(min=0),
+        )
+        succ = _take(mentor.edge_successor, flat_e).clamp(min=0)
+        v = _take(self.values, self._state_flat(runs[:, None], succ))
+        from himit_torch.learner.posterior_sampling import _descending_sum
+
+        acc = _descending_sum(w * (r_e + self.gamma * v), valid)
+        flat_s = self._state_flat(runs, states)
+        m = acc + _take(sample.mentor_unseen, flat_s) * v0
+        n = _take(mentor.row_count, flat_s)
+        self.mentor_numerator.view(-1).index_put_((flat_s,), (n + alpha) * m - alpha * v0)
+
+    def apply_sample(self, runs: torch.Tensor):
+        """After a fresh draw for ``runs``: rebuild all their ``Q`` (and, for imitating runs,
+        mentor) numerators from the sample, and return the states whose backup now differs
+        from ``V`` — ``(runs, states, |ΔV|)`` above the priority threshold — for the sweeper."""
+        M, S = self.num_rows, self.num_states
+        R = runs.numel()
+        rows = torch.arange(M, device=self.device)
+        self.apply_sample_rows(runs.repeat_interleave(M), rows.repeat(R))
+        imitating = runs[self.rows.use_mentor.index_select(0, runs)]
+        if imitating.numel():
+            observed = self.mentor.row_count.index_select(0, imitating)[:, :S] > 0
+            rr, ss = observed.nonzero(as_tuple=True)
+            if rr.numel():
+                self.apply_sample_mentor(imitating[rr], ss)
+        return self.value_changes(runs=runs)

@@ -1,0 +1,415 @@
+"""The mentor: an optimal policy over its own options, and state-only demonstrations of it.
+
+The paper's mentor "executes an optimal policy (with respect to its given options) which takes it
+along the diagonal from the top-left state to the bottom-right state along the walls of the
+rooms" (Section III, Fig. 2). Its options are :func:`~himit_torch.mentor_options`: primitives plus
+doorway options that travel along each room's walls.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+
+from himit_torch.exact.option_models import option_models
+from himit_torch.exact.planning import greedy_option_policy, smdp_value_iteration
+from himit_torch.mentor.demonstrations import Demonstrations
+from himit_torch.options.bundle import Options
+from himit_torch.options.execution import OptionTables, option_step
+from himit_torch.worlds.multirooms import MultiRooms
+from himit_torch.worlds.tabular import TabularWorld
+
+__all__ = [
+    "MentorPolicy",
+    "MentorRollout",
+    "mentor_policy",
+    "run_mentor",
+    "record_demonstrations",
+    "ExactMentorTransitions",
+    "exact_mentor_transitions",
+]
+
+
+@dataclass(frozen=True)
+class MentorPolicy:
+    """An option per state for the mentor.
+
+    Attributes:
+        options: the mentor's own options (``O`` of them).
+        option: ``[S]`` int64 option chosen in each state; −1 where none is available (walls,
+            the goal).
+        values: ``[S]`` float64 optimal values ``V*`` of the mentor's option SMDP.
+        tolerance: how far below ``V*(s)`` an extended option's value may be and still be chosen
+            over a better primitive (see :func:`mentor_policy`).
+    """
+
+    options: Options
+    option: torch.Tensor
+    values: torch.Tensor
+    tolerance: float
+
+    @property
+    def extended(self) -> torch.Tensor:
+        """``[S]`` bool, True where the chosen option is extended (not primitive)."""
+        ext = ~self.options.is_primitive
+        return (self.option >= 0) & ext[self.option.clamp(min=0)]
+
+
+def mentor_policy(
+    world: MultiRooms | TabularWorld, options: Options, prefer_extended_within: float | None = None
+) -> MentorPolicy:
+    """The mentor's optimal policy for its own options, by exact SMDP value iteration.
+
+    Why the preference: with primitives among its options, the strictly optimal choice is often
+    a primitive, better than the extended option by a hair (a wall-following doorway option has
+    the same length as the direct route but slips cost it slightly more), and a mentor stepping
+    by primitives would not show the paper's behaviour of "travelling along the walls". So in each
+    state the mentor takes an extended option whose value is within ``prefer_extended_within`` of
+    the state's optimal value ``V*(s)``, and the strict greedy option otherwise. Among several
+    such extended options the one with the highest value wins (then the lowest index).
+
+    Args:
+        world: the world the mentor acts in.
+        options: the mentor's options, e.g. ``mentor_options(world)``.
+        prefer_extended_within: the tolerance, ``≥ 0``; by default one step's cost,
+            ``abs(world.step_reward)`` (0.01), or 0 for worlds without a ``step_reward``. ``0``
+            gives the strict greedy optimum.
+
+    Returns:
+        :class:`MentorPolicy`; its values are the optimal ``V*`` (the preference changes which
+        option is taken, not the values reported).
+    """
+    if prefer_extended_within is None:
+        prefer_extended_within = abs(getattr(world, "step_reward", 0.0))
+    tolerance = float(prefer_extended_within)
+    if not tolerance >= 0.0:  # also rejects NaN
+        raise ValueError(
+            f"prefer_extended_within={prefer_extended_within} must be ≥ 0 (a value "
+            "tolerance; 0 gives the strict optimum)"
+        )
+    if options.num_states != world.num_states:
+        raise ValueError(
+            f"options are over {options.num_states} states but the world has {world.num_states}"
+        )
+    models = option_models(world, options)
+    plan = smdp_value_iteration(models)
+    extended = ~options.is_primitive
+    if tolerance > 0:
+        # Best extended option first, by value: rank extended rows above the rest by their q,
+        # keeping only those within the tolerance (greedy_option_policy breaks ties by index).
+        q = plan.q
+        within = extended[models.row_option] & (q >= plan.values[models.row_state] - tolerance)
+        score = torch.where(within, q + (q.abs().max() + 1.0) * 4, q)
+        policy = greedy_option_policy(models, score, plan.values)
+    else:
+        policy = plan.policy
+    return MentorPolicy(options=options, option=policy, values=plan.values, tolerance=tolerance)
+
+
+@dataclass(frozen=True)
+class MentorRollout:
+    """What happened when the mentor ran: its states, and (for diagnostics only) its decisions.
+
+    Attributes:
+        states: per episode an int64 ``[T_e + 1]`` tensor: the start and every step's state.
+        decisions: per episode an int64 tensor of the options it chose, in order.
+        options: the mentor's options (to read the decisions' kinds).
+    """
+
+    states: tuple[torch.Tensor, ...]
+    decisions: tuple[torch.Tensor, ...]
+    options: Options
+
+    def decision_counts(self) -> dict[str, int]:
+        """Number of decisions per option kind over all episodes, e.g. ``{"doorway": 40, ...}``."""
+        counts: dict[str, int] = {}
+        for d in self.decisions:
+            for o in d.tolist():
+                kind = self.options.kinds[o]
+                counts[kind] = counts.get(kind, 0) + 1
+        return counts
+
+
+def run_mentor(
+    world: MultiRooms | TabularWorld,
+    mentor: MentorPolicy | Options,
+    episodes: int = 20,
+    *,
+    generator: torch.Generator | None = None,
+    seed: int | None = None,
+    max_steps_per_episode: int | None = None,
+) -> MentorRollout:
+    """Run the mentor's policy from the start until a terminal state, ``episodes`` times.
+
+    Episodes start at ``world.start_state``, or, for a world with a ``start_distribution``, at
+    states drawn from it (one draw per episode from ``generator``, before the steps).
+
+    All episodes run together, one primitive step at a time. Where an episode needs a decision
+    the mentor picks ``mentor.option[s]``; the option acts by its policy; on arriving in ``s'`` it
+    terminates with probability ``β(s')`` (a uniform draw) and always at the goal. Each step
+    draws three uniforms per episode (action for stochastic option policies, slip, termination),
+    so the result depends only on the seed.
+
+    Args:
+        world: the world (its ``step`` with explicit uniforms is used).
+        mentor: a :class:`MentorPolicy`, or options to build one with :func:`mentor_policy`.
+        episodes: number of episodes, ``≥ 1``.
+        generator: a CPU ``torch.Generator``; or give ``seed`` (default 0).
+        max_steps_per_episode: give up (``ValueError``) if an episode has not reached the goal
+            after this many primitive steps; default ``10 · S``.
+    """
+    if isinstance(mentor, Options):
+        mentor = mentor_policy(world, mentor)
+    if not isinstance(mentor, MentorPolicy):
+        raise ValueError(f"mentor must be a MentorPolicy or Options, got {type(mentor).__name__}")
+    if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
+        raise ValueError(f"episodes={episodes!r} must be a whole number ≥ 1")
+    if generator is not None and seed is not None:
+        raise ValueError("give either generator or seed, not both")
+    if generator is None:
+        generator = torch.Generator().manual_seed(0 if seed is None else int(seed))
+    S = world.num_states
+    max_steps = 10 * S if max_steps_per_episode is None else int(max_steps_per_episode)
+    if max_steps < 1:
+        raise ValueError(f"max_steps_per_episode={max_steps_per_episode} must be ≥ 1")
+    options = mentor.options
+    choice, init = mentor.option, options.initiation
+    cdf_total = None
+    if options.stochastic:
+        cdf = options.action_probabilities(world.num_actions).double().cumsum(-1).flatten(0, 1)
+        tables = OptionTables(S, options.termination.reshape(-1), None, cdf)
+        cdf_total = cdf[:, -1]
+    else:
+        tables = OptionTables(S, options.termination.reshape(-1), options.policy.reshape(-1), None)
+    terminal = world.terminal_mask
+
+    def step(positions, actions, slip_u):
+        return world.step(positions, actions, uniforms=slip_u)
+
+    E = episodes
+
+    start_distribution = getattr(world, "start_distribution", None)
+    if start_distribution is None:
+        pos = torch.full((E,), int(world.start_state), dtype=torch.int64)
+    else:
+        pos = torch.multinomial(
+            torch.as_tensor(start_distribution, dtype=torch.float64),
+            E,
+            replacement=True,
+            generator=generator,
+        )
+    if bool((choice[pos] < 0).any()):
+        bad = int(pos[choice[pos] < 0][0])
+        raise ValueError(f"the mentor has no option at the start state {_where(world, bad)}")
+    active = torch.ones(E, dtype=torch.bool)
+    current = torch.full((E,), -1, dtype=torch.int64)
+    history = [pos.clone()]
+    decided_episode, decided_option = [], []
+    for _ in range(max_steps):
+        need = active & (current < 0)
+        if need.any():
+            picked = choice[pos[need]]
+            if (picked < 0).any() or not init[picked, pos[need]].all():
+                bad = int(pos[need][(picked < 0) | ~init[picked.clamp(min=0), pos[need]]][0])
+                raise ValueError(
+                    f"the mentor's policy has no usable option at state {_where(world, bad)}"
+                )
+            current[need] = picked
+            decided_episode.append(torch.nonzero(need).flatten())
+            decided_option.append(picked)
+        u = torch.rand(3, E, generator=generator, dtype=torch.float64)
+        o = current.clamp(min=0)
+        # (the cdf's rows need not end at exactly 1: the action uniform is scaled to the row)
+        action_u = None if cdf_total is None else u[0] * cdf_total[o * S + pos]
+        moved = option_step(
+            tables, o, pos, step, terminal, slip_u=u[1].float(), stop_u=u[2], action_u=action_u
+        )
+        # finished episodes stay where they are
+        nxt = torch.where(active, moved.successors, pos)
+        current = torch.where(active & moved.stopped, torch.full_like(current, -1), current)
+        pos = nxt
+        history.append(pos.clone())
+        active = active & ~terminal[pos]
+        if not active.any():
+            break
+    if active.any():
+        raise ValueError(
+            f"the mentor did not reach the goal within max_steps_per_episode="
+            f"{max_steps} steps in {int(active.sum())} of {E} episodes; is its "
+            "policy able to reach the goal?"
+        )
+    hist = torch.stack(history)  # [T + 1, E]
+    reached = terminal[hist].int().argmax(0)  # first arrival at the goal
+    states = tuple(hist[: int(reached[e]) + 1, e].clone() for e in range(E))
+    ep = torch.cat(decided_episode)
+    opt = torch.cat(decided_option)
+    decisions = tuple(opt[ep == e] for e in range(E))
+    return MentorRollout(states=states, decisions=decisions, options=options)
+
+
+def record_demonstrations(
+    world: MultiRooms | TabularWorld,
+    mentor: MentorPolicy | Options,
+    episodes: int = 20,
+    *,
+    generator: torch.Generator | None = None,
+    seed: int | None = None,
+    max_steps_per_episode: int | None = None,
+) -> Demonstrations:
+    """State-only demonstrations of the mentor: :func:`run_mentor`, keeping the states only.
+
+    The learner sees nothing of the mentor's actions, options or rewards; the returned
+    :class:`~himit_torch.Demonstrations` holds each episode's states and the world's description.
+    Arguments as for :func:`run_mentor`.
+    """
+    rollout = run_mentor(
+        world,
+        mentor,
+        episodes,
+        generator=generator,
+        seed=seed,
+        max_steps_per_episode=max_steps_per_episode,
+    )
+    return Demonstrations(list(rollout.states), world)
+
+
+def _where(world, state: int) -> str:
+    """A state for messages: its cell in MultiRooms, its index elsewhere."""
+    return str(world.coords(state)) if hasattr(world, "coords") else str(state)
+
+
+@dataclass(frozen=True)
+class ExactMentorTransitions:
+    """The mentor's exact state-transition model as expected counts: what infinitely many
+    demonstrations would show, scaled to ``episodes`` episodes.
+
+    ``counts[i]`` is the expected number of primitive steps ``sources[i] → successors[i]`` the
+    mentor makes in ``episodes`` episodes, so ``p_m(s'|s) = counts / Σ_{s'} counts`` exactly
+    (:func:`exact_mentor_transitions`). Give it to :meth:`Learner.add_demonstrations
+    <himit_torch.Learner.add_demonstrations>` in place of recorded demonstrations: its
+    ``transitions()`` and ``counts`` are read, and the mentor model holds these (fractional)
+    counts.
+    """
+
+    sources: torch.Tensor
+    successors: torch.Tensor
+    counts: torch.Tensor
+
+    def transitions(self) -> tuple[torch.Tensor, torch.Tensor]:
+        return self.sources, self.successors
+
+
+def exact_mentor_transitions(
+    world, mentor: MentorPolicy, episodes: float = 1.0
+) -> ExactMentorTransitions:
+    """The exact one-step model ``p_m(s'|s)`` of the mentor of :func:`run_mentor`, as expected
+    transition counts over ``episodes`` episodes.
+
+    The mentor is Markov in the pair (state, executing option), not in the state alone: at a
+    decision in ``s`` it starts ``mentor.option[s]``; the option acts by its policy, the world
+    moves to ``s'``, and the option stops there with probability ``β_o(s')`` (always at a
+    terminal state), when a new decision is made at ``s'``. With ``T`` that chain's transient
+    kernel over reachable pairs and ``x0`` the start distribution over pairs, the expected visits
+    are ``x = x0 (I − T)⁻¹`` (one sparse solve), and the expected count of ``s → s'`` is
+    ``Σ_o x(s, o) P(s' | s, π_o(s))`` — what the learned counts converge to, divided by the
+    number of episodes. Every state the mentor reaches with positive probability (with slips,
+    far more than a few demonstrations visit) gets its exact ``p_m(·|s)``.
+
+    Args:
+        world: a world with a true model (:func:`~himit_torch.worlds.table_world.world_model`).
+        mentor: the mentor's :class:`MentorPolicy` (deterministic or stochastic option policies).
+        episodes: scale of the counts (``> 0``): the expected counts of this many episodes.
+    """
+    import numpy as np
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+
+    from himit_torch.worlds.table_world import world_model
+
+    if not episodes > 0:
+        raise ValueError(f"episodes={episodes!r} must be > 0 (the scale of the expected counts)")
+    P, _ = world_model(world)
+    A, S, _ = P.shape
+    idx, val = P.indices().numpy(), P.values().numpy()
+    # One-step kernel per (action, state): CSR over rows a·S + s.
+    K = sp.csr_matrix((val, (idx[0] * S + idx[1], idx[2])), shape=(A * S, S))
+    options = mentor.options
+    probs = options.action_probabilities(A).double().numpy() if options.stochastic else None
+    policy = None if options.stochastic else options.policy.numpy()
+    beta = options.termination.double().numpy()
+    choice = mentor.option.numpy()
+    terminal = world.terminal_mask.numpy()
+
+    def actions(o: int, s: int):
+        if probs is None:
+            assert policy is not None  # deterministic options have a policy table
+            return [(int(policy[o, s]), 1.0)]
+        return [(a, float(p)) for a, p in enumerate(probs[o, s]) if p > 0]
+
+    start = getattr(world, "start_distribution", None)
+    start = (
+        np.eye(S)[int(world.start_state)]
+        if start is None
+        else torch.as_tensor(start, dtype=torch.float64).numpy()
+    )
+    pair_id: dict[tuple[int, int], int] = {}
+    pairs: list[tuple[int, int]] = []
+
+    def pair(s: int, o: int) -> int:
+        key = (s, o)
+        if key not in pair_id:
+            if o < 0:
+                raise ValueError(
+                    f"the mentor's policy has no option at state {_where(world, s)}, "
+                    "which it can reach"
+                )
+            pair_id[key] = len(pairs)
+            pairs.append(key)
+        return pair_id[key]
+
+    starts = {pair(int(s), int(choice[s])): float(start[s]) for s in np.flatnonzero(start > 0)}
+    rows, cols, vals = [], [], []  # transient kernel T between pairs
+    edge_pair, edge_succ, edge_prob = [], [], []  # pair → next state, per-step probability
+    i = 0
+    while i < len(pairs):
+        s, o = pairs[i]
+        for a, pa in actions(o, s):
+            lo, hi = K.indptr[a * S + s], K.indptr[a * S + s + 1]
+            for s2, p in zip(K.indices[lo:hi], K.data[lo:hi]):
+                p = pa * p
+                if p <= 0:
+                    continue
+                edge_pair.append(i)
+                edge_succ.append(int(s2))
+                edge_prob.append(p)
+                if terminal[s2]:
+                    continue
+                b = float(beta[o, s2])
+                if b > 0:
+                    rows.append(i)
+                    cols.append(pair(int(s2), int(choice[s2])))
+                    vals.append(p * b)
+                if b < 1:
+                    rows.append(i)
+                    cols.append(pair(int(s2), o))
+                    vals.append(p * (1 - b))
+        i += 1
+    n = len(pairs)
+    T = sp.csr_matrix((vals, (rows, cols)), shape=(n, n))
+    x0 = np.zeros(n)
+    x0[list(starts)] = list(starts.values())
+    visits = spla.spsolve((sp.identity(n, format="csc") - T).T.tocsc(), x0)
+    counts = episodes * visits[np.array(edge_pair)] * np.array(edge_prob)
+    src = np.array([pairs[j][0] for j in edge_pair], dtype=np.int64)
+    dst = np.array(edge_succ, dtype=np.int64)
+    # One entry per (s, s'): sum over the options executing at s.
+    key = src * S + dst
+    uniq, inv = np.unique(key, return_inverse=True)
+    summed = np.bincount(inv, weights=counts)
+    keep = summed > 0
+    return ExactMentorTransitions(
+        torch.from_numpy(uniq[keep] // S),
+        torch.from_numpy(uniq[keep] % S),
+        torch.from_numpy(summed[keep]),
+    )

@@ -1,0 +1,1 @@
+"""Options: the bundle of tensors, its builders, and options discovered from demonstrations."""

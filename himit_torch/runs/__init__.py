@@ -1,0 +1,1 @@
+"""Runs: the paper's experiments, Gymnasium, discovery, sweeps, checkpoints, benchmarks."""

@@ -1,0 +1,259 @@
+"""An experiment's configuration (:class:`ExperimentConfig`), the paper's three
+(:data:`EXPERIMENTS`), and loading one from a ``config.json`` (:func:`load_config`).
+
+Every field is declared once with :func:`~himit_torch.validation.setting` (type, range or
+choices, doc), as :class:`~himit_torch.learner.config.LearnerConfig`'s are: validation and the
+``himit run`` flags come from that declaration, and only the cross-field rules are written out.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+
+import torch
+
+from himit_torch.learner.agents import AGENTS
+from himit_torch.learner.config import LearnerConfig
+from himit_torch.learner.engines import ENGINES
+from himit_torch.learner.learner import Learner
+from himit_torch.mentor.reward import MENTOR_REWARDS
+from himit_torch.validation import check_memory, check_settings, refuse_unknown_fields, setting
+from himit_torch.worlds.multirooms import MultiRooms
+
+__all__ = ["ExperimentConfig", "EXPERIMENTS", "MENTOR_MODELS", "load_config"]
+
+#: ``ExperimentConfig.mentor_model``: counts of the demonstrations, or the mentor's exact model.
+MENTOR_MODELS = ("learned", "exact")
+
+
+@dataclass
+class ExperimentConfig:
+    """One experiment: which worlds, agents, seeds, budget and learner settings."""
+
+    name: str = setting("exp2", doc="Experiment id (``exp1``, ``exp2``, ``exp3`` or your own).")
+    sizes: tuple[int, ...] = setting(
+        (40,), ge=1, doc="World sizes N (N×N cells); each is one batch."
+    )
+    room_size: int = setting(
+        4,
+        ge=2,
+        doc="""
+        Cells per room side, wall included: a world of size N has N / room_size rooms per side
+        (the paper: 40×40 with 10×10 rooms → 4; 80×80 with 10×10 rooms → 8).""",
+    )
+    corner_options: bool = setting(
+        False,
+        doc="Give the option agents the 8 corner options per room (experiment 1's large library).",
+    )
+    agents: tuple[str, ...] = setting(
+        ("imitation", "imitation_confident", "options", "primitives"),
+        choices=tuple(AGENTS),
+        doc="Agent variants, each run with every seed (see ``himit_torch.AGENTS``).",
+    )
+    seeds: int = setting(5, ge=1, doc="Runs per agent.")
+    first_seed: int = setting(
+        0,
+        ge=0,
+        doc="""
+        Seeds are first_seed … first_seed + seeds − 1 (a seed also picks the mentor's
+        episodes).""",
+    )
+    steps: int = setting(200_000, ge=1, doc="Primitive steps per run.")
+    mentor_episodes: int = setting(
+        20, ge=1, doc="Mentor episodes recorded (states only) before learning, per seed."
+    )
+    mentor_reward: str = setting(
+        "known",
+        choices=MENTOR_REWARDS,
+        doc="""
+        The reward ``R_m`` the imitating runs give the mentor's transitions (eq. 2): ``known``
+        (the world's own reward, the paper's), ``salience`` (``SalienceReward`` with its defaults,
+        fitted on each seed's own demonstrations: intrinsic, no knowledge of the world's reward) or
+        ``none`` (``ZeroReward``: r_m = 0). See ``himit_torch.mentor.reward``.""",
+    )
+    mentor_preference: float | None = setting(
+        None,
+        ge=0.0,
+        doc="""
+        The mentor takes an extended option within this of the best value (None: one step's
+        cost).""",
+    )
+    mentor_model: str = setting(
+        "learned",
+        choices=MENTOR_MODELS,
+        doc="""
+        Where the imitators' mentor model ``p_m(s'|s)`` comes from: ``"learned"`` — counts of the
+        ``mentor_episodes`` recorded demonstrations (the paper); ``"exact"`` — the mentor's exact
+        transition model (:func:`~himit_torch.mentor.policy.exact_mentor_transitions`: expected
+        counts of ``mentor_episodes`` episodes, so the same total mass, at every state the mentor
+        reaches with positive probability). Demonstrations are still recorded for the figures.""",
+    )
+    slip: float = setting(
+        0.1, ge=0.0, lt=1.0, doc="Probability that an action fails (the paper: 10 %)."
+    )
+    window: int = setting(
+        5000,
+        ge=1,
+        doc="""
+        Goals are counted per window of this many steps (the paper's 5000); also the learner's
+        ``window``.""",
+    )
+    checkpoint_every: int = setting(
+        25_000,
+        ge=1,
+        doc="Save the whole state every this many steps (a multiple of ``window``).",
+    )
+    device: str = setting(
+        "cpu",
+        hint="a torch device such as 'cpu' or 'cuda'",
+        doc="Where the batch runs (``cpu`` or ``cuda``).",
+    )
+    engine: str = setting(
+        "auto",
+        choices=ENGINES,
+        doc="""
+        Which engine carries out the ticks: ``auto`` (the compiled ``numba`` loop on a CPU, the
+        ``torch`` engine on a GPU), ``numba`` or ``torch``. Both give the same curves.""",
+    )
+    learner: LearnerConfig = setting(
+        default_factory=LearnerConfig,
+        doc="Learner settings (see ``LearnerConfig``; a dict of its fields is accepted).",
+    )
+
+    def __post_init__(self):
+        check_settings(self)
+        # Cross-field rules (each field on its own is checked above).
+        try:
+            torch.device(self.device)
+        except RuntimeError as err:
+            raise ValueError(
+                f"ExperimentConfig.device={self.device!r} is not a torch device "
+                f"({err}); use e.g. 'cpu' or 'cuda'"
+            ) from None
+        if any(s % self.room_size for s in self.sizes):
+            raise ValueError(
+                f"ExperimentConfig.sizes={self.sizes!r}: every size must be a positive multiple "
+                f"of room_size={self.room_size}"
+            )
+        if self.checkpoint_every % self.window:
+            raise ValueError(
+                f"ExperimentConfig.checkpoint_every={self.checkpoint_every!r}: must be a positive "
+                f"multiple of window={self.window}"
+            )
+        if self.learner.window != self.window:
+            self.learner = replace(self.learner, window=self.window)
+
+    def check_size(self) -> None:
+        """Refuse, before anything runs, a world of this experiment whose world, option tables
+        and batch would not fit in memory (:func:`himit_torch.validation.check_memory`): not
+        hours later when that world's turn comes. Called by :func:`run_experiment` (not on
+        construction, so that defining an experiment never depends on the memory free now)."""
+        for size in self.sizes:
+            check_memory(
+                f"ExperimentConfig: world {size}×{size} with its options and a batch of "
+                f"{len(self.agents) * self.seeds} runs",
+                self.estimate_bytes(size),
+                "use smaller sizes, fewer agents or seeds",
+            )
+
+    def estimate_bytes(self, size: int) -> int:
+        """Rough bytes one world of this experiment needs: the world, the learner's and the
+        mentor's dense option tables and the batch's per-run tables (the constants of
+        ``MultiRooms``, ``options`` and ``Learner``)."""
+        from himit_torch.options.builders import BYTES_PER_OPTION_STATE
+
+        S, R = size * size, size // self.room_size
+        options = 4 + 4 * R * (R - 1) + (8 * R * R if self.corner_options else 0)
+        rows = 4 * S + (options - 4) * (self.room_size - 1) ** 2
+        batch = len(self.agents) * self.seeds
+        return (
+            S * MultiRooms.BYTES_PER_STATE
+            + 2 * options * S * BYTES_PER_OPTION_STATE
+            + batch * (S * Learner.BYTES_PER_RUN_STATE + rows * Learner.BYTES_PER_RUN_ROW)
+        )
+
+    def to_json(self) -> str:
+        return json.dumps(asdict(self), indent=2)
+
+    def world(self, size: int) -> MultiRooms:
+        return MultiRooms(size=size, rooms=size // self.room_size, slip=self.slip)
+
+    def quick(self) -> ExperimentConfig:
+        """A tiny budget of the same experiment, for smoke tests and ``--quick``."""
+        return replace(
+            self,
+            seeds=min(self.seeds, 2),
+            steps=min(self.steps, 4 * self.window),
+            sizes=self.sizes[:2],
+            checkpoint_every=self.window,
+            mentor_episodes=min(self.mentor_episodes, 5),
+        )
+
+
+def _paper_learner() -> LearnerConfig:
+    """The experiments' learner: the library defaults, planning every 4 ticks in one round
+    (``plan_every=4, sweep_rounds=1``). On experiment 2, against planning at every decision in
+    two rounds, it gave the same totals at 200k steps (imitation 1903 vs 1898, options-only
+    identical failures) but a slower start (goals by 75k steps: imitation 615 vs 646); see
+    experiments/results/results.md."""
+    return LearnerConfig(plan_every=4, sweep_rounds=1)
+
+
+#: The paper's three experiments with our defaults (see ``experiments/results/results.md``).
+EXPERIMENTS: dict[str, ExperimentConfig] = {
+    "exp1": ExperimentConfig(
+        name="exp1",
+        sizes=(80,),
+        room_size=8,
+        corner_options=True,
+        steps=300_000,
+        learner=_paper_learner(),
+    ),
+    "exp2": ExperimentConfig(
+        name="exp2",
+        sizes=(40,),
+        room_size=4,
+        corner_options=False,
+        steps=200_000,
+        learner=_paper_learner(),
+    ),
+    "exp3": ExperimentConfig(
+        name="exp3",
+        sizes=(64, 80, 96, 120),
+        room_size=8,
+        corner_options=True,
+        steps=130_000,
+        agents=("imitation", "options", "primitives"),
+        learner=_paper_learner(),
+    ),
+}
+
+
+def load_config(path: str | os.PathLike) -> ExperimentConfig:
+    """An :class:`ExperimentConfig` from a JSON file (as saved in a run directory)."""
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise ValueError(f"config file {path} does not exist") from None
+    except json.JSONDecodeError as err:
+        raise ValueError(f"config file {path} is not valid JSON: {err}") from None
+    except UnicodeDecodeError as err:  # e.g. a binary file (a pickle) in its place
+        raise ValueError(f"config file {path} is not valid JSON: not UTF-8 text ({err})") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"config file {path} must hold a JSON object")
+    refuse_unknown_fields(data, ExperimentConfig, f"config file {path}")
+    learner = data.get("learner", {})
+    if not isinstance(learner, dict):
+        raise ValueError(f"config file {path}: 'learner' must be an object")
+    refuse_unknown_fields(learner, LearnerConfig, f"config file {path}: learner")
+    try:
+        data["learner"] = LearnerConfig(**learner)
+        return ExperimentConfig(**data)
+    except ValueError as err:
+        raise ValueError(f"config file {path}: {err}") from None
+    except TypeError as err:
+        raise ValueError(f"config file {path}: {err}") from None

@@ -1,0 +1,522 @@
+"""``himit run discovery``: learners with options discovered from the mentor's states
+(:mod:`himit_torch.options.discovery`) against primitives only and the hand-built doorway options, on
+experiment 1's and experiment 2's worlds.
+
+Per world and seed (each seed records its own mentor episodes, as in the other experiments):
+
+* ``primitives``, ``imitation_primitives`` — primitive options only, without / with the mentor
+  term (one batch, all seeds). Their counts after ``warmup`` steps are where the discovered
+  options come from: the learner's *own* learned one-step model.
+* ``doorway_options``, ``doorway_imitation`` — primitives + the hand-built doorway options
+  (``doorway_options(world, "direct")``, built from the true layout), without / with the mentor
+  term.
+* ``discovered_options``, ``discovered_imitation`` — the first ``warmup`` steps are those of
+  ``primitives`` / ``imitation_primitives`` (the same runs); then the subgoals found in the
+  seed's demonstrations and options to them built from that run's one-step counts, and *the same
+  run* goes on with primitives + those options (``options`` / ``imitation`` variant:
+  :func:`~himit_torch.learner.option_refresh.with_options` carries its models, values, counters, ε and
+  random stream). Every ``refresh_every`` steps after that the options are built again from the
+  run's latest one-step counts and swapped in the same way (options that came out unchanged keep
+  their models; changed ones start empty). The subgoals are not searched again: they come from
+  the demonstrations, which do not change.
+
+Goals are counted over the whole run. Results: ``config.json``, ``curves.csv``, ``subgoals.csv``
+(per seed: the subgoals found, precision/recall against the world's doorways, time),
+``demonstrations_needed.csv`` (precision/recall against the number of mentor episodes),
+``results.md`` and ``figures/``.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import time
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from himit_torch.learner.config import LearnerConfig
+from himit_torch.learner.learner import Learner
+from himit_torch.learner.option_refresh import with_options
+from himit_torch.mentor.policy import mentor_policy, record_demonstrations
+from himit_torch.options.builders import doorway_options, mentor_options, primitive_options
+from himit_torch.options.bundle import Options
+from himit_torch.options.discovery import (
+    discover_subgoals,
+    learned_subgoal_options,
+    one_step_counts,
+)
+from himit_torch.runs.config import EXPERIMENTS
+from himit_torch.runs.runner import check_run_dir, run_windows, source_commit, watch_demonstrations
+
+__all__ = ["DiscoveryConfig", "DISCOVERY_AGENTS", "run_discovery", "mean_ci"]
+
+#: The compared learners, in the order of the tables.
+DISCOVERY_AGENTS = (
+    "primitives",
+    "imitation_primitives",
+    "doorway_options",
+    "doorway_imitation",
+    "discovered_options",
+    "discovered_imitation",
+)
+
+
+@dataclass
+class DiscoveryConfig:
+    """Settings of the discovery experiment."""
+
+    name: str = "discovery"
+    worlds: tuple[str, ...] = ("exp2", "exp1")
+    """Whose worlds (and steps, mentor episodes, learner settings) to use: ``exp1``, ``exp2``."""
+    seeds: int = 10
+    first_seed: int = 0
+    steps: int | None = None
+    """Steps per run (None: each experiment's own)."""
+    warmup: int = 20_000
+    """Steps of the primitives-only phase whose one-step model the options are built from (a
+    multiple of the window)."""
+    refresh_every: int | None = None
+    """Steps between rebuilds of a discovered run's options from its latest one-step counts after
+    the warm-up (a multiple of the window); ``None``: built once, at the warm-up."""
+    max_steps_factor: float = 2.0
+    """An option's initiation set: where its subgoal lies within ``max_steps_factor ×
+    separation`` expected steps in the learned model."""
+    demonstrations_needed: tuple[int, ...] = (1, 2, 5, 10, 20)
+    """Mentor episode counts at which subgoal precision/recall is measured."""
+    engine: str = "auto"
+
+    def __post_init__(self):
+        self.worlds = tuple(self.worlds)
+        self.demonstrations_needed = tuple(int(n) for n in self.demonstrations_needed)
+        bad = [w for w in self.worlds if w not in ("exp1", "exp2")]
+        if bad or not self.worlds:
+            raise ValueError(f"DiscoveryConfig.worlds={self.worlds!r}: use exp1 and/or exp2")
+        if self.seeds < 1:
+            raise ValueError(f"DiscoveryConfig.seeds={self.seeds}: needs at least one seed")
+        for w in self.worlds:
+            window = EXPERIMENTS[w].window
+            steps = self.steps_of(w)
+            if self.warmup < window or self.warmup % window or self.warmup >= steps:
+                raise ValueError(
+                    f"DiscoveryConfig.warmup={self.warmup}: must be a positive multiple "
+                    f"of the window ({window}) below the steps ({steps})"
+                )
+            if steps % window:
+                raise ValueError(
+                    f"DiscoveryConfig.steps={steps}: must be a multiple of the window ({window})"
+                )
+        if self.refresh_every is not None:
+            window = min(EXPERIMENTS[w].window for w in self.worlds)
+            if self.refresh_every < 1 or any(
+                self.refresh_every % EXPERIMENTS[w].window for w in self.worlds
+            ):
+                raise ValueError(
+                    f"DiscoveryConfig.refresh_every={self.refresh_every}: must be a positive "
+                    f"multiple of the window ({window}), or None (options built once)"
+                )
+        if not self.max_steps_factor > 0:
+            raise ValueError("DiscoveryConfig.max_steps_factor must be > 0")
+
+    def steps_of(self, world: str) -> int:
+        return int(self.steps or EXPERIMENTS[world].steps)
+
+    def separation(self, world: str) -> int:
+        """Subgoal separation for ``world``: its room spacing − 1 (the one scale discovery is
+        told)."""
+        return EXPERIMENTS[world].room_size - 1
+
+    def quick(self) -> DiscoveryConfig:
+        return replace(
+            self,
+            seeds=min(self.seeds, 2),
+            steps=4 * EXPERIMENTS["exp2"].window,
+            warmup=EXPERIMENTS["exp2"].window,
+            worlds=self.worlds[:1],
+            demonstrations_needed=(2, 5),
+        )
+
+    def to_json(self) -> str:
+        return json.dumps(asdict(self), indent=2)
+
+
+def mean_ci(values) -> tuple[float, float]:
+    """Mean and half-width of its 95 % confidence interval (Student's t; 0 for one value)."""
+    from scipy import stats
+
+    x = np.asarray(values, dtype=np.float64)
+    if x.size < 2:
+        return float(x.mean()), 0.0
+    return float(x.mean()), float(stats.t.ppf(0.975, x.size - 1) * x.std(ddof=1) / np.sqrt(x.size))
+
+
+def _window_goals(learner: Learner) -> np.ndarray:
+    """``[B, W]`` goals per window so far."""
+    return np.asarray([[int(g) for g in row] for row in learner.metrics.goals_in_window]).T
+
+
+def _paired_p(diff: np.ndarray) -> float:
+    """Two-sided p of the paired t-test of ``diff`` against 0 (1 when all differences are 0)."""
+    from scipy import stats
+
+    if diff.size < 2 or not np.any(diff):
+        return 1.0
+    if np.all(diff == diff[0]):
+        return 0.0
+    return float(stats.ttest_1samp(diff, 0.0).pvalue)
+
+
+def _run_world(config: DiscoveryConfig, exp: str, out: Path, progress: bool) -> dict:
+    base = EXPERIMENTS[exp]
+    size = base.sizes[0]
+    world = base.world(size)
+    steps, warmup, window = config.steps_of(exp), config.warmup, base.window
+    lcfg: LearnerConfig = base.learner
+    seeds = list(range(config.first_seed, config.first_seed + config.seeds))
+    mentor = mentor_policy(
+        world, mentor_options(world, corners=base.corner_options), base.mentor_preference
+    )
+    demos = {s: record_demonstrations(world, mentor, base.mentor_episodes, seed=s) for s in seeds}
+    sep = config.separation(exp)
+    log = (lambda *a: print(f"discovery {exp}:", *a, flush=True)) if progress else (lambda *a: None)
+
+    # ---- subgoals: per seed, and against the number of demonstrations
+    subgoal_rows, found = [], {}
+    for s in seeds:
+        t0 = time.perf_counter()
+        sg = discover_subgoals(demos[s], separation=sep)
+        seconds = time.perf_counter() - t0
+        found[s] = sg
+        pr = sg.precision_recall(world.doorways)
+        pr_all = sg.precision_recall(world.doorways, visited_only=False)
+        subgoal_rows.append(
+            {
+                "world": exp,
+                "seed": s,
+                "episodes": base.mentor_episodes,
+                "found": pr["found"],
+                "doorways_visited": pr["true"],
+                "hits": pr["hits"],
+                "precision": pr["precision"],
+                "recall_visited": pr["recall"],
+                "recall_all": pr_all["recall"],
+                "seconds": seconds,
+                "subgoals": " ".join(map(str, sg.states)),
+            }
+        )
+    needed_rows = []
+    for n in config.demonstrations_needed:
+        for s in seeds:
+            d = record_demonstrations(world, mentor, n, seed=s)
+            t0 = time.perf_counter()
+            pr = discover_subgoals(d, separation=sep).precision_recall(world.doorways)
+            needed_rows.append(
+                {"world": exp, "episodes": n, "seed": s, **pr, "seconds": time.perf_counter() - t0}
+            )
+
+    goals: dict[str, dict[int, np.ndarray]] = {a: {} for a in DISCOVERY_AGENTS}
+    first_goal: dict[str, dict[int, int]] = {a: {} for a in DISCOVERY_AGENTS}
+    build_seconds, option_counts = [], {}
+
+    def batch(options: Options, agents: list[str], run_seeds: list[int]) -> Learner:
+        learner = Learner(world, options, agents, run_seeds, config=lcfg, engine=config.engine)
+        watch_demonstrations(learner, demos)
+        return learner
+
+    # ---- primitives only (and the first phase of the discovered-options runs)
+    prims = primitive_options(world)
+    agents = ["primitives"] * len(seeds) + ["imitation_primitives"] * len(seeds)
+    run_seeds = seeds + seeds
+    t0 = time.perf_counter()
+    phase1 = batch(prims, agents, run_seeds)
+    run_windows(phase1, warmup)
+    wall = {"primitives phase": time.perf_counter() - t0}
+    usable = world.free_mask & ~world.terminal_mask
+    refreshes: list[int] = []
+
+    def discovered(learner: Learner, run: int, seed: int) -> Options:
+        """Primitives + options to ``seed``'s subgoals from the latest one-step counts of run
+        ``run`` of ``learner``."""
+        tb = time.perf_counter()
+        built = learned_subgoal_options(
+            one_step_counts(learner, run),
+            world.num_actions,
+            found[seed],
+            terminal=world.terminal_mask,
+            max_steps=config.max_steps_factor * sep,
+            gamma=world.gamma,
+            usable=usable,
+        )
+        build_seconds.append(time.perf_counter() - tb)
+        return prims if built is None else Options.concat(prims, built)
+
+    # ---- discovered options: the primitives runs go on, their options rebuilt as they learn
+    t0 = time.perf_counter()
+    for variant, source, agent in (
+        ("discovered_options", "primitives", "options"),
+        ("discovered_imitation", "imitation_primitives", "imitation"),
+    ):
+        for i, s in enumerate(seeds):
+            run = (0 if source == "primitives" else len(seeds)) + i
+            opts = discovered(phase1, run, s)
+            n_ext = opts.num_options - prims.num_options
+            option_counts[(variant, s)] = n_ext
+            if s == seeds[0] and n_ext:
+                _subgoal_figure(
+                    out / "figures" / f"options_{variant}_{exp}.png",
+                    world,
+                    found[s],
+                    demos[s],
+                    opts.select(list(range(prims.num_options, opts.num_options))),
+                    f"{exp}'s world, seed {s}: subgoals and options built\nfrom "
+                    f"{source}'s model after {warmup:,} steps",
+                )
+            learner = with_options(phase1, opts, runs=[run], agents=[agent])
+            n_swaps = 0
+            while learner.t < steps:
+                stop = steps
+                if config.refresh_every is not None:
+                    stop = min(stop, learner.t + config.refresh_every)
+                run_windows(learner, stop)
+                if learner.t < steps:
+                    learner = with_options(learner, discovered(learner, 0, s))
+                    n_swaps += 1
+            refreshes.append(n_swaps)
+            goals[variant][s] = _window_goals(learner)[0]
+            first_goal[variant][s] = int(learner.first_goal_step[0])
+    wall["discovered options"] = time.perf_counter() - t0
+    log(f"discovered options done ({wall['discovered options']:.0f} s)")
+
+    # ---- the primitives runs to the end
+    t0 = time.perf_counter()
+    run_windows(phase1, steps)
+    wall["primitives phase"] += time.perf_counter() - t0
+    g = _window_goals(phase1)
+    for b, (a, s) in enumerate(zip(agents, run_seeds)):
+        goals[a][s] = g[b]
+        first_goal[a][s] = int(phase1.first_goal_step[b])
+    log(f"primitives done ({wall['primitives phase']:.0f} s)")
+
+    # ---- hand-built doorway options
+    t0 = time.perf_counter()
+    hand = Options.concat(prims, doorway_options(world, "direct"))
+    agents = ["options"] * len(seeds) + ["imitation"] * len(seeds)
+    learner = batch(hand, agents, run_seeds)
+    run_windows(learner, steps)
+    wall["doorway options"] = time.perf_counter() - t0
+    g = _window_goals(learner)
+    for b, (a, s) in enumerate(zip(agents, run_seeds)):
+        name = "doorway_options" if a == "options" else "doorway_imitation"
+        goals[name][s] = g[b]
+        first_goal[name][s] = int(learner.first_goal_step[b])
+    log(f"doorway options done ({wall['doorway options']:.0f} s)")
+    engine = learner.engine.name
+    _subgoal_figure(
+        out / "figures" / f"subgoals_{exp}.png",
+        world,
+        found[seeds[0]],
+        demos[seeds[0]],
+        None,
+        f"{exp}'s world ({size}×{size}), seed {seeds[0]}:\nsubgoals found in "
+        f"{base.mentor_episodes} mentor episodes",
+    )
+    return {
+        "world": exp,
+        "size": size,
+        "steps": steps,
+        "window": window,
+        "goals": goals,
+        "first_goal": first_goal,
+        "subgoals": subgoal_rows,
+        "needed": needed_rows,
+        "build_seconds": build_seconds,
+        "refreshes": refreshes,
+        "option_counts": option_counts,
+        "wall": wall,
+        "separation": sep,
+        "seeds": seeds,
+        "engine": engine,
+    }
+
+
+def _subgoal_figure(path: Path, world, subgoals, demos, options, title: str) -> None:
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from himit_torch.viz.plotting import plot_subgoals
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig = plot_subgoals(world, subgoals, demonstrations=demos, options=options, title=title)
+    FigureCanvasAgg(fig)
+    fig.savefig(path, dpi=150)
+
+
+def _curves_figure(path: Path, result: dict) -> None:
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from himit_torch.viz.plotting import plot_goal_curves
+
+    window = result["window"]
+    steps = np.arange(1, result["steps"] // window + 1) * window
+    fig = Figure(figsize=(11, 4.5), layout="constrained")
+    ax = fig.add_subplot()
+    plot_goal_curves(
+        ax,
+        steps,
+        {a: np.stack([result["goals"][a][s] for s in result["seeds"]]) for a in DISCOVERY_AGENTS},
+        window=window,
+    )
+    ax.set_title(
+        f"{result['world']}'s world ({result['size']}×{result['size']}): discovered vs "
+        "hand-built options",
+        fontsize="medium",
+    )
+    FigureCanvasAgg(fig)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+
+
+def run_discovery(
+    config: DiscoveryConfig, run_dir: str | os.PathLike, force: bool = False, progress: bool = True
+) -> list[dict]:
+    """Run the discovery experiment into ``run_dir`` (see the module docstring)."""
+    out = Path(run_dir)
+    if config.steps is not None and config.steps <= config.warmup:
+        raise ValueError(f"steps={config.steps} must exceed the warm-up ({config.warmup})")
+    check_run_dir(out, force=force)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "config.json").write_text(config.to_json())
+    t0 = time.perf_counter()
+    results = [_run_world(config, w, out, progress) for w in config.worlds]
+    total = time.perf_counter() - t0
+    with (out / "curves.csv").open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["world", "agent", "seed", "step", "goals_in_window"])
+        for r in results:
+            for a in DISCOVERY_AGENTS:
+                for s in r["seeds"]:
+                    for i, g in enumerate(r["goals"][a][s]):
+                        w.writerow([r["world"], a, s, (i + 1) * r["window"], int(g)])
+    for name, key in (("subgoals.csv", "subgoals"), ("demonstrations_needed.csv", "needed")):
+        rows = [row for r in results for row in r[key]]
+        with (out / name).open("w", newline="") as f:
+            dw = csv.DictWriter(f, fieldnames=list(rows[0]))
+            dw.writeheader()
+            dw.writerows(rows)
+    for r in results:
+        _curves_figure(out / "figures" / f"curves_{r['world']}.png", r)
+    _write_results(out, config, results, total)
+    return results
+
+
+def _fmt(values, digits: int = 1) -> str:
+    m, h = mean_ci(values)
+    return f"{m:.{digits}f} ± {h:.{digits}f}"
+
+
+def _write_results(out: Path, config: DiscoveryConfig, results: list[dict], total: float) -> None:
+    engine = ", ".join(sorted({r["engine"] for r in results}))
+    lines = [
+        "# discovery: options discovered from the mentor's states",
+        "",
+        f"Code at commit `{source_commit()}`, engine `{engine}`, {config.seeds} seeds, warm-up {config.warmup:,} steps, initiation "
+        f"sets within {config.max_steps_factor:g} × separation expected steps. Total wall time "
+        f"{total:.0f} s. Numbers: mean ± half-width of the 95 % confidence interval "
+        "(Student's t) over seeds.",
+        "",
+        "What runs (see `himit_torch/runs/discovery.py`): `primitives` / "
+        "`imitation_primitives` — primitive options only, without / with the mentor term; "
+        "`doorway_options` / `doorway_imitation` — primitives + the hand-built doorway options "
+        "(shortest path, from the true layout; no corner options, also on exp1's world); "
+        "`discovered_options` / `discovered_imitation` — the primitives-only run of the same "
+        "seed and variant for the first `warmup` steps, then *the same run* continued "
+        "(`option_refresh.with_options`: models, values, counters, ε, random stream carried) "
+        "with primitives + options to the subgoals discovered in that seed's demonstrations, "
+        "built from the run's own one-step counts, "
+        + (
+            "built once"
+            if config.refresh_every is None
+            else f"rebuilt from its latest counts every {config.refresh_every:,} steps "
+            "(unchanged options keep their models, changed ones start empty)"
+        )
+        + ". Goals count over the whole run. Each world uses its experiment's steps, mentor episodes "
+        "and learner settings; each seed its own mentor episodes.",
+        "",
+    ]
+    for r in results:
+        seeds = r["seeds"]
+        tot = {a: [int(r["goals"][a][s].sum()) for s in seeds] for a in DISCOVERY_AGENTS}
+        last = {a: [int(r["goals"][a][s][-1]) for s in seeds] for a in DISCOVERY_AGENTS}
+        reached = {a: sum(1 for s in seeds if r["first_goal"][a][s] >= 0) for a in DISCOVERY_AGENTS}
+        sg = r["subgoals"]
+        lines += [
+            f"## {r['world']}'s world ({r['size']}×{r['size']}), {r['steps']:,} steps",
+            "",
+            "### Subgoals",
+            "",
+            f"Separation {r['separation']} moves; {EXPERIMENTS[r['world']].mentor_episodes} "
+            "mentor episodes per seed. Recall against the doorways the mentor passed "
+            "(recall_all: against all doorways of the world).",
+            "",
+            "| found | doorways passed | precision | recall | recall_all | time (ms) |",
+            "|---|---|---|---|---|---|",
+            f"| {_fmt([x['found'] for x in sg])} | {_fmt([x['doorways_visited'] for x in sg])} | "
+            f"{_fmt([x['precision'] for x in sg], 2)} | "
+            f"{_fmt([x['recall_visited'] for x in sg], 2)} | "
+            f"{np.mean([x['recall_all'] for x in sg]):.3f} | "
+            f"{1000 * np.mean([x['seconds'] for x in sg]):.1f} |",
+            "",
+            "Demonstrations needed (precision / recall, mean over seeds):",
+            "",
+            "| mentor episodes | precision | recall |",
+            "|---|---|---|",
+        ]
+        for n in config.demonstrations_needed:
+            rows = [x for x in r["needed"] if x["episodes"] == n]
+            lines.append(
+                f"| {n} | {_fmt([x['precision'] for x in rows], 2)} | "
+                f"{_fmt([x['recall'] for x in rows], 2)} |"
+            )
+        n_opts = [v for (variant, _), v in r["option_counts"].items()]
+        lines += [
+            "",
+            f"Options built at the warm-up per run: {_fmt(n_opts)} (min {min(n_opts)}); "
+            f"building them took {1000 * np.mean(r['build_seconds']):.0f} ms a time, "
+            f"{np.mean(r['refreshes']):.0f} rebuilds a run after the warm-up.",
+            "",
+            "### Learning",
+            "",
+            "| agent | total goals | goals in last window | runs that reached the goal |",
+            "|---|---|---|---|",
+        ]
+        for a in DISCOVERY_AGENTS:
+            lines.append(f"| {a} | {_fmt(tot[a])} | {_fmt(last[a])} | {reached[a]}/{len(seeds)} |")
+        hand, disc, prim = (
+            np.mean(tot["doorway_imitation"]),
+            np.mean(tot["discovered_imitation"]),
+            np.mean(tot["imitation_primitives"]),
+        )
+        ratio = disc / hand if hand else float("nan")
+        # Paired over seeds: a seed's two runs share its mentor episodes and, here, its warm-up.
+        diff = np.asarray(tot["discovered_imitation"], float) - np.asarray(
+            tot["imitation_primitives"], float
+        )
+        d_mean, d_half = mean_ci(diff)
+        p_value = _paired_p(diff)
+        beats = d_mean - d_half > 0
+        lines += [
+            "",
+            f"Discovered-options imitator / hand-built imitator (total goals): "
+            f"**{100 * ratio:.0f} %** (target ≥ 80 % on exp2's world); vs primitives-only "
+            f"imitation: {disc:.0f} vs {prim:.0f}, paired difference {d_mean:+.1f} ± "
+            f"{d_half:.1f} goals (paired t-test p = {p_value:.3g}; "
+            f"{'beats it' if beats else 'does not beat it'}: the interval "
+            f"{'lies above' if beats else 'does not lie above'} 0).",
+            "",
+            "Wall time: " + ", ".join(f"{k} {v:.0f} s" for k, v in r["wall"].items()),
+            "",
+        ]
+        r["ratio"] = ratio
+    (out / "results.md").write_text("\n".join(lines) + "\n")

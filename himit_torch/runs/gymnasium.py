@@ -1,0 +1,672 @@
+"""Hierarchical imitation on Gymnasium's tabular environments: Taxi, CliffWalking, FrozenLake 8×8.
+
+For each task: the world through :func:`~himit_torch.from_gymnasium`; the learner's options
+(primitives plus navigation options, :data:`TASKS`); a mentor that is *optimal* — value
+iteration on the true model, primitive actions — and is watched through its states only; then
+one :class:`~himit_torch.Learner` batch of every agent × seed. A run directory holds::
+
+    config.json               the configuration
+    curves.csv                per window: task, agent, seed, step, goals, episodes, ε,
+                              greedy value gap, mentor term wins
+    tasks/<task>.json         per-run summaries and the task's optimum
+    tb/<task>__<agent>__seed<k>/   TensorBoard event files (scalars, hparams)
+    figures/*.png             learning curves (mean and 95 % CI over seeds), final-window bars
+    results.md                the table: mean ± 95 % CI (Student t over seeds), n per cell
+
+Metrics (per window of ``window`` steps):
+
+* ``goals`` — arrivals at the task's *goal* states (:attr:`TableWorld.goal_mask`: Taxi's
+  deliveries, CliffWalking's goal, FrozenLake's goal — not its holes), counted from the
+  learner's visit counts; the paper's "goals in the last window".
+* ``episodes`` — episodes ended (any terminal state: FrozenLake's holes too).
+* ``value_gap`` — ``V*(μ) − V^π(μ)``: how far the run's current greedy option policy is from
+  the optimum, both evaluated *exactly* on the true model from the start distribution ``μ``
+  (states where the run has tried nothing act uniformly at random). 0 = optimal.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+import torch
+
+from himit_torch.exact.option_models import OptionModels, option_models
+from himit_torch.exact.planning import value_iteration
+from himit_torch.learner.agents import AGENTS
+from himit_torch.learner.config import LearnerConfig
+from himit_torch.learner.learner import Learner
+from himit_torch.mentor.policy import mentor_policy, record_demonstrations
+from himit_torch.mentor.reward import KnownReward
+from himit_torch.options.builders import primitive_options, subgoal_options
+from himit_torch.options.bundle import Options
+from himit_torch.options.taxi import taxi_navigation_options
+from himit_torch.runs.runner import (
+    batch_runs,
+    check_run_dir,
+    clear_run_dir,
+    run_names,
+    run_windows,
+    source_commit,
+    watch_demonstrations,
+)
+from himit_torch.viz.tensorboard import TensorBoardLogger, tensorboard_command
+from himit_torch.worlds.gymnasium import from_gymnasium
+from himit_torch.worlds.table_world import TableWorld, world_model
+
+__all__ = [
+    "GymTask",
+    "TASKS",
+    "GymExperimentConfig",
+    "run_gym_experiment",
+    "greedy_value_gap",
+    "mean_ci",
+]
+
+
+@dataclass(frozen=True)
+class GymTask:
+    """One Gymnasium task: the environment, its kwargs and the learner's extended options."""
+
+    env_id: str
+    kwargs: dict
+    extended_options: Callable[[TableWorld], Options]
+    about: str
+    steps: int
+    """Primitive steps per run unless the configuration sets ``steps``."""
+
+    def world(self, gamma: float) -> TableWorld:
+        return from_gymnasium(self.env_id, gamma=gamma, **self.kwargs)
+
+    def options(self, world: TableWorld) -> Options:
+        """Primitives first, then the extended options."""
+        return Options.concat([primitive_options(world), self.extended_options(world)])
+
+
+def _cells(world: TableWorld, cells: dict[str, int]) -> Options:
+    """Subgoal options to single cells of a grid task, by name."""
+    targets = {}
+    for name, s in cells.items():
+        mask = torch.zeros(world.num_states, dtype=torch.bool)
+        mask[s] = True
+        targets[name] = mask
+    return subgoal_options(world, targets)
+
+
+def cliff_options(world: TableWorld) -> Options:
+    """CliffWalking (4×12, start (3, 0), goal (3, 11)): options to the two top corners, so the
+    goal itself needs primitives (the "insufficient options" of the paper's experiment 2)."""
+    return _cells(world, {"to top-left (0,0)": 0, "to top-right (0,11)": 11})
+
+
+def frozen_lake_options(world: TableWorld) -> Options:
+    """FrozenLake 8×8: options to the two free corners (0, 7) and (7, 0), each by the policy of
+    fewest expected steps on the slippery true model (holes count as never arriving)."""
+    return _cells(world, {"to top-right (0,7)": 7, "to bottom-left (7,0)": 56})
+
+
+#: The tasks, by name.
+TASKS: dict[str, GymTask] = {
+    "taxi": GymTask(
+        "Taxi-v4",
+        {},
+        taxi_navigation_options,
+        "Taxi-v4: 500 states, 300 start states, 6 actions; options: drive to R, G, "
+        "Y, B (Dietterich's navigation subtasks)",
+        steps=60_000,
+    ),
+    "cliffwalking": GymTask(
+        "CliffWalking-v1",
+        {},
+        cliff_options,
+        "CliffWalking-v1: 4×12, −1 a step, −100 and back to the start at the "
+        "cliff; options: to the two top corners",
+        steps=30_000,
+    ),
+    "frozenlake8x8": GymTask(
+        "FrozenLake-v1",
+        {"map_name": "8x8", "is_slippery": True},
+        frozen_lake_options,
+        "FrozenLake-v1 8×8, slippery: +1 at the goal, holes end the episode; "
+        "options: to the corners (0,7) and (7,0)",
+        steps=100_000,
+    ),
+}
+
+
+def _default_learner() -> LearnerConfig:
+    """The paper experiments' learner (plan every 4 ticks, one round), windows of 2000 steps."""
+    return LearnerConfig(plan_every=4, sweep_rounds=1, window=2000)
+
+
+@dataclass
+class GymExperimentConfig:
+    """The Gymnasium comparison: tasks, agents, seeds, budget and learner settings."""
+
+    name: str = "gymnasium"
+    """Run name (the run directory's)."""
+    tasks: tuple[str, ...] = ("taxi", "cliffwalking", "frozenlake8x8")
+    """Which of :data:`TASKS`; each is one learner batch."""
+    agents: tuple[str, ...] = ("imitation", "options", "primitives")
+    """Agent variants (``himit_torch.AGENTS``), each run with every seed."""
+    seeds: int = 10
+    """Runs per agent and task."""
+    first_seed: int = 0
+    """Seeds are first_seed … first_seed + seeds − 1 (a seed also picks its mentor episodes)."""
+    steps: int | None = None
+    """Primitive steps per run; ``None``: each task's own budget (:data:`TASKS`: Taxi 60k,
+    CliffWalking 30k, FrozenLake 100k)."""
+    mentor_episodes: int = 20
+    """Mentor episodes recorded (states only) per seed before learning."""
+    gamma: float = 0.99
+    """Discount of every task (Gymnasium's envs carry none)."""
+    window: int = 2000
+    """Goals are counted, and the greedy policy evaluated, every this many steps."""
+    neutral_initial_value: bool = True
+    """Set each task's ``learner.initial_value`` to its step reward / (1 − γ), the value of never
+    reaching the goal — the neutral start that −1 is in the paper's worlds (:func:`neutral_value`):
+    −100 in Taxi and CliffWalking, 0 in FrozenLake (where −1 would make holes, worth 0, the best
+    place to go). ``False`` keeps ``learner.initial_value`` for every task."""
+    device: str = "cpu"
+    """Where the batches run."""
+    learner: LearnerConfig = field(default_factory=_default_learner)
+    """Learner settings (``LearnerConfig``)."""
+
+    def __post_init__(self):
+        if isinstance(self.learner, dict):
+            self.learner = LearnerConfig(**self.learner)
+        self.tasks, self.agents = tuple(self.tasks), tuple(self.agents)
+
+        def bad(name, why):
+            raise ValueError(f"GymExperimentConfig.{name}={getattr(self, name)!r}: {why}")
+
+        unknown = sorted(set(self.tasks) - set(TASKS))
+        if unknown or not self.tasks:
+            bad("tasks", f"unknown or empty; use some of {sorted(TASKS)}")
+        unknown = sorted(set(self.agents) - set(AGENTS))
+        if unknown or not self.agents:
+            bad("agents", f"unknown or empty; use some of {sorted(AGENTS)}")
+        for name in ("seeds", "mentor_episodes", "window"):
+            if getattr(self, name) < 1:
+                bad(name, "must be ≥ 1")
+        if self.steps is not None and self.steps < 1:
+            bad("steps", "must be ≥ 1 (or None: each task's own budget)")
+        if not 0 < self.gamma < 1:
+            bad("gamma", "must lie in (0, 1) (exact value iteration needs γ < 1)")
+        if self.learner.window != self.window:
+            self.learner = replace(self.learner, window=self.window)
+
+    def quick(self) -> GymExperimentConfig:
+        """A tiny budget (smoke tests, ``--quick``)."""
+        return replace(
+            self,
+            seeds=min(self.seeds, 2),
+            steps=2 * self.window,
+            mentor_episodes=min(self.mentor_episodes, 5),
+        )
+
+    def steps_of(self, task: str) -> int:
+        """Primitive steps per run in ``task``."""
+        return TASKS[task].steps if self.steps is None else self.steps
+
+    def to_json(self) -> str:
+        return json.dumps(asdict(self), indent=2)
+
+
+# ================================================================================ evaluation
+def _uniform_primitive_rows(
+    models: OptionModels, options: Options, S: int
+) -> tuple[sp.csr_matrix, np.ndarray]:
+    """Per state the model of picking a primitive option uniformly at random: ``[S, S]`` and
+    ``[S]`` (zero rows where no primitive is available)."""
+    T = _scipy(models.transition)
+    prim = options.is_primitive.numpy()[models.row_option.numpy()]
+    rows = np.flatnonzero(prim)
+    states = models.row_state.numpy()[rows]
+    count = np.bincount(states, minlength=S).astype(np.float64)
+    weight = 1.0 / count[states]
+    avg = sp.csr_matrix((weight, (states, rows)), shape=(S, T.shape[0]))
+    r = np.zeros(S)
+    np.add.at(r, states, weight * models.reward.numpy()[rows])
+    return (avg @ T).tocsr(), r
+
+
+def _scipy(t: torch.Tensor) -> sp.csr_matrix:
+    c = t.to_sparse_csr() if t.layout != torch.sparse_csr else t
+    return sp.csr_matrix(
+        (c.values().numpy(), c.col_indices().numpy(), c.crow_indices().numpy()),
+        shape=tuple(c.shape),
+    )
+
+
+class GreedyEvaluator:
+    """Exact value of a learner's greedy option policies on the true model.
+
+    ``V^π = r_π + P_π V^π`` with the exact multi-time option models (``P_π`` discounted), one
+    sparse solve per run; terminal states are 0.
+    """
+
+    def __init__(self, world: TableWorld, options: Options):
+        self.world, self.options = world, options
+        self.models = option_models(world, options)
+        self.S = world.num_states
+        self.T = _scipy(self.models.transition)
+        self.r = self.models.reward.numpy()
+        self.row_index = np.full((self.S, options.num_options), -1, dtype=np.int64)
+        self.row_index[self.models.row_state.numpy(), self.models.row_option.numpy()] = np.arange(
+            self.models.num_rows
+        )
+        self.random_T, self.random_r = _uniform_primitive_rows(self.models, options, self.S)
+        self.live = ~world.terminal_mask.numpy()
+        self.start = world.start_distribution.numpy()
+        P, R = world_model(world)
+        self.optimal = value_iteration(P, R, world.gamma)
+        self.optimal_value = float(self.optimal.values.numpy() @ self.start)
+
+    def value(self, greedy: torch.Tensor) -> float:
+        """``V^π(μ)`` of the option policy ``greedy [S]`` (−1: a uniformly random primitive)."""
+        g = greedy.cpu().numpy()
+        rows = np.where(g >= 0, self.row_index[np.arange(self.S), np.maximum(g, 0)], -1)
+        pick = np.flatnonzero((rows >= 0) & self.live)
+        randomly = ((rows < 0) & self.live).astype(np.float64)
+        select = sp.csr_matrix(
+            (np.ones(pick.size), (pick, rows[pick])), shape=(self.S, self.T.shape[0])
+        )
+        T_pi = select @ self.T + sp.diags(randomly) @ self.random_T
+        r_pi = select @ self.r + randomly * self.random_r
+        V = spla.spsolve((sp.identity(self.S, format="csc") - T_pi).tocsc(), r_pi)
+        return float(V @ self.start)
+
+
+def greedy_value_gap(evaluator: GreedyEvaluator, learner: Learner) -> list[float]:
+    """``V*(μ) − V^π(μ)`` of every run's greedy option policy (≥ 0; 0 = optimal)."""
+    greedy = learner.greedy_options()
+    gaps = [evaluator.optimal_value - evaluator.value(greedy[b]) for b in range(learner.batch)]
+    return [0.0 if abs(g) < 1e-9 else g for g in gaps]  # solver round-off, not a real gap
+
+
+def mean_ci(values, level: float = 0.95) -> tuple[float, float, int]:
+    """``(mean, half-width, n)`` of a Student-t confidence interval for the mean over seeds."""
+    from scipy import stats
+
+    v = np.asarray([x for x in values if x is not None and math.isfinite(x)], dtype=np.float64)
+    n = v.size
+    if n == 0:
+        return float("nan"), float("nan"), 0
+    if n == 1:
+        return float(v[0]), float("nan"), 1
+    half = float(stats.t.ppf(0.5 + level / 2, n - 1) * v.std(ddof=1) / math.sqrt(n))
+    return float(v.mean()), half, n
+
+
+def episode_statistics(world: TableWorld, policy: torch.Tensor) -> tuple[float, float]:
+    """``(P(goal), E[steps])`` of an episode from the start distribution under the primitive
+    ``policy [S]`` (exact absorbing-chain solves; ``E[steps]`` is ``inf`` where the policy can
+    loop forever)."""
+    P, _ = world_model(world)
+    A, S, _ = P.shape
+    idx = P.indices().numpy()
+    stacked = sp.csr_matrix((P.values().numpy(), (idx[0] * S + idx[1], idx[2])), shape=(A * S, S))
+    K = stacked[policy.numpy() * S + np.arange(S)]
+    live = np.flatnonzero(~world.terminal_mask.numpy())
+    system = (sp.identity(live.size, format="csc") - K[live][:, live]).tocsc()
+    into_goal = np.asarray(K[live][:, np.flatnonzero(world.goal_mask.numpy())].sum(1)).ravel()
+    mu = world.start_distribution.numpy()[live]
+    with np.errstate(all="ignore"):
+        steps = spla.spsolve(system, np.ones(live.size))
+        success = spla.spsolve(system, into_goal)
+    length, p_goal = float(steps @ mu), float(success @ mu)
+    return (p_goal, length) if math.isfinite(length) and length > 0 else (0.0, float("inf"))
+
+
+def optimal_goals_per_window(world: TableWorld, policy: torch.Tensor, window: int) -> float:
+    """Goals per ``window`` steps of the primitive ``policy [S]`` run as a continuing stream of
+    episodes from the start distribution (renewal: window · P(goal) / E[steps])."""
+    p_goal, length = episode_statistics(world, policy)
+    return window * p_goal / length
+
+
+def neutral_value(world: TableWorld) -> float:
+    """The value of never reaching a terminal state: the most common reward of the transitions
+    out of non-terminal states (the step reward), divided by ``1 − γ``."""
+    table = world.dynamics_table()
+    prob = torch.diff(table.cdf, dim=-1, prepend=torch.zeros_like(table.cdf[..., :1]))
+    live = (prob > 0) & ~world.terminal_mask[:, None, None]
+    values, counts = torch.unique(table.rewards[live], return_counts=True)
+    return float(values[counts.argmax()]) / (1.0 - world.gamma)
+
+
+# ================================================================================ the runner
+def run_task(
+    config: GymExperimentConfig, task_name: str, run_dir: Path, progress: bool = True
+) -> dict:
+    """One task: every agent × seed in one batch; returns the task's summary (also written)."""
+    task = TASKS[task_name]
+    world = task.world(config.gamma)
+    options = task.options(world)
+    mentor = mentor_policy(world, primitive_options(world), prefer_extended_within=0.0)
+    seeds, agents, run_seeds = batch_runs(config.agents, config.first_seed, config.seeds)
+    known = KnownReward(world)
+    learner_config = config.learner
+    if config.neutral_initial_value:
+        learner_config = replace(learner_config, initial_value=neutral_value(world))
+    learner = Learner(
+        world,
+        options,
+        agents,
+        run_seeds,
+        config=learner_config,
+        reward=[known if AGENTS[a][1] else None for a in agents],
+        device=config.device,
+    )
+    watch_demonstrations(
+        learner,
+        {s: record_demonstrations(world, mentor, config.mentor_episodes, seed=s) for s in seeds},
+    )
+    evaluator = GreedyEvaluator(world, options)
+    optimal_rate = optimal_goals_per_window(world, evaluator.optimal.policy, config.window)
+    goal = world.goal_mask.to(learner.device)
+    # A task has no resume: a rerun starts its runs' TensorBoard folders over.
+    logger = TensorBoardLogger(
+        run_dir / "tb", run_names(task_name, agents, run_seeds), overwrite=True
+    )
+    rows: list[dict[str, Any]] = []
+    previous_goals = torch.zeros(learner.batch, dtype=torch.int64)
+
+    def log_window(learner: Learner, index: int) -> None:
+        """The window's rows of ``curves.csv`` and its scalars: goals (arrivals at the goal
+        states, from the visit counts), episodes, ε, the greedy policy's exact value gap."""
+        nonlocal previous_goals
+        reached = learner.visit_counts()[:, goal].sum(1).cpu()
+        goals, previous_goals = reached - previous_goals, reached
+        m = learner.metrics
+        gap = greedy_value_gap(evaluator, learner)
+        coverage = learner.model_coverage().cpu()
+        for b in range(learner.batch):
+            row: dict[str, Any] = {
+                "task": task_name,
+                "agent": agents[b],
+                "seed": run_seeds[b],
+                "step": learner.t,
+                "goals": int(goals[b]),
+                "episodes": int(m.goals_in_window[index][b]),
+                "epsilon": float(m.epsilon[index][b]),
+                "value_gap": gap[b],
+                "mentor_term_wins": float(m.mentor_term_wins[index][b]),
+            }
+            rows.append(row)
+            scalars = {
+                "charts/goals_in_window": row["goals"],
+                "charts/episodes_in_window": row["episodes"],
+                "charts/epsilon": row["epsilon"],
+                "eval/greedy_value_gap": gap[b],
+                "planner/backups": float(m.backups[index][b]),
+                "model/coverage": float(coverage[b]),
+            }
+            if math.isfinite(row["mentor_term_wins"]):
+                scalars["mentor/term_wins"] = row["mentor_term_wins"]
+            logger.scalars(b, scalars, learner.t)
+
+    wall = run_windows(
+        learner,
+        config.steps_of(task_name),
+        on_window=[log_window],
+        progress=f"{task_name} B={learner.batch}" if progress else None,
+    )
+    last = [r for r in rows if r["step"] == learner.t] if rows else []
+    summary = {
+        "task": task_name,
+        "env_id": task.env_id,
+        "kwargs": task.kwargs,
+        "about": task.about,
+        "engine": learner.engine.name,
+        "num_states": world.num_states,
+        "num_actions": world.num_actions,
+        "options": list(options.names),
+        "agents": agents,
+        "seeds": run_seeds,
+        "optimal_value": evaluator.optimal_value,
+        "optimal_goals_per_window": optimal_rate,
+        "total_goals": [int(x) for x in previous_goals.tolist()],
+        "first_goal_window": [
+            min(
+                (r["step"] for r in rows if r["goals"] > 0 and r["agent"] == a and r["seed"] == sd),
+                default=-1,
+            )
+            for a, sd in zip(agents, run_seeds)
+        ],
+        "final_goals": [r["goals"] for r in last],
+        "final_value_gap": [r["value_gap"] for r in last],
+        "mentor_term_wins": [r["mentor_term_wins"] for r in last],
+        "wall_seconds": wall,
+        "steps": learner.t,
+        "initial_value": learner_config.initial_value,
+        "ambiguous_reward_pairs": known.ambiguous_pairs,
+        "known_reward": known.note,
+    }
+    # Settings without the seed, so that a task's seeds of one agent form one HParams group; the
+    # metrics at step 0, where SummaryWriter.add_hparams put them.
+    hp = {k: v for k, v in asdict(learner_config).items() if v is not None}
+    logger.hparams(
+        [dict(hp, task=task_name, agent=a) for a in agents],
+        [
+            {
+                "hparam/total_goals": float(summary["total_goals"][b]),
+                "hparam/final_value_gap": float(summary["final_value_gap"][b])
+                if last
+                else float("nan"),
+            }
+            for b in range(learner.batch)
+        ],
+        0,
+    )
+    logger.close()
+    (run_dir / "tasks").mkdir(parents=True, exist_ok=True)
+    (run_dir / "tasks" / f"{task_name}.json").write_text(json.dumps(summary, indent=1))
+    _write_rows(run_dir / "tasks" / f"{task_name}.csv", rows)
+    return summary
+
+
+_COLUMNS = (
+    "task",
+    "agent",
+    "seed",
+    "step",
+    "goals",
+    "episodes",
+    "epsilon",
+    "value_gap",
+    "mentor_term_wins",
+)
+
+
+def _write_rows(path: Path, rows: list[dict]) -> None:
+    with path.open("w", newline="") as f:
+        out = csv.DictWriter(f, fieldnames=_COLUMNS)
+        out.writeheader()
+        for r in rows:
+            out.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
+
+
+def run_gym_experiment(
+    config: GymExperimentConfig,
+    run_dir: str | os.PathLike,
+    force: bool = False,
+    progress: bool = True,
+) -> list[dict]:
+    """Run every task of ``config`` into ``run_dir``, then figures and ``results.md``.
+
+    A directory holding a finished run is not overwritten unless ``force``.
+    """
+    run_dir = Path(run_dir)
+    check_run_dir(run_dir, force=force)
+    if force:
+        clear_run_dir(run_dir, ("tb", "tasks", "figures"))
+    run_dir.mkdir(parents=True, exist_ok=True)
+    (run_dir / "config.json").write_text(config.to_json())
+    summaries = [run_task(config, t, run_dir, progress) for t in config.tasks]
+    with (run_dir / "curves.csv").open("w", newline="") as out:
+        out.write(",".join(_COLUMNS) + "\n")
+        for t in config.tasks:
+            lines = (run_dir / "tasks" / f"{t}.csv").read_text().splitlines()[1:]
+            out.write("".join(line + "\n" for line in lines))
+    write_gym_figures(run_dir, config, summaries)
+    write_gym_results(run_dir, config, summaries)
+    return summaries
+
+
+# ================================================================================ reporting
+def read_gym_curves(run_dir: str | os.PathLike) -> dict:
+    """``{task: {agent: (steps [W], goals [n, W], gaps [n, W])}}`` from ``curves.csv``."""
+    acc: dict = {}
+    with (Path(run_dir) / "curves.csv").open() as f:
+        for r in csv.DictReader(f):
+            d = acc.setdefault(r["task"], {}).setdefault(r["agent"], {})
+            d.setdefault(int(r["seed"]), []).append(
+                (int(r["step"]), float(r["goals"]), float(r["value_gap"]))
+            )
+    out: dict = {}
+    for task, agents in acc.items():
+        out[task] = {}
+        for agent, seeds in agents.items():
+            series = [sorted(v) for _, v in sorted(seeds.items())]
+            steps = np.array([x[0] for x in series[0]])
+            goals = np.array([[x[1] for x in s] for s in series])
+            gaps = np.array([[x[2] for x in s] for s in series])
+            out[task][agent] = (steps, goals, gaps)
+    return out
+
+
+def write_gym_figures(run_dir: Path, config: GymExperimentConfig, summaries: list[dict]) -> None:
+    """Per task: goals per window and the greedy value gap against steps (mean, 95 % CI band)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from himit_torch.viz.plotting import fit_titles
+    from himit_torch.viz.report import AGENT_COLORS
+
+    curves = read_gym_curves(run_dir)
+    fig_dir = run_dir / "figures"
+    fig_dir.mkdir(parents=True, exist_ok=True)
+    for summary in summaries:
+        task = summary["task"]
+        if task not in curves:
+            continue
+        fig = Figure(figsize=(11, 4), layout="constrained")
+        ax_goals, ax_gap = fig.subplots(1, 2)
+        for agent, (steps, goals, gaps) in curves[task].items():
+            color = AGENT_COLORS.get(agent)
+            for ax, data in ((ax_goals, goals), (ax_gap, gaps)):
+                stats = [mean_ci(data[:, i]) for i in range(data.shape[1])]
+                mean = np.array([s[0] for s in stats])
+                half = np.nan_to_num(np.array([s[1] for s in stats]))
+                ax.plot(steps, mean, color=color, lw=2, label=f"{agent} (n={data.shape[0]})")
+                ax.fill_between(steps, mean - half, mean + half, color=color, alpha=0.18, lw=0)
+        ax_goals.axhline(
+            summary["optimal_goals_per_window"],
+            color="0.3",
+            ls="--",
+            lw=1,
+            label=f"optimal ≈ {summary['optimal_goals_per_window']:.1f}",
+        )
+        ax_goals.set_ylabel(f"goals per {config.window} steps")
+        ax_gap.set_ylabel("V*(μ) − V^greedy(μ)  (exact; 0 = optimal)")
+        ax_gap.set_yscale("symlog", linthresh=0.1)
+        for ax in (ax_goals, ax_gap):
+            ax.set_xlabel("total primitive steps")
+            ax.grid(alpha=0.3)
+            ax.legend(fontsize="small")
+        fig.suptitle(f"{summary['about']} — mean and 95 % CI over seeds", fontsize="medium")
+        FigureCanvasAgg(fig)
+        fit_titles(fig)
+        fig.savefig(fig_dir / f"curves_{task}.png", dpi=100)
+
+
+def _cell(values, digits: int = 1) -> str:
+    mean, half, n = mean_ci(values)
+    if n == 0:
+        return "–"
+    if not math.isfinite(half):
+        return f"{mean:.{digits}f} (n={n})"
+    return f"{mean:.{digits}f} ± {half:.{digits}f}"
+
+
+def write_gym_results(run_dir: Path, config: GymExperimentConfig, summaries: list[dict]) -> None:
+    """``results.md``: per task and agent, mean ± 95 % CI over seeds."""
+    lines = [
+        f"# {config.name}: hierarchical imitation on Gymnasium's tabular environments",
+        "",
+        "Produced by `himit run gymnasium` (the same as `python "
+        "experiments/gymnasium_worlds.py`); settings: `himit_torch/runs/gymnasium.py`. "
+        f"Code at commit `{source_commit()}`, engine "
+        + ", ".join(sorted({f"`{s.get('engine', 'unknown')}`" for s in summaries}))
+        + ".",
+        "",
+        f"{config.seeds} seeds per agent and task, "
+        + ", ".join(f"{t} {config.steps_of(t):,}" for t in config.tasks)
+        + " steps per run, "
+        f"{config.mentor_episodes} mentor episodes (states only) per seed, γ = {config.gamma}, "
+        f"window {config.window}. Cells: mean ± half-width of the 95 % Student-t confidence "
+        "interval over seeds (n = seeds). The mentor is optimal (value iteration on the true "
+        "model, primitive actions); the imitator's mentor reward is `KnownReward` (the least "
+        "reward of the actions consistent with each observed move).",
+        "",
+        "Learner settings: " + ", ".join(f"`{k}={v}`" for k, v in asdict(config.learner).items()),
+        "",
+        "Columns: *goals, last window* — arrivals at the goal states in the last "
+        f"{config.window} steps (optimal: the optimal policy's renewal rate); *total goals* — "
+        "over the whole run; *value gap* — V*(μ) − V^π(μ) of the run's final greedy option "
+        "policy, both exact on the true model from the start distribution (0 = optimal); "
+        "*first goal* — end of the first window with a goal (runs that never reached one are "
+        "left out, and counted in *found*).",
+        "",
+    ]
+    for s in summaries:
+        lines += [
+            f"## {s['task']}",
+            "",
+            s["about"] + f"; {s['steps']:,} steps per run.",
+            "",
+            f"Options of the learner: {', '.join(s['options'])}.",
+            "",
+            f"Optimal: V*(μ) = {s['optimal_value']:.3f}, "
+            f"{s['optimal_goals_per_window']:.1f} goals per {config.window} steps. "
+            f"Learner's initial value: {s['initial_value']:g}. "
+            f"KnownReward: {s['known_reward']}.",
+            "",
+            "| agent | n | found | goals, last window | total goals | value gap | first goal | "
+            "mentor term wins |",
+            "|---|---|---|---|---|---|---|---|",
+        ]
+        for agent in dict.fromkeys(s["agents"]):
+            idx = [b for b, a in enumerate(s["agents"]) if a == agent]
+            firsts = [s["first_goal_window"][b] for b in idx]
+            found = [f for f in firsts if f >= 0]
+            lines.append(
+                f"| {agent} | {len(idx)} | {len(found)}/{len(idx)} | "
+                f"{_cell([s['final_goals'][b] for b in idx]) if s['final_goals'] else '–'} | "
+                f"{_cell([s['total_goals'][b] for b in idx], 0)} | "
+                f"{_cell([s['final_value_gap'][b] for b in idx], 3) if s['final_value_gap'] else '–'} | "
+                f"{_cell(found, 0)} | "
+                f"{_cell([s['mentor_term_wins'][b] for b in idx], 2) if s['mentor_term_wins'] else '–'} |"
+            )
+        lines += [
+            "",
+            f"Wall time for this task's batch of {len(s['agents'])} runs: "
+            f"{s['wall_seconds']:.0f} s. Figure: `figures/curves_{s['task']}.png`.",
+            "",
+        ]
+    lines += [
+        f"Curves: `curves.csv`. TensorBoard: `{tensorboard_command(Path(run_dir) / 'tb')}`.",
+        "",
+    ]
+    (run_dir / "results.md").write_text("\n".join(lines))

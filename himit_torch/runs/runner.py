@@ -1,0 +1,280 @@
+"""The runner core: one learner batch advanced window by window, the same for every experiment.
+
+:func:`run_windows` is the loop that the paper's experiments (:func:`~himit_torch.runs.experiment.run_world`),
+the Gymnasium comparison (:func:`~himit_torch.runs.gymnasium.run_task`) and the discovery
+experiment (:mod:`himit_torch.runs.discovery`) share, read top to bottom::
+
+    while learner.t < steps:
+        advance to the end of the window (or of the run)
+        log every window that ended              (on_window hooks: TensorBoard, rows, …)
+        draw maps                                 (maps, into the TensorBoard logger)
+        save a checkpoint                         (checkpoints; the logger is flushed first)
+
+Around it, what every runner needs to set a batch up and keep its run directory honest: the
+batch's runs (:func:`batch_runs`, :func:`run_names`), each seed's demonstrations
+(:func:`watch_demonstrations`), checkpoints with resume (:class:`Checkpoints`), the run
+directory's checks (:func:`check_run_dir`, :func:`clear_run_dir`) and the code's commit
+(:func:`source_commit`). What a runner measures and reports stays in its own module.
+"""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import torch
+
+from himit_torch.learner.learner import Learner
+from himit_torch.runs.checkpoints import BatchShape, CheckpointGenerations, NoGoodCheckpoint
+from himit_torch.viz.tensorboard import TensorBoardLogger
+
+__all__ = [
+    "run_windows",
+    "WindowHook",
+    "Maps",
+    "Checkpoints",
+    "batch_runs",
+    "run_names",
+    "watch_demonstrations",
+    "check_run_dir",
+    "clear_run_dir",
+    "source_commit",
+    "state_layout_version",
+]
+
+#: A per-window hook: ``hook(learner, index)`` with ``index`` the window's entry in
+#: ``learner.metrics`` (the window ends at ``learner.metrics.steps[index]``).
+WindowHook = Callable[[Learner, int], None]
+
+
+# ================================================================================ the loop
+@dataclass
+class Maps:
+    """Which runs get maps in TensorBoard, and when: every ``every`` steps and at the end."""
+
+    runs: Sequence[int]
+    every: int
+    mentor_visits: Mapping[int, torch.Tensor] | torch.Tensor | None = None
+
+
+def run_windows(
+    learner: Learner,
+    steps: int,
+    *,
+    on_window: Sequence[WindowHook] = (),
+    logger: TensorBoardLogger | None = None,
+    maps: Maps | None = None,
+    checkpoints: Checkpoints | None = None,
+    progress: str | None = None,
+    elapsed: float = 0.0,
+) -> float:
+    """Advance ``learner`` to step ``steps``, one window (``learner.config.window``) at a time.
+
+    After each window that ends, every hook of ``on_window`` is called in order; then, on their
+    schedule and at the last step, the maps of ``maps`` are drawn into ``logger`` and a
+    checkpoint is saved (``logger`` flushed first, so that what a checkpoint's step says was
+    logged is on disk). ``progress``: the description of a progress bar (``None``: no bar).
+    ``elapsed``: the wall seconds the run had used before (a resumed run's).
+
+    Returns:
+        The wall seconds of the run, ``elapsed`` included.
+    """
+    if maps is not None and logger is None:
+        raise ValueError("run_windows: maps are drawn into a logger; pass logger=")
+    window = learner.config.window
+    logged = len(learner.metrics.steps)
+    bar = None
+    if progress is not None:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=steps, initial=learner.t, unit="step", mininterval=1.0, desc=progress)
+    start = time.perf_counter()
+    while learner.t < steps:
+        chunk = min(window - learner.t % window, steps - learner.t)
+        learner.run(chunk)
+        if bar is not None:
+            bar.update(chunk)
+        while logged < len(learner.metrics.steps):
+            for hook in on_window:
+                hook(learner, logged)
+            logged += 1
+        end = learner.t == steps
+        if maps is not None and logger is not None and (learner.t % maps.every == 0 or end):
+            logger.maps(learner, maps.runs, learner.t, maps.mentor_visits)
+        if checkpoints is not None and (learner.t % checkpoints.every == 0 or end):
+            if logger is not None:
+                logger.flush()
+            checkpoints.save(learner, elapsed + time.perf_counter() - start)
+    if bar is not None:
+        bar.close()
+    return elapsed + time.perf_counter() - start
+
+
+# ========================================================================= checkpoints
+def state_layout_version() -> int:
+    """The learner's state layout version (1 for learners from before it was declared): stored in
+    every checkpoint so that a checkpoint of another layout is refused by name."""
+    return int(getattr(Learner, "STATE_LAYOUT_VERSION", 1))
+
+
+@dataclass
+class Checkpoints:
+    """A batch's checkpoint generations (:class:`~himit_torch.runs.checkpoints.CheckpointGenerations`
+    at ``path``): saved every ``every`` steps by :func:`run_windows`, restored by :meth:`start`."""
+
+    path: Path
+    batch: BatchShape
+    every: int
+    device: str = "cpu"
+    generations: CheckpointGenerations = field(init=False)
+    layout: int = field(init=False)
+
+    def __post_init__(self):
+        self.generations = CheckpointGenerations(self.path)
+        self.layout = state_layout_version()
+
+    def start(self, learner: Learner, resume: bool) -> float:
+        """Restore ``learner`` (``resume``: :meth:`resume`) or clear the generations of an
+        earlier run (a fresh run: stale files must never become its "previous" one); returns the
+        wall seconds the run had used."""
+        if resume:
+            return self.resume(learner)
+        self.generations.clear()
+        return 0.0
+
+    def save(self, learner: Learner, elapsed: float) -> None:
+        self.generations.save(
+            {"learner": learner.state_dict(), "elapsed": elapsed},
+            step=learner.t,
+            batch=self.batch,
+            state_layout_version=self.layout,
+        )
+
+    def resume(self, learner: Learner) -> float:
+        """Restore ``learner`` from the newest good checkpoint generation; returns the wall seconds
+        the run had used. Nothing saved yet: the learner is left as it is (a run killed before its
+        first checkpoint starts over). A damaged newest file: one line on stderr, then the previous
+        generation — the learner then redoes the lost interval exactly as it first ran it.
+
+        Raises:
+            ValueError: no generation is good, or the checkpoint is for another state layout or
+                batch, or it does not fit this learner; the message names the file.
+        """
+        generations, layout = self.generations, self.layout
+        try:
+            resumed = generations.load(
+                map_location=self.device, expect_batch=self.batch, expect_layout=layout
+            )
+        except NoGoodCheckpoint as err:
+            raise ValueError(f"--resume: {err}; start over with --force") from None
+        if resumed is None:
+            return 0.0
+        found = resumed.checkpoint
+        for skipped in resumed.skipped:
+            if skipped.step is not None and skipped.step > found.header.step:
+                redo = f"{skipped.step - found.header.step} steps will be redone"
+            else:
+                redo = f"the steps after it (up to checkpoint_every={self.every}) will be redone"
+            print(
+                f"himit: warning: {skipped.path}: {skipped.reason}; resuming from "
+                f"{(found.path or generations.newest).name} at step {found.header.step}: {redo}",
+                file=sys.stderr,
+            )
+        payload = found.payload
+        if not isinstance(payload, dict) or not isinstance(payload.get("learner"), dict):
+            raise ValueError(f"{found.path} holds no learner state; start over with --force")
+        try:
+            learner.load_state_dict(payload["learner"])
+        except ValueError as err:
+            raise ValueError(f"{found.path}: {err}; start over with --force") from None
+        except (KeyError, TypeError, IndexError, AttributeError, RuntimeError) as err:
+            raise ValueError(
+                f"{found.path} (step {found.header.step}) could not be restored into this "
+                f"learner ({type(err).__name__}: {err}) although its state layout version "
+                f"{layout} is this himit_torch's: please report it; start over with --force"
+            ) from None
+        elapsed = payload.get("elapsed", 0.0)
+        return float(elapsed) if isinstance(elapsed, (int, float)) else 0.0
+
+
+# ============================================================================= the batch
+def batch_runs(
+    agents: Sequence[str], first_seed: int, seeds: int
+) -> tuple[list[int], list[str], list[int]]:
+    """``(seeds, agents, run_seeds)`` of a batch of every agent × seed: the seeds, and per run
+    its agent and seed (agent-major: the runs of one agent are next to each other)."""
+    seed_list = list(range(first_seed, first_seed + seeds))
+    return (
+        seed_list,
+        [a for a in agents for _ in seed_list],
+        [s for _ in agents for s in seed_list],
+    )
+
+
+def run_names(prefix: str, agents: Sequence[str], run_seeds: Sequence[int]) -> list[str]:
+    """One TensorBoard folder name per run: ``<prefix>__<agent>__seed<k>`` (CleanRL-style)."""
+    return [f"{prefix}__{a}__seed{s}" for a, s in zip(agents, run_seeds)]
+
+
+def watch_demonstrations(learner: Learner, demos: Mapping[int, Any]) -> None:
+    """Each seed's runs watch that seed's mentor episodes (``demos[seed]``: what
+    :meth:`~himit_torch.learner.learner.Learner.add_demonstrations` takes), seed by seed."""
+    seeds = list(learner.seeds)
+    for s in sorted(set(seeds)):
+        learner.add_demonstrations(demos[s], runs=[b for b, rs in enumerate(seeds) if rs == s])
+
+
+# ======================================================================= the run directory
+def check_run_dir(run_dir: Path, *, force: bool, resume: bool | None = None) -> None:
+    """Refuse to overwrite a finished run (one with ``results.md``) unless ``force``; with
+    ``resume=False``, also an unfinished one (``config.json`` without ``results.md``: resume it
+    or start over). ``resume=None``: the runner cannot resume, an unfinished run starts over."""
+    if force:
+        return
+    finished = (run_dir / "results.md").exists()
+    started = (run_dir / "config.json").exists()
+    if finished and not resume:
+        raise ValueError(
+            f"{run_dir} already holds a finished run; choose another --logdir or pass "
+            "--force to overwrite it"
+        )
+    if started and not finished and resume is False:
+        raise ValueError(
+            f"{run_dir} holds an unfinished run; pass --resume to continue it or "
+            "--force to start over"
+        )
+
+
+def clear_run_dir(run_dir: Path, folders: Sequence[str], files: Sequence[str] = ()) -> None:
+    """Remove what an earlier run left in ``run_dir`` (``--force``): its ``folders`` and
+    ``files``."""
+    if not run_dir.exists():
+        return
+    for sub in folders:
+        shutil.rmtree(run_dir / sub, ignore_errors=True)
+    for f in files:
+        (run_dir / f).unlink(missing_ok=True)
+
+
+def source_commit() -> str:
+    """The git commit of the code that runs (``+dirty`` if it has uncommitted changes), or
+    ``"unknown"`` outside a git checkout: recorded with every result."""
+    root = Path(__file__).resolve().parents[2]  # the checkout (himit_torch/runs/runner.py)
+
+    def git(*args: str) -> str:
+        return subprocess.run(
+            ["git", *args], cwd=root, text=True, capture_output=True, timeout=10, check=True
+        ).stdout.strip()
+
+    try:
+        commit = git("rev-parse", "--short=12", "HEAD")
+        dirty = git("status", "--porcelain", "--untracked-files=no", "--", "himit_torch")
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+    return commit + ("+dirty" if dirty else "")

@@ -1,0 +1,709 @@
+"""Sweeps: a grid of settings × seeds × worlds, each trial a resumable run, on Ray when it is there.
+
+A sweep is described by a spec file (TOML, or JSON with the same keys)::
+
+    name = "exp2_ties"              # the sweep's name (default: the file's stem)
+    base = "exp2"                   # exp1 | exp2 | exp3, or a config.json (relative to the spec)
+    seeds = 20                      # runs per agent and cell: seeds first_seed … first_seed+seeds−1
+    first_seed = 0
+    seeds_per_trial = 10            # seeds run together in one batch (default: all of them)
+    worlds = [40]                   # world sizes, each its own trial (default: the base's sizes)
+    design = "factorial"            # or "one-at-a-time" (see below)
+
+    [set]                           # settings of every cell
+    agents = ["imitation", "options", "primitives"]
+    learner.plan_every = 4          # learner settings as learner.<field> (or a [set.learner] table)
+
+    [grid]                          # the factors: a setting and the levels it takes
+    learner.tie_break = ["random", "first"]
+    mentor_episodes = [20, 200]
+
+``design = "factorial"`` runs every combination of the levels (here 2 × 2 = 4 cells);
+``"one-at-a-time"`` runs one baseline cell, every factor at its *first* level, plus one cell per
+other level of each factor with the rest at baseline (here 1 + 1 + 1 = 3 cells). A setting is any
+field of :class:`~himit_torch.runs.config.ExperimentConfig` but those the sweep owns (``name``,
+``sizes``, ``seeds``, ``first_seed``: use the spec's own keys), or ``learner.<field>`` of
+:class:`~himit_torch.LearnerConfig`. Every cell's configuration is built and checked before
+anything runs: an unknown key or setting, or a value the configurations refuse, is a
+``ValueError`` naming it (``himit sweep``: one line, exit status 2).
+
+A **trial** is one world × one group of seeds of one cell: one learner batch, run by
+:func:`~himit_torch.runs.experiment.run_experiment` into its own run directory
+``<out>/trials/<cell>/world<N>_seeds<a>-<b>/`` with its checkpoints. Rerunning the sweep skips
+finished trials and resumes interrupted ones from their checkpoints, so a sweep killed mid-way and
+rerun ends with exactly the tables of an uninterrupted one. At the end the sweep writes
+
+* ``results.csv`` — the tidy table: one row per run and window (each trial's ``curves.csv``) with
+  the cell's settings as columns;
+* ``runs.csv`` — one row per run: total goals, goals in the last window and the last 50k steps,
+  first goal step, V(start), mentor-term wins;
+* ``summary.csv`` / ``summary.md`` — per cell, world and agent: the mean of each measure with a
+  95 % confidence interval, Student's t (``scipy.stats.t``, n − 1 degrees of freedom), and the
+  share of runs that never found the goal with its exact Clopper–Pearson 95 % interval
+  (``scipy.stats.binomtest``);
+* ``sweep.json`` — the spec as resolved (cells, trials), the commit and engines that ran.
+
+**Where the trials run: Ray core, not Ray Tune.** With Ray importable, trials are Ray tasks
+(``ray.init()`` starts a local Ray; ``address=`` joins a cluster, e.g. ``"auto"``), one CPU each,
+the finished ones collected as they end. Without Ray they run one after another in this process
+(the sweep says so in one line). Measured on the 2-core development machine (Python 3.11,
+``pip install ray==2.60.0``): Ray core adds 250 MB to the environment and installs in 9 s;
+``import ray`` takes 0.5–0.7 s. Ray Tune adds pandas, pyarrow, pydantic and tensorboardX on top:
+another 265 MB (the environment's Ray share more than doubles) and ``import ray.tune`` 1.3–1.5 s.
+What Tune brings — search algorithms, early-stopping schedulers (ASHA, PBT), its own trial
+checkpointing and result store — is not what these studies need: the grid is fixed, every seed
+of every cell must run to the end (stopping poor trials early would hide failing seeds, the very
+thing experiment 2 is about), and checkpoints and the result table are already the run
+directories'. Ray core's tasks give the distribution; hence the ``sweep`` extra installs ``ray``
+alone.
+"""
+
+from __future__ import annotations
+
+import csv
+import itertools
+import json
+import os
+import re
+import sys
+import time
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, fields, replace
+from pathlib import Path
+from typing import Any
+
+from himit_torch.learner.config import LearnerConfig
+from himit_torch.runs.config import EXPERIMENTS, ExperimentConfig, load_config
+from himit_torch.runs.experiment import source_commit
+
+__all__ = ["SweepSpec", "Trial", "load_spec", "run_sweep", "summarize"]
+
+_SPEC_KEYS = {
+    "name",
+    "base",
+    "seeds",
+    "first_seed",
+    "seeds_per_trial",
+    "worlds",
+    "design",
+    "set",
+    "grid",
+}
+_DESIGNS = ("factorial", "one-at-a-time")
+#: ExperimentConfig fields the sweep owns (set through the spec's own keys).
+_OWNED = {"name", "sizes", "seeds", "first_seed"}
+#: Steps over which runs.csv sums the "late" goals (the audit's "last 50k steps").
+LATE_STEPS = 50_000
+
+
+@dataclass(frozen=True)
+class Cell:
+    """One combination of factor levels: its directory name and its settings."""
+
+    index: int
+    slug: str
+    levels: dict  # factor → level (the factors of the grid only)
+    config: ExperimentConfig
+
+
+@dataclass(frozen=True)
+class Trial:
+    """One world × one group of seeds of one cell: one batch, one run directory."""
+
+    cell: Cell
+    size: int
+    first_seed: int
+    seeds: int
+    run_dir: Path
+
+    @property
+    def config(self) -> ExperimentConfig:
+        return replace(
+            self.cell.config, sizes=(self.size,), first_seed=self.first_seed, seeds=self.seeds
+        )
+
+
+@dataclass(frozen=True)
+class SweepSpec:
+    """A checked sweep spec: its cells (configurations) and how seeds and worlds split."""
+
+    name: str
+    base: str
+    seeds: int
+    first_seed: int
+    seeds_per_trial: int
+    worlds: tuple[int, ...]
+    design: str
+    factors: dict  # factor → list of levels
+    cells: tuple[Cell, ...]
+
+    def trials(self, out: Path) -> list[Trial]:
+        """Every trial, the largest worlds first (they take longest)."""
+        out = Path(out)
+        chunks = [
+            (s, min(self.seeds_per_trial, self.first_seed + self.seeds - s))
+            for s in range(self.first_seed, self.first_seed + self.seeds, self.seeds_per_trial)
+        ]
+        return [
+            Trial(
+                cell, size, s, n, out / "trials" / cell.slug / f"world{size}_seeds{s}-{s + n - 1}"
+            )
+            for size in sorted(self.worlds, reverse=True)
+            for cell in self.cells
+            for s, n in chunks
+        ]
+
+
+# ================================================================================ the spec
+def _flatten(table: dict, where: str, prefix: str = "") -> dict:
+    """``{"learner": {"backups": 10}}`` and ``{"learner.backups": 10}`` alike → dotted keys."""
+    flat = {}
+    for key, value in table.items():
+        name = f"{prefix}{key}"
+        if isinstance(value, dict):
+            if name != "learner":
+                raise ValueError(f"{where}: {name!r} is a table, but only 'learner' settings nest")
+            flat.update(_flatten(value, where, "learner."))
+        else:
+            flat[name] = value
+    return flat
+
+
+def _check_setting(name: str, where: str) -> None:
+    experiment = {f.name for f in fields(ExperimentConfig)} - _OWNED - {"learner"}
+    learner = {f.name for f in fields(LearnerConfig)}
+    if name.startswith("learner."):
+        if name[len("learner.") :] not in learner:
+            raise ValueError(
+                f"{where}: unknown setting {name!r}; learner settings: "
+                f"{sorted('learner.' + n for n in learner)}"
+            )
+    elif name in _OWNED:
+        raise ValueError(
+            f"{where}: {name!r} is set by the spec's own keys (name, worlds, seeds, "
+            "first_seed), not as a setting"
+        )
+    elif name not in experiment:
+        raise ValueError(
+            f"{where}: unknown setting {name!r}; settings: {sorted(experiment)} and learner.<field>"
+        )
+
+
+def _check_type(cls, name: str, value: Any, where: str) -> None:
+    """A setting's value against its field's annotation (``int``, ``float | None``, …), so that a
+    string where a number belongs is named here, not met as a TypeError deep in a run."""
+    annotation = str(next(f.type for f in fields(cls) if f.name == name))
+    kinds = {part.strip().split("[")[0] for part in annotation.split("|")}
+    ok = (
+        (value is None and "None" in kinds)
+        or (isinstance(value, bool) and "bool" in kinds)
+        or (not isinstance(value, bool) and isinstance(value, int) and kinds & {"int", "float"})
+        or (isinstance(value, float) and "float" in kinds)
+        or (isinstance(value, str) and "str" in kinds)
+        or (isinstance(value, (list, tuple)) and "tuple" in kinds)
+    )
+    if not ok:
+        raise ValueError(f"{where}: {name}={value!r} must be of type {annotation}")
+
+
+def _apply(config: ExperimentConfig, settings: dict) -> ExperimentConfig:
+    """``config`` with the dotted ``settings``; the dataclasses check the values."""
+    for key, value in settings.items():
+        if key.startswith("learner."):
+            _check_type(LearnerConfig, key[len("learner.") :], value, "learner")
+        else:
+            _check_type(ExperimentConfig, key, value, "setting")
+    top = {k: v for k, v in settings.items() if not k.startswith("learner.")}
+    learner = {k[len("learner.") :]: v for k, v in settings.items() if k.startswith("learner.")}
+    for key in ("agents", "sizes"):
+        if key in top and isinstance(top[key], list):
+            top[key] = tuple(top[key])
+    new_learner = replace(config.learner, **learner) if learner else config.learner
+    return replace(config, **top, learner=new_learner)
+
+
+def _slug(levels: dict) -> str:
+    if not levels:
+        return "baseline"
+    parts = []
+    for name, value in levels.items():
+        short = name[len("learner.") :] if name.startswith("learner.") else name
+        text = (
+            "none"
+            if value is None
+            else (",".join(map(str, value)) if isinstance(value, (list, tuple)) else str(value))
+        )
+        parts.append(f"{short}={text}")
+    return re.sub(r"[^A-Za-z0-9_.,=+-]", "_", "__".join(parts))
+
+
+def _level(value: Any) -> Any:
+    """TOML has no null: the string "none" stands for ``None`` (e.g. ``untried_value``)."""
+    return None if isinstance(value, str) and value.lower() == "none" else value
+
+
+def load_spec(path: str | os.PathLike) -> SweepSpec:
+    """Read and check a sweep spec (``.toml`` or ``.json``), building every cell's configuration.
+
+    Raises:
+        ValueError: the file is missing or unreadable, a key or setting is unknown, or a value is
+            refused by the configurations; the message names the file and what is wrong.
+    """
+    path = Path(path)
+    where = f"sweep spec {path}"
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise ValueError(f"{where} does not exist") from None
+    except UnicodeDecodeError:
+        raise ValueError(f"{where} is not UTF-8 text") from None
+    if path.suffix == ".json":
+        try:
+            data = json.loads(text)
+        except json.JSONDecodeError as err:
+            raise ValueError(f"{where} is not valid JSON: {err}") from None
+    else:
+        try:
+            import tomllib
+        except ModuleNotFoundError:  # Python 3.10
+            import tomli as tomllib
+        try:
+            data = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as err:
+            raise ValueError(f"{where} is not valid TOML: {err}") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"{where} must hold a table of keys")
+    unknown = sorted(set(data) - _SPEC_KEYS)
+    if unknown:
+        raise ValueError(f"{where}: unknown keys {unknown}; known: {sorted(_SPEC_KEYS)}")
+    base_name = data.get("base", "exp2")
+    if not isinstance(base_name, str):
+        raise ValueError(f"{where}: base must be exp1, exp2, exp3 or a config.json path")
+    if base_name in EXPERIMENTS:
+        base = EXPERIMENTS[base_name]
+    else:
+        config_path = (
+            (path.parent / base_name) if not Path(base_name).is_absolute() else Path(base_name)
+        )
+        if not config_path.exists():
+            raise ValueError(
+                f"{where}: base={base_name!r} is neither one of {sorted(EXPERIMENTS)} "
+                f"nor an existing config file"
+            )
+        base = load_config(config_path)
+
+    def whole(key, default, minimum):
+        value = data.get(key, default)
+        if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
+            raise ValueError(f"{where}: {key}={value!r} must be a whole number ≥ {minimum}")
+        return value
+
+    seeds = whole("seeds", base.seeds, 1)
+    first_seed = whole("first_seed", base.first_seed, 0)
+    per_trial = whole("seeds_per_trial", seeds, 1)
+    worlds = data.get("worlds", list(base.sizes))
+    if (
+        not isinstance(worlds, list)
+        or not worlds
+        or any(isinstance(w, bool) or not isinstance(w, int) for w in worlds)
+    ):
+        raise ValueError(f"{where}: worlds={worlds!r} must be a non-empty list of world sizes")
+    design = data.get("design", "factorial")
+    if design not in _DESIGNS:
+        raise ValueError(f"{where}: design={design!r}; use one of {list(_DESIGNS)}")
+    for key in ("set", "grid"):
+        if not isinstance(data.get(key, {}), dict):
+            raise ValueError(f"{where}: [{key}] must be a table of settings")
+    fixed = {k: _level(v) for k, v in _flatten(data.get("set", {}), f"{where} [set]").items()}
+    grid = _flatten(data.get("grid", {}), f"{where} [grid]")
+    for name in list(fixed) + list(grid):
+        _check_setting(name, where)
+    factors = {}
+    for name, levels in grid.items():
+        if not isinstance(levels, list) or not levels:
+            raise ValueError(
+                f"{where}: [grid] {name} must be a non-empty list of levels, got {levels!r}"
+            )
+        factors[name] = [_level(v) for v in levels]
+    overlap = sorted(set(fixed) & set(factors))
+    if overlap:
+        raise ValueError(f"{where}: {overlap} both in [set] and in [grid]")
+    if design == "factorial":
+        combos = [dict(zip(factors, c)) for c in itertools.product(*factors.values())]
+    else:
+        baseline = {n: v[0] for n, v in factors.items()}
+        combos = [baseline] + [
+            {**baseline, n: v} for n, levels in factors.items() for v in levels[1:]
+        ]
+    name = data.get("name", path.stem)
+    if not isinstance(name, str) or not re.fullmatch(r"[A-Za-z0-9_.-]+", name):
+        raise ValueError(f"{where}: name={name!r} must be letters, digits, '_', '.', '-'")
+    try:
+        base = _apply(base, fixed)
+    except (ValueError, TypeError) as err:
+        raise ValueError(f"{where} [set]: {err}") from None
+    cells, slugs = [], set()
+    for i, levels in enumerate(combos):
+        shown = (
+            {n: v for n, v in levels.items() if v != factors[n][0]}
+            if design == "one-at-a-time"
+            else levels
+        )
+        try:
+            config = _apply(
+                replace(base, name=name, sizes=tuple(worlds), seeds=seeds, first_seed=first_seed),
+                levels,
+            )
+        except (ValueError, TypeError) as err:
+            raise ValueError(f"{where}: cell {_slug(levels)}: {err}") from None
+        slug = _slug(shown)
+        if slug in slugs:
+            raise ValueError(f"{where}: two cells are the same ({slug}); a factor repeats a level")
+        slugs.add(slug)
+        cells.append(Cell(i, slug, levels, config))
+    return SweepSpec(
+        name=name,
+        base=base_name,
+        seeds=seeds,
+        first_seed=first_seed,
+        seeds_per_trial=per_trial,
+        worlds=tuple(worlds),
+        design=design,
+        factors=factors,
+        cells=tuple(cells),
+    )
+
+
+# ============================================================================= the trials
+def _trial_state(trial: Trial) -> str:
+    """``done``, ``started`` (resume it) or ``new``."""
+    if (trial.run_dir / "results.md").exists():
+        saved = load_config(trial.run_dir / "config.json")
+        if asdict(saved) != asdict(trial.config):
+            raise ValueError(
+                f"{trial.run_dir} holds a finished trial of another configuration: the "
+                "spec changed since it ran; use another --out (or delete the folder)"
+            )
+        return "done"
+    return "started" if (trial.run_dir / "config.json").exists() else "new"
+
+
+def run_trial(config_json: str, run_dir: str, resume: bool, threads: int | None = None) -> dict:
+    """Run (or resume) one trial; what a Ray task or the in-process loop calls. Returns the
+    engine, commit and wall seconds of its world."""
+    from himit_torch.runs.experiment import _share_cores, run_experiment
+
+    if threads is not None:
+        _share_cores(threads)
+    data = json.loads(config_json)
+    data["learner"] = LearnerConfig(**data["learner"])
+    config = ExperimentConfig(**data)
+    [result] = run_experiment(config, run_dir, resume=resume, progress=False, workers=1)
+    return {
+        "run_dir": run_dir,
+        "engine": result.engine,
+        "commit": result.commit,
+        "wall_seconds": result.wall_seconds,
+    }
+
+
+def _execute(
+    todo: list[tuple[Trial, str]], address: str | None, use_ray: bool, workers: int | None, log
+) -> None:
+    """Run the unfinished trials: Ray tasks when Ray is importable (and wanted), else here."""
+    ray: Any = None
+    if use_ray:
+        try:
+            import ray as _ray
+
+            ray = _ray
+        except ImportError:
+            ray = None
+    if not todo:
+        return
+    start = time.perf_counter()
+    if ray is None:
+        why = (
+            "--no-ray" if not use_ray else "Ray is not installed (pip install 'himit_torch[sweep]')"
+        )
+        log(f"himit sweep: {why}: running {len(todo)} trials in this process, one at a time")
+        for k, (trial, state) in enumerate(todo, 1):
+            run_trial(trial.config.to_json(), str(trial.run_dir), state == "started")
+            log(
+                f"[{k}/{len(todo)}] {trial.run_dir.parent.name}/{trial.run_dir.name} done "
+                f"({time.perf_counter() - start:.0f} s)"
+            )
+        return
+    cores = os.cpu_count() or 1
+    if address is None:
+        n = workers or cores
+        ray.init(num_cpus=n, include_dashboard=False, log_to_driver=True, configure_logging=False)
+    else:
+        ray.init(address=address, include_dashboard=False, configure_logging=False)
+        n = workers or int(ray.cluster_resources().get("CPU", 1))
+    try:
+        # each task's compiled engine gets its share of a machine's cores
+        threads = max(1, cores // min(n, len(todo))) if address is None else None
+        task = ray.remote(num_cpus=1, max_retries=0)(run_trial)
+        refs = {
+            task.remote(t.config.to_json(), str(t.run_dir), s == "started", threads): t
+            for t, s in todo
+        }
+        log(
+            f"himit sweep: Ray {ray.__version__} ({'local, ' + str(n) + ' CPUs' if address is None else address}): "
+            f"{len(todo)} trials as tasks"
+        )
+        pending, k = list(refs), 0
+        while pending:
+            ready, pending = ray.wait(pending, num_returns=1)
+            ray.get(ready[0])  # a failed trial raises here, naming its error
+            k += 1
+            t = refs[ready[0]]
+            log(
+                f"[{k}/{len(todo)}] {t.run_dir.parent.name}/{t.run_dir.name} done "
+                f"({time.perf_counter() - start:.0f} s)"
+            )
+    finally:
+        ray.shutdown()
+
+
+# ============================================================================== the tables
+def _read_csv(path: Path) -> list[dict]:
+    with path.open(newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def _write_csv(path: Path, header: Sequence[str], rows: list[dict]) -> None:
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    with tmp.open("w", newline="") as f:
+        out = csv.DictWriter(f, fieldnames=list(header), lineterminator="\n")
+        out.writeheader()
+        out.writerows(rows)
+    os.replace(tmp, path)
+
+
+def _show(value: Any) -> str:
+    if value is None:
+        return "none"
+    if isinstance(value, (list, tuple)):
+        return ",".join(map(str, value))
+    return str(value)
+
+
+def t_interval(values: Sequence[float], level: float = 0.95) -> tuple[float, float, float]:
+    """Mean and Student's t confidence interval of ``values`` (n − 1 degrees of freedom); with
+    one value or no spread the interval is the mean itself."""
+    import numpy as np
+    from scipy import stats
+
+    x = np.asarray(values, dtype=float)
+    mean = float(x.mean())
+    if len(x) < 2 or float(x.std()) == 0.0:
+        return mean, mean, mean
+    low, high = stats.t.interval(level, len(x) - 1, loc=mean, scale=stats.sem(x))
+    return mean, float(low), float(high)
+
+
+def proportion_interval(k: int, n: int, level: float = 0.95) -> tuple[float, float, float]:
+    """Share k/n and its exact (Clopper–Pearson) confidence interval."""
+    from scipy import stats
+
+    ci = stats.binomtest(k, n).proportion_ci(confidence_level=level, method="exact")
+    return k / n, float(ci.low), float(ci.high)
+
+
+_MEASURES = ("total_goals", "final_window_goals", "late_goals", "first_goal_step", "value_start")
+
+
+def summarize(spec: SweepSpec, out: Path) -> dict:
+    """Gather the finished trials into results.csv, runs.csv, summary.csv and summary.md."""
+    out = Path(out)
+    factor_cols = list(spec.factors)
+    results: list = []
+    runs: list = []
+    engines: set = set()
+    commits: set = set()
+    for trial in spec.trials(out):
+        settings = {
+            "sweep": spec.name,
+            "cell": trial.cell.slug,
+            **{f: _show(trial.cell.levels[f]) for f in factor_cols},
+        }
+        curves = _read_csv(trial.run_dir / "curves.csv")
+        results.extend({**settings, **row} for row in curves)
+        world = json.loads((trial.run_dir / "worlds" / f"world{trial.size}.json").read_text())
+        engines.add(world.get("engine", "unknown"))
+        commits.add(world.get("commit", "unknown"))
+        window = trial.config.window
+        late_windows = max(1, LATE_STEPS // window)
+        per_run: dict = {}
+        for row in curves:
+            per_run.setdefault((row["agent"], int(row["seed"])), []).append(
+                int(row["goals_in_window"])
+            )
+        for b, (agent, seed) in enumerate(zip(world["agents"], world["seeds"])):
+            goals = per_run[(agent, seed)]
+            runs.append(
+                {
+                    **settings,
+                    "world": trial.size,
+                    "agent": agent,
+                    "seed": seed,
+                    "total_goals": world["goals"][b],
+                    "final_window_goals": world["final_window_goals"][b],
+                    "late_goals": sum(goals[-late_windows:]),
+                    "first_goal_step": world["first_goal_step"][b],
+                    "value_start": f"{world['value_start'][b]:.6f}",
+                    "true_value_start": f"{world['true_value_start']:.6f}",
+                    "mentor_term_wins": f"{world['mentor_term_wins'][b]:.4f}",
+                    "optimal_goals_per_window": f"{world['optimal_goals_per_window']:.3f}",
+                }
+            )
+    order = {c.slug: c.index for c in spec.cells}
+    agent_order = {a: i for i, a in enumerate(spec.cells[0].config.agents)}
+    results.sort(
+        key=lambda r: (
+            order[r["cell"]],
+            int(r["world"]),
+            agent_order.get(r["agent"], 99),
+            int(r["seed"]),
+            int(r["step"]),
+        )
+    )
+    runs.sort(
+        key=lambda r: (order[r["cell"]], r["world"], agent_order.get(r["agent"], 99), r["seed"])
+    )
+    head = ["sweep", "cell", *factor_cols]
+    _write_csv(out / "results.csv", head + [k for k in results[0] if k not in head], results)
+    _write_csv(out / "runs.csv", head + [k for k in runs[0] if k not in head], runs)
+    summary = []
+    groups: dict = {}
+    for r in runs:
+        groups.setdefault((r["cell"], r["world"], r["agent"]), []).append(r)
+    for (cell, size, agent), rs in groups.items():
+        row = {
+            "sweep": spec.name,
+            "cell": cell,
+            **{f: rs[0][f] for f in factor_cols},
+            "world": size,
+            "agent": agent,
+            "n": len(rs),
+        }
+        steps = spec.cells[order[cell]].config.steps
+        for m in _MEASURES:
+            vals = [float(r[m]) for r in rs]
+            if m == "first_goal_step":  # a run that never found the goal: just after its end
+                vals = [v if v >= 0 else steps + 1 for v in vals]
+            mean, low, high = t_interval(vals)
+            row.update(
+                {
+                    f"{m}_mean": f"{mean:.4g}",
+                    f"{m}_ci_low": f"{low:.4g}",
+                    f"{m}_ci_high": f"{high:.4g}",
+                }
+            )
+        failed = sum(int(r["first_goal_step"]) < 0 for r in rs)
+        share, low, high = proportion_interval(failed, len(rs))
+        row.update(
+            {
+                "failed": failed,
+                "failed_share": f"{share:.3f}",
+                "failed_ci_low": f"{low:.3f}",
+                "failed_ci_high": f"{high:.3f}",
+            }
+        )
+        summary.append(row)
+    _write_csv(out / "summary.csv", list(summary[0]), summary)
+    provenance = {"commit": sorted(commits), "engine": sorted(engines)}
+    _write_summary_md(spec, out, summary, provenance)
+    return provenance
+
+
+def _write_summary_md(spec: SweepSpec, out: Path, summary: list[dict], provenance: dict) -> None:
+    lines = [
+        f"# Sweep {spec.name}",
+        "",
+        f"Base `{spec.base}`, design {spec.design}, {spec.seeds} seeds per cell "
+        f"({spec.first_seed}…{spec.first_seed + spec.seeds - 1}), worlds {list(spec.worlds)}; "
+        f"commit {', '.join(provenance['commit'])}, engine {', '.join(provenance['engine'])}.",
+        "",
+        "Means with 95 % confidence intervals (Student's t, n − 1 degrees of freedom); "
+        "`failed`: runs that never reached the goal, with the exact (Clopper–Pearson) 95 % "
+        "interval of their share. `late`: goals in the last "
+        f"{LATE_STEPS:,} steps; `first goal`: steps to the first goal (a run that never "
+        "found it counts as steps + 1).",
+        "",
+        "| cell | world | agent | n | total goals | last window | late | first goal | "
+        "V(start) | failed |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+
+    def ci(row, m, fmt="{:.1f}"):
+        return (
+            f"{fmt.format(float(row[m + '_mean']))} [{fmt.format(float(row[m + '_ci_low']))}, "
+            f"{fmt.format(float(row[m + '_ci_high']))}]"
+        )
+
+    for r in summary:
+        lines.append(
+            f"| {r['cell']} | {r['world']} | {r['agent']} | {r['n']} | "
+            f"{ci(r, 'total_goals', '{:.0f}')} | {ci(r, 'final_window_goals')} | "
+            f"{ci(r, 'late_goals', '{:.0f}')} | {ci(r, 'first_goal_step', '{:.0f}')} | "
+            f"{ci(r, 'value_start', '{:.3f}')} | {r['failed']}/{r['n']} "
+            f"[{float(r['failed_ci_low']):.2f}, {float(r['failed_ci_high']):.2f}] |"
+        )
+    (out / "summary.md").write_text("\n".join(lines) + "\n")
+
+
+# ================================================================================ the sweep
+def run_sweep(
+    spec: SweepSpec | str | os.PathLike,
+    out: str | os.PathLike,
+    *,
+    address: str | None = None,
+    use_ray: bool = True,
+    workers: int | None = None,
+    log=None,
+) -> dict:
+    """Run every unfinished trial of ``spec`` into ``out`` (skipping finished ones, resuming
+    started ones), then write the tables. Returns what ``sweep.json`` holds."""
+    if not isinstance(spec, SweepSpec):
+        spec = load_spec(spec)
+    if log is None:
+
+        def log(line):
+            print(line, file=sys.stderr, flush=True)
+
+    out = Path(out)
+    trials = spec.trials(out)
+    states = [(t, _trial_state(t)) for t in trials]
+    todo = [(t, s) for t, s in states if s != "done"]
+    log(
+        f"himit sweep {spec.name}: {len(spec.cells)} cells × {len(spec.worlds)} worlds × "
+        f"{spec.seeds} seeds = {len(trials)} trials; {len(trials) - len(todo)} finished, "
+        f"{sum(s == 'started' for _, s in todo)} to resume, {sum(s == 'new' for _, s in todo)} new"
+    )
+    out.mkdir(parents=True, exist_ok=True)
+    _execute(todo, address, use_ray, workers, log)
+    provenance = summarize(spec, out)
+    record = {
+        "name": spec.name,
+        "base": spec.base,
+        "design": spec.design,
+        "seeds": spec.seeds,
+        "first_seed": spec.first_seed,
+        "worlds": list(spec.worlds),
+        "factors": {k: [_show(v) for v in vs] for k, vs in spec.factors.items()},
+        "cells": [
+            {
+                "cell": c.slug,
+                "levels": {k: _show(v) for k, v in c.levels.items()},
+                "config": json.loads(c.config.to_json()),
+            }
+            for c in spec.cells
+        ],
+        **provenance,
+        "sweep_commit": source_commit(),
+    }
+    (out / "sweep.json").write_text(json.dumps(record, indent=1) + "\n")
+    return record

@@ -1,0 +1,1 @@
+"""Pictures and logs: figures, reports, TensorBoard."""

@@ -1,0 +1,1 @@
+"""Worlds: the multirooms gridworld, tables of any tabular world, Gymnasium."""

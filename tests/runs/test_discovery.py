@@ -1,0 +1,71 @@
+"""The discovery experiment (himit_torch.runs.discovery) with a tiny budget: its command, its
+outputs and its option refreshes. Discovery itself: tests/options/test_discovery.py."""
+
+import pytest
+
+
+def test_himit_run_discovery_quick(tmp_path, capsys):
+    import csv
+
+    from himit_torch.cli import main
+    from himit_torch.runs.discovery import DISCOVERY_AGENTS, DiscoveryConfig, mean_ci
+
+    assert (
+        main(
+            [
+                "run",
+                "discovery",
+                "--quick",
+                "--seeds",
+                "2",
+                "--steps",
+                "10000",
+                "--logdir",
+                str(tmp_path),
+                "--quiet",
+            ]
+        )
+        == 0
+    )
+    run = tmp_path / "discovery"
+    text = (run / "results.md").read_text()
+    for agent in DISCOVERY_AGENTS:
+        assert f"| {agent} |" in text
+    with (run / "curves.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == len(DISCOVERY_AGENTS) * 2 * 2  # 2 seeds × 2 windows of 5000
+    assert {r["agent"] for r in rows} == set(DISCOVERY_AGENTS)
+    assert (run / "figures" / "subgoals_exp2.png").exists() and (run / "subgoals.csv").exists()
+    capsys.readouterr()
+    with pytest.raises(SystemExit):
+        main(["run", "discovery", "--quick", "--mentor-reward", "none", "--logdir", str(tmp_path)])
+    assert "takes no --mentor-reward" in capsys.readouterr().err
+    with pytest.raises(ValueError, match="warmup"):
+        DiscoveryConfig(steps=20_000, warmup=20_000)
+    with pytest.raises(ValueError, match="refresh_every"):
+        DiscoveryConfig(refresh_every=3000)  # not a multiple of the window (5000)
+    m, h = mean_ci([1.0, 2.0, 3.0])  # t(0.975, 2) = 4.303, sd = 1
+    assert m == 2.0 and h == pytest.approx(4.302653 / 3**0.5, rel=1e-5)
+
+
+def test_discovered_runs_continue_the_primitives_runs_and_refresh(tmp_path):
+    """The discovered-options runs are the primitives runs up to the warm-up (the same curve), then
+    go on with options rebuilt every ``refresh_every`` steps."""
+    from dataclasses import replace
+
+    from himit_torch.runs.discovery import DiscoveryConfig, run_discovery
+
+    config = replace(DiscoveryConfig().quick(), seeds=1, steps=15_000, refresh_every=5000)
+    (result,) = run_discovery(config, tmp_path / "d", progress=False)
+    goals, window = result["goals"], config.warmup // 5000
+    for variant, source in (
+        ("discovered_options", "primitives"),
+        ("discovered_imitation", "imitation_primitives"),
+    ):
+        assert len(goals[variant][0]) == 3
+        assert list(goals[variant][0][:window]) == list(goals[source][0][:window])
+    assert result["refreshes"] == [1, 1]  # at 10,000 steps (the warm-up build is not counted)
+    assert (
+        "rebuilt from its latest counts every 5,000 steps"
+        in (tmp_path / "d" / "results.md").read_text()
+    )

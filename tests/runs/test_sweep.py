@@ -1,0 +1,298 @@
+"""``himit sweep``: spec checking, the in-process and Ray runners, skip/resume, and the tables."""
+
+import csv
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from himit_torch.cli import main
+from himit_torch.runs.sweep import load_spec, proportion_interval, run_sweep, t_interval
+
+# 16×16 world (rooms of 4 cells), 2 agents, 3000 steps: a trial runs in about a second.
+TINY = """
+name = "tiny"
+base = "exp2"
+seeds = 3
+seeds_per_trial = 2
+worlds = [16]
+design = "{design}"
+[set]
+agents = ["imitation", "options"]
+steps = {steps}
+window = 1000
+checkpoint_every = 1000
+mentor_episodes = 3
+engine = "{engine}"
+{grid}
+"""
+GRID = """[grid]
+learner.tie_break = ["random", "first"]
+learner.untried_value = ["none", 0.0]
+"""
+
+
+def write_spec(
+    tmp_path: Path, design="one-at-a-time", steps=3000, engine="auto", name="s.toml", grid=GRID
+):
+    path = tmp_path / name
+    path.write_text(TINY.format(design=design, steps=steps, engine=engine, grid=grid))
+    return path
+
+
+def read(path: Path) -> list[dict]:
+    with path.open() as f:
+        return list(csv.DictReader(f))
+
+
+def no_ray(monkeypatch):
+    """Make ``import ray`` fail, as on a machine without it."""
+    monkeypatch.setitem(sys.modules, "ray", None)
+
+
+def test_designs_give_the_cells_named_by_their_settings(tmp_path):
+    one = load_spec(write_spec(tmp_path))
+    assert [c.slug for c in one.cells] == ["baseline", "tie_break=first", "untried_value=0.0"]
+    # every cell carries every factor's level; the baseline is each factor's first level
+    assert one.cells[0].levels == {"learner.tie_break": "random", "learner.untried_value": None}
+    assert one.cells[2].config.learner.untried_value == 0.0
+    assert one.cells[2].config.learner.tie_break == "random"
+    full = load_spec(write_spec(tmp_path, design="factorial"))
+    assert len(full.cells) == 4
+    assert {(c.config.learner.tie_break, c.config.learner.untried_value) for c in full.cells} == {
+        ("random", None),
+        ("random", 0.0),
+        ("first", None),
+        ("first", 0.0),
+    }
+    trials = one.trials(tmp_path / "out")
+    assert [(t.first_seed, t.seeds) for t in trials[:2]] == [(0, 2), (2, 1)]
+    assert trials[0].config.sizes == (16,) and trials[0].config.agents == ("imitation", "options")
+    # the base's own settings that the spec leaves alone stay
+    assert trials[0].config.learner.plan_every == 4
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("bogus = 1", "unknown keys \\['bogus'\\]"),
+        ("[grid]\nlearner.nope = [1, 2]", "unknown setting 'learner.nope'"),
+        ("[set]\nstepz = 10", "unknown setting 'stepz'"),
+        ("[set]\nseeds = 10", "'seeds' is set by the spec's own keys"),
+        ('[grid]\nlearner.tie_break = ["random", "sideways"]', "tie_break"),
+        ("[grid]\nlearner.backups = []", "non-empty list of levels"),
+        ("[grid]\nsteps = 100", "non-empty list of levels"),
+        ('design = "latin"', "design='latin'"),
+        ("seeds = 0", "seeds=0 must be a whole number ≥ 1"),
+        ('base = "exp9"', "neither one of"),
+        ('[set]\nagents = ["imitation", "nobody"]', "agents"),
+        ('[set]\nsteps = "many"', "steps"),
+        ("worlds = [41]", "multiple of room_size"),
+        ("[set]\nsteps = 10\n[grid]\nsteps = [10, 20]", "both in \\[set\\] and in \\[grid\\]"),
+        ("[grid]\nlearner.backups = [10, 10]", "two cells are the same"),
+        ("[set]\nworld = {size = 3}", "only 'learner' settings nest"),
+        ("seeds = [", "not valid TOML"),
+    ],
+)
+def test_bad_specs_are_refused_naming_what_is_wrong(tmp_path, text, message):
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    with pytest.raises(ValueError, match=message):
+        load_spec(path)
+
+
+def test_json_specs_and_missing_files(tmp_path):
+    path = tmp_path / "s.json"
+    path.write_text(
+        json.dumps({"base": "exp1", "seeds": 2, "grid": {"learner": {"backups": [10, 19]}}})
+    )
+    spec = load_spec(path)
+    assert spec.name == "s" and [c.config.learner.backups for c in spec.cells] == [10, 19]
+    assert spec.cells[0].config.corner_options  # exp1's settings
+    with pytest.raises(ValueError, match="does not exist"):
+        load_spec(tmp_path / "missing.toml")
+    path.write_text("{nope")
+    with pytest.raises(ValueError, match="not valid JSON"):
+        load_spec(path)
+
+
+def test_cli_bad_spec_is_one_line_and_exit_2(tmp_path, capsys):
+    path = tmp_path / "bad.toml"
+    path.write_text("[grid]\nlearner.nope = [1, 2]")
+    with pytest.raises(SystemExit) as exit_:
+        main(["sweep", str(path)])
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err
+    assert (
+        err.count("\n") == 1
+        and err.startswith("himit: error: sweep spec")
+        and "learner.nope" in err
+    )
+
+
+def test_help_documents_the_spec_file(capsys):
+    with pytest.raises(SystemExit):
+        main(["sweep", "--help"])
+    out = capsys.readouterr().out
+    for needle in (
+        "[grid]",
+        "[set]",
+        "one-at-a-time",
+        "seeds_per_trial",
+        "learner.<field>",
+        "--address",
+        "--no-ray",
+    ):
+        assert needle in out
+
+
+def test_in_process_sweep_without_ray_says_so_and_writes_the_tables(tmp_path, monkeypatch):
+    no_ray(monkeypatch)
+    lines = []
+    spec = load_spec(write_spec(tmp_path))
+    out = tmp_path / "out"
+    record = run_sweep(spec, out, log=lines.append)
+    assert sum("Ray is not installed" in line and "in this process" in line for line in lines) == 1
+    rows = read(out / "results.csv")
+    # one row per run and window: 3 cells × 2 agents × 3 seeds × 3 windows
+    assert len(rows) == 3 * 2 * 3 * 3
+    assert list(rows[0])[:4] == ["sweep", "cell", "learner.tie_break", "learner.untried_value"]
+    assert {r["learner.untried_value"] for r in rows if r["cell"] == "untried_value=0.0"} == {"0.0"}
+    # the table is each trial's curves.csv with the settings in front
+    trial = out / "trials" / "tie_break=first" / "world16_seeds0-1" / "curves.csv"
+    mine = [
+        {
+            k: v
+            for k, v in r.items()
+            if k not in ("sweep", "cell", "learner.tie_break", "learner.untried_value")
+        }
+        for r in rows
+        if r["cell"] == "tie_break=first" and int(r["seed"]) < 2
+    ]
+    theirs = read(trial)
+    key = lambda r: (r["agent"], int(r["seed"]), int(r["step"]))  # noqa: E731
+    assert sorted(mine, key=key) == sorted(theirs, key=key)
+    # the summary: mean and t-interval of each cell's runs, recomputed here
+    runs = read(out / "runs.csv")
+    summary = read(out / "summary.csv")
+    assert len(runs) == 3 * 2 * 3 and len(summary) == 3 * 2
+    for row in summary:
+        goals = [
+            float(r["total_goals"])
+            for r in runs
+            if r["cell"] == row["cell"] and r["agent"] == row["agent"]
+        ]
+        assert int(row["n"]) == len(goals) == 3
+        assert float(row["total_goals_mean"]) == pytest.approx(np.mean(goals), rel=1e-3)
+        if np.std(goals) > 0:
+            low, _ = stats.t.interval(0.95, 2, loc=np.mean(goals), scale=stats.sem(goals))
+            assert float(row["total_goals_ci_low"]) == pytest.approx(low, rel=1e-3, abs=1e-3)
+        failed = sum(
+            int(r["first_goal_step"]) < 0
+            for r in runs
+            if r["cell"] == row["cell"] and r["agent"] == row["agent"]
+        )
+        assert int(row["failed"]) == failed
+    assert "95 %" in (out / "summary.md").read_text()
+    assert record["engine"] == ["numba"] and record["commit"][0] != "unknown"
+    assert json.loads((out / "sweep.json").read_text())["cells"][1]["cell"] == "tie_break=first"
+    # a rerun skips every finished trial and rewrites the same tables
+    before = (out / "results.csv").read_text()
+    stamp = (out / "trials" / "baseline" / "world16_seeds0-1" / "results.md").stat().st_mtime_ns
+    lines.clear()
+    run_sweep(spec, out, log=lines.append)
+    assert "6 finished, 0 to resume, 0 new" in lines[0] and len(lines) == 1
+    assert (out / "results.csv").read_text() == before
+    assert (
+        out / "trials" / "baseline" / "world16_seeds0-1" / "results.md"
+    ).stat().st_mtime_ns == stamp
+
+
+def test_a_changed_spec_does_not_reuse_finished_trials(tmp_path, monkeypatch):
+    no_ray(monkeypatch)
+    out = tmp_path / "out"
+    run_sweep(write_spec(tmp_path, steps=1000), out, log=lambda line: None)
+    with pytest.raises(ValueError, match="another configuration"):
+        run_sweep(write_spec(tmp_path, steps=2000), out, log=lambda line: None)
+
+
+@pytest.mark.slow  # (starting a local Ray takes long; the in-process sweep is in the fast suite)
+def test_tiny_sweep_on_a_local_ray_equals_the_in_process_one(tmp_path, monkeypatch):
+    pytest.importorskip("ray")
+    spec = load_spec(write_spec(tmp_path, grid='[grid]\nlearner.tie_break = ["random", "first"]'))
+    lines = []
+    run_sweep(spec, tmp_path / "ray", workers=2, log=lines.append)
+    assert any(line.startswith("himit sweep: Ray ") and "local, 2 CPUs" in line for line in lines)
+    assert sum(" done (" in line for line in lines) == 4
+    no_ray(monkeypatch)
+    run_sweep(spec, tmp_path / "here", log=lambda line: None)
+    for table in ("results.csv", "runs.csv", "summary.csv"):
+        assert read(tmp_path / "ray" / table) == read(tmp_path / "here" / table)
+
+
+_CHILD = """
+import sys
+from himit_torch.runs.sweep import run_sweep
+run_sweep(sys.argv[1], sys.argv[2], use_ray=False)
+"""
+
+
+@pytest.mark.slow  # (fast: the skip/resume of finished trials, tests above)
+def test_a_sweep_killed_mid_way_and_rerun_gives_the_uninterrupted_tables(tmp_path):
+    # the torch engine: slow enough per window to be killed inside a trial
+    spec = write_spec(tmp_path, steps=3000, engine="torch", grid="")  # one cell, two trials
+    env = dict(os.environ, OMP_NUM_THREADS="1")
+    whole = subprocess.Popen(
+        [sys.executable, "-c", _CHILD, str(spec), str(tmp_path / "whole")],
+        env=env,
+        stderr=subprocess.DEVNULL,
+    )
+    killed = tmp_path / "killed"
+    child = subprocess.Popen(
+        [sys.executable, "-c", _CHILD, str(spec), str(killed)], env=env, stderr=subprocess.DEVNULL
+    )
+    # kill it once its second trial has saved a checkpoint: one trial done, one half-way
+    second = killed / "trials" / "baseline" / "world16_seeds2-2"
+    deadline = time.time() + 300
+    while (
+        child.poll() is None
+        and time.time() < deadline
+        and not list((second / "checkpoints").glob("world16.pt"))
+    ):
+        time.sleep(0.01)
+    assert child.poll() is None, "the sweep finished before it could be killed; lengthen it"
+    child.send_signal(signal.SIGKILL)
+    child.wait()
+    assert (killed / "trials" / "baseline" / "world16_seeds0-1" / "results.md").exists()
+    assert not (second / "results.md").exists() and not (killed / "results.csv").exists()
+    done = subprocess.run(
+        [sys.executable, "-c", _CHILD, str(spec), str(killed)],
+        env=env,
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    assert "1 finished, 1 to resume, 0 new" in done.stderr
+    assert whole.wait() == 0
+    for table in ("results.csv", "runs.csv", "summary.csv"):
+        assert read(killed / table) == read(tmp_path / "whole" / table)
+
+
+def test_intervals_match_scipy_by_hand():
+    mean, low, high = t_interval([1.0, 2.0, 3.0, 4.0])
+    half = stats.t.ppf(0.975, 3) * np.std([1, 2, 3, 4], ddof=1) / 2
+    assert (mean, low, high) == pytest.approx((2.5, 2.5 - half, 2.5 + half))
+    assert t_interval([5.0, 5.0]) == (5.0, 5.0, 5.0)
+    share, low, high = proportion_interval(4, 5)
+    assert (
+        share == 0.8
+        and low == pytest.approx(0.2836, abs=1e-4)
+        and high == pytest.approx(0.9949, abs=1e-4)
+    )
