@@ -43,7 +43,7 @@ lint: $(STAMP)
 
 # the slow tests but the multi-seed statistical ones (CI runs make test, then this)
 test-slow: $(STAMP)
-	$(PYTEST) -m "slow and not statistical"
+	$(PYTEST) -m "slow and not statistical" --durations=15
 
 test-all: $(STAMP)
 	$(PYTEST) -m "slow or not slow"
