@@ -217,11 +217,6 @@ class Learner:
         self.gamma = tables.gamma
         self.terminal = tables.terminal
         self.start_state = tables.start_state
-        self.start_cdf = tables.start_cdf
-        self.dynamics = tables.dynamics
-        self.termination = tables.termination
-        self.policy = tables.policy
-        self.policy_cdf = tables.policy_cdf
 
         # ---- the state, one owner per piece ------------------------------------------------
         self.rows = RowTable(options, world.num_actions, agents, dev)
@@ -307,7 +302,7 @@ class Learner:
                 if not bool(self.rows.use_mentor[b]):
                     modules[b] = _NO_MENTOR_REWARD  # no mentor term: its reward is never used
                     continue
-                if getattr(world, "state_reward", None) is None and self.dynamics is None:
+                if getattr(world, "state_reward", None) is None and self.tables.dynamics is None:
                     raise ValueError(
                         f"run {b} ({self.agents[b]}) imitates but no reward module was "
                         "given and the world has neither a state_reward nor a "
@@ -503,8 +498,8 @@ class Learner:
     def _real_reward_bound(self) -> float | None:
         """The learner's best real reward for one step (``None`` if the world does not say)."""
         reward = getattr(self.world, "state_reward", None)
-        if reward is None and self.dynamics is not None:
-            reward = self.dynamics.rewards
+        if reward is None and self.tables.dynamics is not None:
+            reward = self.tables.dynamics.rewards
         return None if reward is None else float(torch.as_tensor(reward).max())
 
     # ================================================================================ running
@@ -697,10 +692,12 @@ class Learner:
                         ]
                     )
             actions = None
-            if self.policy_cdf is not None:  # stochastic options: drawn here, as always
+            if (
+                self.tables.options.policy_cdf is not None
+            ):  # stochastic options: drawn here, as always
                 actions = torch.multinomial(
                     torch.diff(
-                        self.policy_cdf[option * S + s],
+                        self.tables.options.policy_cdf[option * S + s],
                         prepend=torch.zeros(1, 1, dtype=torch.float64, device=self.device),
                     ),
                     1,
@@ -709,7 +706,7 @@ class Learner:
             u = torch.rand(s.shape, generator=gen, device=self.device, dtype=torch.float64)
             stop = torch.rand(1, generator=gen, device=self.device, dtype=torch.float64)
             moved = option_step(
-                self.tables.option_tables,
+                self.tables.options,
                 torch.tensor([option], device=self.device),
                 s,
                 self.tables.step,

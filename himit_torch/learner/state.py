@@ -9,7 +9,6 @@ queue, :class:`~himit_torch.learner.run_state.RunState` the runs' positions and 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cached_property
 from typing import TYPE_CHECKING
 
 import torch
@@ -52,13 +51,9 @@ class WorldTables:
     :attr:`start_state`."""
     dynamics: DynamicsTable | None
     """The world's :class:`~himit_torch.DynamicsTable` (``None``: the world has none)."""
-    termination: torch.Tensor
-    """``[O · S]`` β of option ``o`` at state ``s`` at ``o · S + s`` (as given: float32 compares
-    with the float64 uniforms exactly as float64 would)."""
-    policy: torch.Tensor | None
-    """``[O · S]`` deterministic options' actions (``None`` for stochastic options)."""
-    policy_cdf: torch.Tensor | None
-    """``[O · S, A]`` stochastic options' cumulative action probabilities (else ``None``)."""
+    options: OptionTables
+    """The options as flat tables (β, and the policy or its cdf, of option ``o`` at state ``s``
+    at ``o · S + s``), as :func:`~himit_torch.options.execution.option_step` reads them."""
 
     @classmethod
     def build(cls, world: TabularWorld, options: Options, device: torch.device) -> WorldTables:
@@ -90,15 +85,15 @@ class WorldTables:
             start_state=int(world.start_state),
             start_cdf=_start_cdf(world, terminal, device),
             dynamics=table().to(device) if callable(table) else None,
-            termination=options.termination.to(device).reshape(-1).contiguous(),
-            policy=policy,
-            policy_cdf=policy_cdf,
+            options=OptionTables(
+                S,
+                # β as given (float32 compares with the float64 uniforms exactly as float64
+                # would)
+                options.termination.to(device).reshape(-1).contiguous(),
+                policy,
+                policy_cdf,
+            ),
         )
-
-    @cached_property
-    def option_tables(self) -> OptionTables:
-        """The options' tables for :func:`~himit_torch.options.execution.option_step`."""
-        return OptionTables(self.num_states, self.termination, self.policy, self.policy_cdf)
 
     def step(self, positions: torch.Tensor, actions: torch.Tensor, u: torch.Tensor):
         """One primitive step of the world for ``positions [B]`` (its table when it has one):

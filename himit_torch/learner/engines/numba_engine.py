@@ -190,9 +190,13 @@ class NumbaEngine:
             _np(table.rewards.contiguous()),
             _np(tables.terminal),
             _np(tables.start_cdf) if tables.start_cdf is not None else np.ones(1),
-            _np(tables.termination),
-            _np(tables.policy) if tables.policy is not None else np.zeros(1, dtype=np.int8),
-            _np(tables.policy_cdf) if tables.policy_cdf is not None else np.ones((1, 1)),
+            _np(tables.options.termination),
+            _np(tables.options.policy)
+            if tables.options.policy is not None
+            else np.zeros(1, dtype=np.int8),
+            _np(tables.options.policy_cdf)
+            if tables.options.policy_cdf is not None
+            else np.ones((1, 1)),
         )
         self.row_begin = _row_begin(rows.state_rows, rows.num_rows)
         J, A, R = rows.state_rows.shape[1], table.cdf.shape[1], L.sweeper.round_size

@@ -71,7 +71,7 @@ def kernel_settings(state: BatchState) -> Any:
         untried_mode=untried_mode,
         any_confidence=state.cache.any_confidence,
         any_mentor=state.cache.any_mentor,
-        stochastic=tables.policy is None,
+        stochastic=tables.options.policy is None,
         start_state=-1 if tables.start_cdf is not None else tables.start_state,
     )
     return KernelSettings(**{name: _TYPES[name](v) for name, v in values.items()})

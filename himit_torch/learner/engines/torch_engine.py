@@ -72,9 +72,9 @@ class TorchEngine:
         option = L.rows.row_option[run.row]
         # lanes: 0 slip; deterministic options stop on lane 1, stochastic ones act on lane 1
         # and stop on lane 2
-        stop_lane = 1 if L.tables.policy is not None else 2
+        stop_lane = 1 if L.tables.options.policy is not None else 2
         moved = option_step(
-            L.tables.option_tables,
+            L.tables.options,
             option,
             run.position,
             L.tables.step,
