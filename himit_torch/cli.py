@@ -43,7 +43,7 @@ from himit_torch.mentor.policy import mentor_policy, run_mentor
 from himit_torch.options.builders import learner_options, mentor_options, primitive_options
 from himit_torch.options.bundle import Options
 from himit_torch.runs.config import ExperimentConfig
-from himit_torch.validation import settings_of
+from himit_torch.validation import COUNT_MAX, as_device, settings_of
 from himit_torch.viz.tensorboard import tensorboard_command
 from himit_torch.worlds.multirooms import MultiRooms
 
@@ -73,7 +73,8 @@ def _fail(message: str | Exception, status: int = 2) -> NoReturn:
 
 
 def _int_at_least(minimum: int) -> Callable[[str], int]:
-    """An argparse type: a whole number ≥ ``minimum``."""
+    """An argparse type: a whole number ≥ ``minimum`` and ≤ :data:`COUNT_MAX` (a count a tick
+    can honour)."""
 
     def parse(text: str) -> int:
         try:
@@ -82,6 +83,8 @@ def _int_at_least(minimum: int) -> Callable[[str], int]:
             raise argparse.ArgumentTypeError(f"invalid whole number: {text!r}") from None
         if value < minimum:
             raise argparse.ArgumentTypeError(f"must be ≥ {minimum}, got {value}")
+        if value > COUNT_MAX:
+            raise argparse.ArgumentTypeError(f"must be ≤ {COUNT_MAX}, got {value}")
         return value
 
     return parse
@@ -200,6 +203,11 @@ def cmd_info(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     if args.env is not None:
         return _info_gymnasium(args, t0)
+    if args.env_kwargs is not None:
+        raise ValueError(
+            "--env-kwargs is for a Gymnasium environment: give --env too (e.g. --env "
+            'FrozenLake-v1 --env-kwargs \'{"map_name": "8x8"}\'), or leave it out'
+        )
     world = MultiRooms(size=args.size, rooms=args.rooms, slip=args.slip)
     learner = learner_options(
         world, doorways=not args.no_doorway_options, corners=args.corner_options
@@ -275,12 +283,7 @@ def _info_gymnasium(args: argparse.Namespace, t0: float) -> int:
         world = task.world(args.gamma)
         options = task.options(world)
     else:
-        try:
-            world = from_gymnasium(args.env, gamma=args.gamma, **kwargs)
-        except (ValueError, OSError):
-            raise
-        except Exception as err:  # gymnasium.make's own errors: unknown id, bad kwargs
-            raise ValueError(f"cannot make the Gymnasium environment {args.env!r}: {err}") from None
+        world = from_gymnasium(args.env, gamma=args.gamma, **kwargs)
         options = primitive_options(world)
     P, R = world_model(world)
     plan = value_iteration(P, R, world.gamma)
@@ -426,7 +429,7 @@ def _add_demo(sub: argparse.ArgumentParser) -> None:
     sub.add_argument(
         "--episodes", type=_positive_int, default=20, help="mentor episodes to record (default 20)"
     )
-    sub.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    sub.add_argument("--seed", type=_nonnegative_int, default=0, help="random seed (default 0)")
     sub.add_argument(
         "--seeds",
         type=_positive_int,
@@ -514,11 +517,7 @@ def _experiment_config(name: str, args: argparse.Namespace) -> ExperimentConfig:
             window, min(config.checkpoint_every, config.steps // window * window)
         )
         config = dataclasses.replace(config, checkpoint_every=checkpoint_every)
-    if config.device.startswith("cuda") and not torch.cuda.is_available():
-        raise ValueError(
-            "--device cuda: no CUDA device is available here (install a CUDA build of "
-            "torch, see README) — use --device cpu"
-        )
+    as_device("--device", config.device)  # here, before any run starts
     return config
 
 
@@ -557,8 +556,7 @@ def _run_gymnasium(args: argparse.Namespace) -> int:
     if args.quick:
         config = config.quick()
     config = replace(config, **changes)
-    if config.device.startswith("cuda") and not torch.cuda.is_available():
-        raise ValueError("--device cuda: no CUDA device is available here — use --device cpu")
+    as_device("--device", config.device)
     run_dir = Path(args.logdir) / config.name
     print(
         f"{config.name}: tasks {list(config.tasks)}, agents {list(config.agents)}, "
@@ -847,7 +845,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         return COMMANDS[args.command][0](args)
     except ValueError as err:
         _fail(err)
+    except (FileNotFoundError, IsADirectoryError, NotADirectoryError) as err:
+        # A path the user gave names nothing usable (missing, a directory for a file, a file
+        # where a folder belongs): their mistake, exit 2 as for any bad argument. The loaders
+        # say so themselves (validation.read_text); this catches the paths that are only opened
+        # or created (--logdir under a file, a run directory removed mid-way).
+        _fail(err)
     except OSError as err:
+        # Everything else — permissions, a full disk, a failing device, a lost network mount —
+        # is the machine failing on the right path: exit 1, one line, so scripts can tell a
+        # retry-worthy fault from a command to fix.
         _fail(err, status=1)
 
 

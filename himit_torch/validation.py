@@ -9,9 +9,23 @@ Conversion rules (the same everywhere a number is read):
   converted with ``float``; it must be finite. ``bool`` and strings (``"0.1"``) are refused.
 * **sequences** where a tuple is expected (agents, sizes, a ``(row, col)`` cell): a list or a
   tuple is accepted and stored as a tuple; a bare string is refused (it would be read as its
-  characters).
+  characters). Where many whole numbers are expected (states, run indices, seeds:
+  :func:`as_int_array`), any 1-D sequence, NumPy array or tensor is accepted, each item by the
+  rule for whole numbers (a bool array, a ``NaN`` or ``6.5`` is refused, never cast).
+* **devices** (:func:`as_device`): ``cpu`` or ``cuda[:N]``; where something will run on it, only
+  a device this machine has (``meta``, ``mps``, ``cuda`` without CUDA are refused naming the
+  devices that would work).
+* **names that become folders** (:func:`as_folder_name`: a run's or a sweep's name): letters,
+  digits, ``_``, ``.``, ``-``, starting with a letter or digit — so never ``.``, ``..`` or a
+  path, and what is written under it stays inside its parent folder.
+* **files** (:func:`read_text`, :func:`parse_document`): a missing file or a directory given for
+  a file is a user mistake (``ValueError``); any other ``OSError`` (permissions, a full disk, a
+  failing device) is left to propagate as what it is. JSON and TOML nested deeper than
+  :data:`NESTING_MAX` are refused before the parser (which recurses) meets them.
 
-Every refusal is a ``ValueError`` naming the field and what would be right.
+Every refusal is a ``ValueError`` naming the field and what would be right. (A ``TypeError`` is
+kept for an argument that is not the kind of object at all, where no conversion rule applies —
+a number passed as demonstrations or as a world; those never come from a file or the CLI.)
 
 Settings (the fields of the configuration dataclasses) are declared once with :func:`setting`:
 type (the annotation), range, choices and doc, and whether the compiled engine reads them.
@@ -31,21 +45,35 @@ from __future__ import annotations
 import dataclasses
 import functools
 import inspect
+import json
 import math
 import numbers
 import os
 import re
 import types
 import typing
+from collections.abc import Iterable
+from pathlib import Path
 from typing import Any
 
 import numpy as np
+import torch
 
 __all__ = [
     "as_int",
     "as_float",
     "as_tuple",
     "as_choice",
+    "as_int_array",
+    "as_float_array",
+    "bool_vector",
+    "as_device",
+    "usable_devices",
+    "as_folder_name",
+    "read_text",
+    "parse_document",
+    "nesting_depth",
+    "NESTING_MAX",
     "COUNT_MAX",
     "Setting",
     "setting",
@@ -129,10 +157,258 @@ def as_choice(where: str, value: Any, choices: tuple[str, ...]) -> str:
     return value
 
 
-# =================================================================================== settings
 #: Largest whole-number setting unless a field declares its own: the product of two counts
 #: (``plan_every · backups``, a sweep's budget) then still fits the engines' int64.
 COUNT_MAX = 2**31 - 1
+
+
+def as_int_array(
+    where: str, value: Any, minimum: int | None = None, maximum: int | None = None
+) -> np.ndarray:
+    """A 1-D sequence of whole numbers (a list, tuple, range, NumPy array or tensor) as an int64
+    array, every item by :func:`as_int`'s rule and within the bounds; a refusal names the first
+    bad item (``where[i]``). A string, a mapping, a set or a scalar is refused."""
+    if isinstance(value, (str, bytes, dict, set, frozenset)) or not isinstance(
+        value, (Iterable, np.ndarray, torch.Tensor)
+    ):
+        raise ValueError(
+            f"{where} must be a list of whole numbers, got {value!r} ({type(value).__name__})"
+        )
+    if isinstance(value, (np.ndarray, torch.Tensor)):
+        a = value.detach().cpu().numpy() if isinstance(value, torch.Tensor) else value
+        if a.ndim != 1:
+            raise ValueError(f"{where} must be 1-D, got shape {tuple(a.shape)}")
+        if a.dtype.kind == "f":
+            bad = np.flatnonzero(~np.isfinite(a) | (a != np.round(a)))
+            if bad.size:  # the item's own refusal, by the scalar rule
+                as_int(f"{where}[{int(bad[0])}]", a[bad[0]].item())
+        elif a.dtype.kind not in "iu":
+            raise ValueError(
+                f"{where} must hold whole numbers, got dtype {a.dtype} (bools and strings are "
+                "never numbers)"
+            )
+        if a.dtype.kind in "fu" and a.size and float(np.abs(a).max()) >= 2**63:
+            raise ValueError(f"{where} holds numbers beyond int64")
+        out = a.astype(np.int64)
+    else:
+        items = [as_int(f"{where}[{i}]", v) for i, v in enumerate(value)]
+        if items and (min(items) < -(2**63) or max(items) >= 2**63):
+            raise ValueError(f"{where} holds numbers beyond int64")
+        out = np.array(items, dtype=np.int64)
+    for bound, outside, sign in (
+        (minimum, None if minimum is None else out < minimum, "≥"),
+        (maximum, None if maximum is None else out > maximum, "≤"),
+    ):
+        if outside is not None and outside.any():
+            i = int(np.flatnonzero(outside)[0])
+            raise ValueError(f"{where}[{i}]={int(out[i])} must be {sign} {bound}")
+    return out
+
+
+def as_float_array(where: str, value: Any) -> np.ndarray:
+    """A 1-D sequence of real numbers (a list, tuple, NumPy array or tensor) as a float64 array,
+    every item by :func:`as_float`'s rule (finite; bools and strings refused); a refusal names
+    the first bad item (``where[i]``)."""
+    if isinstance(value, (np.ndarray, torch.Tensor)):
+        a = value.detach().cpu().numpy() if isinstance(value, torch.Tensor) else value
+        if a.ndim != 1:
+            raise ValueError(f"{where} must be 1-D, got shape {tuple(a.shape)}")
+        if a.dtype.kind not in "iuf":
+            raise ValueError(
+                f"{where} must hold real numbers, got dtype {a.dtype} (bools and strings are "
+                "never numbers)"
+            )
+        out = a.astype(np.float64)
+        bad = np.flatnonzero(~np.isfinite(out))
+        if bad.size:
+            raise ValueError(f"{where}[{int(bad[0])}]={out[bad[0]]!r} must be a finite number")
+        return out
+    if isinstance(value, (str, bytes, dict, set, frozenset)) or not isinstance(value, Iterable):
+        raise ValueError(
+            f"{where} must be a list of numbers, got {value!r} ({type(value).__name__})"
+        )
+    return np.array([as_float(f"{where}[{i}]", v) for i, v in enumerate(value)], dtype=np.float64)
+
+
+def bool_vector(value: Any) -> torch.Tensor | None:
+    """``value`` as a 1-D bool tensor if it is one — a bool tensor or array, or a list or tuple
+    of bools — else ``None`` (0/1 numbers are not read as bools: a list of state indices is not
+    a mask)."""
+    if isinstance(value, (list, tuple)) and all(_is_bool(v) for v in value):
+        return torch.tensor([bool(v) for v in value], dtype=torch.bool)
+    if isinstance(value, np.ndarray) and value.dtype == np.bool_ and value.ndim == 1:
+        return torch.from_numpy(value.copy())
+    if isinstance(value, torch.Tensor) and value.dtype == torch.bool and value.dim() == 1:
+        return value.detach().cpu().clone()
+    return None
+
+
+# ==================================================================================== devices
+#: Device types the learner runs on (float64 tables everywhere: Apple's ``mps`` has no float64,
+#: ``meta`` tensors hold no values).
+DEVICE_TYPES = ("cpu", "cuda")
+
+
+def usable_devices() -> list[str]:
+    """The devices this machine can run the learner on: ``cpu``, and ``cuda``, ``cuda:0`` … when
+    torch sees CUDA devices."""
+    count = torch.cuda.device_count() if torch.cuda.is_available() else 0
+    return ["cpu"] + (["cuda"] + [f"cuda:{i}" for i in range(count)] if count else [])
+
+
+def as_device(where: str, value: Any, available: bool = True) -> torch.device:
+    """``value`` (a string or ``torch.device``) as a device of :data:`DEVICE_TYPES`; with
+    ``available`` (where something will run) also one this machine has. A configuration that is
+    only written down (``ExperimentConfig``) checks ``available=False``: it may name ``cuda`` on
+    a machine without, and is refused when it runs there."""
+    if isinstance(value, torch.device):
+        device = value
+    elif isinstance(value, str) and value:
+        try:
+            device = torch.device(value)
+        except RuntimeError:
+            raise ValueError(
+                f"{where}={value!r} is not a torch device; use one of {usable_devices()}"
+            ) from None
+    else:
+        raise ValueError(
+            f"{where} must be a device name such as 'cpu' or 'cuda', got {value!r} "
+            f"({type(value).__name__}); use one of {usable_devices()}"
+        )
+    if device.type not in DEVICE_TYPES:
+        raise ValueError(
+            f"{where}={value!r}: the learner runs on {' or '.join(DEVICE_TYPES)} devices only; "
+            f"use one of {usable_devices()}"
+        )
+    if available and device.type == "cuda":
+        count = torch.cuda.device_count() if torch.cuda.is_available() else 0
+        if count == 0:
+            raise ValueError(
+                f"{where}={value!r}: no CUDA device is available here (a CUDA build of torch "
+                f"and a GPU are needed, see README); use one of {usable_devices()}"
+            )
+        if device.index is not None and device.index >= count:
+            raise ValueError(
+                f"{where}={value!r}: this machine has {count} CUDA device(s); use one of "
+                f"{usable_devices()}"
+            )
+    return device
+
+
+# ================================================================================ names, files
+_FOLDER_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,99}")
+
+
+def as_folder_name(where: str, value: Any) -> str:
+    """A name that becomes a folder under another (a run's, a sweep's): 1–100 letters, digits,
+    ``_``, ``.``, ``-``, starting with a letter or digit — never ``.``, ``..``, a path or a hidden
+    folder, so that what is written under it stays inside its parent."""
+    if not isinstance(value, str) or not _FOLDER_NAME.fullmatch(value):
+        raise ValueError(
+            f"{where}={value!r} must be a folder name: 1–100 letters, digits, '_', '.', '-', "
+            "starting with a letter or digit (no '/', not '.' or '..')"
+        )
+    return value
+
+
+def read_text(where: str, path: str | os.PathLike) -> str:
+    """The UTF-8 text of the file ``path`` that a user named. A path that names no file (missing,
+    a directory, or under something that is not a directory) and a file that is not UTF-8 text
+    are the user's mistake: ``ValueError`` naming ``where``. Other ``OSError`` exceptions (permissions,
+    a failing disk) propagate unchanged: the file is the right one, the machine failed."""
+    path = Path(path)
+    try:
+        return path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ValueError(f"{where} does not exist") from None
+    except IsADirectoryError:
+        raise ValueError(f"{where} is a directory; give the file itself") from None
+    except NotADirectoryError:
+        raise ValueError(f"{where}: a part of the path is a file, not a directory") from None
+    except UnicodeDecodeError as err:  # e.g. a binary file (a pickle) in its place
+        raise ValueError(f"{where} is not UTF-8 text ({err.reason} at byte {err.start})") from None
+
+
+#: Deepest nesting of lists and tables accepted in a file the package reads (specs, configs):
+#: theirs is at most 3; JSON's and TOML's parsers recurse, so a file nested thousands deep would
+#: end in a ``RecursionError`` instead of a refusal.
+NESTING_MAX = 32
+
+_JSON_TOKENS = re.compile(r'"(?:\\.|[^"\\])*"|[\[\]{}]')
+#: One TOML key segment: bare, or a basic or literal string.
+_TOML_KEY = r'(?:[A-Za-z0-9_-]+|"(?:\\.|[^"\\\n])*"|\'[^\'\n]*\')'
+_TOML_TOKENS = re.compile(
+    r'"""(?:\\.|[^\\])*?"""|\'\'\'[\s\S]*?\'\'\''  # multi-line strings
+    rf"|(?P<key>{_TOML_KEY}(?:[ \t]*\.[ \t]*{_TOML_KEY})+)"  # a dotted key (a float: one dot)
+    r'|"(?:\\.|[^"\\\n])*"|\'[^\'\n]*\'|#[^\n]*|[\[\]{}]'
+)
+_TOML_SEGMENT = re.compile(_TOML_KEY)
+
+
+def _text_depth(text: str, tokens: re.Pattern) -> int:
+    """Deepest nesting in ``text`` that the parser would recurse or loop into: of ``[``/``{``
+    outside strings (and TOML comments), and of a TOML dotted key's segments (``a.b.c``: 3;
+    tomllib's time and memory grow with their square)."""
+    depth = deepest = 0
+    for match in tokens.finditer(text):
+        token = match.group()
+        if token in "[{":
+            depth += 1
+            deepest = max(deepest, depth)
+        elif token in "]}":
+            depth -= 1
+        elif match.lastgroup == "key":  # its segments, dots inside quoted ones not counted
+            deepest = max(deepest, len(_TOML_SEGMENT.findall(token)) - 1)
+    return deepest
+
+
+def nesting_depth(data: Any) -> int:
+    """Nesting of lists and dicts in ``data`` (a scalar: 0, ``[1]``: 1), without recursion."""
+    deepest, stack = 0, [(data, 0)]
+    while stack:
+        item, depth = stack.pop()
+        if isinstance(item, dict):
+            item = list(item.values())
+        elif not isinstance(item, (list, tuple)):
+            continue
+        deepest = max(deepest, depth + 1)
+        stack.extend((child, depth + 1) for child in item)
+    return deepest
+
+
+def parse_document(where: str, text: str, kind: str, limit: int = NESTING_MAX) -> Any:
+    """``text`` parsed as ``kind`` (``"json"`` or ``"toml"``); ``ValueError`` naming ``where`` for
+    text that is not valid, or nested deeper than ``limit``: the brackets are counted before the
+    parser (which recurses) runs, and the result measured after (TOML's dotted keys and table
+    headers nest without brackets)."""
+    tokens = _JSON_TOKENS if kind == "json" else _TOML_TOKENS
+    if _text_depth(text, tokens) > limit:
+        raise ValueError(
+            f"{where} nests lists, tables or dotted keys more than {limit} deep; a spec or config "
+            "needs a few levels"
+        )
+    if kind == "json":
+        try:
+            data = json.loads(text)
+        except ValueError as err:  # JSONDecodeError, or an integer of more than 4300 digits
+            raise ValueError(f"{where} is not valid JSON: {err}") from None
+    else:
+        try:
+            import tomllib
+        except ModuleNotFoundError:  # Python 3.10
+            import tomli as tomllib
+        try:
+            data = tomllib.loads(text)
+        except ValueError as err:  # TOMLDecodeError, or an integer of more than 4300 digits
+            raise ValueError(f"{where} is not valid TOML: {err}") from None
+    if nesting_depth(data) > limit:
+        raise ValueError(
+            f"{where} nests keys more than {limit} deep; a spec or config needs a few levels"
+        )
+    return data
+
+
+# =================================================================================== settings
 
 #: Key of a field's :class:`Setting` in its ``dataclasses.field`` metadata.
 _SETTING_KEY = "himit_setting"
@@ -146,7 +422,8 @@ class Setting:
     ``le`` defaults to :data:`COUNT_MAX`); ``choices`` are the strings a ``str`` field (or every
     item of a ``tuple[str, ...]``) may take; ``hint`` is added to a refusal (what the value
     means). ``kernel``: the compiled engine reads the field, encoded as a number — a choice as
-    its index in ``choices``, ``None`` as ``kernel_none``.
+    its index in ``choices``, ``None`` as ``kernel_none``. ``folder``: a ``str`` field that
+    names a folder (:func:`as_folder_name`).
     """
 
     doc: str
@@ -158,6 +435,7 @@ class Setting:
     hint: str = ""
     kernel: bool = False
     kernel_none: int | float | None = None
+    folder: bool = False
 
 
 def setting(
@@ -236,6 +514,8 @@ def _convert(where: str, value: Any, kind: Any, info: Setting) -> Any:
     if kind is str:
         if info.choices:
             return as_choice(where, value, info.choices)
+        if info.folder:
+            return as_folder_name(where, value)
         if not isinstance(value, str) or not value:
             raise ValueError(f"{where} must be a non-empty string, got {value!r}")
         return value

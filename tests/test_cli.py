@@ -163,7 +163,10 @@ def test_info_of_a_gymnasium_world_is_exact(capsys):
 @pytest.mark.parametrize(
     "argv, what",
     [
-        (["info", "--env", "Nope-v0"], "cannot make the Gymnasium environment 'Nope-v0'"),
+        (
+            ["info", "--env", "Nope-v0"],
+            "from_gymnasium('Nope-v0'): gymnasium.make failed with NameNotFound",
+        ),
         (["info", "--env", "CartPole-v1"], "Discrete observation and action spaces"),
         (["info", "--env", "taxi", "--env-kwargs", '{"is_rainy": true}'], "give --env Taxi-v4"),
         (["info", "--env", "Taxi-v4", "--env-kwargs", "[1]"], "must be a JSON object"),

@@ -49,7 +49,15 @@ from himit_torch.mentor.reward import KnownReward
 from himit_torch.options.bundle import Options
 from himit_torch.options.execution import option_step
 from himit_torch.rng import seed_streams, uniforms
-from himit_torch.validation import as_choice, as_float, as_int, check_memory
+from himit_torch.validation import (
+    COUNT_MAX,
+    as_choice,
+    as_device,
+    as_float,
+    as_int,
+    as_int_array,
+    check_memory,
+)
 
 if TYPE_CHECKING:
     from himit_torch.mentor.demonstrations import Demonstrations
@@ -113,14 +121,16 @@ class Learner:
         agents: one agent variant per run, from :data:`AGENTS`.
         seeds: one seed per run; run ``b``'s randomness depends only on ``seeds[b]``.
         config: :class:`LearnerConfig`.
-        demonstrations: mentor demonstrations (anything with ``transitions()``), given to every
-            run; more can be added with :meth:`add_demonstrations`.
+        demonstrations: mentor demonstrations (anything with ``transitions()``, else a
+            ``TypeError``), given to every run; more can be added with :meth:`add_demonstrations`.
         reward: the reward module for the mentor term, one for all runs or one per run
             (default :class:`~himit_torch.KnownReward` of the world; ``None`` in a per-run list
             for runs that do not imitate). A module fitted on demonstrations (e.g.
             :class:`~himit_torch.SalienceReward`) is not refitted by :meth:`add_demonstrations`:
             call its ``fit`` with all demonstrations, then :meth:`refresh_mentor_reward`.
-        device: where all tensors live.
+        device: where all tensors live: ``cpu`` or a CUDA device this machine has (anything
+            else, ``meta`` or ``cuda`` without CUDA, is a ``ValueError`` naming those that would
+            work).
         engine: ``"auto"`` (the compiled ``"numba"`` engine on a CPU when it can run the world,
             else ``"torch"``), ``"numba"`` or ``"torch"``. Both give the same decisions; switch
             with :meth:`use_engine`.
@@ -155,18 +165,13 @@ class Learner:
         if not isinstance(options, Options):
             raise ValueError(f"options must be an Options bundle, got {type(options).__name__}")
         self.world, self.options = world, options
-        try:
-            self.device = dev = torch.device(device)
-        except (RuntimeError, TypeError) as err:
-            raise ValueError(
-                f"device={device!r} is not a torch device ({err}); use e.g. 'cpu' or 'cuda'"
-            ) from None
+        self.device = dev = as_device("device", device)
         as_choice("engine", engine, ("auto", "numba", "torch"))
         for name, what in (("agents", agents), ("seeds", seeds)):
             if isinstance(what, (str, bytes)) or not isinstance(what, Iterable):
                 raise ValueError(f"{name} must be a list (one per run), got {what!r}")
         agents = list(agents)
-        seeds = [as_int(f"seeds[{i}]", s, minimum=0) for i, s in enumerate(seeds)]
+        seeds = as_int_array("seeds", seeds, minimum=0).tolist()  # int64 stream keys
         B = len(agents)
         if B == 0:
             raise ValueError(
@@ -388,6 +393,12 @@ class Learner:
         if it has ``counts [T]`` (e.g. :func:`~himit_torch.mentor.policy.exact_mentor_transitions`, the
         mentor's exact model), each transition is counted that many times instead of once.
         """
+        if not callable(getattr(demonstrations, "transitions", None)):
+            raise TypeError(
+                f"demonstrations must be Demonstrations (or anything with transitions() -> "
+                f"(from [T], to [T])), got {type(demonstrations).__name__}; read a file with "
+                "Demonstrations.load(path)"
+            )
         if hasattr(demonstrations, "check_world"):
             demonstrations.check_world(self.world)
         src, dst = demonstrations.transitions()
@@ -419,7 +430,10 @@ class Learner:
         run_idx = (
             None
             if runs is None
-            else torch.as_tensor(list(runs), dtype=torch.int64, device=self.device)
+            else torch.as_tensor(
+                as_int_array("add_demonstrations: runs", runs, 0, self.batch - 1),
+                device=self.device,
+            )
         )
         self.mentor.observe(src, dst, run_idx, counts)
         self.refresh_mentor_reward(run_idx)
@@ -509,8 +523,7 @@ class Learner:
 
     def run(self, steps: int, progress: bool = False) -> RunMetrics:
         """Advance all runs ``steps`` primitive steps; returns the metrics so far."""
-        if steps < 0:
-            raise ValueError(f"steps={steps} must be ≥ 0")
+        steps = as_int("Learner.run: steps", steps, 0, COUNT_MAX)
         window = self.config.window
         bar = None
         if progress:

@@ -49,6 +49,7 @@ from himit_torch.learner.agents import AGENTS
 from himit_torch.learner.choice import choose_rows
 from himit_torch.options.bundle import Options
 from himit_torch.rng import uniforms
+from himit_torch.validation import as_int_array
 
 if TYPE_CHECKING:
     from himit_torch.learner.learner import Learner
@@ -171,7 +172,7 @@ def _check(learner: Learner, options: Options, runs: list[int], agents: list[str
         raise ValueError(f"runs={runs}: give distinct run indices in 0…{learner.batch - 1}")
     if len(agents) != len(runs):
         raise ValueError(f"{len(agents)} agents for {len(runs)} runs: give one per carried run")
-    unknown = sorted({repr(a) for a in agents if a not in AGENTS})
+    unknown = sorted({repr(a) for a in agents if not isinstance(a, str) or a not in AGENTS})
     if unknown:
         raise ValueError(f"unknown agent variant(s) {unknown}; use one of {sorted(AGENTS)}")
     for b, agent in zip(runs, agents):
@@ -208,7 +209,8 @@ def with_options(
         learner: the learner to continue (``LearnerConfig.option_models = "learned"``).
         options: the new option set, starting with ``learner``'s primitive options (unchanged),
             over the same world.
-        runs: which runs to carry, in this order (default: all); each keeps its seed.
+        runs: which runs to carry, in this order (default: all), whole numbers in
+            ``0…B−1`` (``99`` or ``0.7`` refused); each keeps its seed.
         agents: the carried runs' new agent variants (default: the same), e.g. ``"options"`` for
             a ``"primitives"`` run; the mentor term and the confidence test must stay.
         engine: the new learner's engine (default: ``learner``'s).
@@ -219,7 +221,17 @@ def with_options(
     """
     from himit_torch.learner.learner import Learner
 
-    runs = list(range(learner.batch)) if runs is None else [int(b) for b in runs]
+    runs = (
+        list(range(learner.batch))
+        if runs is None
+        else as_int_array("with_options: runs", runs, 0, learner.batch - 1).tolist()
+    )
+    if agents is not None and (
+        isinstance(agents, (str, bytes)) or not isinstance(agents, (list, tuple))
+    ):
+        raise ValueError(
+            f"with_options: agents must be a list (one per carried run), got {agents!r}"
+        )
     agents = [learner.agents[b] for b in runs] if agents is None else list(agents)
     _check(learner, options, runs, agents)
     dev = learner.device

@@ -70,17 +70,13 @@ class Demonstrations:
 
     def __init__(self, episodes: Sequence, world, *, source: str | None = None):
         self._source = source or "Demonstrations"
+        _check_world_argument(world, self._source)
         if isinstance(world, dict):
             description = world
             self._world = _world_from_description(json.loads(json.dumps(description)), self._source)
-        elif hasattr(world, "num_states") and hasattr(world, "terminal_mask"):
+        else:
             description = describe_world(world)
             self._world = world
-        else:
-            raise ValueError(
-                f"{self._source}: world must be a world description dict "
-                f"(world.describe()) or a world object, got {type(world).__name__}"
-            )
         self._world_description = json.loads(json.dumps(description))  # a plain, JSON-able copy
         if isinstance(episodes, (torch.Tensor, np.ndarray)) and episodes.ndim == 1:
             raise ValueError(
@@ -219,9 +215,12 @@ class Demonstrations:
             FileNotFoundError: no such file.
             ValueError: the file is not a valid demonstrations file; the message names the file,
                 and the episode and index where a state is at fault.
+            TypeError: ``world`` is neither a world nor a description dict (e.g. a number).
         """
         path = Path(path)
         src = str(path)
+        if world is not None:
+            _check_world_argument(world, src)
         if not path.exists():
             raise FileNotFoundError(f"{src}: no such demonstrations file")
         try:
@@ -299,6 +298,18 @@ class Demonstrations:
 
 
 # ------------------------------------------------------------------------------------ checks
+def _check_world_argument(world, source: str) -> None:
+    """``TypeError`` unless ``world`` is a description dict or a world object (``num_states``,
+    ``terminal_mask``): a number or a string here is not a world of any kind."""
+    if not isinstance(world, dict) and not (
+        hasattr(world, "num_states") and hasattr(world, "terminal_mask")
+    ):
+        raise TypeError(
+            f"{source}: world must be a world description dict (world.describe()) or a world "
+            f"object (num_states, terminal_mask, step), got {type(world).__name__}"
+        )
+
+
 def _check_same_world(mine: dict, world, source: str) -> None:
     """``ValueError`` naming each description field that differs between ``mine`` and ``world``
     (a world or a description dict)."""

@@ -17,6 +17,7 @@ from himit_torch.exact.planning import greedy_option_policy, smdp_value_iteratio
 from himit_torch.mentor.demonstrations import Demonstrations
 from himit_torch.options.bundle import Options
 from himit_torch.options.execution import OptionTables, option_step
+from himit_torch.validation import COUNT_MAX, as_int, check_memory
 from himit_torch.worlds.multirooms import MultiRooms
 from himit_torch.worlds.tabular import TabularWorld
 
@@ -163,16 +164,21 @@ def run_mentor(
         mentor = mentor_policy(world, mentor)
     if not isinstance(mentor, MentorPolicy):
         raise ValueError(f"mentor must be a MentorPolicy or Options, got {type(mentor).__name__}")
-    if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
-        raise ValueError(f"episodes={episodes!r} must be a whole number ≥ 1")
+    episodes = as_int("episodes", episodes, 1, COUNT_MAX)
+    # All episodes step together: their positions, flags and option state, and a state per step.
+    check_memory(f"run_mentor: {episodes} episodes at once", 64 * episodes, "record fewer")
     if generator is not None and seed is not None:
         raise ValueError("give either generator or seed, not both")
     if generator is None:
-        generator = torch.Generator().manual_seed(0 if seed is None else int(seed))
+        generator = torch.Generator().manual_seed(
+            0 if seed is None else as_int("seed", seed, -(2**63), 2**64 - 1)
+        )
     S = world.num_states
-    max_steps = 10 * S if max_steps_per_episode is None else int(max_steps_per_episode)
-    if max_steps < 1:
-        raise ValueError(f"max_steps_per_episode={max_steps_per_episode} must be ≥ 1")
+    max_steps = (
+        10 * S
+        if max_steps_per_episode is None
+        else as_int("max_steps_per_episode", max_steps_per_episode, 1, COUNT_MAX)
+    )
     options = mentor.options
     choice, init = mentor.option, options.initiation
     cdf_total = None

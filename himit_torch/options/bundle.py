@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import torch
 
-from himit_torch.validation import as_tuple
+from himit_torch.validation import as_int_array, as_tuple
 
 __all__ = ["OPTION_KINDS", "ACTION_DTYPES", "action_dtype", "Options"]
 
@@ -40,6 +40,17 @@ OPTION_KINDS = ("primitive", "doorway", "corner", "subgoal", "custom")
 #: Integer dtypes a deterministic ``Options.policy`` may have (unsigned ones are left out: torch
 #: reads a uint8 index tensor as a mask).
 ACTION_DTYPES = (torch.int8, torch.int16, torch.int32, torch.int64)
+
+
+def _as_tensor(where: str, value) -> torch.Tensor:
+    """A tensor, array or (nested) list as a tensor; ``None``, strings and ragged lists are
+    refused by name."""
+    if value is None or isinstance(value, (str, bytes)):
+        raise ValueError(f"{where} must be a tensor, array or list, got {value!r}")
+    try:
+        return torch.as_tensor(value)
+    except (TypeError, ValueError, RuntimeError) as err:
+        raise ValueError(f"{where} must be a tensor, array or list of numbers ({err})") from None
 
 
 def action_dtype(num_actions: int) -> torch.dtype:
@@ -177,7 +188,16 @@ class Options:
                 f"cannot join options over different state counts {[p.num_states for p in bundles]}"
             )
         if any(p.stochastic for p in bundles):
-            A = max(p.policy.shape[2] if p.stochastic else int(p.policy.max()) + 1 for p in bundles)
+            counts = sorted({p.policy.shape[2] for p in bundles if p.stochastic})
+            A = counts[-1]
+            largest = max((int(p.policy.max()) for p in bundles if not p.stochastic), default=-1)
+            if len(counts) > 1 or largest >= A:
+                raise ValueError(
+                    f"Options.concat: the bundles' policies are over different action counts "
+                    f"(probabilities over {counts} actions"
+                    + (f", integer actions up to {largest}" if largest >= 0 else "")
+                    + "); join options of one world, whose policies share its actions"
+                )
             policy = torch.cat([p.action_probabilities(A) for p in bundles])
         else:
             policy = torch.cat([p.policy for p in bundles])
@@ -213,7 +233,7 @@ class Options:
             raise ValueError(
                 f"Options.from_policy: kind={kind!r} is unknown; use one of {OPTION_KINDS}"
             )
-        initiation = torch.as_tensor(initiation)
+        initiation = _as_tensor(f"Options.from_policy({name!r}): initiation", initiation)
         if initiation.dtype != torch.bool:
             if initiation.is_complex() or not bool(((initiation == 0) | (initiation == 1)).all()):
                 raise ValueError(
@@ -221,12 +241,20 @@ class Options:
                     "(or 0/1), got other values"
                 )
             initiation = initiation.to(torch.bool)  # 0/1 → False/True, the only conversion
-        policy = torch.as_tensor(policy)
+        policy = _as_tensor(f"Options.from_policy({name!r}): policy", policy)
         if termination is None:
             termination = (
                 torch.ones(initiation.shape) if kind == "primitive" else (~initiation).float()
             )
-        termination = torch.as_tensor(termination).float()
+        termination = _as_tensor(f"Options.from_policy({name!r}): termination", termination)
+        if termination.dtype == torch.bool or not (
+            termination.is_floating_point() or termination.dtype in ACTION_DTYPES
+        ):
+            raise ValueError(
+                f"Options.from_policy({name!r}): termination must be [S] probabilities, got "
+                f"dtype {termination.dtype}"
+            )
+        termination = termination.float()
         if kind == "primitive":
             if (
                 initiation.dim() != 1
@@ -257,8 +285,11 @@ class Options:
         )
 
     def select(self, index: Sequence[int] | torch.Tensor) -> Options:
-        """A sub-bundle with the options at ``index``."""
-        index = torch.as_tensor(index, dtype=torch.int64)
+        """A sub-bundle with the options at ``index``: whole numbers in ``0…O−1`` (a list, array
+        or tensor; a bool mask is refused, use ``mask.nonzero()[:, 0]``)."""
+        index = torch.from_numpy(
+            as_int_array("Options.select: index", index, 0, self.num_options - 1)
+        )
         return Options(
             self.initiation[index],
             self.termination[index],

@@ -33,6 +33,7 @@ Options (:func:`learned_subgoal_options`)
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 import networkx as nx
@@ -41,6 +42,7 @@ import scipy.sparse as sp
 import torch
 
 from himit_torch.options.bundle import Options
+from himit_torch.validation import COUNT_MAX, as_float, as_int, as_int_array
 
 __all__ = [
     "Subgoals",
@@ -54,9 +56,19 @@ __all__ = [
 
 
 def _episodes(demonstrations) -> list[np.ndarray]:
+    """Each episode as int64 states ≥ 0, by :func:`~himit_torch.validation.as_int_array`'s rule
+    (a NaN, a fraction or a negative state is refused, never cast)."""
     episodes = getattr(demonstrations, "episodes", demonstrations)
-    out = [np.asarray(torch.as_tensor(e).cpu(), dtype=np.int64) for e in episodes]
-    if not out or any(e.ndim != 1 or e.size == 0 for e in out):
+    if isinstance(episodes, (str, bytes, dict)) or not isinstance(episodes, Iterable):
+        raise ValueError(
+            "discover_subgoals: demonstrations must be Demonstrations or a list of episodes "
+            f"(1-D sequences of states), got {type(demonstrations).__name__}"
+        )
+    out = [
+        as_int_array(f"discover_subgoals: demonstrations episode {i}", e, minimum=0)
+        for i, e in enumerate(episodes)
+    ]
+    if not out or any(e.size == 0 for e in out):
         raise ValueError(
             "discover_subgoals: demonstrations must hold at least one episode, each a "
             "non-empty 1-D sequence of states"
@@ -148,17 +160,15 @@ def discover_subgoals(
         min_episode_share: a subgoal lies on at least this share of the episodes, in (0, 1].
 
     Raises:
-        ValueError: bad settings or empty demonstrations.
+        ValueError: ``separation`` not a whole number in ``0…COUNT_MAX`` (``True``, ``2.5``,
+            ``inf`` refused), ``min_episode_share`` not a real number in ``(0, 1]``, or
+            demonstrations with no episode, an empty one, or a state that is negative, NaN or
+            not whole.
     """
-    if int(separation) != separation or separation < 0:
-        raise ValueError(
-            f"discover_subgoals: separation={separation!r} must be a whole number ≥ 0 "
-            "(moves between subgoals in the mentor's graph)"
-        )
-    if not 0.0 < min_episode_share <= 1.0:
-        raise ValueError(
-            f"discover_subgoals: min_episode_share={min_episode_share!r} must lie in (0, 1]"
-        )
+    separation = as_int("discover_subgoals: separation", separation, 0, COUNT_MAX)
+    min_episode_share = as_float(
+        "discover_subgoals: min_episode_share", min_episode_share, 0.0, 1.0, low_open=True
+    )
     episodes = _episodes(demonstrations)
     graph, degree, share, first = subgoal_scores(episodes)
     ends = {int(e[0]) for e in episodes} | {int(e[-1]) for e in episodes}
@@ -280,8 +290,11 @@ def learned_subgoal_options(
         One option per subgoal reachable from somewhere (kind ``"subgoal"``, named
         ``subgoal <s>``), or ``None`` if none is (e.g. nothing learned yet).
     """
-    if not max_steps > 0:
-        raise ValueError(f"learned_subgoal_options: max_steps={max_steps!r} must be > 0")
+    max_steps = as_float("learned_subgoal_options: max_steps", max_steps, 0.0, low_open=True)
+    gamma = as_float(
+        "learned_subgoal_options: gamma", gamma, 0.0, 1.0, low_open=True, high_open=True
+    )
+    num_actions = as_int("learned_subgoal_options: num_actions", num_actions, 1, COUNT_MAX)
     states = subgoals.states if isinstance(subgoals, Subgoals) else tuple(int(s) for s in subgoals)
     S = counts.shape[1]
     if counts.shape[0] != num_actions * S:

@@ -13,6 +13,7 @@ from himit_torch.learner.config import LearnerConfig
 from himit_torch.learner.learner import Learner
 from himit_torch.mentor.policy import mentor_policy, record_demonstrations
 from himit_torch.options.builders import learner_options, mentor_options
+from himit_torch.validation import as_device
 from himit_torch.worlds.multirooms import MultiRooms
 
 __all__ = ["BenchResult", "benchmark"]
@@ -76,8 +77,7 @@ def benchmark(
     """
     if agent != "mix" and agent not in AGENTS:
         raise ValueError(f"agent={agent!r}: use 'mix' or one of {sorted(AGENTS)}")
-    if device.startswith("cuda") and not torch.cuda.is_available():
-        raise ValueError("device=cuda but no CUDA device is available; use device='cpu'")
+    device = str(as_device("device", device))  # refused here, before the mentor is built
     if threads is not None:
         torch.set_num_threads(threads)
     world = MultiRooms(size=size, rooms=rooms)

@@ -13,14 +13,20 @@ import os
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
-import torch
-
 from himit_torch.learner.agents import AGENTS
 from himit_torch.learner.config import LearnerConfig
 from himit_torch.learner.engines import ENGINES
 from himit_torch.learner.learner import Learner
 from himit_torch.mentor.reward import MENTOR_REWARDS
-from himit_torch.validation import check_memory, check_settings, refuse_unknown_fields, setting
+from himit_torch.validation import (
+    as_device,
+    check_memory,
+    check_settings,
+    parse_document,
+    read_text,
+    refuse_unknown_fields,
+    setting,
+)
 from himit_torch.worlds.multirooms import MultiRooms
 
 __all__ = ["ExperimentConfig", "EXPERIMENTS", "MENTOR_MODELS", "load_config"]
@@ -33,7 +39,11 @@ MENTOR_MODELS = ("learned", "exact")
 class ExperimentConfig:
     """One experiment: which worlds, agents, seeds, budget and learner settings."""
 
-    name: str = setting("exp2", doc="Experiment id (``exp1``, ``exp2``, ``exp3`` or your own).")
+    name: str = setting(
+        "exp2",
+        folder=True,
+        doc="Experiment id (``exp1``, ``exp2``, ``exp3`` or your own; the run directory's name).",
+    )
     sizes: tuple[int, ...] = setting(
         (40,), ge=1, doc="World sizes N (N×N cells); each is one batch."
     )
@@ -126,13 +136,9 @@ class ExperimentConfig:
     def __post_init__(self):
         check_settings(self)
         # Cross-field rules (each field on its own is checked above).
-        try:
-            torch.device(self.device)
-        except RuntimeError as err:
-            raise ValueError(
-                f"ExperimentConfig.device={self.device!r} is not a torch device "
-                f"({err}); use e.g. 'cpu' or 'cuda'"
-            ) from None
+        # Written down, not run: a config naming cuda is valid on a machine without (plotting a
+        # GPU run's directory); the learner refuses it where it would run.
+        as_device("ExperimentConfig.device", self.device, available=False)
         if any(s % self.room_size for s in self.sizes):
             raise ValueError(
                 f"ExperimentConfig.sizes={self.sizes!r}: every size must be a positive multiple "
@@ -233,16 +239,16 @@ EXPERIMENTS: dict[str, ExperimentConfig] = {
 
 
 def load_config(path: str | os.PathLike) -> ExperimentConfig:
-    """An :class:`ExperimentConfig` from a JSON file (as saved in a run directory)."""
+    """An :class:`ExperimentConfig` from a JSON file (as saved in a run directory).
+
+    Raises:
+        ValueError: the file is missing, a directory, not UTF-8 JSON, nested too deep, or holds
+            unknown fields or values the configurations refuse; the message names the file.
+            Other ``OSError`` exceptions (permissions, a failing disk) propagate.
+    """
     path = Path(path)
-    try:
-        data = json.loads(path.read_text())
-    except FileNotFoundError:
-        raise ValueError(f"config file {path} does not exist") from None
-    except json.JSONDecodeError as err:
-        raise ValueError(f"config file {path} is not valid JSON: {err}") from None
-    except UnicodeDecodeError as err:  # e.g. a binary file (a pickle) in its place
-        raise ValueError(f"config file {path} is not valid JSON: not UTF-8 text ({err})") from None
+    where = f"config file {path}"
+    data = parse_document(where, read_text(where, path), "json")
     if not isinstance(data, dict):
         raise ValueError(f"config file {path} must hold a JSON object")
     refuse_unknown_fields(data, ExperimentConfig, f"config file {path}")

@@ -38,6 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from himit_torch.learner.config import LearnerConfig
+from himit_torch.learner.engines import ENGINES
 from himit_torch.learner.learner import Learner
 from himit_torch.learner.option_refresh import with_options
 from himit_torch.mentor.policy import mentor_policy, record_demonstrations
@@ -50,6 +51,7 @@ from himit_torch.options.discovery import (
 )
 from himit_torch.runs.config import EXPERIMENTS
 from himit_torch.runs.runner import check_run_dir, run_windows, source_commit, watch_demonstrations
+from himit_torch.validation import check_settings, setting
 
 __all__ = ["DiscoveryConfig", "DISCOVERY_AGENTS", "run_discovery", "mean_ci"]
 
@@ -66,36 +68,50 @@ DISCOVERY_AGENTS = (
 
 @dataclass
 class DiscoveryConfig:
-    """Settings of the discovery experiment."""
+    """Settings of the discovery experiment, each declared with
+    :func:`~himit_torch.validation.setting` and checked by
+    :func:`~himit_torch.validation.check_settings`; the cross-field rules follow."""
 
-    name: str = "discovery"
-    worlds: tuple[str, ...] = ("exp2", "exp1")
-    """Whose worlds (and steps, mentor episodes, learner settings) to use: ``exp1``, ``exp2``."""
-    seeds: int = 10
-    first_seed: int = 0
-    steps: int | None = None
-    """Steps per run (None: each experiment's own)."""
-    warmup: int = 20_000
-    """Steps of the primitives-only phase whose one-step model the options are built from (a
-    multiple of the window)."""
-    refresh_every: int | None = None
-    """Steps between rebuilds of a discovered run's options from its latest one-step counts after
-    the warm-up (a multiple of the window); ``None``: built once, at the warm-up."""
-    max_steps_factor: float = 2.0
-    """An option's initiation set: where its subgoal lies within ``max_steps_factor ×
-    separation`` expected steps in the learned model."""
-    demonstrations_needed: tuple[int, ...] = (1, 2, 5, 10, 20)
-    """Mentor episode counts at which subgoal precision/recall is measured."""
-    engine: str = "auto"
+    name: str = setting("discovery", folder=True, doc="Run name (the run directory's).")
+    worlds: tuple[str, ...] = setting(
+        ("exp2", "exp1"),
+        choices=("exp1", "exp2"),
+        doc="Whose worlds (and steps, mentor episodes, learner settings) to use: ``exp1``, "
+        "``exp2``.",
+    )
+    seeds: int = setting(10, ge=1, doc="Runs per agent and world.")
+    first_seed: int = setting(0, ge=0, doc="Seeds are first_seed … first_seed + seeds − 1.")
+    steps: int | None = setting(None, ge=1, doc="Steps per run (None: each experiment's own).")
+    warmup: int = setting(
+        20_000,
+        ge=1,
+        doc="""
+        Steps of the primitives-only phase whose one-step model the options are built from (a
+        multiple of the window).""",
+    )
+    refresh_every: int | None = setting(
+        None,
+        ge=1,
+        doc="""
+        Steps between rebuilds of a discovered run's options from its latest one-step counts
+        after the warm-up (a multiple of the window); ``None``: built once, at the warm-up.""",
+    )
+    max_steps_factor: float = setting(
+        2.0,
+        gt=0.0,
+        doc="""
+        An option's initiation set: where its subgoal lies within ``max_steps_factor ×
+        separation`` expected steps in the learned model.""",
+    )
+    demonstrations_needed: tuple[int, ...] = setting(
+        (1, 2, 5, 10, 20),
+        ge=1,
+        doc="Mentor episode counts at which subgoal precision/recall is measured.",
+    )
+    engine: str = setting("auto", choices=ENGINES, doc="Which engine carries out the ticks.")
 
     def __post_init__(self):
-        self.worlds = tuple(self.worlds)
-        self.demonstrations_needed = tuple(int(n) for n in self.demonstrations_needed)
-        bad = [w for w in self.worlds if w not in ("exp1", "exp2")]
-        if bad or not self.worlds:
-            raise ValueError(f"DiscoveryConfig.worlds={self.worlds!r}: use exp1 and/or exp2")
-        if self.seeds < 1:
-            raise ValueError(f"DiscoveryConfig.seeds={self.seeds}: needs at least one seed")
+        check_settings(self)
         for w in self.worlds:
             window = EXPERIMENTS[w].window
             steps = self.steps_of(w)
@@ -110,15 +126,11 @@ class DiscoveryConfig:
                 )
         if self.refresh_every is not None:
             window = min(EXPERIMENTS[w].window for w in self.worlds)
-            if self.refresh_every < 1 or any(
-                self.refresh_every % EXPERIMENTS[w].window for w in self.worlds
-            ):
+            if any(self.refresh_every % EXPERIMENTS[w].window for w in self.worlds):
                 raise ValueError(
                     f"DiscoveryConfig.refresh_every={self.refresh_every}: must be a positive "
                     f"multiple of the window ({window}), or None (options built once)"
                 )
-        if not self.max_steps_factor > 0:
-            raise ValueError("DiscoveryConfig.max_steps_factor must be > 0")
 
     def steps_of(self, world: str) -> int:
         return int(self.steps or EXPERIMENTS[world].steps)

@@ -31,7 +31,7 @@ import json
 import math
 import os
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -59,6 +59,7 @@ from himit_torch.runs.runner import (
     source_commit,
     watch_demonstrations,
 )
+from himit_torch.validation import as_device, check_settings, setting
 from himit_torch.viz.tensorboard import TensorBoardLogger, tensorboard_command
 from himit_torch.worlds.gymnasium import from_gymnasium
 from himit_torch.worlds.table_world import TableWorld, world_model
@@ -150,58 +151,68 @@ def _default_learner() -> LearnerConfig:
 
 @dataclass
 class GymExperimentConfig:
-    """The Gymnasium comparison: tasks, agents, seeds, budget and learner settings."""
+    """The Gymnasium comparison: tasks, agents, seeds, budget and learner settings.
 
-    name: str = "gymnasium"
-    """Run name (the run directory's)."""
-    tasks: tuple[str, ...] = ("taxi", "cliffwalking", "frozenlake8x8")
-    """Which of :data:`TASKS`; each is one learner batch."""
-    agents: tuple[str, ...] = ("imitation", "options", "primitives")
-    """Agent variants (``himit_torch.AGENTS``), each run with every seed."""
-    seeds: int = 10
-    """Runs per agent and task."""
-    first_seed: int = 0
-    """Seeds are first_seed … first_seed + seeds − 1 (a seed also picks its mentor episodes)."""
-    steps: int | None = None
-    """Primitive steps per run; ``None``: each task's own budget (:data:`TASKS`: Taxi 60k,
-    CliffWalking 30k, FrozenLake 100k)."""
-    mentor_episodes: int = 20
-    """Mentor episodes recorded (states only) per seed before learning."""
-    gamma: float = 0.99
-    """Discount of every task (Gymnasium's envs carry none)."""
-    window: int = 2000
-    """Goals are counted, and the greedy policy evaluated, every this many steps."""
-    neutral_initial_value: bool = True
-    """Set each task's ``learner.initial_value`` to its step reward / (1 − γ), the value of never
-    reaching the goal — the neutral start that −1 is in the paper's worlds (:func:`neutral_value`):
-    −100 in Taxi and CliffWalking, 0 in FrozenLake (where −1 would make holes, worth 0, the best
-    place to go). ``False`` keeps ``learner.initial_value`` for every task."""
-    device: str = "cpu"
-    """Where the batches run."""
-    learner: LearnerConfig = field(default_factory=_default_learner)
-    """Learner settings (``LearnerConfig``)."""
+    Every field is declared with :func:`~himit_torch.validation.setting` and checked by
+    :func:`~himit_torch.validation.check_settings` (whole numbers never truncated and at most
+    ``COUNT_MAX``, bools and strings never numbers), as ``ExperimentConfig``'s are."""
+
+    name: str = setting("gymnasium", folder=True, doc="Run name (the run directory's).")
+    tasks: tuple[str, ...] = setting(
+        ("taxi", "cliffwalking", "frozenlake8x8"),
+        choices=tuple(TASKS),
+        doc="Which of :data:`TASKS`; each is one learner batch.",
+    )
+    agents: tuple[str, ...] = setting(
+        ("imitation", "options", "primitives"),
+        choices=tuple(AGENTS),
+        doc="Agent variants (``himit_torch.AGENTS``), each run with every seed.",
+    )
+    seeds: int = setting(10, ge=1, doc="Runs per agent and task.")
+    first_seed: int = setting(
+        0,
+        ge=0,
+        doc="Seeds are first_seed … first_seed + seeds − 1 (a seed also picks its mentor "
+        "episodes).",
+    )
+    steps: int | None = setting(
+        None,
+        ge=1,
+        doc="""
+        Primitive steps per run; ``None``: each task's own budget (:data:`TASKS`: Taxi 60k,
+        CliffWalking 30k, FrozenLake 100k).""",
+    )
+    mentor_episodes: int = setting(
+        20, ge=1, doc="Mentor episodes recorded (states only) per seed before learning."
+    )
+    gamma: float = setting(
+        0.99,
+        gt=0.0,
+        lt=1.0,
+        doc="Discount of every task (Gymnasium's envs carry none; exact value iteration needs "
+        "γ < 1).",
+    )
+    window: int = setting(
+        2000, ge=1, doc="Goals are counted, and the greedy policy evaluated, every this many steps."
+    )
+    neutral_initial_value: bool = setting(
+        True,
+        doc="""
+        Set each task's ``learner.initial_value`` to its step reward / (1 − γ), the value of
+        never reaching the goal — the neutral start that −1 is in the paper's worlds
+        (:func:`neutral_value`): −100 in Taxi and CliffWalking, 0 in FrozenLake (where −1 would
+        make holes, worth 0, the best place to go). ``False`` keeps ``learner.initial_value``
+        for every task.""",
+    )
+    device: str = setting("cpu", doc="Where the batches run (``cpu`` or ``cuda``).")
+    learner: LearnerConfig = setting(
+        default_factory=_default_learner,
+        doc="Learner settings (``LearnerConfig``; a dict of its fields is accepted).",
+    )
 
     def __post_init__(self):
-        if isinstance(self.learner, dict):
-            self.learner = LearnerConfig(**self.learner)
-        self.tasks, self.agents = tuple(self.tasks), tuple(self.agents)
-
-        def bad(name, why):
-            raise ValueError(f"GymExperimentConfig.{name}={getattr(self, name)!r}: {why}")
-
-        unknown = sorted(set(self.tasks) - set(TASKS))
-        if unknown or not self.tasks:
-            bad("tasks", f"unknown or empty; use some of {sorted(TASKS)}")
-        unknown = sorted(set(self.agents) - set(AGENTS))
-        if unknown or not self.agents:
-            bad("agents", f"unknown or empty; use some of {sorted(AGENTS)}")
-        for name in ("seeds", "mentor_episodes", "window"):
-            if getattr(self, name) < 1:
-                bad(name, "must be ≥ 1")
-        if self.steps is not None and self.steps < 1:
-            bad("steps", "must be ≥ 1 (or None: each task's own budget)")
-        if not 0 < self.gamma < 1:
-            bad("gamma", "must lie in (0, 1) (exact value iteration needs γ < 1)")
+        check_settings(self)
+        as_device("GymExperimentConfig.device", self.device, available=False)
         if self.learner.window != self.window:
             self.learner = replace(self.learner, window=self.window)
 

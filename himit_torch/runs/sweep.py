@@ -75,6 +75,14 @@ from typing import Any
 from himit_torch.learner.config import LearnerConfig
 from himit_torch.runs.config import EXPERIMENTS, ExperimentConfig, load_config
 from himit_torch.runs.experiment import source_commit
+from himit_torch.validation import (
+    COUNT_MAX,
+    as_folder_name,
+    as_int,
+    as_int_array,
+    parse_document,
+    read_text,
+)
 
 __all__ = ["SweepSpec", "Trial", "load_spec", "run_sweep", "summarize"]
 
@@ -246,31 +254,16 @@ def load_spec(path: str | os.PathLike) -> SweepSpec:
     """Read and check a sweep spec (``.toml`` or ``.json``), building every cell's configuration.
 
     Raises:
-        ValueError: the file is missing or unreadable, a key or setting is unknown, or a value is
-            refused by the configurations; the message names the file and what is wrong.
+        ValueError: the file is missing, a directory, not UTF-8, not valid TOML/JSON or nested
+            too deep, a key or setting is unknown, the name is not a folder name, or a value is
+            refused by the configurations; the message names the file and what is wrong. Other
+            ``OSError`` exceptions (permissions, a failing disk) propagate.
     """
     path = Path(path)
     where = f"sweep spec {path}"
-    try:
-        text = path.read_text()
-    except FileNotFoundError:
-        raise ValueError(f"{where} does not exist") from None
-    except UnicodeDecodeError:
-        raise ValueError(f"{where} is not UTF-8 text") from None
-    if path.suffix == ".json":
-        try:
-            data = json.loads(text)
-        except json.JSONDecodeError as err:
-            raise ValueError(f"{where} is not valid JSON: {err}") from None
-    else:
-        try:
-            import tomllib
-        except ModuleNotFoundError:  # Python 3.10
-            import tomli as tomllib
-        try:
-            data = tomllib.loads(text)
-        except tomllib.TOMLDecodeError as err:
-            raise ValueError(f"{where} is not valid TOML: {err}") from None
+    data = parse_document(
+        where, read_text(where, path), "json" if path.suffix == ".json" else "toml"
+    )
     if not isinstance(data, dict):
         raise ValueError(f"{where} must hold a table of keys")
     unknown = sorted(set(data) - _SPEC_KEYS)
@@ -293,21 +286,15 @@ def load_spec(path: str | os.PathLike) -> SweepSpec:
         base = load_config(config_path)
 
     def whole(key, default, minimum):
-        value = data.get(key, default)
-        if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
-            raise ValueError(f"{where}: {key}={value!r} must be a whole number ≥ {minimum}")
-        return value
+        return as_int(f"{where}: {key}", data.get(key, default), minimum, COUNT_MAX)
 
     seeds = whole("seeds", base.seeds, 1)
     first_seed = whole("first_seed", base.first_seed, 0)
     per_trial = whole("seeds_per_trial", seeds, 1)
     worlds = data.get("worlds", list(base.sizes))
-    if (
-        not isinstance(worlds, list)
-        or not worlds
-        or any(isinstance(w, bool) or not isinstance(w, int) for w in worlds)
-    ):
+    if not isinstance(worlds, list) or not worlds:
         raise ValueError(f"{where}: worlds={worlds!r} must be a non-empty list of world sizes")
+    worlds = as_int_array(f"{where}: worlds", worlds, 1, COUNT_MAX).tolist()
     design = data.get("design", "factorial")
     if design not in _DESIGNS:
         raise ValueError(f"{where}: design={design!r}; use one of {list(_DESIGNS)}")
@@ -335,9 +322,8 @@ def load_spec(path: str | os.PathLike) -> SweepSpec:
         combos = [baseline] + [
             {**baseline, n: v} for n, levels in factors.items() for v in levels[1:]
         ]
-    name = data.get("name", path.stem)
-    if not isinstance(name, str) or not re.fullmatch(r"[A-Za-z0-9_.-]+", name):
-        raise ValueError(f"{where}: name={name!r} must be letters, digits, '_', '.', '-'")
+    # The sweep's folder is runs/sweeps/<name>: never ".", ".." or a path.
+    name = as_folder_name(f"{where}: name", data.get("name", path.stem))
     try:
         base = _apply(base, fixed)
     except (ValueError, TypeError) as err:

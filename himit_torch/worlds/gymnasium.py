@@ -40,6 +40,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from himit_torch.validation import as_float, as_float_array, as_int_array, bool_vector
 from himit_torch.worlds.table_world import TableWorld, table_fingerprint
 from himit_torch.worlds.tabular import DynamicsTable
 
@@ -81,15 +82,20 @@ def from_gymnasium(
         the unwrapped environment (e.g. Taxi's ``decode``).
 
     Raises:
-        ValueError: the environment has no tabular model ``P``, spaces that are not ``Discrete``,
-            a malformed ``P``, no start distribution, termination that is not per state, or
-            dynamics outside ``P`` (Taxi's ``fickle_passenger``).
+        ValueError: ``gymnasium.make`` fails for the id and keyword arguments (an unknown id, a
+            ``module:`` part that does not import, an unknown keyword, a bad ``map_name``: any
+            error of Gymnasium's or of the environment's constructor, its type and message
+            kept), ``gamma`` is not a real number in ``(0, 1]``, ``terminal_states`` are not
+            whole-number states (``None``, ``6.5``, out of range) nor an ``[S]`` bool mask,
+            ``start_distribution`` is not real numbers, the environment has no tabular model
+            ``P``, spaces that are not ``Discrete``, a malformed ``P``, no start distribution,
+            termination that is not per state, or dynamics outside ``P`` (Taxi's
+            ``fickle_passenger``).
     """
-    import gymnasium
-
+    gamma = as_float("from_gymnasium: gamma", gamma, 0.0, 1.0, low_open=True)
     if isinstance(env, str):
         env_id = env
-        env = gymnasium.make(env_id, **kwargs)
+        env = _make(env_id, kwargs)
         made_kwargs = {
             k: v
             for k, v in dict(env.spec.kwargs if env.spec else kwargs).items()
@@ -148,11 +154,14 @@ def from_gymnasium(
             )
         given_start = None
     else:
-        given_start = [float(x) for x in torch.as_tensor(start_distribution, dtype=torch.float64)]
+        start_distribution = as_float_array(
+            f"from_gymnasium({label}): start_distribution", start_distribution
+        )
+        given_start = start_distribution.tolist()
     start = torch.as_tensor(np.asarray(start_distribution, dtype=np.float64))
     if start.shape != (S,):
         raise ValueError(
-            f"from_gymnasium({label}): start distribution of shape "
+            f"from_gymnasium({label}): start_distribution of shape "
             f"{tuple(start.shape)}, expected [S] = [{S}]"
         )
 
@@ -234,6 +243,29 @@ def world_from_description(description: Mapping) -> TableWorld:
 
 
 # ------------------------------------------------------------------------------------ reading P
+def _make(env_id: str, kwargs: dict) -> Any:
+    """``gymnasium.make(env_id, **kwargs)``; its failures as one ``ValueError`` naming the id and
+    the keyword arguments. Whatever the constructor raises (Gymnasium's ``NameNotFound``, an
+    ``ImportError`` of a ``module:`` part, a ``TypeError`` for an unknown keyword, FrozenLake's
+    ``KeyError`` for an unknown ``map_name``) means that this id with these arguments makes no
+    environment: the caller's input, not a fault of this library. The original is chained."""
+    import gymnasium
+
+    if not env_id:
+        raise ValueError("from_gymnasium: env='' is empty; give an id such as 'FrozenLake-v1'")
+    try:
+        return gymnasium.make(env_id, **kwargs)
+    except OSError:
+        raise  # a file the environment reads failed: the machine's fault, not the id's
+    except Exception as err:
+        given = "".join(f", {k}={v!r}" for k, v in kwargs.items())
+        raise ValueError(
+            f"from_gymnasium({env_id!r}{given}): gymnasium.make failed with "
+            f"{type(err).__name__}: {err}; check the id (gymnasium.pprint_registry() lists "
+            "them) and the keyword arguments"
+        ) from err
+
+
 def _discrete_size(raw, name: str, label: str) -> int:
     import gymnasium
 
@@ -308,16 +340,19 @@ def _read_model(P, S: int, A: int, label: str):
 
 
 def _mask(states, S: int, label: str) -> torch.Tensor:
-    t = torch.as_tensor(states)
-    if t.dtype == torch.bool:
-        if t.shape != (S,):
-            raise ValueError(f"from_gymnasium({label}): terminal_states mask must be [S] = [{S}]")
-        return t.clone()
-    t = t.to(torch.int64).reshape(-1)
-    if t.numel() and (int(t.min()) < 0 or int(t.max()) >= S):
-        raise ValueError(f"from_gymnasium({label}): terminal_states outside 0…{S - 1}")
+    """``terminal_states`` as an ``[S]`` mask: given as one (bools), or as state indices, each a
+    whole number in ``0…S−1`` (``None`` or ``6.5`` refused, never cast)."""
+    where = f"from_gymnasium({label}): terminal_states"
+    mask = bool_vector(states)
+    if mask is not None and mask.numel():
+        if mask.shape != (S,):
+            raise ValueError(f"{where}: a mask must be [S] = [{S}] bools, got {mask.numel()}")
+        return mask
     mask = torch.zeros(S, dtype=torch.bool)
-    mask[t] = True
+    mask[torch.from_numpy(as_int_array(where, states, 0, S - 1))] = True
+    return mask
+    mask = torch.zeros(S, dtype=torch.bool)
+    mask[torch.from_numpy(as_int_array(where, states, 0, S - 1))] = True
     return mask
 
 

@@ -34,6 +34,7 @@ import json
 
 import torch
 
+from himit_torch.validation import as_float, as_float_array, as_tuple, bool_vector
 from himit_torch.worlds.tabular import DynamicsTable
 
 __all__ = [
@@ -44,6 +45,13 @@ __all__ = [
     "model_from_table",
     "table_probabilities",
 ]
+
+
+def _shape_of(value) -> str:
+    shape = getattr(value, "shape", None)
+    if shape is None:
+        return repr(value)[:40]
+    return f"shape {tuple(shape)} dtype {getattr(value, 'dtype', '?')}"
 
 
 def table_probabilities(table: DynamicsTable) -> torch.Tensor:
@@ -210,14 +218,20 @@ class TableWorld:
         reward 0, as in MultiRooms.
 
     Args:
-        dynamics: the :class:`~himit_torch.DynamicsTable`, ``[S, A, K]``.
-        start_distribution: ``[S]`` probabilities (≥ 0, summing to 1, none on a terminal state).
-        terminal_mask: ``[S]`` bool.
-        gamma: discount in ``(0, 1]`` (value iteration needs ``< 1``).
+        dynamics: the :class:`~himit_torch.DynamicsTable`, ``[S, A, K]`` (tensors; it checks
+            them).
+        start_distribution: ``[S]`` probabilities (≥ 0, summing to 1, none on a terminal state):
+            a tensor, array or list of real numbers (bools and strings are refused).
+        terminal_mask: ``[S]`` bools: a bool tensor, array or list (0/1 numbers are refused:
+            a list of state indices is not a mask).
+        gamma: discount in ``(0, 1]`` (value iteration needs ``< 1``), a real number.
         action_names: optional ``A`` names (for option names and printing).
         description: the dict :meth:`describe` returns; by default ``{"kind": "TableWorld",
             "num_states", "num_actions", "gamma", "fingerprint"}``.
         name: a short label for ``repr``.
+
+    Raises:
+        ValueError: any argument outside what is said above, naming it.
     """
 
     def __init__(
@@ -230,15 +244,11 @@ class TableWorld:
         description: dict | None = None,
         name: str = "TableWorld",
     ):
-        if not isinstance(dynamics, DynamicsTable):
+        if not isinstance(dynamics, DynamicsTable):  # which checks its own tensors
             raise ValueError(
                 f"TableWorld: dynamics must be a DynamicsTable, got {type(dynamics).__name__}"
             )
         S, A, _ = dynamics.successors.shape
-        if dynamics.successors.dtype != torch.int64:
-            raise ValueError("TableWorld: dynamics.successors must be int64 states")
-        if int(dynamics.successors.min()) < 0 or int(dynamics.successors.max()) >= S:
-            raise ValueError(f"TableWorld: dynamics.successors hold states outside 0…{S - 1}")
         self._table = DynamicsTable(
             dynamics.successors.cpu().contiguous(),
             dynamics.cdf.cpu().double().contiguous(),
@@ -246,26 +256,22 @@ class TableWorld:
         )
         self._tables: dict[torch.device, DynamicsTable] = {torch.device("cpu"): self._table}
         self.num_states, self.num_actions = int(S), int(A)
-        if not 0.0 < float(gamma) <= 1.0:
-            raise ValueError(f"TableWorld: gamma={gamma} must lie in (0, 1]")
-        self.gamma = float(gamma)
-        terminal = torch.as_tensor(terminal_mask).cpu()
-        if terminal.shape != (S,) or terminal.dtype != torch.bool:
+        self.gamma = as_float("TableWorld: gamma", gamma, 0.0, 1.0, low_open=True)
+        terminal = bool_vector(terminal_mask)
+        if terminal is None or terminal.shape != (S,):
             raise ValueError(
-                f"TableWorld: terminal_mask must be a [S] = [{S}] bool tensor, got "
-                f"{tuple(terminal.shape)} {terminal.dtype}"
+                f"TableWorld: terminal_mask must be a [S] = [{S}] bool tensor (or a bool array or "
+                f"list; 0/1 numbers are not bools), got {_shape_of(terminal_mask)}"
             )
         self._terminal = terminal.clone()
-        start = torch.as_tensor(start_distribution, dtype=torch.float64).cpu().clone()
+        start = torch.from_numpy(
+            as_float_array("TableWorld: start_distribution", start_distribution)
+        )
         if start.shape != (S,):
             raise ValueError(
                 f"TableWorld: start_distribution must be [S] = [{S}], got {tuple(start.shape)}"
             )
-        if (
-            not bool(torch.isfinite(start).all())
-            or bool((start < 0).any())
-            or abs(float(start.sum()) - 1.0) > 1e-9
-        ):
+        if bool((start < 0).any()) or abs(float(start.sum()) - 1.0) > 1e-9:
             raise ValueError(
                 "TableWorld: start_distribution must hold probabilities ≥ 0 summing to 1 "
                 f"(sum {float(start.sum())!r})"
@@ -273,17 +279,23 @@ class TableWorld:
         on_terminal = (start > 0) & terminal
         if bool(on_terminal.any()):
             raise ValueError(
-                f"TableWorld: the start distribution puts weight on terminal states "
+                f"TableWorld: start_distribution puts weight on terminal states "
                 f"{on_terminal.nonzero()[:, 0].tolist()[:5]}; an episode cannot start "
                 "where it ends"
             )
         self.start_distribution = start
         self.start_state = int(torch.argmax(start))  # first of the most likely starts
         if action_names is not None:
-            action_names = tuple(str(n) for n in action_names)
+            action_names = tuple(str(n) for n in as_tuple("TableWorld: action_names", action_names))
             if len(action_names) != A:
                 raise ValueError(f"TableWorld: {len(action_names)} action_names for {A} actions")
         self.action_names = action_names or tuple(str(a) for a in range(A))
+        if not isinstance(name, str) or not name:
+            raise ValueError(f"TableWorld: name must be a non-empty string, got {name!r}")
+        if description is not None and not isinstance(description, dict):
+            raise ValueError(
+                f"TableWorld: description must be a dict (or None), got {type(description).__name__}"
+            )
         self.name = name
         self._description = description
         self._transition: torch.Tensor | None = None

@@ -325,7 +325,7 @@ def test_constructor_validates(world, episodes, what):
 
 
 def test_constructor_needs_a_description(world):
-    with pytest.raises(ValueError, match="world must be a world description dict"):
+    with pytest.raises(TypeError, match="world must be a world description dict"):
         Demonstrations(EPISODES, "MultiRooms 8x8")
 
 

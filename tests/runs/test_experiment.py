@@ -279,7 +279,7 @@ def test_config_file_round_trip_and_errors(tmp_path, plants_marker):
         load_config(path)
     marker = tmp_path / "marker"  # configs are JSON: a pickle in their place is never unpickled
     path.write_bytes(pickle.dumps(plants_marker(marker)))
-    with pytest.raises(ValueError, match="not valid JSON"):
+    with pytest.raises(ValueError, match="not UTF-8 text"):
         load_config(path)
     assert not marker.exists()
     with pytest.raises(ValueError, match="checkpoint_every"):

@@ -90,7 +90,7 @@ def test_designs_give_the_cells_named_by_their_settings(tmp_path):
         ("[grid]\nlearner.backups = []", "non-empty list of levels"),
         ("[grid]\nsteps = 100", "non-empty list of levels"),
         ('design = "latin"', "design='latin'"),
-        ("seeds = 0", "seeds=0 must be a whole number ≥ 1"),
+        ("seeds = 0", "seeds=0 must be ≥ 1"),
         ('base = "exp9"', "neither one of"),
         ('[set]\nagents = ["imitation", "nobody"]', "agents"),
         ('[set]\nsteps = "many"', "steps"),
