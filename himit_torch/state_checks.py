@@ -28,6 +28,7 @@ __all__ = [
     "tensor_of",
     "in_range",
     "all_finite",
+    "same_plain",
     "private_copy",
     "json_depth",
 ]
@@ -150,6 +151,21 @@ def all_finite(value: torch.Tensor, field: str, minimum: float = -_LARGEST) -> N
     """Every entry of the float tensor ``value`` is finite and at least ``minimum``."""
     meaning = "a finite number" if minimum == -_LARGEST else f"a finite number ≥ {minimum}"
     in_range(value, field, minimum, _LARGEST, meaning)
+
+
+def same_plain(a: Any, b: Any) -> bool:
+    """Whether two plain values (``bool``/``int``/``float``/``str``/``None`` in lists, tuples and
+    dicts) are equal, types included — ``True`` is not ``1``; a tensor, which ``==`` would
+    compare elementwise, is never equal to a plain value."""
+    if type(a) is not type(b):
+        return False
+    if type(a) in (list, tuple):
+        return len(a) == len(b) and all(same_plain(x, y) for x, y in zip(a, b))
+    if type(a) is dict:
+        return a.keys() == b.keys() and all(same_plain(a[k], b[k]) for k in a)
+    if type(a) in (bool, int, float, str, type(None)):
+        return a == b
+    return False
 
 
 def private_copy(value: torch.Tensor, device: torch.device) -> torch.Tensor:

@@ -49,7 +49,7 @@ from himit_torch.mentor.reward import KnownReward
 from himit_torch.options.bundle import Options
 from himit_torch.options.execution import option_step
 from himit_torch.rng import seed_streams, uniforms
-from himit_torch.state_checks import DamagedState, in_range, section
+from himit_torch.state_checks import DamagedState, in_range, same_plain, section
 from himit_torch.validation import as_choice, as_float, as_int, check_memory
 
 if TYPE_CHECKING:
@@ -598,7 +598,7 @@ class Learner:
         ident, mine = state["identity"], self._identity()
         if not isinstance(ident, dict):
             raise DamagedState("identity", f"is a {type(ident).__name__}, not a dict")
-        differ = sorted(k for k in mine if mine[k] != ident.get(k))
+        differ = sorted(k for k in mine if not same_plain(mine[k], ident.get(k)))
         if differ:
             raise ValueError(f"checkpoint does not match this learner: {differ} differ")
         if "sample" not in state and self.sample.any:

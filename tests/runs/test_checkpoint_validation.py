@@ -320,6 +320,14 @@ def test_another_batch_is_still_an_incompatibility_not_damage(saved, world8):
     assert not isinstance(err.value, DamagedState)
 
 
+def test_an_identity_holding_a_tensor_is_refused_not_compared_elementwise(saved):
+    make, state = saved
+    broken = copy_state(state)
+    broken["identity"]["seeds"] = torch.tensor([0, 1, 2, 3])  # == would compare elementwise
+    with pytest.raises(ValueError, match=r"does not match this learner: \['seeds'\] differ"):
+        make().load_state_dict(broken)
+
+
 @pytest.mark.parametrize(
     "text, depth",
     [
