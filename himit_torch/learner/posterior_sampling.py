@@ -391,7 +391,7 @@ class PosteriorSample:
         for name in ("option_unseen", "mentor_unseen", "resamples"):
             setattr(self, name, private_copy(state[name], self.device))
         for name, store in (("option_w", self.model), ("mentor_w", self.mentor)):
-            value = state[name]
+            value = state[name].detach().to(self.device)
             grown = torch.zeros(self.batch, store.capacity, dtype=_F64, device=self.device)
             grown[:, : value.shape[1]] = value
             setattr(self, name, grown)
