@@ -73,6 +73,7 @@ __all__ = [
     "read_text",
     "parse_document",
     "nesting_depth",
+    "json_depth",
     "NESTING_MAX",
     "COUNT_MAX",
     "Setting",
@@ -360,6 +361,15 @@ def _text_depth(text: str, tokens: re.Pattern) -> int:
         elif match.lastgroup == "key":  # its segments, dots inside quoted ones not counted
             deepest = max(deepest, len(_TOML_SEGMENT.findall(token)) - 1)
     return deepest
+
+
+def json_depth(text: str | bytes) -> int:
+    """How deeply the arrays and objects of JSON ``text`` nest (0: a bare value), counted without
+    parsing it: Python's ``json`` recurses once per level and raises ``RecursionError`` on a few
+    thousand, so a reader of untrusted JSON checks this first."""
+    if isinstance(text, (bytes, bytearray)):
+        text = bytes(text).decode("utf-8", "replace")
+    return _text_depth(text, _JSON_TOKENS)
 
 
 def nesting_depth(data: Any) -> int:

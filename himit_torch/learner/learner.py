@@ -49,6 +49,7 @@ from himit_torch.mentor.reward import KnownReward
 from himit_torch.options.bundle import Options
 from himit_torch.options.execution import option_step
 from himit_torch.rng import seed_streams, uniforms
+from himit_torch.state_checks import DamagedState, in_range, same_plain, section
 from himit_torch.validation import (
     COUNT_MAX,
     as_choice,
@@ -582,28 +583,88 @@ class Learner:
             "sample": self.sample.state_dict(),
         }
 
-    def load_state_dict(self, state: dict) -> None:
-        """Restore a :meth:`state_dict` (refuses one of another layout, batch or configuration)."""
+    #: The pieces of a :meth:`state_dict` (``sample`` is missing in those from before posterior
+    #: sampling).
+    _STATE_KEYS = ("layout", "identity", "run", "model", "mentor", "cache", "sweeper", "metrics")
+
+    def check_state(self, state: dict) -> RunMetrics:
+        """Check a :meth:`state_dict` read back, in full, before any of it is restored: each
+        owner checks its own piece (``check_state``: dtypes, shapes, indices within their tables,
+        counts within their capacities), then what ties the pieces together — the run's option
+        row at the state it started in, the posterior draws as long as the models' edge lists,
+        one metrics record per window. Returns the metrics (checked, ready to keep).
+
+        Raises:
+            DamagedState: naming the field and what is wrong with it (a file altered with its
+                checksum recomputed, or a state this code did not write).
+            ValueError: a state of another layout, or of another batch or configuration.
+        """
+        if not isinstance(state, dict):
+            raise DamagedState("learner state", f"is a {type(state).__name__}, not a dict")
         layout = state.get("layout", 1)
         if layout != self.STATE_LAYOUT_VERSION:
             raise ValueError(
                 f"state layout {layout} cannot be loaded by this learner (layout "
                 f"{self.STATE_LAYOUT_VERSION}); start the run again"
             )
+        section(state, "learner state", self._STATE_KEYS, optional=("sample",))
         ident, mine = state["identity"], self._identity()
-        differ = sorted(k for k in mine if mine[k] != ident.get(k))
+        if not isinstance(ident, dict):
+            raise DamagedState("identity", f"is a {type(ident).__name__}, not a dict")
+        differ = sorted(k for k in mine if not same_plain(mine[k], ident.get(k)))
         if differ:
             raise ValueError(f"checkpoint does not match this learner: {differ} differ")
-        self.model.load_state_dict(state["model"])
-        self.mentor.load_state_dict(state["mentor"])
-        self.cache.load_state_dict(state["cache"])
-        self.sweeper.load_state_dict(state["sweeper"])
-        if "sample" in state:
-            self.sample.load_state_dict(state["sample"])
-        elif self.sample.any:  # (a checkpoint from before posterior sampling has no draws)
+        if "sample" not in state and self.sample.any:
+            # (a checkpoint from before posterior sampling has no draws)
             raise ValueError("checkpoint has no posterior sample for this learner's psrl runs")
-        self.run_state.load_state_dict(state["run"])
-        self.metrics = RunMetrics(**{k: list(v) for k, v in state["metrics"].items()})
+        edges = self.model.check_state(state["model"], "model")
+        mentor_edges = self.mentor.check_state(state["mentor"], "mentor")
+        self.cache.check_state(state["cache"], mentor_edges, "cache")
+        self.sweeper.check_state(state["sweeper"], "sweeper")
+        if "sample" in state:
+            self.sample.check_state(state["sample"], edges, mentor_edges, "sample")
+        run = state["run"]
+        t = self.run_state.check_state(run, "run")
+        # the executing option's row is one of the state it started in (or none: the padding)
+        row, start = run["row"], run["option_start"]
+        at = self.rows.row_state.to(row.device).index_select(0, row)
+        wrong = (row < self.num_rows) & (at != start)
+        if bool(wrong.any()):
+            b = int(wrong.nonzero()[0, 0])
+            raise DamagedState(
+                "run.row",
+                f"run {b} executes row {int(row[b])}, an option at state {int(at[b])}, but its "
+                f"option started at state {int(start[b])} (run.option_start)",
+            )
+        in_range(
+            run["duration"],
+            "run.duration",
+            0,
+            self.config.max_option_steps,
+            "steps of the option so far, at most max_option_steps",
+        )
+        return RunMetrics.from_state_dict(
+            state["metrics"], self.batch, self.config.window, t, "metrics"
+        )
+
+    def load_state_dict(self, state: dict) -> None:
+        """Restore a :meth:`state_dict`, checked in full first (:meth:`check_state`): a state that
+        fails a check is refused before anything is restored, the learner left as it was.
+
+        Raises:
+            DamagedState: a piece of the state is not one this code writes (named).
+            ValueError: a state of another layout, batch or configuration.
+        """
+        metrics = self.check_state(state)
+        edges, mentor_edges = (state[k]["edge_row"].shape[1] for k in ("model", "mentor"))
+        self.model.load_state_dict(state["model"], checked=True)
+        self.mentor.load_state_dict(state["mentor"], checked=True)
+        self.cache.load_state_dict(state["cache"], mentor_edges, checked=True)
+        self.sweeper.load_state_dict(state["sweeper"], checked=True)
+        if "sample" in state:
+            self.sample.load_state_dict(state["sample"], edges, mentor_edges, checked=True)
+        self.run_state.load_state_dict(state["run"], checked=True)
+        self.metrics = metrics
         self.engine.invalidate()
 
     # ========================================================================= run state views

@@ -26,6 +26,15 @@ from __future__ import annotations
 import numpy as np
 import torch
 
+from himit_torch.state_checks import (
+    DamagedState,
+    all_finite,
+    in_range,
+    private_copy,
+    section,
+    tensor,
+)
+
 __all__ = [
     "EdgeStore",
     "DenseEdgeIndex",
@@ -47,6 +56,16 @@ def _nonzero(total: torch.Tensor) -> torch.Tensor:
     subnormal total — a subnormal prior concentration, say 5e-324 — by the floor, not by itself:
     posterior means summing to 1e-24.)"""
     return torch.where(total > 0, total, torch.ones_like(total))
+
+
+def _has_repeats(keys: torch.Tensor) -> bool:
+    """Whether some value occurs twice in the 1-D ``keys`` (sorted, neighbours compared; on a
+    CPU by NumPy's sort, several times faster here than ``unique``'s hashing)."""
+    if keys.device.type == "cpu":
+        ordered = np.sort(keys.numpy())
+        return bool(np.any(ordered[1:] == ordered[:-1]))
+    on_device = keys.sort().values
+    return bool((on_device[1:] == on_device[:-1]).any())
 
 
 class DenseEdgeIndex:
@@ -249,22 +268,66 @@ class EdgeStore:
         )
         return out
 
-    def load_state_dict(self, state: dict) -> None:
-        for name, value in state.items():
-            current = getattr(self, name)
-            if (
-                value.shape[0] != current.shape[0]
-                or value.dim() != current.dim()
-                or (
-                    name in ("num_edges", "state_tries") + self._ROW_FLOATS
-                    and value.shape != current.shape
-                )
-            ):
-                raise ValueError(
-                    f"model state {name} has shape {tuple(value.shape)}, this model's "
-                    f"{tuple(current.shape)}"
-                )
-            setattr(self, name, value.to(self.device).clone())
+    #: Whether an edge may start at the padding row ``num_rows`` (an option executed at a state
+    #: without rows is counted there, as both engines do), or only at a real row.
+    _PADDING_ROW_EDGES = True
+
+    def _state_keys(self) -> tuple[str, ...]:
+        return ("edge_row", "edge_successor", *self._EDGE_FLOATS, "num_edges", *self._ROW_FLOATS)
+
+    def check_state(self, state: dict, where: str = "model") -> int:
+        """Check a :meth:`state_dict` read back (``where``: its name, for the messages) against
+        this store's shapes and invariants, before anything reads it: the edge lists' ids in
+        range — rows within the row table, successors states — ``0 ≤ num_edges ≤`` the lists'
+        length, empty slots empty, one edge per ``(row, successor)``, counts finite and ≥ 0.
+        Returns the saved lists' length.
+
+        Raises:
+            DamagedState: naming the field and what is wrong with it.
+        """
+        section(state, where, self._state_keys())
+        B = self.batch
+        E = tensor(state, "edge_row", where, torch.int64, (B, None)).shape[1]
+        if E < 1:
+            raise DamagedState(f"{where}.edge_row", "has no edge slot (a state_dict keeps ≥ 1)")
+        rows = state["edge_row"]
+        successors = tensor(state, "edge_successor", where, torch.int64, (B, E))
+        num_edges = tensor(state, "num_edges", where, torch.int64, (B,))
+        in_range(num_edges, f"{where}.num_edges", 0, E, f"edges held; the lists hold {E} slots")
+        used = torch.arange(E, device=num_edges.device) < num_edges[:, None]
+        last_row = self.num_rows if self._PADDING_ROW_EDGES else self.num_rows - 1
+        in_range(rows, f"{where}.edge_row", 0, last_row, "a row of the table", used)
+        in_range(successors, f"{where}.edge_successor", 0, self.num_states - 1, "a state", used)
+        in_range(rows, f"{where}.edge_row", -1, -1, "an empty slot beyond num_edges", ~used)
+        in_range(
+            successors, f"{where}.edge_successor", -1, -1, "an empty slot beyond num_edges", ~used
+        )
+        for name in self._EDGE_FLOATS:
+            value = tensor(state, name, where, torch.float64, (B, E))
+            all_finite(value, f"{where}.{name}", minimum=0.0)
+            in_range(value, f"{where}.{name}", 0, 0, "an empty slot beyond num_edges", ~used)
+        # one edge per (run, row, successor): both engines look an outcome's edge up by it
+        runs = torch.arange(B, device=rows.device)[:, None].expand(B, E)
+        keys = ((runs * (self.num_rows + 1) + rows) * (self.num_states + 1) + successors)[used]
+        if _has_repeats(keys):
+            raise DamagedState(
+                f"{where}.edge_row", "lists some (row, successor) edge twice in one run"
+            )
+        for name in self._ROW_FLOATS:
+            value = tensor(state, name, where, torch.float64, (B, self.num_rows + 1))
+            if name == "row_count":
+                all_finite(value, f"{where}.{name}", minimum=0.0)
+            else:  # (summed rewards: any sign)
+                all_finite(value, f"{where}.{name}")
+        return E
+
+    def load_state_dict(self, state: dict, where: str = "model", *, checked: bool = False) -> None:
+        """Restore a :meth:`state_dict`, checked first (:meth:`check_state`) unless ``checked``
+        says it was (the learner checks every piece before it restores any)."""
+        if not checked:
+            self.check_state(state, where)
+        for name in self._state_keys():
+            setattr(self, name, private_copy(state[name], self.device))
         saved = self.edge_row.shape[1]
         capacity = 256
         while capacity < saved:
@@ -478,6 +541,17 @@ class DirichletSMDPModel(EdgeStore):
     def state_dict(self) -> dict:
         return {**super().state_dict(), "state_tries": self.state_tries.clone()}
 
+    def _state_keys(self) -> tuple[str, ...]:
+        return (*super()._state_keys(), "state_tries")
+
+    def check_state(self, state: dict, where: str = "model") -> int:
+        E = super().check_state(state, where)
+        tries = tensor(
+            state, "state_tries", where, torch.float64, (self.batch, self.num_states + 1)
+        )
+        all_finite(tries, f"{where}.state_tries", minimum=0.0)
+        return E
+
     def update(
         self,
         runs: torch.Tensor,
@@ -561,6 +635,8 @@ class DirichletMentorModel(EdgeStore):
 
     Rows are states. Demonstrations can be added at any time, to all runs or to some.
     """
+
+    _PADDING_ROW_EDGES = False  # the mentor is only ever seen leaving a real state
 
     def __init__(
         self,

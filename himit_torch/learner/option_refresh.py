@@ -291,7 +291,7 @@ def with_options(
     cache = {k: v[idx] for k, v in cache.items()}
     cache["q_numerator"] = rows_carried(learner.cache.q_numerator)
     cache["q_second"] = rows_carried(learner.cache.q_second)
-    new.cache.load_state_dict(cache)
+    new.cache.load_state_dict(cache, mentor_edges=learner.mentor.used)
     new.sweeper.load_state_dict({k: v[idx] for k, v in learner.sweeper.state_dict().items()})
     new.metrics = type(learner.metrics)(
         **{

@@ -44,6 +44,7 @@ import math
 import torch
 
 from himit_torch.rng import _shr, splitmix64
+from himit_torch.state_checks import all_finite, in_range, private_copy, section, tensor
 
 __all__ = [
     "fixed_log",
@@ -348,18 +349,49 @@ class PosteriorSample:
             "resamples": self.resamples.clone(),
         }
 
-    def load_state_dict(self, state: dict) -> None:
-        """Restore (after the models, whose capacities the per-edge draws follow)."""
+    _STATE = ("option_w", "option_unseen", "mentor_w", "mentor_unseen", "resamples")
+
+    def check_state(
+        self, state: dict, option_edges: int, mentor_edges: int, where: str = "sample"
+    ) -> None:
+        """Check a :meth:`state_dict` read back (``option_edges``, ``mentor_edges``: the lengths
+        of the models' saved edge lists, which the per-edge draws follow): the draws float64 of
+        this batch's shapes, finite and ≥ 0; ``resamples`` int64 counts.
+
+        Raises:
+            DamagedState: naming the field and what is wrong with it.
+        """
+        section(state, where, self._STATE)
+        B = self.batch
+        widths = {
+            "option_w": option_edges,
+            "option_unseen": self.option_unseen.shape[1],
+            "mentor_w": mentor_edges,
+            "mentor_unseen": self.mentor_unseen.shape[1],
+        }
+        for name, width in widths.items():
+            value = tensor(state, name, where, _F64, (B, width))
+            all_finite(value, f"{where}.{name}", minimum=0.0)
+        resamples = tensor(state, "resamples", where, torch.int64, (B,))
+        in_range(resamples, f"{where}.resamples", 0, 2**62, "a count")
+
+    def load_state_dict(
+        self,
+        state: dict,
+        option_edges: int,
+        mentor_edges: int,
+        where: str = "sample",
+        *,
+        checked: bool = False,
+    ) -> None:
+        """Restore (after the models, whose capacities the per-edge draws follow), checked
+        first (:meth:`check_state`) unless ``checked`` says it was."""
+        if not checked:
+            self.check_state(state, option_edges, mentor_edges, where)
         for name in ("option_unseen", "mentor_unseen", "resamples"):
-            value = state[name]
-            if value.shape != getattr(self, name).shape:
-                raise ValueError(
-                    f"posterior sample {name} has shape {tuple(value.shape)}, this "
-                    f"learner's {tuple(getattr(self, name).shape)}"
-                )
-            setattr(self, name, value.to(self.device).clone())
+            setattr(self, name, private_copy(state[name], self.device))
         for name, store in (("option_w", self.model), ("mentor_w", self.mentor)):
-            value = state[name].to(self.device)
+            value = state[name].detach().to(self.device)
             grown = torch.zeros(self.batch, store.capacity, dtype=_F64, device=self.device)
             grown[:, : value.shape[1]] = value
             setattr(self, name, grown)

@@ -14,6 +14,8 @@ import math
 
 import torch
 
+from himit_torch.state_checks import in_range, private_copy, section, tensor
+
 __all__ = ["BlockPriorityQueue", "Sweeper"]
 
 
@@ -131,16 +133,35 @@ class Sweeper:
     def state_dict(self) -> dict:
         return {"priority": self.queue.priority.clone(), "pending": self.pending.clone()}
 
-    def load_state_dict(self, state: dict) -> None:
-        priority = state["priority"].to(self.queue.priority.device)
-        if priority.shape != self.queue.priority.shape:
-            raise ValueError(
-                f"queue state has shape {tuple(priority.shape)}, this learner's "
-                f"{tuple(self.queue.priority.shape)}"
-            )
-        self.queue.priority = priority.clone()
+    def check_state(self, state: dict, where: str = "sweeper") -> None:
+        """Check a :meth:`state_dict` read back: the priorities of this queue's shape, ≥ 0 (``inf``
+        queues a state first; NaN never) and 0 beyond the last state; the pending decisions
+        ``0 … plan_every`` (a run sweeps at least every ``plan_every`` ticks, one decision a tick).
+
+        Raises:
+            DamagedState: naming the field and what is wrong with it.
+        """
+        section(state, where, ("priority", "pending"))
+        shape = tuple(self.queue.priority.shape)
+        priority = tensor(state, "priority", where, torch.float64, shape)
+        in_range(priority, f"{where}.priority", 0, float("inf"), "a priority")
+        in_range(
+            priority[:, self.num_states + 1 :], f"{where}.priority", 0, 0, "beyond the last state"
+        )
+        pending = tensor(state, "pending", where, torch.int64, (shape[0],))
+        in_range(pending, f"{where}.pending", 0, self.plan_every, "decisions since the last sweep")
+
+    def load_state_dict(
+        self, state: dict, where: str = "sweeper", *, checked: bool = False
+    ) -> None:
+        """Restore a :meth:`state_dict`, checked first (:meth:`check_state`) unless ``checked``
+        says it was."""
+        if not checked:
+            self.check_state(state, where)
+        device = self.queue.priority.device
+        self.queue.priority = private_copy(state["priority"], device)
         self.queue.refresh_block_max()
-        self.pending = state["pending"].to(self.pending.device).clone()
+        self.pending = private_copy(state["pending"], device)
 
     def push(self, runs: torch.Tensor, states: torch.Tensor, priorities: torch.Tensor) -> None:
         if runs.numel():

@@ -10,6 +10,17 @@ from dataclasses import dataclass, field, fields
 
 import torch
 
+from himit_torch.state_checks import (
+    DamagedState,
+    all_finite,
+    in_range,
+    private_copy,
+    section,
+    tensor,
+    tensor_of,
+    whole,
+)
+
 __all__ = ["RunState", "RunMetrics"]
 
 
@@ -83,21 +94,58 @@ class RunState:
         self.found_goal = torch.zeros(batch, dtype=torch.bool, device=dev)
         self.visits = torch.zeros(batch, num_states + 1, dtype=torch.int64, device=dev)
         self.t = 0
+        self.num_states, self.pad_row = num_states, pad_row
 
     def state_dict(self) -> dict:
         return {"t": self.t, **{name: getattr(self, name).clone() for name in self._STATE}}
 
-    def load_state_dict(self, state: dict) -> None:
+    #: The most ticks a checkpoint may say were run (far beyond any run; the counters of the
+    #: random streams and the tick counts stay well inside int64).
+    MAX_TICKS = 2**53
+
+    def check_state(self, state: dict, where: str = "run") -> int:
+        """Check a :meth:`state_dict` read back against this batch: every tensor int64 / float64 /
+        bool as created, ``[B]`` (``visits [B, S + 1]``); ``position`` and ``option_start``
+        states; ``row`` a row of the table (or its padding row, no row); counters ≥ 0, the ticks
+        they name within ``0 … t``; ``discount`` and ``epsilon`` in ``[0, 1]``; the return
+        finite. Returns ``t``.
+
+        Raises:
+            DamagedState: naming the field and what is wrong with it.
+        """
+        section(state, where, ("t", *self._STATE))
+        t = whole(state, "t", where, 0, self.MAX_TICKS)
+        S = self.num_states
         for name in self._STATE:
             current = getattr(self, name)
-            value = state[name]
-            if value.shape != current.shape:
-                raise ValueError(
-                    f"run state {name} has shape {tuple(value.shape)}, this learner's "
-                    f"{tuple(current.shape)}"
-                )
-            setattr(self, name, value.to(current.device).clone())
-        self.t = int(state["t"])
+            value = tensor(state, name, where, current.dtype, tuple(current.shape))
+            field = f"{where}.{name}"
+            if name in ("position", "option_start"):
+                in_range(value, field, 0, S - 1, "a state")
+            elif name == "row":
+                in_range(value, field, 0, self.pad_row, "a row, or the padding row: none")
+            elif name == "episode_start":
+                in_range(value, field, 0, t, "a tick so far")
+            elif name == "first_goal_step":
+                in_range(value, field, -1, t, "a tick so far, or −1: no goal yet")
+            elif name in ("discount", "epsilon"):
+                in_range(value, field, 0.0, 1.0, "a probability" if name == "epsilon" else "γ^k")
+            elif name == "discounted_return":
+                all_finite(value, field)
+            elif name != "found_goal":
+                in_range(value, field, 0, 2**62, "a count")
+        if not torch.equal(state["found_goal"], state["first_goal_step"] >= 0):
+            raise DamagedState(
+                f"{where}.found_goal", "disagrees with first_goal_step (−1: no goal yet)"
+            )
+        return t
+
+    def load_state_dict(self, state: dict, where: str = "run", *, checked: bool = False) -> None:
+        """Restore a :meth:`state_dict`, checked first (:meth:`check_state`) unless ``checked``
+        says it was."""
+        self.t = state["t"] if checked else self.check_state(state, where)
+        for name in self._STATE:
+            setattr(self, name, private_copy(state[name], getattr(self, name).device))
 
 
 @dataclass
@@ -144,5 +192,62 @@ class RunMetrics:
         run.window_episode_steps.zero_()
         run.window_episodes.zero_()
 
+    #: The dtype of each field's ``[B]`` records (``steps``: Python ints).
+    _DTYPES = {
+        "goals_in_window": torch.int64,
+        "epsilon": torch.float64,
+        "episodes": torch.int64,
+        "mean_episode_steps": torch.float64,
+        "backups": torch.int64,
+        "decisions": torch.int64,
+        "mentor_term_wins": torch.float64,
+    }
+
     def state_dict(self) -> dict:
         return {f.name: list(getattr(self, f.name)) for f in fields(self)}
+
+    @classmethod
+    def from_state_dict(
+        cls, state: dict, batch: int, window: int, t: int, where: str = "metrics"
+    ) -> RunMetrics:
+        """The metrics of a :meth:`state_dict` read back, checked first: one record per window
+        of the ``t`` ticks run (``steps`` the windows' ends ``window, 2·window, …``), every
+        record a ``[batch]`` tensor of its field's dtype (kept on the CPU), counts ≥ 0 and ε in
+        ``[0, 1]``.
+
+        Raises:
+            DamagedState: naming the field and what is wrong with it.
+        """
+        section(state, where, [f.name for f in fields(cls)])
+        windows = t // window
+        for name, records in state.items():
+            if type(records) not in (list, tuple):
+                raise DamagedState(
+                    f"{where}.{name}", f"is a {type(records).__name__}, not a list of windows"
+                )
+            if len(records) != windows:
+                raise DamagedState(
+                    f"{where}.{name}",
+                    f"holds {len(records)} windows, but {t} ticks make {windows} windows of "
+                    f"{window}",
+                )
+        ends = [window * (i + 1) for i in range(windows)]
+        if [type(x) for x in state["steps"]] != [int] * windows or list(state["steps"]) != ends:
+            raise DamagedState(
+                f"{where}.steps", f"is not the windows' ends {window}, {2 * window}, …"
+            )
+        out = cls(steps=list(state["steps"]))
+        cpu = torch.device("cpu")
+        for name, dtype in cls._DTYPES.items():
+            records = [
+                tensor_of(x, f"{where}.{name}[{i}]", dtype, (batch,))
+                for i, x in enumerate(state[name])
+            ]
+            if records:
+                stacked = torch.stack(records)
+                if name == "epsilon":
+                    in_range(stacked, f"{where}.{name}", 0.0, 1.0, "a probability")
+                elif dtype == torch.int64:
+                    in_range(stacked, f"{where}.{name}", 0, 2**62, "a count")
+            setattr(out, name, [private_copy(x, cpu) for x in records])
+        return out

@@ -41,6 +41,7 @@ from himit_torch.learner.backups import (
 )
 from himit_torch.learner.models import DirichletMentorModel, DirichletSMDPModel
 from himit_torch.learner.rows import RowTable
+from himit_torch.state_checks import all_finite, private_copy, section, tensor
 
 if TYPE_CHECKING:
     from himit_torch.learner.config import LearnerConfig
@@ -112,18 +113,30 @@ class ValueCache:
         out["mentor_edge_reward"] = self.mentor_edge_reward[:, : self.mentor.used].clone()
         return out
 
-    def load_state_dict(self, state: dict) -> None:
-        """Restore (after the mentor model, whose capacity the edge rewards follow)."""
+    def check_state(self, state: dict, mentor_edges: int, where: str = "cache") -> None:
+        """Check a :meth:`state_dict` read back (``mentor_edges``: the length of the mentor
+        model's saved edge lists, which the edge rewards follow): every cache float64, of this
+        batch's shape and finite.
+
+        Raises:
+            DamagedState: naming the field and what is wrong with it.
+        """
+        section(state, where, self._STATE)
         for name in self._STATE:
-            value, current = state[name], getattr(self, name)
-            if value.shape[0] != current.shape[0] or (
-                name != "mentor_edge_reward" and value.shape != current.shape
-            ):
-                raise ValueError(
-                    f"value cache {name} has shape {tuple(value.shape)}, this "
-                    f"learner's {tuple(current.shape)}"
-                )
-            setattr(self, name, value.to(self.device).clone())
+            current = getattr(self, name)
+            width = mentor_edges if name == "mentor_edge_reward" else current.shape[1]
+            value = tensor(state, name, where, torch.float64, (self.batch, width))
+            all_finite(value, f"{where}.{name}")
+
+    def load_state_dict(
+        self, state: dict, mentor_edges: int, where: str = "cache", *, checked: bool = False
+    ) -> None:
+        """Restore (after the mentor model, whose capacity the edge rewards follow), checked
+        first (:meth:`check_state`) unless ``checked`` says it was."""
+        if not checked:
+            self.check_state(state, mentor_edges, where)
+        for name in self._STATE:
+            setattr(self, name, private_copy(state[name], self.device))
         self._grow_mentor_reward(self.mentor.capacity)
 
     def _grow_mentor_reward(self, capacity: int) -> None:

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from himit_torch.validation import json_depth
 from himit_torch.worlds.multirooms import MultiRooms
 from himit_torch.worlds.table_world import describe_world, transition_support
 
@@ -25,6 +26,8 @@ __all__ = ["Demonstrations", "DEMONSTRATIONS_FORMAT_VERSION"]
 DEMONSTRATIONS_FORMAT_VERSION = 1
 
 _NPZ_KEYS = ("format_version", "world", "states", "episode_starts")
+#: How deeply a saved world description may nest (they nest 2 or 3: kwargs' lists of rows).
+_MAX_WORLD_DEPTH = 8
 
 
 class Demonstrations:
@@ -256,6 +259,12 @@ class Demonstrations:
             raise ValueError(
                 f"{src}: world must be a JSON string scalar, got dtype "
                 f"{world_json.dtype} shape {world_json.shape}"
+            )
+        depth = json_depth(str(world_json))
+        if depth > _MAX_WORLD_DEPTH:  # (Python's parser would recurse once per level)
+            raise ValueError(
+                f"{src}: world is JSON nested {depth} levels deep; a world description nests "
+                f"at most {_MAX_WORLD_DEPTH}"
             )
         try:
             description = json.loads(str(world_json))

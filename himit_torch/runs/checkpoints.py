@@ -39,12 +39,16 @@ import json
 import os
 import pickle
 import shutil
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import torch
+
+from himit_torch.state_checks import DamagedState
+from himit_torch.validation import check_memory, json_depth
 
 __all__ = [
     "FORMAT_VERSION",
@@ -80,14 +84,24 @@ SPARSE_MAX_DENSITY = 0.25
 
 MAGIC = b"himit_torch checkpoint\n"
 _MAX_HEADER = 1 << 20  # a header is a few hundred bytes; more than this is not one of ours
+#: A header nests 3 levels (the batch's lists in the batch in the header); JSON nested deeper
+#: than this is refused unparsed (Python's parser recurses once per level).
+_MAX_HEADER_DEPTH = 8
 _ZIP_MAGIC = b"PK\x03\x04"  # torch.save's archive format: the only payload torch.load gets
 
 
-class DamagedCheckpoint(ValueError):
-    """The file is not a readable checkpoint (missing, empty, cut short, altered, foreign)."""
+class DamagedCheckpoint(DamagedState):
+    """The file is not a readable checkpoint (missing, empty, cut short, altered, foreign), or its
+    state fails the learner's checks (a value no run writes: a file altered with its checksum
+    recomputed).
+
+    A :class:`~himit_torch.state_checks.DamagedState` whose field is the file: the learner's
+    owners of state, below this layer, raise ``DamagedState`` naming their field, and
+    :meth:`CheckpointGenerations.load` turns it into this, naming the file too. Either way a
+    resume falls back to the previous generation."""
 
     def __init__(self, path: Path, reason: str, step: int | None = None):
-        super().__init__(f"{path}: {reason}")
+        super().__init__(str(path), reason)
         self.path, self.reason, self.step = path, reason, step
 
 
@@ -276,6 +290,11 @@ def _dense(tensor: torch.Tensor) -> torch.Tensor:
         return tensor
     if tensor.layout != torch.sparse_coo:
         raise RuntimeError(f"a {tensor.layout} tensor, which no checkpoint holds")
+    # its size is the file's word: an altered one could ask for any amount of memory
+    check_memory(
+        f"a {list(tensor.shape)} tensor stored sparse",
+        tensor.shape.numel() * tensor.element_size(),
+    )
     dense = torch.zeros(tensor.shape, dtype=tensor.dtype, device=tensor.device)
     indices = tensor._indices()  # as stored: no coalescing, which would add duplicates up
     if indices.numel():
@@ -311,8 +330,14 @@ def _parse_header(data: bytes, path: Path) -> tuple[CheckpointHeader, int]:
     end = data.find(b"\n", len(MAGIC), len(MAGIC) + _MAX_HEADER)
     if end < 0:
         raise DamagedCheckpoint(path, f"cut short inside its header ({len(data)} bytes)")
+    text = data[len(MAGIC) : end]
+    depth = json_depth(text)
+    if depth > _MAX_HEADER_DEPTH:
+        raise DamagedCheckpoint(
+            path, f"its header nests {depth} levels deep (a checkpoint header nests 3)"
+        )
     try:
-        raw = json.loads(data[len(MAGIC) : end].decode("ascii"))
+        raw = json.loads(text.decode("ascii"))
     except ValueError as err:
         raise DamagedCheckpoint(path, f"its header is not valid JSON ({err})") from None
     version = raw.get("format_version") if isinstance(raw, dict) else None
@@ -611,9 +636,16 @@ class CheckpointGenerations:
         map_location=None,
         expect_batch: BatchShape | None = None,
         expect_layout: int | None = None,
+        restore: Callable[[Checkpoint], None] | None = None,
     ) -> Resumed | None:
         """The newest good generation, with the newer ones that were skipped and why; ``None``
         when no generation exists at all (nothing was saved yet).
+
+        ``restore(checkpoint)``, if given, is called with each verified generation, newest
+        first, until one restores: a generation whose payload it refuses with
+        :class:`~himit_torch.state_checks.DamagedState` (the learner's checks of its state) is
+        skipped like a damaged file, so that a state no run writes falls back to the previous
+        generation too. (``restore`` must refuse before it changes anything.)
 
         Raises:
             NoGoodCheckpoint: generations exist but none is good; the message names each file
@@ -627,8 +659,25 @@ class CheckpointGenerations:
         for path in self.paths:
             try:
                 found = read_checkpoint(path, map_location, expect_batch, expect_layout)
+                if restore is not None:
+                    _restore(restore, found)
             except DamagedCheckpoint as err:
                 skipped.append(Skipped(path, err.reason, err.step))
                 continue
             return Resumed(found, skipped)
         raise NoGoodCheckpoint(skipped)
+
+
+def _restore(restore: Callable[[Checkpoint], None], found: Checkpoint) -> None:
+    """``restore(found)``, its :class:`DamagedState` refusals made a :class:`DamagedCheckpoint`
+    of the file."""
+    try:
+        restore(found)
+    except DamagedCheckpoint:
+        raise
+    except DamagedState as err:
+        raise DamagedCheckpoint(
+            found.path or Path("<bytes>"),
+            f"its state is not one himit_torch writes ({err}); it was not restored",
+            found.header.step,
+        ) from None

@@ -31,7 +31,13 @@ from typing import Any
 import torch
 
 from himit_torch.learner.learner import Learner
-from himit_torch.runs.checkpoints import BatchShape, CheckpointGenerations, NoGoodCheckpoint
+from himit_torch.runs.checkpoints import (
+    BatchShape,
+    Checkpoint,
+    CheckpointGenerations,
+    NoGoodCheckpoint,
+)
+from himit_torch.state_checks import DamagedState, section
 from himit_torch.viz.tensorboard import TensorBoardLogger
 
 __all__ = [
@@ -167,9 +173,35 @@ class Checkpoints:
                 batch, or it does not fit this learner; the message names the file.
         """
         generations, layout = self.generations, self.layout
+        elapsed: list[float] = []
+
+        def restore(found: Checkpoint) -> None:
+            """Restore ``learner`` from a verified file: its learner state checked in full first
+            (a check that fails makes this generation skipped, the learner untouched)."""
+            payload = section(found.payload, "payload", ("learner",), optional=("elapsed",))
+            seconds = payload.get("elapsed", 0.0)
+            if type(seconds) not in (int, float) or not 0 <= seconds < float("inf"):
+                raise DamagedState("elapsed", f"{seconds!r} is not a number of seconds")
+            try:
+                learner.load_state_dict(payload["learner"])
+            except DamagedState:
+                raise
+            except ValueError as err:  # another batch, configuration or state layout
+                raise ValueError(f"{found.path}: {err}; start over with --force") from None
+            except (KeyError, TypeError, IndexError, AttributeError, RuntimeError) as err:
+                raise ValueError(
+                    f"{found.path} (step {found.header.step}) could not be restored into this "
+                    f"learner ({type(err).__name__}: {err}) although it passed every check of "
+                    f"state layout version {layout}: please report it; start over with --force"
+                ) from None
+            elapsed.append(float(seconds))
+
         try:
             resumed = generations.load(
-                map_location=self.device, expect_batch=self.batch, expect_layout=layout
+                map_location=self.device,
+                expect_batch=self.batch,
+                expect_layout=layout,
+                restore=restore,
             )
         except NoGoodCheckpoint as err:
             raise ValueError(f"--resume: {err}; start over with --force") from None
@@ -186,21 +218,7 @@ class Checkpoints:
                 f"{(found.path or generations.newest).name} at step {found.header.step}: {redo}",
                 file=sys.stderr,
             )
-        payload = found.payload
-        if not isinstance(payload, dict) or not isinstance(payload.get("learner"), dict):
-            raise ValueError(f"{found.path} holds no learner state; start over with --force")
-        try:
-            learner.load_state_dict(payload["learner"])
-        except ValueError as err:
-            raise ValueError(f"{found.path}: {err}; start over with --force") from None
-        except (KeyError, TypeError, IndexError, AttributeError, RuntimeError) as err:
-            raise ValueError(
-                f"{found.path} (step {found.header.step}) could not be restored into this "
-                f"learner ({type(err).__name__}: {err}) although its state layout version "
-                f"{layout} is this himit_torch's: please report it; start over with --force"
-            ) from None
-        elapsed = payload.get("elapsed", 0.0)
-        return float(elapsed) if isinstance(elapsed, (int, float)) else 0.0
+        return elapsed[-1]
 
 
 # ============================================================================= the batch

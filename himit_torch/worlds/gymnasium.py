@@ -217,14 +217,64 @@ def from_gymnasium(
     return world
 
 
+#: Registered ids whose environment makes another one, named in its kwargs, through the old
+#: ``gym`` (Shimmy's compatibility environments): a kwarg of the form ``"module:Id"`` would
+#: import that module. Never made from a description.
+_MAKES_ANOTHER_ENV = ("GymV21Environment-v0", "GymV26Environment-v0")
+
+
+def _check_described_id(env_id: Any, kwargs: Any) -> None:
+    """Refuse a Gymnasium id and kwargs read from a file (a world description) unless making
+    them can import nothing that is not already registered: ``gymnasium.make("module:Id")``
+    imports ``module``, so a file naming one could run any importable module's code. The id
+    must be a string without ``:`` that Gymnasium's registry holds, the kwargs a dict of
+    JSON-able values without ``render_mode`` (never part of a description).
+
+    Raises:
+        ValueError: naming the id and what to do instead (pass the world itself).
+    """
+    import gymnasium
+
+    instead = (
+        "a file's Gymnasium id is only used when it is a plain registered id; make the world "
+        "yourself (from_gymnasium(...)) and pass it, e.g. Demonstrations.load(path, world=…)"
+    )
+    if not isinstance(env_id, str):
+        raise ValueError(f"the described Gymnasium id {env_id!r} is not a string; {instead}")
+    if ":" in env_id:
+        raise ValueError(
+            f"the described Gymnasium id {env_id!r} names a module to import "
+            f"({env_id.split(':')[0]!r}), which is never done for an id read from a file; "
+            f"{instead}"
+        )
+    if env_id not in gymnasium.registry:
+        raise ValueError(
+            f"the described Gymnasium id {env_id!r} is not registered with Gymnasium here; "
+            f"{instead}"
+        )
+    if env_id in _MAKES_ANOTHER_ENV:
+        raise ValueError(
+            f"the described Gymnasium id {env_id!r} makes another environment named in its "
+            f"kwargs; {instead}"
+        )
+    if not isinstance(kwargs, dict) or "render_mode" in kwargs:
+        raise ValueError(
+            f"the described kwargs {kwargs!r} of {env_id!r} are not a description's (a dict "
+            f"without render_mode); {instead}"
+        )
+
+
 def world_from_description(description: Mapping) -> TableWorld:
     """Rebuild a :func:`from_gymnasium` world from its ``describe()`` dict (the id and kwargs),
-    refusing it if the model's fingerprint differs (another Gymnasium version, say)."""
+    refusing it if the model's fingerprint differs (another Gymnasium version, say). The
+    description comes from a file, so its id must pass :func:`_check_described_id` first: it
+    never imports a module."""
     if description.get("id") is None:
         raise ValueError(
             "a Gymnasium world made from an environment object without an id cannot "
             "be rebuilt from its description; pass the world itself"
         )
+    _check_described_id(description["id"], description.get("kwargs", {}))
     world = from_gymnasium(
         description["id"],
         gamma=description.get("gamma", 0.99),

@@ -450,3 +450,80 @@ def test_a_world_without_a_model_cannot_check_demonstrations():
 
     with pytest.raises(ValueError, match="StepOnly has no true model to read"):
         Demonstrations([[0, 1, 2]], StepOnly())
+
+
+# ------------------------------------------------------------------ nothing read runs code
+@pytest.fixture
+def lake_file(tmp_path):
+    """A FrozenLake demonstrations file (one episode: the start state)."""
+    from himit_torch.worlds.gymnasium import from_gymnasium
+
+    return Demonstrations([[0]], from_gymnasium("FrozenLake-v1")).save(tmp_path / "lake.npz")
+
+
+def with_world(path, **changes):
+    """Rewrite the file's world description with ``changes``."""
+    with np.load(path) as npz:
+        description = json.loads(str(npz["world"]))
+    return rewrite(path, world=np.array(json.dumps({**description, **changes})))
+
+
+@pytest.fixture
+def planted_module(tmp_path, monkeypatch):
+    """``(name, marker)``: an importable module (on ``sys.path``) whose import creates
+    ``marker`` — what a file naming ``"name:FrozenLake-v1"`` would make Gymnasium import."""
+    name = f"planted_{tmp_path.name.replace('-', '_')}"
+    marker = tmp_path / "marker"
+    (tmp_path / f"{name}.py").write_text(f"open({str(marker)!r}, 'w').close()\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    return name, marker
+
+
+def test_a_gymnasium_id_naming_a_module_is_refused_and_the_module_never_runs(
+    lake_file, planted_module
+):
+    import gymnasium
+
+    name, marker = planted_module
+    with_world(lake_file, id=f"{name}:FrozenLake-v1")
+    with pytest.raises(
+        ValueError,
+        match=file_error(lake_file, f"'{name}:FrozenLake-v1' names a module to import", "pass it"),
+    ):
+        Demonstrations.load(lake_file)
+    assert not marker.exists()
+    # the same file with the world given: its description is compared, nothing is made
+    with pytest.raises(ValueError, match=file_error(lake_file, "different world", "id")):
+        from himit_torch.worlds.gymnasium import from_gymnasium
+
+        Demonstrations.load(lake_file, world=from_gymnasium("FrozenLake-v1"))
+    assert not marker.exists()
+    # control: the id is live — Gymnasium itself imports the module it names
+    gymnasium.make(f"{name}:FrozenLake-v1")
+    assert marker.exists()
+
+
+@pytest.mark.parametrize(
+    "changes, what",
+    [
+        ({"id": "NoSuchEnv-v0"}, "'NoSuchEnv-v0' is not registered with Gymnasium here"),
+        ({"id": 5}, "id 5 is not a string"),
+        ({"id": "GymV26Environment-v0"}, "makes another environment named in its kwargs"),
+        ({"kwargs": {"render_mode": "human"}}, "not a description's (a dict without render_mode)"),
+        ({"kwargs": [1]}, "not a description's"),
+    ],
+)
+def test_a_described_gymnasium_world_is_made_only_from_a_plain_registered_id(
+    lake_file, changes, what
+):
+    with_world(lake_file, **changes)
+    with pytest.raises(ValueError, match=file_error(lake_file, what, "pass it")):
+        Demonstrations.load(lake_file)
+
+
+def test_a_world_description_nested_too_deep_is_refused_unparsed(saved):
+    rewrite(saved, world=np.array('{"kind": ' + "[" * 100_000 + "]" * 100_000 + "}"))
+    with pytest.raises(
+        ValueError, match=file_error(saved, "world is JSON nested 100001 levels deep")
+    ):
+        Demonstrations.load(saved)
