@@ -49,6 +49,8 @@ import torch
 __all__ = [
     "FORMAT_VERSION",
     "READABLE_FORMATS",
+    "SPARSE_MIN_ELEMENTS",
+    "SPARSE_MAX_DENSITY",
     "BatchShape",
     "CheckpointHeader",
     "Checkpoint",

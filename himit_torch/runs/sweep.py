@@ -76,7 +76,7 @@ from himit_torch.learner.config import LearnerConfig
 from himit_torch.runs.config import EXPERIMENTS, ExperimentConfig, load_config
 from himit_torch.runs.experiment import source_commit
 
-__all__ = ["SweepSpec", "Trial", "load_spec", "run_sweep", "summarize"]
+__all__ = ["SweepSpec", "Cell", "Trial", "load_spec", "run_sweep", "summarize"]
 
 _SPEC_KEYS = {
     "name",
