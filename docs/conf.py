@@ -73,4 +73,3 @@ napoleon_use_rtype = False
 html_theme = "furo"
 html_title = f"himit_torch {release}"
 html_static_path: list[str] = []
-pygments_style = "sphinx"

@@ -295,8 +295,7 @@ class FiguresDirective(SphinxDirective):
         for path in files:
             figure = nodes.figure()
             image = nodes.image(uri=os.path.relpath(path, docdir), alt=path.name)
-            if "width" in self.options:
-                image["width"] = self.options["width"]
+            image["width"] = self.options.get("width", "85%")
             figure += image
             figure += nodes.caption(text=str(path.relative_to(root)))
             out.append(figure)
