@@ -2,7 +2,8 @@
 
 A learner with its own options watches only a mentor's *states* and learns with the augmented
 Bellman equation with options (Friesen & Rao, "Imitation learning with hierarchical actions").
-``B`` independent runs advance together as tensors; see ``README.md`` for a tour.
+``B`` independent runs advance together as tensors; see ``README.md`` and the documentation
+(``make docs``) for a tour.
 """
 
 from himit_torch.exact.option_models import OptionModels, option_durations, option_models
@@ -74,6 +75,8 @@ from himit_torch.worlds.table_world import (
 )
 from himit_torch.worlds.tabular import DynamicsTable, TabularWorld
 
+#: The package version: the one source of it (pyproject.toml reads it; ``himit --version`` prints
+#: it; CHANGELOG.md lists what changed in each).
 __version__ = "0.1.0"
 
 __all__ = [

@@ -34,6 +34,7 @@ from typing import Any, NoReturn
 
 import torch
 
+from himit_torch import __version__
 from himit_torch.exact.option_models import option_durations, option_models
 from himit_torch.exact.planning import expected_steps, smdp_value_iteration
 from himit_torch.learner.config import LearnerConfig
@@ -825,6 +826,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="himit",
         description="Hierarchical goal-based imitation from state-only demonstrations.",
     )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     subs = parser.add_subparsers(dest="command", metavar="command", required=True)
     for name, (_, add_arguments, help_text) in COMMANDS.items():
         add_arguments(subs.add_parser(name, help=help_text, description=help_text))

@@ -79,6 +79,7 @@ __all__ = [
     "Setting",
     "setting",
     "settings_of",
+    "DeclaredSetting",
     "check_settings",
     "refuse_unknown_fields",
     "memory_limit",
@@ -92,7 +93,19 @@ def _is_bool(value: Any) -> bool:
 
 
 def as_int(where: str, value: Any, minimum: int | None = None, maximum: int | None = None) -> int:
-    """``value`` as an ``int`` by the module's rule for whole numbers, within the bounds."""
+    """``value`` as an ``int`` by the module's rule for whole numbers, within the bounds.
+
+    >>> as_int("steps", 1e6)
+    1000000
+    >>> as_int("steps", 2.7)
+    Traceback (most recent call last):
+    ...
+    ValueError: steps=2.7 is not a whole number (it is never rounded or truncated); give an integer
+    >>> as_int("seeds", True)
+    Traceback (most recent call last):
+    ...
+    ValueError: seeds must be a whole number, got True (bool)
+    """
     if _is_bool(value) or isinstance(value, (str, bytes)):
         raise ValueError(f"{where} must be a whole number, got {value!r} ({type(value).__name__})")
     if isinstance(value, numbers.Integral):

@@ -107,6 +107,18 @@ def test_help_exits_0(capsys):
     assert all(name in out for name in COMMANDS)
 
 
+def test_version_is_the_package_version(capsys):
+    """`himit --version` prints the one version there is: the package's, which is also the
+    distribution's (pyproject.toml reads it from himit_torch.__version__)."""
+    import himit_torch
+
+    with pytest.raises(SystemExit) as exc:
+        main(["--version"])
+    assert exc.value.code == 0
+    assert capsys.readouterr().out.strip() == f"himit {himit_torch.__version__}"
+    assert re.fullmatch(r"\d+\.\d+\.\d+(\.dev\d+|rc\d+)?", himit_torch.__version__)
+
+
 # ------------------------------------------------------------------------------------ demo
 def test_demo_writes_demonstrations_and_figure(capsys, tmp_path):
     out_dir = tmp_path / "demo"

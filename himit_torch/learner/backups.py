@@ -41,7 +41,7 @@ __all__ = [
 def option_backup(
     reward: torch.Tensor, weights: torch.Tensor, successor_values: torch.Tensor
 ) -> torch.Tensor:
-    """Option value with a multi-time model (Sutton, Precup & Singh 1999; paper Sec. II):
+    """Option value with a multi-time model (Sutton, Precup & Singh 1999; paper Sec. II)::
 
         Q(s, o) = r(s, o) + Σ_{s'} p^o_{ss'} V(s')
 
@@ -49,6 +49,14 @@ def option_backup(
         reward: ``[...]`` expected discounted reward ``r(s, o)``.
         weights: ``[..., K]`` multi-time weights ``p^o_{ss'} = Σ_k p(s', k) γ^k``.
         successor_values: ``[..., K]`` ``V(s')`` of the same successors.
+
+    An option that earns −0.02 and ends in ``s'₁`` after 2 steps with probability 0.5 or in
+    ``s'₂`` after 3 steps otherwise (γ = 0.9: weights 0.5·0.81 and 0.5·0.729):
+
+    >>> import torch
+    >>> q = option_backup(torch.tensor(-0.02), torch.tensor([0.405, 0.3645]), torch.tensor([1.0, -1.0]))
+    >>> round(float(q), 4)
+    0.0205
     """
     if weights.shape != successor_values.shape or weights.shape[:-1] != reward.shape:
         raise ValueError(
@@ -67,7 +75,7 @@ def option_backup_edges(
     successor_values: torch.Tensor,
 ) -> torch.Tensor:
     """:func:`option_backup` over the sparse form the models keep, a COO edge list batched over
-    runs (Sutton, Precup & Singh 1999; paper Sec. II):
+    runs (Sutton, Precup & Singh 1999; paper Sec. II)::
 
         Q[b, m] = r[b, m] + Σ_{e : runs_e = b, rows_e = m} w_e V_e
 
@@ -99,7 +107,7 @@ def mentor_backup(
     successor_values: torch.Tensor,
     gamma: float,
 ) -> torch.Tensor:
-    """Value of duplicating the mentor's (unseen) action (Price & Boutilier 2003; paper eq. 1–2):
+    """Value of duplicating the mentor's (unseen) action (Price & Boutilier 2003; paper eq. 1–2)::
 
         R_m(s) + γ Σ_{s'} p_m(s' | s) V(s')
 
@@ -136,7 +144,7 @@ def augmented_option_backup(
     mentor_term: torch.Tensor,
     mentor_available: torch.Tensor,
 ) -> torch.Tensor:
-    """The paper's eq. 2, the augmented Bellman equation with options:
+    """The paper's eq. 2, the augmented Bellman equation with options::
 
         V(s) = max( max_{o ∈ O_obs(s)} Q(s, o),  R_m(s) + γ Σ p_m(s'|s) V(s') )
 
@@ -161,6 +169,15 @@ def augmented_backup(
         mentor_available: ``[...]`` bool.
     Returns ``(V [...], mentor_won [...] bool)``: where the mentor term is available and above
     the own value.
+
+    >>> import torch
+    >>> value, won = augmented_backup(
+    ...     torch.tensor([-0.5, -0.5, -0.5]),  # own value
+    ...     torch.tensor([-0.2, -0.9, -0.2]),  # mentor term
+    ...     torch.tensor([True, True, False]),  # where the mentor was seen
+    ... )
+    >>> value, won
+    (tensor([-0.2000, -0.5000, -0.5000]), tensor([ True, False, False]))
     """
     return (
         torch.where(mentor_available, torch.maximum(own_value, mentor_term), own_value),
@@ -171,7 +188,7 @@ def augmented_backup(
 def primitives_only_backup(
     reward: torch.Tensor, probs: torch.Tensor, successor_values: torch.Tensor, gamma: float
 ) -> torch.Tensor:
-    """Bellman optimality with primitive actions (paper Sec. II, first equation):
+    """Bellman optimality with primitive actions (paper Sec. II, first equation)::
 
         V(s) = max_a r(s, a) + γ Σ_{s'} p(s' | s, a) V(s')
 
@@ -190,7 +207,7 @@ def augmented_primitive_backup(
     mentor_available: torch.Tensor,
     gamma: float,
 ) -> torch.Tensor:
-    """The paper's eq. 1 (implicit imitation, Price & Boutilier 2003), primitives only:
+    """The paper's eq. 1 (implicit imitation, Price & Boutilier 2003), primitives only::
 
         V(s) = R_obs(s) + γ max( max_a Σ p_obs(s'|s,a) V(s'),  Σ p_m(s'|s) V(s') )
 
@@ -286,8 +303,10 @@ def mentor_override(
     ``None``).
 
     Args:
-        observed: ``[...]`` bool; own_tries: ``[...]`` own options started at ``s`` (may be
-        ``None`` when ``override_after`` is ``None``).
+        observed: ``[...]`` bool.
+        own_tries: ``[...]`` own options started at ``s`` (may be ``None`` when
+            ``override_after`` is ``None``).
+        override_after: ``LearnerConfig.mentor_override_after``.
     """
     if override_after is None:
         return observed

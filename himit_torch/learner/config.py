@@ -259,7 +259,7 @@ class LearnerConfig:
         choices=TIE_BREAKS,
         kernel=True,
         doc="""
-        Greedy ties (|ΔQ| ≤ 1e-12): ``"random"`` among the best, or ``"first"`` (lowest option).""",
+        Greedy ties (``|ΔQ| ≤ 1e-12``): ``"random"`` among the best, or ``"first"`` (lowest option).""",
     )
     window: int = setting(
         5000,

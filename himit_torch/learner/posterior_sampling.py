@@ -33,7 +33,7 @@ Tsang (2000) with a Marsaglia polar normal, and uses only ``+ − × ÷``, ``sqr
 rounded IEEE operations; :func:`exact_sqrt`, as torch's own CPU ``sqrt`` is not always) and
 the :func:`fixed_log` / :func:`fixed_exp` below, written out in that same arithmetic: libm's
 and torch's (SLEEF) ``log``/``exp`` differ in the last bit, which could flip an acceptance test.
-:mod:`himit_torch.learner.engines._kernel` repeats each function operation for operation, and sums over a row's edges in the same (descending edge id) order, so a run's sample
+:mod:`himit_torch.learner.engines.kernel` repeats each function operation for operation, and sums over a row's edges in the same (descending edge id) order, so a run's sample
 is bit for bit the same on either engine.
 """
 

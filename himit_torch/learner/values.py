@@ -1,6 +1,6 @@
 """The value caches: ``V`` and the cached numerators of eq. 2, the only writer of ``V``.
 
-The paper's eq. 2 (the augmented Bellman equation with options)
+The paper's eq. 2 (the augmented Bellman equation with options)::
 
     V(s) = max( max_o [ r(s,o) + Σ_s' p^o_ss' V(s') ],  R_m(s) + γ Σ_s' p_m(s'|s) V(s') )
 

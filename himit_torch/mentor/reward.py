@@ -96,8 +96,8 @@ class KnownReward:
     reward among the actions (and outcomes) that make the move with positive probability. That
     never overestimates: whatever action the learner uses to reproduce the move, it gets at least
     this much, so the mentor term stays the sound lower bound eq. 2 needs (the maximum or the mean
-    could promise more than the learner's action pays). :attr:`ambiguous_pairs` counts such
-    pairs and :attr:`note` says what was done, from construction on; ``repr`` shows it.
+    could promise more than the learner's action pays). ``ambiguous_pairs`` counts such
+    pairs and ``note`` says what was done, from construction on; ``repr`` shows it.
 
     A pair ``(s, s')`` that no action can produce raises ``ValueError`` (demonstrations of
     another world).

@@ -53,6 +53,8 @@ from himit_torch.validation import check_memory, json_depth
 __all__ = [
     "FORMAT_VERSION",
     "READABLE_FORMATS",
+    "SPARSE_MIN_ELEMENTS",
+    "SPARSE_MAX_DENSITY",
     "BatchShape",
     "CheckpointHeader",
     "Checkpoint",

@@ -54,6 +54,7 @@ from himit_torch.worlds.multirooms import MultiRooms
 __all__ = [
     "run_experiment",
     "run_experiments",
+    "run_world",
     "WorldResult",
     "PAPER",
 ]

@@ -69,7 +69,10 @@ __all__ = [
     "TASKS",
     "GymExperimentConfig",
     "run_gym_experiment",
+    "run_task",
+    "GreedyEvaluator",
     "greedy_value_gap",
+    "neutral_value",
     "mean_ci",
 ]
 

@@ -84,7 +84,7 @@ from himit_torch.validation import (
     read_text,
 )
 
-__all__ = ["SweepSpec", "Trial", "load_spec", "run_sweep", "summarize"]
+__all__ = ["SweepSpec", "Cell", "Trial", "load_spec", "run_sweep", "summarize"]
 
 _SPEC_KEYS = {
     "name",

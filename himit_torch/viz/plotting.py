@@ -60,7 +60,9 @@ LEARNER_COLOR = "#e8590c"
 DOORWAY_COLOR = "#f2c14e"
 START_COLOR = "#2b9348"
 GOAL_COLOR = "#d62828"
+#: Walls, in every picture.
 WALL_COLOR = "black"
+#: Cells with nothing to show (never visited, no value yet), named in a legend.
 NO_DATA_COLOR = "#c8c8c8"
 MAP_CMAP = "viridis"
 OPTIMUM_COLOR = "0.2"

@@ -44,39 +44,47 @@ COLORS = {
 class MultiRoomsEnv(gymnasium.Env[int, int]):
     """The paper's multirooms gridworld as a Gymnasium environment.
 
-    ## Description
+    **Description**
+
     An ``size × size`` grid split into ``rooms × rooms`` rooms by wall rows and columns at
     multiples of ``size / rooms``, joined by one doorway cell in the middle of each wall segment
     between two neighbouring rooms (``closed_doorways`` turn some back into wall). The agent starts
     at ``start`` (top-left by default) and must reach ``goal`` (bottom-right by default). See
     :class:`~himit_torch.worlds.multirooms.MultiRooms` for the layout and the argument checks.
 
-    ## Action Space
+    **Action Space**
+
     ``Discrete(4)``: 0 = north (row − 1), 1 = south (row + 1), 2 = west (col − 1), 3 = east
     (col + 1). With probability ``1 − slip`` the chosen action is executed; otherwise one of the
     other three directions, uniformly. A move into a wall or off the grid leaves the agent in place.
 
-    ## Observation Space
+    **Observation Space**
+
     ``Discrete(size * size)``: the cell index ``row * size + col``. Wall cells are never observed.
 
-    ## Rewards
+    **Rewards**
+
     ``goal_reward`` (+1.0) for entering the goal, ``step_reward`` (−0.01) for every other step.
 
-    ## Starting State
+    **Starting State**
+
     Always ``start`` (the world's ``start_state``).
 
-    ## Episode End
+    **Episode End**
+
     * Termination: the agent enters the goal.
     * Truncation: after ``max_episode_steps`` steps (10 000 when made through
       ``gymnasium.make``; pass ``max_episode_steps=`` to ``make`` to change it).
 
-    ## Arguments
-    The keyword arguments of :class:`~himit_torch.worlds.multirooms.MultiRooms` (``size``, ``rooms``, ``slip``,
-    ``start``, ``goal``, ``closed_doorways``, ``step_reward``, ``goal_reward``, ``gamma``), plus
+    **Arguments**
+
+    The keyword arguments of :class:`~himit_torch.worlds.multirooms.MultiRooms` (``size``,
+    ``rooms``, ``slip``, ``start``, ``goal``, ``closed_doorways``, ``step_reward``, ``goal_reward``, ``gamma``), plus
     ``render_mode`` (``None``, ``"rgb_array"`` or ``"ansi"``) and ``cell_pixels``, the side of
     one cell in the ``"rgb_array"`` image.
 
-    ## True model
+    **True model**
+
     ``env.unwrapped.world`` is the :class:`MultiRooms`; :meth:`transition_model` and
     :meth:`reward_model` return its ``P [A, S, S]`` and ``R [S, A]``, and :attr:`P` holds the same
     model in the toy-text format ``P[s][a] = [(prob, next_state, reward, terminated), ...]``.

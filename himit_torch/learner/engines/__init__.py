@@ -43,7 +43,7 @@ def make_engine(name: str, state: BatchState):
     """The engine ``name`` (``"auto"``, ``"numba"`` or ``"torch"``) for a batch's ``state``.
 
     ``"auto"`` picks the compiled engine on a CPU when Numba is installed and the world has a
-    :meth:`dynamics_table`, the torch engine otherwise.
+    ``dynamics_table()``, the torch engine otherwise.
     """
     if name not in ENGINES:
         raise ValueError(f"engine={name!r}: use one of {ENGINES}")

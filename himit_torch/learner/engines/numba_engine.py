@@ -68,7 +68,7 @@ def _lock_path() -> Path:
 
 @contextmanager
 def cache_lock() -> Iterator[None]:
-    """Hold the kernel cache's lock: an ``flock`` on :func:`_lock_path` between processes, and
+    """Hold the kernel cache's lock: an ``flock`` on ``_lock_path()`` between processes, and
     re-entrant within this one (a thread already holding it goes on; other threads wait).
     Without ``fcntl`` only this process's threads are held: each process compiles on its own."""
     global _depth

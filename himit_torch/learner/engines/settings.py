@@ -1,9 +1,10 @@
 """The compiled engine's settings: one named tuple of scalars, built from a batch's state.
 
-Its fields are generated from the config schema: every :class:`~himit_torch.learner.config.
-LearnerConfig` field declared ``kernel=True`` (:data:`~himit_torch.learner.config.KERNEL_FIELDS`,
-encoded by :func:`~himit_torch.learner.config.kernel_fields`: ``None`` as the field's declared
-sentinel, a choice as its index in its choices), then the few values the kernel derives from the
+Its fields are generated from the config schema: every
+:class:`~himit_torch.learner.config.LearnerConfig` field declared ``kernel=True``
+(:data:`~himit_torch.learner.config.KERNEL_FIELDS`, encoded by
+:func:`~himit_torch.learner.config.kernel_fields`: ``None`` as the field's declared sentinel, a
+choice as its index in its choices), then the few values the kernel derives from the
 rest of the state (:data:`DERIVED`). A new setting the kernel reads is one ``kernel=True`` in its
 declaration; nothing here is listed by hand but the derived values.
 

@@ -1,5 +1,5 @@
 """The sweep's indexed max-heap over one run's priorities (a :class:`.arrays.SweepArrays`):
-the torch queue (:class:`himit_torch.learner.prioritized_sweeping.PriorityQueue`) as a heap."""
+the torch queue (:class:`himit_torch.learner.prioritized_sweeping.BlockPriorityQueue`) as a heap."""
 
 from __future__ import annotations
 
