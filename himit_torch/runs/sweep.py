@@ -33,10 +33,11 @@ Ray's workers add to their node's own (Ray's ``RAY_worker_niceness``, sent to th
 ``runtime_env``). Ray's default is 15 (measured on Ray 2.60: ``os.nice(0)`` in a task), chosen
 to keep its own control processes responsive when workers flood the CPUs (ray-project/ray#24928).
 A sweep does not flood them: one trial per CPU that Ray counts, each engine given its share of
-the cores. At 15 its trials yield to every ordinary process, so on a shared machine the same
-sweep runs slower on Ray than in-process (``--no-ray``) or by ``himit run``, which run at the
-niceness they were started with; the default 0 runs them as those do. Set 10–19 to let other
-work on the machines go first. It does not change results, nor affect the in-process runner.
+the cores. At 15 its trials yield to every ordinary process (niceness 0) that competes for the
+same cores, so where other work keeps them busy the same sweep runs far slower on Ray than
+in-process (``--no-ray``) or by ``himit run``, which run at the niceness they were started with;
+the default 0 runs them as those do. Set 10–19 to let other work on the machines go first. It
+does not change results, nor affect the in-process runner.
 
 A **trial** is one world × one group of seeds of one cell: one learner batch, run by
 :func:`~himit_torch.runs.experiment.run_experiment` into its own run directory
