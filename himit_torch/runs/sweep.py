@@ -56,7 +56,7 @@ rerun ends with exactly the tables of an uninterrupted one. At the end the sweep
 * ``sweep.json`` — the spec as resolved (cells, trials), the commit and engines that ran.
 
 **Where the trials run: Ray core, not Ray Tune.** With Ray importable, trials are Ray tasks
-(``ray.init()`` starts a local Ray; ``address=`` joins a cluster, e.g. ``"auto"``, sending the
+(a local Ray of the sweep's own; ``address=`` or ``RAY_ADDRESS`` joins a cluster, sending the
 token a cluster with token authentication wants: :mod:`himit_torch.runs.ray_cluster`, and
 ``docs/cluster.md`` for a cluster's commands), one CPU each, the finished ones collected as they
 end. Ctrl-C (``KeyboardInterrupt``) cancels the tasks still running (``ray.cancel(force=True)``:
@@ -480,7 +480,7 @@ def _execute(
         where = f"local, {n} CPUs"
         ray.init(
             # "local": a Ray of its own, even where `ray start` left a cluster's address in
-            # /tmp/ray for a bare ray.init() to join (joining one takes --address)
+            # /tmp/ray for a bare ray.init() to join (joining one takes --address or RAY_ADDRESS)
             address="local",
             num_cpus=n,
             include_dashboard=False,
