@@ -91,6 +91,19 @@ def _int_at_least(minimum: int) -> Callable[[str], int]:
     return parse
 
 
+def _int_in_range(minimum: int, maximum: int) -> Callable[[str], int]:
+    """An argparse type: a whole number from ``minimum`` to ``maximum``."""
+    at_least = _int_at_least(minimum)
+
+    def parse(text: str) -> int:
+        value = at_least(text)
+        if value > maximum:
+            raise argparse.ArgumentTypeError(f"must be ≤ {maximum}, got {value}")
+        return value
+
+    return parse
+
+
 _positive_int = _int_at_least(1)
 _nonnegative_int = _int_at_least(0)
 
@@ -701,9 +714,21 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         print(f"{len(spec.cells)} cells, {len(spec.trials(out))} trials")
         return 0
     t0 = time.perf_counter()
-    record = run_sweep(
-        spec, out, address=args.address, use_ray=not args.no_ray, workers=args.workers
-    )
+    try:
+        record = run_sweep(
+            spec,
+            out,
+            address=args.address,
+            use_ray=not args.no_ray,
+            workers=args.workers,
+            worker_niceness=args.worker_niceness,
+        )
+    except KeyboardInterrupt:
+        _fail(
+            f"interrupted: the finished trials are kept in {out}; the same command resumes "
+            "the others from their checkpoints",
+            status=130,
+        )
     print(
         f"done in {time.perf_counter() - t0:.0f} s (commit {', '.join(record['commit'])}, engine "
         f"{', '.join(record['engine'])}): {out / 'summary.md'}, {out / 'results.csv'}"
@@ -726,7 +751,10 @@ def _add_sweep(sub: argparse.ArgumentParser) -> None:
         "into it skips finished trials and resumes interrupted ones",
     )
     sub.add_argument(
-        "--address", help="join this Ray cluster (e.g. auto) instead of starting a local Ray"
+        "--address",
+        help="join this Ray cluster (host:port, or auto) instead of starting a local Ray; a "
+        "cluster's token is read as Ray reads it (RAY_AUTH_TOKEN, RAY_AUTH_TOKEN_PATH, "
+        "~/.ray/auth_token): docs/cluster.md",
     )
     sub.add_argument(
         "--no-ray",
@@ -737,6 +765,13 @@ def _add_sweep(sub: argparse.ArgumentParser) -> None:
         "--workers",
         type=_positive_int,
         help="trials at a time on a local Ray (default: one per core)",
+    )
+    sub.add_argument(
+        "--worker-niceness",
+        type=_int_in_range(0, 19),
+        metavar="N",
+        help="niceness of Ray's workers, 0-19 (default: the spec's worker_niceness, else 0; "
+        "Ray's own is 15, which lets every other process on a shared machine go first)",
     )
     sub.add_argument(
         "--dry-run",
@@ -858,6 +893,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         # is the machine failing on the right path: exit 1, one line, so scripts can tell a
         # retry-worthy fault from a command to fix.
         _fail(err, status=1)
+    except KeyboardInterrupt:  # Ctrl-C: one line, the shell's status for SIGINT
+        _fail("interrupted", status=130)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -9,6 +9,7 @@ A sweep is described by a spec file (TOML, or JSON with the same keys)::
     seeds_per_trial = 10            # seeds run together in one batch (default: all of them)
     worlds = [40]                   # world sizes, each its own trial (default: the base's sizes)
     design = "factorial"            # or "one-at-a-time" (see below)
+    worker_niceness = 0             # Ray workers' nice increment, 0–19 (default 0; see below)
 
     [set]                           # settings of every cell
     agents = ["imitation", "options", "primitives"]
@@ -27,6 +28,17 @@ field of :class:`~himit_torch.runs.config.ExperimentConfig` but those the sweep 
 anything runs: an unknown key or setting, or a value the configurations refuse, is a
 ``ValueError`` naming it (``himit sweep``: one line, exit status 2).
 
+``worker_niceness`` (``himit sweep --worker-niceness``, which overrides the spec) is the niceness
+Ray's workers add to their node's own (Ray's ``RAY_worker_niceness``, sent to them in the job's
+``runtime_env``). Ray's default is 15 (measured on Ray 2.60: ``os.nice(0)`` in a task), chosen
+to keep its own control processes responsive when workers flood the CPUs (ray-project/ray#24928).
+A sweep does not flood them: one trial per CPU that Ray counts, each engine given its share of
+the cores. At 15 its trials yield to every ordinary process (niceness 0) that competes for the
+same cores, so where other work keeps them busy the same sweep runs far slower on Ray than
+in-process (``--no-ray``) or by ``himit run``, which run at the niceness they were started with;
+the default 0 runs them as those do. Set 10–19 to let other work on the machines go first. It
+does not change results, nor affect the in-process runner.
+
 A **trial** is one world × one group of seeds of one cell: one learner batch, run by
 :func:`~himit_torch.runs.experiment.run_experiment` into its own run directory
 ``<out>/trials/<cell>/world<N>_seeds<a>-<b>/`` with its checkpoints. Rerunning the sweep skips
@@ -44,8 +56,12 @@ rerun ends with exactly the tables of an uninterrupted one. At the end the sweep
 * ``sweep.json`` — the spec as resolved (cells, trials), the commit and engines that ran.
 
 **Where the trials run: Ray core, not Ray Tune.** With Ray importable, trials are Ray tasks
-(``ray.init()`` starts a local Ray; ``address=`` joins a cluster, e.g. ``"auto"``), one CPU each,
-the finished ones collected as they end. Without Ray they run one after another in this process
+(a local Ray of the sweep's own; ``address=`` or ``RAY_ADDRESS`` joins a cluster, sending the
+token a cluster with token authentication wants: :mod:`himit_torch.runs.ray_cluster`, and
+``docs/cluster.md`` for a cluster's commands), one CPU each, the finished ones collected as they
+end. Ctrl-C (``KeyboardInterrupt``) cancels the tasks still running (``ray.cancel(force=True)``:
+their workers end at once rather than run their batch out) and returns within seconds; a rerun
+resumes them from their checkpoints. Without Ray they run one after another in this process
 (the sweep says so in one line). Measured on the 2-core development machine (Python 3.11,
 ``pip install ray==2.60.0``): Ray core adds 250 MB to the environment and installs in 9 s;
 ``import ray`` takes 0.5–0.7 s. Ray Tune adds pandas, pyarrow, pydantic and tensorboardX on top:
@@ -94,12 +110,15 @@ _SPEC_KEYS = {
     "seeds_per_trial",
     "worlds",
     "design",
+    "worker_niceness",
     "set",
     "grid",
 }
 _DESIGNS = ("factorial", "one-at-a-time")
 #: ExperimentConfig fields the sweep owns (set through the spec's own keys).
 _OWNED = {"name", "sizes", "seeds", "first_seed"}
+#: Ray workers' niceness unless the spec or --worker-niceness says otherwise (module docstring).
+WORKER_NICENESS = 0
 #: Steps over which runs.csv sums the "late" goals (the audit's "last 50k steps").
 LATE_STEPS = 50_000
 
@@ -144,6 +163,7 @@ class SweepSpec:
     design: str
     factors: dict  # factor → list of levels
     cells: tuple[Cell, ...]
+    worker_niceness: int = WORKER_NICENESS
 
     def trials(self, out: Path) -> list[Trial]:
         """Every trial, the largest worlds first (they take longest)."""
@@ -285,12 +305,13 @@ def load_spec(path: str | os.PathLike) -> SweepSpec:
             )
         base = load_config(config_path)
 
-    def whole(key, default, minimum):
-        return as_int(f"{where}: {key}", data.get(key, default), minimum, COUNT_MAX)
+    def whole(key, default, minimum, maximum=COUNT_MAX):
+        return as_int(f"{where}: {key}", data.get(key, default), minimum, maximum)
 
     seeds = whole("seeds", base.seeds, 1)
     first_seed = whole("first_seed", base.first_seed, 0)
     per_trial = whole("seeds_per_trial", seeds, 1)
+    niceness = whole("worker_niceness", WORKER_NICENESS, 0, 19)
     worlds = data.get("worlds", list(base.sizes))
     if not isinstance(worlds, list) or not worlds:
         raise ValueError(f"{where}: worlds={worlds!r} must be a non-empty list of world sizes")
@@ -357,6 +378,7 @@ def load_spec(path: str | os.PathLike) -> SweepSpec:
         design=design,
         factors=factors,
         cells=tuple(cells),
+        worker_niceness=niceness,
     )
 
 
@@ -394,7 +416,12 @@ def run_trial(config_json: str, run_dir: str, resume: bool, threads: int | None 
 
 
 def _execute(
-    todo: list[tuple[Trial, str]], address: str | None, use_ray: bool, workers: int | None, log
+    todo: list[tuple[Trial, str]],
+    address: str | None,
+    use_ray: bool,
+    workers: int | None,
+    log,
+    niceness: int = WORKER_NICENESS,
 ) -> None:
     """Run the unfinished trials: Ray tasks when Ray is importable (and wanted), else here."""
     ray: Any = None
@@ -421,12 +448,32 @@ def _execute(
             )
         return
     cores = os.cpu_count() or 1
+    # every worker of this job starts at this niceness (Ray's own job supervisor sets its
+    # workers' the same way: RAY_worker_niceness in the runtime_env, ray-project/ray#34727)
+    job_env = {"env_vars": {"RAY_worker_niceness": str(niceness)}}
+    address = address or os.environ.get("RAY_ADDRESS") or None  # Ray's own variable
     if address is None:
         n = workers or cores
-        ray.init(num_cpus=n, include_dashboard=False, log_to_driver=True, configure_logging=False)
+        where = f"local, {n} CPUs"
+        ray.init(
+            # "local": a Ray of its own, even where `ray start` left a cluster's address in
+            # /tmp/ray for a bare ray.init() to join (joining one takes --address or RAY_ADDRESS)
+            address="local",
+            num_cpus=n,
+            include_dashboard=False,
+            log_to_driver=True,
+            configure_logging=False,
+            runtime_env=job_env,
+        )
     else:
-        ray.init(address=address, include_dashboard=False, configure_logging=False)
+        from himit_torch.runs.ray_cluster import prepare_to_join
+
+        where = f"{address}, {prepare_to_join(address)}"
+        ray.init(
+            address=address, include_dashboard=False, configure_logging=False, runtime_env=job_env
+        )
         n = workers or int(ray.cluster_resources().get("CPU", 1))
+    pending: list = []
     try:
         # each task's compiled engine gets its share of a machine's cores
         threads = max(1, cores // min(n, len(todo))) if address is None else None
@@ -436,7 +483,7 @@ def _execute(
             for t, s in todo
         }
         log(
-            f"himit sweep: Ray {ray.__version__} ({'local, ' + str(n) + ' CPUs' if address is None else address}): "
+            f"himit sweep: Ray {ray.__version__} ({where}; workers at nice {niceness}): "
             f"{len(todo)} trials as tasks"
         )
         pending, k = list(refs), 0
@@ -449,6 +496,16 @@ def _execute(
                 f"[{k}/{len(todo)}] {t.run_dir.parent.name}/{t.run_dir.name} done "
                 f"({time.perf_counter() - start:.0f} s)"
             )
+    except BaseException:
+        # Ctrl-C (KeyboardInterrupt) or a failed trial: end the other trials now rather than let
+        # them run their batch out. force=True ends their workers at once; what a rerun resumes
+        # from is each trial's last checkpoint, written whole and then renamed into place.
+        for ref in pending:
+            try:
+                ray.cancel(ref, force=True)
+            except Exception:  # already finished, or the cluster is going away: nothing to end
+                pass
+        raise
     finally:
         ray.shutdown()
 
@@ -649,10 +706,21 @@ def run_sweep(
     address: str | None = None,
     use_ray: bool = True,
     workers: int | None = None,
+    worker_niceness: int | None = None,
     log=None,
 ) -> dict:
     """Run every unfinished trial of ``spec`` into ``out`` (skipping finished ones, resuming
-    started ones), then write the tables. Returns what ``sweep.json`` holds."""
+    started ones), then write the tables. Returns what ``sweep.json`` holds.
+
+    ``worker_niceness`` (0–19) overrides the spec's for Ray's workers (module docstring).
+
+    Raises:
+        ValueError: the spec is invalid, a finished trial holds another configuration, or
+            ``worker_niceness`` is out of range; :class:`~himit_torch.runs.ray_cluster.
+            ClusterAuthError` (a ``ValueError``): the cluster wants a token that is not set.
+        ConnectionError: no Ray cluster answers at ``address``.
+        KeyboardInterrupt: Ctrl-C; the running trials are cancelled, a rerun resumes them.
+    """
     if not isinstance(spec, SweepSpec):
         spec = load_spec(spec)
     if log is None:
@@ -660,6 +728,8 @@ def run_sweep(
         def log(line):
             print(line, file=sys.stderr, flush=True)
 
+    if worker_niceness is not None:
+        spec = replace(spec, worker_niceness=as_int("worker_niceness", worker_niceness, 0, 19))
     out = Path(out)
     trials = spec.trials(out)
     states = [(t, _trial_state(t)) for t in trials]
@@ -670,7 +740,7 @@ def run_sweep(
         f"{sum(s == 'started' for _, s in todo)} to resume, {sum(s == 'new' for _, s in todo)} new"
     )
     out.mkdir(parents=True, exist_ok=True)
-    _execute(todo, address, use_ray, workers, log)
+    _execute(todo, address, use_ray, workers, log, spec.worker_niceness)
     provenance = summarize(spec, out)
     record = {
         "name": spec.name,
@@ -679,6 +749,7 @@ def run_sweep(
         "seeds": spec.seeds,
         "first_seed": spec.first_seed,
         "worlds": list(spec.worlds),
+        "worker_niceness": spec.worker_niceness,
         "factors": {k: [_show(v) for v in vs] for k, vs in spec.factors.items()},
         "cells": [
             {

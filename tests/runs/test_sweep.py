@@ -99,6 +99,9 @@ def test_designs_give_the_cells_named_by_their_settings(tmp_path):
         ("[grid]\nlearner.backups = [10, 10]", "two cells are the same"),
         ("[set]\nworld = {size = 3}", "only 'learner' settings nest"),
         ("seeds = [", "not valid TOML"),
+        ("worker_niceness = 20", "worker_niceness=20 must be a whole number from 0 to 19"),
+        ("worker_niceness = -1", "worker_niceness=-1 must be a whole number from 0 to 19"),
+        ('worker_niceness = "low"', "worker_niceness='low' must be a whole number"),
     ],
 )
 def test_bad_specs_are_refused_naming_what_is_wrong(tmp_path, text, message):
@@ -149,8 +152,37 @@ def test_help_documents_the_spec_file(capsys):
         "learner.<field>",
         "--address",
         "--no-ray",
+        "--worker-niceness",
+        "worker_niceness",
+        "Ray's default is 15",
     ):
-        assert needle in out
+        assert needle in " ".join(out.split())
+
+
+def test_worker_niceness_from_the_spec_or_the_flag_checked_like_the_other_settings(
+    tmp_path, capsys, monkeypatch
+):
+    assert load_spec(write_spec(tmp_path)).worker_niceness == 0  # the default (module docstring)
+    path = tmp_path / "nice.toml"
+    path.write_text("worker_niceness = 10\n" + write_spec(tmp_path).read_text())
+    assert load_spec(path).worker_niceness == 10
+    for flag in ("20", "-1", "low"):
+        with pytest.raises(SystemExit) as exit_:
+            main(["sweep", str(path), "--worker-niceness", flag])
+        err = capsys.readouterr().err
+        assert exit_.value.code == 2 and err.count("\n") == 1 and "--worker-niceness" in err
+    with pytest.raises(ValueError, match="worker_niceness=25 must be a whole number from 0 to 19"):
+        run_sweep(path, tmp_path / "out", worker_niceness=25)
+    # the flag overrides the spec, and sweep.json records what ran
+    no_ray(monkeypatch)
+    record = run_sweep(
+        write_spec(tmp_path, steps=1000, grid=""),
+        tmp_path / "out",
+        worker_niceness=3,
+        log=lambda line: None,
+    )
+    assert record["worker_niceness"] == 3
+    assert json.loads((tmp_path / "out" / "sweep.json").read_text())["worker_niceness"] == 3
 
 
 def test_in_process_sweep_without_ray_says_so_and_writes_the_tables(tmp_path, monkeypatch):
@@ -242,47 +274,139 @@ import sys
 from himit_torch.runs.sweep import run_sweep
 run_sweep(sys.argv[1], sys.argv[2], use_ray=False)
 """
+#: The folder holding the package under test, first on the children's path (so that a child runs
+#: this checkout's code, not another installed copy).
+PACKAGE_ROOT = str(Path(__file__).resolve().parents[2])
+
+
+def child_env(**extra: str) -> dict:
+    path = os.pathsep.join(p for p in (PACKAGE_ROOT, os.environ.get("PYTHONPATH")) if p)
+    return dict(os.environ, OMP_NUM_THREADS="1", PYTHONPATH=path, **extra)
+
+
+def sigint_as_python_sets_it() -> None:
+    """In a child: SIGINT back to its default, so that Python turns it into KeyboardInterrupt
+    (a child of a shell's background job starts with SIGINT ignored, and Python leaves it so)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
+def session_processes(session: int) -> list[int]:
+    """The live processes of ``session`` (their ids), never this one's."""
+    if session == os.getsid(0):
+        raise ValueError("not this process's own session")
+    found = []
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                if os.getsid(int(entry.name)) == session and "Z" not in _state(entry):
+                    found.append(int(entry.name))
+            except (ProcessLookupError, PermissionError):
+                pass
+    return found
+
+
+def _state(entry: Path) -> str:
+    try:
+        return entry.joinpath("stat").read_text().rsplit(")", 1)[1].split()[0]
+    except (OSError, IndexError):
+        return "Z"
+
+
+def wait_until(condition, seconds: float) -> bool:
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        if condition():
+            return True
+        time.sleep(0.05)
+    return condition()
+
+
+def stop_session(session: int, grace: float = 5.0) -> None:
+    """End every process of ``session`` (one this test started): SIGTERM, then SIGKILL."""
+    for sig in (signal.SIGTERM, signal.SIGKILL, signal.SIGKILL):
+        pids = session_processes(session)
+        if not pids:
+            return
+        for pid in pids:
+            try:
+                os.kill(pid, sig)
+            except ProcessLookupError:
+                pass
+        wait_until(lambda: not session_processes(session), grace)
 
 
 @pytest.mark.slow  # (fast: the skip/resume of finished trials, tests above)
-def test_a_sweep_killed_mid_way_and_rerun_gives_the_uninterrupted_tables(tmp_path):
-    # the torch engine: slow enough per window to be killed inside a trial
+@pytest.mark.parametrize("how", ["SIGKILL in-process", "Ctrl-C on Ray"])
+def test_a_sweep_stopped_mid_way_and_rerun_gives_the_uninterrupted_tables(tmp_path, how):
+    """Killed (SIGKILL, the in-process runner) or interrupted (SIGINT to its process group, as
+    Ctrl-C in a terminal sends it, on a local Ray): a rerun resumes to the uninterrupted tables.
+    On Ray the sweep ends within seconds, saying so in one line, its tasks cancelled."""
+    on_ray = how == "Ctrl-C on Ray"
+    if on_ray:
+        pytest.importorskip("ray")
+        if not sys.platform.startswith("linux"):
+            pytest.skip("finds the sweep's processes in /proc")
+    # the torch engine: slow enough per window to be stopped inside a trial
     spec = write_spec(tmp_path, steps=3000, engine="torch", grid="")  # one cell, two trials
-    env = dict(os.environ, OMP_NUM_THREADS="1")
+    env = child_env()
     whole = subprocess.Popen(
         [sys.executable, "-c", _CHILD, str(spec), str(tmp_path / "whole")],
         env=env,
         stderr=subprocess.DEVNULL,
     )
-    killed = tmp_path / "killed"
+    stopped = tmp_path / "stopped"
+    if on_ray:  # one trial at a time: one CPU
+        command = [sys.executable, "-m", "himit_torch.cli", "sweep", str(spec), "--out"]
+        command += [str(stopped), "--workers", "1"]
+    else:
+        command = [sys.executable, "-c", _CHILD, str(spec), str(stopped)]
     child = subprocess.Popen(
-        [sys.executable, "-c", _CHILD, str(spec), str(killed)], env=env, stderr=subprocess.DEVNULL
-    )
-    # kill it once its second trial has saved a checkpoint: one trial done, one half-way
-    second = killed / "trials" / "baseline" / "world16_seeds2-2"
-    deadline = time.time() + 300
-    while (
-        child.poll() is None
-        and time.time() < deadline
-        and not list((second / "checkpoints").glob("world16.pt"))
-    ):
-        time.sleep(0.01)
-    assert child.poll() is None, "the sweep finished before it could be killed; lengthen it"
-    child.send_signal(signal.SIGKILL)
-    child.wait()
-    assert (killed / "trials" / "baseline" / "world16_seeds0-1" / "results.md").exists()
-    assert not (second / "results.md").exists() and not (killed / "results.csv").exists()
-    done = subprocess.run(
-        [sys.executable, "-c", _CHILD, str(spec), str(killed)],
+        command,
         env=env,
-        capture_output=True,
+        stderr=subprocess.PIPE if on_ray else subprocess.DEVNULL,
         text=True,
-        check=True,
+        start_new_session=True,  # its own process group, and Ray's processes with it
+        preexec_fn=sigint_as_python_sets_it,
     )
-    assert "1 finished, 1 to resume, 0 new" in done.stderr
+    try:
+        # stop it once a trial has saved a checkpoint but not finished: in-process, the second
+        # (the first done); on Ray, whichever runs
+        trials = stopped / "trials" / "baseline"
+        half_way = lambda: any(  # noqa: E731
+            (d / "checkpoints" / "world16.pt").exists() and not (d / "results.md").exists()
+            for d in (trials.glob("world16_*") if trials.exists() else [])
+            if on_ray or d.name == "world16_seeds2-2"
+        )
+        wait_until(lambda: child.poll() is not None or half_way(), 300)
+        assert child.poll() is None, "the sweep finished before it could be stopped; lengthen it"
+        if on_ray:
+            signalled = time.monotonic()
+            os.killpg(child.pid, signal.SIGINT)
+            _, err = child.communicate(timeout=60)
+            seconds = time.monotonic() - signalled
+            assert child.returncode == 130 and seconds < 15, (child.returncode, seconds, err)
+            last = err.strip().splitlines()[-1]
+            assert last.startswith("himit: error: interrupted:") and "resumes" in last
+            assert "Traceback" not in err
+            # the tasks cancelled, the local Ray gone with them
+            assert wait_until(lambda: not session_processes(child.pid), 10)
+        else:
+            child.send_signal(signal.SIGKILL)
+            child.wait()
+            assert (trials / "world16_seeds0-1" / "results.md").exists()
+        assert not (stopped / "results.csv").exists()
+        finished = sum((d / "results.md").exists() for d in trials.glob("world16_*"))
+        started = sum((d / "config.json").exists() for d in trials.glob("world16_*")) - finished
+        assert started >= 1, "no trial was stopped half-way"
+    finally:
+        if on_ray:
+            stop_session(child.pid)
+    done = subprocess.run(command, env=env, capture_output=True, text=True, check=True)
+    new = 2 - finished - started  # (on Ray, one CPU: the other trial may not have begun)
+    assert f"{finished} finished, {started} to resume, {new} new" in done.stderr
     assert whole.wait() == 0
     for table in ("results.csv", "runs.csv", "summary.csv"):
-        assert read(killed / table) == read(tmp_path / "whole" / table)
+        assert read(stopped / table) == read(tmp_path / "whole" / table)
 
 
 def test_intervals_match_scipy_by_hand():
