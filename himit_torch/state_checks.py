@@ -169,7 +169,7 @@ def same_plain(a: Any, b: Any) -> bool:
 def private_copy(value: torch.Tensor, device: torch.device) -> torch.Tensor:
     """A contiguous copy of a checked tensor on ``device``, sharing memory with nothing and
     tracking no gradient (what the engines, which work in place on it, need). CPU to CPU by
-    NumPy (see :func:`_bounds`: ≈ 10× faster than torch's copy in such a process)."""
+    NumPy (see ``_bounds``: ≈ 10× faster than torch's copy in such a process)."""
     value = value.detach().resolve_neg().resolve_conj()
     if value.device.type == "cpu" and torch.device(device).type == "cpu":
         return torch.from_numpy(np.array(value.numpy(), order="C", copy=True))

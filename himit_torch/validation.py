@@ -68,6 +68,7 @@ __all__ = [
     "as_float_array",
     "bool_vector",
     "as_device",
+    "DEVICE_TYPES",
     "usable_devices",
     "as_folder_name",
     "read_text",

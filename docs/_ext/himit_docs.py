@@ -134,19 +134,15 @@ class ApiDirective(SphinxDirective):
         return _parse(self, rst)
 
 
-#: The package's layers, top to bottom (pyproject.toml's import-linter contract).
-LAYERS = [
-    "cli",
-    "runs",
-    "viz",
-    "learner",
-    "mentor",
-    "exact",
-    "options",
-    "worlds",
-    "validation",
-    "rng",
-]
+def package_layers() -> list[str]:
+    """The package's layers, top to bottom, as pyproject.toml's import-linter contract declares
+    them (``"viz | learner"`` is two), so this page follows the contract that CI checks."""
+    import tomllib
+
+    pyproject = Path(__file__).resolve().parents[2] / "pyproject.toml"
+    contracts = tomllib.loads(pyproject.read_text())["tool"]["importlinter"]["contracts"]
+    layers = next(c["layers"] for c in contracts if c["type"] == "layers")
+    return [name.strip() for layer in layers for name in layer.split("|")]
 
 
 class ModulesDirective(SphinxDirective):
@@ -165,7 +161,15 @@ class ModulesDirective(SphinxDirective):
         }
         names = sorted(_submodules(package))
         rst: list[str] = []
-        for layer in LAYERS:
+        layers = package_layers()
+        placed = {n for n in names if n.split(".")[1:2] and n.split(".")[1] in layers}
+        for modname in sorted(set(names) - placed - {PACKAGE}):
+            logger.warning(
+                f"himit-modules: {modname} is in no layer of pyproject.toml's import-linter "
+                "contract",
+                location=self.get_location(),
+            )
+        for layer in layers:
             members = [n for n in names if n.split(".")[1:2] == [layer]]
             heading = f"``{PACKAGE}.{layer}``"
             rst += [heading, "-" * len(heading), ""]

@@ -29,7 +29,7 @@ import os
 import sys
 from pathlib import Path
 
-__all__ = ["ClusterAuthError", "find_token", "prepare_to_join"]
+__all__ = ["ClusterAuthError", "PROBE_SECONDS", "find_token", "prepare_to_join"]
 
 #: The GCS method asked (any would do: with token authentication on, every one needs the token).
 _PROBE_METHOD = "/ray.rpc.NodeInfoGcsService/GetClusterId"

@@ -716,8 +716,9 @@ def run_sweep(
 
     Raises:
         ValueError: the spec is invalid, a finished trial holds another configuration, or
-            ``worker_niceness`` is out of range; :class:`~himit_torch.runs.ray_cluster.
-            ClusterAuthError` (a ``ValueError``): the cluster wants a token that is not set.
+            ``worker_niceness`` is out of range;
+            :class:`~himit_torch.runs.ray_cluster.ClusterAuthError` (a ``ValueError``): the
+            cluster wants a token that is not set.
         ConnectionError: no Ray cluster answers at ``address``.
         KeyboardInterrupt: Ctrl-C; the running trials are cancelled, a rerun resumes them.
     """

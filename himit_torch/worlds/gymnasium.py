@@ -267,7 +267,7 @@ def _check_described_id(env_id: Any, kwargs: Any) -> None:
 def world_from_description(description: Mapping) -> TableWorld:
     """Rebuild a :func:`from_gymnasium` world from its ``describe()`` dict (the id and kwargs),
     refusing it if the model's fingerprint differs (another Gymnasium version, say). The
-    description comes from a file, so its id must pass :func:`_check_described_id` first: it
+    description comes from a file, so its id must pass ``_check_described_id`` first: it
     never imports a module."""
     if description.get("id") is None:
         raise ValueError(
