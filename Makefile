@@ -54,7 +54,7 @@ lint: $(STAMP)
 
 # the slow tests but the multi-seed statistical ones (CI runs make test, then this)
 test-slow: $(STAMP)
-	$(PYTEST) -m "slow and not statistical" --durations=15
+	$(PYTEST) -m "slow and not statistical and not extended" --durations=15
 
 test-all: $(STAMP)
 	$(PYTEST) -m "slow or not slow"

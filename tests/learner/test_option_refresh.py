@@ -18,7 +18,7 @@ pytest.importorskip("numba")
 ENGINES = ["numba", "torch"]
 #: The tests that run each engine on its own: the torch engine's runs (minutes of eager ticks) go
 #: under -m slow; test_a_swap_moves_runs_between_engines_and_variants keeps it in the fast suite.
-EACH_ENGINE = ["numba", pytest.param("torch", marks=pytest.mark.slow)]
+EACH_ENGINE = ["numba", pytest.param("torch", marks=[pytest.mark.slow, pytest.mark.extended])]
 CONFIG = LearnerConfig(window=1000)
 MIX = ["imitation", "options", "imitation_confident", "primitives", "imitation_primitives"]
 

@@ -178,7 +178,10 @@ class _HeavyDemonstrations:
 
 @pytest.mark.parametrize(
     "engine",
-    ["numba", pytest.param("torch", marks=pytest.mark.slow)],  # (the engines' parity
+    [
+        "numba",
+        pytest.param("torch", marks=[pytest.mark.slow, pytest.mark.extended]),
+    ],  # (the engines' parity
 )  # tests hold torch equal to numba for sampling runs in the fast suite)
 def test_with_counts_to_infinity_sampling_is_the_mean_agent(world12, engine):
     """Exact option models and a mentor model of 1e30 pseudo-counts: the posterior is a point
@@ -248,7 +251,9 @@ def test_a_psrl_run_really_samples(world12):
 
 
 # (the torch engine's run: -m slow; the fast suite's parity runs check its sampling)
-@pytest.mark.parametrize("engine", ["numba", pytest.param("torch", marks=pytest.mark.slow)])
+@pytest.mark.parametrize(
+    "engine", ["numba", pytest.param("torch", marks=[pytest.mark.slow, pytest.mark.extended])]
+)
 def test_checkpoint_resume_continues_the_same_sampling_run(world12, engine):
     make = lambda: _psrl(  # noqa: E731
         world12,

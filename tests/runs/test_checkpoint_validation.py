@@ -359,6 +359,7 @@ def test_bounds_checking_is_live_in_this_process(world8):
 
 
 @pytest.mark.slow
+@pytest.mark.extended  # (it compiles every kernel afresh, with bounds checks: minutes)
 def test_no_planted_value_reaches_the_kernel(tmp_path):
     """This file's tests once more, in a process whose kernels are compiled afresh (a cache of
     its own) with ``NUMBA_BOUNDSCHECK=1``."""

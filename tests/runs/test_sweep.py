@@ -255,7 +255,10 @@ def test_a_changed_spec_does_not_reuse_finished_trials(tmp_path, monkeypatch):
         run_sweep(write_spec(tmp_path, steps=2000), out, log=lambda line: None)
 
 
-@pytest.mark.slow  # (starting a local Ray takes long; the in-process sweep is in the fast suite)
+# (starting a local Ray takes long; the in-process sweep is in the fast suite, and CI runs the
+# same comparison on a real cluster: test_sweep_cluster.py)
+@pytest.mark.slow
+@pytest.mark.extended
 def test_tiny_sweep_on_a_local_ray_equals_the_in_process_one(tmp_path, monkeypatch):
     pytest.importorskip("ray")
     spec = load_spec(write_spec(tmp_path, grid='[grid]\nlearner.tie_break = ["random", "first"]'))
@@ -336,7 +339,10 @@ def stop_session(session: int, grace: float = 5.0) -> None:
 
 
 @pytest.mark.slow  # (fast: the skip/resume of finished trials, tests above)
-@pytest.mark.parametrize("how", ["SIGKILL in-process", "Ctrl-C on Ray"])
+@pytest.mark.parametrize(
+    "how",  # (CI interrupts a sweep on a real cluster: test_sweep_cluster.py)
+    ["SIGKILL in-process", pytest.param("Ctrl-C on Ray", marks=pytest.mark.extended)],
+)
 def test_a_sweep_stopped_mid_way_and_rerun_gives_the_uninterrupted_tables(tmp_path, how):
     """Killed (SIGKILL, the in-process runner) or interrupted (SIGINT to its process group, as
     Ctrl-C in a terminal sends it, on a local Ray): a rerun resumes to the uninterrupted tables.

@@ -3,8 +3,10 @@
 The compiled engine follows the torch engine operation for operation, so equality is checked
 exactly (values to 1e-9 is what is promised; bit-for-bit is what holds on a CPU).
 
-Each parity run is about 1000 ticks in the fast suite; the long runs (3000-5000 ticks) and the
-40×40 world are the same checks under ``-m slow`` (``make test-all``)."""
+Each parity run is about 1000 ticks in the fast suite. A long run (3000–5000 ticks, and the 40×40
+world) is checked in two ways: under ``-m slow`` (CI) its last 300 ticks on both engines, the
+torch engine starting from the compiled engine's state (:func:`fast_and_long`); under
+``-m extended`` (``make test-all``) all its ticks on both engines from tick 0."""
 
 import numpy as np
 import pytest
@@ -25,13 +27,49 @@ from himit_torch.learner.engines import make_engine
 
 pytest.importorskip("numba")
 
-#: The fast suite's parity runs (about 1000 ticks), and the long ones marked slow.
-FAST, LONG = 1000, 5000
+#: The fast suite's parity runs (about 1000 ticks), the long ones (marked slow), and the ticks
+#: of a long run that CI checks on both engines (its late part, :func:`fast_and_long`).
+FAST, LONG, LATE = 1000, 5000, 300
 
 
 def fast_and_long(long: int = LONG) -> list:
-    """Tick counts to parametrize a parity run with: ``FAST`` and, under ``-m slow``, ``long``."""
-    return [FAST, pytest.param(long, marks=pytest.mark.slow, id=f"{long}")]
+    """Tick counts to parametrize a parity run with: ``FAST``; under ``-m slow`` (CI) the late
+    part of a ``long`` run, ``("late", long)``: the compiled engine runs the first ``long − LATE``
+    ticks, hands its state to the torch engine, and both engines run the last ``LATE`` — the
+    regime of grown edge lists, decayed ε and many goals, at a small part of the torch engine's
+    cost (its late ticks cost ≈ 3× its first ones); and under ``-m extended``
+    (``make test-all``) all ``long`` ticks on both engines from tick 0."""
+    return [
+        FAST,
+        pytest.param(("late", long), marks=pytest.mark.slow, id=f"late{long}"),
+        pytest.param(long, marks=[pytest.mark.slow, pytest.mark.extended], id=f"{long}"),
+    ]
+
+
+def length(ticks) -> int:
+    """The tick a parity run ends at (``ticks`` as :func:`fast_and_long` gives it)."""
+    return ticks[1] if isinstance(ticks, tuple) else ticks
+
+
+def advance(make, engine: str, ticks) -> Learner:
+    """``make(engine)`` run to :func:`length` ``(ticks)``: from tick 0 on ``engine``, or for
+    ``("late", n)`` on the torch engine, from the compiled engine's state at ``n − LATE`` (a
+    ``state_dict``, as :func:`test_state_dict_moves_between_engines` checks)."""
+    if isinstance(ticks, tuple) and engine == "torch":
+        early = make("numba")
+        early.run(length(ticks) - LATE)
+        learner = make("torch")
+        learner.load_state_dict(early.state_dict())
+        learner.run(LATE)
+        return learner
+    learner = make(engine)
+    learner.run(length(ticks))
+    return learner
+
+
+def both_engines(make, ticks) -> tuple[Learner, Learner]:
+    """``(numba, torch)``: ``make(engine)`` advanced on each engine (:func:`advance`)."""
+    return advance(make, "numba", ticks), advance(make, "torch", ticks)
 
 
 AGENT_MIX = ["imitation", "options", "primitives", "imitation_confident", "imitation_primitives"]
@@ -128,8 +166,8 @@ def test_engines_agree_on_the_small_world(world12, mentor_demos12, name, ticks):
     """Every agent variant under every setting family: identical on both engines."""
     options = learner_options(world12)
     seeds = list(range(len(AGENT_MIX)))
-    runs = {
-        engine: Learner(
+    numba, torch_run = both_engines(
+        lambda engine: Learner(
             world12,
             options,
             AGENT_MIX,
@@ -137,17 +175,17 @@ def test_engines_agree_on_the_small_world(world12, mentor_demos12, name, ticks):
             config=CONFIGS[name],
             demonstrations=mentor_demos12,
             engine=engine,
-        )
-        for engine in ("numba", "torch")
-    }
-    for learner in runs.values():
-        learner.run(ticks)
+        ),
+        ticks,
+    )
+    runs = {"numba": numba, "torch": torch_run}
     assert_same_run(runs["numba"], runs["torch"])
     assert int(runs["numba"].decisions.min()) > 300
     # The edge lists outgrew their first capacity on the way (the compiled engine stops, grows
     # them and goes on); the 40×40 run checks the same at the paper's size (-m slow).
     assert runs["numba"].model.capacity > 256
-    if ticks >= LONG or name != "priors_override_first":  # its first goal comes after 2000 ticks
+    # (priors_override_first's first goal comes after 2000 ticks)
+    if length(ticks) >= LONG or name != "priors_override_first":
         assert int(runs["numba"].goals.sum()) > 0
 
 
@@ -178,8 +216,8 @@ PSRL_CONFIGS = {
 def test_engines_agree_with_posterior_sampling(world12, mentor_demos12, name, ticks):
     """Mean and sampling runs together: the same draws (bit for bit), decisions, goals and
     values on both engines."""
-    runs = [
-        Learner(
+    runs = both_engines(
+        lambda engine: Learner(
             world12,
             learner_options(world12),
             PSRL_MIX,
@@ -187,13 +225,11 @@ def test_engines_agree_with_posterior_sampling(world12, mentor_demos12, name, ti
             config=PSRL_CONFIGS[name],
             demonstrations=mentor_demos12,
             engine=engine,
-        )
-        for engine in ("numba", "torch")
-    ]
-    for learner in runs:
-        learner.run(ticks)
+        ),
+        ticks,
+    )
     assert_same_run(*runs)
-    assert int(runs[0].sample.resamples[1:].max()) > ticks // 250
+    assert int(runs[0].sample.resamples[1:].max()) > length(ticks) // 250
     assert int(runs[0].goals[1:].sum()) > 0
     for name in ("option_w", "mentor_w"):
         assert torch.equal(_state(runs[0])[name], _state(runs[1])[name]), name
@@ -211,8 +247,8 @@ def test_engines_agree_with_stochastic_option_policies(world12, mentor_demos12, 
     )
     options = learner_options(world12) + walk
     config = LearnerConfig(window=1000, mentor_choice="match")
-    runs = [
-        Learner(
+    runs = both_engines(
+        lambda engine: Learner(
             world12,
             options,
             ["imitation", "options"],
@@ -220,23 +256,26 @@ def test_engines_agree_with_stochastic_option_policies(world12, mentor_demos12, 
             config=config,
             demonstrations=mentor_demos12,
             engine=engine,
-        )
-        for engine in ("numba", "torch")
-    ]
-    for learner in runs:
-        learner.run(ticks)
+        ),
+        ticks,
+    )
     assert_same_run(*runs)
 
 
 @pytest.mark.slow
-def test_engines_agree_on_the_paper_40x40_world():
+@pytest.mark.parametrize(
+    "ticks",
+    [("late", LONG), pytest.param(LONG, marks=pytest.mark.extended, id=f"{LONG}")],
+    ids=lambda t: f"late{t[1]}" if isinstance(t, tuple) else None,
+)
+def test_engines_agree_on_the_paper_40x40_world(ticks):
     """Experiment 2's world and settings: the edge lists outgrow their first capacity on the way
     (the compiled engine stops, grows them and goes on)."""
     world = MultiRooms(40, 10)
     demos = record_demonstrations(world, mentor_policy(world, mentor_options(world)), 20, seed=0)
     config = LearnerConfig(plan_every=4, sweep_rounds=1)
-    runs = [
-        Learner(
+    runs = both_engines(
+        lambda engine: Learner(
             world,
             learner_options(world),
             ["imitation", "options", "primitives"],
@@ -244,11 +283,9 @@ def test_engines_agree_on_the_paper_40x40_world():
             config=config,
             demonstrations=demos,
             engine=engine,
-        )
-        for engine in ("numba", "torch")
-    ]
-    for learner in runs:
-        learner.run(5000)
+        ),
+        ticks,
+    )
     assert runs[0].model.capacity > 256  # grew at least once
     assert_same_run(*runs)
 
@@ -261,21 +298,27 @@ def test_run_in_a_batch_equals_run_alone(world12, mentor_demos12, engine, ticks)
     options = learner_options(world12)
     agents = ["imitation_confident", "options", "imitation", "imitation_psrl", "options_psrl"]
     seeds = [11, 12, 13, 14, 15]
-    batch = Learner(
-        world12, options, agents, seeds, config=config, demonstrations=mentor_demos12, engine=engine
+    batch = advance(
+        lambda e: Learner(
+            world12, options, agents, seeds, config=config, demonstrations=mentor_demos12, engine=e
+        ),
+        engine,
+        ticks,
     )
-    batch.run(ticks)
     for b, (agent, seed) in enumerate(zip(agents, seeds)):
-        alone = Learner(
-            world12,
-            options,
-            [agent],
-            [seed],
-            config=config,
-            demonstrations=mentor_demos12,
-            engine=engine,
+        alone = advance(
+            lambda e, agent=agent, seed=seed: Learner(
+                world12,
+                options,
+                [agent],
+                [seed],
+                config=config,
+                demonstrations=mentor_demos12,
+                engine=e,
+            ),
+            engine,
+            ticks,
         )
-        alone.run(ticks)
         for name, value in _state(alone).items():
             mine = _state(batch)[name][b]
             if name in ("option_w", "mentor_w"):  # per-edge: as wide as the batch's fullest run
@@ -309,7 +352,9 @@ def test_switching_engines_mid_run_changes_nothing(world12, mentor_demos12, thir
     assert_same_run(straight, switched, values_atol=0.0)
 
 
-@pytest.mark.parametrize("ticks", fast_and_long(3000))
+@pytest.mark.parametrize(
+    "ticks", [FAST, pytest.param(3000, marks=[pytest.mark.slow, pytest.mark.extended], id="3000")]
+)
 def test_state_dict_moves_between_engines(world12, mentor_demos12, ticks):
     """A checkpoint of a numba run resumes on the torch engine to the same run."""
     config = CONFIGS["default"]
@@ -413,8 +458,8 @@ def test_engines_agree_with_the_exact_mentor_model(world12, ticks):
     from himit_torch import exact_mentor_transitions
 
     exact = exact_mentor_transitions(world12, mentor_policy(world12, mentor_options(world12)), 5.0)
-    runs = [
-        Learner(
+    runs = both_engines(
+        lambda engine: Learner(
             world12,
             learner_options(world12),
             AGENT_MIX,
@@ -422,10 +467,8 @@ def test_engines_agree_with_the_exact_mentor_model(world12, ticks):
             config=CONFIGS["default"],
             demonstrations=exact,
             engine=engine,
-        )
-        for engine in ("numba", "torch")
-    ]
-    for learner in runs:
-        learner.run(ticks)
+        ),
+        ticks,
+    )
     assert_same_run(*runs)
     assert int(runs[0].goals.sum()) > 0
