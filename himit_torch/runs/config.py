@@ -106,6 +106,18 @@ class ExperimentConfig:
         ge=1,
         doc="Save the whole state every this many steps (a multiple of ``window``).",
     )
+    greedy_every: int | None = setting(
+        100_000,
+        ge=0,
+        hint="steps; 0: at the end only; none: never",
+        doc="""
+        Evaluate every run's frozen greedy policy (ε = 0, ties as configured) exactly on the true
+        model every this many steps and at the end: goals per window, % of the optimum's and of
+        the mentor's own rate (``curves.csv``, TensorBoard ``eval/…``), and ``V^π(start)`` at the
+        end (``results.md``). ``0``: at the end only; ``None``: never (no option models are
+        built). At the end of each window that reaches a multiple of it. Each evaluation costs ≈ 20–60 ms a run on 40×40–80×80
+        (see ``himit_torch.runs.greedy``).""",
+    )
     device: str = setting(
         "cpu",
         hint="a torch device such as 'cpu' or 'cuda'",

@@ -126,12 +126,15 @@ def state_layout_version() -> int:
 @dataclass
 class Checkpoints:
     """A batch's checkpoint generations (:class:`~himit_torch.runs.checkpoints.CheckpointGenerations`
-    at ``path``): saved every ``every`` steps by :func:`run_windows`, restored by :meth:`start`."""
+    at ``path``): saved every ``every`` steps by :func:`run_windows`, restored by :meth:`start`.
+    ``companions``: other state saved with the learner's (by name; objects with ``state_dict``
+    and ``load_state_dict``, e.g. a :class:`~himit_torch.runs.greedy.GreedyTracker`)."""
 
     path: Path
     batch: BatchShape
     every: int
     device: str = "cpu"
+    companions: Mapping[str, Any] = field(default_factory=dict)
     generations: CheckpointGenerations = field(init=False)
     layout: int = field(init=False)
 
@@ -149,8 +152,9 @@ class Checkpoints:
         return 0.0
 
     def save(self, learner: Learner, elapsed: float) -> None:
+        companions = {name: c.state_dict() for name, c in self.companions.items()}
         self.generations.save(
-            {"learner": learner.state_dict(), "elapsed": elapsed},
+            {"learner": learner.state_dict(), "elapsed": elapsed, **companions},
             step=learner.t,
             batch=self.batch,
             state_layout_version=self.layout,
@@ -199,6 +203,9 @@ class Checkpoints:
                 f"learner ({type(err).__name__}: {err}) although its state layout version "
                 f"{layout} is this himit_torch's: please report it; start over with --force"
             ) from None
+        for name, companion in self.companions.items():
+            if isinstance(payload.get(name), dict):
+                companion.load_state_dict(payload[name])
         elapsed = payload.get("elapsed", 0.0)
         return float(elapsed) if isinstance(elapsed, (int, float)) else 0.0
 
