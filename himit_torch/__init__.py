@@ -6,7 +6,19 @@ Bellman equation with options (Friesen & Rao, "Imitation learning with hierarchi
 (``make docs``) for a tour.
 """
 
-from himit_torch.exact.option_models import OptionModels, option_durations, option_models
+from himit_torch.exact.greedy_evaluation import (
+    OptionPolicy,
+    PolicyEvaluation,
+    PolicyEvaluator,
+    evaluate_option_choice,
+    optimal_policy_evaluation,
+)
+from himit_torch.exact.option_models import (
+    OptionModels,
+    option_durations,
+    option_models,
+    option_models_and_durations,
+)
 from himit_torch.exact.planning import (
     OptimalBaseline,
     PlanResult,
@@ -105,6 +117,7 @@ __all__ = [
     "OptionModels",
     "option_models",
     "option_durations",
+    "option_models_and_durations",
     # exact planning
     "value_iteration",
     "smdp_value_iteration",
@@ -113,6 +126,12 @@ __all__ = [
     "PlanResult",
     "OptimalBaseline",
     "optimal_baseline",
+    # exact evaluation of frozen option policies (greedy policies, the mentor's)
+    "OptionPolicy",
+    "PolicyEvaluation",
+    "PolicyEvaluator",
+    "evaluate_option_choice",
+    "optimal_policy_evaluation",
     # the learner
     "Learner",
     "LearnerConfig",

@@ -35,8 +35,13 @@ from typing import Any, NoReturn
 import torch
 
 from himit_torch import __version__
-from himit_torch.exact.option_models import option_durations, option_models
-from himit_torch.exact.planning import expected_steps, smdp_value_iteration
+from himit_torch.exact.greedy_evaluation import (
+    OptionPolicy,
+    PolicyEvaluator,
+    evaluate_option_choice,
+)
+from himit_torch.exact.option_models import option_models, option_models_and_durations
+from himit_torch.exact.planning import smdp_value_iteration
 from himit_torch.learner.config import LearnerConfig
 from himit_torch.learner.engines import ENGINES
 from himit_torch.mentor.demonstrations import Demonstrations
@@ -186,24 +191,31 @@ def _flag(field: str) -> str:
 # ------------------------------------------------------------------------------------- info
 @dataclass(frozen=True)
 class OptimalTrip:
-    """Expected primitive steps from start to goal under an optimal policy, and goals per window."""
+    """Expected primitive steps from start to goal of a policy, and its goals per window (the
+    long-run rate of episode after episode: :mod:`himit_torch.exact.greedy_evaluation`)."""
 
     steps: float
-
-    @property
-    def goals_per_window(self) -> float:
-        return GOALS_WINDOW / self.steps if self.steps > 0 else float("inf")
+    goals_per_window: float
 
 
 def optimal_trip(
     world: MultiRooms, options: Options, policy: torch.Tensor | None = None
 ) -> OptimalTrip:
-    """Steps start → goal of the optimal policy for ``options`` (or of the given ``policy [S]``):
-    exact option models → SMDP value iteration → expected steps from undiscounted durations."""
+    """Steps start → goal of the optimal policy for ``options`` (or of the given ``policy [S]``,
+    e.g. the mentor's), evaluated exactly like every greedy policy of a run
+    (:class:`~himit_torch.exact.greedy_evaluation.PolicyEvaluator`): exact option models →
+    SMDP value iteration → the policy's expected steps and goal rate."""
     if policy is None:
-        policy = smdp_value_iteration(option_models(world, options)).policy
-    durations = option_durations(world, options)
-    return OptimalTrip(expected_steps(durations, policy, world.start_state, world.terminal_mask))
+        models = option_models_and_durations(world, options)
+        policy = smdp_value_iteration(models[0]).policy
+        evaluation = PolicyEvaluator(world, options, GOALS_WINDOW, models=models).evaluate(
+            OptionPolicy.deterministic(policy), values=False
+        )
+    else:
+        evaluation = evaluate_option_choice(world, options, policy, GOALS_WINDOW)
+    return OptimalTrip(
+        float(evaluation.steps_per_episode[0]), float(evaluation.goals_per_window[0])
+    )
 
 
 def _kind_counts(options: Options) -> str:

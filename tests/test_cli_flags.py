@@ -60,6 +60,7 @@ EXPERIMENT_FLAGS = {
     "slip": (["0.2"], 0.2),
     "window": (["2000"], 2000),
     "checkpoint_every": (["10000"], 10_000),
+    "greedy_every": (["20000"], 20_000),
     "device": (["cpu:0"], "cpu:0"),
     "engine": (["torch"], "torch"),
 }

@@ -6,7 +6,7 @@ import torch
 
 from himit_torch.learner.values import TIE, ValueCache, _take
 
-__all__ = ["choose_rows"]
+__all__ = ["choose_rows", "greedy_rows"]
 
 
 def choose_rows(
@@ -26,12 +26,7 @@ def choose_rows(
     Exploring: any enabled row, uniformly. ``mentor_choice="match"``: where the mentor term wins
     eq. 2, own options whose first action best reproduces the mentor's move come first.
     """
-    rows, q, usable, enabled, _, _ = cache.own_values(runs, states)
-    q = torch.where(usable, q, torch.full_like(q, float("-inf")))
-    if mentor_choice == "match" and cache.any_mentor:
-        q = _match_mentor(cache, runs, states, rows, q, usable)
-    greedy = usable & (q >= q.amax(1, keepdim=True) - TIE)
-    greedy = torch.where(greedy.any(1, keepdim=True), greedy, enabled)
+    rows, greedy, enabled = greedy_rows(cache, runs, states, mentor_choice)
     explore = u[:, 0] < epsilon
     candidates = torch.where(explore[:, None], enabled, greedy)
     count = candidates.sum(1)
@@ -40,6 +35,22 @@ def choose_rows(
         pick = torch.where(explore, pick, torch.zeros_like(pick))
     slot = ((candidates.cumsum(1) == (pick + 1)[:, None]) & candidates).long().argmax(1)
     return rows.gather(1, slot[:, None])[:, 0]
+
+
+def greedy_rows(
+    cache: ValueCache, runs: torch.Tensor, states: torch.Tensor, mentor_choice: str = "greedy"
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """The greedy candidates of :func:`choose_rows` at ``states [R]`` for ``runs [R]``:
+    ``(rows [R, J], greedy [R, J], enabled [R, J])`` — the state's rows, those the greedy choice
+    picks among (the best usable rows within :data:`TIE`; every enabled row where none is
+    usable yet), and the rows the run may use at all."""
+    rows, q, usable, enabled, _, _ = cache.own_values(runs, states)
+    q = torch.where(usable, q, torch.full_like(q, float("-inf")))
+    if mentor_choice == "match" and cache.any_mentor:
+        q = _match_mentor(cache, runs, states, rows, q, usable)
+    greedy = usable & (q >= q.amax(1, keepdim=True) - TIE)
+    greedy = torch.where(greedy.any(1, keepdim=True), greedy, enabled)
+    return rows, greedy, enabled
 
 
 def mentor_move_scores(cache: ValueCache, runs: torch.Tensor, states: torch.Tensor) -> torch.Tensor:

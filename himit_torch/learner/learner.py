@@ -36,7 +36,9 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 import torch
 
+from himit_torch.exact.greedy_evaluation import OptionPolicy
 from himit_torch.learner.agents import AGENTS
+from himit_torch.learner.choice import greedy_rows
 from himit_torch.learner.engines import make_engine
 from himit_torch.learner.models import DirichletMentorModel, DirichletSMDPModel
 from himit_torch.learner.posterior_sampling import PosteriorSample
@@ -327,12 +329,12 @@ class Learner:
         """Preload every run's option model with the exact models (``LearnerConfig.option_models
         = "exact"``; see there), fill the ``Q`` caches from them and queue the states whose value
         a backup would change."""
-        from himit_torch.exact.option_models import option_durations, option_models
+        from himit_torch.exact.option_models import option_models_and_durations
 
         N = float(self.config.exact_model_count)
         S, O, dev = self.num_states, self.num_options, self.device
-        disc = option_models(self.world, self.options)  # Σγ^k weights and rewards
-        prob = option_durations(self.world, self.options)  # termination probabilities
+        # Σγ^k weights and rewards; termination probabilities
+        disc, prob = option_models_and_durations(self.world, self.options)
         # Row of the exact models → row of the learner (both enumerate the initiation sets).
         key = self.rows.row_state[:-1] * O + self.rows.row_option[:-1]
         order = torch.argsort(key)
@@ -734,6 +736,36 @@ class Learner:
         best = q.argmax(-1)
         option = self.rows.row_option[rows.expand(R, -1, -1).gather(2, best[..., None])[..., 0]]
         return torch.where(usable.any(-1), option, torch.full_like(option, -1))
+
+    def greedy_policy(self, runs: Sequence[int] | torch.Tensor | None = None) -> OptionPolicy:
+        """Each run's frozen greedy policy now: ε = 0 over its own options, as it would choose
+        (:func:`~himit_torch.learner.choice.greedy_rows`, ``mentor_choice`` included). Where
+        options tie (or none is usable yet: every enabled option), ``tie_break="random"``
+        takes each with equal probability — a stochastic option policy — and ``"first"`` the
+        lowest option. Evaluate it exactly with
+        :class:`~himit_torch.exact.greedy_evaluation.PolicyEvaluator` over :attr:`options`.
+
+        Returns:
+            :class:`~himit_torch.exact.greedy_evaluation.OptionPolicy` on the CPU, ``option [S,
+            J]`` the rows of each state, ``probability [len(runs), S, J]``; terminal states
+            have no option.
+        """
+        which = torch.arange(self.batch) if runs is None else runs
+        which = torch.as_tensor(which, dtype=torch.int64, device=self.device).reshape(-1)
+        S, M = self.num_states, self.num_rows
+        live = (~self.terminal[:S]).nonzero()[:, 0]
+        rows = self.rows.state_rows[:S]
+        J = rows.shape[1]
+        probability = torch.zeros(which.numel(), S, J, dtype=torch.float64)
+        for i, b in enumerate(which.tolist()):
+            runs_b = torch.full_like(live, b)
+            _, greedy, _ = greedy_rows(self.cache, runs_b, live, self.config.mentor_choice)
+            if self.config.tie_break == "first":
+                greedy = greedy & (greedy.cumsum(1) == 1)
+            p = greedy.double() / greedy.sum(1, keepdim=True).clamp(min=1)
+            probability[i, live.cpu()] = p.cpu()
+        option = torch.where(rows < M, self.rows.row_option[rows], torch.full_like(rows, -1))
+        return OptionPolicy(option.cpu(), probability)
 
     def visit_counts(self) -> torch.Tensor:
         """``[B, S]`` how often each run has been in each state (after each primitive step)."""

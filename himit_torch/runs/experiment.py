@@ -21,12 +21,18 @@ import json
 import os
 import sys
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 
 import torch
 
-from himit_torch.exact.option_models import option_durations, option_models
+from himit_torch.exact.greedy_evaluation import (
+    PolicyEvaluation,
+    PolicyEvaluator,
+    evaluate_option_choice,
+    optimal_policy_evaluation,
+)
+from himit_torch.exact.option_models import option_models_and_durations
 from himit_torch.exact.planning import expected_steps, smdp_value_iteration
 from himit_torch.learner.agents import AGENTS
 from himit_torch.learner.config import LearnerConfig
@@ -36,6 +42,7 @@ from himit_torch.mentor.reward import mentor_reward_module
 from himit_torch.options.builders import learner_options, mentor_options, primitive_options
 from himit_torch.runs.checkpoints import BatchShape
 from himit_torch.runs.config import ExperimentConfig, load_config
+from himit_torch.runs.greedy import CURVE_COLUMNS, GreedyReference, GreedyTracker
 from himit_torch.runs.runner import (
     Checkpoints,
     Maps,
@@ -95,6 +102,15 @@ class WorldResult:
     steps: int
     engine: str = "unknown"
     commit: str = "unknown"
+    # The frozen greedy policies at the end, exact (runs.greedy); empty for runs written before
+    # they existed or with greedy_every = None.
+    greedy_goals_per_window: list[float] = field(default_factory=list)
+    greedy_percent_of_optimal: list[float] = field(default_factory=list)
+    greedy_percent_of_mentor: list[float] = field(default_factory=list)
+    greedy_value_start: list[float] = field(default_factory=list)
+    greedy_reach_share: list[float] = field(default_factory=list)
+    mentor_goals_per_window: float = float("nan")
+    mentor_value_start: float = float("nan")
 
     def percent_of_optimal(self) -> list[float]:
         """Total goals as a percentage of what the optimal policy reaches in the same steps."""
@@ -102,14 +118,15 @@ class WorldResult:
         return [100.0 * g / best for g in self.goals]
 
 
-def _optimum(world: MultiRooms) -> tuple[float, float]:
-    """Expected steps of the optimal (primitive) policy from start to goal, and V*(start)."""
+def _optimum(world: MultiRooms, window: int) -> tuple[float, float, PolicyEvaluation]:
+    """Expected steps of the optimal (primitive) policy from start to goal, V*(start), and its
+    exact evaluation (the reference of the greedy policies' "% of optimum")."""
     prims = primitive_options(world)
-    plan = smdp_value_iteration(option_models(world, prims))
-    steps = expected_steps(
-        option_durations(world, prims), plan.policy, world.start_state, world.terminal_mask
-    )
-    return steps, float(plan.values[world.start_state])
+    models = option_models_and_durations(world, prims)
+    plan = smdp_value_iteration(models[0])
+    steps = expected_steps(models[1], plan.policy, world.start_state, world.terminal_mask)
+    evaluation = optimal_policy_evaluation(world, window, models=models, plan=plan)
+    return steps, float(plan.values[world.start_state]), evaluation
 
 
 def _hparams(config: ExperimentConfig, size: int, agent: str) -> dict:
@@ -125,6 +142,7 @@ def _hparams(config: ExperimentConfig, size: int, agent: str) -> dict:
         "first_seed",
         "device",
         "checkpoint_every",
+        "greedy_every",
         "learner",
     }
     default = ExperimentConfig()
@@ -171,6 +189,12 @@ def run_world(
         world, mentor_options(world, corners=config.corner_options), config.mentor_preference
     )
     demos = {s: record_demonstrations(world, mentor, config.mentor_episodes, seed=s) for s in seeds}
+    # the mentor's own goal rate, exactly, while its options exist
+    mentor_eval = (
+        None
+        if config.greedy_every is None
+        else evaluate_option_choice(world, mentor.options, mentor.option, config.window)
+    )
     exact = (
         exact_mentor_transitions(world, mentor, float(config.mentor_episodes))
         if config.mentor_model == "exact"
@@ -189,14 +213,23 @@ def run_world(
         engine=config.engine,
     )
     watch_demonstrations(learner, demos if exact is None else dict.fromkeys(seeds, exact))
+    optimal_steps, true_v, optimal_eval = _optimum(world, config.window)
+    greedy = None
+    if mentor_eval is not None:
+        greedy = GreedyTracker(
+            PolicyEvaluator(world, options, config.window),
+            GreedyReference(optimal_eval, mentor_eval),
+            config.greedy_every or 0,
+            config.steps,
+        )
     checkpoints = Checkpoints(
         run_dir / "checkpoints" / f"world{size}.pt",
         BatchShape(tuple(agents), tuple(run_seeds), world.num_states),
         config.checkpoint_every,
         config.device,
+        companions={} if greedy is None else {"greedy": greedy},
     )
     elapsed = checkpoints.start(learner, resume)
-    optimal_steps, true_v = _optimum(world)
     # A resumed run purges what it logged after its last checkpoint (windows up to t were logged
     # before the checkpoint); a fresh one refuses folders that hold another run's events.
     logger = TensorBoardLogger(
@@ -225,6 +258,9 @@ def run_world(
         for b in map_runs
     }
     hooks: list[WindowHook] = [logger.window]
+    if greedy is not None:
+        greedy.logger = logger
+        hooks.append(greedy)
     if on_window is not None:
         hooks.append(lambda learner, _: on_window(learner))
     wall = run_windows(
@@ -237,6 +273,7 @@ def run_world(
         progress=f"{config.name} {size}×{size} B={learner.batch}" if progress else None,
         elapsed=elapsed,
     )
+    final = None if greedy is None else greedy.finish(learner)
     m = learner.metrics
     result = WorldResult(
         size=size,
@@ -258,6 +295,14 @@ def run_world(
         engine=learner.engine.name,
         commit=source_commit(),
     )
+    if greedy is not None and final is not None:
+        result.greedy_goals_per_window = final.goals_per_window.tolist()
+        result.greedy_percent_of_optimal = greedy.percent_of_optimal(final).tolist()
+        result.greedy_percent_of_mentor = greedy.percent_of_mentor(final).tolist()
+        result.greedy_value_start = final.value_start.tolist()
+        result.greedy_reach_share = final.reach_share.tolist()
+        result.mentor_goals_per_window = greedy.reference.mentor_goals_per_window
+        result.mentor_value_start = float(greedy.reference.mentor.value_start[0])
     # A run that never found the goal counts as finding it just after its end.
     firsts = [f if f >= 0 else learner.t + 1 for f in result.first_goal_step]
     logger.hparams(
@@ -268,13 +313,18 @@ def run_world(
                 "hparam/final_window_goals": result.final_window_goals[b],
                 "hparam/first_goal_step": firsts[b],
                 "hparam/value_start": result.value_start[b],
+                **(
+                    {"hparam/greedy_percent_of_mentor": result.greedy_percent_of_mentor[b]}
+                    if result.greedy_percent_of_mentor
+                    else {}
+                ),
             }
             for b in range(learner.batch)
         ],
         learner.t,
     )
     logger.close()
-    _write_curves(run_dir / "worlds" / f"curves{size}.csv", learner, size)
+    _write_curves(run_dir / "worlds" / f"curves{size}.csv", learner, size, greedy)
     _atomic_write(run_dir / "worlds" / f"world{size}.json", json.dumps(asdict(result), indent=1))
     _world_figure(
         run_dir, config, world, demos[seeds[0]], learner, agents, run_seeds, seeds[0], size
@@ -300,7 +350,11 @@ def mentor_rewards(config: ExperimentConfig, world, agents, run_seeds, demos) ->
     return modules
 
 
-def _write_curves(path: Path, learner: Learner, size: int) -> None:
+def _write_curves(
+    path: Path, learner: Learner, size: int, greedy: GreedyTracker | None = None
+) -> None:
+    """The world's ``curves.csv`` rows, one per run and window; with ``greedy``, its
+    :data:`~himit_torch.runs.greedy.CURVE_COLUMNS` after the others."""
     path.parent.mkdir(parents=True, exist_ok=True)
     m = learner.metrics
     tmp = path.with_suffix(".tmp")
@@ -319,6 +373,7 @@ def _write_curves(path: Path, learner: Learner, size: int) -> None:
                 "backups",
                 "decisions",
                 "mentor_term_wins",
+                *(CURVE_COLUMNS if greedy is not None else ()),
             ]
         )
         for i, step in enumerate(m.steps):
@@ -336,6 +391,7 @@ def _write_curves(path: Path, learner: Learner, size: int) -> None:
                         int(m.backups[i][b]),
                         int(m.decisions[i][b]),
                         f"{float(m.mentor_term_wins[i][b]):.4f}",
+                        *(greedy.curve_cells(step, b) if greedy is not None else ()),
                     ]
                 )
     os.replace(tmp, path)

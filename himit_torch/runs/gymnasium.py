@@ -21,7 +21,13 @@ Metrics (per window of ``window`` steps):
 * ``episodes`` — episodes ended (any terminal state: FrozenLake's holes too).
 * ``value_gap`` — ``V*(μ) − V^π(μ)``: how far the run's current greedy option policy is from
   the optimum, both evaluated *exactly* on the true model from the start distribution ``μ``
-  (states where the run has tried nothing act uniformly at random). 0 = optimal.
+  (ties to the lowest option; states where the run has tried nothing act as a uniformly random
+  primitive). 0 = optimal.
+* ``greedy_goals_per_window``, ``greedy_pct_optimal``, ``greedy_pct_mentor``,
+  ``greedy_reach_share`` — the run's greedy policy frozen as it acts (ε = 0, ties as configured,
+  untried states: any enabled option), evaluated exactly (:mod:`himit_torch.runs.greedy`): its
+  long-run goals per window, as a % of the optimal policy's and of the mentor's (here the
+  mentor *is* an optimal policy, so the two differ only where the optimal values tie).
 """
 
 from __future__ import annotations
@@ -40,7 +46,8 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 import torch
 
-from himit_torch.exact.option_models import OptionModels, option_models
+from himit_torch.exact.greedy_evaluation import PolicyEvaluator, evaluate_option_choice
+from himit_torch.exact.option_models import OptionModels, option_models_and_durations
 from himit_torch.exact.planning import value_iteration
 from himit_torch.learner.agents import AGENTS
 from himit_torch.learner.config import LearnerConfig
@@ -50,6 +57,7 @@ from himit_torch.mentor.reward import KnownReward
 from himit_torch.options.builders import primitive_options, subgoal_options
 from himit_torch.options.bundle import Options
 from himit_torch.options.taxi import taxi_navigation_options
+from himit_torch.runs.greedy import CURVE_COLUMNS, GreedyReference, GreedyTracker
 from himit_torch.runs.runner import (
     batch_runs,
     check_run_dir,
@@ -271,7 +279,9 @@ class GreedyEvaluator:
 
     def __init__(self, world: TableWorld, options: Options):
         self.world, self.options = world, options
-        self.models = option_models(world, options)
+        # (the undiscounted models too, for the exact evaluation of the greedy policies as they
+        # act: greedy_evaluator)
+        self.models, self.durations = option_models_and_durations(world, options)
         self.S = world.num_states
         self.T = _scipy(self.models.transition)
         self.r = self.models.reward.numpy()
@@ -300,6 +310,12 @@ class GreedyEvaluator:
         V = spla.spsolve((sp.identity(self.S, format="csc") - T_pi).tocsc(), r_pi)
         return float(V @ self.start)
 
+    def greedy_evaluator(self, window: int) -> PolicyEvaluator:
+        """The exact evaluator of option policies over these options (shares the models)."""
+        return PolicyEvaluator(
+            self.world, self.options, window, models=(self.models, self.durations)
+        )
+
 
 def greedy_value_gap(evaluator: GreedyEvaluator, learner: Learner) -> list[float]:
     """``V*(μ) − V^π(μ)`` of every run's greedy option policy (≥ 0; 0 = optimal)."""
@@ -324,21 +340,11 @@ def mean_ci(values, level: float = 0.95) -> tuple[float, float, int]:
 
 def episode_statistics(world: TableWorld, policy: torch.Tensor) -> tuple[float, float]:
     """``(P(goal), E[steps])`` of an episode from the start distribution under the primitive
-    ``policy [S]`` (exact absorbing-chain solves; ``E[steps]`` is ``inf`` where the policy can
-    loop forever)."""
-    P, _ = world_model(world)
-    A, S, _ = P.shape
-    idx = P.indices().numpy()
-    stacked = sp.csr_matrix((P.values().numpy(), (idx[0] * S + idx[1], idx[2])), shape=(A * S, S))
-    K = stacked[policy.numpy() * S + np.arange(S)]
-    live = np.flatnonzero(~world.terminal_mask.numpy())
-    system = (sp.identity(live.size, format="csc") - K[live][:, live]).tocsc()
-    into_goal = np.asarray(K[live][:, np.flatnonzero(world.goal_mask.numpy())].sum(1)).ravel()
-    mu = world.start_distribution.numpy()[live]
-    with np.errstate(all="ignore"):
-        steps = spla.spsolve(system, np.ones(live.size))
-        success = spla.spsolve(system, into_goal)
-    length, p_goal = float(steps @ mu), float(success @ mu)
+    ``policy [S]`` (exact: :func:`~himit_torch.exact.greedy_evaluation.evaluate_option_choice`
+    over the primitive options; ``(0, inf)`` where some episode may never end)."""
+    evaluation = evaluate_option_choice(world, primitive_options(world), policy, 1)
+    length = float(evaluation.steps_per_episode[0])
+    p_goal = float(evaluation.goal_probability[0])
     return (p_goal, length) if math.isfinite(length) and length > 0 else (0.0, float("inf"))
 
 
@@ -388,11 +394,23 @@ def run_task(
     )
     evaluator = GreedyEvaluator(world, options)
     optimal_rate = optimal_goals_per_window(world, evaluator.optimal.policy, config.window)
+    greedy = GreedyTracker(
+        evaluator.greedy_evaluator(config.window),
+        GreedyReference(
+            evaluate_option_choice(
+                world, primitive_options(world), evaluator.optimal.policy, config.window
+            ),
+            evaluate_option_choice(world, mentor.options, mentor.option, config.window),
+        ),
+        config.window,
+        config.steps_of(task_name),
+    )
     goal = world.goal_mask.to(learner.device)
     # A task has no resume: a rerun starts its runs' TensorBoard folders over.
     logger = TensorBoardLogger(
         run_dir / "tb", run_names(task_name, agents, run_seeds), overwrite=True
     )
+    greedy.logger = logger
     rows: list[dict[str, Any]] = []
     previous_goals = torch.zeros(learner.batch, dtype=torch.int64)
 
@@ -404,6 +422,7 @@ def run_task(
         goals, previous_goals = reached - previous_goals, reached
         m = learner.metrics
         gap = greedy_value_gap(evaluator, learner)
+        greedy(learner, index)
         coverage = learner.model_coverage().cpu()
         for b in range(learner.batch):
             row: dict[str, Any] = {
@@ -416,6 +435,7 @@ def run_task(
                 "epsilon": float(m.epsilon[index][b]),
                 "value_gap": gap[b],
                 "mentor_term_wins": float(m.mentor_term_wins[index][b]),
+                **dict(zip(CURVE_COLUMNS, greedy.curve_cells(learner.t, b))),
             }
             rows.append(row)
             scalars = {
@@ -437,6 +457,7 @@ def run_task(
         progress=f"{task_name} B={learner.batch}" if progress else None,
     )
     last = [r for r in rows if r["step"] == learner.t] if rows else []
+    final = greedy.finish(learner)
     summary = {
         "task": task_name,
         "env_id": task.env_id,
@@ -461,6 +482,12 @@ def run_task(
         "final_goals": [r["goals"] for r in last],
         "final_value_gap": [r["value_gap"] for r in last],
         "mentor_term_wins": [r["mentor_term_wins"] for r in last],
+        "mentor_goals_per_window": greedy.reference.mentor_goals_per_window,
+        "greedy_goals_per_window": final.goals_per_window.tolist(),
+        "greedy_percent_of_optimal": greedy.percent_of_optimal(final).tolist(),
+        "greedy_percent_of_mentor": greedy.percent_of_mentor(final).tolist(),
+        "greedy_value_start": final.value_start.tolist(),
+        "greedy_goal_probability": final.goal_probability.tolist(),
         "wall_seconds": wall,
         "steps": learner.t,
         "initial_value": learner_config.initial_value,
@@ -500,6 +527,7 @@ _COLUMNS = (
     "epsilon",
     "value_gap",
     "mentor_term_wins",
+    *CURVE_COLUMNS,
 )
 
 
@@ -641,7 +669,10 @@ def write_gym_results(run_dir: Path, config: GymExperimentConfig, summaries: lis
         "over the whole run; *value gap* — V*(μ) − V^π(μ) of the run's final greedy option "
         "policy, both exact on the true model from the start distribution (0 = optimal); "
         "*first goal* — end of the first window with a goal (runs that never reached one are "
-        "left out, and counted in *found*).",
+        "left out, and counted in *found*); *greedy* — the run's greedy policy at the end frozen "
+        "as it acts (ε = 0, ties as configured) and evaluated exactly: its long-run goals per "
+        "window as a % of the mentor's own (the mentor is optimal), and the probability that an "
+        "episode from μ ends at a goal.",
         "",
     ]
     for s in summaries:
@@ -658,8 +689,8 @@ def write_gym_results(run_dir: Path, config: GymExperimentConfig, summaries: lis
             f"KnownReward: {s['known_reward']}.",
             "",
             "| agent | n | found | goals, last window | total goals | value gap | first goal | "
-            "mentor term wins |",
-            "|---|---|---|---|---|---|---|---|",
+            "mentor term wins | greedy, % of mentor | greedy, P(goal) |",
+            "|---|---|---|---|---|---|---|---|---|---|",
         ]
         for agent in dict.fromkeys(s["agents"]):
             idx = [b for b, a in enumerate(s["agents"]) if a == agent]
@@ -671,7 +702,9 @@ def write_gym_results(run_dir: Path, config: GymExperimentConfig, summaries: lis
                 f"{_cell([s['total_goals'][b] for b in idx], 0)} | "
                 f"{_cell([s['final_value_gap'][b] for b in idx], 3) if s['final_value_gap'] else '–'} | "
                 f"{_cell(found, 0)} | "
-                f"{_cell([s['mentor_term_wins'][b] for b in idx], 2) if s['mentor_term_wins'] else '–'} |"
+                f"{_cell([s['mentor_term_wins'][b] for b in idx], 2) if s['mentor_term_wins'] else '–'} | "
+                f"{_cell([s['greedy_percent_of_mentor'][b] for b in idx])} | "
+                f"{_cell([s['greedy_goal_probability'][b] for b in idx], 3)} |"
             )
         lines += [
             "",

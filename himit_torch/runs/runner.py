@@ -132,12 +132,15 @@ def state_layout_version() -> int:
 @dataclass
 class Checkpoints:
     """A batch's checkpoint generations (:class:`~himit_torch.runs.checkpoints.CheckpointGenerations`
-    at ``path``): saved every ``every`` steps by :func:`run_windows`, restored by :meth:`start`."""
+    at ``path``): saved every ``every`` steps by :func:`run_windows`, restored by :meth:`start`.
+    ``companions``: other state saved with the learner's (by name; objects with ``state_dict``
+    and ``load_state_dict``, e.g. a :class:`~himit_torch.runs.greedy.GreedyTracker`)."""
 
     path: Path
     batch: BatchShape
     every: int
     device: str = "cpu"
+    companions: Mapping[str, Any] = field(default_factory=dict)
     generations: CheckpointGenerations = field(init=False)
     layout: int = field(init=False)
 
@@ -155,8 +158,9 @@ class Checkpoints:
         return 0.0
 
     def save(self, learner: Learner, elapsed: float) -> None:
+        companions = {name: c.state_dict() for name, c in self.companions.items()}
         self.generations.save(
-            {"learner": learner.state_dict(), "elapsed": elapsed},
+            {"learner": learner.state_dict(), "elapsed": elapsed, **companions},
             step=learner.t,
             batch=self.batch,
             state_layout_version=self.layout,
@@ -178,7 +182,9 @@ class Checkpoints:
         def restore(found: Checkpoint) -> None:
             """Restore ``learner`` from a verified file: its learner state checked in full first
             (a check that fails makes this generation skipped, the learner untouched)."""
-            payload = section(found.payload, "payload", ("learner",), optional=("elapsed",))
+            payload = section(
+                found.payload, "payload", ("learner",), optional=("elapsed", *self.companions)
+            )
             seconds = payload.get("elapsed", 0.0)
             if type(seconds) not in (int, float) or not 0 <= seconds < float("inf"):
                 raise DamagedState("elapsed", f"{seconds!r} is not a number of seconds")
@@ -194,6 +200,9 @@ class Checkpoints:
                     f"learner ({type(err).__name__}: {err}) although it passed every check of "
                     f"state layout version {layout}: please report it; start over with --force"
                 ) from None
+            for name, companion in self.companions.items():  # (each checks what it reads)
+                if name in payload:
+                    companion.load_state_dict(payload[name])
             elapsed.append(float(seconds))
 
         try:

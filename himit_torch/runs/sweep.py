@@ -48,7 +48,8 @@ rerun ends with exactly the tables of an uninterrupted one. At the end the sweep
 * ``results.csv`` — the tidy table: one row per run and window (each trial's ``curves.csv``) with
   the cell's settings as columns;
 * ``runs.csv`` — one row per run: total goals, goals in the last window and the last 50k steps,
-  first goal step, V(start), mentor-term wins;
+  first goal step, V(start), mentor-term wins, and its greedy policy at the end evaluated exactly
+  (goals per window, as % of the optimum's and of the mentor's own rate, V^π(start));
 * ``summary.csv`` / ``summary.md`` — per cell, world and agent: the mean of each measure with a
   95 % confidence interval, Student's t (``scipy.stats.t``, n − 1 degrees of freedom), and the
   share of runs that never found the goal with its exact Clopper–Pearson 95 % interval
@@ -79,6 +80,7 @@ from __future__ import annotations
 import csv
 import itertools
 import json
+import math
 import os
 import re
 import sys
@@ -556,6 +558,14 @@ def proportion_interval(k: int, n: int, level: float = 0.95) -> tuple[float, flo
 
 
 _MEASURES = ("total_goals", "final_window_goals", "late_goals", "first_goal_step", "value_start")
+#: The frozen greedy policies at the end (exact, ``himit_torch.runs.greedy``): blank in
+#: ``runs.csv`` for trials run without them (``greedy_every = None``, or older trials).
+_GREEDY_MEASURES = (
+    "greedy_goals_per_window",
+    "greedy_percent_of_optimal",
+    "greedy_percent_of_mentor",
+    "greedy_value_start",
+)
 
 
 def summarize(spec: SweepSpec, out: Path) -> dict:
@@ -600,6 +610,12 @@ def summarize(spec: SweepSpec, out: Path) -> dict:
                     "true_value_start": f"{world['true_value_start']:.6f}",
                     "mentor_term_wins": f"{world['mentor_term_wins'][b]:.4f}",
                     "optimal_goals_per_window": f"{world['optimal_goals_per_window']:.3f}",
+                    **{m: f"{world[m][b]:.6g}" if world.get(m) else "" for m in _GREEDY_MEASURES},
+                    "mentor_goals_per_window": (
+                        f"{world['mentor_goals_per_window']:.3f}"
+                        if world.get("greedy_goals_per_window")
+                        else ""
+                    ),
                 }
             )
     order = {c.slug: c.index for c in spec.cells}
@@ -633,18 +649,14 @@ def summarize(spec: SweepSpec, out: Path) -> dict:
             "n": len(rs),
         }
         steps = spec.cells[order[cell]].config.steps
-        for m in _MEASURES:
-            vals = [float(r[m]) for r in rs]
+        for m in _MEASURES + _GREEDY_MEASURES:
+            vals = [float(r[m]) for r in rs if r[m] != ""]
             if m == "first_goal_step":  # a run that never found the goal: just after its end
                 vals = [v if v >= 0 else steps + 1 for v in vals]
-            mean, low, high = t_interval(vals)
-            row.update(
-                {
-                    f"{m}_mean": f"{mean:.4g}",
-                    f"{m}_ci_low": f"{low:.4g}",
-                    f"{m}_ci_high": f"{high:.4g}",
-                }
-            )
+            cells: tuple[str, ...] = ("", "", "")  # greedy measures of trials without them
+            if m in _MEASURES or (vals and all(math.isfinite(v) for v in vals)):
+                cells = tuple(f"{x:.4g}" for x in t_interval(vals))
+            row.update({f"{m}_mean": cells[0], f"{m}_ci_low": cells[1], f"{m}_ci_high": cells[2]})
         failed = sum(int(r["first_goal_step"]) < 0 for r in rs)
         share, low, high = proportion_interval(failed, len(rs))
         row.update(
@@ -676,12 +688,18 @@ def _write_summary_md(spec: SweepSpec, out: Path, summary: list[dict], provenanc
         f"{LATE_STEPS:,} steps; `first goal`: steps to the first goal (a run that never "
         "found it counts as steps + 1).",
         "",
+        "`greedy`: each run's greedy policy at the end, frozen (ε = 0, ties as configured) "
+        "and evaluated exactly on the true model: its long-run goals per window as a % of the "
+        "mentor's own rate (also exact).",
+        "",
         "| cell | world | agent | n | total goals | last window | late | first goal | "
-        "V(start) | failed |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "V(start) | failed | greedy, % of mentor |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
 
     def ci(row, m, fmt="{:.1f}"):
+        if row[m + "_mean"] == "":
+            return "–"
         return (
             f"{fmt.format(float(row[m + '_mean']))} [{fmt.format(float(row[m + '_ci_low']))}, "
             f"{fmt.format(float(row[m + '_ci_high']))}]"
@@ -693,7 +711,8 @@ def _write_summary_md(spec: SweepSpec, out: Path, summary: list[dict], provenanc
             f"{ci(r, 'total_goals', '{:.0f}')} | {ci(r, 'final_window_goals')} | "
             f"{ci(r, 'late_goals', '{:.0f}')} | {ci(r, 'first_goal_step', '{:.0f}')} | "
             f"{ci(r, 'value_start', '{:.3f}')} | {r['failed']}/{r['n']} "
-            f"[{float(r['failed_ci_low']):.2f}, {float(r['failed_ci_high']):.2f}] |"
+            f"[{float(r['failed_ci_low']):.2f}, {float(r['failed_ci_high']):.2f}] | "
+            f"{ci(r, 'greedy_percent_of_mentor')} |"
         )
     (out / "summary.md").write_text("\n".join(lines) + "\n")
 

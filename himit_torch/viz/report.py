@@ -218,12 +218,27 @@ def write_results(run_dir: Path, config, results) -> None:
         paper = PAPER_OPTIMAL_GOALS.get(r.size)
         if paper and r.rooms == 10:
             lines.append(f"Paper: ≈ {paper} goals per 5000 steps.")
+        greedy = bool(getattr(r, "greedy_goals_per_window", None))
+        if greedy:
+            mentor = r.mentor_goals_per_window
+            lines.append(
+                f"The mentor's own policy (exact): {mentor:.1f} goals per {config.window} steps "
+                f"({100 * mentor / r.optimal_goals_per_window:.1f} % of optimal), V(start) = "
+                f"{r.mentor_value_start:.3f}."
+            )
+        greedy_head = (
+            " greedy policy at the end: goals per window | % of optimal | % of mentor | "
+            "V^π(start) | sure to reach the goal |"
+            if greedy
+            else ""
+        )
         lines += [
             "",
             "| agent | runs that found the goal | first goal (step, per seed) | goals in "
             "last window | total goals | % of optimal | V(start) (truth "
-            f"{r.true_value_start:.3f}) | steps to half the optimal rate | mentor term wins |",
-            "|---|---|---|---|---|---|---|---|---|",
+            f"{r.true_value_start:.3f}) | steps to half the optimal rate | mentor term wins |"
+            + greedy_head,
+            "|---|---|---|---|---|---|---|---|---|" + ("---|" * 5 if greedy else ""),
         ]
         half = r.optimal_goals_per_window / 2
         for agent in dict.fromkeys(r.agents):
@@ -246,7 +261,26 @@ def write_results(run_dir: Path, config, results) -> None:
                 f"{_fmt([r.percent_of_optimal()[b] for b in idx])} | "
                 f"{_fmt([r.value_start[b] for b in idx], 3)} | {reach_txt} | "
                 f"{_fmt([r.mentor_term_wins[b] for b in idx], 2)} |"
+                + (
+                    f" {_fmt([r.greedy_goals_per_window[b] for b in idx])} | "
+                    f"{_fmt([r.greedy_percent_of_optimal[b] for b in idx])} | "
+                    f"{_fmt([r.greedy_percent_of_mentor[b] for b in idx])} | "
+                    f"{_fmt([r.greedy_value_start[b] for b in idx], 3)} | "
+                    f"{sum(r.greedy_reach_share[b] >= 1.0 for b in idx)}/{len(idx)} |"
+                    if greedy
+                    else ""
+                )
             )
+        if greedy:
+            lines += [
+                "",
+                "The greedy policy: each run's policy at the end frozen (ε = 0 over its own "
+                "options, ties as configured: random ties → uniform over the tied options), "
+                "evaluated exactly on the true model (`himit_torch.exact.greedy_evaluation`): "
+                f"long-run goals per {config.window} steps of episode after episode, as a % of the "
+                "optimal policy's and of the mentor's own; V^π(start); *sure to reach the goal*: "
+                "runs whose policy reaches it from the start with probability 1.",
+            ]
         lines += [
             "",
             f"Wall time for this world's batch of {len(r.agents)} runs: "

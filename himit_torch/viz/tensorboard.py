@@ -75,6 +75,18 @@ SCALAR_DESCRIPTIONS = {
     "planner/decisions": "Option choices made since the start (cumulative).",
     "eval/greedy_value_gap": "V*(μ) − V^π(μ): how far the run's greedy option policy now is from "
     "the optimum, both exact on the true model from the start distribution (0 = optimal).",
+    "eval/greedy_goals_per_window": "Goals per window of the run's greedy policy frozen now (ε = 0 "
+    "over its own options, ties as configured), exact on the true model: the long-run rate of "
+    "episode after episode (himit_torch.exact.greedy_evaluation). Not what the run scored: "
+    "see charts/goals_in_window.",
+    "eval/greedy_percent_of_optimal": "eval/greedy_goals_per_window as a % of the optimal "
+    "policy's rate (exact, primitive actions).",
+    "eval/greedy_percent_of_mentor": "eval/greedy_goals_per_window as a % of the mentor's own "
+    "rate (its policy over its own options, exact).",
+    "eval/greedy_reach_share": "Share of start states (weighted by the start distribution) "
+    "from which the frozen greedy policy reaches the goal with probability 1.",
+    "eval/greedy_value_start": "V^π(start) of the frozen greedy policy, exact on the true model "
+    "(compare model/value_start_true); logged at the end of the run.",
     "model/coverage": "Share of the run's usable (state, option) pairs it has tried at least "
     "once, now.",
     "model/value_start": "V(start): the value the run's planner gives the start state now "
@@ -89,6 +101,8 @@ SCALAR_DESCRIPTIONS = {
     "hparam/first_goal_step": "Step of the run's first goal; the run's length + 1 if it never "
     "found it (the HParams metric).",
     "hparam/value_start": "V(start) at the end of the run (the HParams metric).",
+    "hparam/greedy_percent_of_mentor": "The frozen greedy policy's goal rate at the end as a % "
+    "of the mentor's own, exact (the HParams metric).",
 }
 
 #: What each map shows; written as the image tag's description.

@@ -407,13 +407,16 @@ SIZE = 16
 
 
 def small_config(**changes):
-    """A 16×16 world, 2 runs, 4 windows of 500 steps with a checkpoint after each: seconds."""
+    """A 16×16 world, 2 runs, 4 windows of 500 steps with a checkpoint after each: seconds. The
+    greedy policies are evaluated at 1000 and 2000 steps (a resumed run must restore the first
+    evaluation from its checkpoint)."""
     settings = dict(
         sizes=(SIZE,),
         seeds=1,
         steps=2000,
         window=500,
         checkpoint_every=500,
+        greedy_every=1000,
         mentor_episodes=3,
         agents=("imitation", "primitives"),
     )

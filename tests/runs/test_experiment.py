@@ -70,6 +70,36 @@ def test_each_experiment_runs_and_writes_its_outputs(name, tmp_path):
             assert min(image.info["dpi"]) >= 99.9, (f.name, image.info["dpi"])
 
 
+def test_the_greedy_policies_are_evaluated_on_their_schedule(tmp_path):
+    """greedy_every=2000 with windows of 1000 and 3500 steps: evaluations at 2000 and at the end
+    (3500, no window ends there: in world<N>.json and results.md, not curves.csv); None: no
+    columns, the curves as before."""
+    config = tiny("exp2", sizes=(16,), steps=3500, greedy_every=2000)
+    [result] = run_experiment(config, tmp_path / "on", progress=False)
+    rows = read_curves(tmp_path / "on" / "curves.csv")
+    columns = ["greedy_goals_per_window", "greedy_pct_optimal", "greedy_pct_mentor"]
+    for r in rows:
+        evaluated = r["step"] == "2000"
+        assert all((r[c] != "") == evaluated for c in [*columns, "greedy_reach_share"]), r
+        if evaluated:
+            rate, pct_opt, pct_mentor = (float(r[c]) for c in columns)
+            assert rate >= 0 and 0 <= float(r["greedy_reach_share"]) <= 1
+            assert pct_opt == pytest.approx(100 * rate / result.optimal_goals_per_window, abs=0.01)
+            assert pct_mentor == pytest.approx(
+                100 * rate / result.mentor_goals_per_window, abs=0.01
+            )
+    assert len(result.greedy_goals_per_window) == 2
+    assert 0 < result.mentor_goals_per_window <= result.optimal_goals_per_window * (1 + 1e-9)
+    assert all(v <= result.true_value_start + 1e-9 for v in result.greedy_value_start)
+    assert "The mentor's own policy (exact)" in (tmp_path / "on" / "results.md").read_text()
+    off = replace(config, greedy_every=None)
+    [plain] = run_experiment(off, tmp_path / "off", progress=False)
+    rows_off = read_curves(tmp_path / "off" / "curves.csv")
+    assert list(rows_off[0]) == [k for k in rows[0] if not k.startswith("greedy_")]
+    assert [{k: r[k] for k in rows_off[0]} for r in rows] == rows_off  # the same runs
+    assert plain.greedy_goals_per_window == []
+
+
 def test_exp3_with_two_worlds_draws_the_scaling_bars(tmp_path):
     config = tiny("exp3", sizes=(16, 24), room_size=8, corner_options=False)
     results = run_experiment(config, tmp_path / "e3", progress=False)

@@ -1,0 +1,176 @@
+"""Every run's frozen greedy policy, evaluated exactly while a batch learns.
+
+A :class:`GreedyTracker` is a window hook of :func:`~himit_torch.runs.runner.run_windows`: every
+``every`` steps (and at the run's end, :meth:`GreedyTracker.finish`) it freezes each run's greedy
+policy (:meth:`Learner.greedy_policy <himit_torch.Learner.greedy_policy>`: ε = 0 over its own
+options, ties as configured) and evaluates it on the world's true model
+(:class:`~himit_torch.exact.greedy_evaluation.PolicyEvaluator`: goals per window, the share of
+start states from which it is sure to reach the goal, and at the end ``V^π(start)``), as a
+percentage of the optimum's and of the mentor's own goal rate (both evaluated the same way).
+The evaluations go to TensorBoard (``eval/…``), to ``curves.csv`` (:data:`CURVE_COLUMNS`, empty
+at the windows between evaluations) and, at the end, to the run's summary. They are part of a
+checkpoint (:meth:`GreedyTracker.state_dict`), so a resumed run reports what an uninterrupted
+one does.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import torch
+
+from himit_torch.exact.greedy_evaluation import PolicyEvaluation, PolicyEvaluator
+from himit_torch.learner.learner import Learner
+from himit_torch.state_checks import DamagedState, section, tensor_of
+from himit_torch.viz.tensorboard import TensorBoardLogger
+
+__all__ = ["GreedyTracker", "GreedyReference", "CURVE_COLUMNS"]
+
+#: The columns a tracker adds to ``curves.csv`` (empty where the window had no evaluation).
+CURVE_COLUMNS = (
+    "greedy_goals_per_window",
+    "greedy_pct_optimal",
+    "greedy_pct_mentor",
+    "greedy_reach_share",
+)
+
+_FIELDS = (
+    "value_start",
+    "goal_probability",
+    "steps_per_episode",
+    "goals_per_window",
+    "reach_share",
+)
+
+
+@dataclass(frozen=True)
+class GreedyReference:
+    """The goal rates a greedy policy is compared with: the optimum's (exact planning over
+    primitive actions) and the mentor's own (its policy over its own options), per window."""
+
+    optimal: PolicyEvaluation
+    mentor: PolicyEvaluation
+
+    @property
+    def optimal_goals_per_window(self) -> float:
+        return float(self.optimal.goals_per_window[0])
+
+    @property
+    def mentor_goals_per_window(self) -> float:
+        return float(self.mentor.goals_per_window[0])
+
+
+@dataclass
+class GreedyTracker:
+    """Exact evaluations of a batch's greedy policies at the ends of the windows that reach
+    ``every, 2·every, …`` and at ``steps`` (the end); ``every = 0``: at the end only. ``V^π(start)`` is solved at the end only
+    (it doubles an evaluation's cost); the goal rate and reach share at every evaluation.
+
+    Args:
+        evaluator: over the learner's options, in its world, with the window of its curves.
+        reference: the optimum's and the mentor's rates.
+        every: steps between evaluations, or 0.
+        steps: the run's length.
+        logger: where the ``eval/…`` scalars go (``None``: nowhere).
+    """
+
+    evaluator: PolicyEvaluator
+    reference: GreedyReference
+    every: int
+    steps: int
+    logger: TensorBoardLogger | None = None
+    evaluations: dict[int, PolicyEvaluation] = field(default_factory=dict)
+
+    def __call__(self, learner: Learner, index: int) -> None:
+        """The window hook: evaluate if window ``index`` ends now on the schedule."""
+        step = int(learner.metrics.steps[index])
+        window = learner.config.window
+        # the window that reaches a multiple of ``every`` (every's own multiples when it is one
+        # of the window)
+        due = (self.every > 0 and step // self.every > (step - window) // self.every) or (
+            step == self.steps
+        )
+        if step == learner.t and due:
+            self.evaluate(learner)
+
+    def finish(self, learner: Learner) -> PolicyEvaluation:
+        """The evaluation at the run's end (done now unless a window hook already did)."""
+        if learner.t not in self.evaluations:
+            self.evaluate(learner)
+        return self.evaluations[learner.t]
+
+    def evaluate(self, learner: Learner) -> PolicyEvaluation:
+        step = learner.t
+        result = self.evaluator.evaluate(learner.greedy_policy(), values=step >= self.steps)
+        self.evaluations[step] = result
+        if self.logger is not None:
+            self._log(result, step)
+        return result
+
+    def percent_of_optimal(self, result: PolicyEvaluation) -> torch.Tensor:
+        return result.percent_of(self.reference.optimal_goals_per_window)
+
+    def percent_of_mentor(self, result: PolicyEvaluation) -> torch.Tensor:
+        return result.percent_of(self.reference.mentor_goals_per_window)
+
+    def _log(self, result: PolicyEvaluation, step: int) -> None:
+        assert self.logger is not None
+        rate, share = result.goals_per_window.tolist(), result.reach_share.tolist()
+        pct_opt = self.percent_of_optimal(result).tolist()
+        pct_mentor = self.percent_of_mentor(result).tolist()
+        value = result.value_start.tolist()
+        for b in range(len(result)):
+            scalars = {
+                "eval/greedy_goals_per_window": rate[b],
+                "eval/greedy_percent_of_optimal": pct_opt[b],
+                "eval/greedy_percent_of_mentor": pct_mentor[b],
+                "eval/greedy_reach_share": share[b],
+            }
+            if math.isfinite(value[b]):
+                scalars["eval/greedy_value_start"] = value[b]
+            self.logger.scalars(b, {k: v for k, v in scalars.items() if math.isfinite(v)}, step)
+
+    def curve_cells(self, step: int, run: int) -> list[str]:
+        """The :data:`CURVE_COLUMNS` cells of ``run`` at the window ending at ``step``."""
+        result = self.evaluations.get(int(step))
+        if result is None:
+            return [""] * len(CURVE_COLUMNS)
+        return [
+            f"{float(result.goals_per_window[run]):.3f}",
+            f"{float(self.percent_of_optimal(result)[run]):.2f}",
+            f"{float(self.percent_of_mentor(result)[run]):.2f}",
+            f"{float(result.reach_share[run]):.3f}",
+        ]
+
+    # ---------------------------------------------------------------------------- checkpoints
+    def state_dict(self) -> dict:
+        steps = sorted(self.evaluations)
+        return {
+            "steps": steps,
+            **{f: [getattr(self.evaluations[s], f).clone() for s in steps] for f in _FIELDS},
+        }
+
+    def load_state_dict(self, state: dict) -> None:
+        """Restore the evaluations of a checkpoint (one written before trackers existed holds
+        none: the resumed run then lacks the evaluations before its checkpoint). What is read is
+        checked first (:class:`~himit_torch.state_checks.DamagedState` naming the field): a list
+        of steps, and per field one float64 ``[B]`` tensor per step, ``B`` the same throughout."""
+        state = section(state, "greedy", ("steps", *_FIELDS))
+        steps = state["steps"]
+        if type(steps) is not list or any(type(s) is not int or s < 0 for s in steps):
+            raise DamagedState("greedy.steps", "is not a list of step numbers ≥ 0")
+        batch: int | None = None
+        for f in _FIELDS:
+            values = state[f]
+            if type(values) is not list or len(values) != len(steps):
+                raise DamagedState(f"greedy.{f}", f"is not a list of {len(steps)} tensors")
+            for i, value in enumerate(values):
+                tensor_of(value, f"greedy.{f}[{i}]", torch.float64, (batch,))
+                batch = value.shape[0]
+        self.evaluations = {
+            s: PolicyEvaluation(
+                **{f: state[f][i].clone() for f in _FIELDS}, window=self.evaluator.window
+            )
+            for i, s in enumerate(steps)
+        }
