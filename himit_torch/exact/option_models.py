@@ -91,6 +91,8 @@ class OptionModels:
 #: Absorbing chains with up to this many continuing states are solved densely (room-sized
 #: options, microseconds each); larger ones with a sparse LU.
 _DENSE_LIMIT = 1024
+#: Many small chains of one option are solved in dense groups of up to this many states.
+_CHAIN_BATCH = 128
 
 
 def _kernel_entries(
@@ -113,6 +115,44 @@ def _kernel_entries(
     idx = first + np.arange(first.size)
     prob = data[idx] if weight is None else data[idx] * np.repeat(weight, counts)
     return np.repeat(owner, counts), indices[idx], prob
+
+
+def _chains(c_from: np.ndarray, c_to: np.ndarray, n: int) -> list[np.ndarray]:
+    """The continuing states ``0 … n−1`` of an option in groups to solve one at a time: all of
+    them at once when they fit a dense solve (``n ≤ _DENSE_LIMIT``), else their weakly connected
+    components under the edges ``c_from → c_to`` (chains that never meet, e.g. the puzzle box's
+    "do step j on the skewer at hand", one small chain per skewer and level) packed in order into
+    groups of at most ``_CHAIN_BATCH`` states (a dense solve costs the cube of its size); a
+    component larger than that is a group of its own (dense up to ``_DENSE_LIMIT``, else a sparse
+    LU). Each group's system and exits are its own, so no solve carries the
+    other chains' exits as right-hand sides."""
+    if n <= _DENSE_LIMIT:
+        return [np.arange(n)]
+    from scipy.sparse.csgraph import connected_components
+
+    graph = sp.csr_matrix((np.ones(c_from.size), (c_from, c_to)), shape=(n, n))
+    count, label = connected_components(graph, directed=True, connection="weak")
+    if count == 1:
+        return [np.arange(n)]
+    order = np.argsort(label, kind="stable")
+    sizes = np.bincount(label, minlength=count)
+    groups: list[np.ndarray] = []
+    current: list[np.ndarray] = []
+    filled = 0
+    for members in np.split(order, np.cumsum(sizes)[:-1]):
+        if current and filled + members.size > _CHAIN_BATCH:
+            groups.append(np.sort(np.concatenate(current)))
+            current, filled = [], 0
+        current.append(members)
+        filled += members.size
+    groups.append(np.sort(np.concatenate(current)))
+    return groups
+
+
+def _split(entries: np.ndarray, group: np.ndarray, count: int) -> list[np.ndarray]:
+    """``entries`` split by their ``group`` (``0 … count−1``), each part in its original order."""
+    order = np.argsort(group, kind="stable")
+    return np.split(entries[order], np.cumsum(np.bincount(group, minlength=count))[:-1])
 
 
 def _dense(
@@ -194,36 +234,51 @@ def option_models(
         r = r1[start].copy()
         if nC:
             local[C] = np.arange(nC)
-            on_C, on_I = (own >= nI) & (go_on > 0), (own < nI) & (go_on > 0)
-            out_C = (own >= nI) & (ends > 0)
-            exits, exit_col = np.unique(cols[out_C], return_inverse=True)
-            E_C = _dense(own[out_C] - nI, exit_col, ends[out_C], (nC, exits.size))
-            rhs = np.concatenate([gamma * E_C, r1[C][:, None]], axis=1)
-            try:
-                if nC <= _DENSE_LIMIT:
-                    T_CC = _dense(own[on_C] - nI, local[cols[on_C]], go_on[on_C], (nC, nC))
-                    sol = np.linalg.solve(np.eye(nC) - gamma * T_CC, rhs)
-                else:
-                    T_CC = _sparse(own[on_C] - nI, local[cols[on_C]], go_on[on_C], (nC, nC))
-                    sol = spla.splu((sp.identity(nC, format="csc") - gamma * T_CC).tocsc()).solve(
-                        rhs
-                    )
-            except (np.linalg.LinAlgError, RuntimeError) as err:
-                raise _never_terminates(options.names[o], gamma) from err
-            if not np.isfinite(sol).all():
-                raise _never_terminates(options.names[o], gamma)
-            W, rho = sol[:, :-1], sol[:, -1]
-            # Continuing first: gamma K[s, C] (1 - beta_C) W_C, only for starts that can continue.
-            J, j_row = np.unique(own[on_I], return_inverse=True)
-            T_JC = (_dense if nC <= _DENSE_LIMIT else _sparse)(
-                j_row, local[cols[on_I]], go_on[on_I], (J.size, nC)
-            )
-            via = np.asarray(gamma * (T_JC @ W))
-            jr, jc = np.nonzero(via)
-            rows_o.append(J[jr])
-            cols_o.append(exits[jc])
-            vals_o.append(via[jr, jc])
-            r[J] += gamma * (T_JC @ rho)
+            on_C = np.flatnonzero((own >= nI) & (go_on > 0))  # entries C → C
+            on_I = np.flatnonzero((own < nI) & (go_on > 0))  # entries start → C
+            out_C = np.flatnonzero((own >= nI) & (ends > 0))  # entries C → stop
+            groups = _chains(own[on_C] - nI, local[cols[on_C]], nC)
+            gid = np.empty(nC, dtype=np.int64)  # C-local index -> its group
+            pos = np.empty(nC, dtype=np.int64)  # C-local index -> index in its group
+            for g, members in enumerate(groups):
+                gid[members], pos[members] = g, np.arange(members.size)
+            # each kind of entry split by group (a chain's edges stay in it: weak components)
+            by_group = [
+                _split(entries, gid[key], len(groups))
+                for entries, key in (
+                    (on_C, own[on_C] - nI),
+                    (out_C, own[out_C] - nI),
+                    (on_I, local[cols[on_I]]),
+                )
+            ]
+            for g, members in enumerate(groups):
+                cc, co, ci = (parts[g] for parts in by_group)
+                n = members.size
+                exits, exit_col = np.unique(cols[co], return_inverse=True)
+                E_C = _dense(pos[own[co] - nI], exit_col, ends[co], (n, exits.size))
+                rhs = np.concatenate([gamma * E_C, r1[C[members]][:, None]], axis=1)
+                build = _dense if n <= _DENSE_LIMIT else _sparse
+                T_CC = build(pos[own[cc] - nI], pos[local[cols[cc]]], go_on[cc], (n, n))
+                try:
+                    if n <= _DENSE_LIMIT:
+                        sol = np.linalg.solve(np.eye(n) - gamma * T_CC, rhs)
+                    else:
+                        lu = spla.splu((sp.identity(n, format="csc") - gamma * T_CC).tocsc())
+                        sol = lu.solve(rhs)
+                except (np.linalg.LinAlgError, RuntimeError) as err:
+                    raise _never_terminates(options.names[o], gamma) from err
+                if not np.isfinite(sol).all():
+                    raise _never_terminates(options.names[o], gamma)
+                W, rho = sol[:, :-1], sol[:, -1]
+                # Continuing first: gamma K[s, C] (1 - beta_C) W_C, for starts that continue.
+                J, j_row = np.unique(own[ci], return_inverse=True)
+                T_JC = build(j_row, pos[local[cols[ci]]], go_on[ci], (J.size, n))
+                via = np.asarray(gamma * (T_JC @ W))
+                jr, jc = np.nonzero(via)
+                rows_o.append(J[jr])
+                cols_o.append(exits[jc])
+                vals_o.append(via[jr, jc])
+                r[J] += gamma * (T_JC @ rho)
             local[C] = -1
         rows_a, cols_a, vals_a = (np.concatenate(x) for x in (rows_o, cols_o, vals_o))
         out_rows.append(rows_a + offset)
