@@ -329,3 +329,27 @@ def test_the_mapping_keeps_every_transition_law():
                 theirs = P3[b][index[live]][:, index[live]]
                 assert torch.allclose(mine, theirs), (chosen, level, two.action_names[a])
     assert transition_support(three).shape == (three.num_states, three.num_states)
+
+
+def test_demonstrations_in_a_large_box_are_checked_sparsely():
+    """A 5-skewer box has 50,000 states: its dense [S, S] support would be 2.5 GB. The
+    demonstrations are checked against the sparse one, which equals the dense one where both fit."""
+    from himit_torch.mentor.demonstrations import Demonstrations
+    from himit_torch.worlds.table_world import transition_support_matrix
+
+    small = PuzzleBox(2, 2)
+    assert torch.equal(
+        torch.from_numpy(transition_support_matrix(small).toarray()), transition_support(small)
+    )
+    rooms = ht.MultiRooms(8, 2)
+    assert torch.equal(
+        torch.from_numpy(transition_support_matrix(rooms).toarray()), transition_support(rooms)
+    )
+    five = PuzzleBox(5)
+    support = transition_support_matrix(five)
+    assert support.nnz < 20 * five.num_states
+    e = five.encode
+    good = [e([0] * 5), e([0] * 5, 4, "open"), e([0] * 5, 4, "pinch"), e([0, 0, 0, 0, 1])]
+    assert Demonstrations([good], five).num_transitions == 3
+    with pytest.raises(ValueError, match="index 1: state .* follows"):
+        Demonstrations([[e([0] * 5), e([0, 0, 0, 0, 1])]], five)
