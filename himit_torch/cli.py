@@ -770,6 +770,12 @@ def cmd_plot(args: argparse.Namespace) -> int:
     from himit_torch.viz.report import write_figures, write_results
 
     run_dir = Path(args.run_dir)
+    if (run_dir / "summary.json").exists() and (run_dir / "batches").is_dir():
+        from himit_torch.runs.puzzle_box_report import rewrite_puzzle_box_report
+
+        rewrite_puzzle_box_report(run_dir)  # a himit run puzzlebox directory
+        print(f"wrote {run_dir / 'figures'} and {run_dir / 'results.md'}")
+        return 0
     config = load_config(run_dir / "config.json")
     results = []
     for size in config.sizes:

@@ -24,9 +24,11 @@ from typing import Any
 import numpy as np
 
 from himit_torch.runs.gymnasium import mean_ci
+from himit_torch.runs.runner import source_commit
 from himit_torch.viz.tensorboard import tensorboard_command
 
 __all__ = [
+    "rewrite_puzzle_box_report",
     "wilson",
     "holm",
     "paired_difference",
@@ -111,6 +113,17 @@ def _batch(summary: dict, tag: str) -> dict:
     return next(b for b in summary["batches"] if b["batch"] == tag)
 
 
+def rewrite_puzzle_box_report(run_dir: str | Path) -> None:
+    """Redraw the figures and ``results.md`` of a finished ``himit run puzzlebox`` directory
+    from its ``summary.json`` and ``batches/`` (``himit plot``)."""
+    import json
+
+    run_dir = Path(run_dir)
+    summary = json.loads((run_dir / "summary.json").read_text())
+    write_puzzle_box_figures(run_dir, summary)
+    write_puzzle_box_results(run_dir, summary)
+
+
 # ================================================================================ figures
 def _curves(run_dir: Path, tag: str) -> tuple[np.ndarray, np.ndarray]:
     """``(steps [W], openings [n, W])`` of batch ``tag`` from ``batches/<tag>.csv``."""
@@ -122,6 +135,10 @@ def _curves(run_dir: Path, tag: str) -> tuple[np.ndarray, np.ndarray]:
             by_seed.setdefault(int(r["seed"]), []).append((int(r["step"]), float(r["openings"])))
     series = [sorted(v) for _, v in sorted(by_seed.items())]
     return np.array([s for s, _ in series[0]]), np.array([[g for _, g in s] for s in series])
+
+
+def _thousands_label(x, _pos=None) -> str:
+    return f"{x / 1000:g}k" if x else "0"
 
 
 def _evals(run_dir: Path, tag: str, key: str = "value") -> tuple[np.ndarray, np.ndarray]:
@@ -147,6 +164,7 @@ def write_puzzle_box_figures(run_dir: Path, summary: dict) -> None:
     """``figures/speed.png``, ``figures/organisation.png``, ``figures/transfer.png``."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
+    from matplotlib.ticker import FuncFormatter
 
     from himit_torch.viz.plotting import fit_titles, plot_first_goals, plot_goal_curves
     from himit_torch.viz.report import AGENT_COLORS
@@ -183,7 +201,10 @@ def write_puzzle_box_figures(run_dir: Path, summary: dict) -> None:
             colors=colors,
             optimum=window / first["optimal_steps"],
             window=window,
+            legend=False,
         )
+        ax_curves.legend(fontsize="x-small", loc="lower right", title="band: seeds' range",
+                         title_fontsize="x-small")  # fmt: skip
         ax_curves.set_ylabel(f"openings per {window:,} steps")
         plot_first_goals(ax_first, firsts, int(first["steps"]), colors=colors)
         ax_first.set_xlabel("step of the first opening (log; dots: seeds)")
@@ -196,6 +217,7 @@ def write_puzzle_box_figures(run_dir: Path, summary: dict) -> None:
             ax_value.fill_between(at, mean - half, mean + half, color=colors[c], alpha=0.18, lw=0)
         ax_value.axhline(first["value_star"], color="0.3", ls=":", label="V*(start), exact")
         ax_value.set_xlabel("primitive steps")
+        ax_value.xaxis.set_major_formatter(FuncFormatter(_thousands_label))
         ax_value.set_ylabel("V^π(start) of the greedy policy, exact")
         ax_value.grid(alpha=0.3)
         ax_value.legend(fontsize="small", title="mean, 95 % t CI", title_fontsize="small")
@@ -215,9 +237,10 @@ def write_puzzle_box_figures(run_dir: Path, summary: dict) -> None:
 def _organisation_figure(run_dir: Path, fig_dir: Path, summary: dict) -> None:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
+    from matplotlib.ticker import FuncFormatter
 
-    groups = _organisation_groups(summary)
-    fig = Figure(figsize=(16, 4.8), layout="constrained")
+    groups = _organisation_groups(summary, ("speed", "harder_pinch", "no_pinch", "transfer"))
+    fig = Figure(figsize=(16, 6.4), layout="constrained")
     ax, ax_time = fig.subplots(1, 2, width_ratios=(1.2, 1))
     for tag, label, color, ls in _TIME_LINES:
         if not any(b["batch"] == tag for b in summary["batches"]):
@@ -229,6 +252,7 @@ def _organisation_figure(run_dir: Path, fig_dir: Path, summary: dict) -> None:
         ax_time.fill_between(steps, share[:, 1], share[:, 2], color=color, alpha=0.12, lw=0)
     ax_time.set_ylim(0, 1)
     ax_time.set_xlabel("primitive steps")
+    ax_time.xaxis.set_major_formatter(FuncFormatter(_thousands_label))
     ax_time.set_ylabel("share following the organisation watched")
     ax_time.grid(alpha=0.3)
     ax_time.legend(fontsize="small", title="band: 95 % Wilson", title_fontsize="small")
@@ -293,12 +317,14 @@ def write_puzzle_box_results(run_dir: Path, summary: dict) -> None:
     speed = {c: _batch(summary, f"speed_{c}") for c in ("imitation", "options", "primitives")}
     transfer = {c: _batch(summary, f"transfer_{c}") for c in ("options", "plain", "any")}
     engines = sorted({b["engine"] for b in summary["batches"]})
+    now = source_commit()
+    written = "" if now == summary["commit"] else f" (this report written at commit `{now}`)"
     lines = [
         "# The puzzle box: Whiten et al.'s (2006) three findings, run on the model",
         "",
         "Produced by `himit run puzzlebox` (the same as `python experiments/puzzle_box.py`); "
         f"settings: `himit_torch/runs/puzzle_box.py`. Code at commit `{summary['commit']}`, "
-        f"engine {', '.join(f'`{e}`' for e in engines)}. The world: "
+        f"engine {', '.join(f'`{e}`' for e in engines)}{written}. The world: "
         "`himit_torch/worlds/puzzle_box.py` (`himit info --puzzle-box K`).",
         "",
         f"{cfg['seeds']} seeds per condition; {cfg['steps']:,} steps per run on the {k}-skewer "
@@ -507,13 +533,37 @@ def _organisation_section(summary: dict, speed: dict[str, dict]) -> tuple[list[s
             f"{same['imitation']}/{len(groups['imitation'])} | {same['options']}/"
             f"{len(groups['options'])} | {len(stuck)}{': ' + where if stuck else ''} |"
         )
+    lines += [
+        "",
+        "First openings in each design (the main design's are (a)'s; the controls' were not "
+        "among (a)'s declared comparisons): median step, and the paired difference imitation − "
+        "options.",
+        "",
+        "| design | imitation, median | options, median | paired difference ± 95 % t | "
+        "Wilcoxon p |",
+        "|---|---|---|---|---|",
+    ]
+    for prefix, about in _DESIGNS:
+        if prefix not in facts:
+            continue
+        imit = _batch(summary, f"{prefix}_imitation")
+        opts = _batch(summary, f"{prefix}_options")
+        a_first = _firsts(imit["runs"], imit["steps"])
+        o_first = _firsts(opts["runs"], opts["steps"])
+        mean, half, p = paired_difference(a_first, o_first)
+        facts[prefix]["first"] = (float(np.median(a_first)), float(np.median(o_first)), p)
+        lines.append(
+            f"| {about} | {np.median(a_first):,.0f} | {np.median(o_first):,.0f} | "
+            f"{mean:+,.0f} ± {half:,.0f} | {p:.2g} |"
+        )
     plans = summary["mentor_plans"]
     lines += [
         "",
-        "A stuck plan stops at a state where the greedy option leads back to the same state: "
-        "typically the hand in the mentor's pinch, where the mentor term of eq. 2 makes the state "
-        "valuable but the only own option the run has tried there is a motion that does nothing "
-        "(the greedy choice is among tried options).",
+        "A stuck plan comes back to a state it has left with the same option (a loop) or stops "
+        "where the run has tried nothing; the table names the state and the greedy option "
+        "there. A loop in the mentor's pinch is the mentor term at work: eq. 2 makes the state "
+        "valuable (the mentor went on from it), but the only own option the run has tried there "
+        "is a motion that does nothing, and the greedy choice is among tried options.",
         "",
         f"The mentors' own plans: skewer by skewer `{' '.join(plans['skewer'])}`; step by step "
         f"`{' '.join(plans['step'])}` (`i.j` = skewer i, step j).",
@@ -559,9 +609,10 @@ def _transfer_section(cfg: dict, transfer: dict[str, dict]) -> tuple[list[str], 
         f"steps are done in one run) — mean ± 95 % t over plans that open the box; options "
         "runs: the same scores for the organisation their seed's imitators watched.",
         "",
-        "| mapping | watched | n | strict [95 % Wilson] | score, all skewers | score, "
-        f"skewer {K} | options' score, skewer {K} (paired) | paired difference, Wilcoxon p |",
-        "|---|---|---|---|---|---|---|---|",
+        "| mapping | watched | n | plans: skewer / step / mixed / incomplete | strict [95 % "
+        f"Wilson] | score, all skewers | score, skewer {K} | options' score, skewer {K} (paired) "
+        "| paired difference, Wilcoxon p |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     facts: dict[Any, Any] = {}
     others = transfer["options"]["runs"]
@@ -583,8 +634,9 @@ def _transfer_section(cfg: dict, transfer: dict[str, dict]) -> tuple[list[str], 
                 if diff is None
                 else f"{diff[0]:+.2f} ± {diff[1]:.2f} (n={len(pairs)}), p = {diff[2]:.2g}"
             )
+            counts = " / ".join(str(sum(runs[i]["organisation"] == o for i in idx)) for o in _ORDER)
             lines.append(
-                f"| {mapping} | {org} | {len(idx)} | {_share(follows, len(idx))} | "
+                f"| {mapping} | {org} | {len(idx)} | {counts} | {_share(follows, len(idx))} | "
                 f"{_cell([x for x in overall if math.isfinite(x)], 2)} | "
                 f"{_cell([x for x in new if math.isfinite(x)], 2)} | "
                 f"{_cell([y for y in base if math.isfinite(y)], 2)} | {d} |"
@@ -614,8 +666,16 @@ def _findings_table(cfg: dict, speed: dict, org: dict, transfer: dict) -> list[s
     better = tests["imitation − options: greedy value"]
     later = tests["imitation − options: openings, last window"]
     ok1 = faster[0] < 0 and faster[3] < 0.05
+    sooner5 = transfer["tests"]["any − options: first opening"]
     partly1 = any(
-        t[3] < 0.05 and t[0] * sign > 0 for t, sign in ((faster, -1), (better, 1), (later, 1))
+        t[3] < 0.05 and t[0] * sign > 0
+        for t, sign in ((faster, -1), (better, 1), (later, 1), (sooner5, -1))
+    )
+    first_controls = "; ".join(
+        f"{p.replace('_', ' ')}: {org[p]['first'][0]:,.0f} vs {org[p]['first'][1]:,.0f} "
+        f"(Wilcoxon p = {org[p]['first'][2]:.2g})"
+        for p in ("harder_pinch", "no_pinch")
+        if p in org and "first" in org[p]
     )
     main = org["speed"]
     a, n = main["follows"]
@@ -655,11 +715,14 @@ def _findings_table(cfg: dict, speed: dict, org: dict, transfer: dict) -> list[s
         "| finding of the study (3-year-olds, keyway-fruit box) | here | verdict | evidence |",
         "|---|---|---|---|",
         "| 1. Children who watched a solution did much better than those who did not | "
-        f"first opening, median: imitation {first_i:,.0f} vs options {first_o:,.0f} steps; "
-        f"paired difference {faster[0]:+,.0f} ± {faster[1]:,.0f} (Holm p = {faster[3]:.2g}); "
-        f"openings in the last window {later[0]:+.1f} ± {later[1]:.1f} (Holm p = {later[3]:.2g}); "
-        f"final greedy value {better[0]:+.4f} ± {better[1]:.4f} (Holm p = {better[3]:.2g}) | "
-        f"{_verdict(ok1, partly1)} | (a) |",
+        f"{cfg['skewers']} skewers: first opening, median: imitation {first_i:,.0f} vs options "
+        f"{first_o:,.0f} steps; paired difference {faster[0]:+,.0f} ± {faster[1]:,.0f} (Holm p = "
+        f"{faster[3]:.2g}); openings in the last window {later[0]:+.1f} ± {later[1]:.1f} (Holm "
+        f"p = {later[3]:.2g}); final greedy value {better[0]:+.4f} ± {better[1]:.4f} (Holm p = "
+        f"{better[3]:.2g}). First openings in (b)'s controls, imitation vs options: "
+        f"{first_controls}. {K} skewers, *any* mapping: first opening {sooner5[0]:+,.0f} ± "
+        f"{sooner5[1]:,.0f} steps against options (Holm p = {sooner5[3]:.2g}) | "
+        f"{_verdict(ok1, partly1)} | (a), (b), (c) |",
         "| 2a. They copied whichever hierarchical organisation they saw | "
         f"main design: imitators following the watched organisation {_share(a, n)} vs "
         f"non-imitators {_share(b, m)} (Fisher p = {main['fisher']:.2g}); controls — "
@@ -671,14 +734,16 @@ def _findings_table(cfg: dict, speed: dict, org: dict, transfer: dict) -> list[s
         f"{_verdict(ok2b, main['same']['imitation'] == 0)} | (b) |",
         f"| 3. At test they assimilated a new (fifth) skewer into the rule they had inferred | "
         f"strict, *any* mapping: {_share(strict_any, n_any)}; skewer {K}'s step-by-step score "
-        f"after watching step by step: *plain* {mean_new(step_plain)} (vs options "
-        f"{diff_text(d_plain)}), *any* {mean_new(step_any)} (vs options {diff_text(d_any)}) | "
+        f"after watching step by step: *plain* {mean_new(step_plain)} (paired difference to "
+        f"the options runs {diff_text(d_plain)}), *any* {mean_new(step_any)} (paired "
+        f"difference {diff_text(d_any)}) | "
         f"{_verdict(ok3, partly3)} | (c) |",
         "",
         "Verdicts are computed from the numbers (`himit_torch/runs/puzzle_box_report.py`, "
         "`_findings_table`): 1 reproduced when imitators open the box significantly sooner than "
-        "options-only learners (Holm p < 0.05), partly when they are significantly better on "
-        "another endpoint (openings in the last window, greedy value) only; 2a when imitators "
+        "options-only learners in (a) (Holm p < 0.05), partly when they are significantly better "
+        "on another of (a)'s endpoints (openings in the last window, greedy value) or open the "
+        f"{K}-skewer box of (c) significantly sooner with the *any* mapping; 2a when imitators "
         "follow the watched organisation significantly more often than non-imitators (Fisher "
         "p < 0.05) in the main design; 2b when no imitator's plan is the mentor's movement for "
         "movement and imitators do at most 10 points more of their steps in the mentor's grip "
