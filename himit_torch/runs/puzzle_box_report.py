@@ -25,7 +25,6 @@ import numpy as np
 
 from himit_torch.runs.gymnasium import mean_ci
 from himit_torch.runs.runner import source_commit
-from himit_torch.viz.tensorboard import tensorboard_command
 
 __all__ = [
     "rewrite_puzzle_box_report",
@@ -361,8 +360,8 @@ def write_puzzle_box_results(run_dir: Path, summary: dict) -> None:
         "",
         f"Learning wall time, all batches: {wall:.0f} s ({each}).",
         "",
-        f"Curves: `curves.csv`; per run: `batches/*.json`. TensorBoard: "
-        f"`{tensorboard_command(Path(run_dir) / 'tb')}`.",
+        "Curves: `curves.csv`; per run: `batches/*.json`; TensorBoard logs: the run directory's "
+        "`tb/` (`tensorboard --logdir <run dir>/tb`).",
         "",
     ]
     (Path(run_dir) / "results.md").write_text("\n".join(lines))
