@@ -915,7 +915,7 @@ COMMANDS: dict[
         cmd_run,
         _add_run,
         "reproduce one of the paper's experiments (exp1, exp2, exp3), or "
-        "the Gymnasium comparison (gymnasium)",
+        "the Gymnasium comparison (gymnasium), or the puzzle box (puzzlebox)",
     ),
     "sweep": (
         cmd_sweep,

@@ -83,9 +83,10 @@ def plot_step_order(
     rank = np.full((skewers, steps), np.nan)
     for r, (i, j) in enumerate(pairs, start=1):
         rank[i, j - 1] = r
-    ax.imshow(rank, cmap="viridis", vmin=1, vmax=max(skewers * steps, 2), aspect="auto")
+    # light greys (earlier lighter), so that the grips' colours stay readable on every cell
+    ax.imshow(rank, cmap="Greys", vmin=0, vmax=2.2 * max(skewers * steps, 2), aspect="auto")
     for r, (i, j) in enumerate(pairs, start=1):
-        color = GRIP_COLORS.get(grips[r - 1], "white") if grips and r <= len(grips) else "white"
+        color = GRIP_COLORS.get(grips[r - 1], "black") if grips and r <= len(grips) else "black"
         ax.text(j - 1, i, str(r), ha="center", va="center", color=color, fontweight="bold")
     ax.set_xticks(range(steps), [f"step {j + 1}" for j in range(steps)])
     ax.set_yticks(range(skewers), [f"skewer {i + 1}" for i in range(skewers)])

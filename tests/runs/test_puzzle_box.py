@@ -131,6 +131,10 @@ def test_runner_writes_every_result(tmp_path):
     (run_dir / "results.md").unlink()
     resumed = run_puzzle_box(TINY, run_dir, resume=True, progress=False)
     assert resumed["batches"][-1]["runs"] == summary["batches"][-1]["runs"]
+    # himit plot redraws it
+    (run_dir / "results.md").unlink()
+    assert main(["plot", str(run_dir)]) == 0
+    assert "## Beside Whiten et al. (2006)" in (run_dir / "results.md").read_text()
 
 
 def test_the_command_and_the_script(capsys, tmp_path):
