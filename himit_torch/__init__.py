@@ -50,6 +50,7 @@ from himit_torch.mentor.policy import (
     record_demonstrations,
     run_mentor,
 )
+from himit_torch.mentor.puzzle_box import map_demonstrations, organisation_mentor
 from himit_torch.mentor.reward import (
     MENTOR_REWARDS,
     SALIENCE_EVENTS,
@@ -74,11 +75,13 @@ from himit_torch.options.discovery import (
     learned_subgoal_options,
     one_step_counts,
 )
+from himit_torch.options.puzzle_box import puzzle_box_options
 from himit_torch.options.taxi import taxi_navigation_options
 from himit_torch.viz.tensorboard import TensorBoardLogger
 from himit_torch.worlds.gym_env import ENV_ID, MultiRoomsEnv, register_envs
 from himit_torch.worlds.gymnasium import from_gymnasium
 from himit_torch.worlds.multirooms import STIMULUS_FEATURES, MultiRooms
+from himit_torch.worlds.puzzle_box import ORGANISATIONS, PuzzleBox
 from himit_torch.worlds.table_world import (
     TableWorld,
     describe_world,
@@ -100,6 +103,8 @@ __all__ = [
     "register_envs",
     "ENV_ID",
     "TableWorld",
+    "PuzzleBox",
+    "ORGANISATIONS",
     "from_gymnasium",
     "world_model",
     "transition_support",
@@ -114,6 +119,7 @@ __all__ = [
     "mentor_options",
     "subgoal_options",
     "taxi_navigation_options",
+    "puzzle_box_options",
     "OptionModels",
     "option_models",
     "option_durations",
@@ -152,6 +158,8 @@ __all__ = [
     "exact_mentor_transitions",
     "Demonstrations",
     "DEMONSTRATIONS_FORMAT_VERSION",
+    "organisation_mentor",
+    "map_demonstrations",
     # mentor reward
     "MentorReward",
     "KnownReward",

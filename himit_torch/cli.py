@@ -10,7 +10,8 @@ Subcommands (``himit <command> --help`` for their options):
   batched learning run with figures and TensorBoard logs.
 * ``run``   — reproduce experiment 1, 2 or 3 into a run directory (resumable), or
   ``gymnasium``: imitation vs options vs primitives on Taxi, CliffWalking and FrozenLake 8×8, or
-  ``discovery``: options discovered from the mentor's states vs hand-built doorway options.
+  ``discovery``: options discovered from the mentor's states vs hand-built doorway options, or
+  ``puzzlebox``: Whiten et al.'s keyway-fruit box (``himit info --puzzle-box K`` for the box).
 * ``sweep`` — a grid of settings × seeds × worlds from a spec file, each trial a resumable run, as
   Ray tasks when Ray is installed (``himit sweep --help`` documents the spec).
 * ``plot``  — redraw a run directory's figures and ``results.md``.
@@ -40,8 +41,12 @@ from himit_torch.exact.greedy_evaluation import (
     PolicyEvaluator,
     evaluate_option_choice,
 )
-from himit_torch.exact.option_models import option_models, option_models_and_durations
-from himit_torch.exact.planning import smdp_value_iteration
+from himit_torch.exact.option_models import (
+    option_durations,
+    option_models,
+    option_models_and_durations,
+)
+from himit_torch.exact.planning import expected_steps, smdp_value_iteration
 from himit_torch.learner.config import LearnerConfig
 from himit_torch.learner.engines import ENGINES
 from himit_torch.mentor.demonstrations import Demonstrations
@@ -227,8 +232,12 @@ def _kind_counts(options: Options) -> str:
 
 def cmd_info(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
+    if args.env is not None and args.puzzle_box is not None:
+        raise ValueError("give --env or --puzzle-box, not both")
     if args.env is not None:
         return _info_gymnasium(args, t0)
+    if args.puzzle_box is not None:
+        return _info_puzzle_box(args, t0)
     if args.env_kwargs is not None:
         raise ValueError(
             "--env-kwargs is for a Gymnasium environment: give --env too (e.g. --env "
@@ -346,6 +355,50 @@ def _info_gymnasium(args: argparse.Namespace, t0: float) -> int:
     return 0
 
 
+def _info_puzzle_box(args: argparse.Namespace, t0: float) -> int:
+    """``himit info --puzzle-box K``: the box's size, and the optimal cost of each hierarchical
+    organisation by exact planning."""
+    from himit_torch.exact.planning import optimal_baseline
+    from himit_torch.mentor.puzzle_box import organisation_mentor
+    from himit_torch.options.puzzle_box import puzzle_box_options
+    from himit_torch.worlds.puzzle_box import ORGANISATIONS, PuzzleBox, puzzle_box_size
+
+    k = args.puzzle_box
+    if k < 1 or k > 5:
+        raise ValueError(f"--puzzle-box {k}: give 1 … 5 skewers (6: 357,000 states)")
+    box = PuzzleBox(k, slip=args.slip, pinch_slip=args.pinch_slip)
+    sizes = ", ".join(f"k={j}: {puzzle_box_size(j):,}" for j in range(2, 6))
+    print(
+        f"world      {box.name}, slip {box.slip} (pinch {box.pinch_slip}), gamma {box.gamma}, "
+        f"reward {box.step_reward} a movement and {box.goal_reward} when the box opens"
+    )
+    print(f"states     {box.num_states:,} ((n+1)^k · (1+3k); {sizes})")
+    print(f"actions    {box.num_actions}: {', '.join(box.action_names)}")
+    from himit_torch.runs.gymnasium import GreedyEvaluator
+
+    best = optimal_baseline(box)
+    rows = [("optimal policy (value iteration)", best.steps_to_goal, best.value_start)]
+    for style in ("learner", "mentor"):
+        options = puzzle_box_options(box, style)
+        if style == "learner":
+            print(f"learner    {options.num_options} options ({_kind_counts(options)})")
+        durations, evaluator = option_durations(box, options), GreedyEvaluator(box, options)
+        for org in ORGANISATIONS:
+            policy = organisation_mentor(box, org, options=options).option
+            steps = expected_steps(durations, policy, box.start_state, box.terminal_mask)
+            grip = "power" if style == "learner" else "pinch"
+            rows.append(
+                (f"{org:>6} by {org}, {style}'s skills ({grip})", steps, evaluator.value(policy))
+            )
+    print("\nexact planning; organisations: skewer by skewer / step by step across skewers")
+    width = max(len(name) for name, _, _ in rows) + 2
+    print(f"{'':<{width}}{'steps to open':>15}{'V(start)':>12}")
+    for name, steps, value in rows:
+        print(f"{name:<{width}}{steps:>15.3f}{value:>12.6f}")
+    print(f"\n({time.perf_counter() - t0:.1f} s)")
+    return 0
+
+
 def _add_info(sub: argparse.ArgumentParser) -> None:
     sub.add_argument(
         "--env",
@@ -356,6 +409,18 @@ def _add_info(sub: argparse.ArgumentParser) -> None:
     sub.add_argument(
         "--env-kwargs",
         help='JSON keyword arguments of gymnasium.make, e.g. \'{"map_name": "8x8"}\'',
+    )
+    sub.add_argument(
+        "--puzzle-box",
+        type=int,
+        metavar="K",
+        help="the puzzle box with K skewers of 4 steps (Whiten et al.'s keyway-fruit box): its "
+        "size and the optimal cost of each hierarchical organisation",
+    )
+    sub.add_argument(
+        "--pinch-slip",
+        type=float,
+        help="--puzzle-box: failure probability of the mentor's pinch grip (default: --slip)",
     )
     sub.add_argument("--gamma", type=float, default=0.99, help="discount of a --env world (0.99)")
     sub.add_argument("--size", type=int, default=40, help="cells per side, N (default 40)")
@@ -479,6 +544,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         return _run_gymnasium(args)
     if args.experiment == "discovery":
         return _run_discovery(args)
+    if args.experiment == "puzzlebox":
+        return _run_puzzle_box(args)
     if args.experiment == "paper" and "experiment.name" in args:
         raise ValueError("himit run paper takes no --name (its three experiments keep theirs)")
     if args.experiment == "paper" and args.config:
@@ -632,13 +699,50 @@ def _run_discovery(args: argparse.Namespace) -> int:
     return 0
 
 
+def _run_puzzle_box(args: argparse.Namespace) -> int:
+    """``himit run puzzlebox``: Whiten et al.'s three findings on the puzzle box
+    (:mod:`himit_torch.runs.puzzle_box`)."""
+    from dataclasses import replace
+
+    from himit_torch.runs.puzzle_box import PuzzleBoxConfig, run_puzzle_box
+
+    refused = [
+        flag for flag, value in (("--config", args.config), ("--workers", args.workers)) if value
+    ]
+    if refused:
+        raise ValueError(
+            f"himit run puzzlebox takes no {', '.join(refused)} (its batches run one after "
+            "the other in one process)"
+        )
+    changes = _refuse_flags(
+        args,
+        ("seeds", "steps", "engine"),
+        "its conditions are fixed by its design; --steps sets experiments (a) and (b), "
+        "(c) keeps its own budget",
+    )
+    config = PuzzleBoxConfig()
+    if args.quick:
+        config = config.quick()
+    config = replace(config, **changes)
+    run_dir = Path(args.logdir) / config.name
+    print(
+        f"{config.name}: {config.skewers}- and {config.transfer_skewers}-skewer boxes, "
+        f"{config.seeds} seeds per condition → {run_dir}"
+    )
+    t0 = time.perf_counter()
+    run_puzzle_box(config, run_dir, resume=args.resume, force=args.force, progress=not args.quiet)
+    print(f"done in {time.perf_counter() - t0:.0f} s: {run_dir / 'results.md'}")
+    return 0
+
+
 def _add_run(sub: argparse.ArgumentParser) -> None:
     sub.add_argument(
         "experiment",
-        choices=["exp1", "exp2", "exp3", "paper", "gymnasium", "discovery"],
+        choices=["exp1", "exp2", "exp3", "paper", "gymnasium", "discovery", "puzzlebox"],
         help="which experiment (paper: exp1, exp2 and exp3, their worlds shared out over "
         "the cores together; gymnasium: Taxi, CliffWalking, FrozenLake 8×8; "
-        "discovery: options discovered from the mentor's states)",
+        "discovery: options discovered from the mentor's states; puzzlebox: Whiten et al.'s "
+        "keyway-fruit box — speed, copying the organisation, a new skewer)",
     )
     sub.add_argument("--quick", action="store_true", help="tiny budget (smoke test)")
     sub.add_argument("--logdir", default="runs", help="parent folder of the run directory")
@@ -694,6 +798,12 @@ def cmd_plot(args: argparse.Namespace) -> int:
     from himit_torch.viz.report import write_figures, write_results
 
     run_dir = Path(args.run_dir)
+    if (run_dir / "summary.json").exists() and (run_dir / "batches").is_dir():
+        from himit_torch.runs.puzzle_box_report import rewrite_puzzle_box_report
+
+        rewrite_puzzle_box_report(run_dir)  # a himit run puzzlebox directory
+        print(f"wrote {run_dir / 'figures'} and {run_dir / 'results.md'}")
+        return 0
     config = load_config(run_dir / "config.json")
     results = []
     for size in config.sizes:
@@ -855,7 +965,7 @@ COMMANDS: dict[
         cmd_run,
         _add_run,
         "reproduce one of the paper's experiments (exp1, exp2, exp3), or "
-        "the Gymnasium comparison (gymnasium)",
+        "the Gymnasium comparison (gymnasium), or the puzzle box (puzzlebox)",
     ),
     "sweep": (
         cmd_sweep,

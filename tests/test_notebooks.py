@@ -48,6 +48,7 @@ def tiny_budget(monkeypatch, tmp_path):
         pytest.param("intrinsic_reward", marks=pytest.mark.slow),
         pytest.param("your_own_world", marks=pytest.mark.slow),
         pytest.param("option_discovery", marks=pytest.mark.slow),
+        pytest.param("puzzle_box", marks=pytest.mark.slow),
     ],
 )
 def test_notebook_runs_with_a_tiny_budget(name, tiny_budget):
@@ -79,6 +80,13 @@ def test_notebook_runs_with_a_tiny_budget(name, tiny_budget):
         assert "400 steps per run, warm-up 100, 1 seed(s), separation 3" in text
         assert "seed 0:" in text and "precision" in text and "20 episodes: precision" in text
         assert text.count("total goals per run") == 3  # all three learners ran
+    elif name == "puzzle_box":
+        assert "PuzzleBox(skewers=4, steps=4, slip=0.1, pinch_slip=0.1, S=8125, A=11)" in text
+        # exact planning: both organisations, both styles, the optimum's value
+        assert text.count("movements, V(start) = 0.153832") == 4
+        assert text.count("first opening at step") == 3  # 3 conditions × 1 seed
+        assert "{'plain': 20, 'any': 500} mapped episodes" in text
+        assert "Beside Whiten" in text or "no committed results here" in text
     elif name == "your_own_world":
         assert "104 states; True for the TabularWorld protocol" in text
         assert "refused: Demonstrations: episode 0, index 2: state 50 follows 1" in text

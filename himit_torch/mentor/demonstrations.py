@@ -18,7 +18,7 @@ import torch
 
 from himit_torch.validation import json_depth
 from himit_torch.worlds.multirooms import MultiRooms
-from himit_torch.worlds.table_world import describe_world, transition_support
+from himit_torch.worlds.table_world import describe_world, transition_support_matrix
 
 __all__ = ["Demonstrations", "DEMONSTRATIONS_FORMAT_VERSION"]
 
@@ -106,7 +106,7 @@ class Demonstrations:
         terminal = torch.as_tensor(world.terminal_mask, dtype=torch.bool).cpu().numpy()
         support = None
         if strict or hasattr(world, "dynamics_table") or hasattr(world, "transition_model"):
-            support = transition_support(world).numpy()
+            support = transition_support_matrix(world)
         for i, ep in enumerate(self._episodes):
             if support is None:
                 _check_range_and_end(ep.numpy(), i, int(world.num_states), terminal, self._source)
@@ -446,14 +446,14 @@ def _check_range_and_end(
 def _check_steps(
     states: np.ndarray,
     index: int,
-    support: np.ndarray,
+    support,
     terminal: np.ndarray,
     source: str,
     num_states: int | None = None,
     check_moves: bool = True,
 ) -> None:
-    """Any world: states in range, each step in the world's transition support ``[S, S]``, a
-    terminal state only at an episode's end."""
+    """Any world: states in range, each step in the world's transition support ``[S, S]``
+    (dense, or a scipy sparse matrix), a terminal state only at an episode's end."""
     where = f"{source}: episode {index}"
     S = support.shape[0] if num_states is None else num_states
     out = np.flatnonzero((states < 0) | (states >= S))
@@ -468,7 +468,8 @@ def _check_steps(
             f"but {states.size - 1 - i} more state(s) follow it"
         )
     if check_moves and states.size > 1:
-        bad = np.flatnonzero(~support[states[:-1], states[1:]])
+        possible = np.asarray(support[states[:-1], states[1:]]).ravel().astype(bool)
+        bad = np.flatnonzero(~possible)
         if bad.size:
             i = int(bad[0]) + 1
             raise ValueError(

@@ -32,20 +32,32 @@ __all__ = [
 # ------------------------------------------------------------------------------------ builders
 def primitive_options(world) -> Options:
     """One option per action: usable in every non-terminal state (and, in MultiRooms, only in
-    free cells), one step, then terminate. Works for any world with ``num_states``,
-    ``num_actions`` and ``terminal_mask``; names come from ``world.action_names`` if it has them
-    (MultiRooms: ``primitive N`` … ``primitive E``)."""
+    free cells; in a world with ``affordances [A, S]``, such as the
+    :class:`~himit_torch.PuzzleBox`, only where the action can do something), one step, then
+    terminate. Works for any world with ``num_states``, ``num_actions`` and ``terminal_mask``;
+    names come from ``world.action_names`` if it has them (MultiRooms: ``primitive N`` …
+    ``primitive E``)."""
     S, A = world.num_states, world.num_actions
     usable = ~torch.as_tensor(world.terminal_mask, dtype=torch.bool).cpu()
     if hasattr(world, "free_mask"):
         usable = usable & world.free_mask
+    initiation = usable[None].repeat(A, 1)
+    affordances = getattr(world, "affordances", None)
+    if affordances is not None:
+        affordances = torch.as_tensor(affordances, dtype=torch.bool).cpu()
+        if affordances.shape != (A, S):
+            raise ValueError(
+                f"{type(world).__name__}.affordances must be [A, S] = [{A}, {S}] bool, got "
+                f"{tuple(affordances.shape)}"
+            )
+        initiation &= affordances
     labels = (
         ACTION_NAMES
         if isinstance(world, MultiRooms)
         else tuple(getattr(world, "action_names", None) or range(A))
     )
     return Options(
-        initiation=usable[None].repeat(A, 1),
+        initiation=initiation,
         termination=torch.ones(A, S),
         policy=torch.arange(A, dtype=action_dtype(A))[:, None].repeat(1, S),
         names=tuple(f"primitive {n}" for n in labels),

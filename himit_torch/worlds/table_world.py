@@ -32,6 +32,8 @@ from __future__ import annotations
 import hashlib
 import json
 
+import numpy as np
+import scipy.sparse as sp
 import torch
 
 from himit_torch.validation import as_float, as_float_array, as_tuple, bool_vector
@@ -41,6 +43,7 @@ __all__ = [
     "TableWorld",
     "world_model",
     "transition_support",
+    "transition_support_matrix",
     "describe_world",
     "model_from_table",
     "table_probabilities",
@@ -114,29 +117,39 @@ def transition_support(world) -> torch.Tensor:
     has one (the table ``step`` uses), else its ``transition_model()``.
 
     Rows of terminal states are left empty: an episode ends there, so no step leaves them.
+    Dense: ``S²`` bytes; :func:`transition_support_matrix` holds the same sparsely.
     """
+    return torch.from_numpy(transition_support_matrix(world).toarray())
+
+
+def transition_support_matrix(world) -> sp.csr_matrix:
+    """:func:`transition_support` as a scipy CSR bool matrix: memory grows with the possible
+    moves, not with ``S²`` (a 50,000-state world's dense support is 2.5 GB)."""
     S = int(world.num_states)
-    terminal = torch.as_tensor(world.terminal_mask, dtype=torch.bool).cpu()
-    support = torch.zeros(S, S, dtype=torch.bool)
+    terminal = torch.as_tensor(world.terminal_mask, dtype=torch.bool).cpu().numpy()
     if hasattr(world, "dynamics_table"):
         table = world.dynamics_table()
-        prob = table_probabilities(table).cpu()
-        s_idx = torch.arange(S)[:, None, None].expand_as(prob)
+        prob = table_probabilities(table).cpu().numpy()
+        s_idx = np.broadcast_to(np.arange(S)[:, None, None], prob.shape)
         live = prob > 0
-        support[s_idx[live], table.successors.cpu()[live]] = True
+        rows, cols = s_idx[live], table.successors.cpu().numpy()[live]
     elif hasattr(world, "transition_model"):
         P = world.transition_model(sparse=True)
         P = (P if P.is_sparse else P.to_sparse()).coalesce()
-        _, s, t = P.indices()
-        keep = P.values() > 0
-        support[s[keep], t[keep]] = True
+        _, s, t = P.indices().numpy()
+        keep = P.values().numpy() > 0
+        rows, cols = s[keep], t[keep]
     else:
         raise ValueError(
             f"{type(world).__name__} has neither dynamics_table() nor "
             "transition_model(): its transition support (which moves are possible) "
             "is unknown, so demonstrations cannot be checked against it"
         )
-    support[terminal] = False
+    keep = ~terminal[rows]
+    support = sp.csr_matrix(
+        (np.ones(int(keep.sum()), dtype=bool), (rows[keep], cols[keep])), shape=(S, S)
+    )
+    support.sum_duplicates()
     return support
 
 

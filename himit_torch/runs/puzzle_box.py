@@ -1,0 +1,581 @@
+"""``himit run puzzlebox``: Whiten et al.'s (2006) three findings, run on the model.
+
+The box (:class:`~himit_torch.PuzzleBox`), the learner's skills and the mentor's
+(:mod:`himit_torch.options.puzzle_box`), and mentors of either organisation with the state
+mapping of footnote 2 (:mod:`himit_torch.mentor.puzzle_box`). Three experiments, each a set of
+learner batches of ``seeds`` runs (one batch per condition, every seed watching its own mentor
+episodes):
+
+(a) **Speed** (``skewers``-skewer box, ``steps`` steps): ``imitation`` (options + the mentor term
+    of eq. 2) against ``options`` (the same options, no mentor) and ``primitives``. Endpoints,
+    declared here before any run: the step of the first opening; openings per window (the last
+    window's); the exact value ``V^π(start)`` of the run's greedy option policy on the true model
+    (every ``eval_every`` steps and at the end).
+
+(b) **Copying the organisation** (the same runs): seed ``s`` watches a skewer-by-skewer mentor
+    when ``s − first_seed`` is even, a step-by-step one when it is odd. Endpoints: the share of
+    imitators whose greedy policy, read without slips (:func:`greedy_plan`), follows the
+    organisation it watched, against the share of non-imitators (``options`` runs, which watched
+    nothing) that follow the organisation its seed's imitator watched; the share of steps the
+    greedy policy does with the mentor's grip (pinch), and the share of runs whose whole
+    low-level sequence is the mentor's.
+
+(c) **A new element** (``transfer_skewers``-skewer box, ``transfer_steps`` steps): the mentor's
+    episodes come from the ``skewers``-skewer box (the same episodes as in (a)), mapped into the
+    larger box (:func:`~himit_torch.mentor.puzzle_box.map_demonstrations`): ``plain`` (the extra
+    skewers stay in) and ``any`` (the mentor's box seen in any ``skewers`` of the learner's
+    skewers, the others at any level), against ``options`` without demonstrations. Endpoints:
+    the first opening; the share of imitators whose greedy policy follows the watched
+    organisation over *all* skewers, the new ones included (assimilation); openings per window.
+
+A run directory holds ``config.json``, ``curves.csv`` (per batch, run and window: openings, ε,
+greedy value where evaluated), ``batches/<batch>.json`` (per run: first opening, the greedy
+plan, its organisation), ``checkpoints/``, ``tb/`` (TensorBoard), ``figures/`` and
+``results.md`` (:mod:`himit_torch.runs.puzzle_box_report`).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import torch
+
+from himit_torch.exact.planning import optimal_baseline
+from himit_torch.learner.config import LearnerConfig
+from himit_torch.learner.engines import ENGINES
+from himit_torch.learner.learner import Learner
+from himit_torch.mentor.demonstrations import Demonstrations
+from himit_torch.mentor.policy import record_demonstrations
+from himit_torch.mentor.puzzle_box import map_demonstrations, organisation_mentor
+from himit_torch.options.bundle import Options
+from himit_torch.options.puzzle_box import intended_rollout, puzzle_box_options
+from himit_torch.runs.checkpoints import BatchShape
+from himit_torch.runs.experiment import _atomic_write
+from himit_torch.runs.gymnasium import GreedyEvaluator
+from himit_torch.runs.runner import (
+    Checkpoints,
+    check_run_dir,
+    clear_run_dir,
+    run_names,
+    run_windows,
+    source_commit,
+    watch_demonstrations,
+)
+from himit_torch.viz.tensorboard import TensorBoardLogger
+from himit_torch.worlds.puzzle_box import (
+    ORGANISATIONS,
+    PuzzleBox,
+    organisation_of,
+    organisation_scores,
+)
+
+__all__ = [
+    "PuzzleBoxConfig",
+    "SPEED_CONDITIONS",
+    "TRANSFER_CONDITIONS",
+    "watched_organisation",
+    "greedy_values",
+    "greedy_plan",
+    "run_puzzle_box",
+    "VARIANTS",
+]
+
+#: Experiment (a)/(b): condition → learner agent (``himit_torch.AGENTS``).
+SPEED_CONDITIONS = {"imitation": "imitation", "options": "options", "primitives": "primitives"}
+#: Experiment (c): condition → agent; ``plain`` and ``any`` are the state mappings.
+TRANSFER_CONDITIONS = {"options": "options", "plain": "imitation", "any": "imitation"}
+#: Variants of experiment (b) (:attr:`PuzzleBoxConfig.variants`).
+VARIANTS = ("harder_pinch", "no_pinch")
+
+
+def _default_learner() -> LearnerConfig:
+    """The paper experiments' learner settings (plan every 4 ticks, one round)."""
+    return LearnerConfig(plan_every=4, sweep_rounds=1, window=5000)
+
+
+@dataclass
+class PuzzleBoxConfig:
+    """Settings of ``himit run puzzlebox`` (module docstring)."""
+
+    name: str = "puzzlebox"
+    skewers: int = 4
+    """Skewers of the box of (a) and (b), and of the mentor's box in (c) (the study: 4)."""
+    transfer_skewers: int = 5
+    """Skewers of the learner's box in (c) (the study's test box: 5)."""
+    seeds: int = 20
+    """Runs per condition (half watch each organisation)."""
+    first_seed: int = 0
+    steps: int = 100_000
+    """Primitive steps per run in (a) and (b)."""
+    transfer_steps: int = 300_000
+    """Primitive steps per run in (c)."""
+    mentor_episodes: int = 20
+    """Mentor episodes (states only) per seed."""
+    slip: float = 0.1
+    pinch_slip: float | None = None
+    """Failure probability of the mentor's grip, the pinch (None: ``slip``, both grips equally
+    good: the main design)."""
+    harder_pinch: float = 0.2
+    """Failure probability of the pinch in (b)'s ``harder_pinch`` variant."""
+    variants: tuple[str, ...] = ("harder_pinch", "no_pinch")
+    """(b) again, imitation and options on the ``skewers``-skewer box, with :data:`VARIANTS`:
+    ``harder_pinch`` — the mentor's pinch fails ``harder_pinch`` of the time (its movements a
+    little worse than the learner's own); ``no_pinch`` — the learner has no pinch grip (it cannot
+    pass through the mentor's states between subgoals: only its subgoals can be copied)."""
+    window: int = 5000
+    """Openings are counted per window of this many steps."""
+    eval_every: int = 10_000
+    """The greedy policies' exact values are computed every this many steps (a multiple of the
+    window) and at the end, in (a)/(b); in (c) every ``3 · eval_every`` (a 5-skewer box has
+    50,000 states)."""
+    checkpoint_every: int = 50_000
+    engine: str = "auto"
+    learner: LearnerConfig = field(default_factory=_default_learner)
+
+    def __post_init__(self):
+        if isinstance(self.learner, dict):
+            self.learner = LearnerConfig(**self.learner)
+
+        def bad(name: str, why: str):
+            raise ValueError(f"PuzzleBoxConfig.{name}={getattr(self, name)!r}: {why}")
+
+        for name in ("seeds", "steps", "transfer_steps", "mentor_episodes", "window"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                bad(name, "must be a whole number ≥ 1")
+        if not 2 <= self.skewers <= self.transfer_skewers:
+            bad("skewers", f"must be ≥ 2 and ≤ transfer_skewers ({self.transfer_skewers})")
+        if self.transfer_skewers > 5:
+            bad("transfer_skewers", "at most 5 (6 skewers: 357,000 states)")
+        for name in ("eval_every", "checkpoint_every"):
+            value = getattr(self, name)
+            if value < self.window or value % self.window:
+                bad(name, f"must be a positive multiple of the window ({self.window})")
+        if self.engine not in ENGINES:
+            bad("engine", f"use one of {ENGINES}")
+        self.variants = tuple(self.variants)
+        if set(self.variants) - set(VARIANTS):
+            bad("variants", f"use some of {VARIANTS}")
+        for name in ("slip", "pinch_slip", "harder_pinch"):
+            value = getattr(self, name)
+            if value is not None and not 0 <= value < 1:
+                bad(name, "must lie in [0, 1)")
+        if self.learner.window != self.window:
+            self.learner = replace(self.learner, window=self.window)
+
+    def quick(self) -> PuzzleBoxConfig:
+        """A tiny budget on small boxes (2 and 3 skewers; smoke tests, ``--quick``)."""
+        return replace(
+            self,
+            skewers=2,
+            transfer_skewers=3,
+            seeds=min(self.seeds, 2),
+            steps=2 * self.window,
+            transfer_steps=2 * self.window,
+            mentor_episodes=min(self.mentor_episodes, 3),
+            eval_every=self.window,
+            checkpoint_every=self.window,
+        )
+
+    @property
+    def seed_list(self) -> list[int]:
+        return list(range(self.first_seed, self.first_seed + self.seeds))
+
+    def to_json(self) -> str:
+        return json.dumps(asdict(self), indent=2)
+
+
+def watched_organisation(seed: int, first_seed: int = 0) -> str:
+    """The organisation seed ``seed``'s mentor shows: skewer by skewer for even ``seed −
+    first_seed``, step by step for odd."""
+    return ORGANISATIONS[(int(seed) - int(first_seed)) % 2]
+
+
+# ================================================================================ evaluation
+def greedy_values(
+    evaluator: GreedyEvaluator, learner: Learner, greedy: torch.Tensor | None = None
+) -> list[float]:
+    """``V^π(start)`` of every run's greedy option policy (``greedy [B, S]``, default
+    ``learner.greedy_options()``), exact on the true model (states where the run has tried
+    nothing act uniformly at random among the primitives).
+
+    The one place the runner evaluates greedy policies: swap it for the library's exact
+    greedy-evaluation function when that lands."""
+    greedy = learner.greedy_options() if greedy is None else greedy
+    return [evaluator.value(greedy[b]) for b in range(learner.batch)]
+
+
+def greedy_plan(
+    box: PuzzleBox, options: Options, policy: torch.Tensor, focus: int | None = None
+) -> dict[str, Any]:
+    """What a greedy option policy ``policy [S]`` does from the start when nothing slips
+    (:func:`~himit_torch.options.puzzle_box.intended_rollout`): whether it opens the box, the
+    steps in the order it does them (``"i.j"``: skewer ``i``, step ``j``, 1-based), their
+    organisation (:func:`~himit_torch.worlds.puzzle_box.organisation_of`; ``"incomplete"`` when
+    it does not open the box) and how close they come to each organisation
+    (:func:`~himit_torch.worlds.puzzle_box.organisation_scores`; with ``focus``, also for that
+    skewer alone), the grip it holds at each step, where it gets stuck, and its states."""
+    states, opened = intended_rollout(box, options, policy)
+    advances = box.subgoals(states)
+    grips = box.grasps_used(states)
+    stuck = None
+    if not opened:
+        last = int(states[-1])
+        option = int(policy[last])
+        progress, at, grasp = box.decode(last)
+        hand = "home" if at is None else f"at skewer {at + 1}, {grasp}"
+        stuck = f"{list(progress)}, hand {hand}: " + (
+            options.names[option] if option >= 0 else "nothing tried"
+        )
+    return {
+        "opens": opened,
+        "steps_taken": int(states.numel() - 1),
+        "subgoals": [f"{i + 1}.{j}" for i, j in advances],
+        "organisation": organisation_of(advances, box.skewers, box.steps)
+        if opened
+        else "incomplete",
+        "scores": _scores(organisation_scores(advances, box.skewers, box.steps)),
+        "focus_scores": None
+        if focus is None
+        else _scores(organisation_scores(advances, box.skewers, box.steps, focus)),
+        "pinch_steps": grips.count("pinch"),
+        "power_steps": grips.count("power"),
+        "stuck_at": stuck,
+        "states": states.tolist(),
+    }
+
+
+# ================================================================================ one batch
+@dataclass
+class _Box:
+    """A box and what every batch on it shares: its learner options, the exact evaluator of
+    greedy policies, ``V*(start)`` and the optimal policy's expected steps to open it."""
+
+    world: PuzzleBox
+    options: Options
+    evaluator: GreedyEvaluator
+    value_star: float
+    steps_star: float
+
+    @classmethod
+    def build(cls, skewers: int, slip: float, pinch_slip: float | None, pinch: bool = True) -> _Box:
+        world = PuzzleBox(skewers, slip=slip, pinch_slip=pinch_slip)
+        options = puzzle_box_options(world, "learner", pinch=pinch)
+        best = optimal_baseline(world)
+        return cls(
+            world, options, GreedyEvaluator(world, options), best.value_start, best.steps_to_goal
+        )
+
+
+def _run_batch(
+    config: PuzzleBoxConfig,
+    box: _Box,
+    tag: str,
+    condition: str,
+    agent: str,
+    demos: dict[int, Demonstrations] | None,
+    steps: int,
+    eval_every: int,
+    run_dir: Path,
+    resume: bool,
+    progress: bool,
+    mentor_plans: dict[str, list[int]],
+    focus: int | None = None,
+) -> dict[str, Any]:
+    """One condition's runs (every seed) on one box; returns the batch's summary (also written
+    to ``batches/<tag>.json`` with its window rows in ``batches/<tag>.csv``)."""
+    world, seeds = box.world, config.seed_list
+    agents = [agent] * len(seeds)
+    learner = Learner(
+        world, box.options, agents, seeds, config=config.learner, engine=config.engine
+    )
+    if demos is not None:
+        watch_demonstrations(learner, demos)
+    checkpoints = Checkpoints(
+        run_dir / "checkpoints" / f"{tag}.pt",
+        BatchShape(tuple(agents), tuple(seeds), world.num_states),
+        config.checkpoint_every,
+    )
+    elapsed = checkpoints.start(learner, resume)
+    evals_path = run_dir / "batches" / f"{tag}.evals.json"
+    evals: dict[int, dict[str, list]] = {}
+    if resume and evals_path.exists():
+        evals = {
+            int(k): v for k, v in json.loads(evals_path.read_text()).items() if int(k) <= learner.t
+        }
+    paired = [watched_organisation(s, config.first_seed) for s in seeds]
+    logger = TensorBoardLogger(
+        run_dir / "tb",
+        run_names(tag, [condition] * len(seeds), seeds),
+        true_value_start=box.value_star,
+        resume_step=learner.t if resume else None,
+    )
+
+    def evaluate(learner: Learner, index: int) -> None:
+        step = learner.metrics.steps[index]
+        if step != learner.t or (step % eval_every and step != steps):
+            return
+        greedy = learner.greedy_options()
+        values = greedy_values(box.evaluator, learner, greedy)
+        plans = [greedy_plan(world, box.options, greedy[b], focus) for b in range(learner.batch)]
+        evals[step] = {
+            "value": values,
+            "organisation": [p["organisation"] for p in plans],
+            "watched_score": [p["scores"][o] for p, o in zip(plans, paired)],
+            "pinch_steps": [p["pinch_steps"] for p in plans],
+        }
+        for b, v in enumerate(values):
+            logger.scalars(
+                b,
+                {
+                    "eval/greedy_value_gap": box.value_star - v,
+                    "eval/follows_watched": float(plans[b]["organisation"] == paired[b]),
+                    "eval/pinch_steps": float(plans[b]["pinch_steps"]),
+                },
+                step,
+            )
+        _atomic_write(evals_path, json.dumps(evals))
+
+    evals_path.parent.mkdir(parents=True, exist_ok=True)
+    wall = run_windows(
+        learner,
+        steps,
+        on_window=[logger.window, evaluate],
+        logger=logger,
+        checkpoints=checkpoints,
+        progress=f"{tag} B={learner.batch}" if progress else None,
+        elapsed=elapsed,
+    )
+    greedy = learner.greedy_options()
+    runs = []
+    for b, seed in enumerate(seeds):
+        plan = greedy_plan(world, box.options, greedy[b], focus)
+        watched = watched_organisation(seed, config.first_seed)
+        reference = mentor_plans.get(watched)
+        runs.append(
+            {
+                "seed": seed,
+                "watched": watched if demos is not None else None,
+                "paired_organisation": watched,
+                "first_opening": int(learner.first_goal_step[b]),
+                "openings": int(learner.goals[b]),
+                "final_window_openings": int(learner.metrics.goals_in_window[-1][b]),
+                "greedy_value": evals[max(evals)]["value"][b] if evals else None,
+                "mentor_term_wins": _finite(float(learner.mentor_win_share()[b])),
+                "same_low_level_as_mentor": reference is not None and plan["states"] == reference,
+                **plan,
+            }
+        )
+    m = learner.metrics
+    rows = [
+        {
+            "batch": tag,
+            "skewers": world.skewers,
+            "condition": condition,
+            "seed": seed,
+            "watched": watched_organisation(seed, config.first_seed) if demos is not None else "",
+            "step": step,
+            "openings": int(m.goals_in_window[i][b]),
+            "epsilon": float(m.epsilon[i][b]),
+            "greedy_value": evals[step]["value"][b] if step in evals else "",
+            "organisation": evals[step]["organisation"][b] if step in evals else "",
+        }
+        for i, step in enumerate(m.steps)
+        for b, seed in enumerate(seeds)
+    ]
+    summary = {
+        "batch": tag,
+        "skewers": world.skewers,
+        "num_states": world.num_states,
+        "condition": condition,
+        "agent": agent,
+        "steps": learner.t,
+        "value_star": box.value_star,
+        "optimal_steps": box.steps_star,
+        "engine": learner.engine.name,
+        "wall_seconds": wall,
+        "runs": runs,
+    }
+    logger.hparams(
+        [{"condition": condition, "skewers": world.skewers} for _ in seeds],
+        [
+            {
+                "hparam/total_goals": float(r["openings"]),
+                "hparam/first_goal_step": float(
+                    r["first_opening"] if r["first_opening"] >= 0 else learner.t + 1
+                ),
+            }
+            for r in runs
+        ],
+        learner.t,
+    )
+    logger.close()
+    for r in runs:  # the states were for the comparison; the subgoals say what a reader needs
+        del r["states"]
+    _write_rows(run_dir / "batches" / f"{tag}.csv", rows)
+    _atomic_write(run_dir / "batches" / f"{tag}.json", json.dumps(summary, indent=1))
+    return summary
+
+
+_COLUMNS = (
+    "batch",
+    "skewers",
+    "condition",
+    "seed",
+    "watched",
+    "step",
+    "openings",
+    "epsilon",
+    "greedy_value",
+    "organisation",
+)
+
+
+def _write_rows(path: Path, rows: list[dict]) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp")
+    with tmp.open("w", newline="") as f:
+        out = csv.DictWriter(f, fieldnames=_COLUMNS)
+        out.writeheader()
+        for r in rows:
+            out.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
+    os.replace(tmp, path)
+
+
+def _finite(x: float) -> float | None:
+    return x if math.isfinite(x) else None
+
+
+def _scores(scores: dict[str, float]) -> dict[str, float | None]:
+    return {k: _finite(v) for k, v in scores.items()}
+
+
+# ================================================================================ the runner
+def run_puzzle_box(
+    config: PuzzleBoxConfig,
+    run_dir: str | os.PathLike,
+    resume: bool = False,
+    force: bool = False,
+    progress: bool = True,
+) -> dict[str, Any]:
+    """Run experiments (a)–(c) of ``config`` into ``run_dir``; then ``curves.csv``,
+    ``summary.json``, figures and ``results.md``. ``resume`` continues an interrupted run (the
+    configuration must be the saved one; finished batches are not rerun); a finished run is
+    not overwritten unless ``force``."""
+    run_dir = Path(run_dir)
+    check_run_dir(run_dir, force=force, resume=resume)
+    if force:
+        clear_run_dir(
+            run_dir,
+            ("checkpoints", "tb", "batches", "figures"),
+            ("results.md", "curves.csv", "config.json", "summary.json"),
+        )
+    run_dir.mkdir(parents=True, exist_ok=True)
+    cfg_path = run_dir / "config.json"
+    if (
+        resume
+        and cfg_path.exists()
+        and json.loads(cfg_path.read_text()) != json.loads(config.to_json())
+    ):
+        raise ValueError(
+            f"--resume: {cfg_path} holds a different configuration than the one given; "
+            "resume with the same flags or start over with --force"
+        )
+    _atomic_write(cfg_path, config.to_json())
+    small = PuzzleBox(config.skewers, slip=config.slip, pinch_slip=config.pinch_slip)
+    mentors = {org: organisation_mentor(small, org) for org in ORGANISATIONS}
+    demos = {
+        s: record_demonstrations(
+            small,
+            mentors[watched_organisation(s, config.first_seed)],
+            config.mentor_episodes,
+            seed=s,
+        )
+        for s in config.seed_list
+    }
+    batches: list[dict[str, Any]] = []
+
+    def batch(box: _Box, tag, condition, agent, watched, steps, eval_every, plans, focus=None):
+        done = run_dir / "batches" / f"{tag}.json"
+        if resume and done.exists():
+            batches.append(json.loads(done.read_text()))
+            return
+        batches.append(
+            _run_batch(
+                config, box, tag, condition, agent, watched, steps, eval_every, run_dir,
+                resume, progress, plans, focus,
+            )
+        )  # fmt: skip
+
+    # each mentor's own plan (its states when nothing slips): a greedy plan through exactly
+    # these states copies the mentor's movements, not only its subgoals
+    plans = {
+        org: intended_rollout(small, mentors[org].options, mentors[org].option)[0].tolist()
+        for org in ORGANISATIONS
+    }
+    speed_box = _Box.build(config.skewers, config.slip, config.pinch_slip)
+    for condition, agent in SPEED_CONDITIONS.items():
+        watched = demos if agent == "imitation" else None
+        batch(speed_box, f"speed_{condition}", condition, agent, watched, config.steps,
+              config.eval_every, plans)  # fmt: skip
+    del speed_box
+    for variant in config.variants:
+        if variant == "harder_pinch":
+            # the same mentors on a box where their pinch fails more often: their episodes again
+            box = _Box.build(config.skewers, config.slip, config.harder_pinch)
+            mentors_v = {org: organisation_mentor(box.world, org) for org in ORGANISATIONS}
+            demos_v = {
+                s: record_demonstrations(
+                    box.world, mentors_v[watched_organisation(s, config.first_seed)],
+                    config.mentor_episodes, seed=s,
+                )
+                for s in config.seed_list
+            }  # fmt: skip
+        else:  # the same box and episodes, a learner without the pinch
+            box = _Box.build(config.skewers, config.slip, config.pinch_slip, pinch=False)
+            demos_v = demos
+        for condition in ("imitation", "options"):
+            watched = demos_v if condition == "imitation" else None
+            batch(box, f"{variant}_{condition}", condition, condition, watched, config.steps,
+                  config.eval_every, plans)  # fmt: skip
+        del box
+    big = _Box.build(config.transfer_skewers, config.slip, config.pinch_slip)
+    for condition, agent in TRANSFER_CONDITIONS.items():
+        watched = (
+            None
+            if agent != "imitation"
+            else {s: map_demonstrations(d, small, big.world, condition) for s, d in demos.items()}
+        )
+        batch(big, f"transfer_{condition}", condition, agent, watched, config.transfer_steps,
+              3 * config.eval_every, {}, focus=config.skewers)  # fmt: skip
+    with (run_dir / "curves.csv").open("w", newline="") as out:
+        out.write(",".join(_COLUMNS) + "\n")
+        for b in batches:
+            lines = (run_dir / "batches" / f"{b['batch']}.csv").read_text().splitlines()[1:]
+            out.write("".join(line + "\n" for line in lines))
+    summary = {
+        "config": {**asdict(config), "box_steps": small.steps},
+        "commit": source_commit(),
+        "mentor_plans": {org: mentors_subgoals(small, plans[org]) for org in ORGANISATIONS},
+        "batches": batches,
+    }
+    _atomic_write(run_dir / "summary.json", json.dumps(summary, indent=1))
+    from himit_torch.runs.puzzle_box_report import (
+        write_puzzle_box_figures,
+        write_puzzle_box_results,
+    )
+
+    write_puzzle_box_figures(run_dir, summary)
+    write_puzzle_box_results(run_dir, summary)
+    return summary
+
+
+def mentors_subgoals(box: PuzzleBox, states: list[int]) -> list[str]:
+    """The ``"i.j"`` steps along a mentor's states."""
+    return [f"{i + 1}.{j}" for i, j in box.subgoals(states)]

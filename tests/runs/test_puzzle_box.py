@@ -1,0 +1,163 @@
+"""``himit run puzzlebox``: reading a greedy policy's plan, the statistics of the report, and the
+runner, its command and its script end to end on small boxes with tiny budgets."""
+
+import csv
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from scipy import stats
+
+from himit_torch.cli import main
+from himit_torch.mentor.puzzle_box import organisation_mentor
+from himit_torch.options.puzzle_box import puzzle_box_options
+from himit_torch.runs.puzzle_box import (
+    PuzzleBoxConfig,
+    greedy_plan,
+    run_puzzle_box,
+    watched_organisation,
+)
+from himit_torch.runs.puzzle_box_report import holm, paired_difference, wilson
+from himit_torch.worlds.puzzle_box import PuzzleBox
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def test_greedy_plans_of_known_policies():
+    box = PuzzleBox(3)
+    learner, mentor = puzzle_box_options(box, "learner"), puzzle_box_options(box, "mentor")
+    plan = greedy_plan(box, learner, organisation_mentor(box, "step", learner).option, focus=2)
+    assert plan["opens"] and plan["organisation"] == "step"
+    assert plan["subgoals"][:4] == ["1.1", "2.1", "3.1", "1.2"]
+    assert plan["scores"] == {"skewer": 0.0, "step": 1.0}
+    assert plan["focus_scores"] == {"skewer": 0.0, "step": 1.0}
+    assert (plan["power_steps"], plan["pinch_steps"]) == (12, 0)
+    assert plan["steps_taken"] == 12 * 3  # reach, grip, motion per step: nothing slips
+    theirs = greedy_plan(box, mentor, organisation_mentor(box, "skewer").option)
+    assert theirs["organisation"] == "skewer" and theirs["pinch_steps"] == 12
+    # a policy that withdraws again at once never opens the box: where it is stuck is named
+    loop = organisation_mentor(box, "skewer", learner).option.clone()
+    at = box.encode([0, 0, 0], 0, "open")
+    loop[at] = box.action_withdraw
+    stuck = greedy_plan(box, learner, loop)
+    assert not stuck["opens"] and stuck["organisation"] == "incomplete"
+    assert stuck["stuck_at"] == "[0, 0, 0], hand home: go to skewer 1"
+    assert stuck["scores"] == {"skewer": None, "step": None}
+
+
+def test_statistics_by_hand():
+    share, low, high = wilson(8, 10)
+    assert share == 0.8 and low == pytest.approx(0.4902, abs=1e-4)
+    assert high == pytest.approx(0.9433, abs=1e-4)
+    assert holm([0.01, 0.04, 0.03]) == pytest.approx([0.03, 0.06, 0.06])
+    mean, half, p = paired_difference([3.0, 5.0, 4.0, 9.0], [1.0, 1.0, 2.0, 2.0])
+    assert mean == pytest.approx(3.75)
+    assert half == pytest.approx(stats.t.ppf(0.975, 3) * stats.sem([2, 4, 2, 7]))
+    assert p == pytest.approx(stats.wilcoxon([2, 4, 2, 7]).pvalue)
+    assert paired_difference([1, 2], [1, 2])[2] == 1.0
+
+
+def test_seeds_alternate_between_the_organisations():
+    assert [watched_organisation(s, 3) for s in range(3, 7)] == ["skewer", "step"] * 2
+    with pytest.raises(ValueError, match="transfer_skewers"):
+        PuzzleBoxConfig(transfer_skewers=6)
+    with pytest.raises(ValueError, match="variants"):
+        PuzzleBoxConfig(variants=("sideways",))
+    with pytest.raises(ValueError, match="eval_every"):
+        PuzzleBoxConfig(eval_every=1234)
+
+
+TINY = PuzzleBoxConfig(
+    skewers=2,
+    transfer_skewers=3,
+    seeds=2,
+    steps=1000,
+    transfer_steps=1000,
+    mentor_episodes=3,
+    window=500,
+    eval_every=500,
+    checkpoint_every=500,
+)
+
+
+def test_runner_writes_every_result(tmp_path):
+    run_dir = tmp_path / "pb"
+    summary = run_puzzle_box(TINY, run_dir, progress=False)
+    tags = [b["batch"] for b in summary["batches"]]
+    assert tags == [
+        "speed_imitation",
+        "speed_options",
+        "speed_primitives",
+        "harder_pinch_imitation",
+        "harder_pinch_options",
+        "no_pinch_imitation",
+        "no_pinch_options",
+        "transfer_options",
+        "transfer_plain",
+        "transfer_any",
+    ]
+    with (run_dir / "curves.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == len(tags) * 2 * 2  # batches × seeds × windows
+    assert {r["step"] for r in rows} == {"500", "1000"}
+    # greedy policies evaluated every eval_every steps, in (c) every 3 · eval_every, and at the end
+    evaluated = {(r["batch"].split("_")[0], r["step"]) for r in rows if r["greedy_value"] != ""}
+    assert ("speed", "500") in evaluated and ("transfer", "500") not in evaluated
+    assert all((r["batch"].split("_")[0], "1000") in evaluated for r in rows)
+    speed = summary["batches"][0]
+    assert speed["num_states"] == 5**2 * 7 and speed["skewers"] == 2
+    assert [r["watched"] for r in speed["runs"]] == ["skewer", "step"]
+    assert summary["batches"][1]["runs"][0]["watched"] is None  # options watched nothing
+    transfer = summary["batches"][-1]
+    assert transfer["num_states"] == 5**3 * 10
+    assert all(r["focus_scores"] is not None for r in transfer["runs"])
+    for name in ("speed.png", "organisation.png", "transfer.png"):
+        assert (run_dir / "figures" / name).stat().st_size > 10_000
+    text = (run_dir / "results.md").read_text()
+    assert "## Beside Whiten et al. (2006)" in text
+    for finding in ("| 1. Children", "| 2a.", "| 2b.", "| 3. At test"):
+        assert finding in text
+    assert "commit `" in text and "engine `" in text
+    assert len(list((run_dir / "tb").iterdir())) == len(tags) * 2
+    # a finished run is refused without --force; a resumed one reads the finished batches
+    with pytest.raises(ValueError, match="finished run"):
+        run_puzzle_box(TINY, run_dir, progress=False)
+    again = run_puzzle_box(TINY, run_dir, resume=True, progress=False)
+    assert json.dumps(again["batches"]) == json.dumps(summary["batches"])
+    # a batch interrupted after its last checkpoint resumes from it to the same runs
+    (run_dir / "batches" / "transfer_any.json").unlink()
+    (run_dir / "results.md").unlink()
+    resumed = run_puzzle_box(TINY, run_dir, resume=True, progress=False)
+    assert resumed["batches"][-1]["runs"] == summary["batches"][-1]["runs"]
+    # himit plot redraws it
+    (run_dir / "results.md").unlink()
+    assert main(["plot", str(run_dir)]) == 0
+    assert "## Beside Whiten et al. (2006)" in (run_dir / "results.md").read_text()
+
+
+def test_the_command_and_the_script(capsys, tmp_path):
+    assert main(["info", "--puzzle-box", "2"]) == 0
+    out = capsys.readouterr().out
+    assert "states     175" in out and "k=5: 50,000" in out
+    rows = [line for line in out.splitlines() if "by" in line and "skills" in line]
+    optimum = next(line for line in out.splitlines() if line.startswith("optimal policy"))
+    assert len(rows) == 4  # both organisations, both styles: the optimum's steps and value
+    assert {tuple(line.split()[-2:]) for line in rows} == {tuple(optimum.split()[-2:])}
+    with pytest.raises(SystemExit) as exc:
+        main(["info", "--puzzle-box", "7"])
+    assert exc.value.code == 2
+    assert capsys.readouterr().err.startswith("himit: error: --puzzle-box 7")
+    with pytest.raises(SystemExit):
+        main(["run", "puzzlebox", "--workers", "2", "--logdir", str(tmp_path)])
+    assert "takes no --workers" in capsys.readouterr().err
+    # the flat script, as a user runs it (tiny budget)
+    done = subprocess.run(
+        [sys.executable, str(ROOT / "experiments" / "puzzle_box.py"), "--quick", "--seeds", "1",
+         "--logdir", str(tmp_path)],
+        capture_output=True, text=True, timeout=900,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert (tmp_path / "puzzlebox" / "results.md").exists()
+    assert "Beside Whiten et al." in done.stdout
