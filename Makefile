@@ -52,7 +52,8 @@ lint: $(STAMP)
 	$(BIN)/mypy
 	$(BIN)/lint-imports
 
-# the slow tests but the multi-seed statistical ones (CI runs make test, then this)
+# the slow tests but the multi-seed statistical ones and the extended ones (CI runs make test,
+# then this; docs/development.md says what each marker holds)
 test-slow: $(STAMP)
 	$(PYTEST) -m "slow and not statistical and not extended" --durations=15
 
