@@ -97,6 +97,8 @@ class OptionModels:
 #: Absorbing chains with up to this many continuing states are solved densely (room-sized
 #: options, microseconds each); larger ones with a sparse LU.
 _DENSE_LIMIT = 1024
+#: Many small chains of one option are solved in dense groups of up to this many states.
+_CHAIN_BATCH = 128
 
 
 def _kernel_entries(
@@ -120,6 +122,38 @@ def _kernel_entries(
     idx = first + np.arange(first.size)
     prob = data[idx] if weight is None else data[idx] * np.repeat(weight, counts)
     return np.repeat(owner, counts), indices[idx], prob
+
+
+def _chains(c_from: np.ndarray, c_to: np.ndarray, n: int) -> list[np.ndarray]:
+    """The continuing states ``0 … n−1`` of an option in groups to solve one at a time: all of
+    them at once when they fit a dense solve (``n ≤ _DENSE_LIMIT``), else their weakly connected
+    components under the edges ``c_from → c_to`` (chains that never meet, e.g. the puzzle box's
+    "do step j on the skewer at hand", one small chain per skewer and level) packed in order into
+    groups of at most ``_CHAIN_BATCH`` states (a dense solve costs the cube of its size); a
+    component larger than that is a group of its own (dense up to ``_DENSE_LIMIT``, else a sparse
+    LU). Each group's system and exits are its own, so no solve carries the
+    other chains' exits as right-hand sides."""
+    if n <= _DENSE_LIMIT:
+        return [np.arange(n)]
+    from scipy.sparse.csgraph import connected_components
+
+    graph = sp.csr_matrix((np.ones(c_from.size), (c_from, c_to)), shape=(n, n))
+    count, label = connected_components(graph, directed=True, connection="weak")
+    if count == 1:
+        return [np.arange(n)]
+    order = np.argsort(label, kind="stable")
+    sizes = np.bincount(label, minlength=count)
+    groups: list[np.ndarray] = []
+    current: list[np.ndarray] = []
+    filled = 0
+    for members in np.split(order, np.cumsum(sizes)[:-1]):
+        if current and filled + members.size > _CHAIN_BATCH:
+            groups.append(np.sort(np.concatenate(current)))
+            current, filled = [], 0
+        current.append(members)
+        filled += members.size
+    groups.append(np.sort(np.concatenate(current)))
+    return groups
 
 
 def _stop_at(terminal: np.ndarray, beta: np.ndarray, states: np.ndarray) -> np.ndarray:
@@ -236,6 +270,8 @@ def _option_models(
             T_CC = (_dense if dense else _sparse)(
                 own[on_C] - nI, local[cols[on_C]], go_on[on_C], (nC, nC)
             )
+            # chains of C that never meet are solved apart (T_CC is block-diagonal over them)
+            groups = [] if dense else _chains(own[on_C] - nI, local[cols[on_C]], nC)
             J, j_row = np.unique(own[on_I], return_inverse=True)
             T_JC = (_dense if dense else _sparse)(
                 j_row, local[cols[on_I]], go_on[on_I], (J.size, nC)
@@ -251,9 +287,11 @@ def _option_models(
                 try:
                     if dense:
                         sol = np.linalg.solve(np.eye(nC) - gamma * T_CC, rhs)
-                    else:
+                    elif len(groups) == 1:
                         system = (sp.identity(nC, format="csc") - gamma * T_CC).tocsc()
                         sol = spla.splu(system).solve(rhs)
+                    else:
+                        sol = _solve_groups(T_CC, rhs, gamma, groups)
                 except (np.linalg.LinAlgError, RuntimeError) as err:
                     raise _never_terminates(options.names[o], gamma) from err
                 if not np.isfinite(sol).all():
@@ -297,6 +335,28 @@ def _option_models(
             )
         )
     return result
+
+
+def _solve_groups(
+    T_CC: sp.csr_matrix, rhs: np.ndarray, gamma: float, groups: list[np.ndarray]
+) -> np.ndarray:
+    """``(I − γ T_CC)⁻¹ rhs`` where ``T_CC`` is block-diagonal over ``groups`` (:func:`_chains`):
+    one solve per group, over the right-hand sides that group touches (the others are 0 there)."""
+    sol = np.zeros_like(rhs)
+    T = T_CC.tocsr()
+    for members in groups:
+        block = T[members][:, members]
+        touched = np.flatnonzero(np.any(rhs[members] != 0, axis=0))
+        if touched.size == 0:
+            continue
+        b = rhs[np.ix_(members, touched)]
+        n = members.size
+        if n <= _DENSE_LIMIT:
+            part = np.linalg.solve(np.eye(n) - gamma * block.toarray(), b)
+        else:
+            part = spla.splu((sp.identity(n, format="csc") - gamma * block).tocsc()).solve(b)
+        sol[np.ix_(members, touched)] = part
+    return sol
 
 
 def _never_terminates(name: str, gamma: float) -> ValueError:

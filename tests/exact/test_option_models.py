@@ -205,3 +205,42 @@ def test_never_terminating_option_is_rejected():
 def test_options_over_wrong_state_count():
     with pytest.raises(ValueError, match="options are over 36 states"):
         option_models(MultiRooms(size=8, rooms=2), primitive_options(MultiRooms(size=6, rooms=2)))
+
+
+@pytest.mark.parametrize("dense_limit, batch", [(16, 8), (1, 1)])
+def test_many_small_chains_solved_apart_equal_one_solve(monkeypatch, dense_limit, batch):
+    """An option whose continuing states fall apart into many chains that never meet (the puzzle
+    box's "do step j on the skewer at hand": one short chain per skewer and level) is solved
+    chain group by chain group — dense groups of a few chains, or each chain alone by a sparse
+    LU — and must give the models of one solve over all of them (the slow path)."""
+    import himit_torch.exact.option_models as om
+    from himit_torch.options.puzzle_box import step_options
+    from himit_torch.worlds.puzzle_box import PuzzleBox
+
+    box = PuzzleBox(3, slip=0.2)
+    options = step_options(box)  # 300 continuing states per option: one dense solve by default
+    reference = option_models(box, options)
+    monkeypatch.setattr(om, "_DENSE_LIMIT", dense_limit)
+    monkeypatch.setattr(om, "_CHAIN_BATCH", batch)
+    assert len(om._chains(*_chain_edges(box, options))) > 1
+    apart = option_models(box, options)
+    assert torch.equal(apart.row_state, reference.row_state)
+    assert torch.equal(apart.row_option, reference.row_option)
+    torch.testing.assert_close(apart.reward, reference.reward, rtol=0, atol=1e-12)
+    torch.testing.assert_close(
+        apart.transition.to_dense(), reference.transition.to_dense(), rtol=0, atol=1e-12
+    )
+
+
+def _chain_edges(box, options):
+    """Edges between the continuing states of the first option (C-local indices), and their
+    number."""
+    import numpy as np
+
+    cont = (options.initiation[0] & (options.termination[0] < 1)).nonzero()[:, 0].numpy()
+    local = {int(s): i for i, s in enumerate(cont)}
+    succ = box.dynamics_table().successors.numpy()
+    pol = options.policy[0].numpy()
+    edges = [(local[s], local[int(t)]) for s in cont for t in succ[s, pol[s]] if int(t) in local]
+    a = np.array(edges, dtype=np.int64)
+    return a[:, 0], a[:, 1], cont.size
