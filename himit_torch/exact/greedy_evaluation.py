@@ -202,7 +202,7 @@ class PolicyEvaluator:
             ``dynamics_table``), ``terminal_mask``, ``gamma`` and ``start_state`` or
             ``start_distribution``.
         options: the options the policies choose among.
-        window: ``W``, steps per window of :attr:`PolicyEvaluation.goals_per_window`.
+        window: ``W``, steps per window of ``PolicyEvaluation.goals_per_window``.
         goal_mask: ``[S]`` bool, the terminal states that count as goals; by default the world's
             ``goal_mask`` where it has one, else every terminal state.
         models: ``(discounted, durations)`` of ``options`` if already computed

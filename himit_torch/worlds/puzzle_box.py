@@ -43,7 +43,8 @@ Design (and why)
     skewers and the two would not cost the same.)
 
 Action space (``A = k + n + 3``), with what the hand can do in each posture (its
-*affordances*, :attr:`PuzzleBox.affordances`; the primitive options are usable only there)
+*affordances*, :attr:`PuzzleBox.affordances`; the primitive options are usable only there):
+
     ``reach i`` (``i = 1 … k``, at home) — the hand goes to skewer ``i``, open;
     ``withdraw`` (hand at a skewer) — back home, letting go;
     ``power grip``, ``pinch grip`` (hand open at a skewer) — grip it;
