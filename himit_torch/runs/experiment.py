@@ -594,13 +594,16 @@ def _finish_run_dir(
 
 
 def _share_cores(threads: int) -> None:
-    """A world's process: one torch thread, ``threads`` for the compiled engine."""
-    torch.set_num_threads(1)
+    """A world's process: one torch thread, ``threads`` for the compiled engine. (Numba's
+    threading layer, launched by ``set_num_threads``, resets the OpenMP thread count torch
+    shares, so torch's is set after it.)"""
     try:
         import numba
+
+        numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))  # type: ignore[attr-defined]
     except ImportError:
-        return
-    numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))  # type: ignore[attr-defined]
+        pass
+    torch.set_num_threads(1)
 
 
 def _merge_curves(run_dir: Path, config: ExperimentConfig) -> None:

@@ -111,6 +111,19 @@ _pool: ThreadPoolExecutor | None = None
 _pool_size = 0  # its worker threads (ThreadPoolExecutor keeps the number private)
 
 
+def _numba_threads() -> int:
+    """``numba.get_num_threads()``, keeping torch's intra-op thread count as it was: the first
+    call launches Numba's threading layer, whose OpenMP backend sets the OpenMP thread count
+    that torch's pool shares (measured: ``torch.set_num_threads(1)``, one run of the compiled
+    engine, then ``torch.get_num_threads()`` gave 2, and small torch ops ran ≈ 20× slower on a
+    busy machine)."""
+    torch_threads = torch.get_num_threads()
+    threads = numba.get_num_threads()
+    if torch.get_num_threads() != torch_threads:
+        torch.set_num_threads(torch_threads)
+    return threads
+
+
 def _run_all(batch: int, args: tuple) -> None:
     """``run_ticks(b, *args)`` for every run ``b`` of the batch, on up to
     ``numba.get_num_threads()`` threads (this one included), never more than ``batch``.
@@ -127,7 +140,7 @@ def _run_all(batch: int, args: tuple) -> None:
     if run_ticks not in _called:
         _call(run_ticks, 0, *args)
         first = 1
-    threads = max(1, min(batch - first, numba.get_num_threads()))
+    threads = max(1, min(batch - first, _numba_threads()))
     if threads == 1:  # (one run left: no thread to wait for)
         for b in range(first, batch):
             run_ticks(b, *args)
