@@ -599,6 +599,8 @@ def _experiment_config(name: str, args: argparse.Namespace) -> ExperimentConfig:
     if args.quick:
         config = config.quick()
     changes = _given_settings(args, "experiment")
+    if "preset" in changes:
+        config = _with_preset(config, changes.pop("preset"))
     learner_changes = _given_settings(args, "learner")
     if learner_changes:
         changes["learner"] = dataclasses.replace(config.learner, **learner_changes)
@@ -614,17 +616,24 @@ def _experiment_config(name: str, args: argparse.Namespace) -> ExperimentConfig:
     return config
 
 
+def _with_preset(config: Any, name: str | None) -> Any:
+    """``config`` with preset ``name`` applied (``--preset none``: the recorded preset dropped,
+    the settings kept)."""
+    return dataclasses.replace(config, preset=None) if name is None else config.with_preset(name)
+
+
 def _refuse_flags(args: argparse.Namespace, allowed: Sequence[str], why: str) -> dict[str, Any]:
     """The setting flags of ``allowed`` that were given; any other setting flag is refused,
     naming the flags, those allowed and ``why``."""
     given = _given_settings(args, "experiment")
     refused = [_flag(k) for k in given if k not in allowed]
-    refused += [_flag(k) for k in _given_settings(args, "learner")]
+    refused += [_flag(k) for k in _given_settings(args, "learner") if k not in allowed]
     if refused:
         raise ValueError(
             f"himit run {args.experiment} takes no {', '.join(refused)} (of the settings only "
             f"{', '.join(map(_flag, allowed))}: {why})"
         )
+    given |= _given_settings(args, "learner")
     return {k: v for k, v in given.items() if k in allowed}
 
 
@@ -641,13 +650,17 @@ def _run_gymnasium(args: argparse.Namespace) -> int:
         )
     changes = _refuse_flags(
         args,
-        ("seeds", "steps", "device"),
+        ("seeds", "first_seed", "steps", "device", "preset", "tie_break"),
         "its agents are fixed by its design and its imitators use the world's own reward, "
         "KnownReward",
     )
     config = GymExperimentConfig()
     if args.quick:
         config = config.quick()
+    if "preset" in changes:
+        config = _with_preset(config, changes.pop("preset"))
+    if "tie_break" in changes:
+        changes["learner"] = replace(config.learner, tie_break=changes.pop("tie_break"))
     config = replace(config, **changes)
     as_device("--device", config.device)
     run_dir = Path(args.logdir) / config.name
@@ -771,7 +784,8 @@ def _add_run(sub: argparse.ArgumentParser) -> None:
             "experiment settings",
             "Fields of ExperimentConfig. Defaults shown are the library's; exp1, exp2 and exp3 "
             "set their own (himit_torch.runs.config.EXPERIMENTS), --config a file's. "
-            "gymnasium takes only --seeds, --steps and --device, discovery only --seeds, "
+            "gymnasium takes only --seeds, --first-seed, --steps, --device, --preset and "
+            "--tie-break, discovery only --seeds, "
             "--steps and --engine.",
         ),
         ExperimentConfig,

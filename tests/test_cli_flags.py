@@ -63,6 +63,7 @@ EXPERIMENT_FLAGS = {
     "greedy_every": (["20000"], 20_000),
     "device": (["cpu:0"], "cpu:0"),
     "engine": (["torch"], "torch"),
+    "preset": (["recommended"], "recommended"),
 }
 
 

@@ -1,7 +1,7 @@
-"""The recommended preset's search, scored by the criterion PROTOCOL.md declared before the runs.
+"""The recommended preset's search, scored by the criteria PROTOCOL.md declared before the runs.
 
-Reads the six sweeps of the search (``runs.csv`` and ``results.csv`` of each) and writes
-``search.md`` beside this file: every candidate on each world, and the choice.
+Reads the sweeps of both rounds (``runs.csv`` and ``results.csv`` of each) and writes
+``search.md`` beside this file: every candidate on each world, and each round's choice.
 
     python experiments/presets/analyse_search.py [--sweeps runs/presets] [--out experiments/presets/search.md]
 """
@@ -28,6 +28,17 @@ CANDIDATES = {
     ("baselines", "baseline", "options"): "options (non-imitator)",
     ("baselines", "baseline", "primitives"): "primitives (non-imitator)",
 }
+#: Round 2 (fresh seeds 2000–2009).
+ROUND2 = {
+    ("round2", "baseline", "imitation"): "fade20_eps9998",
+    ("round2", "eps_decay=0.9995", "imitation"): "fade20_eps9995",
+    ("round2", "eps_decay=0.9999", "imitation"): "fade20_eps9999",
+    ("round2", "mentor_fade=5.0", "imitation"): "fade5_eps9998",
+    ("round2", "mentor_fade=50.0", "imitation"): "fade50_eps9998",
+    ("round2", "eps_schedule=goals", "imitation"): "fade20_goals",
+}
+#: Round 2's floor on the smaller of the two worlds' mean greedy % of the mentor's rate.
+ROUND2_FLOOR = 97.0
 WORLDS = ("exp1", "exp2")
 EARLY_STEPS = 50_000
 
@@ -39,11 +50,11 @@ def t_interval(values: list[float]) -> tuple[float, float, float]:
     return mean, low, high
 
 
-def read(sweeps: Path) -> dict:
+def read(sweeps: Path, candidates: dict) -> dict:
     """candidate → world → seed → measures."""
     out: dict = defaultdict(lambda: defaultdict(dict))
     for world in WORLDS:
-        for prefix in ("baselines", "search", "override"):
+        for prefix in sorted({prefix for prefix, _, _ in candidates}):
             folder = sweeps / f"{prefix}_{world}"
             early: dict = defaultdict(int)
             with open(folder / "results.csv") as f:
@@ -53,9 +64,9 @@ def read(sweeps: Path) -> dict:
             with open(folder / "runs.csv") as f:
                 for row in csv.DictReader(f):
                     key = (prefix, row["cell"], row["agent"])
-                    if key not in CANDIDATES:
+                    if key not in candidates:
                         continue
-                    out[CANDIDATES[key]][world][int(row["seed"])] = {
+                    out[candidates[key]][world][int(row["seed"])] = {
                         "greedy_pct_mentor": float(row["greedy_percent_of_mentor"]),
                         "late_goals": int(row["late_goals"]),
                         "first_goal_step": int(row["first_goal_step"]),
@@ -64,13 +75,8 @@ def read(sweeps: Path) -> dict:
     return out
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--sweeps", default="runs/presets")
-    parser.add_argument("--out", default=str(Path(__file__).with_name("search.md")))
-    args = parser.parse_args()
-    data = read(Path(args.sweeps))
-
+def table(data: dict) -> tuple[list[str], dict]:
+    """The markdown rows of every candidate, and each imitator's (greedy, early) per world."""
     rows, scores = [], {}
     for name, worlds in data.items():
         cells = []
@@ -87,42 +93,74 @@ def main() -> None:
                 f"[{late[1]:.0f}, {late[2]:.0f}] | {early:.0f} | {first:.0f}"
                 + (f" ({failed} never)" if failed else "")
             )
-            scores.setdefault(name, []).append((greedy[0], early))
+            if "non-imitator" not in name:
+                scores.setdefault(name, []).append((greedy[0], early))
         rows.append((name, cells))
-    imitators = {n: s for n, s in scores.items() if "non-imitator" not in n}
-    primary = {n: min(g for g, _ in s) for n, s in imitators.items()}
+    primary = {n: min(g for g, _ in s) for n, s in scores.items()}
+    header = [
+        "| candidate | exp1 greedy | exp1 late | exp1 early | exp1 first goal | exp2 greedy | "
+        "exp2 late | exp2 early | exp2 first goal | min greedy | early, summed |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for name, cells in sorted(rows, key=lambda r: -primary.get(r[0], -1e9)):
+        crit = (
+            f"{primary[name]:.1f} | {sum(e for _, e in scores[name]):.0f}"
+            if name in primary
+            else "– | –"
+        )
+        header.append(f"| {name} | {' | '.join(cells)} | {crit} |")
+    return header, scores
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--sweeps", default="runs/presets")
+    parser.add_argument("--out", default=str(Path(__file__).with_name("search.md")))
+    args = parser.parse_args()
+
+    rows1, scores1 = table(read(Path(args.sweeps), CANDIDATES))
+    primary = {n: min(g for g, _ in s) for n, s in scores1.items()}
     best = max(primary.values())
-    close = [n for n in imitators if primary[n] >= best - 1.0]
-    chosen = max(close, key=lambda n: sum(e for _, e in imitators[n]))
+    close = [n for n in scores1 if primary[n] >= best - 1.0]
+    chosen1 = max(close, key=lambda n: sum(e for _, e in scores1[n]))
+
+    rows2, scores2 = table(read(Path(args.sweeps), ROUND2))
+    eligible = [n for n, s in scores2.items() if min(g for g, _ in s) >= ROUND2_FLOOR]
+    chosen2 = max(eligible, key=lambda n: sum(e for _, e in scores2[n])) if eligible else None
 
     lines = [
         "# The recommended preset's search: every candidate, scored as PROTOCOL.md declared",
         "",
-        "Held-out seeds 1000–1009 (10 runs per cell), random ties, the experiments' default "
-        "budgets (exp1: 80×80 with corner options, 300k steps; exp2: 40×40, 200k). Made by "
-        "`experiments/presets/*.toml` (`himit sweep`) and this page by "
-        "`python experiments/presets/analyse_search.py`.",
+        "Random ties, the experiments' default budgets (exp1: 80×80 with corner options, 300k "
+        "steps; exp2: 40×40, 200k), 10 runs per cell. Made by `experiments/presets/*.toml` "
+        "(`himit sweep`); this page by `python experiments/presets/analyse_search.py`.",
         "",
         "Per world: **greedy** — the frozen greedy policy at the end, its goals per window as a % "
         "of the mentor's own rate, exact (mean over the 10 seeds [95 % Student-t interval of the "
         "mean]); **late** — goals in the last 50k steps (mean [95 % t-interval]); **early** — "
         "goals in the first 50k steps (mean); **first goal** — median steps to the first goal "
-        "over the runs that found it.",
+        "over the runs that found it. **min greedy** — the smaller of the two worlds' mean "
+        "greedy; **early, summed** — the two worlds' early goals added.",
         "",
-        "| candidate | exp1 greedy | exp1 late | exp1 early | exp1 first goal | exp2 greedy | "
-        "exp2 late | exp2 early | exp2 first goal | criterion: min greedy |",
-        "|---|---|---|---|---|---|---|---|---|---|",
-    ]
-    order = sorted(rows, key=lambda r: -primary.get(r[0], -1e9))
-    for name, cells in order:
-        crit = f"{primary[name]:.1f}" if name in primary else "–"
-        lines.append(f"| {name} | {' | '.join(cells)} | {crit} |")
-    lines += [
+        "## Round 1: held-out seeds 1000–1009",
         "",
-        f"**Chosen: `{chosen}`.** Best on the primary criterion: {best:.1f} % "
-        f"(the smaller of its two worlds' mean greedy % of the mentor's rate); within 1 point of "
-        f"it: {', '.join(sorted(close))}; of those, the most goals in the first 50k steps, "
-        "summed over the two worlds.",
+        *rows1,
+        "",
+        f"**Round 1's choice: `{chosen1}`** — best on its criterion (min greedy {best:.1f} %); "
+        f"within 1 point of it: {', '.join(sorted(close))}; of those, the most early goals.",
+        "",
+        "## Round 2: fresh held-out seeds 2000–2009",
+        "",
+        *rows2,
+        "",
+        (
+            f"**Round 2's choice, the recommended preset: `{chosen2}`** — of the candidates "
+            f"with min greedy ≥ {ROUND2_FLOOR:.0f} % ({', '.join(sorted(eligible))}), the most "
+            "early goals."
+            if chosen2
+            else f"No candidate of round 2 reached min greedy ≥ {ROUND2_FLOOR:.0f} %: round "
+            f"1's choice `{chosen1}` stands."
+        ),
     ]
     Path(args.out).write_text("\n".join(lines) + "\n")
     print("\n".join(lines))

@@ -17,6 +17,7 @@ from himit_torch.learner.agents import AGENTS
 from himit_torch.learner.config import LearnerConfig
 from himit_torch.learner.engines import ENGINES
 from himit_torch.learner.learner import Learner
+from himit_torch.learner.presets import PRESETS, apply_preset, check_preset
 from himit_torch.mentor.reward import MENTOR_REWARDS
 from himit_torch.validation import (
     as_device,
@@ -147,9 +148,20 @@ class ExperimentConfig:
         default_factory=LearnerConfig,
         doc="Learner settings (see ``LearnerConfig``; a dict of its fields is accepted).",
     )
+    preset: str | None = setting(
+        None,
+        choices=tuple(PRESETS),
+        doc="""
+        The named preset the learner settings follow (``himit_torch.learner.presets``):
+        ``paper`` (eq. 2 as the paper states it) or ``recommended`` (the best imitator found);
+        ``None``: none claimed. Set by :meth:`with_preset` / ``himit run --preset``; a
+        configuration whose learner departs from its preset's settings is refused. The greedy
+        tie rule is not part of a preset (``--tie-break``).""",
+    )
 
     def __post_init__(self):
         check_settings(self)
+        check_preset("ExperimentConfig", self.learner, self.preset)
         # Cross-field rules (each field on its own is checked above).
         # Written down, not run: a config naming cuda is valid on a machine without (plotting a
         # GPU run's directory); the learner refuses it where it would run.
@@ -198,6 +210,10 @@ class ExperimentConfig:
 
     def to_json(self) -> str:
         return json.dumps(asdict(self), indent=2)
+
+    def with_preset(self, name: str) -> ExperimentConfig:
+        """This experiment with preset ``name``'s learner settings, and the preset recorded."""
+        return replace(self, preset=name, learner=apply_preset(self.learner, name))
 
     def world(self, size: int) -> MultiRooms:
         return MultiRooms(size=size, rooms=size // self.room_size, slip=self.slip)

@@ -52,6 +52,7 @@ from himit_torch.exact.planning import value_iteration
 from himit_torch.learner.agents import AGENTS
 from himit_torch.learner.config import LearnerConfig
 from himit_torch.learner.learner import Learner
+from himit_torch.learner.presets import PRESETS, apply_preset, check_preset
 from himit_torch.mentor.policy import mentor_policy, record_demonstrations
 from himit_torch.mentor.reward import KnownReward
 from himit_torch.options.builders import primitive_options, subgoal_options
@@ -220,9 +221,17 @@ class GymExperimentConfig:
         default_factory=_default_learner,
         doc="Learner settings (``LearnerConfig``; a dict of its fields is accepted).",
     )
+    preset: str | None = setting(
+        None,
+        choices=tuple(PRESETS),
+        doc="""
+        The named preset the learner settings follow (``paper`` or ``recommended``,
+        ``himit_torch.learner.presets``; ``None``: none claimed), as ``ExperimentConfig.preset``.""",
+    )
 
     def __post_init__(self):
         check_settings(self)
+        check_preset("GymExperimentConfig", self.learner, self.preset)
         as_device("GymExperimentConfig.device", self.device, available=False)
         if self.learner.window != self.window:
             self.learner = replace(self.learner, window=self.window)
@@ -242,6 +251,10 @@ class GymExperimentConfig:
 
     def to_json(self) -> str:
         return json.dumps(asdict(self), indent=2)
+
+    def with_preset(self, name: str) -> GymExperimentConfig:
+        """This comparison with preset ``name``'s learner settings, and the preset recorded."""
+        return replace(self, preset=name, learner=apply_preset(self.learner, name))
 
 
 # ================================================================================ evaluation
@@ -662,7 +675,14 @@ def write_gym_results(run_dir: Path, config: GymExperimentConfig, summaries: lis
         "model, primitive actions); the imitator's mentor reward is `KnownReward` (the least "
         "reward of the actions consistent with each observed move).",
         "",
-        "Learner settings: " + ", ".join(f"`{k}={v}`" for k, v in asdict(config.learner).items()),
+        (
+            f"Preset `{config.preset}` (`himit_torch.learner.presets`), greedy ties "
+            f"`{config.learner.tie_break}`. "
+            if getattr(config, "preset", None)
+            else f"No preset; greedy ties `{config.learner.tie_break}`. "
+        )
+        + "Learner settings: "
+        + ", ".join(f"`{k}={v}`" for k, v in asdict(config.learner).items()),
         "",
         "Columns: *goals, last window* — arrivals at the goal states in the last "
         f"{config.window} steps (optimal: the optimal policy's renewal rate); *total goals* — "

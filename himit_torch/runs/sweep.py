@@ -248,6 +248,8 @@ def _apply(config: ExperimentConfig, settings: dict) -> ExperimentConfig:
     for key in ("agents", "sizes"):
         if key in top and isinstance(top[key], list):
             top[key] = tuple(top[key])
+    if top.get("preset") is not None:  # the preset first, then the settings beside it
+        config = config.with_preset(top.pop("preset"))
     new_learner = replace(config.learner, **learner) if learner else config.learner
     return replace(config, **top, learner=new_learner)
 

@@ -204,7 +204,14 @@ def write_results(run_dir: Path, config, results) -> None:
         )
         + ".",
         "",
-        "Learner settings: " + ", ".join(f"`{k}={v}`" for k, v in asdict(config.learner).items()),
+        (
+            f"Preset `{config.preset}` (`himit_torch.learner.presets`), greedy ties "
+            f"`{config.learner.tie_break}`. "
+            if getattr(config, "preset", None)
+            else f"No preset; greedy ties `{config.learner.tie_break}`. "
+        )
+        + "Learner settings: "
+        + ", ".join(f"`{k}={v}`" for k, v in asdict(config.learner).items()),
         "",
     ]
     for r in results:

@@ -1,0 +1,142 @@
+"""Presets (``himit_torch.learner.presets``): what each sets, that the paper preset is the
+experiments' own settings, that a configuration never claims a preset it does not follow, and
+``--preset`` on the command line and in sweeps."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import pytest
+
+import himit_torch.runs.experiment as experiment_module
+from himit_torch.cli import main
+from himit_torch.learner.config import LearnerConfig
+from himit_torch.learner.presets import (
+    PRESETS,
+    apply_preset,
+    check_preset,
+    preset_differences,
+)
+from himit_torch.runs.config import EXPERIMENTS, ExperimentConfig, load_config
+from himit_torch.runs.gymnasium import GymExperimentConfig
+from himit_torch.runs.sweep import _apply
+from himit_torch.validation import settings_of
+
+LEARNER_FIELDS = {s.name for s in settings_of(LearnerConfig)}
+
+
+@pytest.mark.parametrize("name", sorted(PRESETS))
+def test_every_preset_setting_is_a_learner_field_with_a_reason(name):
+    preset = PRESETS[name]
+    assert preset.name == name and preset.summary
+    for field, (value, why) in preset.settings.items():
+        assert field in LEARNER_FIELDS, field
+        assert len(why) > 20, field
+        LearnerConfig(**{field: value})  # a value the learner accepts
+
+
+@pytest.mark.parametrize("name", sorted(PRESETS))
+def test_no_preset_sets_the_tie_rule_or_a_world_dependent_value(name):
+    """The claims are answered under both tie rules, and each world has its own V0 and window."""
+    assert not {"tie_break", "initial_value", "window", "plan_every"} & set(PRESETS[name].settings)
+
+
+def test_the_paper_preset_is_what_the_experiments_already_run():
+    for config in (*EXPERIMENTS.values(), GymExperimentConfig()):
+        assert preset_differences(config.learner, "paper") == {}
+
+
+def test_recommended_differs_from_paper_only_where_the_search_chose():
+    paper, recommended = PRESETS["paper"].changes(), PRESETS["recommended"].changes()
+    assert set(paper) == set(recommended)
+    changed = {f for f in paper if paper[f] != recommended[f]}
+    assert changed and changed <= {"mentor_fade", "eps_decay", "eps_schedule", "eps_goals"}
+
+
+def test_apply_sets_exactly_the_preset_fields():
+    base = LearnerConfig(plan_every=3, tie_break="first", mentor_fade=5.0)
+    after = apply_preset(base, "recommended")
+    assert preset_differences(after, "recommended") == {}
+    assert after.plan_every == 3 and after.tie_break == "first"  # not the preset's
+    assert preset_differences(base, "recommended")["mentor_fade"] == (5.0, 20.0)
+
+
+def test_unknown_preset_is_refused_by_name():
+    with pytest.raises(ValueError, match=r"unknown preset 'fancy'; presets: paper, recommended"):
+        apply_preset(LearnerConfig(), "fancy")
+    with pytest.raises(ValueError, match=r"preset='fancy'"):
+        ExperimentConfig(preset="fancy")
+
+
+def test_a_config_never_claims_a_preset_it_does_not_follow():
+    config = EXPERIMENTS["exp2"].with_preset("recommended")
+    assert config.preset == "recommended"
+    with pytest.raises(ValueError, match=r"learner\.mentor_fade=5\.0 \(the preset: 20\.0\)"):
+        dataclasses.replace(config, learner=dataclasses.replace(config.learner, mentor_fade=5.0))
+    with pytest.raises(ValueError, match="GymExperimentConfig: preset='recommended'"):
+        GymExperimentConfig(preset="recommended")
+    check_preset("x", config.learner, None)  # no preset claimed: anything goes
+
+
+def test_config_json_round_trip_keeps_the_preset(tmp_path):
+    config = EXPERIMENTS["exp1"].with_preset("recommended")
+    path = tmp_path / "config.json"
+    path.write_text(config.to_json())
+    assert load_config(path) == config
+    data = json.loads(config.to_json())
+    data["learner"]["mentor_fade"] = None
+    path.write_text(json.dumps(data))
+    with pytest.raises(ValueError, match=f"config file {path}.*preset='recommended'"):
+        load_config(path)
+
+
+@pytest.fixture
+def planned(monkeypatch):
+    plans = []
+    monkeypatch.setattr(
+        experiment_module, "run_experiments", lambda p, **kwargs: plans.extend(p) or []
+    )
+
+    def run(argv):
+        plans.clear()
+        assert main(["run", *argv]) == 0
+        return [config for config, _ in plans]
+
+    return run
+
+
+@pytest.mark.parametrize("name", sorted(PRESETS))
+def test_run_preset_on_every_experiment(planned, name):
+    for config in planned(["paper", "--preset", name, "--tie-break", "first"]):
+        assert config.preset == name and config.learner.tie_break == "first"
+        assert preset_differences(config.learner, name) == {}
+        own = EXPERIMENTS[config.name]
+        assert config.learner.plan_every == own.learner.plan_every and config.sizes == own.sizes
+
+
+def test_a_flag_contradicting_the_preset_is_one_line_exit_2(capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main(["run", "exp2", "--preset", "recommended", "--mentor-fade", "5"])
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "preset='recommended'" in err and "mentor_fade=5.0" in err
+
+
+def test_gymnasium_takes_preset_and_tie_rule(monkeypatch):
+    import himit_torch.runs.gymnasium as gym
+
+    seen = []
+    monkeypatch.setattr(gym, "run_gym_experiment", lambda config, *a, **k: seen.append(config))
+    argv = ["run", "gymnasium", "--preset", "recommended", "--tie-break", "first", "--seeds", "3"]
+    assert main(argv) == 0
+    (config,) = seen
+    assert config.preset == "recommended" and config.learner.tie_break == "first"
+    assert config.seeds == 3 and config.learner.window == 2000  # the comparison's own
+
+
+def test_sweep_cells_take_a_preset_first_then_their_settings():
+    config = _apply(EXPERIMENTS["exp2"], {"preset": "recommended", "learner.tie_break": "first"})
+    assert config.preset == "recommended" and config.learner.tie_break == "first"
+    with pytest.raises(ValueError, match="preset='recommended'"):
+        _apply(EXPERIMENTS["exp2"], {"preset": "recommended", "learner.mentor_fade": 5.0})
