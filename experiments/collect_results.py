@@ -1,5 +1,7 @@
 """Copy the figures, results tables and configs of finished run directories into
-experiments/results/ (small PNGs and markdown only; curves.csv is kept too, it is small).
+experiments/results/ (small PNGs and markdown only; curves.csv is kept too, it is small, and
+so are each world's record ``worlds/world<N>.json`` — first goals, greedy values — and a
+Gymnasium run's ``tasks/*.json``, which experiments/claims.py reads).
 
     python experiments/collect_results.py runs/exp1 runs/exp2 runs/exp3 [--out experiments/results]
 """
@@ -23,4 +25,8 @@ for run_dir in map(Path, args.run_dirs):
         shutil.copy(run_dir / name, target / name)
     for png in (run_dir / "figures").glob("*.png"):
         shutil.copy(png, target / png.name)
+    for folder in ("worlds", "tasks"):
+        for record in (run_dir / folder).glob("*.json"):
+            (target / folder).mkdir(exist_ok=True)
+            shutil.copy(record, target / folder / record.name)
     print(f"{run_dir} → {target}")

@@ -492,6 +492,8 @@ def run_task(
             )
             for a, sd in zip(agents, run_seeds)
         ],
+        # the exact step of each run's first goal (−1: never), as ExperimentConfig runs record it
+        "first_goal_step": learner.first_goal_step.tolist(),
         "final_goals": [r["goals"] for r in last],
         "final_value_gap": [r["value_gap"] for r in last],
         "mentor_term_wins": [r["mentor_term_wins"] for r in last],
