@@ -25,14 +25,14 @@ DOCS_STAMP := $(VENV)/.himit-docs-installed
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -c "import torch" 2>/dev/null || $(BIN)/python -m pip install --quiet "$(TORCH_SPEC)"
-	$(BIN)/python -m pip install --quiet -e ".[dev,sweep]"
+	$(BIN)/python -m pip install --quiet -e ".[dev,sweep,analysis]"
 	touch $(STAMP)
 
 install: $(STAMP)
 
 # the [docs] extra on top of the development install (make docs, make wheel-check)
 $(DOCS_STAMP): $(STAMP)
-	$(BIN)/python -m pip install --quiet -e ".[dev,sweep,docs]"
+	$(BIN)/python -m pip install --quiet -e ".[dev,sweep,analysis,docs]"
 	touch $(DOCS_STAMP)
 
 demo: $(STAMP)

@@ -6,7 +6,9 @@ Reads each sweep folder's ``runs.csv`` (one row per run) and ``results.csv`` (on
 window), written by ``himit sweep experiments/sweeps/<name>.toml``. Seed k of every agent and
 every cell watches the same mentor episodes and draws the same random numbers (common random
 numbers), so agents and settings are compared seed by seed: paired differences, their mean with a
-Student-t 95 % interval, the paired t-test and the Wilcoxon signed-rank test. Failure shares get
+Student-t 95 % interval, the paired t-test and the Wilcoxon signed-rank test, each p also given
+**Holm-adjusted over every paired test on the page** (t-tests and Wilcoxon tests together,
+``himit_torch.statistics.holm``). Failure shares get
 exact Clopper–Pearson intervals and Fisher's exact test. Nothing here is tuned: every seed of
 every cell enters.
 """
@@ -20,6 +22,8 @@ from pathlib import Path
 import numpy as np
 from scipy import stats
 
+from himit_torch.statistics import holm
+
 HERE = Path(__file__).resolve().parent
 parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
 parser.add_argument("--sweeps", default=str(HERE.parent / "results" / "sweeps"))
@@ -31,6 +35,11 @@ out_lines: list[str] = []
 
 def say(line=""):
     out_lines.append(line)
+
+
+#: every paired test's (t p, Wilcoxon p), in the order made; their Holm-adjusted values replace
+#: the markers ⟨holm:i⟩ once the page is complete.
+PAIRED_P: list[tuple[float, float]] = []
 
 
 def runs(sweep):
@@ -86,8 +95,9 @@ def paired(a: dict, b: dict, key, f="{:.1f}"):
         else float("nan")
     )
     p_w = stats.wilcoxon(d).pvalue if np.any(d != 0) else float("nan")
+    PAIRED_P.append((p_t, p_w))
     return (
-        f"{fmt_ci(d, f)}; t p={p_t:.2g}; W p={p_w:.2g}; "
+        f"{fmt_ci(d, f)}; t p={p_t:.2g}; W p={p_w:.2g} (⟨holm:{len(PAIRED_P) - 1}⟩); "
         f"{int((d > 0).sum())}+/{int((d < 0).sum())}− of {len(d)}"
     )
 
@@ -677,6 +687,22 @@ if e1:
     )
     say()
 
+adjusted = holm([p for pair in PAIRED_P for p in pair])
+text = "\n".join(out_lines) + "\n"
+for i in range(len(PAIRED_P)):
+    t_h, w_h = adjusted[2 * i], adjusted[2 * i + 1]
+    text = text.replace(f"⟨holm:{i}⟩", f"Holm: t p={t_h:.2g}, W p={w_h:.2g}")
+made = [p for p in adjusted if p == p]
+raw = [p for pair in PAIRED_P for p in pair if p == p]
+summary = (
+    f"**Multiplicity.** This page makes {len(PAIRED_P)} paired comparisons, {len(raw)} p-values "
+    f"(t-tests and Wilcoxon tests). {sum(p < 0.05 for p in raw)} are below 0.05 raw; "
+    f"**{sum(p < 0.05 for p in made)} stay below 0.05 after Holm's correction over all of "
+    f"them** ({sum(p < 0.05 for p in adjusted[0::2])} of the {len(PAIRED_P)} t-tests; each comparison gives its Holm-adjusted p beside the raw ones). A raw p below "
+    "0.05 whose Holm p is not is suggestive only."
+)
+first_break = text.index("\n\n") + 2
+text = text[:first_break] + summary + "\n\n" + text[first_break:]
 out = Path(args.out) if args.out else root / "analysis.md"
-out.write_text("\n".join(out_lines) + "\n")
+out.write_text(text)
 print(f"wrote {out}")

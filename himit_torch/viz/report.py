@@ -214,6 +214,12 @@ def write_results(run_dir: Path, config, results) -> None:
         + ", ".join(f"`{k}={v}`" for k, v in asdict(config.learner).items()),
         "",
     ]
+    lines += [
+        f"Every **±** below is mean ± standard deviation over the {config.seeds} seeds (the "
+        "seeds' spread, not a confidence interval); the paired tests and intervals of the "
+        "claims are in `experiments/claims/claims.md`.",
+        "",
+    ]
     for r in results:
         lines += [
             f"## {r.size}×{r.size}, {r.rooms}×{r.rooms} rooms",

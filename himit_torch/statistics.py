@@ -1,0 +1,212 @@
+"""The statistics every result of the library states: intervals, paired tests, first-goal
+survival and the correction for many tests — each a thin, named call of the library made for it.
+
+* :func:`t_interval` — a mean and its Student-t interval (``scipy.stats.t``);
+* :func:`bca_interval` — a mean and its bias-corrected and accelerated bootstrap interval
+  (``scipy.stats.bootstrap``, ``method="BCa"``), for skewed counts where a t-interval can leave
+  the possible range;
+* :func:`paired_comparison` — two agents' values paired by seed (common random numbers): the mean
+  difference with its BCa interval, the paired t-test (``scipy.stats.ttest_rel``) and beside it
+  the sign test (``scipy.stats.binomtest`` on the non-zero differences);
+* :func:`first_goal_survival` — steps to the first goal with "never" right-censored at the budget:
+  the Kaplan–Meier curve and median with its interval (``scipy.stats.ecdf`` on
+  ``scipy.stats.CensoredData``);
+* :func:`first_goal_sign_test` — who reached the goal first, paired by seed;
+* :func:`share_interval` — a share with its exact Clopper–Pearson interval;
+* :func:`holm` — Holm's correction of a family of p-values
+  (``statsmodels.stats.multitest.multipletests``).
+
+Every interval is two-sided at ``level`` (default 95 %) and says what it is where it is printed.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import stats
+
+__all__ = [
+    "Interval",
+    "PairedComparison",
+    "Survival",
+    "t_interval",
+    "bca_interval",
+    "paired_comparison",
+    "first_goal_survival",
+    "first_goal_sign_test",
+    "share_interval",
+    "holm",
+]
+
+#: Bootstrap resamples of :func:`bca_interval` and :func:`paired_comparison`.
+RESAMPLES = 9999
+
+
+@dataclass(frozen=True)
+class Interval:
+    """An estimate and its two-sided interval; ``what`` names the interval."""
+
+    estimate: float
+    low: float
+    high: float
+    what: str
+
+    def format(self, digits: int = 1) -> str:
+        return f"{self.estimate:.{digits}f} [{self.low:.{digits}f}, {self.high:.{digits}f}]"
+
+
+def t_interval(values: Sequence[float], level: float = 0.95) -> Interval:
+    """The mean of ``values`` and its Student-t interval (n − 1 degrees of freedom). One value,
+    or values all equal: the interval is the mean itself (no spread to measure)."""
+    x = np.asarray(values, dtype=float)
+    mean = float(x.mean())
+    if len(x) < 2 or np.all(x == x[0]):
+        return Interval(mean, mean, mean, f"{level:.0%} t-interval of the mean")
+    low, high = stats.t.interval(level, len(x) - 1, loc=mean, scale=stats.sem(x))
+    return Interval(mean, float(low), float(high), f"{level:.0%} t-interval of the mean")
+
+
+def bca_interval(values: Sequence[float], level: float = 0.95, seed: int = 0) -> Interval:
+    """The mean of ``values`` and its BCa bootstrap interval (:data:`RESAMPLES` resamples drawn
+    from ``seed``). Values all equal: the interval is the mean itself."""
+    x = np.asarray(values, dtype=float)
+    mean = float(x.mean())
+    what = f"{level:.0%} BCa bootstrap interval of the mean"
+    if len(x) < 2 or np.all(x == x[0]):
+        return Interval(mean, mean, mean, what)
+    result = stats.bootstrap(
+        (x,),
+        np.mean,
+        confidence_level=level,
+        n_resamples=RESAMPLES,
+        method="BCa",
+        rng=np.random.default_rng(seed),
+    )
+    low, high = result.confidence_interval
+    return Interval(mean, float(low), float(high), what)
+
+
+@dataclass(frozen=True)
+class PairedComparison:
+    """``a − b`` paired by seed: the mean difference and its BCa interval, the paired t-test's
+    and the sign test's two-sided p-values, and how many pairs ``a`` won, lost and tied."""
+
+    difference: Interval
+    t_p: float
+    sign_p: float
+    wins: int
+    losses: int
+    ties: int
+
+
+def paired_comparison(
+    a: Sequence[float], b: Sequence[float], level: float = 0.95, seed: int = 0
+) -> PairedComparison:
+    """Compare ``a`` with ``b``, the i-th of each from the same seed."""
+    x, y = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    if x.shape != y.shape or x.ndim != 1 or len(x) < 2:
+        raise ValueError(
+            f"paired_comparison needs two equally long sequences of ≥ 2 values, got "
+            f"{x.shape} and {y.shape}"
+        )
+    d = x - y
+    wins, losses = int((d > 0).sum()), int((d < 0).sum())
+    if np.all(d == d[0]):  # no spread: a t-test is undefined, the difference is exact
+        t_p = 1.0 if d[0] == 0 else 0.0
+    else:
+        t_p = float(stats.ttest_rel(x, y).pvalue)
+    sign_p = float(stats.binomtest(wins, wins + losses).pvalue) if wins + losses else 1.0
+    return PairedComparison(
+        bca_interval(d, level, seed), t_p, sign_p, wins, losses, len(d) - wins - losses
+    )
+
+
+@dataclass(frozen=True)
+class Survival:
+    """Steps to the first goal of a group of runs, "never" right-censored at the budget: the
+    Kaplan–Meier median with its interval (``math.inf`` where the curve never falls to ½),
+    how many runs never reached the goal, and the curve itself (``times``, ``survival``)."""
+
+    median: Interval
+    never: int
+    runs: int
+    times: np.ndarray
+    survival: np.ndarray
+
+
+def first_goal_survival(
+    first_goal_steps: Sequence[int], budget: int, level: float = 0.95
+) -> Survival:
+    """The Kaplan–Meier estimate of the steps to the first goal. ``first_goal_steps``: one per
+    run, −1 for a run that never reached the goal within its ``budget`` of steps (censored
+    there). The median's interval is where the pointwise log–log band of the curve crosses ½."""
+    steps = np.asarray(first_goal_steps, dtype=float)
+    found = steps >= 0
+    data = stats.CensoredData(uncensored=steps[found], right=np.full((~found).sum(), budget))
+    sf = stats.ecdf(data).sf
+    band = sf.confidence_interval(level, method="log-log")
+
+    def crossing(curve) -> float:
+        """The first time ``curve`` is at or below ½ (inf: never)."""
+        below = np.nonzero(curve.probabilities <= 0.5)[0]
+        return float(curve.quantiles[below[0]]) if len(below) else math.inf
+
+    median = Interval(
+        crossing(sf),
+        crossing(band.low),
+        crossing(band.high),
+        f"Kaplan–Meier median, {level:.0%} interval from the log–log band",
+    )
+    return Survival(median, int((~found).sum()), len(steps), sf.quantiles, sf.probabilities)
+
+
+def first_goal_sign_test(a: Sequence[int], b: Sequence[int]) -> PairedComparison:
+    """Who reached the goal first, paired by seed (−1: never). A pair where neither did is a
+    tie; one that never did loses to one that did. The "difference" is the median over seeds
+    of ``b``'s first-goal step minus ``a``'s, "never" counted as just after the larger budget
+    (so positive: ``a`` sooner); its interval is left empty (NaN) — the sign test is the test."""
+    x, y = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    if x.shape != y.shape or x.ndim != 1:
+        raise ValueError(f"first_goal_sign_test: shapes {x.shape} and {y.shape} differ")
+    late = max(x.max(), y.max()) + 1
+    x, y = np.where(x < 0, late, x), np.where(y < 0, late, y)
+    wins, losses = int((x < y).sum()), int((x > y).sum())
+    sign_p = float(stats.binomtest(wins, wins + losses).pvalue) if wins + losses else 1.0
+    median = float(np.median(y - x))
+    return PairedComparison(
+        Interval(median, math.nan, math.nan, "median over seeds (no interval)"),
+        math.nan,
+        sign_p,
+        wins,
+        losses,
+        len(x) - wins - losses,
+    )
+
+
+def share_interval(count: int, total: int, level: float = 0.95) -> Interval:
+    """``count / total`` and its exact Clopper–Pearson interval."""
+    ci = stats.binomtest(count, total).proportion_ci(level, method="exact")
+    return Interval(
+        count / total, float(ci.low), float(ci.high), f"exact {level:.0%} Clopper–Pearson"
+    )
+
+
+def holm(p_values: Sequence[float]) -> list[float]:
+    """Holm-adjusted p-values of a family (NaN entries, tests not made, stay NaN and are not
+    counted in the family)."""
+    try:
+        from statsmodels.stats.multitest import multipletests
+    except ImportError:
+        raise ImportError(
+            "himit_torch.statistics.holm needs statsmodels: pip install 'himit_torch[analysis]'"
+        ) from None
+
+    p = np.asarray(p_values, dtype=float)
+    out = np.full_like(p, np.nan)
+    made = ~np.isnan(p)
+    if made.any():
+        out[made] = multipletests(p[made], method="holm")[1]
+    return out.tolist()

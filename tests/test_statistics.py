@@ -1,0 +1,106 @@
+"""himit_torch.statistics: each function on a hand-solved case, and the Kaplan–Meier estimate
+against the product-limit formula computed by hand."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from himit_torch.statistics import (
+    bca_interval,
+    first_goal_sign_test,
+    first_goal_survival,
+    holm,
+    paired_comparison,
+    share_interval,
+    t_interval,
+)
+
+
+def test_t_interval_hand_solved():
+    # mean 2, sd 1, n 3: half-width t(0.975, 2) · 1/√3 = 4.3027 · 0.57735 = 2.4841
+    ci = t_interval([1.0, 2.0, 3.0])
+    assert ci.estimate == 2.0
+    assert ci.low == pytest.approx(2 - 2.4841, abs=1e-4)
+    assert ci.high == pytest.approx(2 + 2.4841, abs=1e-4)
+    assert "t-interval" in ci.what
+    assert t_interval([5.0, 5.0]).low == 5.0  # no spread: the mean itself
+
+
+def test_bca_interval_brackets_the_mean_and_is_reproducible():
+    x = np.random.default_rng(1).exponential(10, size=20)
+    a, b = bca_interval(x, seed=3), bca_interval(x, seed=3)
+    assert a == b and a.low < x.mean() < a.high and "BCa" in a.what
+    # a skewed count: BCa's interval is not symmetric about the mean, as a t-interval is
+    assert (a.high - a.estimate) != pytest.approx(a.estimate - a.low, rel=0.02)
+
+
+def test_paired_comparison_counts_and_tests():
+    a = [5, 6, 7, 8, 9, 10]
+    b = [4, 6, 5, 9, 6, 7]  # differences 1, 0, 2, −1, 3, 3
+    c = paired_comparison(a, b)
+    assert (c.wins, c.losses, c.ties) == (4, 1, 1)
+    assert c.sign_p == pytest.approx(stats.binomtest(4, 5).pvalue)  # = 0.375
+    assert c.sign_p == pytest.approx(0.375)
+    assert c.t_p == pytest.approx(stats.ttest_1samp([1, 0, 2, -1, 3, 3], 0).pvalue)
+    assert c.difference.estimate == pytest.approx(8 / 6)
+    with pytest.raises(ValueError, match="equally long"):
+        paired_comparison([1, 2], [1, 2, 3])
+
+
+def test_paired_comparison_without_spread():
+    c = paired_comparison([3, 4, 5], [1, 2, 3])
+    assert c.difference.estimate == 2.0 and c.difference.low == 2.0 and c.t_p == 0.0
+    assert c.sign_p == pytest.approx(0.25)  # 3 of 3: 2 · 0.5³
+
+
+def test_kaplan_meier_hand_solved():
+    # runs reaching the goal at 2, 4 and 6 steps, one never (censored at 10):
+    # S(2) = 3/4, S(4) = 3/4 · 2/3 = 1/2 → the median is 4; S(6) = 1/2 · 1/2 = 1/4
+    s = first_goal_survival([2, 4, -1, 6], budget=10)
+    assert s.median.estimate == 4.0 and s.never == 1 and s.runs == 4
+    assert list(s.times) == [2, 4, 6, 10]
+    assert s.survival[:3] == pytest.approx([0.75, 0.5, 0.25])
+
+
+def test_kaplan_meier_never_reaching_half():
+    s = first_goal_survival([3, -1, -1, -1], budget=100)
+    assert s.median.estimate == math.inf and s.never == 3
+
+
+def test_kaplan_meier_equals_the_product_limit_formula():
+    rng = np.random.default_rng(0)
+    steps = rng.integers(1, 30, size=40)
+    steps[rng.random(40) < 0.3] = -1  # never
+    s = first_goal_survival(steps.tolist(), budget=30)
+    survival = 1.0
+    for t, p in zip(s.times, s.survival):
+        if t == 30:
+            break
+        at_risk = np.sum((steps >= t) | (steps < 0))
+        events = np.sum(steps == t)
+        survival *= 1 - events / at_risk
+        assert p == pytest.approx(survival)
+
+
+def test_first_goal_sign_test():
+    a = [10, 20, -1, 5, -1]
+    b = [15, 10, 30, -1, -1]  # a first, b first, b first, a first, tie (neither)
+    c = first_goal_sign_test(a, b)
+    assert (c.wins, c.losses, c.ties) == (2, 2, 1) and c.sign_p == pytest.approx(1.0)
+
+
+def test_share_interval_hand_solved():
+    ci = share_interval(0, 20)
+    assert ci.estimate == 0 and ci.low == 0
+    assert ci.high == pytest.approx(1 - 0.025 ** (1 / 20), abs=1e-6)  # 0.1684
+
+
+def test_holm_hand_solved():
+    # sorted 0.01, 0.03, 0.04: ×3 = 0.03, ×2 = 0.06, ×1 = 0.04 → monotone 0.06
+    assert holm([0.01, 0.04, 0.03]) == pytest.approx([0.03, 0.06, 0.06])
+    out = holm([0.01, float("nan"), 0.04])
+    assert math.isnan(out[1]) and out[0] == pytest.approx(0.02) and out[2] == pytest.approx(0.04)
