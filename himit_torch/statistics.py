@@ -22,6 +22,7 @@ Every interval is two-sided at ``level`` (default 95 %) and says what it is wher
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -147,7 +148,11 @@ def first_goal_survival(
     found = steps >= 0
     data = stats.CensoredData(uncensored=steps[found], right=np.full((~found).sum(), budget))
     sf = stats.ecdf(data).sf
-    band = sf.confidence_interval(level, method="log-log")
+    with warnings.catch_warnings():
+        # the log-log band is undefined where S(t) is 0 or 1 (scipy warns); those points are
+        # NaN and never cross ½, which is what the median's interval reads
+        warnings.simplefilter("ignore", RuntimeWarning)
+        band = sf.confidence_interval(level, method="log-log")
 
     def crossing(curve) -> float:
         """The first time ``curve`` is at or below ½ (inf: never)."""

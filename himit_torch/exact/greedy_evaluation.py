@@ -64,6 +64,10 @@ __all__ = [
     "optimal_policy_evaluation",
 ]
 
+#: Transition probabilities of a policy's chain below this are round-off of the option models'
+#: solve, dropped before the goal probabilities and expected steps are solved.
+ROUND_OFF = 1e-12
+
 
 @dataclass(frozen=True)
 class OptionPolicy:
@@ -295,6 +299,10 @@ class PolicyEvaluator:
         s_idx, j_idx = np.nonzero(chosen)
         choice = sp.csr_matrix((prob[s_idx, j_idx], (s_idx, rows[s_idx, j_idx])), shape=(S, M))
         K = (choice @ self.P_prob).tocsr()
+        # Round-off of the option models' solve (|p| ~ 1e-17, either sign) is not a way out:
+        # kept, it makes a closed set of states look as if it could end, and its near-singular
+        # system fails to factor (seen on FrozenLake 8×8 with first-index ties).
+        K.data[np.abs(K.data) < ROUND_OFF] = 0.0
         K.eliminate_zeros()
         reach = _reachable(K, self.sources)
         live = np.flatnonzero(reach & ~self.terminal)

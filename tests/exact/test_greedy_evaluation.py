@@ -307,3 +307,20 @@ def test_an_option_unavailable_at_its_state_is_refused():
         PolicyEvaluator(world, only_at_0, 10).evaluate(
             OptionPolicy.deterministic(torch.tensor([0, 0, -1, -1]))
         )
+
+
+def test_round_off_in_the_option_models_is_not_a_way_out():
+    """Always LEFT is stuck in 0…2 (above); round-off of the option models' solve planting
+    ±1e-17 of probability into the goal must not make the chain look as if it could end (the
+    near-singular system then failed to factor: FrozenLake 8×8, first-index ties)."""
+    import scipy.sparse as sp
+
+    world = corridor()
+    evaluator = PolicyEvaluator(world, primitive_options(world), window=100)
+    P = evaluator.P_prob.tolil()
+    for row in range(P.shape[0]):
+        P[row, 3] = P[row, 3] + (1e-17 if row % 2 else -1e-17)
+    evaluator.P_prob = sp.csr_matrix(P)
+    result = evaluator.evaluate(OptionPolicy.deterministic(torch.tensor([LEFT, LEFT, LEFT, -1])))
+    assert result.goals_per_window.item() == 0.0 and result.reach_share.item() == 0.0
+    assert math.isinf(result.steps_per_episode.item())
