@@ -13,6 +13,8 @@ Add ``--sizes 64 80 96 120 240`` to go beyond the paper.
 import argparse
 from dataclasses import replace
 
+from himit_torch.learner.config import TIE_BREAKS
+from himit_torch.learner.presets import PRESETS
 from himit_torch.runs.config import EXPERIMENTS
 from himit_torch.runs.experiment import run_experiment
 
@@ -20,11 +22,16 @@ parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
 parser.add_argument("--sizes", type=int, nargs="+", default=list(EXPERIMENTS["exp3"].sizes))
 parser.add_argument("--steps", type=int, default=EXPERIMENTS["exp3"].steps)
 parser.add_argument("--seeds", type=int, default=EXPERIMENTS["exp3"].seeds)
+parser.add_argument("--preset", choices=sorted(PRESETS), help="paper or recommended")
+parser.add_argument("--tie-break", choices=TIE_BREAKS, default="random", help="greedy ties")
 parser.add_argument("--logdir", default="runs")
 parser.add_argument("--resume", action="store_true")
 parser.add_argument("--force", action="store_true")
 args = parser.parse_args()
 
 config = replace(EXPERIMENTS["exp3"], sizes=tuple(args.sizes), steps=args.steps, seeds=args.seeds)
+if args.preset:
+    config = config.with_preset(args.preset)
+config = replace(config, learner=replace(config.learner, tie_break=args.tie_break))
 run_experiment(config, f"{args.logdir}/exp3", resume=args.resume, force=args.force)
 print(open(f"{args.logdir}/exp3/results.md").read())

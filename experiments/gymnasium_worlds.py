@@ -4,16 +4,19 @@ For each task an optimal mentor (value iteration on the true model) is watched t
 states only; imitation (options + mentor term), options only and primitives only learn over 10
 seeds each, in one batch per task. Results: mean ± 95 % CI over seeds, figures, TensorBoard logs.
 
-    python experiments/gymnasium_worlds.py [--seeds K] [--steps N] [--tasks taxi,…] [--logdir runs]
+    python experiments/gymnasium_worlds.py [--seeds K] [--steps N] [--tasks taxi,…] [--preset paper|recommended] [--tie-break random|first] [--logdir runs]
 
 (the same as ``himit run gymnasium``; about 7 minutes on a 2-core CPU). Settings:
-``himit_torch.runs.gymnasium``; committed results: ``experiments/results/gymnasium/``.
+``himit_torch.runs.gymnasium``; committed results: ``experiments/results/<preset>-<ties>/gymnasium/``.
 """
 
 import argparse
+from dataclasses import replace
 
 import torch
 
+from himit_torch.learner.config import TIE_BREAKS
+from himit_torch.learner.presets import PRESETS
 from himit_torch.runs.gymnasium import TASKS, GymExperimentConfig, run_gym_experiment
 
 parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -26,6 +29,8 @@ parser.add_argument(
     default=GymExperimentConfig.window,
     help="steps per window of goals and greedy evaluation",
 )
+parser.add_argument("--preset", choices=sorted(PRESETS), help="paper or recommended")
+parser.add_argument("--tie-break", choices=TIE_BREAKS, default="random", help="greedy ties")
 parser.add_argument("--logdir", default="runs")
 parser.add_argument("--quick", action="store_true", help="tiny budget (smoke test)")
 parser.add_argument("--force", action="store_true")
@@ -37,5 +42,8 @@ config = GymExperimentConfig(
 )
 if args.quick:
     config = config.quick()
+if args.preset:
+    config = config.with_preset(args.preset)
+config = replace(config, learner=replace(config.learner, tie_break=args.tie_break))
 run_gym_experiment(config, f"{args.logdir}/{config.name}", force=args.force)
 print(open(f"{args.logdir}/{config.name}/results.md").read())

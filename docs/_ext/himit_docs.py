@@ -249,6 +249,28 @@ class SettingsDirective(SphinxDirective):
         return _parse(self, rst)
 
 
+class PresetsDirective(SphinxDirective):
+    """The presets (``himit_torch.learner.presets``): each one's summary, then a table of every
+    field any preset sets, with each preset's value and its reason."""
+
+    def run(self) -> list[nodes.Node]:
+        from himit_torch.learner.presets import PRESETS
+
+        rst: list[str] = []
+        for preset in PRESETS.values():
+            rst += [f"``{preset.name}``", f"   {preset.summary}", ""]
+        fields = list(dict.fromkeys(f for p in PRESETS.values() for f in p.settings))
+        rst += [".. list-table::", "   :header-rows: 1", "   :widths: 16 42 42", ""]
+        rst += ["   * - field"] + [f"     - ``{name}``" for name in PRESETS]
+        for field in fields:
+            rst.append(f"   * - ``{field}``")
+            for preset in PRESETS.values():
+                value, why = preset.settings.get(field, (None, "not set"))
+                rst.append(f"     - ``{value!r}``: {why}")
+        rst.append("")
+        return _parse(self, rst)
+
+
 class CliDirective(SphinxDirective):
     """``himit --help`` and each subcommand's ``--help``, each in a section of its own."""
 
@@ -368,6 +390,7 @@ def setup(app: Sphinx) -> dict[str, Any]:
     app.add_directive("himit-api", ApiDirective)
     app.add_directive("himit-settings", SettingsDirective)
     app.add_directive("himit-cli", CliDirective)
+    app.add_directive("himit-presets", PresetsDirective)
     app.add_directive("himit-modules", ModulesDirective)
     app.add_directive("himit-figures", FiguresDirective)
     app.connect("autodoc-process-docstring", warn_undocumented)

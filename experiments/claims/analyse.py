@@ -2,7 +2,7 @@
 endpoints and tests that PROTOCOL.md declared before the runs, computed from the committed run
 records (``worlds/*.json``, ``tasks/*.json`` and ``curves.csv`` of each run directory).
 
-    python experiments/claims/analyse.py [--results experiments/results] [--out experiments/claims]
+    python experiments/claims/analyse.py [--results experiments/results] [--out experiments/results/claims]
 
 Reads ``<results>/<preset>-<ties>/{exp1,exp2,exp3,gymnasium}`` for the presets ``paper`` and
 ``recommended`` and the tie rules ``random`` and ``first``; writes ``claims.md``, ``claims.csv``
@@ -433,9 +433,10 @@ def _presets_lines(data: dict) -> list[str]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--results", default="experiments/results")
-    parser.add_argument("--out", default=str(Path(__file__).parent))
+    parser.add_argument("--out", default="experiments/results/claims")
     args = parser.parse_args()
     results, out = Path(args.results), Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
     data = {(p, t): load(results, p, t) for p in PRESETS for t in TIES}
     claims, recommended = claims_tests(data), recommended_tests(data)
     adjust(claims)
