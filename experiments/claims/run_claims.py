@@ -47,6 +47,4 @@ for preset in ("paper", "recommended"):
             ],
             check=True,
         )
-subprocess.run(
-    [sys.executable, str(HERE / "analyse.py"), "--results", str(RESULTS)], check=True
-)
+subprocess.run([sys.executable, str(HERE / "analyse.py"), "--results", str(RESULTS)], check=True)

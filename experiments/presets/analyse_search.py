@@ -12,7 +12,7 @@ import statistics
 from collections import defaultdict
 from pathlib import Path
 
-from scipy import stats
+from himit_torch.statistics import t_interval
 
 #: (sweep prefix, cell, agent) → candidate id (PROTOCOL.md's table).
 CANDIDATES = {
@@ -41,13 +41,6 @@ ROUND2 = {
 ROUND2_FLOOR = 97.0
 WORLDS = ("exp1", "exp2")
 EARLY_STEPS = 50_000
-
-
-def t_interval(values: list[float]) -> tuple[float, float, float]:
-    """Mean and its 95 % Student-t interval."""
-    mean = statistics.fmean(values)
-    low, high = stats.t.interval(0.95, len(values) - 1, loc=mean, scale=stats.sem(values))
-    return mean, low, high
 
 
 def read(sweeps: Path, candidates: dict) -> dict:
@@ -82,8 +75,9 @@ def table(data: dict) -> tuple[list[str], dict]:
         cells = []
         for world in WORLDS:
             runs = worlds[world]
-            greedy = t_interval([r["greedy_pct_mentor"] for r in runs.values()])
-            late = t_interval([r["late_goals"] for r in runs.values()])
+            g = t_interval([r["greedy_pct_mentor"] for r in runs.values()])
+            la = t_interval([r["late_goals"] for r in runs.values()])
+            greedy, late = (g.estimate, g.low, g.high), (la.estimate, la.low, la.high)
             early = statistics.fmean(r["early_goals"] for r in runs.values())
             found = [r["first_goal_step"] for r in runs.values() if r["first_goal_step"] >= 0]
             failed = len(runs) - len(found)

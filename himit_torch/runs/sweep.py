@@ -51,7 +51,7 @@ rerun ends with exactly the tables of an uninterrupted one. At the end the sweep
   first goal step, V(start), mentor-term wins, and its greedy policy at the end evaluated exactly
   (goals per window, as % of the optimum's and of the mentor's own rate, V^π(start));
 * ``summary.csv`` / ``summary.md`` — per cell, world and agent: the mean of each measure with a
-  95 % confidence interval, Student's t (``scipy.stats.t``, n − 1 degrees of freedom), and the
+  95 % confidence interval (the counts: BCa bootstrap; V(start) and greedy: Student's t), and the
   share of runs that never found the goal with its exact Clopper–Pearson 95 % interval
   (``scipy.stats.binomtest``);
 * ``sweep.json`` — the spec as resolved (cells, trials), the commit and engines that ran.
@@ -93,6 +93,7 @@ from typing import Any
 from himit_torch.learner.config import LearnerConfig
 from himit_torch.runs.config import EXPERIMENTS, ExperimentConfig, load_config
 from himit_torch.runs.experiment import source_commit
+from himit_torch.statistics import bca_interval, share_interval, t_interval
 from himit_torch.validation import (
     COUNT_MAX,
     as_folder_name,
@@ -537,26 +538,9 @@ def _show(value: Any) -> str:
     return str(value)
 
 
-def t_interval(values: Sequence[float], level: float = 0.95) -> tuple[float, float, float]:
-    """Mean and Student's t confidence interval of ``values`` (n − 1 degrees of freedom); with
-    one value or no spread the interval is the mean itself."""
-    import numpy as np
-    from scipy import stats
-
-    x = np.asarray(values, dtype=float)
-    mean = float(x.mean())
-    if len(x) < 2 or float(x.std()) == 0.0:
-        return mean, mean, mean
-    low, high = stats.t.interval(level, len(x) - 1, loc=mean, scale=stats.sem(x))
-    return mean, float(low), float(high)
-
-
-def proportion_interval(k: int, n: int, level: float = 0.95) -> tuple[float, float, float]:
-    """Share k/n and its exact (Clopper–Pearson) confidence interval."""
-    from scipy import stats
-
-    ci = stats.binomtest(k, n).proportion_ci(confidence_level=level, method="exact")
-    return k / n, float(ci.low), float(ci.high)
+#: The measures that are counts (skewed, bounded below): summarised with a BCa bootstrap
+#: interval, which stays in the possible range where a t-interval can go below zero.
+_COUNT_MEASURES = ("total_goals", "final_window_goals", "late_goals", "first_goal_step")
 
 
 _MEASURES = ("total_goals", "final_window_goals", "late_goals", "first_goal_step", "value_start")
@@ -657,16 +641,17 @@ def summarize(spec: SweepSpec, out: Path) -> dict:
                 vals = [v if v >= 0 else steps + 1 for v in vals]
             cells: tuple[str, ...] = ("", "", "")  # greedy measures of trials without them
             if m in _MEASURES or (vals and all(math.isfinite(v) for v in vals)):
-                cells = tuple(f"{x:.4g}" for x in t_interval(vals))
+                interval = (bca_interval if m in _COUNT_MEASURES else t_interval)(vals)
+                cells = tuple(f"{x:.4g}" for x in (interval.estimate, interval.low, interval.high))
             row.update({f"{m}_mean": cells[0], f"{m}_ci_low": cells[1], f"{m}_ci_high": cells[2]})
         failed = sum(int(r["first_goal_step"]) < 0 for r in rs)
-        share, low, high = proportion_interval(failed, len(rs))
+        share = share_interval(failed, len(rs))
         row.update(
             {
                 "failed": failed,
-                "failed_share": f"{share:.3f}",
-                "failed_ci_low": f"{low:.3f}",
-                "failed_ci_high": f"{high:.3f}",
+                "failed_share": f"{share.estimate:.3f}",
+                "failed_ci_low": f"{share.low:.3f}",
+                "failed_ci_high": f"{share.high:.3f}",
             }
         )
         summary.append(row)
@@ -684,7 +669,10 @@ def _write_summary_md(spec: SweepSpec, out: Path, summary: list[dict], provenanc
         f"({spec.first_seed}…{spec.first_seed + spec.seeds - 1}), worlds {list(spec.worlds)}; "
         f"commit {', '.join(provenance['commit'])}, engine {', '.join(provenance['engine'])}.",
         "",
-        "Means with 95 % confidence intervals (Student's t, n − 1 degrees of freedom); "
+        "Means with 95 % confidence intervals: for the counts (total goals, last window, late, "
+        "first goal) the BCa bootstrap interval (9999 resamples; a t-interval can leave the "
+        "possible range on skewed counts), for V(start) and greedy Student's t (n − 1 degrees "
+        "of freedom); "
         "`failed`: runs that never reached the goal, with the exact (Clopper–Pearson) 95 % "
         "interval of their share. `late`: goals in the last "
         f"{LATE_STEPS:,} steps; `first goal`: steps to the first goal (a run that never "

@@ -14,7 +14,7 @@ import pytest
 from scipy import stats
 
 from himit_torch.cli import main
-from himit_torch.runs.sweep import load_spec, proportion_interval, run_sweep, t_interval
+from himit_torch.runs.sweep import load_spec, run_sweep
 
 # 16×16 world (rooms of 4 cells), 2 agents, 3000 steps: a trial runs in about a second.
 TINY = """
@@ -211,7 +211,8 @@ def test_in_process_sweep_without_ray_says_so_and_writes_the_tables(tmp_path, mo
     theirs = read(trial)
     key = lambda r: (r["agent"], int(r["seed"]), int(r["step"]))  # noqa: E731
     assert sorted(mine, key=key) == sorted(theirs, key=key)
-    # the summary: mean and t-interval of each cell's runs, recomputed here
+    # the summary: mean and interval of each cell's runs, recomputed here (counts: BCa from
+    # scipy.stats.bootstrap with the seed the summary uses; V(start): Student's t)
     runs = read(out / "runs.csv")
     summary = read(out / "summary.csv")
     assert len(runs) == 3 * 2 * 3 and len(summary) == 3 * 2
@@ -224,8 +225,22 @@ def test_in_process_sweep_without_ray_says_so_and_writes_the_tables(tmp_path, mo
         assert int(row["n"]) == len(goals) == 3
         assert float(row["total_goals_mean"]) == pytest.approx(np.mean(goals), rel=1e-3)
         if np.std(goals) > 0:
-            low, _ = stats.t.interval(0.95, 2, loc=np.mean(goals), scale=stats.sem(goals))
+            low = stats.bootstrap(
+                (np.array(goals),),
+                np.mean,
+                n_resamples=9999,
+                method="BCa",
+                rng=np.random.default_rng(0),
+            ).confidence_interval.low
             assert float(row["total_goals_ci_low"]) == pytest.approx(low, rel=1e-3, abs=1e-3)
+        values = [
+            float(r["value_start"])
+            for r in runs
+            if r["cell"] == row["cell"] and r["agent"] == row["agent"]
+        ]
+        if np.std(values) > 0:
+            low, _ = stats.t.interval(0.95, 2, loc=np.mean(values), scale=stats.sem(values))
+            assert float(row["value_start_ci_low"]) == pytest.approx(low, rel=1e-3, abs=1e-3)
         failed = sum(
             int(r["first_goal_step"]) < 0
             for r in runs
@@ -413,16 +428,3 @@ def test_a_sweep_stopped_mid_way_and_rerun_gives_the_uninterrupted_tables(tmp_pa
     assert whole.wait() == 0
     for table in ("results.csv", "runs.csv", "summary.csv"):
         assert read(stopped / table) == read(tmp_path / "whole" / table)
-
-
-def test_intervals_match_scipy_by_hand():
-    mean, low, high = t_interval([1.0, 2.0, 3.0, 4.0])
-    half = stats.t.ppf(0.975, 3) * np.std([1, 2, 3, 4], ddof=1) / 2
-    assert (mean, low, high) == pytest.approx((2.5, 2.5 - half, 2.5 + half))
-    assert t_interval([5.0, 5.0]) == (5.0, 5.0, 5.0)
-    share, low, high = proportion_interval(4, 5)
-    assert (
-        share == 0.8
-        and low == pytest.approx(0.2836, abs=1e-4)
-        and high == pytest.approx(0.9949, abs=1e-4)
-    )
