@@ -471,6 +471,14 @@ def run_task(
     )
     last = [r for r in rows if r["step"] == learner.t] if rows else []
     final = greedy.finish(learner)
+    first_goal_windows = [
+        min(
+            (r["step"] for r in rows if r["goals"] > 0 and r["agent"] == a and r["seed"] == sd),
+            default=-1,
+        )
+        for a, sd in zip(agents, run_seeds)
+    ]
+    every_end_a_goal = bool(torch.equal(world.terminal_mask.cpu(), world.goal_mask.cpu()))
     summary = {
         "task": task_name,
         "env_id": task.env_id,
@@ -485,15 +493,15 @@ def run_task(
         "optimal_value": evaluator.optimal_value,
         "optimal_goals_per_window": optimal_rate,
         "total_goals": [int(x) for x in previous_goals.tolist()],
-        "first_goal_window": [
-            min(
-                (r["step"] for r in rows if r["goals"] > 0 and r["agent"] == a and r["seed"] == sd),
-                default=-1,
-            )
-            for a, sd in zip(agents, run_seeds)
-        ],
-        # the exact step of each run's first goal (−1: never), as ExperimentConfig runs record it
-        "first_goal_step": learner.first_goal_step.tolist(),
+        "first_goal_window": first_goal_windows,
+        # Each run's first goal (−1: never). Exact where every terminal state is a goal (the
+        # learner's first episode end is then its first goal: Taxi, CliffWalking); where some
+        # are not (FrozenLake's holes), the end of the first window with a goal — an upper
+        # bound, to the window ("first_goal_resolution" says which).
+        "first_goal_step": (
+            learner.first_goal_step.tolist() if every_end_a_goal else first_goal_windows
+        ),
+        "first_goal_resolution": 1 if every_end_a_goal else config.window,
         "final_goals": [r["goals"] for r in last],
         "final_value_gap": [r["value_gap"] for r in last],
         "mentor_term_wins": [r["mentor_term_wins"] for r in last],

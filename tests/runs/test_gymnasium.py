@@ -102,6 +102,10 @@ def test_the_script_runs_and_writes_curves_figures_and_results(tmp_path):
     assert all(float(r["value_gap"]) >= 0 and 0 <= int(r["goals"]) <= 200 for r in rows)
     summary = json.loads((run / "tasks" / "cliffwalking.json").read_text())
     assert summary["initial_value"] == pytest.approx(-100.0) and summary["steps"] == 400
+    # CliffWalking ends only at its goal: the first goal is exact, inside its first goal window
+    assert summary["first_goal_resolution"] == 1
+    for step, window in zip(summary["first_goal_step"], summary["first_goal_window"]):
+        assert (step < 0) == (window < 0) and (step < 0 or window - 200 < step <= window)
     assert "95 % Student-t" in (run / "results.md").read_text()
     assert (run / "figures" / "curves_cliffwalking.png").read_bytes()[:4] == b"\x89PNG"
     assert len(list((run / "tb").iterdir())) == 6
