@@ -39,6 +39,7 @@ from himit_torch.learner.models import (
     SuccessorDirichlet,
 )
 from himit_torch.learner.option_refresh import with_options
+from himit_torch.learner.presets import PRESETS, Preset, apply_preset, preset_differences
 from himit_torch.learner.prioritized_sweeping import BlockPriorityQueue
 from himit_torch.mentor.demonstrations import DEMONSTRATIONS_FORMAT_VERSION, Demonstrations
 from himit_torch.mentor.policy import (
@@ -142,6 +143,10 @@ __all__ = [
     "Learner",
     "LearnerConfig",
     "AGENTS",
+    "PRESETS",
+    "Preset",
+    "apply_preset",
+    "preset_differences",
     "DirichletSMDPModel",
     "DirichletMentorModel",
     "SuccessorDirichlet",

@@ -76,7 +76,8 @@ def bca_interval(values: Sequence[float], level: float = 0.95, seed: int = 0) ->
     x = np.asarray(values, dtype=float)
     mean = float(x.mean())
     what = f"{level:.0%} BCa bootstrap interval of the mean"
-    if len(x) < 2 or np.all(x == x[0]):
+    # no spread beyond round-off (e.g. 20 greedy policies all at 76.5 %): the mean itself
+    if len(x) < 2 or np.ptp(x) <= 1e-9 * max(1.0, abs(mean)):
         return Interval(mean, mean, mean, what)
     result = stats.bootstrap(
         (x,),
@@ -115,7 +116,8 @@ def paired_comparison(
         )
     d = x - y
     wins, losses = int((d > 0).sum()), int((d < 0).sum())
-    if np.all(d == d[0]):  # no spread: a t-test is undefined, the difference is exact
+    if np.ptp(d) <= 1e-9 * max(1.0, abs(float(d.mean()))):
+        # no spread beyond round-off: a t-test is undefined, the difference is exact
         t_p = 1.0 if d[0] == 0 else 0.0
     else:
         t_p = float(stats.ttest_rel(x, y).pvalue)

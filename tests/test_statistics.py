@@ -104,3 +104,10 @@ def test_holm_hand_solved():
     assert holm([0.01, 0.04, 0.03]) == pytest.approx([0.03, 0.06, 0.06])
     out = holm([0.01, float("nan"), 0.04])
     assert math.isnan(out[1]) and out[0] == pytest.approx(0.02) and out[2] == pytest.approx(0.04)
+
+
+def test_round_off_is_no_spread():
+    """20 values equal up to round-off: the BCa interval is the mean (scipy's would be NaN)."""
+    x = 76.5 + np.random.default_rng(0).normal(0, 1e-13, 20)
+    ci = bca_interval(x)
+    assert ci.low == ci.high == ci.estimate and math.isfinite(ci.low)
