@@ -71,7 +71,7 @@ def t_interval(values: Sequence[float], level: float = 0.95) -> Interval:
 
 
 def bca_interval(values: Sequence[float], level: float = 0.95, seed: int = 0) -> Interval:
-    """The mean of ``values`` and its BCa bootstrap interval (:data:`RESAMPLES` resamples drawn
+    """The mean of ``values`` and its BCa bootstrap interval (``RESAMPLES`` resamples drawn
     from ``seed``). Values all equal: the interval is the mean itself."""
     x = np.asarray(values, dtype=float)
     mean = float(x.mean())

@@ -1,9 +1,9 @@
 """The recommended preset's search, scored by the criteria PROTOCOL.md declared before the runs.
 
 Reads the sweeps of both rounds (``runs.csv`` and ``results.csv`` of each) and writes
-``search.md`` beside this file: every candidate on each world, and each round's choice.
+``experiments/results/presets/search.md``: every candidate on each world, and each round's choice.
 
-    python experiments/presets/analyse_search.py [--sweeps runs/presets] [--out experiments/presets/search.md]
+    python experiments/presets/analyse_search.py [--sweeps runs/presets] [--out experiments/results/presets/search.md]
 """
 
 import argparse
@@ -109,7 +109,7 @@ def table(data: dict) -> tuple[list[str], dict]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--sweeps", default="runs/presets")
-    parser.add_argument("--out", default=str(Path(__file__).with_name("search.md")))
+    parser.add_argument("--out", default="experiments/results/presets/search.md")
     args = parser.parse_args()
 
     rows1, scores1 = table(read(Path(args.sweeps), CANDIDATES))

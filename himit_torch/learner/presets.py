@@ -102,7 +102,7 @@ RECOMMENDED = _preset(
     "Eq. 2 with the mentor term fading into the learner's own value as its own experience "
     "grows (mentor_fade = 20), and ε held at 0.75 until the run's 10th goal, then at its floor "
     "0.01 (eps_schedule = 'goals'). Chosen by a rule declared before the runs, on held-out "
-    "seeds 1000–1009 and 2000–2009 (experiments/presets/search.md); its results are those of "
+    "seeds 1000–1009 and 2000–2009 (experiments/results/presets/search.md); its results are those of "
     "seeds 0–19, which the search never saw.",
     **{
         **dict(PAPER.settings),
@@ -117,7 +117,7 @@ RECOMMENDED = _preset(
             "explore at 0.75 until the goal is known well (10 goals), then act at the floor: of "
             "the candidates whose greedy policy reached ≥ 97 % of the mentor's rate on both "
             "searched worlds, the one with the most goals in the first 50k steps "
-            "(experiments/presets/search.md, round 2)",
+            "(experiments/results/presets/search.md, round 2)",
         ),
         "eps_goals": (10, "the goals of exploration before ε drops to its floor"),
     },
