@@ -61,7 +61,11 @@ class MentorPolicy:
 
 
 def mentor_policy(
-    world: MultiRooms | TabularWorld, options: Options, prefer_extended_within: float | None = None
+    world: MultiRooms | TabularWorld,
+    options: Options,
+    prefer_extended_within: float | None = None,
+    *,
+    break_cycles: bool = False,
 ) -> MentorPolicy:
     """The mentor's optimal policy for its own options, by exact SMDP value iteration.
 
@@ -73,12 +77,27 @@ def mentor_policy(
     the state's optimal value ``V*(s)``, and the strict greedy option otherwise. Among several
     such extended options the one with the highest value wins (then the lowest index).
 
+    Cycles (``break_cycles``): far from the goal values are negative and discounting makes a
+    delayed cost cheaper, so stepping back a cell and returning can cost less than one step's
+    cost in value (at ``V* ≈ −0.74``, ``γ = 0.99``: ≈ 0.005), and the preferred choices can
+    form a cycle that only a slip leaves. On the paper's worlds there are two such 2-cycles in
+    exp1's and exp3's rooms (0, 2) and (2, 0) (80×80: at (2, 18) and (18, 2)), off the mentor's
+    path, and the default keeps them (the mentor of every earlier run). Experiment 1's world made
+    into a maze had one on the mentor's own path (an option back to the doorway just passed, then
+    the primitive forward again), and its mentor never reached the goal. With
+    ``break_cycles=True`` (MultiRooms, deterministic options) the states on a cycle of the
+    preferred choices without slips (each state's option followed to where it may first stop)
+    take the strict greedy option instead, until no cycle is left.
+
     Args:
         world: the world the mentor acts in.
         options: the mentor's options, e.g. ``mentor_options(world)``.
         prefer_extended_within: the tolerance, ``≥ 0``; by default one step's cost,
             ``abs(world.step_reward)`` (0.01), or 0 for worlds without a ``step_reward``. ``0``
             gives the strict greedy optimum.
+        break_cycles: replace the preferred choices' slip-free cycles by the strict optimum
+            (above); what the runs do in worlds other than the paper's (a maze, a moved goal, a
+            detour's first leg).
 
     Returns:
         :class:`MentorPolicy`; its values are the optimal ``V*`` (the preference changes which
@@ -106,9 +125,63 @@ def mentor_policy(
         within = extended[models.row_option] & (q >= plan.values[models.row_state] - tolerance)
         score = torch.where(within, q + (q.abs().max() + 1.0) * 4, q)
         policy = greedy_option_policy(models, score, plan.values)
+        if break_cycles and isinstance(world, MultiRooms) and not options.stochastic:
+            policy = _break_cycles(world, options, policy, plan.policy)
     else:
         policy = plan.policy
     return MentorPolicy(options=options, option=policy, values=plan.values, tolerance=tolerance)
+
+
+def _nominal_ends(world: MultiRooms, options: Options, choice: torch.Tensor) -> torch.Tensor:
+    """``[S]`` where each state's chosen option first may stop when nothing slips: followed
+    from the state until ``β > 0``, the goal, or a bump into a wall; −1 where no option."""
+    nxt, goal = world.next_state_table, world.goal_state
+    states = torch.nonzero(choice >= 0).flatten()
+    opt, pos = choice[states], states.clone()
+    moving = torch.ones_like(states, dtype=torch.bool)
+    for _ in range(world.num_states):
+        new = nxt[pos, options.policy[opt, pos].long()]
+        stop = (new == pos) | (new == goal) | (options.termination[opt, new] > 0)
+        pos = torch.where(moving, new, pos)
+        moving &= ~stop
+        if not moving.any():
+            break
+    ends = torch.full_like(choice, -1)
+    ends[states] = pos
+    return ends
+
+
+def _on_cycles(ends: torch.Tensor) -> list[int]:
+    """States on a cycle of the functional graph ``s → ends[s]`` (−1: none)."""
+    nodes = ends.tolist()
+    state = [0] * len(nodes)  # 0 unseen, 1 on the current walk, 2 done
+    out: list[int] = []
+    for first in range(len(nodes)):
+        walk, s = [], first
+        while s >= 0 and state[s] == 0:
+            state[s] = 1
+            walk.append(s)
+            s = nodes[s]
+        if s >= 0 and state[s] == 1:  # the walk closed a loop at s
+            out.extend(walk[walk.index(s) :])
+        for w in walk:
+            state[w] = 2
+    return out
+
+
+def _break_cycles(
+    world: MultiRooms, options: Options, preferred: torch.Tensor, strict: torch.Tensor
+) -> torch.Tensor:
+    """``preferred`` with the strict greedy option at the states of its slip-free cycles, until
+    none is left (see :func:`mentor_policy`)."""
+    policy = preferred.clone()
+    while True:
+        cycle = [
+            s for s in _on_cycles(_nominal_ends(world, options, policy)) if policy[s] != strict[s]
+        ]
+        if not cycle:
+            return policy
+        policy[cycle] = strict[cycle]
 
 
 @dataclass(frozen=True)
@@ -327,7 +400,7 @@ def mentor_detour(
 
     The first leg's mentor is built as the experiments build the mentor
     (:func:`mentor_options` with ``corners``, :func:`mentor_policy` with
-    ``prefer_extended_within``), in a copy of the world whose goal is the waypoint; the second
+    ``prefer_extended_within`` and ``break_cycles``), in a copy of the world whose goal is the waypoint; the second
     leg is the world's own mentor started at the waypoint (give it to
     :func:`record_demonstrations`).
     """
@@ -345,7 +418,10 @@ def mentor_detour(
     first_leg = MultiRooms.from_description({**desc, "goal": waypoint})
     second_leg = MultiRooms.from_description({**desc, "start": waypoint})
     to_waypoint = mentor_policy(
-        first_leg, mentor_options(first_leg, corners=corners), prefer_extended_within
+        first_leg,
+        mentor_options(first_leg, corners=corners),
+        prefer_extended_within,
+        break_cycles=True,
     )
     return MentorDetour(waypoint, to_waypoint, first_leg, second_leg)
 

@@ -192,7 +192,11 @@ def run_world(
     # the process's peak memory. Each seed's episodes come from its own generator: the order
     # changes nothing.
     mentor = mentor_policy(
-        world, mentor_options(world, corners=config.corner_options), config.mentor_preference
+        world,
+        mentor_options(world, corners=config.corner_options),
+        config.mentor_preference,
+        # the paper's worlds keep their mentor; a maze or a moved goal may trap it in a cycle
+        break_cycles=config.layout != "open" or config.goal_needs_primitives,
     )
     # The stresses on the mentor (config.mentor_noise, .mentor_detour) change what it shows, not
     # its policy: the "% of mentor" reference below stays the undisturbed one.

@@ -13,6 +13,8 @@ from himit_torch.mentor.demonstrations import Demonstrations
 from himit_torch.mentor.observation import CoarseDemonstrations, observe_every, observed_indices
 from himit_torch.mentor.policy import (
     MentorPolicy,
+    _nominal_ends,
+    _on_cycles,
     mentor_detour,
     mentor_policy,
     record_demonstrations,
@@ -223,3 +225,43 @@ def test_a_first_leg_that_enters_the_goal_ends_the_episode_there():
     assert any(passed) and not all(passed)
     for episode in demos.episodes:  # one visit to the goal, at the end
         assert episode[-1] == w.goal_state and not (episode[:-1] == w.goal_state).any()
+
+
+# ------------------------------------------------------------- the mentor's preference cycles
+def _slip_free_path(world: MultiRooms, mentor: MentorPolicy, steps: int) -> list[int]:
+    """The cells where the mentor decides, from the start, when nothing slips."""
+    ends = _nominal_ends(world, mentor.options, mentor.option)
+    path = [world.start_state]
+    while path[-1] != world.goal_state and len(path) < steps:
+        path.append(int(ends[path[-1]]))
+    return path
+
+
+def test_break_cycles_frees_the_mentor_of_experiment_1s_maze():
+    maze = MultiRooms(size=80, rooms=10, closed_doorways=maze_doorways(80, 10))
+    options = mentor_options(maze, corners=True)
+    trapped = mentor_policy(maze, options)
+    path = _slip_free_path(maze, trapped, 500)
+    assert path[-1] != maze.goal_state  # it goes round a cycle for ever
+    assert set(path[-4:]) <= set(_on_cycles(_nominal_ends(maze, options, trapped.option)))
+    freed = mentor_policy(maze, options, break_cycles=True)
+    assert _on_cycles(_nominal_ends(maze, options, freed.option)) == []
+    assert _slip_free_path(maze, freed, 500)[-1] == maze.goal_state
+    rollout = run_mentor(maze, freed, 3, seed=0)
+    assert all(e[-1] == maze.goal_state for e in rollout.states)
+    # only states on cycles changed, to the strict optimum; the values are the same
+    changed = freed.option != trapped.option
+    strict = mentor_policy(maze, options, prefer_extended_within=0.0).option
+    assert changed.any() and torch.equal(freed.option[changed], strict[changed])
+    assert torch.equal(freed.values, trapped.values)
+
+
+def test_the_paper_worlds_mentor_keeps_its_cycles_off_its_path_by_default():
+    world = MultiRooms(size=80, rooms=10)
+    options = mentor_options(world, corners=True)
+    mentor = mentor_policy(world, options)
+    cells = sorted(
+        world.coords(s) for s in _on_cycles(_nominal_ends(world, options, mentor.option))
+    )
+    assert cells == [(1, 18), (2, 18), (18, 1), (18, 2)]  # two 2-cycles, documented
+    assert _slip_free_path(world, mentor, 500)[-1] == world.goal_state

@@ -130,3 +130,28 @@ def test_the_default_run_has_no_stress_line(tmp_path):
     )
     run_experiment(config, tmp_path / "run", progress=False, workers=1)
     assert "Stresses" not in (tmp_path / "run" / "results.md").read_text()
+
+
+def test_the_stress_axes_are_sweep_factors(tmp_path):
+    from himit_torch.runs.sweep import load_spec
+
+    spec_path = tmp_path / "stress.toml"
+    spec_path.write_text(
+        'base = "exp2"\nseeds = 2\ndesign = "one-at-a-time"\n'
+        "[grid]\nmentor_noise = [0.0, 0.1, 0.3]\nobservation_stride = [1, 2, 5]\n"
+        'layout = ["open", "maze"]\nmentor_detour = [false, true]\n'
+    )
+    spec = load_spec(spec_path)
+    stresses = [cell.config.stresses() for cell in spec.cells]
+    assert stresses == [
+        {},
+        {"mentor_noise": 0.1},
+        {"mentor_noise": 0.3},
+        {"observation_stride": 2},
+        {"observation_stride": 5},
+        {"layout": "maze"},
+        {"mentor_detour": True},
+    ]
+    spec_path.write_text('base = "exp2"\n[grid]\nobservation_stride = [1, 0]\n')
+    with pytest.raises(ValueError, match="observation_stride=0 must be ≥ 1"):
+        load_spec(spec_path)
