@@ -80,14 +80,15 @@ def mentor_policy(
     Cycles (``break_cycles``): far from the goal values are negative and discounting makes a
     delayed cost cheaper, so stepping back a cell and returning can cost less than one step's
     cost in value (at ``V* ≈ −0.74``, ``γ = 0.99``: ≈ 0.005), and the preferred choices can
-    form a cycle that only a slip leaves. On the paper's worlds there are two such 2-cycles in
-    exp1's and exp3's rooms (0, 2) and (2, 0) (80×80: at (2, 18) and (18, 2)), off the mentor's
-    path, and the default keeps them (the mentor of every earlier run). Experiment 1's world made
-    into a maze had one on the mentor's own path (an option back to the doorway just passed, then
-    the primitive forward again), and its mentor never reached the goal. With
-    ``break_cycles=True`` (MultiRooms, deterministic options) the states on a cycle of the
-    preferred choices without slips (each state's option followed to where it may first stop)
-    take the strict greedy option instead, until no cycle is left.
+    form a cycle that only a slip leaves. Of the paper's worlds, exp1's and exp3's 80×80, 96×96
+    and 120×120 have two such 2-cycles each, in a room of the top row and one of the left
+    column (80×80: (1, 18)–(2, 18) and (18, 1)–(18, 2)), off the mentor's diagonal path; exp2's
+    and exp3's 64×64 have none. The default keeps them (the mentor of every earlier run).
+    Experiment 1's world made into a maze had one on the mentor's own path (an option back to
+    the doorway just passed, then the primitive forward again), and its mentor never reached the
+    goal. With ``break_cycles=True`` (MultiRooms, deterministic options) the states on a cycle of
+    the preferred choices without slips (each state's option followed to where it may first
+    stop) take the strict greedy option instead, until no cycle is left.
 
     Args:
         world: the world the mentor acts in.

@@ -29,7 +29,14 @@ from himit_torch.validation import (
 )
 from himit_torch.worlds.multirooms import MultiRooms, maze_doorways, primitives_only_goal
 
-__all__ = ["ExperimentConfig", "EXPERIMENTS", "MENTOR_MODELS", "LAYOUTS", "load_config"]
+__all__ = [
+    "ExperimentConfig",
+    "EXPERIMENTS",
+    "MENTOR_MODELS",
+    "LAYOUTS",
+    "STRESS_SETTINGS",
+    "load_config",
+]
 
 #: ``ExperimentConfig.mentor_model``: counts of the demonstrations, or the mentor's exact model.
 MENTOR_MODELS = ("learned", "exact")
