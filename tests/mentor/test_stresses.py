@@ -265,3 +265,28 @@ def test_the_paper_worlds_mentor_keeps_its_cycles_off_its_path_by_default():
     )
     assert cells == [(1, 18), (2, 18), (18, 1), (18, 2)]  # two 2-cycles, documented
     assert _slip_free_path(world, mentor, 500)[-1] == world.goal_state
+
+
+def test_a_coarse_mentor_term_is_the_one_step_term_of_a_k_step_move(grid):
+    """What the docstring of ``himit_torch.mentor.observation`` says eq. 2 then does, solved by
+    hand on the 4×4 room (slip 0, −0.01 a step, γ = 0.99): seen every 2nd state, the mentor's
+    walk 0 → 1 → 2 → 3 → 7 → 11 → 15 is 0 → 2 → 7 → 15, so p_m(2 | 0) = 1 and the mentor
+    term at 0 is r(2) + γ V(2) = −0.01 + 0.99 V(2), where the move really takes two steps:
+    −0.01 − 0.99 · 0.01 + 0.99² V(2). With V(2) = V*(2) = −0.01 · (1 + 0.99 + 0.99²) + 0.99³
+    (three steps to the goal, +1 on entering it) the term is higher by 0.0099 + 0.0099 V(2)."""
+    from himit_torch.learner.backups import mentor_backup
+    from himit_torch.mentor.reward import KnownReward
+
+    coarse = observe_every(Demonstrations([[0, 1, 2, 3, 7, 11, 15]], grid), 2)
+    learner = Learner(grid, learner_options(grid, doorways=False), ["imitation"], [0])
+    learner.add_demonstrations(coarse)
+    successors, probs = learner.mentor.mean(torch.tensor([0]), torch.tensor([0]))
+    real = successors >= 0
+    assert successors[real].tolist() == [2] and probs[real].tolist() == [1.0]
+    v2 = -0.01 * (1 + 0.99 + 0.99**2) + 0.99**3
+    r = KnownReward(grid).transition_reward(torch.tensor([0]), torch.tensor([2]))
+    term = mentor_backup(r, torch.tensor([[1.0]], dtype=torch.float64), torch.tensor([[v2]]), 0.99)
+    two_steps = -0.01 - 0.99 * 0.01 + 0.99**2 * v2
+    assert float(term[0]) == pytest.approx(-0.01 + 0.99 * v2)
+    assert float(term[0]) - two_steps == pytest.approx(0.0099 + 0.0099 * v2)
+    assert float(term[0]) > two_steps  # optimistic: no longer a lower bound
