@@ -42,11 +42,14 @@ from himit_torch.learner.option_refresh import with_options
 from himit_torch.learner.presets import PRESETS, Preset, apply_preset, preset_differences
 from himit_torch.learner.prioritized_sweeping import BlockPriorityQueue
 from himit_torch.mentor.demonstrations import DEMONSTRATIONS_FORMAT_VERSION, Demonstrations
+from himit_torch.mentor.observation import CoarseDemonstrations, observe_every
 from himit_torch.mentor.policy import (
     ExactMentorTransitions,
+    MentorDetour,
     MentorPolicy,
     MentorRollout,
     exact_mentor_transitions,
+    mentor_detour,
     mentor_policy,
     record_demonstrations,
     run_mentor,
@@ -81,7 +84,13 @@ from himit_torch.options.taxi import taxi_navigation_options
 from himit_torch.viz.tensorboard import TensorBoardLogger
 from himit_torch.worlds.gym_env import ENV_ID, MultiRoomsEnv, register_envs
 from himit_torch.worlds.gymnasium import from_gymnasium
-from himit_torch.worlds.multirooms import STIMULUS_FEATURES, MultiRooms
+from himit_torch.worlds.multirooms import (
+    STIMULUS_FEATURES,
+    MultiRooms,
+    detour_waypoint,
+    maze_doorways,
+    primitives_only_goal,
+)
 from himit_torch.worlds.puzzle_box import ORGANISATIONS, PuzzleBox
 from himit_torch.worlds.table_world import (
     TableWorld,
@@ -98,6 +107,8 @@ __version__ = "0.1.0"
 __all__ = [
     # worlds
     "MultiRooms",
+    "maze_doorways",
+    "primitives_only_goal",
     "TabularWorld",
     "DynamicsTable",
     "MultiRoomsEnv",
@@ -165,6 +176,12 @@ __all__ = [
     "DEMONSTRATIONS_FORMAT_VERSION",
     "organisation_mentor",
     "map_demonstrations",
+    # the stresses on the demonstrations (docs/stresses.md)
+    "MentorDetour",
+    "mentor_detour",
+    "detour_waypoint",
+    "CoarseDemonstrations",
+    "observe_every",
     # mentor reward
     "MentorReward",
     "KnownReward",

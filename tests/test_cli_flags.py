@@ -58,6 +58,11 @@ EXPERIMENT_FLAGS = {
     "mentor_preference": (["0.25"], 0.25),
     "mentor_model": (["exact"], "exact"),
     "slip": (["0.2"], 0.2),
+    "mentor_noise": (["0.3"], 0.3),
+    "mentor_detour": ([], True),  # given as --mentor-detour
+    "observation_stride": (["5"], 5),
+    "layout": (["maze"], "maze"),
+    "goal_needs_primitives": ([], True),
     "window": (["2000"], 2000),
     "checkpoint_every": (["10000"], 10_000),
     "greedy_every": (["20000"], 20_000),

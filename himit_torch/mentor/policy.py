@@ -15,10 +15,11 @@ import torch
 from himit_torch.exact.option_models import option_models
 from himit_torch.exact.planning import greedy_option_policy, smdp_value_iteration
 from himit_torch.mentor.demonstrations import Demonstrations
+from himit_torch.options.builders import mentor_options
 from himit_torch.options.bundle import Options
 from himit_torch.options.execution import OptionTables, option_step
-from himit_torch.validation import COUNT_MAX, as_int, check_memory
-from himit_torch.worlds.multirooms import MultiRooms
+from himit_torch.validation import COUNT_MAX, as_float, as_int, check_memory
+from himit_torch.worlds.multirooms import MultiRooms, detour_waypoint
 from himit_torch.worlds.tabular import TabularWorld
 
 __all__ = [
@@ -27,6 +28,8 @@ __all__ = [
     "mentor_policy",
     "run_mentor",
     "record_demonstrations",
+    "MentorDetour",
+    "mentor_detour",
     "ExactMentorTransitions",
     "exact_mentor_transitions",
 ]
@@ -58,7 +61,11 @@ class MentorPolicy:
 
 
 def mentor_policy(
-    world: MultiRooms | TabularWorld, options: Options, prefer_extended_within: float | None = None
+    world: MultiRooms | TabularWorld,
+    options: Options,
+    prefer_extended_within: float | None = None,
+    *,
+    break_cycles: bool = False,
 ) -> MentorPolicy:
     """The mentor's optimal policy for its own options, by exact SMDP value iteration.
 
@@ -70,12 +77,28 @@ def mentor_policy(
     the state's optimal value ``V*(s)``, and the strict greedy option otherwise. Among several
     such extended options the one with the highest value wins (then the lowest index).
 
+    Cycles (``break_cycles``): far from the goal values are negative and discounting makes a
+    delayed cost cheaper, so stepping back a cell and returning can cost less than one step's
+    cost in value (at ``V* ≈ −0.74``, ``γ = 0.99``: ≈ 0.005), and the preferred choices can
+    form a cycle that only a slip leaves. Of the paper's worlds, exp1's and exp3's 80×80, 96×96
+    and 120×120 have two such 2-cycles each, in a room of the top row and one of the left
+    column (80×80: (1, 18)–(2, 18) and (18, 1)–(18, 2)), off the mentor's diagonal path; exp2's
+    and exp3's 64×64 have none. The default keeps them (the mentor of every earlier run).
+    Experiment 1's world made into a maze had one on the mentor's own path (an option back to
+    the doorway just passed, then the primitive forward again), and its mentor never reached the
+    goal. With ``break_cycles=True`` (MultiRooms, deterministic options) the states on a cycle of
+    the preferred choices without slips (each state's option followed to where it may first
+    stop) take the strict greedy option instead, until no cycle is left.
+
     Args:
         world: the world the mentor acts in.
         options: the mentor's options, e.g. ``mentor_options(world)``.
         prefer_extended_within: the tolerance, ``≥ 0``; by default one step's cost,
             ``abs(world.step_reward)`` (0.01), or 0 for worlds without a ``step_reward``. ``0``
             gives the strict greedy optimum.
+        break_cycles: replace the preferred choices' slip-free cycles by the strict optimum
+            (above); what the runs do in worlds other than the paper's (a maze, a moved goal, a
+            detour's first leg).
 
     Returns:
         :class:`MentorPolicy`; its values are the optimal ``V*`` (the preference changes which
@@ -103,9 +126,63 @@ def mentor_policy(
         within = extended[models.row_option] & (q >= plan.values[models.row_state] - tolerance)
         score = torch.where(within, q + (q.abs().max() + 1.0) * 4, q)
         policy = greedy_option_policy(models, score, plan.values)
+        if break_cycles and isinstance(world, MultiRooms) and not options.stochastic:
+            policy = _break_cycles(world, options, policy, plan.policy)
     else:
         policy = plan.policy
     return MentorPolicy(options=options, option=policy, values=plan.values, tolerance=tolerance)
+
+
+def _nominal_ends(world: MultiRooms, options: Options, choice: torch.Tensor) -> torch.Tensor:
+    """``[S]`` where each state's chosen option first may stop when nothing slips: followed
+    from the state until ``β > 0``, the goal, or a bump into a wall; −1 where no option."""
+    nxt, goal = world.next_state_table, world.goal_state
+    states = torch.nonzero(choice >= 0).flatten()
+    opt, pos = choice[states], states.clone()
+    moving = torch.ones_like(states, dtype=torch.bool)
+    for _ in range(world.num_states):
+        new = nxt[pos, options.policy[opt, pos].long()]
+        stop = (new == pos) | (new == goal) | (options.termination[opt, new] > 0)
+        pos = torch.where(moving, new, pos)
+        moving &= ~stop
+        if not moving.any():
+            break
+    ends = torch.full_like(choice, -1)
+    ends[states] = pos
+    return ends
+
+
+def _on_cycles(ends: torch.Tensor) -> list[int]:
+    """States on a cycle of the functional graph ``s → ends[s]`` (−1: none)."""
+    nodes = ends.tolist()
+    state = [0] * len(nodes)  # 0 unseen, 1 on the current walk, 2 done
+    out: list[int] = []
+    for first in range(len(nodes)):
+        walk, s = [], first
+        while s >= 0 and state[s] == 0:
+            state[s] = 1
+            walk.append(s)
+            s = nodes[s]
+        if s >= 0 and state[s] == 1:  # the walk closed a loop at s
+            out.extend(walk[walk.index(s) :])
+        for w in walk:
+            state[w] = 2
+    return out
+
+
+def _break_cycles(
+    world: MultiRooms, options: Options, preferred: torch.Tensor, strict: torch.Tensor
+) -> torch.Tensor:
+    """``preferred`` with the strict greedy option at the states of its slip-free cycles, until
+    none is left (see :func:`mentor_policy`)."""
+    policy = preferred.clone()
+    while True:
+        cycle = [
+            s for s in _on_cycles(_nominal_ends(world, options, policy)) if policy[s] != strict[s]
+        ]
+        if not cycle:
+            return policy
+        policy[cycle] = strict[cycle]
 
 
 @dataclass(frozen=True)
@@ -116,11 +193,16 @@ class MentorRollout:
         states: per episode an int64 ``[T_e + 1]`` tensor: the start and every step's state.
         decisions: per episode an int64 tensor of the options it chose, in order.
         options: the mentor's options (to read the decisions' kinds).
+        decision_states: per episode an int64 tensor of the state of each decision.
+        randomised: per episode a bool tensor, True where the decision was a random primitive
+            (``run_mentor(noise=…)``) instead of the policy's own option.
     """
 
     states: tuple[torch.Tensor, ...]
     decisions: tuple[torch.Tensor, ...]
     options: Options
+    decision_states: tuple[torch.Tensor, ...] = ()
+    randomised: tuple[torch.Tensor, ...] = ()
 
     def decision_counts(self) -> dict[str, int]:
         """Number of decisions per option kind over all episodes, e.g. ``{"doorway": 40, ...}``."""
@@ -140,6 +222,7 @@ def run_mentor(
     generator: torch.Generator | None = None,
     seed: int | None = None,
     max_steps_per_episode: int | None = None,
+    noise: float = 0.0,
 ) -> MentorRollout:
     """Run the mentor's policy from the start until a terminal state, ``episodes`` times.
 
@@ -152,6 +235,13 @@ def run_mentor(
     draws three uniforms per episode (action for stochastic option policies, slip, termination),
     so the result depends only on the seed.
 
+    A mentor that errs (``noise > 0``): at each decision, with probability ``noise``, the mentor
+    takes a primitive option drawn uniformly from the primitives usable at its state (all four
+    in MultiRooms) instead of its policy's option; the primitive acts for one step and the next
+    decision follows. Two draws per decision from ``generator`` (a uniform, then the primitive),
+    made only when ``noise > 0``, so ``noise = 0`` gives exactly the episodes of a mentor
+    without it.
+
     Args:
         world: the world (its ``step`` with explicit uniforms is used).
         mentor: a :class:`MentorPolicy`, or options to build one with :func:`mentor_policy`.
@@ -159,7 +249,9 @@ def run_mentor(
         generator: a CPU ``torch.Generator``; or give ``seed`` (default 0).
         max_steps_per_episode: give up (``ValueError``) if an episode has not reached the goal
             after this many primitive steps; default ``10 · S``.
+        noise: the probability, in ``[0, 1)``, that a decision is a uniformly random primitive.
     """
+    noise = as_float("run_mentor noise", noise, 0.0, 1.0, high_open=True)
     if isinstance(mentor, Options):
         mentor = mentor_policy(world, mentor)
     if not isinstance(mentor, MentorPolicy):
@@ -167,12 +259,7 @@ def run_mentor(
     episodes = as_int("episodes", episodes, 1, COUNT_MAX)
     # All episodes step together: their positions, flags and option state, and a state per step.
     check_memory(f"run_mentor: {episodes} episodes at once", 64 * episodes, "record fewer")
-    if generator is not None and seed is not None:
-        raise ValueError("give either generator or seed, not both")
-    if generator is None:
-        generator = torch.Generator().manual_seed(
-            0 if seed is None else as_int("seed", seed, -(2**63), 2**64 - 1)
-        )
+    generator = _generator(generator, seed)
     S = world.num_states
     max_steps = (
         10 * S
@@ -189,6 +276,13 @@ def run_mentor(
     else:
         tables = OptionTables(S, options.termination.reshape(-1), options.policy.reshape(-1), None)
     terminal = world.terminal_mask
+    primitives = torch.nonzero(options.is_primitive).flatten()
+    if noise > 0 and primitives.numel() == 0:
+        raise ValueError(
+            f"run_mentor: noise={noise} replaces decisions with primitive options, but the "
+            f"mentor's {options.num_options} options hold none; give it primitives "
+            "(primitive_options(world)) or use noise=0"
+        )
 
     def step(positions, actions, slip_u):
         return world.step(positions, actions, uniforms=slip_u)
@@ -211,11 +305,24 @@ def run_mentor(
     active = torch.ones(E, dtype=torch.bool)
     current = torch.full((E,), -1, dtype=torch.int64)
     history = [pos.clone()]
-    decided_episode, decided_option = [], []
+    decided_episode, decided_option, decided_random, decided_state = [], [], [], []
     for _ in range(max_steps):
         need = active & (current < 0)
         if need.any():
             picked = choice[pos[need]]
+            randomised = torch.zeros_like(picked, dtype=torch.bool)
+            if noise > 0:
+                at = pos[need]
+                randomised = torch.rand(at.shape, generator=generator, dtype=torch.float64) < noise
+                usable = init[primitives][:, at].T.double()  # [n, primitives]
+                if not bool((usable.sum(1) > 0).all()):
+                    bad = int(at[usable.sum(1) == 0][0])
+                    raise ValueError(
+                        f"run_mentor: noise={noise}, but no primitive is usable at state "
+                        f"{_where(world, bad)}"
+                    )
+                drawn = primitives[torch.multinomial(usable, 1, generator=generator).flatten()]
+                picked = torch.where(randomised, drawn, picked)
             if (picked < 0).any() or not init[picked, pos[need]].all():
                 bad = int(pos[need][(picked < 0) | ~init[picked.clamp(min=0), pos[need]]][0])
                 raise ValueError(
@@ -224,6 +331,8 @@ def run_mentor(
             current[need] = picked
             decided_episode.append(torch.nonzero(need).flatten())
             decided_option.append(picked)
+            decided_random.append(randomised)
+            decided_state.append(pos[need])
         u = torch.rand(3, E, generator=generator, dtype=torch.float64)
         o = current.clamp(min=0)
         # (the cdf's rows need not end at exactly 1: the action uniform is scaled to the row)
@@ -250,8 +359,72 @@ def run_mentor(
     states = tuple(hist[: int(reached[e]) + 1, e].clone() for e in range(E))
     ep = torch.cat(decided_episode)
     opt = torch.cat(decided_option)
-    decisions = tuple(opt[ep == e] for e in range(E))
-    return MentorRollout(states=states, decisions=decisions, options=options)
+    rand = torch.cat(decided_random)
+    where_decided = torch.cat(decided_state)
+    return MentorRollout(
+        states=states,
+        decisions=tuple(opt[ep == e] for e in range(E)),
+        options=options,
+        decision_states=tuple(where_decided[ep == e] for e in range(E)),
+        randomised=tuple(rand[ep == e] for e in range(E)),
+    )
+
+
+@dataclass(frozen=True)
+class MentorDetour:
+    """A needless detour for the mentor (:func:`mentor_detour`): it first walks to ``waypoint``,
+    then to the goal.
+
+    Attributes:
+        waypoint: the cell visited on the way.
+        to_waypoint: the mentor's optimal policy (same options' kinds and preference) in
+            ``first_leg``.
+        first_leg: the world with the waypoint as its goal (same layout, slip and start).
+        second_leg: the world with the waypoint as its start (same goal).
+    """
+
+    waypoint: int
+    to_waypoint: MentorPolicy
+    first_leg: MultiRooms
+    second_leg: MultiRooms
+
+
+def mentor_detour(
+    world: MultiRooms,
+    waypoint: int | None = None,
+    *,
+    corners: bool = False,
+    prefer_extended_within: float | None = None,
+) -> MentorDetour:
+    """The :class:`MentorDetour` of ``world`` through ``waypoint`` (default:
+    :func:`~himit_torch.worlds.multirooms.detour_waypoint`, the top-right corner cell).
+
+    The first leg's mentor is built as the experiments build the mentor
+    (:func:`mentor_options` with ``corners``, :func:`mentor_policy` with
+    ``prefer_extended_within`` and ``break_cycles``), in a copy of the world whose goal is the waypoint; the second
+    leg is the world's own mentor started at the waypoint (give it to
+    :func:`record_demonstrations`).
+    """
+    if not isinstance(world, MultiRooms):
+        raise ValueError(
+            f"mentor_detour: a detour needs a MultiRooms world (cells and options to walk "
+            f"them), got {type(world).__name__}"
+        )
+    waypoint = detour_waypoint(world) if waypoint is None else world._cell("waypoint", waypoint)
+    if waypoint in (world.start_state, world.goal_state):
+        raise ValueError(
+            f"mentor_detour: the waypoint {world.coords(waypoint)} is the world's start or goal"
+        )
+    desc = world.describe()
+    first_leg = MultiRooms.from_description({**desc, "goal": waypoint})
+    second_leg = MultiRooms.from_description({**desc, "start": waypoint})
+    to_waypoint = mentor_policy(
+        first_leg,
+        mentor_options(first_leg, corners=corners),
+        prefer_extended_within,
+        break_cycles=True,
+    )
+    return MentorDetour(waypoint, to_waypoint, first_leg, second_leg)
 
 
 def record_demonstrations(
@@ -262,22 +435,77 @@ def record_demonstrations(
     generator: torch.Generator | None = None,
     seed: int | None = None,
     max_steps_per_episode: int | None = None,
+    noise: float = 0.0,
+    detour: MentorDetour | None = None,
 ) -> Demonstrations:
     """State-only demonstrations of the mentor: :func:`run_mentor`, keeping the states only.
 
     The learner sees nothing of the mentor's actions, options or rewards; the returned
     :class:`~himit_torch.Demonstrations` holds each episode's states and the world's description.
-    Arguments as for :func:`run_mentor`.
+    Arguments as for :func:`run_mentor` (``noise``: a mentor that errs).
+
+    With a ``detour`` (:func:`mentor_detour` of this world) every episode is the mentor's walk
+    to ``detour.waypoint`` (``detour.to_waypoint`` in ``detour.first_leg``) followed by its walk
+    from there to the goal (``mentor`` in ``detour.second_leg``), joined at the waypoint: all
+    episodes' first legs are run, then all second legs, from one generator (made from ``seed``
+    if no ``generator`` is given). An episode whose first leg enters the goal ends there, as
+    every episode does, and keeps no second leg (possible only where the route to the waypoint
+    passes next to the goal, as in some mazes).
     """
-    rollout = run_mentor(
-        world,
-        mentor,
-        episodes,
-        generator=generator,
-        seed=seed,
-        max_steps_per_episode=max_steps_per_episode,
+    if detour is None:
+        rollout = run_mentor(
+            world,
+            mentor,
+            episodes,
+            generator=generator,
+            seed=seed,
+            max_steps_per_episode=max_steps_per_episode,
+            noise=noise,
+        )
+        return Demonstrations(list(rollout.states), world)
+    if not isinstance(world, MultiRooms) or detour.second_leg.describe() != {
+        **world.describe(),
+        "start": detour.waypoint,
+    }:
+        raise ValueError(
+            "record_demonstrations: the detour was made for another world; build it with "
+            "mentor_detour(world)"
+        )
+    generator = _generator(generator, seed)
+    legs = [
+        run_mentor(
+            leg,
+            policy,
+            episodes,
+            generator=generator,
+            max_steps_per_episode=max_steps_per_episode,
+            noise=noise,
+        ).states
+        for leg, policy in (
+            (detour.first_leg, detour.to_waypoint),
+            (detour.second_leg, mentor),
+        )
+    ]
+    goal = world.goal_state
+    joined = []
+    for first, second in zip(*legs):
+        reached = torch.nonzero(first == goal).flatten()
+        if reached.numel():
+            joined.append(first[: int(reached[0]) + 1])
+        else:
+            joined.append(torch.cat([first, second[1:]]))
+    return Demonstrations(joined, world)
+
+
+def _generator(generator: torch.Generator | None, seed: int | None) -> torch.Generator:
+    """The given generator, or a new one seeded with ``seed`` (default 0)."""
+    if generator is not None and seed is not None:
+        raise ValueError("give either generator or seed, not both")
+    if generator is not None:
+        return generator
+    return torch.Generator().manual_seed(
+        0 if seed is None else as_int("seed", seed, -(2**63), 2**64 - 1)
     )
-    return Demonstrations(list(rollout.states), world)
 
 
 def _where(world, state: int) -> str:

@@ -28,12 +28,33 @@ from himit_torch.validation import (
     refuse_unknown_fields,
     setting,
 )
-from himit_torch.worlds.multirooms import MultiRooms
+from himit_torch.worlds.multirooms import MultiRooms, maze_doorways, primitives_only_goal
 
-__all__ = ["ExperimentConfig", "EXPERIMENTS", "MENTOR_MODELS", "load_config"]
+__all__ = [
+    "ExperimentConfig",
+    "EXPERIMENTS",
+    "MENTOR_MODELS",
+    "LAYOUTS",
+    "STRESS_SETTINGS",
+    "load_config",
+]
 
 #: ``ExperimentConfig.mentor_model``: counts of the demonstrations, or the mentor's exact model.
 MENTOR_MODELS = ("learned", "exact")
+
+#: ``ExperimentConfig.layout``: every doorway open (the paper's), or a maze of rooms.
+LAYOUTS = ("open", "maze")
+
+#: The settings that stress the learner (docs/stresses.md), each with its neutral default.
+STRESS_SETTINGS = (
+    "mentor_episodes",
+    "slip",
+    "mentor_noise",
+    "mentor_detour",
+    "observation_stride",
+    "layout",
+    "goal_needs_primitives",
+)
 
 
 @dataclass
@@ -74,7 +95,11 @@ class ExperimentConfig:
     )
     steps: int = setting(200_000, ge=1, doc="Primitive steps per run.")
     mentor_episodes: int = setting(
-        20, ge=1, doc="Mentor episodes recorded (states only) before learning, per seed."
+        20,
+        ge=1,
+        doc="""
+        Mentor episodes recorded (states only) before learning, per seed (default 20). A stress
+        axis: how many demonstrations (the benchmark's 1 … 100).""",
     )
     mentor_reward: str = setting(
         "known",
@@ -103,7 +128,58 @@ class ExperimentConfig:
         reaches with positive probability). Demonstrations are still recorded for the figures.""",
     )
     slip: float = setting(
-        0.1, ge=0.0, lt=1.0, doc="Probability that an action fails (the paper: 10 %)."
+        0.1,
+        ge=0.0,
+        lt=1.0,
+        doc="""
+        Probability that an action fails, moving to one of the other three directions (default
+        and the paper: 0.1). A stress axis: it acts on the mentor, the learner and the exact
+        evaluations alike.""",
+    )
+    # The stresses (docs/stresses.md): each default leaves the paper's setting unchanged.
+    mentor_noise: float = setting(
+        0.0,
+        ge=0.0,
+        lt=1.0,
+        doc="""
+        A mentor that errs (default 0: never). At each of the demonstrating mentor's decisions,
+        with this probability, it takes a primitive action drawn uniformly from the four (a
+        primitive option: one step) instead of its own option, then decides again; drawn from
+        each seed's own generator (``run_mentor(noise=…)``). Only the recorded demonstrations
+        change: the "% of mentor" reference stays the undisturbed mentor's policy.""",
+    )
+    mentor_detour: bool = setting(
+        False,
+        doc="""
+        A mentor taking a needless detour (default false): every demonstration first walks to
+        the top-right corner cell ``(0, N − 1)`` — on no shortest path of the open layout —
+        then to the goal (``mentor_detour``, ``detour_waypoint``). Only the recorded
+        demonstrations change, as for ``mentor_noise``.""",
+    )
+    observation_stride: int = setting(
+        1,
+        ge=1,
+        doc="""
+        Coarse observation (default 1: every state). The learner sees only states 0, k, 2k, …
+        and the last of each mentor episode, so its mentor model's transitions join states up
+        to k primitive steps apart; eq. 2 is left as it is and its mentor term treats a k-step
+        move as one step (``himit_torch.mentor.observation`` says what that costs).""",
+    )
+    layout: str = setting(
+        "open",
+        choices=LAYOUTS,
+        doc="""
+        The rooms' doorways (default ``open``: all open, the paper's). ``maze``: doorways closed
+        so that the open ones join the rooms in a spanning tree (``maze_doorways``, from the
+        fixed seed ``MAZE_SEED``: every run and seed shares the one maze of each size).""",
+    )
+    goal_needs_primitives: bool = setting(
+        False,
+        doc="""
+        Move the goal to the middle of the bottom row of the bottom-right room
+        (``primitives_only_goal``), a cell no doorway or corner option is aimed at, so only
+        primitives reach it on purpose (default false: the bottom-right corner, which the
+        corner options reach). Needs rooms of ≥ 4 cells per side.""",
     )
     window: int = setting(
         5000,
@@ -176,6 +252,27 @@ class ExperimentConfig:
                 f"ExperimentConfig.checkpoint_every={self.checkpoint_every!r}: must be a positive "
                 f"multiple of window={self.window}"
             )
+        stressed = [
+            f"{name}={getattr(self, name)!r}"
+            for name, neutral in (
+                ("mentor_noise", 0.0),
+                ("mentor_detour", False),
+                ("observation_stride", 1),
+            )
+            if getattr(self, name) != neutral
+        ]
+        if self.mentor_model == "exact" and stressed:
+            raise ValueError(
+                f"ExperimentConfig.mentor_model='exact' is the undisturbed mentor's exact model; "
+                f"it cannot show {', '.join(stressed)}: use mentor_model='learned' (the "
+                "demonstrations' counts)"
+            )
+        if self.goal_needs_primitives:
+            for size in self.sizes:
+                try:
+                    primitives_only_goal(size, size // self.room_size)
+                except ValueError as err:
+                    raise ValueError(f"ExperimentConfig.goal_needs_primitives: {err}") from None
         if self.learner.window != self.window:
             self.learner = replace(self.learner, window=self.window)
 
@@ -202,9 +299,10 @@ class ExperimentConfig:
         options = 4 + 4 * R * (R - 1) + (8 * R * R if self.corner_options else 0)
         rows = 4 * S + (options - 4) * (self.room_size - 1) ** 2
         batch = len(self.agents) * self.seeds
+        mentors = 2 if self.mentor_detour else 1  # a detour's first leg has its own
         return (
             S * MultiRooms.BYTES_PER_STATE
-            + 2 * options * S * BYTES_PER_OPTION_STATE
+            + (1 + mentors) * options * S * BYTES_PER_OPTION_STATE
             + batch * (S * Learner.BYTES_PER_RUN_STATE + rows * Learner.BYTES_PER_RUN_ROW)
         )
 
@@ -216,7 +314,23 @@ class ExperimentConfig:
         return replace(self, preset=name, learner=apply_preset(self.learner, name))
 
     def world(self, size: int) -> MultiRooms:
-        return MultiRooms(size=size, rooms=size // self.room_size, slip=self.slip)
+        rooms = size // self.room_size
+        return MultiRooms(
+            size=size,
+            rooms=rooms,
+            slip=self.slip,
+            goal=primitives_only_goal(size, rooms) if self.goal_needs_primitives else None,
+            closed_doorways=maze_doorways(size, rooms) if self.layout == "maze" else (),
+        )
+
+    def stresses(self) -> dict[str, object]:
+        """The stress settings (:data:`STRESS_SETTINGS`) that differ from their defaults."""
+        default = ExperimentConfig()
+        return {
+            name: getattr(self, name)
+            for name in STRESS_SETTINGS
+            if getattr(self, name) != getattr(default, name)
+        }
 
     def quick(self) -> ExperimentConfig:
         """A tiny budget of the same experiment, for smoke tests and ``--quick``."""

@@ -37,7 +37,13 @@ from himit_torch.exact.planning import expected_steps, smdp_value_iteration
 from himit_torch.learner.agents import AGENTS
 from himit_torch.learner.config import LearnerConfig
 from himit_torch.learner.learner import Learner
-from himit_torch.mentor.policy import exact_mentor_transitions, mentor_policy, record_demonstrations
+from himit_torch.mentor.observation import observe_every
+from himit_torch.mentor.policy import (
+    exact_mentor_transitions,
+    mentor_detour,
+    mentor_policy,
+    record_demonstrations,
+)
 from himit_torch.mentor.reward import mentor_reward_module
 from himit_torch.options.builders import learner_options, mentor_options, primitive_options
 from himit_torch.runs.checkpoints import BatchShape
@@ -186,9 +192,37 @@ def run_world(
     # the process's peak memory. Each seed's episodes come from its own generator: the order
     # changes nothing.
     mentor = mentor_policy(
-        world, mentor_options(world, corners=config.corner_options), config.mentor_preference
+        world,
+        mentor_options(world, corners=config.corner_options),
+        config.mentor_preference,
+        # the paper's worlds keep their mentor; a maze or a moved goal may trap it in a cycle
+        break_cycles=config.layout != "open" or config.goal_needs_primitives,
     )
-    demos = {s: record_demonstrations(world, mentor, config.mentor_episodes, seed=s) for s in seeds}
+    # The stresses on the mentor (config.mentor_noise, .mentor_detour) change what it shows, not
+    # its policy: the "% of mentor" reference below stays the undisturbed one.
+    detour = (
+        mentor_detour(
+            world,
+            corners=config.corner_options,
+            prefer_extended_within=config.mentor_preference,
+        )
+        if config.mentor_detour
+        else None
+    )
+    recorded = {
+        s: record_demonstrations(
+            world,
+            mentor,
+            config.mentor_episodes,
+            seed=s,
+            noise=config.mentor_noise,
+            detour=detour,
+        )
+        for s in seeds
+    }
+    del detour
+    # what the learner observes of them (config.observation_stride; stride 1: the same objects)
+    demos = {s: observe_every(d, config.observation_stride) for s, d in recorded.items()}
     # the mentor's own goal rate, exactly, while its options exist
     mentor_eval = (
         None
@@ -327,7 +361,7 @@ def run_world(
     _write_curves(run_dir / "worlds" / f"curves{size}.csv", learner, size, greedy)
     _atomic_write(run_dir / "worlds" / f"world{size}.json", json.dumps(asdict(result), indent=1))
     _world_figure(
-        run_dir, config, world, demos[seeds[0]], learner, agents, run_seeds, seeds[0], size
+        run_dir, config, world, recorded[seeds[0]], learner, agents, run_seeds, seeds[0], size
     )
     return result
 

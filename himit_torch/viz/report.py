@@ -187,6 +187,21 @@ def _reach_step(steps, goals, level) -> int | None:
     return int(steps[hits[0]]) if hits.size else None
 
 
+def _stress_lines(config) -> list[str]:
+    """The run's stress settings that differ from their defaults (``config.stresses()``;
+    ``mentor_episodes`` is in the line above), as a paragraph; none for a run without."""
+    stresses: dict[str, object] = getattr(config, "stresses", dict)()
+    stresses.pop("mentor_episodes", None)
+    if not stresses:
+        return []
+    return [
+        "Stresses (docs/stresses.md): "
+        + ", ".join(f"`{k}={v}`" for k, v in stresses.items())
+        + ".",
+        "",
+    ]
+
+
 def write_results(run_dir: Path, config, results) -> None:
     """``results.md``: per world and agent, our numbers beside the paper's."""
     curves = read_curves(run_dir)
@@ -204,6 +219,7 @@ def write_results(run_dir: Path, config, results) -> None:
         )
         + ".",
         "",
+        *_stress_lines(config),
         (
             f"Preset `{config.preset}` (`himit_torch.learner.presets`), greedy ties "
             f"`{config.learner.tie_break}`. "
@@ -217,7 +233,7 @@ def write_results(run_dir: Path, config, results) -> None:
     lines += [
         f"Every **±** below is mean ± standard deviation over the {config.seeds} seeds (the "
         "seeds' spread, not a confidence interval); the paired tests and intervals of the "
-        "claims are in `experiments/claims/claims.md`.",
+        "claims are in `experiments/results/claims/claims.md`.",
         "",
     ]
     for r in results:

@@ -18,7 +18,16 @@ import torch
 from himit_torch.validation import as_float, as_int, check_memory
 from himit_torch.worlds.tabular import DynamicsTable
 
-__all__ = ["ACTION_NAMES", "ACTION_DELTAS", "STIMULUS_FEATURES", "MultiRooms"]
+__all__ = [
+    "ACTION_NAMES",
+    "ACTION_DELTAS",
+    "STIMULUS_FEATURES",
+    "MAZE_SEED",
+    "MultiRooms",
+    "maze_doorways",
+    "primitives_only_goal",
+    "detour_waypoint",
+]
 
 #: Primitive actions: 0 = north (row − 1), 1 = south, 2 = west (col − 1), 3 = east.
 ACTION_NAMES = ("N", "S", "W", "E")
@@ -64,6 +73,95 @@ def _build_layout(size: int, rooms: int, closed: frozenset[int]) -> _Layout:
     room_of[wall.ravel()] = -1
     room_of[list(doorway_rooms)] = -1
     return _Layout(wall=wall, room_of=room_of, doorway_rooms=doorway_rooms)
+
+
+#: The seed of :func:`maze_doorways`' default maze: fixed, so that every run (and every seed of a
+#: batch) shares one world.
+MAZE_SEED = 0
+
+
+def maze_doorways(size: int, rooms: int, seed: int = MAZE_SEED) -> tuple[int, ...]:
+    """The doorways to close (``MultiRooms(closed_doorways=…)``) that turn the world into a maze:
+    the open ones join the rooms in a spanning tree, so every room is reachable from every other
+    by exactly one sequence of rooms (the paper's "closing doorways to make the environment more
+    maze-like", Section III).
+
+    The tree is the minimum spanning tree (``scipy.sparse.csgraph.minimum_spanning_tree``) of the
+    rooms' adjacency graph under weights drawn uniformly from ``numpy.random.default_rng(seed)``,
+    one per doorway in cell order: the same ``(size, rooms, seed)`` always gives the same maze.
+    Of the ``2·R·(R − 1)`` doorways, ``(R − 1)²`` are closed and ``R² − 1`` stay open.
+
+    Args:
+        size, rooms: as for :class:`MultiRooms` (``size`` a multiple of ``rooms``).
+        seed: the maze's seed (:data:`MAZE_SEED` by default; never a run's seed).
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import minimum_spanning_tree
+
+    size, rooms = _check_int("size", size), _check_int("rooms", rooms)
+    if size % rooms or size // rooms < 2:
+        raise ValueError(
+            f"maze_doorways: size={size} must be a multiple of rooms={rooms} with rooms of at "
+            "least 2 cells per side (as for MultiRooms)"
+        )
+    doorway_rooms = _build_layout(size, rooms, frozenset()).doorway_rooms
+    cells = sorted(doorway_rooms)
+    if not cells:  # one room: nothing to close
+        return ()
+    pairs = np.array([doorway_rooms[c] for c in cells])
+    # weights in (1, 2): never 0, which a sparse matrix would read as "no edge"
+    weights = 1.0 + np.random.default_rng(seed).random(len(cells))
+    n = rooms * rooms
+    tree = minimum_spanning_tree(coo_matrix((weights, (pairs[:, 0], pairs[:, 1])), shape=(n, n)))
+    tree = tree.tocoo()
+    kept = {(int(a), int(b)) for a, b in zip(tree.row, tree.col)}
+    return tuple(c for c, (a, b) in zip(cells, pairs.tolist()) if (a, b) not in kept)
+
+
+def primitives_only_goal(size: int, rooms: int) -> int:
+    """A goal cell that no doorway or corner option is aimed at: the middle cell of the bottom
+    row of the bottom-right room, ``(size − 1, (c0 + c1) // 2)`` with ``c0 … c1`` that room's
+    free columns (the paper's "moving the position of the goal to a location that can only be
+    reached by executing primitive options", Section III).
+
+    Why no option reaches it: doorway options head for doorways (in the walls, never on the
+    grid's edge), corner options for a room's four corner cells and the four cells diagonally
+    inward from them (:func:`~himit_torch.options.builders.corner_options`), and every option's
+    path is planned around the goal cell. Only primitives step into it on purpose; an option
+    executing next to it can still slip into it.
+
+    Raises:
+        ValueError: the bottom-right room is narrower than 3 free columns (then its bottom row
+            holds only corner cells).
+    """
+    size, rooms = _check_int("size", size), _check_int("rooms", rooms)
+    room_size = size // rooms
+    c0 = size - room_size + (1 if rooms > 1 else 0)  # the room's first free column
+    c1 = size - 1
+    if c1 - c0 + 1 < 3:
+        raise ValueError(
+            f"primitives_only_goal: the bottom-right room of size={size}, rooms={rooms} has "
+            f"{c1 - c0 + 1} free columns; its bottom row needs ≥ 3 for a cell that is not a "
+            "corner (use rooms of ≥ 4 cells per side, wall included)"
+        )
+    return (size - 1) * size + (c0 + c1) // 2
+
+
+def detour_waypoint(world: MultiRooms) -> int:
+    """The cell a detouring mentor visits before the goal: the top-right corner ``(0, N − 1)``.
+
+    With the default start (top-left) and goal (bottom-right) and all doorways open it lies on
+    no shortest path: every doorway sits in the middle of its wall, so reaching the corner of
+    the top row and leaving it again costs steps a direct route does not take. (In a maze the
+    only route may pass near it; the detour is then shorter.)
+    """
+    cell = world.size - 1
+    if cell in (world.start_state, world.goal_state):
+        raise ValueError(
+            f"detour_waypoint: the top-right corner {world.coords(cell)} is the world's start "
+            "or goal; a detour through it would not be one"
+        )
+    return cell
 
 
 class MultiRooms:

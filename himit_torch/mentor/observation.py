@@ -1,0 +1,128 @@
+"""Coarse observation of the mentor: the learner sees only every k-th state of its episodes.
+
+:func:`observe_every` keeps states ``0, k, 2k, …`` of each episode and always its last state,
+and returns :class:`CoarseDemonstrations`: what the learner is given instead of the full
+:class:`~himit_torch.Demonstrations`.
+
+What eq. 2 then needs
+    The learner's mentor model ``p_m(s'|s)`` is estimated from consecutive *observed* states, so
+    its transitions connect states up to ``k`` primitive steps apart (exactly ``k`` except an
+    episode's last pair, which may be shorter): it describes the mentor's ``k``-step moves.
+    Eq. 2's mentor term ``R_m(s) + γ Σ_{s'} p_m(s'|s) V(s')`` compares such a move with the
+    learner's own options as if it took one step. Read correctly it is an option of the
+    mentor's: the term it needs is the SMDP one the learner's own options get,
+    ``E[Σ_{i<τ} γ^i r_i + γ^τ V(s')]`` with ``τ`` the move's duration (``k``), which would need
+    the reward of the unseen steps and a discount ``γ^k``. The library does not change the
+    learner's equations for it: the coarse transitions enter the mentor model as they are, so
+    the mentor term discounts a ``k``-step move once and gives it one step's reward (with
+    ``KnownReward``, that of entering ``s'``). It is therefore optimistic for ``k > 1`` (by
+    ``(γ − γ^k) V(s')`` and the missing steps' costs where values are positive), and no longer
+    the sound lower bound of the paper's argument: which is what the ``observation_stride``
+    stress measures.
+"""
+
+from __future__ import annotations
+
+import torch
+
+from himit_torch.mentor.demonstrations import Demonstrations
+from himit_torch.validation import COUNT_MAX, as_int
+
+__all__ = ["CoarseDemonstrations", "observe_every", "observed_indices"]
+
+
+def observed_indices(length: int, stride: int) -> torch.Tensor:
+    """``[n]`` int64 positions kept of an episode of ``length`` states (``length ≥ 1``):
+    ``0, stride, 2·stride, …`` and always ``length − 1``, sorted, each once."""
+    length = as_int("observed_indices length", length, 1, COUNT_MAX)
+    stride = as_int("observed_indices stride", stride, 1, COUNT_MAX)
+    kept = torch.arange(0, length, stride, dtype=torch.int64)
+    if int(kept[-1]) != length - 1:
+        kept = torch.cat([kept, torch.tensor([length - 1])])
+    return kept
+
+
+class CoarseDemonstrations:
+    """What a learner observing every ``stride``-th mentor state sees of ``demonstrations``.
+
+    It offers what :meth:`Learner.add_demonstrations <himit_torch.Learner.add_demonstrations>`,
+    the reward modules and the figures read of :class:`~himit_torch.Demonstrations` —
+    ``episodes``, ``transitions()``, ``check_world()`` and the counts — over the kept states.
+    Its states are checked as the full episodes they come from were (``check_world`` checks
+    those); consecutive kept states are up to ``stride`` primitive steps apart, so it is not a
+    :class:`~himit_torch.Demonstrations` and is not saved (save the full ones).
+
+    Attributes:
+        full: the demonstrations observed.
+        stride: ``k``.
+    """
+
+    def __init__(self, demonstrations: Demonstrations, stride: int):
+        if not isinstance(demonstrations, Demonstrations):
+            raise TypeError(
+                f"CoarseDemonstrations observes Demonstrations, got {type(demonstrations).__name__}"
+            )
+        self.full = demonstrations
+        self.stride = as_int("observation stride", stride, 1, COUNT_MAX)
+        self._episodes = tuple(
+            e[observed_indices(len(e), self.stride)].clone() for e in demonstrations.episodes
+        )
+
+    @property
+    def episodes(self) -> tuple[torch.Tensor, ...]:
+        """Per episode an int64 tensor of the observed states."""
+        return self._episodes
+
+    @property
+    def num_episodes(self) -> int:
+        return len(self._episodes)
+
+    @property
+    def num_transitions(self) -> int:
+        """Number of consecutive observed pairs over all episodes."""
+        return sum(len(e) - 1 for e in self._episodes)
+
+    def transitions(self) -> tuple[torch.Tensor, torch.Tensor]:
+        """``(from [T], to [T])`` int64: consecutive observed pairs, all episodes, in order
+        (each up to ``stride`` primitive steps; never across episodes)."""
+        return (
+            torch.cat([e[:-1] for e in self._episodes]),
+            torch.cat([e[1:] for e in self._episodes]),
+        )
+
+    def visited_states(self) -> torch.Tensor:
+        """Sorted unique int64 observed states."""
+        return torch.unique(torch.cat(self._episodes))
+
+    def check_world(self, world) -> None:
+        """As :meth:`Demonstrations.check_world <himit_torch.Demonstrations.check_world>` of the
+        full demonstrations (the kept states are theirs)."""
+        self.full.check_world(world)
+
+    @property
+    def world_description(self) -> dict:
+        return self.full.world_description
+
+    def __len__(self) -> int:
+        return self.num_episodes
+
+    def __iter__(self):
+        return iter(self._episodes)
+
+    def __getitem__(self, index: int) -> torch.Tensor:
+        return self._episodes[index]
+
+    def __repr__(self) -> str:
+        return (
+            f"CoarseDemonstrations(stride={self.stride}, episodes={self.num_episodes}, "
+            f"transitions={self.num_transitions})"
+        )
+
+
+def observe_every(
+    demonstrations: Demonstrations, stride: int
+) -> Demonstrations | CoarseDemonstrations:
+    """``demonstrations`` as a learner seeing every ``stride``-th state sees them: the same
+    object for ``stride = 1``, else :class:`CoarseDemonstrations`."""
+    stride = as_int("observation stride", stride, 1, COUNT_MAX)
+    return demonstrations if stride == 1 else CoarseDemonstrations(demonstrations, stride)
