@@ -29,7 +29,7 @@ from himit_torch.exact.planning import (
     value_iteration,
 )
 from himit_torch.learner import backups
-from himit_torch.learner.agents import AGENTS
+from himit_torch.learner.agents import AGENTS, AgentVariant
 from himit_torch.learner.config import LearnerConfig
 from himit_torch.learner.learner import Learner
 from himit_torch.learner.models import (
@@ -50,6 +50,7 @@ from himit_torch.mentor.policy import (
     record_demonstrations,
     run_mentor,
 )
+from himit_torch.mentor.potential import mentor_chain_value, shaping_potential
 from himit_torch.mentor.puzzle_box import map_demonstrations, organisation_mentor
 from himit_torch.mentor.reward import (
     MENTOR_REWARDS,
@@ -142,6 +143,7 @@ __all__ = [
     "Learner",
     "LearnerConfig",
     "AGENTS",
+    "AgentVariant",
     "DirichletSMDPModel",
     "DirichletMentorModel",
     "SuccessorDirichlet",
@@ -169,6 +171,9 @@ __all__ = [
     "STIMULUS_FEATURES",
     "MENTOR_REWARDS",
     "mentor_reward_module",
+    # shaping potential from the demonstrations (the pbrs agents)
+    "shaping_potential",
+    "mentor_chain_value",
     # options discovered from demonstrations
     "Subgoals",
     "discover_subgoals",
