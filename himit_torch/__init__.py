@@ -29,7 +29,7 @@ from himit_torch.exact.planning import (
     value_iteration,
 )
 from himit_torch.learner import backups
-from himit_torch.learner.agents import AGENTS
+from himit_torch.learner.agents import AGENTS, AgentVariant
 from himit_torch.learner.config import LearnerConfig
 from himit_torch.learner.learner import Learner
 from himit_torch.learner.models import (
@@ -54,6 +54,7 @@ from himit_torch.mentor.policy import (
     record_demonstrations,
     run_mentor,
 )
+from himit_torch.mentor.potential import mentor_chain_value, shaping_potential
 from himit_torch.mentor.puzzle_box import map_demonstrations, organisation_mentor
 from himit_torch.mentor.reward import (
     MENTOR_REWARDS,
@@ -154,6 +155,7 @@ __all__ = [
     "Learner",
     "LearnerConfig",
     "AGENTS",
+    "AgentVariant",
     "PRESETS",
     "Preset",
     "apply_preset",
@@ -191,6 +193,9 @@ __all__ = [
     "STIMULUS_FEATURES",
     "MENTOR_REWARDS",
     "mentor_reward_module",
+    # shaping potential from the demonstrations (the pbrs agents)
+    "shaping_potential",
+    "mentor_chain_value",
     # options discovered from demonstrations
     "Subgoals",
     "discover_subgoals",

@@ -2,7 +2,31 @@
 
 from __future__ import annotations
 
-__all__ = ["AGENTS"]
+from typing import NamedTuple
+
+__all__ = ["AGENTS", "AgentVariant"]
+
+
+class AgentVariant(NamedTuple):
+    """What an agent variant of :data:`AGENTS` does (a tuple: ``AGENTS[a][1]`` is ``mentor``)."""
+
+    options: str
+    """``"all"`` the batch's options, or ``"primitive"`` its primitive options only."""
+    mentor: bool
+    """The mentor term of eq. 2 (eq. 1 with primitives)."""
+    confident: bool
+    """Price & Boutilier's confidence test of the mentor term."""
+    sampling: bool
+    """Planning on a posterior sample (:mod:`himit_torch.learner.posterior_sampling`)."""
+    shaping: bool = False
+    """Potential-based shaping from the demonstrations (:mod:`himit_torch.mentor.potential`)."""
+
+    @property
+    def uses_demonstrations(self) -> bool:
+        """Whether the variant reads the demonstrations (mentor term or shaping potential), and so
+        needs a mentor-reward module ``R_m``."""
+        return self.mentor or self.shaping
+
 
 #: Agent variants: which options a run may use, whether it imitates, and whether its mentor term
 #: is confidence-tested. ``imitation`` — options + mentor (eq. 2); ``options`` — options only;
@@ -10,17 +34,22 @@ __all__ = ["AGENTS"]
 #: Price & Boutilier); ``…_confident`` — the same with Price & Boutilier's confidence test
 #: (:attr:`LearnerConfig.confidence_z`); ``…_psrl`` — the same options and mentor term, planned on
 #: a model drawn from the posterior instead of its mean (posterior sampling,
-#: :mod:`himit_torch.learner.posterior_sampling`; resampled per :attr:`LearnerConfig.resample_every`).
-#: Fields: options, mentor term, confidence test, posterior sampling.
+#: :mod:`himit_torch.learner.posterior_sampling`; resampled per :attr:`LearnerConfig.resample_every`);
+#: ``pbrs``, ``pbrs_primitives`` — all options / primitives only, no mentor term, with
+#: potential-based reward shaping from the demonstrations (Ng, Harada & Russell 1999; Brys et al.
+#: 2015; :mod:`himit_torch.mentor.potential`).
+#: Fields: :class:`AgentVariant`.
 AGENTS = {
-    "imitation": ("all", True, False, False),
-    "imitation_confident": ("all", True, True, False),
-    "options": ("all", False, False, False),
-    "primitives": ("primitive", False, False, False),
-    "imitation_primitives": ("primitive", True, False, False),
-    "imitation_primitives_confident": ("primitive", True, True, False),
-    "imitation_psrl": ("all", True, False, True),
-    "options_psrl": ("all", False, False, True),
-    "primitives_psrl": ("primitive", False, False, True),
-    "imitation_primitives_psrl": ("primitive", True, False, True),
+    "imitation": AgentVariant("all", True, False, False),
+    "imitation_confident": AgentVariant("all", True, True, False),
+    "options": AgentVariant("all", False, False, False),
+    "primitives": AgentVariant("primitive", False, False, False),
+    "imitation_primitives": AgentVariant("primitive", True, False, False),
+    "imitation_primitives_confident": AgentVariant("primitive", True, True, False),
+    "imitation_psrl": AgentVariant("all", True, False, True),
+    "options_psrl": AgentVariant("all", False, False, True),
+    "primitives_psrl": AgentVariant("primitive", False, False, True),
+    "imitation_primitives_psrl": AgentVariant("primitive", True, False, True),
+    "pbrs": AgentVariant("all", False, False, False, shaping=True),
+    "pbrs_primitives": AgentVariant("primitive", False, False, False, shaping=True),
 }

@@ -22,6 +22,7 @@ import torch
 __all__ = [
     "option_backup",
     "option_backup_edges",
+    "shaped_option_backup",
     "mentor_backup",
     "augmented_option_backup",
     "augmented_primitive_backup",
@@ -99,6 +100,63 @@ def option_backup_edges(
     out = reward.clone()
     out.view(-1).index_add_(0, runs * reward.shape[1] + rows, weights * successor_values)
     return out
+
+
+def shaped_option_backup(
+    reward: torch.Tensor,
+    weights: torch.Tensor,
+    successor_values: torch.Tensor,
+    potential: torch.Tensor,
+    successor_potentials: torch.Tensor,
+) -> torch.Tensor:
+    """Option value with potential-based shaping (Ng, Harada & Russell 1999; Brys et al. 2015)
+    on a multi-time model::
+
+        Q'(s, o) = r(s, o) + Σ_{s'} p^o_{ss'} [V'(s') + Φ(s')] − Φ(s)
+
+    An option run ``k`` steps from ``s`` to ``s'`` earns the shaped return
+    ``Σ_t γ^t (r_t + γ Φ(s_{t+1}) − Φ(s_t)) = Σ_t γ^t r_t + γ^k Φ(s') − Φ(s)``: the shaping terms
+    telescope, so in expectation they add ``Σ_{s'} p^o_{ss'} Φ(s') − Φ(s)`` (``p^o`` carries
+    ``γ^k``) to :func:`option_backup`. ``Φ`` must be 0 at terminal states (their ``V'`` is 0).
+
+    **Invariance.** If ``V' = V − Φ`` then ``Q' = Q − Φ(s)``: at every state all options move by
+    the same ``Φ(s)``, so the greedy and the optimal options are those of the unshaped model
+    (``tests/exact``: value iteration on shaped and unshaped option models).
+
+    **Wiewiora (2003): shaping ≡ initial values.** A learner that shapes with ``Φ`` and starts at
+    ``V'₀`` makes the same choices as the unshaped learner started at ``V'₀ + Φ`` on the same
+    experience. Here it holds exactly, not only for Q-learning: in ``U = V' + Φ`` the shaped
+    backup *is* :func:`option_backup` (``Q' + Φ(s) = r + Σ p^o U(s')``), choices compare ``Q'`` at
+    one state (so ``Φ(s)`` cancels), and sweeping priorities are differences (``Φ`` cancels).
+    What it changes is where the learner uses a value it has not learned: the start value ``v0``
+    of every state becomes ``v0 + Φ(s)``. The learner implements exactly that (``pbrs`` agents:
+    :meth:`~himit_torch.learner.values.ValueCache.set_potential`; its ``V`` holds ``U``), and
+    refuses the two other places the prior enters (``concentration > 0``, whose unseen outcome
+    would be worth ``v0 + Φ(s)``, and ``untried_value``, which would be ``u + Φ(s)``), which it
+    does not shift.
+
+    Args:
+        reward: ``[...]`` ``r(s, o)``; weights: ``[..., K]`` multi-time weights
+            ``p^o_{ss'} = Σ_k p(s', k) γ^k``; successor_values: ``[..., K]`` the shaped values
+            ``V'(s')``; potential: ``[...]`` ``Φ(s)``; successor_potentials: ``[..., K]``
+            ``Φ(s')``.
+
+    One step (γ = 0.9) from ``s`` (``Φ = 2``) to ``s'`` (``Φ = 1``, ``V' = 0.5``) paying −0.01:
+    ``−0.01 + 0.9 · (0.5 + 1) − 2 = −0.66``.
+
+    >>> import torch
+    >>> q = shaped_option_backup(torch.tensor(-0.01), torch.tensor([0.9]), torch.tensor([0.5]),
+    ...                          torch.tensor(2.0), torch.tensor([1.0]))
+    >>> round(float(q), 4)
+    -0.66
+    """
+    if successor_potentials.shape != successor_values.shape or potential.shape != reward.shape:
+        raise ValueError(
+            f"shaped_option_backup: potential {tuple(potential.shape)} must match reward "
+            f"{tuple(reward.shape)} and successor_potentials {tuple(successor_potentials.shape)} "
+            f"successor_values {tuple(successor_values.shape)}"
+        )
+    return option_backup(reward, weights, successor_values + successor_potentials) - potential
 
 
 def mentor_backup(

@@ -47,6 +47,7 @@ from himit_torch.learner.rows import RowTable
 from himit_torch.learner.run_state import RunMetrics, RunState
 from himit_torch.learner.state import LANES, BatchState, WorldTables
 from himit_torch.learner.values import ValueCache
+from himit_torch.mentor.potential import shaping_potential
 from himit_torch.mentor.reward import KnownReward
 from himit_torch.options.bundle import Options
 from himit_torch.options.execution import option_step
@@ -228,6 +229,15 @@ class Learner:
 
         # ---- the state, one owner per piece ------------------------------------------------
         self.rows = RowTable(options, world.num_actions, agents, dev)
+        if bool(self.rows.use_shaping.any()) and (
+            config.concentration > 0 or config.untried_value is not None
+        ):
+            raise ValueError(
+                "the shaping agents (pbrs…) need concentration=0 and untried_value=None: "
+                "shaping is carried out as its equivalent start values v0 + Φ(s) (Wiewiora "
+                "2003; backups.shaped_option_backup), and the prior's unseen outcome and "
+                "untried options, which would need the same shift, are not shifted"
+            )
         self.num_rows = M = self.rows.num_rows
         self.model = DirichletSMDPModel(M, S, B, dev, config.concentration)
         self.mentor = DirichletMentorModel(S, B, dev, config.mentor_concentration)
@@ -307,12 +317,13 @@ class Learner:
         known = None
         for b, m in enumerate(modules):
             if m is None:
-                if not bool(self.rows.use_mentor[b]):
+                if not AGENTS[self.agents[b]].uses_demonstrations:
                     modules[b] = _NO_MENTOR_REWARD  # no mentor term: its reward is never used
                     continue
                 if getattr(world, "state_reward", None) is None and self.tables.dynamics is None:
                     raise ValueError(
-                        f"run {b} ({self.agents[b]}) imitates but no reward module was "
+                        f"run {b} ({self.agents[b]}) reads the demonstrations (mentor term or "
+                        "shaping potential) but no reward module was "
                         "given and the world has neither a state_reward nor a "
                         "dynamics_table() for KnownReward; pass reward=… (e.g. a "
                         "SalienceReward or your own MentorReward)"
@@ -498,8 +509,33 @@ class Learner:
         self.sweeper.push(
             changed[ri], states, torch.ones(states.numel(), dtype=torch.float64, device=self.device)
         )
+        # The shaping runs among them: the new potential, and the states it leaves to back up.
+        shaping = changed[self.rows.use_shaping.index_select(0, changed)]
+        if shaping.numel():
+            self.sweeper.push(*self.cache.set_potential(shaping, self.shaping_potential(shaping)))
         # New mentor evidence: the sampling runs among them draw from their new posterior.
         self.resample(changed)
+
+    def shaping_potential(self, runs: torch.Tensor | None = None) -> torch.Tensor:
+        """``[R, S + 1]`` the shaping potential of ``runs`` (default: all) from their mentor
+        model and mentor-edge rewards (:func:`~himit_torch.mentor.potential.shaping_potential`;
+        the padding state 0). Computed for any run; only the ``pbrs…`` runs use it."""
+        if runs is None:
+            runs = torch.arange(self.batch, device=self.device)
+        mentor, S = self.mentor, self.num_states
+        out = torch.zeros(runs.numel(), S + 1, dtype=torch.float64, device=self.device)
+        for i, b in enumerate(runs.tolist()):
+            E = int(mentor.num_edges[b])
+            out[i, :S] = shaping_potential(
+                mentor.edge_row[b, :E],
+                mentor.edge_successor[b, :E],
+                mentor.edge_count[b, :E],
+                self.cache.mentor_edge_reward[b, :E],
+                self.gamma,
+                self.terminal[:S],
+                self.config.initial_value,
+            ).to(self.device)
+        return out
 
     def sampling_runs(self) -> torch.Tensor:
         """``[R]`` the runs that plan on a posterior sample (the ``…_psrl`` agents)."""
@@ -667,7 +703,15 @@ class Learner:
             self.sample.load_state_dict(state["sample"], edges, mentor_edges, checked=True)
         self.run_state.load_state_dict(state["run"], checked=True)
         self.metrics = metrics
+        self.sync_potential()
         self.engine.invalidate()
+
+    def sync_potential(self) -> None:
+        """Record the shaping runs' potential as their mentor model gives it, without moving
+        ``V`` (which already holds it: after its mentor model and value cache were read back)."""
+        shaping = self.rows.use_shaping.nonzero()[:, 0]
+        if shaping.numel():
+            self.cache.set_potential(shaping, self.shaping_potential(shaping), shift=False)
 
     # ========================================================================= run state views
     @property

@@ -176,8 +176,8 @@ def _check(learner: Learner, options: Options, runs: list[int], agents: list[str
     if unknown:
         raise ValueError(f"unknown agent variant(s) {unknown}; use one of {sorted(AGENTS)}")
     for b, agent in zip(runs, agents):
-        _, mentor, confident, sampling = AGENTS[agent]
-        _, old_mentor, old_confident, old_sampling = AGENTS[learner.agents[b]]
+        _, mentor, confident, sampling, shaping = AGENTS[agent]
+        _, old_mentor, old_confident, old_sampling, old_shaping = AGENTS[learner.agents[b]]
         if sampling or old_sampling:
             # The posterior draw (PosteriorSample) is per edge of the old option set; carrying
             # it across a change of options is not implemented, and redrawing would silently
@@ -186,11 +186,12 @@ def _check(learner: Learner, options: Options, runs: list[int], agents: list[str
                 f"run {b} ({learner.agents[b]} → {agent}): posterior-sampling (…_psrl) runs "
                 "cannot be carried to a new option set; use the mean-model variant"
             )
-        if (mentor, confident) != (old_mentor, old_confident):
+        if (mentor, confident, shaping) != (old_mentor, old_confident, old_shaping):
             raise ValueError(
                 f"run {b} ({learner.agents[b]}) cannot become {agent!r}: a new variant may change "
-                "which options a run uses, not whether it has a mentor term or its confidence "
-                "test (e.g. primitives → options, imitation_primitives → imitation)"
+                "which options a run uses, not whether it has a mentor term, its confidence "
+                "test or shaping (e.g. primitives → options, imitation_primitives → imitation, "
+                "pbrs_primitives → pbrs)"
             )
 
 
@@ -293,6 +294,7 @@ def with_options(
     cache["q_second"] = rows_carried(learner.cache.q_second)
     new.cache.load_state_dict(cache, mentor_edges=learner.mentor.used)
     new.sweeper.load_state_dict({k: v[idx] for k, v in learner.sweeper.state_dict().items()})
+    new.sync_potential()  # (the shaping runs' V, carried, already holds their potential)
     new.metrics = type(learner.metrics)(
         **{
             k: [x if k == "steps" else x[idx.cpu()].clone() for x in v]

@@ -29,6 +29,8 @@ class RowTable:
         row_enabled: ``[B, M + 1]`` whether run ``b``'s agent variant may use the row.
         use_mentor, use_confidence: ``[B]`` the variant's mentor term and confidence test.
         use_sampling: ``[B]`` whether the variant plans on a posterior sample (``…_psrl``).
+        use_shaping: ``[B]`` whether the variant shapes with the demonstrations' potential
+            (``pbrs…``).
     """
 
     def __init__(self, options: Options, num_actions: int, agents: Sequence[str], device):
@@ -80,9 +82,11 @@ class RowTable:
         self.use_mentor = torch.zeros(B, dtype=torch.bool, device=dev)
         self.use_confidence = torch.zeros(B, dtype=torch.bool, device=dev)
         self.use_sampling = torch.zeros(B, dtype=torch.bool, device=dev)
+        self.use_shaping = torch.zeros(B, dtype=torch.bool, device=dev)
         for b, agent in enumerate(agents):
-            which, mentor, confident, sampling = AGENTS[agent]
+            which, mentor, confident, sampling, shaping = AGENTS[agent]
             self.use_sampling[b] = sampling
+            self.use_shaping[b] = shaping
             enabled[b] = True if which == "all" else primitive
             self.use_mentor[b] = mentor
             self.use_confidence[b] = confident

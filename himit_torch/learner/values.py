@@ -83,6 +83,9 @@ class ValueCache:
             (B, S + 1), float(config.initial_value), dtype=torch.float64, device=dev
         )
         self.values[:, terminal] = 0.0
+        # The shaping potential Φ each run's V holds (0 for runs that do not shape): derived from
+        # the mentor model, so not part of the state (the learner recomputes it on loading).
+        self.potential = torch.zeros(B, S + 1, dtype=torch.float64, device=dev)
         self.q_numerator = torch.zeros(B, M + 1, dtype=torch.float64, device=dev)
         self.q_second = torch.zeros_like(self.q_numerator)  # Σ (γ^k)² V² / c per row
         self.mentor_numerator = torch.zeros(B, S + 1, dtype=torch.float64, device=dev)
@@ -385,6 +388,41 @@ class ValueCache:
                 v[tested],
             )
         )
+
+    def set_potential(
+        self, runs: torch.Tensor, potential: torch.Tensor, shift: bool = True
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Make ``potential [R, S + 1]`` (0 at terminal states) the shaping potential of
+        ``runs [R]`` (potential-based shaping, :func:`~himit_torch.learner.backups.shaped_option_backup`).
+
+        Shaping is implemented as its exact equivalent there (Wiewiora 2003): ``V`` holds
+        ``U = V' + Φ``, the shaped value plus the potential, so that every backup, choice and
+        priority is the unshaped one's and only the start value moves (``v0 + Φ(s)``). With
+        ``shift``, ``V`` moves by the change of ``Φ`` at every state and the change is pushed into
+        the ``Q`` caches of the states' predecessors (as a backup's is); without, ``Φ`` is only
+        recorded (a ``V`` read back from a checkpoint already holds it). Returns the states
+        whose backup now differs from ``V`` — ``(runs, states, |ΔV|)`` — for the sweeper."""
+        if potential.shape != (runs.numel(), self.num_states + 1):
+            raise ValueError(
+                f"set_potential: potential {tuple(potential.shape)} must be "
+                f"[{runs.numel()}, {self.num_states + 1}] (one row per run)"
+            )
+        terminal = self.terminal
+        if bool((potential[:, terminal] != 0).any()):
+            raise ValueError("set_potential: the potential must be 0 at terminal states")
+        potential = potential.to(dtype=torch.float64, device=self.device)
+        delta = potential - self.potential.index_select(0, runs)
+        self.potential.index_copy_(0, runs, potential)
+        if not shift:
+            return runs[:0], runs[:0], torch.zeros(0, dtype=torch.float64, device=self.device)
+        ri, xs = (delta != 0).nonzero(as_tuple=True)
+        if ri.numel():
+            rr, dd = runs.index_select(0, ri), delta[ri, xs]
+            flat = self._state_flat(rr, xs)
+            old = _take(self.values, flat)
+            self.values.view(-1).index_add_(0, flat, dd)
+            self._propagate_options(rr, xs, dd, old)  # (its priorities: value_changes below)
+        return self.value_changes(runs=runs)
 
     def value_changes(
         self, where: torch.Tensor | None = None, runs: torch.Tensor | None = None

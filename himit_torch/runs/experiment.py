@@ -369,13 +369,14 @@ def run_world(
 def mentor_rewards(config: ExperimentConfig, world, agents, run_seeds, demos) -> list | None:
     """The reward modules of a batch for ``config.mentor_reward``: ``None`` for ``known`` (the
     learner's default, :class:`~himit_torch.KnownReward`), else one module per run — fitted on
-    that run's seed's demonstrations for ``salience`` — and ``None`` for runs that do not imitate."""
+    that run's seed's demonstrations for ``salience`` — and ``None`` for runs that read no
+    demonstrations (neither a mentor term nor a shaping potential)."""
     if config.mentor_reward == "known":
         return None
     modules: list = []
     fitted: dict = {}
     for agent, seed in zip(agents, run_seeds):
-        if not AGENTS[agent][1]:  # the variant has no mentor term
+        if not AGENTS[agent].uses_demonstrations:  # no mentor term, no shaping potential
             modules.append(None)
             continue
         if seed not in fitted:

@@ -398,7 +398,7 @@ def run_task(
         agents,
         run_seeds,
         config=learner_config,
-        reward=[known if AGENTS[a][1] else None for a in agents],
+        reward=[known if AGENTS[a].uses_demonstrations else None for a in agents],
         device=config.device,
     )
     watch_demonstrations(

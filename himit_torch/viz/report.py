@@ -36,6 +36,9 @@ AGENT_COLORS = {
     "imitation_primitives_confident": CURVE_COLORS[6],
     "imitation_psrl": CURVE_COLORS[5],
     "options_psrl": CURVE_COLORS[7],
+    # (beyond the palette's eight: Tol's wine and teal, apart from every colour above)
+    "pbrs": "#882255",
+    "pbrs_primitives": "#44AA99",
 }
 
 #: The paper's optimal goals per 5000 steps, by world size (both worlds have 10×10 rooms).

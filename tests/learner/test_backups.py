@@ -18,6 +18,7 @@ from himit_torch.learner.backups import (
     option_backup,
     options_only_backup,
     primitives_only_backup,
+    shaped_option_backup,
 )
 
 NEG_INF = float("-inf")
@@ -332,3 +333,54 @@ def test_confident_mentor_matches_loop(gen):
         lower = float(mm[i, j]) - z * math.sqrt(float(mv[i, j]))
         assert got[i, j].item() == (lower > max(uppers, default=NEG_INF))
     assert 0 < got.sum() < got.numel(), "the random case should give both answers"
+
+
+def test_shaped_option_backup_telescopes_over_two_options_by_hand():
+    """γ = 0.9, Φ(s) = 0.5. Shaping adds γ Φ(s_{t+1}) − Φ(s_t) to each step's reward.
+
+    o1: s → x → s1 in 2 steps, −0.01 each; Φ(x) = 0.7, Φ(s1) = 1.0, V'(s1) = 0.2.
+      step by step: (−0.01 + 0.9·0.7 − 0.5) + 0.9·(−0.01 + 0.9·1.0 − 0.7) = 0.12 + 0.171 = 0.291,
+      telescoped: −0.01 − 0.009 + 0.81·1.0 − 0.5 = 0.291; plus 0.81·V'(s1) = 0.162 → 0.453.
+    o2: to s2 in 1 step (−0.01; Φ = 0.2, V' = 0.4) with probability ½, or to the goal s3 in
+      3 steps (−0.01, −0.01, +1; Φ = 0, V' = 0) otherwise:
+      r = ½(−0.01) + ½(−0.01 − 0.009 + 0.81) = 0.3905, weights ½·0.9 = 0.45 and ½·0.729 = 0.3645;
+      the 3-step branch step by step: (−0.01 + 0.9Φ(y) − 0.5) + 0.9(−0.01 + 0.9Φ(z) − Φ(y))
+      + 0.81(1 + 0.9·0 − Φ(z)) = 0.791 − 0.5 whatever Φ(y), Φ(z) are;
+      Q' = 0.3905 + 0.45·(0.4 + 0.2) + 0.3645·0 − 0.5 = 0.1605.
+    """
+    gamma, phi_s, phi_x, phi_y, phi_z = 0.9, 0.5, 0.7, 0.33, -0.4
+    by_steps_o1 = (-0.01 + gamma * phi_x - phi_s) + gamma * (-0.01 + gamma * 1.0 - phi_x)
+    assert by_steps_o1 == pytest.approx(0.291, abs=1e-12)
+    by_steps_o2_long = (
+        (-0.01 + gamma * phi_y - phi_s)
+        + gamma * (-0.01 + gamma * phi_z - phi_y)
+        + gamma**2 * (1.0 + gamma * 0.0 - phi_z)
+    )
+    assert by_steps_o2_long == pytest.approx(0.791 - 0.5, abs=1e-12)
+    q = shaped_option_backup(
+        torch.tensor([-0.019, 0.3905], dtype=torch.float64),
+        torch.tensor([[0.81, 0.0], [0.45, 0.3645]], dtype=torch.float64),
+        torch.tensor([[0.2, 0.0], [0.4, 0.0]], dtype=torch.float64),
+        torch.tensor([phi_s, phi_s], dtype=torch.float64),
+        torch.tensor([[1.0, 0.0], [0.2, 0.0]], dtype=torch.float64),
+    )
+    torch.testing.assert_close(q, torch.tensor([0.453, 0.1605], dtype=torch.float64))
+    # o1 wins shaped; unshaped, with V = V' + Φ (1.2 at s1, 0.6 at s2), Q = Q' + Φ(s) = 0.953
+    # and 0.6605: the same winner, each option moved by the same Φ(s).
+    plain = option_backup(
+        torch.tensor([-0.019, 0.3905], dtype=torch.float64),
+        torch.tensor([[0.81, 0.0], [0.45, 0.3645]], dtype=torch.float64),
+        torch.tensor([[1.2, 0.0], [0.6, 0.0]], dtype=torch.float64),
+    )
+    torch.testing.assert_close(plain, torch.tensor([0.953, 0.6605], dtype=torch.float64))
+
+
+def test_shaped_backup_of_shaped_values_is_the_plain_backup_less_the_potential(gen):
+    """V' = V − Φ ⇒ Q'(s, ·) = Q(s, ·) − Φ(s), on random tensors (6 states, 3 options each)."""
+    reward, weights, values = randn(gen, 6, 3), rand(gen, 6, 3, 4) * 0.2, randn(gen, 6, 3, 4)
+    phi_s, phi_next = randn(gen, 6, 1).expand(6, 3), randn(gen, 6, 3, 4)
+    shaped = shaped_option_backup(reward, weights, values - phi_next, phi_s, phi_next)
+    torch.testing.assert_close(shaped, option_backup(reward, weights, values) - phi_s)
+    assert shaped.argmax(-1).equal(option_backup(reward, weights, values).argmax(-1))
+    with pytest.raises(ValueError, match="potential"):
+        shaped_option_backup(reward, weights, values, phi_s[:, :2], phi_next)

@@ -235,6 +235,34 @@ def test_engines_agree_with_posterior_sampling(world12, mentor_demos12, name, ti
         assert torch.equal(_state(runs[0])[name], _state(runs[1])[name]), name
 
 
+#: Potential-based shaping from the demonstrations (issue 26) beside its unshaped twins.
+PBRS_MIX = ["pbrs", "pbrs_primitives", "options", "primitives", "imitation"]
+
+
+@pytest.mark.parametrize("ticks", fast_and_long(3000))
+@pytest.mark.parametrize("name", ["default", "plan_every3_rounds3"])
+def test_engines_agree_with_shaping(world12, mentor_demos12, name, ticks):
+    """The ``pbrs`` agents (their V starts at v0 + Φ): identical on both engines."""
+    runs = both_engines(
+        lambda engine: Learner(
+            world12,
+            learner_options(world12),
+            PBRS_MIX,
+            range(len(PBRS_MIX)),
+            config=CONFIGS[name],
+            demonstrations=mentor_demos12,
+            engine=engine,
+        ),
+        ticks,
+    )
+    assert_same_run(*runs)
+    assert torch.equal(runs[0].cache.potential, runs[1].cache.potential)
+    assert int((runs[0].cache.potential[:2] > 0).sum()) > 10  # the potential is there
+    assert int(runs[0].decisions[:2].min()) > 300
+    if length(ticks) >= 3000:
+        assert int(runs[0].goals[:2].sum()) > 0
+
+
 @pytest.mark.parametrize("ticks", fast_and_long(3000))
 def test_engines_agree_with_stochastic_option_policies(world12, mentor_demos12, ticks):
     """Options with ``[O, S, A]`` policies go through the sampling path of both engines."""
