@@ -84,3 +84,37 @@ def test_a_short_run_reproduces_the_committed_sweep_curves(tmp_path, sweep, cell
     theirs = committed_rows(sweep, cell, seeds, steps)
     assert len(theirs) == len(config.agents) * len(seeds) * (steps // config.window)
     assert ours == theirs
+
+
+@pytest.mark.parametrize(
+    "run, steps",
+    [
+        ("paper-first/exp2", 20_000),  # the paper preset, first-index ties
+        ("recommended-random/exp2", 20_000),  # the recommended preset, random ties
+    ],
+)
+def test_a_short_run_reproduces_the_committed_claims_curves(tmp_path, run, steps):
+    """The claims' runs (experiments/results/<preset>-<ties>/, 20 seeds): seeds 4 and 5 of the
+    committed configuration, its first windows, equal the committed curves."""
+    from himit_torch.runs.config import load_config
+
+    seeds = (4, 5)
+    committed = load_config(RESULTS / run / "config.json")
+    config = replace(
+        committed, seeds=len(seeds), first_seed=seeds[0], steps=steps, checkpoint_every=steps
+    )
+    assert config.preset == committed.preset is not None
+    run_experiment(config, tmp_path / "run", progress=False, workers=1)
+    [curves] = (tmp_path / "run").rglob("curves.csv")
+
+    def rows(path: Path) -> dict:
+        with path.open() as f:
+            return {
+                (r["agent"], int(r["seed"]), int(r["step"])): tuple(r[k] for k in COLUMNS)
+                for r in csv.DictReader(f)
+                if int(r["seed"]) in seeds and int(r["step"]) <= steps
+            }
+
+    theirs = rows(RESULTS / run / "curves.csv")
+    assert len(theirs) == len(config.agents) * len(seeds) * (steps // config.window)
+    assert rows(curves) == theirs
