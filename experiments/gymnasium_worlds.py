@@ -21,6 +21,9 @@ from himit_torch.runs.gymnasium import TASKS, GymExperimentConfig, run_gym_exper
 
 parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
 parser.add_argument("--seeds", type=int, default=GymExperimentConfig.seeds)
+parser.add_argument(
+    "--agents", nargs="+", default=list(GymExperimentConfig.agents), help="agents of AGENTS"
+)
 parser.add_argument("--steps", type=int, default=None, help="steps per run (default: per task)")
 parser.add_argument("--tasks", default=",".join(TASKS), help=f"some of {','.join(TASKS)}")
 parser.add_argument(
@@ -38,7 +41,11 @@ args = parser.parse_args()
 
 torch.set_num_threads(1)  # tiny tensors: one thread per process is fastest
 config = GymExperimentConfig(
-    seeds=args.seeds, steps=args.steps, tasks=tuple(args.tasks.split(",")), window=args.window
+    seeds=args.seeds,
+    steps=args.steps,
+    tasks=tuple(args.tasks.split(",")),
+    window=args.window,
+    agents=tuple(args.agents),
 )
 if args.quick:
     config = config.quick()
