@@ -818,6 +818,12 @@ def cmd_plot(args: argparse.Namespace) -> int:
         rewrite_puzzle_box_report(run_dir)  # a himit run puzzlebox directory
         print(f"wrote {run_dir / 'figures'} and {run_dir / 'results.md'}")
         return 0
+    if (run_dir / "tasks").is_dir() and not (run_dir / "worlds").is_dir():
+        from himit_torch.runs.gymnasium import rewrite_gym_report
+
+        rewrite_gym_report(run_dir)  # a himit run gymnasium directory
+        print(f"wrote {run_dir / 'figures'} and {run_dir / 'results.md'}")
+        return 0
     config = load_config(run_dir / "config.json")
     results = []
     for size in config.sizes:

@@ -90,7 +90,12 @@ def _world(name: str, record: dict, windows: dict, key: str, total: str) -> Worl
 
 def load(results: Path, preset: str, ties: str) -> dict[str, World]:
     """World name (exp1, exp2, exp3_64, …, taxi, …) → its runs, of one preset and tie rule."""
-    root = results / f"{preset}-{ties}"
+    return load_dir(results / f"{preset}-{ties}")
+
+
+def load_dir(root: Path) -> dict[str, World]:
+    """World name → its runs, from a folder holding ``exp1``, ``exp2``, ``exp3`` and
+    ``gymnasium`` as ``collect_results.py`` copies them."""
     worlds = {}
     for exp in ("exp1", "exp2", "exp3"):
         windows = _window_goals(root / exp / "curves.csv", "world", "goals_in_window")

@@ -68,6 +68,7 @@ from himit_torch.runs.runner import (
     source_commit,
     watch_demonstrations,
 )
+from himit_torch.statistics import bca_interval
 from himit_torch.validation import as_device, check_settings, setting
 from himit_torch.viz.tensorboard import TensorBoardLogger, tensorboard_command
 from himit_torch.worlds.gymnasium import from_gymnasium
@@ -485,6 +486,7 @@ def run_task(
         "kwargs": task.kwargs,
         "about": task.about,
         "engine": learner.engine.name,
+        "commit": source_commit(),
         "num_states": world.num_states,
         "num_actions": world.num_actions,
         "options": list(options.names),
@@ -590,6 +592,33 @@ def run_gym_experiment(
 
 
 # ================================================================================ reporting
+def rewrite_gym_report(run_dir: str | os.PathLike) -> None:
+    """Redraw the figures and ``results.md`` of a finished ``himit run gymnasium`` directory
+    from its ``config.json``, ``curves.csv`` and ``tasks/*.json`` (``himit plot``)."""
+    from himit_torch.learner.config import LearnerConfig
+    from himit_torch.validation import parse_document, read_text
+
+    run_dir = Path(run_dir)
+    where = f"config file {run_dir / 'config.json'}"
+    data = parse_document(where, read_text(where, run_dir / "config.json"), "json")
+    if not isinstance(data, dict) or not isinstance(data.get("learner"), dict):
+        raise ValueError(f"{where} is not a Gymnasium comparison's configuration")
+    try:
+        config = GymExperimentConfig(**dict(data, learner=LearnerConfig(**data["learner"])))
+    except TypeError as err:
+        raise ValueError(f"{where}: {err}") from None
+    summaries = []
+    for task in config.tasks:
+        path = run_dir / "tasks" / f"{task}.json"
+        where = f"task record {path}"
+        summary = parse_document(where, read_text(where, path), "json")
+        if not isinstance(summary, dict):
+            raise ValueError(f"{where} must hold a JSON object")
+        summaries.append(summary)
+    write_gym_figures(run_dir, config, summaries)
+    write_gym_results(run_dir, config, summaries)
+
+
 def read_gym_curves(run_dir: str | os.PathLike) -> dict:
     """``{task: {agent: (steps [W], goals [n, W], gaps [n, W])}}`` from ``curves.csv``."""
     acc: dict = {}
@@ -657,22 +686,24 @@ def write_gym_figures(run_dir: Path, config: GymExperimentConfig, summaries: lis
 
 
 def _cell(values, digits: int = 1) -> str:
-    mean, half, n = mean_ci(values)
-    if n == 0:
+    """Mean [95 % BCa bootstrap interval] over the seeds (a t-interval can leave the possible
+    range on skewed counts near zero)."""
+    v = [x for x in values if x is not None and math.isfinite(x)]
+    if not v:
         return "–"
-    if not math.isfinite(half):
-        return f"{mean:.{digits}f} (n={n})"
-    return f"{mean:.{digits}f} ± {half:.{digits}f}"
+    if len(v) == 1:
+        return f"{v[0]:.{digits}f} (n=1)"
+    return bca_interval(v).format(digits)
 
 
 def write_gym_results(run_dir: Path, config: GymExperimentConfig, summaries: list[dict]) -> None:
-    """``results.md``: per task and agent, mean ± 95 % CI over seeds."""
+    """``results.md``: per task and agent, mean [95 % BCa interval] over seeds."""
     lines = [
         f"# {config.name}: hierarchical imitation on Gymnasium's tabular environments",
         "",
         "Produced by `himit run gymnasium` (the same as `python "
         "experiments/gymnasium_worlds.py`); settings: `himit_torch/runs/gymnasium.py`. "
-        f"Code at commit `{source_commit()}`, engine "
+        f"Code at commit `{summaries[0].get('commit') or source_commit()}`, engine "
         + ", ".join(sorted({f"`{s.get('engine', 'unknown')}`" for s in summaries}))
         + ".",
         "",
@@ -680,8 +711,8 @@ def write_gym_results(run_dir: Path, config: GymExperimentConfig, summaries: lis
         + ", ".join(f"{t} {config.steps_of(t):,}" for t in config.tasks)
         + " steps per run, "
         f"{config.mentor_episodes} mentor episodes (states only) per seed, γ = {config.gamma}, "
-        f"window {config.window}. Cells: mean ± half-width of the 95 % Student-t confidence "
-        "interval over seeds (n = seeds). The mentor is optimal (value iteration on the true "
+        f"window {config.window}. Cells: mean [95 % BCa bootstrap interval of the mean] over "
+        "seeds (n = seeds; 9999 resamples). The mentor is optimal (value iteration on the true "
         "model, primitive actions); the imitator's mentor reward is `KnownReward` (the least "
         "reward of the actions consistent with each observed move).",
         "",

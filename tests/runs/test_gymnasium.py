@@ -106,8 +106,15 @@ def test_the_script_runs_and_writes_curves_figures_and_results(tmp_path):
     assert summary["first_goal_resolution"] == 1
     for step, window in zip(summary["first_goal_step"], summary["first_goal_window"]):
         assert (step < 0) == (window < 0) and (step < 0 or window - 200 < step <= window)
-    assert "95 % Student-t" in (run / "results.md").read_text()
+    assert "95 % BCa bootstrap interval" in (run / "results.md").read_text()
     assert (run / "figures" / "curves_cliffwalking.png").read_bytes()[:4] == b"\x89PNG"
+    # himit plot redraws the same results.md from the run's records (its commit kept)
+    from himit_torch.cli import main
+
+    before = (run / "results.md").read_text()
+    (run / "results.md").unlink()
+    assert main(["plot", str(run)]) == 0
+    assert (run / "results.md").read_text() == before
     assert len(list((run / "tb").iterdir())) == 6
     config = GymExperimentConfig(tasks=("cliffwalking",))
     with pytest.raises(ValueError, match="already holds a finished run"):
