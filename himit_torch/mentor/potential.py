@@ -10,12 +10,12 @@ demonstrations the natural potential is what the demonstrations say a state is w
 
 Definition (:func:`shaping_potential`). With ``p_m(s'|s)`` the demonstrations' transition counts,
 normalised, and ``R_m(s) = Σ_{s'} p_m(s'|s) r_m(s, s')`` from the mentor-reward module the
-imitators use, the **chain value** ``W`` solves, on the states ``s`` the mentor was seen leaving,
+imitators use, the **chain value** ``W`` solves, on the states ``s`` the mentor was seen leaving::
 
     W(s) = R_m(s) + γ Σ_{s'} p_m(s'|s) W(s'),
 
 with ``W = 0`` at terminal states and ``W = v0`` (the learner's ``initial_value``) at every other
-state the mentor was not seen leaving (a coarse or cut demonstration ends there). Then
+state the mentor was not seen leaving (a coarse or cut demonstration ends there). Then::
 
     Φ(s) = W(s) − v0   where the mentor was seen leaving s,     Φ(s) = 0   elsewhere.
 
