@@ -24,6 +24,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from himit_torch.mentor.cloning import INVERSE_MODELS
 from himit_torch.validation import check_settings, setting, settings_of
 
 __all__ = [
@@ -287,6 +288,29 @@ class LearnerConfig:
         A run also draws when it is created and when it is given demonstrations. Between draws a row
         with a new outcome keeps a sample of its updated posterior (a coupling that moves it only by
         the new outcome's share). Other agents ignore it.""",
+    )
+    bco_every: int = setting(
+        1000,
+        ge=1,
+        hint="ticks between relabelling and re-cloning",
+        doc="""
+        The ``bco`` agent (behavioural cloning from observation, Torabi, Warnell & Stone 2018;
+        :mod:`himit_torch.mentor.cloning`) relabels the demonstrations with its inverse model of
+        its own transitions and re-clones its policy every this many ticks (and when it is given
+        demonstrations). Torabi et al.'s BCO(α) re-clones after every α·(pre-demonstration
+        phase) steps: small values are BCO(α) with a small α; a value beyond the run's length
+        is BCO(0) with no cloned policy at all, and one of half its length BCO(0) after a
+        first phase of that many steps. Other agents ignore it.""",
+    )
+    bco_inverse_model: str = setting(
+        "counts",
+        choices=INVERSE_MODELS,
+        doc="""
+        The ``bco`` agent's inverse model ``p(a | s, s')`` from its own counts ``n(s, a, s')``:
+        ``"counts"`` — ``∝ n(s, a, s')``, what BCO's model trained on its own transitions
+        estimates (the run's own action frequencies are its prior over actions); ``"likelihood"``
+        — ``∝ n(s, a, s') / n(s, a)``, a uniform prior over actions, as BCO(0)'s random
+        pre-demonstration phase gives. Other agents ignore it.""",
     )
     reward_bound_check: str = setting(
         "error",
