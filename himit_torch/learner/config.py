@@ -289,6 +289,15 @@ class LearnerConfig:
         with a new outcome keeps a sample of its updated posterior (a coupling that moves it only by
         the new outcome's share). Other agents ignore it.""",
     )
+    reward_bound_check: str = setting(
+        "error",
+        choices=REWARD_BOUND_CHECKS,
+        doc="""
+        What to do when a mentor-reward module's declared ``upper_bound`` exceeds the learner's
+        real best reward per step (the guarantee of eq. 2 needs ``R_m`` not to overestimate it):
+        ``"error"`` (ValueError), ``"warn"`` (a warning) or ``"off"``. Values above a module's own
+        declared bound are always an error.""",
+    )
     bco_every: int = setting(
         1000,
         ge=1,
@@ -311,15 +320,6 @@ class LearnerConfig:
         estimates (the run's own action frequencies are its prior over actions); ``"likelihood"``
         — ``∝ n(s, a, s') / n(s, a)``, a uniform prior over actions, as BCO(0)'s random
         pre-demonstration phase gives. Other agents ignore it.""",
-    )
-    reward_bound_check: str = setting(
-        "error",
-        choices=REWARD_BOUND_CHECKS,
-        doc="""
-        What to do when a mentor-reward module's declared ``upper_bound`` exceeds the learner's
-        real best reward per step (the guarantee of eq. 2 needs ``R_m`` not to overestimate it):
-        ``"error"`` (ValueError), ``"warn"`` (a warning) or ``"off"``. Values above a module's own
-        declared bound are always an error.""",
     )
 
     def __post_init__(self):
