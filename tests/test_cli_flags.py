@@ -43,7 +43,7 @@ LEARNER_FLAGS = {
     "resample_every": ("5", 5),
     "reward_bound_check": ("warn", "warn"),
     "bco_every": ("250", 250),
-    "bco_inverse_model": ("likelihood", "likelihood"),
+    "bco_inverse_model": ("counts", "counts"),
 }
 #: The same for the experiment's settings.
 EXPERIMENT_FLAGS = {

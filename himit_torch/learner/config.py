@@ -312,14 +312,16 @@ class LearnerConfig:
         first phase of that many steps. Other agents ignore it.""",
     )
     bco_inverse_model: str = setting(
-        "counts",
+        "likelihood",
         choices=INVERSE_MODELS,
         doc="""
         The ``bco`` agent's inverse model ``p(a | s, s')`` from its own counts ``n(s, a, s')``:
-        ``"counts"`` — ``∝ n(s, a, s')``, what BCO's model trained on its own transitions
-        estimates (the run's own action frequencies are its prior over actions); ``"likelihood"``
-        — ``∝ n(s, a, s') / n(s, a)``, a uniform prior over actions, as BCO(0)'s random
-        pre-demonstration phase gives. Other agents ignore it.""",
+        ``"likelihood"`` — ``∝ n(s, a, s') / n(s, a)``, a uniform prior over actions, as BCO(0)'s
+        random pre-demonstration phase gives; ``"counts"`` — ``∝ n(s, a, s')``, what a model
+        trained on the run's own transitions estimates, its own action frequencies the prior over
+        actions. Under slip, ``"counts"`` confirms its own wrong labels: a run that takes its
+        (wrongly) cloned action far more often than the right one explains the mentor's move by
+        the slips of the wrong one (``docs/bco.md``). Other agents ignore it.""",
     )
 
     def __post_init__(self):

@@ -11,14 +11,16 @@ tabular world each of the three steps is exact counting, one pure function each:
 
 1. **Inverse model** (:func:`inverse_model`), from the own counts ``n(s, a, s')``:
 
+   * ``"likelihood"`` (the learner's default) — ``p(a | s, s') ∝ n(s, a, s') / n(s, a)``, i.e.
+     ``p̂(s' | s, a)`` under a uniform prior over actions: the model that BCO(0)'s uniformly
+     random pre-demonstration phase estimates, without the bias of a run that takes its greedy
+     action far more often than the others;
    * ``"counts"`` — ``p(a | s, s') = n(s, a, s') / Σ_a' n(s, a', s')``: the maximum-likelihood
      model of the own transitions, what BCO's classifier trained on them estimates (the own
-     action frequencies at ``s`` are its prior over ``a``);
-   * ``"likelihood"`` — ``p(a | s, s') ∝ n(s, a, s') / n(s, a)``, i.e. ``p̂(s' | s, a)`` under a
-     uniform prior over actions: the model that BCO(0)'s uniformly random pre-demonstration
-     phase estimates, without the bias of a run that takes its greedy action far more often
-     than the others (with slip, ``s'`` is reachable by several actions, and the most-taken
-     action would win under ``"counts"``).
+     action frequencies at ``s`` are its prior over ``a``). With slip, ``s'`` is reachable by
+     several actions and the most-taken one can win: a run acting on a wrong label takes that
+     action far more often than the right one, and its slips then explain the mentor's move, so
+     the wrong label confirms itself.
 
    ``(s, s')`` pairs never seen in own experience have no model (no prior is put on them).
 2. **Relabelling** (:func:`relabel`): each observed mentor transition ``(s, s')`` gets
@@ -79,7 +81,7 @@ def inverse_model(
     actions: torch.Tensor,
     successors: torch.Tensor,
     counts: torch.Tensor,
-    kind: str = "counts",
+    kind: str = "likelihood",
 ) -> InverseModel:
     """The inverse model ``p(a | s, s')`` of the own transitions ``(states, actions,
     successors)`` seen ``counts`` times each (step 1 of the module docstring; Torabi et al. 2018,
@@ -89,8 +91,8 @@ def inverse_model(
         states, actions, successors: ``[N]`` int64, the own transitions ``s --a--> s'`` (a
             triple may repeat: its counts add up).
         counts: ``[N]`` how often each was seen (≥ 0; entries of count 0 are left out).
-        kind: ``"counts"`` (``p ∝ n(s, a, s')``) or ``"likelihood"`` (``p ∝ n(s, a, s') /
-            n(s, a)``, a uniform prior over actions), :data:`INVERSE_MODELS`.
+        kind: ``"likelihood"`` (``p ∝ n(s, a, s') / n(s, a)``, a uniform prior over actions) or
+            ``"counts"`` (``p ∝ n(s, a, s')``), :data:`INVERSE_MODELS`.
 
     Returns:
         :class:`InverseModel`, one entry per distinct ``(s, a, s')`` of positive count.

@@ -267,8 +267,8 @@ def test_engines_agree_with_shaping(world12, mentor_demos12, name, ticks):
 BCO_MIX = ["bco", "primitives", "imitation", "bco", "options"]
 BCO_CONFIGS = {
     "every150": LearnerConfig(window=1000, bco_every=150),
-    "likelihood_every40_first": LearnerConfig(
-        window=1000, bco_every=40, bco_inverse_model="likelihood", tie_break="first"
+    "counts_every40_first": LearnerConfig(
+        window=1000, bco_every=40, bco_inverse_model="counts", tie_break="first"
     ),
 }
 
