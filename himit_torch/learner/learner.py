@@ -283,8 +283,6 @@ class Learner:
         self._check_world_rewards(world)
         if demonstrations is not None:
             self.add_demonstrations(demonstrations)
-        elif config.option_models == "exact":
-            self.refit_cloned_policy()  # (exact models: an inverse model before any step)
         self.resample(self.sampling_runs())  # the sampling runs' first model
         from himit_torch.learner.choice import choose_rows
 
