@@ -41,6 +41,7 @@ from himit_torch.learner.models import (
 from himit_torch.learner.option_refresh import with_options
 from himit_torch.learner.presets import PRESETS, Preset, apply_preset, preset_differences
 from himit_torch.learner.prioritized_sweeping import BlockPriorityQueue
+from himit_torch.mentor.cloning import InverseModel, clone_policy, inverse_model, relabel
 from himit_torch.mentor.demonstrations import DEMONSTRATIONS_FORMAT_VERSION, Demonstrations
 from himit_torch.mentor.observation import CoarseDemonstrations, observe_every
 from himit_torch.mentor.policy import (
@@ -196,6 +197,11 @@ __all__ = [
     # shaping potential from the demonstrations (the pbrs agents)
     "shaping_potential",
     "mentor_chain_value",
+    # behavioural cloning from observation (the bco agent)
+    "InverseModel",
+    "inverse_model",
+    "relabel",
+    "clone_policy",
     # options discovered from demonstrations
     "Subgoals",
     "discover_subgoals",

@@ -42,6 +42,8 @@ LEARNER_FLAGS = {
     "max_option_steps": ("500", 500),
     "resample_every": ("5", 5),
     "reward_bound_check": ("warn", "warn"),
+    "bco_every": ("250", 250),
+    "bco_inverse_model": ("counts", "counts"),
 }
 #: The same for the experiment's settings.
 EXPERIMENT_FLAGS = {

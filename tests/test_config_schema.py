@@ -178,7 +178,7 @@ def test_asdict_keeps_the_field_order_and_defaults_checkpoints_compare():
         "confidence_z", "mentor_override_after", "mentor_fade", "eps_start", "eps_decay",
         "eps_min", "eps_schedule", "eps_goals", "option_models", "exact_model_count",
         "mentor_choice", "tie_break", "window", "max_option_steps", "resample_every",
-        "reward_bound_check",
+        "reward_bound_check", "bco_every", "bco_inverse_model",
     ]  # fmt: skip
     defaults = dataclasses.asdict(LearnerConfig())
     assert (defaults["backups"], defaults["exact_model_count"], defaults["mentor_fade"]) == (

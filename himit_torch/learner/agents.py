@@ -20,11 +20,15 @@ class AgentVariant(NamedTuple):
     """Planning on a posterior sample (:mod:`himit_torch.learner.posterior_sampling`)."""
     shaping: bool = False
     """Potential-based shaping from the demonstrations (:mod:`himit_torch.mentor.potential`)."""
+    cloning: bool = False
+    """Behavioural cloning from observation, BCO (:mod:`himit_torch.mentor.cloning`): the greedy
+    choice is the cloned action where the cloned policy has one."""
 
     @property
     def uses_demonstrations(self) -> bool:
-        """Whether the variant reads the demonstrations (mentor term or shaping potential), and so
-        needs a mentor-reward module ``R_m``."""
+        """Whether the variant reads the demonstrations' rewards (mentor term or shaping
+        potential), and so needs a mentor-reward module ``R_m`` (``bco`` reads the
+        demonstrations' states only, and needs none)."""
         return self.mentor or self.shaping
 
 
@@ -37,7 +41,10 @@ class AgentVariant(NamedTuple):
 #: :mod:`himit_torch.learner.posterior_sampling`; resampled per :attr:`LearnerConfig.resample_every`);
 #: ``pbrs``, ``pbrs_primitives`` — all options / primitives only, no mentor term, with
 #: potential-based reward shaping from the demonstrations (Ng, Harada & Russell 1999; Brys et al.
-#: 2015; :mod:`himit_torch.mentor.potential`).
+#: 2015; :mod:`himit_torch.mentor.potential`); ``bco`` — primitives only, no mentor term, greedy
+#: choices replaced by the policy cloned from the demonstrations relabelled with an inverse model
+#: of the run's own transitions where it has one (behavioural cloning from observation, Torabi,
+#: Warnell & Stone 2018; :mod:`himit_torch.mentor.cloning`, ``LearnerConfig.bco_every``).
 #: Fields: :class:`AgentVariant`.
 AGENTS = {
     "imitation": AgentVariant("all", True, False, False),
@@ -52,4 +59,5 @@ AGENTS = {
     "imitation_primitives_psrl": AgentVariant("primitive", True, False, True),
     "pbrs": AgentVariant("all", False, False, False, shaping=True),
     "pbrs_primitives": AgentVariant("primitive", False, False, False, shaping=True),
+    "bco": AgentVariant("primitive", False, False, False, cloning=True),
 }

@@ -17,6 +17,7 @@ def choose_rows(
     epsilon: torch.Tensor,
     mentor_choice: str = "greedy",
     tie_break: str = "random",
+    cloned: torch.Tensor | None = None,
 ) -> torch.Tensor:
     """ε-greedy choice of a row at ``states [R]`` for ``runs [R]``; ``u [R, 2]`` uniforms (ε,
     pick), ``epsilon [R]``.
@@ -25,8 +26,9 @@ def choose_rows(
     ``tie_break="first"``); if none is usable yet (nothing tried here), any enabled row.
     Exploring: any enabled row, uniformly. ``mentor_choice="match"``: where the mentor term wins
     eq. 2, own options whose first action best reproduces the mentor's move come first.
+    ``cloned [R]``: the BCO runs' cloned actions at ``states`` (:func:`greedy_rows`).
     """
-    rows, greedy, enabled = greedy_rows(cache, runs, states, mentor_choice)
+    rows, greedy, enabled = greedy_rows(cache, runs, states, mentor_choice, cloned)
     explore = u[:, 0] < epsilon
     candidates = torch.where(explore[:, None], enabled, greedy)
     count = candidates.sum(1)
@@ -38,18 +40,31 @@ def choose_rows(
 
 
 def greedy_rows(
-    cache: ValueCache, runs: torch.Tensor, states: torch.Tensor, mentor_choice: str = "greedy"
+    cache: ValueCache,
+    runs: torch.Tensor,
+    states: torch.Tensor,
+    mentor_choice: str = "greedy",
+    cloned: torch.Tensor | None = None,
 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """The greedy candidates of :func:`choose_rows` at ``states [R]`` for ``runs [R]``:
     ``(rows [R, J], greedy [R, J], enabled [R, J])`` — the state's rows, those the greedy choice
     picks among (the best usable rows within :data:`TIE`; every enabled row where none is
-    usable yet), and the rows the run may use at all."""
+    usable yet), and the rows the run may use at all.
+
+    ``cloned [R]`` (the ``bco`` runs, :class:`~himit_torch.learner.cloned_policy.ClonedPolicy`):
+    where it holds an action ``a ≥ 0`` whose primitive is available at the state, the greedy
+    choice is that primitive's row alone, whatever the values say (``−1``: the greedy rule
+    above)."""
     rows, q, usable, enabled, _, _ = cache.own_values(runs, states)
     q = torch.where(usable, q, torch.full_like(q, float("-inf")))
     if mentor_choice == "match" and cache.any_mentor:
         q = _match_mentor(cache, runs, states, rows, q, usable)
     greedy = usable & (q >= q.amax(1, keepdim=True) - TIE)
     greedy = torch.where(greedy.any(1, keepdim=True), greedy, enabled)
+    if cloned is not None:
+        clone_row = cache.rows.primitive_rows[states, cloned.clamp(min=0)]
+        use = (cloned >= 0) & (clone_row < cache.rows.num_rows)
+        greedy = torch.where(use[:, None], rows == clone_row[:, None], greedy)
     return rows, greedy, enabled
 
 

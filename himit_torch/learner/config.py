@@ -24,6 +24,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from himit_torch.mentor.cloning import INVERSE_MODELS
 from himit_torch.validation import check_settings, setting, settings_of
 
 __all__ = [
@@ -296,6 +297,31 @@ class LearnerConfig:
         real best reward per step (the guarantee of eq. 2 needs ``R_m`` not to overestimate it):
         ``"error"`` (ValueError), ``"warn"`` (a warning) or ``"off"``. Values above a module's own
         declared bound are always an error.""",
+    )
+    bco_every: int = setting(
+        1000,
+        ge=1,
+        hint="ticks between relabelling and re-cloning",
+        doc="""
+        The ``bco`` agent (behavioural cloning from observation, Torabi, Warnell & Stone 2018;
+        :mod:`himit_torch.mentor.cloning`) relabels the demonstrations with its inverse model of
+        its own transitions and re-clones its policy every this many ticks (and when it is given
+        demonstrations). Torabi et al.'s BCO(α) re-clones after every α·(pre-demonstration
+        phase) steps: small values are BCO(α) with a small α; a value beyond the run's length
+        is BCO(0) with no cloned policy at all, and one of half its length BCO(0) after a
+        first phase of that many steps. Other agents ignore it.""",
+    )
+    bco_inverse_model: str = setting(
+        "likelihood",
+        choices=INVERSE_MODELS,
+        doc="""
+        The ``bco`` agent's inverse model ``p(a | s, s')`` from its own counts ``n(s, a, s')``:
+        ``"likelihood"`` — ``∝ n(s, a, s') / n(s, a)``, a uniform prior over actions, as BCO(0)'s
+        random pre-demonstration phase gives; ``"counts"`` — ``∝ n(s, a, s')``, what a model
+        trained on the run's own transitions estimates, its own action frequencies the prior over
+        actions. Under slip, ``"counts"`` confirms its own wrong labels: a run that takes its
+        (wrongly) cloned action far more often than the right one explains the mentor's move by
+        the slips of the wrong one (``docs/bco.md``). Other agents ignore it.""",
     )
 
     def __post_init__(self):

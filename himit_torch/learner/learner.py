@@ -16,6 +16,8 @@ The state has one owner per piece, each with its own ``state_dict``:
   of the runs that plan on a posterior draw (the ``…_psrl`` agents);
 * :class:`~himit_torch.learner.prioritized_sweeping.Sweeper` — the prioritized-sweeping queue and schedule (only it
   touches the queue);
+* :class:`~himit_torch.learner.cloned_policy.ClonedPolicy` — the ``bco`` runs' cloned actions
+  (refitted every ``bco_every`` ticks, between the engine's calls);
 * :class:`~himit_torch.learner.run_state.RunState` — the executing options, exploration and counters;
   :class:`~himit_torch.learner.run_state.RunMetrics` — the per-window records.
 
@@ -39,6 +41,7 @@ import torch
 from himit_torch.exact.greedy_evaluation import OptionPolicy
 from himit_torch.learner.agents import AGENTS
 from himit_torch.learner.choice import greedy_rows
+from himit_torch.learner.cloned_policy import ClonedPolicy
 from himit_torch.learner.engines import make_engine
 from himit_torch.learner.models import DirichletMentorModel, DirichletSMDPModel
 from himit_torch.learner.posterior_sampling import PosteriorSample
@@ -258,6 +261,7 @@ class Learner:
         first = uniforms(self.keys, -1, self.LANES)  # draw −1: the first start and option
         runs = torch.arange(B, device=dev)
         self.run_state = RunState(B, S, self.start_states(runs, first), M, config.eps_start, dev)
+        self.cloning = ClonedPolicy(self.rows, A, config.bco_inverse_model, dev)
         self.metrics = RunMetrics()
         self.state = BatchState(
             config,
@@ -270,6 +274,7 @@ class Learner:
             self.sweeper,
             self.run_state,
             self.keys,
+            self.cloning,
         )
 
         if config.option_models == "exact":
@@ -289,6 +294,7 @@ class Learner:
             self.run_state.epsilon,
             config.mentor_choice,
             config.tie_break,
+            self.cloning.at(runs, self.run_state.position) if self.cloning.any else None,
         )
         self.engine = make_engine(engine, self.state)
 
@@ -451,6 +457,18 @@ class Learner:
         )
         self.mentor.observe(src, dst, run_idx, counts)
         self.refresh_mentor_reward(run_idx)
+        self.refit_cloned_policy(run_idx)
+
+    def refit_cloned_policy(self, runs: torch.Tensor | None = None) -> None:
+        """Relabel the demonstrations with the inverse model of each ``bco`` run among ``runs``
+        (default: all) and clone its policy anew
+        (:meth:`~himit_torch.learner.cloned_policy.ClonedPolicy.refit`); :meth:`run` calls it
+        every ``LearnerConfig.bco_every`` ticks, :meth:`add_demonstrations` at once."""
+        if not self.cloning.any:
+            return
+        if runs is None:
+            runs = torch.arange(self.batch, device=self.device)
+        self.cloning.refit(runs, self.model, self.mentor)
 
     def refresh_mentor_reward(self, changed: torch.Tensor | None = None) -> None:
         """Recompute the mentor-edge rewards of the runs in ``changed`` (default: all) from their
@@ -569,13 +587,19 @@ class Learner:
             from tqdm.auto import tqdm
 
             bar = tqdm(total=steps, desc=f"{self.batch} runs", unit="step", mininterval=1.0)
+        # the bco runs relabel and re-clone between the engine's calls, at every bco_every ticks
+        every = self.config.bco_every if self.cloning.any else None
         left = steps
         while left > 0:
             ticks = min(left, window - self.t % window)
+            if every is not None:
+                ticks = min(ticks, every - self.t % every)
             self.engine.advance(ticks)
             left -= ticks
             if bar is not None:
                 bar.update(ticks)
+            if every is not None and self.t % every == 0:
+                self.refit_cloned_policy()
             if self.t % window == 0:
                 self.metrics.record(self.t, self.run_state, self.mentor_win_share())
         if bar is not None:
@@ -619,10 +643,11 @@ class Learner:
             "sweeper": self.sweeper.state_dict(),
             "metrics": self.metrics.state_dict(),
             "sample": self.sample.state_dict(),
+            "cloning": self.cloning.state_dict(),
         }
 
     #: The pieces of a :meth:`state_dict` (``sample`` is missing in those from before posterior
-    #: sampling).
+    #: sampling, ``cloning`` in those from before the ``bco`` agent).
     _STATE_KEYS = ("layout", "identity", "run", "model", "mentor", "cache", "sweeper", "metrics")
 
     def check_state(self, state: dict) -> RunMetrics:
@@ -645,7 +670,7 @@ class Learner:
                 f"state layout {layout} cannot be loaded by this learner (layout "
                 f"{self.STATE_LAYOUT_VERSION}); start the run again"
             )
-        section(state, "learner state", self._STATE_KEYS, optional=("sample",))
+        section(state, "learner state", self._STATE_KEYS, optional=("sample", "cloning"))
         ident, mine = state["identity"], self._identity()
         if not isinstance(ident, dict):
             raise DamagedState("identity", f"is a {type(ident).__name__}, not a dict")
@@ -655,12 +680,16 @@ class Learner:
         if "sample" not in state and self.sample.any:
             # (a checkpoint from before posterior sampling has no draws)
             raise ValueError("checkpoint has no posterior sample for this learner's psrl runs")
+        if "cloning" not in state and self.cloning.any:
+            raise ValueError("checkpoint has no cloned policy for this learner's bco runs")
         edges = self.model.check_state(state["model"], "model")
         mentor_edges = self.mentor.check_state(state["mentor"], "mentor")
         self.cache.check_state(state["cache"], mentor_edges, "cache")
         self.sweeper.check_state(state["sweeper"], "sweeper")
         if "sample" in state:
             self.sample.check_state(state["sample"], edges, mentor_edges, "sample")
+        if "cloning" in state:
+            self.cloning.check_state(state["cloning"], "cloning")
         run = state["run"]
         t = self.run_state.check_state(run, "run")
         # the executing option's row is one of the state it started in (or none: the padding)
@@ -702,6 +731,8 @@ class Learner:
         if "sample" in state:
             self.sample.load_state_dict(state["sample"], edges, mentor_edges, checked=True)
         self.run_state.load_state_dict(state["run"], checked=True)
+        if "cloning" in state:  # (none before the bco agent: no run clones then)
+            self.cloning.load_state_dict(state["cloning"], checked=True)
         self.metrics = metrics
         self.sync_potential()
         self.engine.invalidate()
@@ -769,7 +800,8 @@ class Learner:
 
     def greedy_options(self, runs: Sequence[int] | torch.Tensor | None = None) -> torch.Tensor:
         """``[B, S]`` greedy option per state (−1 where none is usable), ties to the lowest row;
-        ``runs``: those runs' rows only (``[len(runs), S]``; default all)."""
+        ``runs``: those runs' rows only (``[len(runs), S]``; default all). A ``bco`` run's is its
+        cloned action's primitive option where it has one."""
         which = torch.arange(self.batch) if runs is None else runs
         r = torch.as_tensor(which, dtype=torch.int64, device=self.device).reshape(-1, 1, 1)
         R = r.shape[0]
@@ -779,11 +811,21 @@ class Learner:
         q = torch.where(usable, q, torch.full_like(q, float("-inf")))
         best = q.argmax(-1)
         option = self.rows.row_option[rows.expand(R, -1, -1).gather(2, best[..., None])[..., 0]]
-        return torch.where(usable.any(-1), option, torch.full_like(option, -1))
+        option = torch.where(usable.any(-1), option, torch.full_like(option, -1))
+        if self.cloning.any:
+            S = self.num_states
+            cloned = self.cloning.action[r[:, 0, 0], :S]  # [R, S]
+            clone_row = self.rows.primitive_rows[
+                torch.arange(S, device=self.device), cloned.clamp(min=0)
+            ]
+            use = (cloned >= 0) & (clone_row < self.num_rows)
+            option = torch.where(use, self.rows.row_option[clone_row], option)
+        return option
 
     def greedy_policy(self, runs: Sequence[int] | torch.Tensor | None = None) -> OptionPolicy:
         """Each run's frozen greedy policy now: ε = 0 over its own options, as it would choose
-        (:func:`~himit_torch.learner.choice.greedy_rows`, ``mentor_choice`` included). Where
+        (:func:`~himit_torch.learner.choice.greedy_rows`, ``mentor_choice`` and a ``bco`` run's
+        cloned actions included). Where
         options tie (or none is usable yet: every enabled option), ``tie_break="random"``
         takes each with equal probability — a stochastic option policy — and ``"first"`` the
         lowest option. Evaluate it exactly with
@@ -803,7 +845,8 @@ class Learner:
         probability = torch.zeros(which.numel(), S, J, dtype=torch.float64)
         for i, b in enumerate(which.tolist()):
             runs_b = torch.full_like(live, b)
-            _, greedy, _ = greedy_rows(self.cache, runs_b, live, self.config.mentor_choice)
+            cloned = self.cloning.at(runs_b, live) if self.cloning.any else None
+            _, greedy, _ = greedy_rows(self.cache, runs_b, live, self.config.mentor_choice, cloned)
             if self.config.tie_break == "first":
                 greedy = greedy & (greedy.cumsum(1) == 1)
             p = greedy.double() / greedy.sum(1, keepdim=True).clamp(min=1)

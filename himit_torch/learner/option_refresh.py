@@ -12,8 +12,8 @@ state into it:
   where either may act (the states of both initiation sets and where ``β < 1``). Then an
   execution from ``s`` has the same outcome distribution, so its counts remain evidence about
   it. The primitive options must be the first options of both sets, unchanged.
-* **Everything else, unchanged** — ``V``, the mentor model and its rewards and caches, the
-  sweep queue and pending budgets, each run's counters (``t``, goals, episodes, ε and its
+* **Everything else, unchanged** — ``V``, the mentor model and its rewards and caches, a
+  ``bco`` run's cloned actions (actions, kept as they are: its primitives are too), the sweep queue and pending budgets, each run's counters (``t``, goals, episodes, ε and its
   schedule state, first goal, decisions, backups, visits, ``state_tries``), its position, its
   seed and thereby its random stream (a counter-based stream whose position is ``t``), and the
   per-window metrics.
@@ -176,8 +176,10 @@ def _check(learner: Learner, options: Options, runs: list[int], agents: list[str
     if unknown:
         raise ValueError(f"unknown agent variant(s) {unknown}; use one of {sorted(AGENTS)}")
     for b, agent in zip(runs, agents):
-        _, mentor, confident, sampling, shaping = AGENTS[agent]
-        _, old_mentor, old_confident, old_sampling, old_shaping = AGENTS[learner.agents[b]]
+        _, mentor, confident, sampling, shaping, cloning = AGENTS[agent]
+        _, old_mentor, old_confident, old_sampling, old_shaping, old_cloning = AGENTS[
+            learner.agents[b]
+        ]
         if sampling or old_sampling:
             # The posterior draw (PosteriorSample) is per edge of the old option set; carrying
             # it across a change of options is not implemented, and redrawing would silently
@@ -186,12 +188,17 @@ def _check(learner: Learner, options: Options, runs: list[int], agents: list[str
                 f"run {b} ({learner.agents[b]} → {agent}): posterior-sampling (…_psrl) runs "
                 "cannot be carried to a new option set; use the mean-model variant"
             )
-        if (mentor, confident, shaping) != (old_mentor, old_confident, old_shaping):
+        if (mentor, confident, shaping, cloning) != (
+            old_mentor,
+            old_confident,
+            old_shaping,
+            old_cloning,
+        ):
             raise ValueError(
                 f"run {b} ({learner.agents[b]}) cannot become {agent!r}: a new variant may change "
                 "which options a run uses, not whether it has a mentor term, its confidence "
-                "test or shaping (e.g. primitives → options, imitation_primitives → imitation, "
-                "pbrs_primitives → pbrs)"
+                "test, shaping or cloning (e.g. primitives → options, imitation_primitives → "
+                "imitation, pbrs_primitives → pbrs)"
             )
 
 
@@ -295,6 +302,7 @@ def with_options(
     new.cache.load_state_dict(cache, mentor_edges=learner.mentor.used)
     new.sweeper.load_state_dict({k: v[idx] for k, v in learner.sweeper.state_dict().items()})
     new.sync_potential()  # (the shaping runs' V, carried, already holds their potential)
+    new.cloning.load_state_dict({"action": learner.cloning.action[idx]})  # (actions, not rows)
     new.metrics = type(learner.metrics)(
         **{
             k: [x if k == "steps" else x[idx.cpu()].clone() for x in v]
@@ -330,6 +338,7 @@ def with_options(
             new.run_state.epsilon[cr],
             new.config.mentor_choice,
             new.config.tie_break,
+            new.cloning.at(cr, new.run_state.position[cr]) if new.cloning.any else None,
         )
 
     # ---- queue the states where a run's usable rows changed and a backup would change V

@@ -31,6 +31,8 @@ class RowTable:
         use_sampling: ``[B]`` whether the variant plans on a posterior sample (``…_psrl``).
         use_shaping: ``[B]`` whether the variant shapes with the demonstrations' potential
             (``pbrs…``).
+        use_cloning: ``[B]`` whether the variant acts on a policy cloned from the demonstrations
+            (``bco``).
     """
 
     def __init__(self, options: Options, num_actions: int, agents: Sequence[str], device):
@@ -83,10 +85,12 @@ class RowTable:
         self.use_confidence = torch.zeros(B, dtype=torch.bool, device=dev)
         self.use_sampling = torch.zeros(B, dtype=torch.bool, device=dev)
         self.use_shaping = torch.zeros(B, dtype=torch.bool, device=dev)
+        self.use_cloning = torch.zeros(B, dtype=torch.bool, device=dev)
         for b, agent in enumerate(agents):
-            which, mentor, confident, sampling, shaping = AGENTS[agent]
+            which, mentor, confident, sampling, shaping, cloning = AGENTS[agent]
             self.use_sampling[b] = sampling
             self.use_shaping[b] = shaping
+            self.use_cloning[b] = cloning
             enabled[b] = True if which == "all" else primitive
             self.use_mentor[b] = mentor
             self.use_confidence[b] = confident

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING
 
 import torch
 
+from himit_torch.learner.cloned_policy import ClonedPolicy
 from himit_torch.learner.config import LearnerConfig
 from himit_torch.learner.models import DirichletMentorModel, DirichletSMDPModel
 from himit_torch.learner.posterior_sampling import PosteriorSample
@@ -151,6 +152,8 @@ class BatchState:
     run: RunState
     keys: torch.Tensor
     """``[B]`` int64: each run's random stream (:func:`himit_torch.rng.seed_streams`)."""
+    cloning: ClonedPolicy
+    """The ``bco`` runs' cloned actions (read when a run chooses; refitted by the learner)."""
 
     @property
     def batch(self) -> int:

@@ -39,6 +39,8 @@ AGENT_COLORS = {
     # (beyond the palette's eight: Tol's wine and teal, apart from every colour above)
     "pbrs": "#882255",
     "pbrs_primitives": "#44AA99",
+    # (Tol's indigo: apart from the wine and teal above and the palette's eight)
+    "bco": "#332288",
 }
 
 #: The paper's optimal goals per 5000 steps, by world size (both worlds have 10×10 rooms).

@@ -28,6 +28,7 @@ import torch
 from himit_torch.learner.engines import kernel as _kernel_package
 from himit_torch.learner.engines.kernel.arrays import (
     CacheArrays,
+    ClonedArrays,
     MentorModelArrays,
     OptionModelArrays,
     RowArrays,
@@ -365,6 +366,7 @@ class NumbaEngine:
                         _np(sample.mentor_unseen),
                         _np(sample.resamples),
                     ),
+                    ClonedArrays(_np(L.cloning.action)),
                     self.scratch,
                 ),
             )

@@ -172,7 +172,14 @@ class TorchEngine:
         run.position[runs] = here
         run.option_start[runs] = here
         run.row[runs] = choose_rows(
-            L.cache, runs, here, u[:, 3:5], run.epsilon[runs], cfg.mentor_choice, cfg.tie_break
+            L.cache,
+            runs,
+            here,
+            u[:, 3:5],
+            run.epsilon[runs],
+            cfg.mentor_choice,
+            cfg.tie_break,
+            L.cloning.at(runs, here) if L.cloning.any else None,
         )
 
     def _goal_reached(self, at_goal: torch.Tensor) -> None:

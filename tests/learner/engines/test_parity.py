@@ -263,6 +263,41 @@ def test_engines_agree_with_shaping(world12, mentor_demos12, name, ticks):
         assert int(runs[0].goals[:2].sum()) > 0
 
 
+#: Behavioural cloning from observation (issue 26) beside the agents it is compared with.
+BCO_MIX = ["bco", "primitives", "imitation", "bco", "options"]
+BCO_CONFIGS = {
+    "every150": LearnerConfig(window=1000, bco_every=150),
+    "counts_every40_first": LearnerConfig(
+        window=1000, bco_every=40, bco_inverse_model="counts", tie_break="first"
+    ),
+}
+
+
+@pytest.mark.parametrize("ticks", fast_and_long(3000))
+@pytest.mark.parametrize("name", list(BCO_CONFIGS))
+def test_engines_agree_with_behavioural_cloning(world12, mentor_demos12, name, ticks):
+    """The ``bco`` agent (greedy choice = the cloned action where there is one, refitted every
+    ``bco_every`` ticks between the engine's calls): identical on both engines."""
+    runs = both_engines(
+        lambda engine: Learner(
+            world12,
+            learner_options(world12),
+            BCO_MIX,
+            range(len(BCO_MIX)),
+            config=BCO_CONFIGS[name],
+            demonstrations=mentor_demos12,
+            engine=engine,
+        ),
+        ticks,
+    )
+    assert_same_run(*runs)
+    assert torch.equal(runs[0].cloning.action, runs[1].cloning.action)
+    cloned = (runs[0].cloning.action >= 0).sum(1)
+    assert int(cloned[0]) > 10 and int(cloned[3]) > 10  # the cloned policy is there
+    assert int(cloned[[1, 2, 4]].sum()) == 0
+    assert int(runs[0].decisions[[0, 3]].min()) == length(ticks)  # (one primitive per tick)
+
+
 @pytest.mark.parametrize("ticks", fast_and_long(3000))
 def test_engines_agree_with_stochastic_option_policies(world12, mentor_demos12, ticks):
     """Options with ``[O, S, A]`` policies go through the sampling path of both engines."""

@@ -20,6 +20,7 @@ __all__ = [
     "SweepArrays",
     "RunArrays",
     "SampleArrays",
+    "ClonedArrays",
     "Scratch",
 ]
 
@@ -138,6 +139,12 @@ class SampleArrays(NamedTuple):
     w_m: np.ndarray  # [B, E_m] the same for the mentor model
     wu_m: np.ndarray  # [B, S + 1]
     resamples: np.ndarray  # [B] draws so far (the event counter of the sample keys)
+
+
+class ClonedArrays(NamedTuple):
+    """The cloned policy of the ``bco`` runs (``ClonedPolicy``, read only)."""
+
+    action: np.ndarray  # [B, S + 1] the cloned action at each state (−1: none)
 
 
 class Scratch(NamedTuple):

@@ -268,9 +268,10 @@ def _match_mentor(st, world, rows, cache, model, mentor, scratch, b, here):
 
 
 @njit(inline="always")
-def choose(st, world, rows, cache, model, mentor, run, scratch, key, b, t, here):
+def choose(st, world, rows, cache, model, mentor, run, clone, scratch, key, b, t, here):
     """ε-greedy over the own rows of ``here`` (``choice.choose_rows``) with the draws of tick
-    ``t``: the run's next row, in ``run.row_of[b]``."""
+    ``t``: the run's next row, in ``run.row_of[b]``. A ``bco`` run's greedy choice is its cloned
+    action's primitive row where it has one (``choice.greedy_rows``)."""
     M = cache.q_num.shape[1] - 1
     q_buf, usable_buf, enabled_buf = scratch.q_buf, scratch.usable_buf, scratch.enabled_buf
     first = rows.row_begin[here]  # the rows of ``here``: first, first + 1, ..., first + n_rows - 1
@@ -291,10 +292,18 @@ def choose(st, world, rows, cache, model, mentor, run, scratch, key, b, t, here)
         if usable_buf[b, j] and q_buf[b, j] >= top - _TIE:
             any_greedy = True
             break
+    clone_row = M  # (M: no cloned action here)
+    cloned = clone.action[b, here]
+    if cloned >= 0:
+        clone_row = rows.primitive_rows[here, cloned]
     explore = uniform(key, t, 3) < run.epsilon[b]
     count = 0
     for j in range(n_rows):
-        if explore or not any_greedy:
+        if explore:
+            cand = enabled_buf[b, j]
+        elif clone_row < M:
+            cand = first + j == clone_row
+        elif not any_greedy:
             cand = enabled_buf[b, j]
         else:
             cand = usable_buf[b, j] and q_buf[b, j] >= top - _TIE
@@ -342,7 +351,7 @@ def start_option(st, world, run, key, b, t, nxt, at_goal):
 
 @entry  # (the flags: .jit)
 def run_ticks(
-    b, t_end, t_reached, st, world, rows, cache, model, mentor, sweep, run, sample, scratch
+    b, t_end, t_reached, st, world, rows, cache, model, mentor, sweep, run, sample, clone, scratch
 ):
     """Advance run ``b`` from tick ``t_reached[b]`` to ``t_end``, in place: act, learn, plan,
     choose — :meth:`TorchEngine.tick <himit_torch.learner.engines.TorchEngine.tick>` for one run.
@@ -371,7 +380,7 @@ def run_ticks(
             )
         if ended:
             here = start_option(st, world, run, key, b, t - 1, nxt, at_goal)
-            choose(st, world, rows, cache, model, mentor, run, scratch, key, b, t - 1, here)
+            choose(st, world, rows, cache, model, mentor, run, clone, scratch, key, b, t - 1, here)
     t_reached[b] = t
 
 
