@@ -47,6 +47,7 @@ METHODS = {
     "implicit imitation (eq. 1)": ("benchmark", "imitation_primitives"),
     "PBRS": ("benchmark", "pbrs"),
     "PBRS, primitives": ("benchmark", "pbrs_primitives"),
+    "BCO": ("benchmark", "bco"),
     "options only": ("paper-random", "options"),
     "primitives only": ("paper-random", "primitives"),
 }
@@ -61,7 +62,7 @@ AXES = {
     "slip": ("slip", 0.1),
     "layout": ("layout", "open"),
 }
-STRESS_AGENTS = ("imitation", "imitation_primitives", "pbrs", "options")
+STRESS_AGENTS = ("imitation", "imitation_primitives", "pbrs", "bco", "options")
 
 
 def method_world(data: dict, method: str, world: str) -> World:

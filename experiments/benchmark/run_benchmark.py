@@ -19,7 +19,7 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 RESULTS = HERE.parent / "results" / "benchmark"
 #: The agents beside the claims' runs, and options-only again as the batch-independence check.
-AGENTS = ("imitation_primitives", "pbrs", "pbrs_primitives", "options")
+AGENTS = ("imitation_primitives", "pbrs", "pbrs_primitives", "bco", "options")
 
 parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
 parser.add_argument("--agents", nargs="+", default=list(AGENTS))
