@@ -22,7 +22,7 @@ def choose_rows(
     """ε-greedy choice of a row at ``states [R]`` for ``runs [R]``; ``u [R, 2]`` uniforms (ε,
     pick), ``epsilon [R]``.
 
-    Greedy: the best usable rows (within :data:`TIE`), one of them uniformly (or the first, with
+    Greedy: the best usable rows (within ``TIE``), one of them uniformly (or the first, with
     ``tie_break="first"``); if none is usable yet (nothing tried here), any enabled row.
     Exploring: any enabled row, uniformly. ``mentor_choice="match"``: where the mentor term wins
     eq. 2, own options whose first action best reproduces the mentor's move come first.
@@ -48,7 +48,7 @@ def greedy_rows(
 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """The greedy candidates of :func:`choose_rows` at ``states [R]`` for ``runs [R]``:
     ``(rows [R, J], greedy [R, J], enabled [R, J])`` — the state's rows, those the greedy choice
-    picks among (the best usable rows within :data:`TIE`; every enabled row where none is
+    picks among (the best usable rows within ``TIE``; every enabled row where none is
     usable yet), and the rows the run may use at all.
 
     ``cloned [R]`` (the ``bco`` runs, :class:`~himit_torch.learner.cloned_policy.ClonedPolicy`):

@@ -24,7 +24,7 @@ tabular world each of the three steps is exact counting, one pure function each:
 
    ``(s, s')`` pairs never seen in own experience have no model (no prior is put on them).
 2. **Relabelling** (:func:`relabel`): each observed mentor transition ``(s, s')`` gets
-   ``a* = argmax_a p(a | s, s')``, ties (within :data:`TIE`) to the lowest action; ``−1`` where
+   ``a* = argmax_a p(a | s, s')``, ties (within ``TIE``) to the lowest action; ``−1`` where
    ``(s, s')`` was never seen in own experience (nothing explains it).
 3. **Cloning** (:func:`clone_policy`): ``π_bc(s)`` = the action with the most labelled mentor
    transitions out of ``s`` (weighted by how often each was observed), ties to the lowest
@@ -134,7 +134,7 @@ def inverse_model(
 def relabel(model: InverseModel, states: torch.Tensor, successors: torch.Tensor) -> torch.Tensor:
     """``[T]`` the action ``a* = argmax_a p(a | s, s')`` behind each observed transition
     ``(states[t], successors[t])`` (step 2 of the module docstring; Torabi et al. 2018, Alg. 1,
-    "use M_θ to infer the demonstrator's actions"): ties within :data:`TIE` to the lowest
+    "use M_θ to infer the demonstrator's actions"): ties within ``TIE`` to the lowest
     action, ``−1`` where ``(s, s')`` is not in ``model`` (own experience never explained it)."""
     _check_transitions("relabel", states, successors)
     out = torch.full(states.shape, -1, dtype=torch.int64, device=states.device)
@@ -168,7 +168,7 @@ def clone_policy(
     """``[S]`` the cloned policy ``π_bc(s)``: the label with the most weight among the labelled
     transitions out of ``s`` (step 3 of the module docstring; Torabi et al. 2018, Alg. 1, "improve
     π_φ by behavioral cloning" — for a table, the maximum-likelihood policy), ties within
-    :data:`TIE` to the lowest action; ``−1`` where no transition out of ``s`` is labelled.
+    ``TIE`` to the lowest action; ``−1`` where no transition out of ``s`` is labelled.
 
     Args:
         states: ``[T]`` int64, where each observed mentor transition starts.
