@@ -5,8 +5,8 @@ seeds 0–19, the paper preset with random ties — then the stress sweep, and t
 
 The claims' runs (``experiments/results/paper-random/``, ``recommended-random/``) supply
 ``imitation``, ``options`` and ``primitives``; this adds the baselines beside ``options`` again
-(whose curves must equal the committed ones). ≈ 10 min for the worlds and ≈ 10 min for the
-stresses on a 2-core CPU. Copies the records into ``experiments/results/benchmark/`` and runs
+(whose curves must equal the committed ones). ≈ 10 min for the worlds, ≈ 10 min for the
+stresses and ≈ 5 min for the puzzle box (``puzzle_box_benchmark.py``) on a 2-core CPU. Copies the records into ``experiments/results/benchmark/`` and runs
 ``analyse.py``.
 """
 
