@@ -64,25 +64,33 @@ class ClonedPolicy:
         anew (the cloning runs among ``runs``; others keep ``−1``)."""
         runs = torch.as_tensor(runs, dtype=torch.int64, device=self.action.device).reshape(-1)
         runs = runs[self.rows.use_cloning.index_select(0, runs)]
-        S = self.rows.num_states
-        for b in runs.tolist():
-            E = int(model.num_edges[b])
-            edge_row = model.edge_row[b, :E]
-            act = self.row_action.index_select(0, edge_row)
-            own = act >= 0
-            inverse = inverse_model(
-                self.rows.row_state.index_select(0, edge_row)[own],
-                act[own],
-                model.edge_successor[b, :E][own],
-                model.edge_count[b, :E][own],
-                self.inverse,
-            )
-            Em = int(mentor.num_edges[b])
-            sources = mentor.edge_row[b, :Em]
-            labels = relabel(inverse, sources, mentor.edge_successor[b, :Em])
-            self.action[b, :S] = clone_policy(
-                sources, labels, mentor.edge_count[b, :Em], S, self.num_actions
-            )
+        if runs.numel() == 0:
+            return
+        # All runs in one call of each function: run i's states become i·(S + 1) + s (S + 1
+        # leaves room for a padding state), so no (s, s') or (s, a) of two runs ever meet, and
+        # every group sums the same entries in the same order as run by run.
+        S, R = self.rows.num_states, runs.numel()
+        stride = S + 1
+        own_edges, own_run = _edges(model.num_edges, model.edge_row, runs)
+        edge_row = model.edge_row[runs][own_edges]
+        act = self.row_action.index_select(0, edge_row)
+        own = act >= 0
+        offset = (own_run * stride)[own]
+        inverse = inverse_model(
+            self.rows.row_state.index_select(0, edge_row)[own] + offset,
+            act[own],
+            model.edge_successor[runs][own_edges][own] + offset,
+            model.edge_count[runs][own_edges][own],
+            self.inverse,
+        )
+        seen, seen_run = _edges(mentor.num_edges, mentor.edge_row, runs)
+        offset = seen_run * stride
+        sources = mentor.edge_row[runs][seen] + offset
+        labels = relabel(inverse, sources, mentor.edge_successor[runs][seen] + offset)
+        cloned = clone_policy(
+            sources, labels, mentor.edge_count[runs][seen], R * stride, self.num_actions
+        )
+        self.action[runs, :S] = cloned.view(R, stride)[:, :S]
 
     def state_dict(self) -> dict:
         return {"action": self.action.clone()}
@@ -118,3 +126,12 @@ class ClonedPolicy:
         if not checked:
             self.check_state(state, where)
         self.action = private_copy(state["action"], self.action.device)
+
+
+def _edges(num_edges: torch.Tensor, edge_row: torch.Tensor, runs: torch.Tensor):
+    """The used slots of ``runs``' edge lists, as a mask ``[R, capacity]`` over
+    ``edge_row[runs]``, and the run (``0 … R − 1``) of each used slot in row-major order."""
+    capacity = edge_row.shape[1]
+    used = torch.arange(capacity, device=edge_row.device) < num_edges[runs].unsqueeze(1)
+    which = torch.arange(runs.numel(), device=edge_row.device).unsqueeze(1).expand_as(used)
+    return used, which[used]

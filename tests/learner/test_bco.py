@@ -175,6 +175,40 @@ def test_refitted_every_bco_every_ticks(world12, mentor_demos12):
     assert bool((now[1] == -1).all())  # the imitator clones nothing
 
 
+def test_one_refit_of_all_runs_equals_the_functions_run_by_run(world12, mentor_demos12):
+    """``ClonedPolicy.refit`` does every run in one call of each function (states offset per
+    run); it equals the obvious computation, the three functions called run by run on each run's
+    own edges, exactly (slip: different own experience per seed; both inverse models)."""
+    from himit_torch.mentor.cloning import clone_policy, inverse_model, relabel
+
+    for kind in ("likelihood", "counts"):
+        config = LearnerConfig(window=500, bco_every=100, bco_inverse_model=kind)
+        learner = make(world12, mentor_demos12, ["bco", "imitation", "bco", "bco"], config=config)
+        learner.run(700)
+        model, mentor, cloning = learner.model, learner.mentor, learner.cloning
+        S = world12.num_states
+        for b in (0, 2, 3):
+            E, Em = int(model.num_edges[b]), int(mentor.num_edges[b])
+            edge_row = model.edge_row[b, :E]
+            act = cloning.row_action[edge_row]
+            own = act >= 0
+            inverse = inverse_model(
+                learner.rows.row_state[edge_row][own],
+                act[own],
+                model.edge_successor[b, :E][own],
+                model.edge_count[b, :E][own],
+                kind,
+            )
+            sources = mentor.edge_row[b, :Em]
+            labels = relabel(inverse, sources, mentor.edge_successor[b, :Em])
+            expected = clone_policy(
+                sources, labels, mentor.edge_count[b, :Em], S, world12.num_actions
+            )
+            assert torch.equal(cloning.action[b, :S], expected), (kind, b)
+            assert int((expected >= 0).sum()) > 0  # something was cloned to compare
+        assert bool((cloning.action[1] == -1).all())
+
+
 @pytest.mark.parametrize("engine", ["numba", "torch"])
 def test_checkpoint_round_trip(world12, mentor_demos12, engine):
     """A state_dict mid-way (between refits) continues exactly, on either engine."""
