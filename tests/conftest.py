@@ -56,3 +56,22 @@ def mentor_demos12(world12):
     return record_demonstrations(
         world12, mentor_policy(world12, mentor_options(world12)), 5, seed=0
     )
+
+
+@pytest.fixture
+def planned(monkeypatch):
+    """``planned(argv)``: the configurations ``himit run argv`` would run (nothing runs)."""
+    import himit_torch.runs.experiment as experiment_module
+    from himit_torch.cli import main
+
+    plans = []
+    monkeypatch.setattr(
+        experiment_module, "run_experiments", lambda p, **kwargs: plans.extend(p) or []
+    )
+
+    def run(argv):
+        plans.clear()
+        assert main(["run", *argv]) == 0
+        return [config for config, _ in plans]
+
+    return run

@@ -9,7 +9,6 @@ import json
 
 import pytest
 
-import himit_torch.runs.experiment as experiment_module
 from himit_torch.cli import build_parser, main
 from himit_torch.learner.config import LearnerConfig
 from himit_torch.runs.config import EXPERIMENTS, ExperimentConfig
@@ -76,22 +75,6 @@ EXPERIMENT_FLAGS = {
 
 def _flag(name: str) -> str:
     return "--" + name.replace("_", "-")
-
-
-@pytest.fixture
-def planned(monkeypatch):
-    """The configurations ``himit run`` would run (nothing runs)."""
-    plans = []
-    monkeypatch.setattr(
-        experiment_module, "run_experiments", lambda p, **kwargs: plans.extend(p) or []
-    )
-
-    def run(argv):
-        plans.clear()
-        assert main(["run", *argv]) == 0
-        return [config for config, _ in plans]
-
-    return run
 
 
 def test_every_setting_has_a_value_here():

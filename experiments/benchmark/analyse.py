@@ -314,24 +314,7 @@ def main() -> None:
             ]
         )
         for t in tests:
-            r = t.result
-            w.writerow(
-                [
-                    t.world,
-                    t.comparison,
-                    t.endpoint,
-                    r.difference.estimate,
-                    r.difference.low,
-                    r.difference.high,
-                    r.wins,
-                    r.losses,
-                    r.ties,
-                    r.t_p,
-                    r.sign_p,
-                    t.p_holm["t"],
-                    t.p_holm["sign"],
-                ]
-            )
+            w.writerow([t.world, t.comparison, t.endpoint, *claims.result_cells(t)])
     print((out / "leaderboard.md").read_text())
 
 

@@ -315,28 +315,8 @@ def write(data: dict, claims: list[Test], recommended: list[Test], out: Path) ->
     (out / "claims.md").write_text("\n".join(lines) + "\n")
     with open(out / "claims.csv", "w", newline="") as f:
         w = csv.writer(f)
-        w.writerow(
-            [
-                "table",
-                "claim",
-                "world",
-                "comparison",
-                "endpoint",
-                "ties",
-                "difference",
-                "low",
-                "high",
-                "wins",
-                "losses",
-                "ties_count",
-                "p_t",
-                "p_sign",
-                "p_t_holm",
-                "p_sign_holm",
-            ]
-        )
+        w.writerow(["table", "claim", "world", "comparison", "endpoint", "ties", *RESULT_COLUMNS])
         for t in claims + recommended:
-            r = t.result
             w.writerow(
                 [
                     t.table,
@@ -345,18 +325,25 @@ def write(data: dict, claims: list[Test], recommended: list[Test], out: Path) ->
                     t.comparison,
                     t.endpoint,
                     t.ties,
-                    r.difference.estimate,
-                    r.difference.low,
-                    r.difference.high,
-                    r.wins,
-                    r.losses,
-                    r.ties,
-                    r.t_p,
-                    r.sign_p,
-                    t.p_holm["t"],
-                    t.p_holm["sign"],
+                    *result_cells(t),
                 ]
             )
+
+
+#: The columns of :func:`result_cells`.
+RESULT_COLUMNS = [
+    "difference", "low", "high", "wins", "losses", "ties_count", "p_t", "p_sign", "p_t_holm",
+    "p_sign_holm",
+]  # fmt: skip
+
+
+def result_cells(t: Test) -> list:
+    """A test's result as CSV cells (:data:`RESULT_COLUMNS`): the effect, its interval, the
+    seeds won, lost and tied, and the raw and Holm-adjusted p-values."""
+    r = t.result
+    d = r.difference
+    return [d.estimate, d.low, d.high, r.wins, r.losses, r.ties, r.t_p, r.sign_p,
+            t.p_holm["t"], t.p_holm["sign"]]  # fmt: skip
 
 
 def _recommended_lines(data: dict, tests: list[Test]) -> list[str]:

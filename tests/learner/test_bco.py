@@ -2,6 +2,8 @@
 small world, how it acts on it, when it is refitted, and its checkpoints. The pure functions:
 ``tests/mentor/test_cloning.py``; the engines' parity: ``tests/learner/engines/test_parity.py``."""
 
+from functools import partial
+
 import pytest
 import torch
 
@@ -17,6 +19,7 @@ from himit_torch import (
 )
 from himit_torch.learner.choice import greedy_rows
 from himit_torch.state_checks import DamagedState
+from tests.learner.helpers import build_learner
 
 CONFIG = LearnerConfig(window=500, bco_every=100)
 
@@ -34,16 +37,7 @@ def still_demos(still_world):
     )
 
 
-def make(world, demos, agents, seeds=None, engine="numba", config=CONFIG):
-    return Learner(
-        world,
-        learner_options(world),
-        agents,
-        list(range(len(agents))) if seeds is None else seeds,
-        config=config,
-        demonstrations=demos,
-        engine=engine,
-    )
+make = partial(build_learner, config=CONFIG)
 
 
 def _own_moves(learner: Learner, b: int) -> set[tuple[int, int]]:

@@ -9,7 +9,6 @@ import json
 
 import pytest
 
-import himit_torch.runs.experiment as experiment_module
 from himit_torch.cli import main
 from himit_torch.learner.config import LearnerConfig
 from himit_torch.learner.presets import (
@@ -89,21 +88,6 @@ def test_config_json_round_trip_keeps_the_preset(tmp_path):
     path.write_text(json.dumps(data))
     with pytest.raises(ValueError, match=f"config file {path}.*preset='recommended'"):
         load_config(path)
-
-
-@pytest.fixture
-def planned(monkeypatch):
-    plans = []
-    monkeypatch.setattr(
-        experiment_module, "run_experiments", lambda p, **kwargs: plans.extend(p) or []
-    )
-
-    def run(argv):
-        plans.clear()
-        assert main(["run", *argv]) == 0
-        return [config for config, _ in plans]
-
-    return run
 
 
 @pytest.mark.parametrize("name", sorted(PRESETS))

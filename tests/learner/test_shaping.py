@@ -4,26 +4,20 @@ demonstrations, carried out as start values ``v0 + Φ`` (Wiewiora 2003; see
 ``tests/learner/engines/test_parity.py``; invariance of the optimal options:
 ``tests/exact/test_shaping_invariance.py``."""
 
+from functools import partial
+
 import pytest
 import torch
 
-from himit_torch import KnownReward, Learner, LearnerConfig, learner_options, with_options
+from himit_torch import KnownReward, LearnerConfig, learner_options, with_options
 from himit_torch.learner.backups import shaped_option_backup
 from himit_torch.mentor.potential import shaping_potential
+from tests.learner.helpers import build_learner
 
 CONFIG = LearnerConfig(window=500)
 
 
-def make(world, demos, agents, seeds=None, engine="numba", config=CONFIG):
-    return Learner(
-        world,
-        learner_options(world),
-        agents,
-        list(range(len(agents))) if seeds is None else seeds,
-        config=config,
-        demonstrations=demos,
-        engine=engine,
-    )
+make = partial(build_learner, config=CONFIG)
 
 
 def test_without_demonstrations_shaping_is_the_unshaped_run(world12):
