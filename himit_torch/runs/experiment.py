@@ -60,6 +60,7 @@ from himit_torch.runs.runner import (
     run_windows,
     source_commit,
     watch_demonstrations,
+    write_atomically,
 )
 from himit_torch.viz.tensorboard import TensorBoardLogger
 from himit_torch.worlds.multirooms import MultiRooms
@@ -168,12 +169,6 @@ def _hparams(config: ExperimentConfig, size: int, agent: str) -> dict:
         }
     )
     return hp
-
-
-def _atomic_write(path: Path, text: str) -> None:
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    tmp.write_text(text)
-    os.replace(tmp, path)
 
 
 def run_world(
@@ -359,7 +354,7 @@ def run_world(
     )
     logger.close()
     _write_curves(run_dir / "worlds" / f"curves{size}.csv", learner, size, greedy)
-    _atomic_write(run_dir / "worlds" / f"world{size}.json", json.dumps(asdict(result), indent=1))
+    write_atomically(run_dir / "worlds" / f"world{size}.json", json.dumps(asdict(result), indent=1))
     _world_figure(
         run_dir, config, world, recorded[seeds[0]], learner, agents, run_seeds, seeds[0], size
     )
@@ -606,7 +601,7 @@ def _prepare_run_dir(
                 "given; resume with the saved one (--config "
                 f"{cfg_path}) or start over with --force"
             )
-    _atomic_write(cfg_path, config.to_json())
+    write_atomically(cfg_path, config.to_json())
     finished = {}
     for size in config.sizes:
         done = run_dir / "worlds" / f"world{size}.json"

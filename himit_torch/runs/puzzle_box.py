@@ -56,7 +56,6 @@ from himit_torch.mentor.puzzle_box import map_demonstrations, organisation_mento
 from himit_torch.options.bundle import Options
 from himit_torch.options.puzzle_box import intended_rollout, puzzle_box_options
 from himit_torch.runs.checkpoints import BatchShape
-from himit_torch.runs.experiment import _atomic_write
 from himit_torch.runs.gymnasium import GreedyEvaluator
 from himit_torch.runs.runner import (
     Checkpoints,
@@ -66,6 +65,7 @@ from himit_torch.runs.runner import (
     run_windows,
     source_commit,
     watch_demonstrations,
+    write_atomically,
 )
 from himit_torch.viz.tensorboard import TensorBoardLogger
 from himit_torch.worlds.puzzle_box import (
@@ -340,7 +340,7 @@ def _run_batch(
                 },
                 step,
             )
-        _atomic_write(evals_path, json.dumps(evals))
+        write_atomically(evals_path, json.dumps(evals))
 
     evals_path.parent.mkdir(parents=True, exist_ok=True)
     wall = run_windows(
@@ -419,7 +419,7 @@ def _run_batch(
     for r in runs:  # the states were for the comparison; the subgoals say what a reader needs
         del r["states"]
     _write_rows(run_dir / "batches" / f"{tag}.csv", rows)
-    _atomic_write(run_dir / "batches" / f"{tag}.json", json.dumps(summary, indent=1))
+    write_atomically(run_dir / "batches" / f"{tag}.json", json.dumps(summary, indent=1))
     return summary
 
 
@@ -487,7 +487,7 @@ def run_puzzle_box(
             f"--resume: {cfg_path} holds a different configuration than the one given; "
             "resume with the same flags or start over with --force"
         )
-    _atomic_write(cfg_path, config.to_json())
+    write_atomically(cfg_path, config.to_json())
     small = PuzzleBox(config.skewers, slip=config.slip, pinch_slip=config.pinch_slip)
     mentors = {org: organisation_mentor(small, org) for org in ORGANISATIONS}
     demos = {
@@ -565,7 +565,7 @@ def run_puzzle_box(
         "mentor_plans": {org: mentors_subgoals(small, plans[org]) for org in ORGANISATIONS},
         "batches": batches,
     }
-    _atomic_write(run_dir / "summary.json", json.dumps(summary, indent=1))
+    write_atomically(run_dir / "summary.json", json.dumps(summary, indent=1))
     from himit_torch.runs.puzzle_box_report import (
         write_puzzle_box_figures,
         write_puzzle_box_results,

@@ -19,6 +19,7 @@ directory's checks (:func:`check_run_dir`, :func:`clear_run_dir`) and the code's
 
 from __future__ import annotations
 
+import os
 import shutil
 import subprocess
 import sys
@@ -52,6 +53,7 @@ __all__ = [
     "clear_run_dir",
     "source_commit",
     "state_layout_version",
+    "write_atomically",
 ]
 
 #: A per-window hook: ``hook(learner, index)`` with ``index`` the window's entry in
@@ -305,3 +307,11 @@ def source_commit() -> str:
     except (OSError, subprocess.SubprocessError):
         return "unknown"
     return commit + ("+dirty" if dirty else "")
+
+
+def write_atomically(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` through a temporary file beside it and a rename, so that a
+    reader (or a run killed mid-write) never sees a half-written file."""
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    tmp.write_text(text)
+    os.replace(tmp, path)
