@@ -7,6 +7,7 @@ import numpy as np
 from numba import njit
 
 from himit_torch.learner.engines.kernel.heap import raise_to
+from himit_torch.learner.engines.kernel.jit import entry, phase
 from himit_torch.learner.engines.settings import UNTRIED_PRIOR, UNTRIED_SKIP
 
 _INF = np.inf
@@ -103,6 +104,14 @@ def state_backup(st, world, rows, cache, model, mentor, b, s):
     return best, has_value, ok and m > own
 
 
+@phase
+def backup_state(st, world, rows, cache, model, mentor, b, s):
+    """:func:`state_backup` compiled once on its own, for the callers off the tick's hot path
+    (:func:`mentor_wins`, the "match" rule, ``resample``), which would otherwise each compile
+    an inlined copy (:mod:`.jit`)."""
+    return state_backup(st, world, rows, cache, model, mentor, b, s)
+
+
 @njit(inline="always")
 def propagate_options(st, rows, cache, model, sweep, sample, b, x, d, v_old, sampled):
     """``V(x) += d``: every row with an edge to ``x`` gets ``Σγ^k d`` (a sampling run: its
@@ -161,7 +170,7 @@ def propagate_mentor(st, rows, cache, mentor, sweep, sample, b, x, d, v_old, sam
 
 
 # Serial: once a window it costs microseconds, and a parallel loop costs seconds of compiling.
-@njit(cache=True, error_model="numpy")
+@entry
 def mentor_wins(st, world, rows, cache, model, mentor, out):
     """``out[b]``: how many of run ``b``'s mentor-observed states the mentor term wins eq. 2 in
     (:meth:`Learner.mentor_win_share`), by the kernel's own backup."""
@@ -171,7 +180,7 @@ def mentor_wins(st, world, rows, cache, model, mentor, out):
         if rows.use_mentor[b]:
             for s in range(S):
                 if mentor.row_count[b, s] > 0:
-                    _, _, won = state_backup(st, world, rows, cache, model, mentor, b, s)
+                    _, _, won = backup_state(st, world, rows, cache, model, mentor, b, s)
                     if won:
                         won_states += 1
         out[b] = won_states

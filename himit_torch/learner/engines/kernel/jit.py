@@ -14,14 +14,19 @@ from numba import njit
 # Python would unbox every argument tuple, which costs compile time and nothing else.
 #
 # Which phases are compiled on their own, and which are inlined into their caller's Numba IR
-# (``inline="always"``), is a measured trade. Numba's inliner deep-copies the callee's IR once per
-# block (time ~ blocks x variables), so inlining a large phase costs seconds of a cold start;
-# a call to a phase compiled on its own passes every field of every array of its tuples (~8
-# words an array, hundreds a call), which costs throughput where it is called each tick and LLVM
-# does not inline it. Hence: tiny helpers inlined; ``choose`` (every decision) inlined; ``plan``,
-# ``count_outcome``, ``act``, ``start_option``, ``_match_mentor`` and ``resample`` on their own.
+# (``inline="always"``), is a measured trade (benchmarks/bench_kernel_inprocess.py: the tick
+# loop against the pre-redesign kernel in one process on the same arrays; the compile times by
+# Numba's compile events). A call to a phase compiled on its own passes every field of every
+# array of its tuples (~8 words an array, hundreds a call) and reloads them in the callee, and
+# LLVM does not inline it: with ``act`` (every tick) and ``plan`` (every decision) on their own
+# the loop ran at 0.90x the pre-redesign kernel; inlined, at 0.98-1.0x. Inlining costs compile
+# time instead (Numba's inliner deep-copies the callee's IR once per call site), so what is not
+# on the hot path is compiled once on its own: ``count_outcome``, ``start_option``,
+# ``_match_mentor``, ``resample``, and eq. 2 for the callers outside the loop
+# (:func:`.backup.backup_state`). Neither kernel called from Python needs a C callback
+# (``no_cfunc_wrapper``): ~2 s less of a cold compile.
 _FLAGS = dict(cache=True, error_model="numpy", _nrt=False, nogil=True)
-# the tick loop, called from Python
-entry = njit(**_FLAGS)  # type: ignore[call-overload]  # (not in the stubs)
+# a kernel called from Python (the tick loop, link_edges, mentor_wins)
+entry = njit(**_FLAGS, no_cfunc_wrapper=True)  # type: ignore[call-overload]  # (not in the stubs)
 # a phase compiled on its own, called from the loop only
 phase = njit(**_FLAGS, no_cpython_wrapper=True, no_cfunc_wrapper=True)  # type: ignore[call-overload]

@@ -9,7 +9,7 @@ import numpy as np
 from numba import njit
 
 from himit_torch.learner import posterior_sampling as _ps
-from himit_torch.learner.engines.kernel.backup import state_backup
+from himit_torch.learner.engines.kernel.backup import backup_state
 from himit_torch.learner.engines.kernel.heap import push
 from himit_torch.learner.engines.kernel.jit import phase
 from himit_torch.learner.engines.kernel.streams import splitmix, uniform
@@ -213,7 +213,7 @@ def resample(st, world, rows, cache, model, mentor, sweep, sample, key, b):
     sample.resamples[b] += 1
     thr = st.priority_threshold
     for s in range(S):
-        best, has_value, _ = state_backup(st, world, rows, cache, model, mentor, b, s)
+        best, has_value, _ = backup_state(st, world, rows, cache, model, mentor, b, s)
         if has_value:
             p = abs(best - values[b, s])
             if p > thr:

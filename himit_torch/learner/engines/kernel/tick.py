@@ -8,6 +8,7 @@ import numpy as np
 from numba import njit
 
 from himit_torch.learner.engines.kernel.backup import (
+    backup_state,
     propagate_mentor,
     propagate_options,
     row_value,
@@ -36,7 +37,7 @@ _INF = np.inf
 _TIE = 1e-12
 
 
-@phase
+@njit(inline="always")
 def act(st, world, rows, run, key, b, t):
     """One primitive step of run ``b``'s option at tick ``t`` (the torch engine's act phase):
     ``(row, nxt, at_goal, ended)``, the row executed, where it went, and whether the option
@@ -173,7 +174,7 @@ def resample_due(st, rows, run, b, at_goal):
     )
 
 
-@phase
+@njit(inline="always")
 def plan(st, world, rows, cache, model, mentor, sweep, sample, scratch, b):
     """Prioritized sweeping of run ``b``'s pending budget (``Sweeper.sweep`` with
     ``ValueCache.backup_and_propagate``): rounds of up to ``round_size`` states above the
@@ -231,7 +232,7 @@ def _match_mentor(st, world, rows, cache, model, mentor, scratch, b, here):
     """The "match" rule (``choice._match_mentor``): where the mentor term wins eq. 2 at
     ``here``, own options whose first action best reproduces the mentor's move come first
     (their Q in ``scratch.q_buf`` raised by 10⁶)."""
-    _, _, won = state_backup(st, world, rows, cache, model, mentor, b, here)
+    _, _, won = backup_state(st, world, rows, cache, model, mentor, b, here)
     if not won:
         return
     primitive_rows = rows.primitive_rows
@@ -384,7 +385,7 @@ def run_ticks(
     t_reached[b] = t
 
 
-@njit(cache=True)
+@entry
 def link_edges(edge_row, edge_succ, num_edges, row_head, row_next, succ_head, succ_next):
     """Linked lists over each run's edges (by row and by successor), from the edge lists."""
     row_head[:] = -1
