@@ -27,7 +27,15 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
+
+
+def _stats():
+    """``scipy.stats``, imported at first use: importing it takes ~0.7 s, and the command line
+    imports this module (through the sweep's summary) to build its parser."""
+    from scipy import stats
+
+    return stats
+
 
 __all__ = [
     "Interval",
@@ -66,7 +74,7 @@ def t_interval(values: Sequence[float], level: float = 0.95) -> Interval:
     mean = float(x.mean())
     if len(x) < 2 or np.all(x == x[0]):
         return Interval(mean, mean, mean, f"{level:.0%} t-interval of the mean")
-    low, high = stats.t.interval(level, len(x) - 1, loc=mean, scale=stats.sem(x))
+    low, high = _stats().t.interval(level, len(x) - 1, loc=mean, scale=_stats().sem(x))
     return Interval(mean, float(low), float(high), f"{level:.0%} t-interval of the mean")
 
 
@@ -79,7 +87,7 @@ def bca_interval(values: Sequence[float], level: float = 0.95, seed: int = 0) ->
     # no spread beyond round-off (e.g. 20 greedy policies all at 76.5 %): the mean itself
     if len(x) < 2 or np.ptp(x) <= 1e-9 * max(1.0, abs(mean)):
         return Interval(mean, mean, mean, what)
-    result = stats.bootstrap(
+    result = _stats().bootstrap(
         (x,),
         np.mean,
         confidence_level=level,
@@ -120,8 +128,8 @@ def paired_comparison(
         # no spread beyond round-off: a t-test is undefined, the difference is exact
         t_p = 1.0 if d[0] == 0 else 0.0
     else:
-        t_p = float(stats.ttest_rel(x, y).pvalue)
-    sign_p = float(stats.binomtest(wins, wins + losses).pvalue) if wins + losses else 1.0
+        t_p = float(_stats().ttest_rel(x, y).pvalue)
+    sign_p = float(_stats().binomtest(wins, wins + losses).pvalue) if wins + losses else 1.0
     return PairedComparison(
         bca_interval(d, level, seed), t_p, sign_p, wins, losses, len(d) - wins - losses
     )
@@ -148,8 +156,8 @@ def first_goal_survival(
     there). The median's interval is where the pointwise log–log band of the curve crosses ½."""
     steps = np.asarray(first_goal_steps, dtype=float)
     found = steps >= 0
-    data = stats.CensoredData(uncensored=steps[found], right=np.full((~found).sum(), budget))
-    sf = stats.ecdf(data).sf
+    data = _stats().CensoredData(uncensored=steps[found], right=np.full((~found).sum(), budget))
+    sf = _stats().ecdf(data).sf
     with warnings.catch_warnings():
         # the log-log band is undefined where S(t) is 0 or 1 (scipy warns); those points are
         # NaN and never cross ½, which is what the median's interval reads
@@ -181,7 +189,7 @@ def first_goal_sign_test(a: Sequence[int], b: Sequence[int]) -> PairedComparison
     late = max(x.max(), y.max()) + 1
     x, y = np.where(x < 0, late, x), np.where(y < 0, late, y)
     wins, losses = int((x < y).sum()), int((x > y).sum())
-    sign_p = float(stats.binomtest(wins, wins + losses).pvalue) if wins + losses else 1.0
+    sign_p = float(_stats().binomtest(wins, wins + losses).pvalue) if wins + losses else 1.0
     median = float(np.median(y - x))
     return PairedComparison(
         Interval(median, math.nan, math.nan, "median over seeds (no interval)"),
@@ -195,7 +203,7 @@ def first_goal_sign_test(a: Sequence[int], b: Sequence[int]) -> PairedComparison
 
 def share_interval(count: int, total: int, level: float = 0.95) -> Interval:
     """``count / total`` and its exact Clopper–Pearson interval."""
-    ci = stats.binomtest(count, total).proportion_ci(level, method="exact")
+    ci = _stats().binomtest(count, total).proportion_ci(level, method="exact")
     return Interval(
         count / total, float(ci.low), float(ci.high), f"exact {level:.0%} Clopper–Pearson"
     )
