@@ -66,7 +66,8 @@ def test_shaped_runs_start_at_v0_plus_the_demonstrations_potential(world12, ment
     assert bool((learner.cache.values[0, :S][phi > 0] > v0).all())
 
 
-@pytest.mark.parametrize("engine", ["numba", "torch"])
+# The torch twin (7 s) under -m slow (CI); the shaping parity test checks the engines agree.
+@pytest.mark.parametrize("engine", ["numba", pytest.param("torch", marks=pytest.mark.slow)])
 def test_planned_values_solve_the_shaped_bellman_equation(world12, mentor_demos12, engine):
     """After learning and planning to the end, ``V' = V − Φ`` satisfies
     ``V'(s) = max_o shaped_option_backup(...)`` from the run's own option model at every state

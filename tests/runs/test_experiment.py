@@ -100,6 +100,8 @@ def test_the_greedy_policies_are_evaluated_on_their_schedule(tmp_path):
     assert plain.greedy_goals_per_window == []
 
 
+# Two worlds of exp3 to draw its scaling figure (10 s): -m slow (CI).
+@pytest.mark.slow
 def test_exp3_with_two_worlds_draws_the_scaling_bars(tmp_path):
     config = tiny("exp3", sizes=(16, 24), room_size=8, corner_options=False)
     results = run_experiment(config, tmp_path / "e3", progress=False)
@@ -401,6 +403,9 @@ def test_cli_bench_prints_a_rate(capsys):
     assert "agent" in one_line_error(capsys, ["bench", "--agent", "nobody"])
 
 
+# Four runs, one of them through the CLI (10 s): -m slow (CI); the reward modules' own tests
+# (tests/mentor/) stay in the fast suite.
+@pytest.mark.slow
 def test_mentor_reward_is_a_setting_of_the_runner_and_the_cli(tmp_path, capsys):
     """``mentor_reward`` changes only the imitators: the options runs (no mentor term) are the same
     in every batch, the imitators' curves differ between the world's reward and r_m = 0."""

@@ -137,6 +137,8 @@ def test_runner_writes_every_result(tmp_path):
     assert "## Beside Whiten et al. (2006)" in (run_dir / "results.md").read_text()
 
 
+# An integration run of the command and the flat script (8 s): -m slow (CI).
+@pytest.mark.slow
 def test_the_command_and_the_script(capsys, tmp_path):
     assert main(["info", "--puzzle-box", "2"]) == 0
     out = capsys.readouterr().out

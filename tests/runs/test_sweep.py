@@ -262,6 +262,8 @@ def test_in_process_sweep_without_ray_says_so_and_writes_the_tables(tmp_path, mo
     ).stat().st_mtime_ns == stamp
 
 
+# Two sweeps, the second resuming the first (9 s): -m slow (CI).
+@pytest.mark.slow
 def test_a_changed_spec_does_not_reuse_finished_trials(tmp_path, monkeypatch):
     no_ray(monkeypatch)
     out = tmp_path / "out"
