@@ -8,6 +8,8 @@ the machine's load hits both alike:
 
     REPEATS=3 python benchmarks/bench_ab.py NEW_CHECKOUT BASE_CHECKOUT
 
+(``STEADY_ONLY=1``: the steady cases only.)
+
 (e.g. ``git worktree add /tmp/base <commit>`` for the base).
 """
 
@@ -21,6 +23,7 @@ import time
 
 TREES = {"base": sys.argv[2], "new": sys.argv[1]}
 REPEATS = int(os.environ.get("REPEATS", 3))
+STEADY_ONLY = bool(os.environ.get("STEADY_ONLY"))  # the steady cases only, no cold/warm processes
 SMALL = ["--size", "24", "--rooms", "6", "--batch", "2", "--agent", "mix"]
 SMALL += ["--steps", "6000", "--warmup", "1"]
 CASES = [
@@ -55,7 +58,7 @@ res: dict[tuple[str, str], list[float]] = {}
 caches = {k: tempfile.mkdtemp() for k in TREES}
 for k, tree in TREES.items():  # fill each tree's cache
     bench(tree, SMALL, caches[k])
-for _ in range(REPEATS):
+for _ in range(0 if STEADY_ONLY else REPEATS):
     for k, tree in TREES.items():
         cold = timed(tree, SMALL, tempfile.mkdtemp())
         warm = timed(tree, SMALL, caches[k])
@@ -70,7 +73,9 @@ for _ in range(REPEATS):
             print(name, k, res[(name, k)][-1], flush=True)
 print("\n| case | base (median) | new (median) | new/base | base runs | new runs |")
 print("|---|---|---|---|---|---|")
-for name in ["cold process s", "warm process s", "compile s"] + [c[0] for c in CASES]:
+for name in ([] if STEADY_ONLY else ["cold process s", "warm process s", "compile s"]) + [
+    c[0] for c in CASES
+]:
     b, n = res[(name, "base")], res[(name, "new")]
     fmt = (lambda x: f"{x:,.0f}") if b[0] > 100 else (lambda x: f"{x:.2f}")
     ratio = statistics.median(n) / statistics.median(b)
