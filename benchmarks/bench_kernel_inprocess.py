@@ -43,6 +43,12 @@ args = parser.parse_args()
 def base_package(commit: str) -> Path:
     """The base commit's package as ``himit_base`` in a temporary folder (kept between runs, so
     that its Numba cache is too)."""
+    commit = subprocess.run(  # (the full hash: a branch name would go stale in the cache)
+        ["git", "-C", str(ROOT), "rev-parse", "--verify", f"{commit}^{{commit}}"],
+        check=True,
+        capture_output=True,
+        text=True,
+    ).stdout.strip()
     where = Path(tempfile.gettempdir()) / f"himit-kernel-base-{commit}"
     if not (where / "himit_base").exists():
         where.mkdir(parents=True, exist_ok=True)

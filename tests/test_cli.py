@@ -187,3 +187,23 @@ def test_info_of_a_gymnasium_world_is_exact(capsys):
 )
 def test_gymnasium_mistakes_are_one_line(capsys, argv, what):
     assert what in run_error(capsys, argv)
+
+
+def test_building_the_parser_leaves_scipy_stats_unimported():
+    """``scipy.stats`` costs ~0.7 s to import; every command builds the parser (which imports the
+    sweep's summary statistics), so :mod:`himit_torch.statistics` imports it at first use."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys; from himit_torch.cli import build_parser; build_parser(); "
+        "print('scipy.stats' in sys.modules)"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True
+    ).stdout
+    assert out.strip() == "False"
+    # ...and the statistics still work once it is needed
+    from himit_torch.statistics import t_interval
+
+    assert t_interval([1.0, 2.0, 3.0]).low < 2.0 < t_interval([1.0, 2.0, 3.0]).high

@@ -1,7 +1,9 @@
 """The kernels' arguments, grouped by the object that owns them: one named tuple type each.
 
-Numba passes a named tuple of arrays as one argument and reads its fields by name; the helpers
-are inlined into the tick loop, so the grouping costs nothing at run time. Per-run arrays have the
+Numba passes a named tuple of arrays as one argument and reads its fields by name. Inside the
+tick loop (where the hot phases are inlined) the grouping costs nothing at run time; a call to a
+phase compiled on its own passes every field of every array of its tuples (:mod:`.jit`, which
+says which phases are inlined and why). Per-run arrays have the
 run as their first axis; shared ones (world, options, row table) have none.
 """
 
