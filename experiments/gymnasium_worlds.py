@@ -32,7 +32,9 @@ parser.add_argument(
     default=GymExperimentConfig.window,
     help="steps per window of goals and greedy evaluation",
 )
-parser.add_argument("--preset", choices=sorted(PRESETS), help="paper or recommended")
+parser.add_argument(
+    "--preset", choices=sorted(PRESETS), help="a preset of himit_torch.learner.presets"
+)
 parser.add_argument("--tie-break", choices=TIE_BREAKS, default="random", help="greedy ties")
 parser.add_argument("--logdir", default="runs")
 parser.add_argument("--quick", action="store_true", help="tiny budget (smoke test)")

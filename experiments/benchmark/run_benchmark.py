@@ -1,33 +1,52 @@
-"""The benchmark's runs (PROTOCOL.md): the agents the claims' runs do not hold, on every world,
-seeds 0–19, the paper preset with random ties — then the stress sweep, and the tables.
+"""The whole benchmark in one command (PROTOCOL.md, the fair factorial of 2026-11-26): every
+method under every exploration schedule, every method with a mentor term with and without
+fading, on the nine worlds and the puzzle box (seeds 0–19, random ties); the recommended
+imitator's pick on fresh held-out seeds; the stresses; then the tables.
 
-    python experiments/benchmark/run_benchmark.py [--agents …] [--logdir runs/benchmark] [--skip-runs]
+    python experiments/benchmark/run_benchmark.py [--parts worlds puzzlebox pick stress]
+        [--logdir runs/benchmark] [--seeds 20] [--skip-runs]
 
-The claims' runs (``experiments/results/paper-random/``, ``recommended-random/``) supply
-``imitation``, ``options`` and ``primitives``; this adds the baselines beside ``options`` again
-(whose curves must equal the committed ones). ≈ 10 min for the worlds, ≈ 10 min for the
-stresses and ≈ 5 min for the puzzle box (``puzzle_box_benchmark.py``) on a 2-core CPU. Copies the records into ``experiments/results/benchmark/`` and runs
-``analyse.py``.
+Each part's wall time is written to ``experiments/results/benchmark/timing.json`` (and so onto
+the benchmark's page). The records every table is made from are copied into
+``experiments/results/benchmark/`` (``<preset>/`` per cell group, ``puzzlebox/``,
+``stress_exp2/``) and ``experiments/results/presets/records/`` (the pick's sweeps), then
+``analyse.py`` and ``../presets/analyse_search.py`` run on them.
 """
 
 import argparse
+import json
 import shutil
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-RESULTS = HERE.parent / "results" / "benchmark"
-#: The agents beside the claims' runs, and options-only again as the batch-independence check.
-AGENTS = ("imitation_primitives", "pbrs", "pbrs_primitives", "bco", "options")
+EXPERIMENTS = HERE.parent
+RESULTS = EXPERIMENTS / "results" / "benchmark"
+PRESET_RECORDS = EXPERIMENTS / "results" / "presets" / "records"
 
-parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-parser.add_argument("--agents", nargs="+", default=list(AGENTS))
-parser.add_argument("--seeds", type=int, default=20)
-parser.add_argument("--logdir", default="runs/benchmark")
-parser.add_argument("--skip-runs", action="store_true", help="copy and analyse finished runs")
-args = parser.parse_args()
-logdir = Path(args.logdir)
+#: Every method's agent, and those with a mentor term (the only ones fading changes).
+ALL_AGENTS = (
+    "imitation",
+    "imitation_primitives",
+    "pbrs",
+    "pbrs_primitives",
+    "bco",
+    "options",
+    "primitives",
+)
+MENTOR_AGENTS = ("imitation", "imitation_primitives")
+#: The factorial's cells: preset → the agents that run under it (PROTOCOL.md's table).
+CELLS = {
+    "paper": ALL_AGENTS,
+    "mentor-fade": MENTOR_AGENTS,
+    "explore-goals": ALL_AGENTS,
+    "recommended": MENTOR_AGENTS,
+}
+#: The held-out pick's sweeps (../presets/fair_*.toml).
+PICK_SWEEPS = ("fair_plain_exp1", "fair_fade_exp1", "fair_plain_exp2", "fair_fade_exp2")
+PARTS = ("worlds", "puzzlebox", "pick", "stress")
 
 
 def run(*argv: str) -> None:
@@ -35,50 +54,98 @@ def run(*argv: str) -> None:
     subprocess.run([sys.executable, *argv], check=True)
 
 
-if not args.skip_runs:
-    common = ["--seeds", str(args.seeds), "--preset", "paper", "--tie-break", "random"]
-    run(
-        "-m",
-        "himit_torch.cli",
-        "run",
-        "paper",
-        *common,
-        "--agents",
-        *args.agents,
-        "--logdir",
-        str(logdir / "worlds"),
-        "--quiet",
-        "--force",
-    )
-    run(
-        str(HERE.parent / "gymnasium_worlds.py"),
-        "--seeds",
-        str(args.seeds),
-        "--preset",
-        "paper",
-        "--agents",
-        *args.agents,
-        "--logdir",
-        str(logdir / "worlds"),
-        "--force",
-    )
-    run(
-        "-m",
-        "himit_torch.cli",
-        "sweep",
-        str(HERE / "stress_exp2.toml"),
-        "--out",
-        str(logdir / "stress_exp2"),
-    )
+def himit(*argv: str) -> None:
+    run("-m", "himit_torch.cli", *argv)
 
-run(
-    str(HERE.parent / "collect_results.py"),
-    *(str(logdir / "worlds" / n) for n in ("exp1", "exp2", "exp3", "gymnasium")),
-    "--out",
-    str(RESULTS / "worlds"),
-)
-stress = RESULTS / "stress_exp2"
-stress.mkdir(parents=True, exist_ok=True)
-for name in ("runs.csv", "summary.md", "sweep.json"):
-    shutil.copy(logdir / "stress_exp2" / name, stress / name)
-run(str(HERE / "analyse.py"))
+
+def worlds(logdir: Path, seeds: int) -> None:
+    for preset, agents in CELLS.items():
+        common = ["--seeds", str(seeds), "--preset", preset, "--agents", *agents]
+        out = str(logdir / preset)
+        himit(
+            "run", "paper", *common, "--tie-break", "random", "--logdir", out, "--quiet", "--force"
+        )
+        run(str(EXPERIMENTS / "gymnasium_worlds.py"), *common, "--logdir", out, "--force")
+
+
+def collect_worlds(logdir: Path) -> None:
+    for preset in CELLS:
+        run(
+            str(EXPERIMENTS / "collect_results.py"),
+            *(str(logdir / preset / n) for n in ("exp1", "exp2", "exp3", "gymnasium")),
+            "--out",
+            str(RESULTS / preset),
+        )
+
+
+def pick(logdir: Path) -> None:
+    for name in PICK_SWEEPS:
+        spec = EXPERIMENTS / "presets" / f"{name}.toml"
+        himit("sweep", str(spec), "--out", str(logdir / "presets" / name))
+
+
+def collect_sweep(
+    source: Path, target: Path, names=("runs.csv", "results.csv", "sweep.json")
+) -> None:
+    """Copy a sweep's records (per-run summaries, per-window goals, its spec) into the
+    repository."""
+    target.mkdir(parents=True, exist_ok=True)
+    for name in names:
+        shutil.copy(source / name, target / name)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--parts", nargs="+", choices=PARTS, default=list(PARTS))
+    parser.add_argument("--seeds", type=int, default=20)
+    parser.add_argument("--logdir", default="runs/benchmark")
+    parser.add_argument("--skip-runs", action="store_true", help="copy and analyse finished runs")
+    args = parser.parse_args()
+    logdir = Path(args.logdir)
+    timing_path = RESULTS / "timing.json"
+    timing = json.loads(timing_path.read_text()) if timing_path.exists() else {}
+
+    for part in args.parts:
+        started = time.perf_counter()
+        if part == "worlds":
+            if not args.skip_runs:
+                worlds(logdir, args.seeds)
+            collect_worlds(logdir)
+        elif part == "puzzlebox":
+            run(
+                str(HERE / "puzzle_box_benchmark.py"),
+                "--seeds",
+                str(args.seeds),
+                "--logdir",
+                str(logdir / "puzzlebox"),
+                *(["--skip-runs"] if args.skip_runs else []),
+            )
+        elif part == "pick":
+            if not args.skip_runs:
+                pick(logdir)
+            for name in PICK_SWEEPS:
+                collect_sweep(logdir / "presets" / name, PRESET_RECORDS / name)
+        elif part == "stress":
+            if not args.skip_runs:
+                himit(
+                    "sweep",
+                    str(HERE / "stress_exp2.toml"),
+                    "--out",
+                    str(logdir / "stress_exp2"),
+                )
+            collect_sweep(
+                logdir / "stress_exp2",
+                RESULTS / "stress_exp2",
+                ("runs.csv", "summary.md", "sweep.json"),
+            )
+        if not args.skip_runs:
+            timing[part] = round(time.perf_counter() - started, 1)
+            timing_path.parent.mkdir(parents=True, exist_ok=True)
+            timing_path.write_text(json.dumps(timing, indent=1, sort_keys=True) + "\n")
+
+    run(str(HERE / "analyse.py"))
+    run(str(EXPERIMENTS / "presets" / "analyse_search.py"))
+
+
+if __name__ == "__main__":
+    main()

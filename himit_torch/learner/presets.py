@@ -22,14 +22,23 @@ What a preset does **not** set, and why:
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from types import MappingProxyType
 from typing import Any
 
+from himit_torch.learner.agents import AGENTS
 from himit_torch.learner.config import LearnerConfig
 
-__all__ = ["Preset", "PRESETS", "apply_preset", "check_preset", "preset_differences"]
+__all__ = [
+    "Preset",
+    "PRESETS",
+    "agent_settings",
+    "agent_settings_text",
+    "apply_preset",
+    "check_preset",
+    "preset_differences",
+]
 
 
 @dataclass(frozen=True)
@@ -96,35 +105,68 @@ PAPER = _preset(
     mentor_concentration=(0.0, "unstated: the same for the mentor model"),
 )
 
-#: The best imitator found on held-out seeds (experiments/presets/PROTOCOL.md, search.md).
+#: The recommended preset's two parts, each a preset of its own (experiments/benchmark/PROTOCOL.md,
+#: the fair factorial): an exploration schedule, which every agent of a run follows, and a
+#: setting of the mentor term, which only the agents with a mentor term read.
+_EXPLORE_GOALS = {
+    "eps_schedule": (
+        "goals",
+        "explore at 0.75 until the goal is known well (10 goals), then act at the floor: of "
+        "the candidates whose greedy policy reached ≥ 97 % of the mentor's rate on both "
+        "searched worlds, the one with the most goals in the first 50k steps "
+        "(experiments/results/presets/search.md, round 2). An exploration schedule: it applies "
+        "to every agent of a run, imitator or not",
+    ),
+    "eps_goals": (10, "the goals of exploration before ε drops to its floor"),
+}
+_MENTOR_FADE = {
+    "mentor_fade": (
+        20.0,
+        "the mentor's evidence counts as 20 own executions at each state, so it leads early "
+        "and the run's own value decides in the limit (no lasting upward bias of the mentor "
+        "term); k = 5, 20, 50 did alike on held-out seeds. A setting of the mentor term: "
+        "agents without one (options, primitives, pbrs, bco) do not read it",
+    ),
+}
+
+#: The paper's eq. 2 with ε held at 0.75 until the run's 10th goal (the recommended preset's
+#: exploration part alone).
+EXPLORE_GOALS = _preset(
+    "explore-goals",
+    "The paper preset with the recommended exploration schedule alone: ε held at 0.75 until the "
+    "run's 10th goal, then at its floor 0.01 (eps_schedule = 'goals'). Every agent of a run "
+    "follows it.",
+    **{**dict(PAPER.settings), **_EXPLORE_GOALS},
+)
+
+#: The paper's eq. 2 with the mentor term fading (the recommended preset's mentor part alone).
+MENTOR_FADE = _preset(
+    "mentor-fade",
+    "The paper preset with the recommended mentor-term setting alone: the mentor term fades "
+    "into the learner's own value as its own experience grows (mentor_fade = 20). Only agents "
+    "with a mentor term (imitation, imitation_primitives, …) read it.",
+    **{**dict(PAPER.settings), **_MENTOR_FADE},
+)
+
+#: The best imitator found on held-out seeds (experiments/presets/PROTOCOL.md, search.md): both
+#: parts above.
 RECOMMENDED = _preset(
     "recommended",
     "Eq. 2 with the mentor term fading into the learner's own value as its own experience "
-    "grows (mentor_fade = 20), and ε held at 0.75 until the run's 10th goal, then at its floor "
-    "0.01 (eps_schedule = 'goals'). Chosen by a rule declared before the runs, on held-out "
-    "seeds 1000–1009 and 2000–2009 (experiments/results/presets/search.md); its results are those of "
-    "seeds 0–19, which the search never saw.",
-    **{
-        **dict(PAPER.settings),
-        "mentor_fade": (
-            20.0,
-            "the mentor's evidence counts as 20 own executions at each state, so it leads early "
-            "and the run's own value decides in the limit (no lasting upward bias of the mentor "
-            "term); k = 5, 20, 50 did alike on held-out seeds",
-        ),
-        "eps_schedule": (
-            "goals",
-            "explore at 0.75 until the goal is known well (10 goals), then act at the floor: of "
-            "the candidates whose greedy policy reached ≥ 97 % of the mentor's rate on both "
-            "searched worlds, the one with the most goals in the first 50k steps "
-            "(experiments/results/presets/search.md, round 2)",
-        ),
-        "eps_goals": (10, "the goals of exploration before ε drops to its floor"),
-    },
+    "grows (mentor_fade = 20, the preset mentor-fade), and ε held at 0.75 until the run's 10th "
+    "goal, then at its floor 0.01 (eps_schedule = 'goals', the preset explore-goals). Chosen by "
+    "a rule declared before the runs, on held-out seeds 1000–1009 and 2000–2009 "
+    "(experiments/results/presets/search.md; round 2's deciding rule was declared after round "
+    "1's results); its results are those of seeds 0–19, which the search never saw. Its "
+    "exploration part applies to every agent of a run, its mentor part only to agents with a "
+    "mentor term: compare methods under one preset (experiments/results/benchmark/).",
+    **{**dict(PAPER.settings), **_MENTOR_FADE, **_EXPLORE_GOALS},
 )
 
 #: The presets by name.
-PRESETS: Mapping[str, Preset] = MappingProxyType({p.name: p for p in (PAPER, RECOMMENDED)})
+PRESETS: Mapping[str, Preset] = MappingProxyType(
+    {p.name: p for p in (PAPER, EXPLORE_GOALS, MENTOR_FADE, RECOMMENDED)}
+)
 
 
 def _preset_named(name: str) -> Preset:
@@ -163,3 +205,43 @@ def check_preset(where: str, learner: LearnerConfig, name: str | None) -> None:
             f"{where}: preset={name!r} but {listed}; drop the preset, or the settings that "
             f"change what it sets"
         )
+
+
+#: The settings of the mentor term: read only by agents with one (``AgentVariant.mentor``).
+MENTOR_TERM_SETTINGS = ("mentor_fade", "mentor_override_after", "mentor_choice")
+
+
+def agent_settings(agent: str, learner: LearnerConfig) -> dict[str, Any]:
+    """What agent ``agent`` of a run with settings ``learner`` actually ran with, of the
+    settings the presets differ in: the exploration schedule (every agent) and the mentor
+    term's settings (``None``: the agent has no mentor term and does not read them).
+
+    A preset applies to every agent of a run; this is how a record says which of its settings
+    each agent used (``results.md`` of every run)."""
+    if agent not in AGENTS:
+        raise ValueError(f"unknown agent {agent!r}; agents: {', '.join(AGENTS)}")
+    has_mentor = AGENTS[agent].mentor
+    out: dict[str, Any] = {
+        "eps_schedule": learner.eps_schedule,
+        "eps_decay" if learner.eps_schedule == "decision" else "eps_goals": (
+            learner.eps_decay if learner.eps_schedule == "decision" else learner.eps_goals
+        ),
+    }
+    for name in MENTOR_TERM_SETTINGS:
+        out[name] = getattr(learner, name) if has_mentor else None
+    return out
+
+
+def agent_settings_text(agents: Sequence[str], learner: LearnerConfig) -> str:
+    """One sentence per distinct agent: what :func:`agent_settings` says it ran with."""
+    parts = []
+    for agent in dict.fromkeys(agents):
+        settings = agent_settings(agent, learner)
+        mentor = AGENTS[agent].mentor
+        used = ", ".join(
+            f"`{k}={v}`" for k, v in settings.items() if mentor or k not in MENTOR_TERM_SETTINGS
+        )
+        if not mentor:
+            used += " (no mentor term: the mentor settings are not read)"
+        parts.append(f"`{agent}`: {used}")
+    return "What each agent ran with: " + "; ".join(parts) + "."

@@ -37,6 +37,7 @@ from himit_torch.exact.planning import expected_steps, smdp_value_iteration
 from himit_torch.learner.agents import AGENTS
 from himit_torch.learner.config import LearnerConfig
 from himit_torch.learner.learner import Learner
+from himit_torch.learner.presets import agent_settings_text
 from himit_torch.mentor.observation import observe_every
 from himit_torch.mentor.policy import (
     exact_mentor_transitions,
@@ -619,7 +620,7 @@ def _finish_run_dir(
     from himit_torch.viz.report import write_figures, write_results
 
     write_figures(run_dir, config, results)
-    write_results(run_dir, config, results)
+    write_results(run_dir, config, results, agent_settings_text(config.agents, config.learner))
     return results
 
 

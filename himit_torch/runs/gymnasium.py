@@ -52,7 +52,7 @@ from himit_torch.exact.planning import value_iteration
 from himit_torch.learner.agents import AGENTS
 from himit_torch.learner.config import LearnerConfig
 from himit_torch.learner.learner import Learner
-from himit_torch.learner.presets import PRESETS, apply_preset, check_preset
+from himit_torch.learner.presets import PRESETS, agent_settings_text, apply_preset, check_preset
 from himit_torch.mentor.policy import mentor_policy, record_demonstrations
 from himit_torch.mentor.reward import KnownReward
 from himit_torch.options.builders import primitive_options, subgoal_options
@@ -724,6 +724,8 @@ def write_gym_results(run_dir: Path, config: GymExperimentConfig, summaries: lis
         )
         + "Learner settings: "
         + ", ".join(f"`{k}={v}`" for k, v in asdict(config.learner).items()),
+        "",
+        agent_settings_text(config.agents, config.learner),
         "",
         "Columns: *goals, last window* — arrivals at the goal states in the last "
         f"{config.window} steps (optimal: the optimal policy's renewal rate); *total goals* — "

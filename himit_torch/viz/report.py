@@ -207,8 +207,10 @@ def _stress_lines(config) -> list[str]:
     ]
 
 
-def write_results(run_dir: Path, config, results) -> None:
+def write_results(run_dir: Path, config, results, agent_settings: str = "") -> None:
     """``results.md``: per world and agent, our numbers beside the paper's."""
+    # agent_settings: what each agent ran with (learner.presets.agent_settings_text), given by
+    # the caller: viz does not import the learner (the layers of pyproject.toml)
     curves = read_curves(run_dir)
     lines = [
         f"# {config.name}: results",
@@ -234,6 +236,7 @@ def write_results(run_dir: Path, config, results) -> None:
         + "Learner settings: "
         + ", ".join(f"`{k}={v}`" for k, v in asdict(config.learner).items()),
         "",
+        *([agent_settings, ""] if agent_settings else []),
     ]
     lines += [
         f"Every **±** below is mean ± standard deviation over the {config.seeds} seeds (the "

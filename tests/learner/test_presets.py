@@ -13,6 +13,8 @@ from himit_torch.cli import main
 from himit_torch.learner.config import LearnerConfig
 from himit_torch.learner.presets import (
     PRESETS,
+    agent_settings,
+    agent_settings_text,
     apply_preset,
     check_preset,
     preset_differences,
@@ -62,7 +64,10 @@ def test_apply_sets_exactly_the_preset_fields():
 
 
 def test_unknown_preset_is_refused_by_name():
-    with pytest.raises(ValueError, match=r"unknown preset 'fancy'; presets: paper, recommended"):
+    with pytest.raises(
+        ValueError,
+        match=r"unknown preset 'fancy'; presets: paper, explore-goals, mentor-fade, recommended",
+    ):
         apply_preset(LearnerConfig(), "fancy")
     with pytest.raises(ValueError, match=r"preset='fancy'"):
         ExperimentConfig(preset="fancy")
@@ -124,3 +129,33 @@ def test_sweep_cells_take_a_preset_first_then_their_settings():
     assert config.preset == "recommended" and config.learner.tie_break == "first"
     with pytest.raises(ValueError, match="preset='recommended'"):
         _apply(EXPERIMENTS["exp2"], {"preset": "recommended", "learner.mentor_fade": 5.0})
+
+
+def test_recommended_is_its_two_named_parts_over_the_paper():
+    # explore-goals changes only the exploration schedule, mentor-fade only the mentor term,
+    # and recommended is exactly both (the fair factorial's four cells are the four presets)
+    paper = PRESETS["paper"].changes()
+    goals = PRESETS["explore-goals"].changes()
+    fade = PRESETS["mentor-fade"].changes()
+    both = PRESETS["recommended"].changes()
+    assert {k for k in goals if goals[k] != paper[k]} == {"eps_schedule"}
+    assert {k for k in fade if fade[k] != paper[k]} == {"mentor_fade"}
+    changed = {k: v for part in (goals, fade) for k, v in part.items() if v != paper[k]}
+    assert both == {**paper, **changed}
+    assert both["eps_schedule"] == "goals" and both["mentor_fade"] == 20.0
+
+
+def test_agent_settings_say_who_reads_the_mentor_term():
+    learner = apply_preset(LearnerConfig(), "recommended")
+    assert agent_settings("imitation", learner)["mentor_fade"] == 20.0
+    assert agent_settings("imitation_primitives", learner)["mentor_fade"] == 20.0
+    for agent in ("options", "primitives", "pbrs", "bco"):
+        settings = agent_settings(agent, learner)
+        assert settings["mentor_fade"] is None and settings["eps_schedule"] == "goals"
+    text = agent_settings_text(["imitation", "options", "imitation"], learner)
+    assert text.count("`imitation`") == 1 and "`mentor_fade=20.0`" in text
+    assert "`options`: `eps_schedule=goals`, `eps_goals=10` (no mentor term" in text
+    paper = apply_preset(LearnerConfig(), "paper")
+    assert "`eps_decay=0.999`" in agent_settings_text(["primitives"], paper)
+    with pytest.raises(ValueError, match="unknown agent 'robot'"):
+        agent_settings("robot", learner)
