@@ -14,7 +14,10 @@ survival and the correction for many tests — each a thin, named call of the li
 * :func:`first_goal_sign_test` — who reached the goal first, paired by seed;
 * :func:`share_interval` — a share with its exact Clopper–Pearson interval;
 * :func:`holm` — Holm's correction of a family of p-values
-  (``statsmodels.stats.multitest.multipletests``).
+  (``statsmodels.stats.multitest.multipletests``);
+* :func:`average_ranks` — ranks of a table's rows with exact ties sharing the mean of the ranks
+  they span (``scipy.stats.rankdata``, ``method="average"``), so no row gains from its place in
+  the listing.
 
 Every interval is two-sided at ``level`` (default 95 %) and says what it is where it is printed.
 """
@@ -48,6 +51,7 @@ __all__ = [
     "first_goal_sign_test",
     "share_interval",
     "holm",
+    "average_ranks",
 ]
 
 #: Bootstrap resamples of :func:`bca_interval` and :func:`paired_comparison`.
@@ -225,3 +229,21 @@ def holm(p_values: Sequence[float]) -> list[float]:
     if made.any():
         out[made] = multipletests(p[made], method="holm")[1]
     return out.tolist()
+
+
+def average_ranks(scores: dict[str, float], higher_is_better: bool = True) -> dict[str, float]:
+    """Rank 1 for the best of ``scores`` (name → score); rows with exactly equal scores share
+    the average of the ranks they span (three rows tied for 2nd–4th each get 3.0). Infinite
+    scores rank like any other (a "never" first goal is tied with every other "never"); a NaN
+    score is refused, as it has no place in an order.
+
+    Raises:
+        ValueError: a NaN score, naming its row.
+    """
+    for name, score in scores.items():
+        if math.isnan(score):
+            raise ValueError(f"average_ranks: the score of {name!r} is NaN; give every row a score")
+    names = list(scores)
+    keys = np.array([scores[n] for n in names], dtype=float)
+    ranks = _stats().rankdata(-keys if higher_is_better else keys, method="average")
+    return {n: float(r) for n, r in zip(names, ranks)}

@@ -10,6 +10,7 @@ import pytest
 from scipy import stats
 
 from himit_torch.statistics import (
+    average_ranks,
     bca_interval,
     first_goal_sign_test,
     first_goal_survival,
@@ -111,3 +112,24 @@ def test_round_off_is_no_spread():
     x = 76.5 + np.random.default_rng(0).normal(0, 1e-13, 20)
     ci = bca_interval(x)
     assert ci.low == ci.high == ci.estimate and math.isfinite(ci.low)
+
+
+def test_average_ranks_share_the_ranks_of_planted_ties():
+    # CliffWalking's greedy column as it was: three methods at 100.0, three at 76.47, two below.
+    # Listing order must not matter: the three at 100 share ranks 1-3 (2.0 each), the three
+    # at 76.47 share 4-6 (5.0 each), then 7 and 8.
+    scores = {"a": 76.47, "b": 100.0, "c": 50.0, "d": 100.0, "e": 76.47, "f": 100.0}
+    scores |= {"g": 76.47, "h": 10.0}
+    ranks = average_ranks(scores)
+    assert ranks == {"b": 2.0, "d": 2.0, "f": 2.0, "a": 5.0, "e": 5.0, "g": 5.0, "c": 7.0, "h": 8.0}
+    assert sum(ranks.values()) == sum(range(1, 9))  # average ranks keep the total
+    reordered = average_ranks(dict(reversed(list(scores.items()))))
+    assert reordered == ranks
+
+
+def test_average_ranks_lower_is_better_and_never_ties_with_never():
+    # first goals in steps, lower is better; two runs that never found it share the last ranks
+    steps = {"x": 5000.0, "y": math.inf, "z": 800.0, "w": math.inf}
+    assert average_ranks(steps, higher_is_better=False) == {"z": 1.0, "x": 2.0, "y": 3.5, "w": 3.5}
+    with pytest.raises(ValueError, match="score of 'q' is NaN"):
+        average_ranks({"p": 1.0, "q": math.nan})
