@@ -7,11 +7,13 @@ Bellman equation with options (Friesen & Rao, "Imitation learning with hierarchi
 """
 
 from himit_torch.exact.greedy_evaluation import (
+    UNTRIED_RULES,
     OptionPolicy,
     PolicyEvaluation,
     PolicyEvaluator,
     evaluate_option_choice,
     optimal_policy_evaluation,
+    optimal_value,
 )
 from himit_torch.exact.option_models import (
     OptionModels,
@@ -152,6 +154,8 @@ __all__ = [
     "PolicyEvaluator",
     "evaluate_option_choice",
     "optimal_policy_evaluation",
+    "optimal_value",
+    "UNTRIED_RULES",
     # the learner
     "Learner",
     "LearnerConfig",

@@ -374,7 +374,7 @@ def _info_puzzle_box(args: argparse.Namespace, t0: float) -> int:
     )
     print(f"states     {box.num_states:,} ((n+1)^k · (1+3k); {sizes})")
     print(f"actions    {box.num_actions}: {', '.join(box.action_names)}")
-    from himit_torch.runs.gymnasium import GreedyEvaluator
+    from himit_torch.exact.greedy_evaluation import evaluate_option_choice
 
     best = optimal_baseline(box)
     rows = [("optimal policy (value iteration)", best.steps_to_goal, best.value_start)]
@@ -382,14 +382,13 @@ def _info_puzzle_box(args: argparse.Namespace, t0: float) -> int:
         options = puzzle_box_options(box, style)
         if style == "learner":
             print(f"learner    {options.num_options} options ({_kind_counts(options)})")
-        durations, evaluator = option_durations(box, options), GreedyEvaluator(box, options)
+        durations = option_durations(box, options)
         for org in ORGANISATIONS:
             policy = organisation_mentor(box, org, options=options).option
             steps = expected_steps(durations, policy, box.start_state, box.terminal_mask)
+            value = float(evaluate_option_choice(box, options, policy, 1).value_start[0])
             grip = "power" if style == "learner" else "pinch"
-            rows.append(
-                (f"{org:>6} by {org}, {style}'s skills ({grip})", steps, evaluator.value(policy))
-            )
+            rows.append((f"{org:>6} by {org}, {style}'s skills ({grip})", steps, value))
     print("\nexact planning; organisations: skewer by skewer / step by step across skewers")
     width = max(len(name) for name, _, _ in rows) + 2
     print(f"{'':<{width}}{'steps to open':>15}{'V(start)':>12}")

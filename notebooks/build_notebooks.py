@@ -1082,7 +1082,6 @@ import torch
 
 import himit_torch as ht
 from himit_torch.options.puzzle_box import intended_rollout
-from himit_torch.runs.gymnasium import GreedyEvaluator
 from himit_torch.runs.puzzle_box import greedy_plan
 from himit_torch.viz.puzzle_box import plot_box, plot_levels, plot_step_order
 
@@ -1112,13 +1111,13 @@ print(f"optimal policy: {best.steps_to_goal:.3f} movements to open the box, "
       f"V*(start) = {best.value_start:.6f}")
 for style in ("learner", "mentor"):
     options = ht.puzzle_box_options(box, style)
-    evaluator = GreedyEvaluator(box, options)
     durations = ht.option_durations(box, options)
     for org in ht.ORGANISATIONS:
         policy = ht.organisation_mentor(box, org, options=options).option
         steps = ht.expected_steps(durations, policy, box.start_state, box.terminal_mask)
+        value = ht.evaluate_option_choice(box, options, policy, 1).value_start.item()
         print(f"  {org:>6}-by-{org:<6} with the {style}'s skills: {steps:.3f} movements, "
-              f"V(start) = {evaluator.value(policy):.6f}")"""),
+              f"V(start) = {value:.6f}")"""),
     new_markdown_cell("""\
 ## A demonstration
 

@@ -33,6 +33,28 @@ expected durations, ``K_π = Σ_o π(o|·) Pr^o`` and ``d_π = Σ_o π(o|·) D(�
   one start state (MultiRooms) it is 0 or 1. A world whose every policy risks a bad ending
   (FrozenLake's holes) has share 0 for every policy: read the goal probability there.
 
+**A state the run has not tried.** A learner's frozen greedy policy
+(:meth:`Learner.greedy_policy <himit_torch.Learner.greedy_policy>`) needs a rule for a
+non-terminal state where the run has tried none of its options (no usable, i.e. tried and
+enabled, option; a ``bco`` run's cloned action, where it has one there, counts as a choice). The
+rule is a setting, ``untried`` (:data:`UNTRIED_RULES`):
+
+* ``"uniform"`` (the default): what the learner itself does when it acts greedily there — it
+  picks uniformly among the options available to it at that state (with ``tie_break="first"``:
+  the first of them, the lowest). A run whose untried options are valued (a prior,
+  ``concentration > 0``, or ``untried_value``) chooses by those values instead, as it acts.
+* ``"stuck"``: such a state is never left — its row of ``π`` sums to 0. An episode that reaches
+  it never ends: the goal rate is 0 and the steps per episode ``inf`` whenever one is reachable
+  from ``μ``, and the goal probability counts only the episodes that end before reaching one.
+  ``V^π`` gets no reward after it (``V = 0`` at a state without an option, as in ``V = r_π +
+  P_π V`` with a zero row), so under this rule read the goal rate, not the value.
+
+**The optimum and the value gap.** :func:`optimal_value` is ``V*(μ) = Σ_s μ(s) V*(s)``, the
+optimal value over primitive actions on the true model (the exact value of the policy that value
+iteration finds, :func:`optimal_policy_evaluation`); :meth:`PolicyEvaluation.value_gap` is
+``V*(μ) − V^π(μ)`` of each run (≥ 0; 0 = optimal), the Gymnasium comparison's and the puzzle
+box's greedy endpoint.
+
 Every number comes from sparse LU solves of these linear systems, restricted to the states the
 policy reaches from ``μ``, without iteration; no tolerance is involved beyond floating-point
 round-off (relative errors ≈ 1e-12 on the paper's worlds; the tests compare with long Monte-Carlo
@@ -57,12 +79,22 @@ from himit_torch.options.builders import primitive_options
 from himit_torch.options.bundle import Options
 
 __all__ = [
+    "UNTRIED_RULES",
     "OptionPolicy",
     "PolicyEvaluation",
     "PolicyEvaluator",
+    "check_untried_rule",
     "evaluate_option_choice",
     "optimal_policy_evaluation",
+    "optimal_value",
 ]
+
+#: The rules for a state where a run has tried none of its options (module docstring):
+#: ``"uniform"`` (the default, as the learner acts) and ``"stuck"`` (never left).
+UNTRIED_RULES = ("uniform", "stuck")
+
+#: A value gap this small is the solvers' round-off, not a worse policy: reported as 0.
+GAP_ROUND_OFF = 1e-9
 
 #: Transition probabilities of a policy's chain below this are round-off of the option models'
 #: solve, dropped before the goal probabilities and expected steps are solved.
@@ -169,8 +201,26 @@ class PolicyEvaluation:
             ref > 0, 100.0 * self.goals_per_window / ref, torch.full_like(ref, float("nan"))
         )
 
+    def value_gap(self, optimal_value: float) -> torch.Tensor:
+        """``[B]`` ``V*(μ) − V^π(μ)`` (``optimal_value``: ``V*(μ)``, :func:`optimal_value`); 0 =
+        optimal, and a gap within :data:`GAP_ROUND_OFF` of 0 is 0. NaN where the value was not
+        solved (``evaluate(values=False)``)."""
+        gap = float(optimal_value) - self.value_start
+        return torch.where(gap.abs() < GAP_ROUND_OFF, torch.zeros_like(gap), gap)
+
     def __len__(self) -> int:
         return self.value_start.shape[0]
+
+
+def check_untried_rule(untried: str) -> str:
+    """``untried`` if it names a rule of :data:`UNTRIED_RULES`.
+
+    Raises:
+        ValueError: naming the value and the rules.
+    """
+    if untried not in UNTRIED_RULES:
+        raise ValueError(f"untried={untried!r}: use one of {UNTRIED_RULES}")
+    return untried
 
 
 def _scipy_csr(t: torch.Tensor) -> sp.csr_matrix:
@@ -393,3 +443,17 @@ def optimal_policy_evaluation(
         plan = smdp_value_iteration(discounted)
     evaluator = PolicyEvaluator(world, prims, window, goal_mask, (discounted, durations))
     return evaluator.evaluate(OptionPolicy.deterministic(plan.policy))
+
+
+def optimal_value(
+    world,
+    models: Sequence[OptionModels] | None = None,
+    plan: PlanResult | None = None,
+) -> float:
+    """``V*(μ) = Σ_s μ(s) V*(s)``: the optimal value from the start distribution (``start_state``
+    where the world has none), over primitive actions on the true model — the exact value of the
+    policy that value iteration finds (:func:`optimal_policy_evaluation`, which takes the same
+    ``models`` and ``plan``), so that the optimal policy's own
+    :meth:`~PolicyEvaluation.value_gap` is 0 to round-off."""
+    evaluation = optimal_policy_evaluation(world, 1, models=models, plan=plan)
+    return float(evaluation.value_start[0])

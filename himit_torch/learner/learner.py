@@ -38,7 +38,7 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 import torch
 
-from himit_torch.exact.greedy_evaluation import OptionPolicy
+from himit_torch.exact.greedy_evaluation import OptionPolicy, check_untried_rule
 from himit_torch.learner.agents import AGENTS
 from himit_torch.learner.choice import greedy_rows
 from himit_torch.learner.cloned_policy import ClonedPolicy
@@ -822,7 +822,9 @@ class Learner:
             option = torch.where(use, self.rows.row_option[clone_row], option)
         return option
 
-    def greedy_policy(self, runs: Sequence[int] | torch.Tensor | None = None) -> OptionPolicy:
+    def greedy_policy(
+        self, runs: Sequence[int] | torch.Tensor | None = None, untried: str = "uniform"
+    ) -> OptionPolicy:
         """Each run's frozen greedy policy now: ε = 0 over its own options, as it would choose
         (:func:`~himit_torch.learner.choice.greedy_rows`, ``mentor_choice`` and a ``bco`` run's
         cloned actions included). Where
@@ -831,11 +833,21 @@ class Learner:
         lowest option. Evaluate it exactly with
         :class:`~himit_torch.exact.greedy_evaluation.PolicyEvaluator` over :attr:`options`.
 
+        ``untried`` (:data:`~himit_torch.exact.greedy_evaluation.UNTRIED_RULES`) is the rule at a
+        live state where the run has tried none of its enabled options (and has no cloned
+        action there): ``"uniform"`` (default) chooses as the run would act, among every
+        enabled option; ``"stuck"`` gives that state no option (its row sums to 0: an episode
+        that gets there never ends). Definitions: :mod:`himit_torch.exact.greedy_evaluation`.
+
         Returns:
             :class:`~himit_torch.exact.greedy_evaluation.OptionPolicy` on the CPU, ``option [S,
             J]`` the rows of each state, ``probability [len(runs), S, J]``; terminal states
             have no option.
+
+        Raises:
+            ValueError: ``untried`` is not one of the rules.
         """
+        check_untried_rule(untried)
         which = torch.arange(self.batch) if runs is None else runs
         which = torch.as_tensor(which, dtype=torch.int64, device=self.device).reshape(-1)
         S, M = self.num_states, self.num_rows
@@ -846,10 +858,22 @@ class Learner:
         for i, b in enumerate(which.tolist()):
             runs_b = torch.full_like(live, b)
             cloned = self.cloning.at(runs_b, live) if self.cloning.any else None
-            _, greedy, _ = greedy_rows(self.cache, runs_b, live, self.config.mentor_choice, cloned)
+            rows_b, greedy, _ = greedy_rows(
+                self.cache, runs_b, live, self.config.mentor_choice, cloned
+            )
             if self.config.tie_break == "first":
                 greedy = greedy & (greedy.cumsum(1) == 1)
             p = greedy.double() / greedy.sum(1, keepdim=True).clamp(min=1)
+            if untried == "stuck":
+                # Tried = counted in the run's own model, whatever a prior or untried_value
+                # makes usable (the same test as greedy_options' −1); a cloned action is a
+                # choice the run has, tried or not (greedy_rows takes it).
+                tried = self.rows.row_enabled[b, rows_b] & (self.model.row_count[b, rows_b] > 0)
+                chosen = tried.any(1)
+                if cloned is not None:
+                    clone_row = self.rows.primitive_rows[live, cloned.clamp(min=0)]
+                    chosen |= (cloned >= 0) & (clone_row < M)
+                p = torch.where(chosen[:, None], p, torch.zeros_like(p))
             probability[i, live.cpu()] = p.cpu()
         option = torch.where(rows < M, self.rows.row_option[rows], torch.full_like(rows, -1))
         return OptionPolicy(option.cpu(), probability)

@@ -229,8 +229,11 @@ class ExperimentConfig:
         choices=tuple(PRESETS),
         doc="""
         The named preset the learner settings follow (``himit_torch.learner.presets``):
-        ``paper`` (eq. 2 as the paper states it) or ``recommended`` (the best imitator found);
-        ``None``: none claimed. Set by :meth:`with_preset` / ``himit run --preset``; a
+        ``paper`` (eq. 2 as the paper states it), ``explore-goals`` (the paper's with ε held
+        until the 10th goal: an exploration schedule, for every agent), ``mentor-fade`` (the
+        paper's with the mentor term fading: read only by agents with a mentor term) or
+        ``recommended`` (both); ``None``: none claimed. Every agent of a run gets it: compare
+        methods under one preset. Set by :meth:`with_preset` / ``himit run --preset``; a
         configuration whose learner departs from its preset's settings is refused. The greedy
         tie rule is not part of a preset (``--tie-break``).""",
     )

@@ -117,6 +117,10 @@ class WorldResult:
     greedy_percent_of_mentor: list[float] = field(default_factory=list)
     greedy_value_start: list[float] = field(default_factory=list)
     greedy_reach_share: list[float] = field(default_factory=list)
+    # The same final policies with the "stuck" rule (a state the run has tried nothing at is
+    # never left; exact.greedy_evaluation): how much of the rate rests on untried states.
+    greedy_percent_of_optimal_stuck: list[float] = field(default_factory=list)
+    greedy_percent_of_mentor_stuck: list[float] = field(default_factory=list)
     mentor_goals_per_window: float = float("nan")
     mentor_value_start: float = float("nan")
 
@@ -331,6 +335,10 @@ def run_world(
         result.greedy_percent_of_mentor = greedy.percent_of_mentor(final).tolist()
         result.greedy_value_start = final.value_start.tolist()
         result.greedy_reach_share = final.reach_share.tolist()
+        stuck = greedy.stuck
+        if stuck is not None:
+            result.greedy_percent_of_optimal_stuck = greedy.percent_of_optimal(stuck).tolist()
+            result.greedy_percent_of_mentor_stuck = greedy.percent_of_mentor(stuck).tolist()
         result.mentor_goals_per_window = greedy.reference.mentor_goals_per_window
         result.mentor_value_start = float(greedy.reference.mentor.value_start[0])
     # A run that never found the goal counts as finding it just after its end.

@@ -11,6 +11,13 @@ The evaluations go to TensorBoard (``eval/…``), to ``curves.csv`` (:data:`CURV
 at the windows between evaluations) and, at the end, to the run's summary. They are part of a
 checkpoint (:meth:`GreedyTracker.state_dict`), so a resumed run reports what an uninterrupted
 one does.
+
+States where a run has tried none of its options follow the ``"uniform"`` rule throughout (as
+the learner acts: any option available there;
+:data:`~himit_torch.exact.greedy_evaluation.UNTRIED_RULES`). At the end the final policy is
+evaluated once more under ``"stuck"`` (such states never left: :attr:`GreedyTracker.stuck`),
+so that a summary can say how much of a greedy policy's goal rate rests on chance moves where
+the run knows nothing.
 """
 
 from __future__ import annotations
@@ -64,8 +71,9 @@ class GreedyReference:
 @dataclass
 class GreedyTracker:
     """Exact evaluations of a batch's greedy policies at the ends of the windows that reach
-    ``every, 2·every, …`` and at ``steps`` (the end); ``every = 0``: at the end only. ``V^π(start)`` is solved at the end only
-    (it doubles an evaluation's cost); the goal rate and reach share at every evaluation.
+    ``every, 2·every, …`` and at ``steps`` (the end); ``every = 0``: at the end only.
+    ``V^π(start)`` is solved at the end only unless ``values`` (it doubles an evaluation's
+    cost); the goal rate and reach share at every evaluation.
 
     Args:
         evaluator: over the learner's options, in its world, with the window of its curves.
@@ -73,6 +81,13 @@ class GreedyTracker:
         every: steps between evaluations, or 0.
         steps: the run's length.
         logger: where the ``eval/…`` scalars go (``None``: nowhere).
+        values: solve ``V^π(start)`` at every evaluation, not at the end only (for a value gap
+            per window: the Gymnasium comparison).
+
+    Attributes:
+        evaluations: step → the evaluation under the ``"uniform"`` rule (checkpointed).
+        stuck: the final policy's evaluation under the ``"stuck"`` rule, set by :meth:`finish`
+            (``None`` before).
     """
 
     evaluator: PolicyEvaluator
@@ -80,7 +95,9 @@ class GreedyTracker:
     every: int
     steps: int
     logger: TensorBoardLogger | None = None
+    values: bool = False
     evaluations: dict[int, PolicyEvaluation] = field(default_factory=dict)
+    stuck: PolicyEvaluation | None = None
 
     def __call__(self, learner: Learner, index: int) -> None:
         """The window hook: evaluate if window ``index`` ends now on the schedule."""
@@ -95,14 +112,22 @@ class GreedyTracker:
             self.evaluate(learner)
 
     def finish(self, learner: Learner) -> PolicyEvaluation:
-        """The evaluation at the run's end (done now unless a window hook already did)."""
+        """The evaluation at the run's end (done now unless a window hook already did); also
+        the final policy's under the ``"stuck"`` rule, into :attr:`stuck`."""
         if learner.t not in self.evaluations:
             self.evaluate(learner)
+        # Computed from the learner's final state and not checkpointed: a resumed run ends in the
+        # same state as an uninterrupted one, so it gets the same answer. Its goal rates are what
+        # the summaries report (its values are not solved: V = 0 where a run is stuck).
+        self.stuck = self.evaluator.evaluate(learner.greedy_policy(untried="stuck"), values=False)
         return self.evaluations[learner.t]
 
     def evaluate(self, learner: Learner) -> PolicyEvaluation:
+        """Evaluate every run's greedy policy now (``"uniform"`` rule), record and log it."""
         step = learner.t
-        result = self.evaluator.evaluate(learner.greedy_policy(), values=step >= self.steps)
+        result = self.evaluator.evaluate(
+            learner.greedy_policy(), values=self.values or step >= self.steps
+        )
         self.evaluations[step] = result
         if self.logger is not None:
             self._log(result, step)

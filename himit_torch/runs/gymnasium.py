@@ -21,13 +21,20 @@ Metrics (per window of ``window`` steps):
 * ``episodes`` — episodes ended (any terminal state: FrozenLake's holes too).
 * ``value_gap`` — ``V*(μ) − V^π(μ)``: how far the run's current greedy option policy is from
   the optimum, both evaluated *exactly* on the true model from the start distribution ``μ``
-  (ties to the lowest option; states where the run has tried nothing act as a uniformly random
-  primitive). 0 = optimal.
+  (:meth:`PolicyEvaluation.value_gap <himit_torch.PolicyEvaluation.value_gap>`). 0 = optimal.
+  ``π`` is the same frozen greedy policy as the columns below (ties as configured; a state where
+  the run has tried nothing: uniformly any of its options there, the ``"uniform"`` rule of
+  :mod:`himit_torch.exact.greedy_evaluation`). Before, this column froze a different policy —
+  ties to the lowest option, untried states a uniformly random primitive — so its numbers from
+  earlier runs are not comparable.
 * ``greedy_goals_per_window``, ``greedy_pct_optimal``, ``greedy_pct_mentor``,
   ``greedy_reach_share`` — the run's greedy policy frozen as it acts (ε = 0, ties as configured,
   untried states: any enabled option), evaluated exactly (:mod:`himit_torch.runs.greedy`): its
   long-run goals per window, as a % of the optimal policy's and of the mentor's (here the
-  mentor *is* an optimal policy, so the two differ only where the optimal values tie).
+  mentor *is* an optimal policy, so the two differ only where the optimal values tie). The task
+  record also holds the final policy's two percentages under the ``"stuck"`` rule (a state the
+  run has tried nothing at is never left): ``greedy_percent_of_optimal_stuck``,
+  ``greedy_percent_of_mentor_stuck``.
 """
 
 from __future__ import annotations
@@ -42,13 +49,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 import torch
 
-from himit_torch.exact.greedy_evaluation import PolicyEvaluator, evaluate_option_choice
-from himit_torch.exact.option_models import OptionModels, option_models_and_durations
-from himit_torch.exact.planning import value_iteration
+from himit_torch.exact.greedy_evaluation import (
+    PolicyEvaluator,
+    evaluate_option_choice,
+    optimal_policy_evaluation,
+)
 from himit_torch.learner.agents import AGENTS
 from himit_torch.learner.config import LearnerConfig
 from himit_torch.learner.learner import Learner
@@ -72,7 +79,7 @@ from himit_torch.statistics import bca_interval
 from himit_torch.validation import as_device, check_settings, setting
 from himit_torch.viz.tensorboard import TensorBoardLogger, tensorboard_command
 from himit_torch.worlds.gymnasium import from_gymnasium
-from himit_torch.worlds.table_world import TableWorld, world_model
+from himit_torch.worlds.table_world import TableWorld
 
 __all__ = [
     "GymTask",
@@ -80,8 +87,6 @@ __all__ = [
     "GymExperimentConfig",
     "run_gym_experiment",
     "run_task",
-    "GreedyEvaluator",
-    "greedy_value_gap",
     "neutral_value",
     "mean_ci",
 ]
@@ -226,7 +231,8 @@ class GymExperimentConfig:
         None,
         choices=tuple(PRESETS),
         doc="""
-        The named preset the learner settings follow (``paper`` or ``recommended``,
+        The named preset the learner settings follow (``paper``, ``explore-goals``,
+        ``mentor-fade`` or ``recommended``,
         ``himit_torch.learner.presets``; ``None``: none claimed), as ``ExperimentConfig.preset``.""",
     )
 
@@ -259,85 +265,6 @@ class GymExperimentConfig:
 
 
 # ================================================================================ evaluation
-def _uniform_primitive_rows(
-    models: OptionModels, options: Options, S: int
-) -> tuple[sp.csr_matrix, np.ndarray]:
-    """Per state the model of picking a primitive option uniformly at random: ``[S, S]`` and
-    ``[S]`` (zero rows where no primitive is available)."""
-    T = _scipy(models.transition)
-    prim = options.is_primitive.numpy()[models.row_option.numpy()]
-    rows = np.flatnonzero(prim)
-    states = models.row_state.numpy()[rows]
-    count = np.bincount(states, minlength=S).astype(np.float64)
-    weight = 1.0 / count[states]
-    avg = sp.csr_matrix((weight, (states, rows)), shape=(S, T.shape[0]))
-    r = np.zeros(S)
-    np.add.at(r, states, weight * models.reward.numpy()[rows])
-    return (avg @ T).tocsr(), r
-
-
-def _scipy(t: torch.Tensor) -> sp.csr_matrix:
-    c = t.to_sparse_csr() if t.layout != torch.sparse_csr else t
-    return sp.csr_matrix(
-        (c.values().numpy(), c.col_indices().numpy(), c.crow_indices().numpy()),
-        shape=tuple(c.shape),
-    )
-
-
-class GreedyEvaluator:
-    """Exact value of a learner's greedy option policies on the true model.
-
-    ``V^π = r_π + P_π V^π`` with the exact multi-time option models (``P_π`` discounted), one
-    sparse solve per run; terminal states are 0.
-    """
-
-    def __init__(self, world: TableWorld, options: Options):
-        self.world, self.options = world, options
-        # (the undiscounted models too, for the exact evaluation of the greedy policies as they
-        # act: greedy_evaluator)
-        self.models, self.durations = option_models_and_durations(world, options)
-        self.S = world.num_states
-        self.T = _scipy(self.models.transition)
-        self.r = self.models.reward.numpy()
-        self.row_index = np.full((self.S, options.num_options), -1, dtype=np.int64)
-        self.row_index[self.models.row_state.numpy(), self.models.row_option.numpy()] = np.arange(
-            self.models.num_rows
-        )
-        self.random_T, self.random_r = _uniform_primitive_rows(self.models, options, self.S)
-        self.live = ~world.terminal_mask.numpy()
-        self.start = world.start_distribution.numpy()
-        P, R = world_model(world)
-        self.optimal = value_iteration(P, R, world.gamma)
-        self.optimal_value = float(self.optimal.values.numpy() @ self.start)
-
-    def value(self, greedy: torch.Tensor) -> float:
-        """``V^π(μ)`` of the option policy ``greedy [S]`` (−1: a uniformly random primitive)."""
-        g = greedy.cpu().numpy()
-        rows = np.where(g >= 0, self.row_index[np.arange(self.S), np.maximum(g, 0)], -1)
-        pick = np.flatnonzero((rows >= 0) & self.live)
-        randomly = ((rows < 0) & self.live).astype(np.float64)
-        select = sp.csr_matrix(
-            (np.ones(pick.size), (pick, rows[pick])), shape=(self.S, self.T.shape[0])
-        )
-        T_pi = select @ self.T + sp.diags(randomly) @ self.random_T
-        r_pi = select @ self.r + randomly * self.random_r
-        V = spla.spsolve((sp.identity(self.S, format="csc") - T_pi).tocsc(), r_pi)
-        return float(V @ self.start)
-
-    def greedy_evaluator(self, window: int) -> PolicyEvaluator:
-        """The exact evaluator of option policies over these options (shares the models)."""
-        return PolicyEvaluator(
-            self.world, self.options, window, models=(self.models, self.durations)
-        )
-
-
-def greedy_value_gap(evaluator: GreedyEvaluator, learner: Learner) -> list[float]:
-    """``V*(μ) − V^π(μ)`` of every run's greedy option policy (≥ 0; 0 = optimal)."""
-    greedy = learner.greedy_options()
-    gaps = [evaluator.optimal_value - evaluator.value(greedy[b]) for b in range(learner.batch)]
-    return [0.0 if abs(g) < 1e-9 else g for g in gaps]  # solver round-off, not a real gap
-
-
 def mean_ci(values, level: float = 0.95) -> tuple[float, float, int]:
     """``(mean, half-width, n)`` of a Student-t confidence interval for the mean over seeds."""
     from scipy import stats
@@ -406,18 +333,19 @@ def run_task(
         learner,
         {s: record_demonstrations(world, mentor, config.mentor_episodes, seed=s) for s in seeds},
     )
-    evaluator = GreedyEvaluator(world, options)
-    optimal_rate = optimal_goals_per_window(world, evaluator.optimal.policy, config.window)
+    # The optimum over primitives, exact: its goal rate, and V*(μ) for the value gap.
+    optimal = optimal_policy_evaluation(world, config.window)
+    optimal_rate = float(optimal.goals_per_window[0])
+    optimal_value = float(optimal.value_start[0])
+    # Every window: the greedy policies' goal rates and values (the value gap), one evaluation.
     greedy = GreedyTracker(
-        evaluator.greedy_evaluator(config.window),
+        PolicyEvaluator(world, options, config.window),
         GreedyReference(
-            evaluate_option_choice(
-                world, primitive_options(world), evaluator.optimal.policy, config.window
-            ),
-            evaluate_option_choice(world, mentor.options, mentor.option, config.window),
+            optimal, evaluate_option_choice(world, mentor.options, mentor.option, config.window)
         ),
         config.window,
         config.steps_of(task_name),
+        values=True,
     )
     goal = world.goal_mask.to(learner.device)
     # A task has no resume: a rerun starts its runs' TensorBoard folders over.
@@ -435,8 +363,11 @@ def run_task(
         reached = learner.visit_counts()[:, goal].sum(1).cpu()
         goals, previous_goals = reached - previous_goals, reached
         m = learner.metrics
-        gap = greedy_value_gap(evaluator, learner)
-        greedy(learner, index)
+        greedy(learner, index)  # every window is on its schedule (every = window)
+        evaluation = greedy.evaluations.get(learner.t)
+        if evaluation is None:
+            evaluation = greedy.evaluate(learner)
+        gap = evaluation.value_gap(optimal_value).tolist()
         coverage = learner.model_coverage().cpu()
         for b in range(learner.batch):
             row: dict[str, Any] = {
@@ -472,6 +403,8 @@ def run_task(
     )
     last = [r for r in rows if r["step"] == learner.t] if rows else []
     final = greedy.finish(learner)
+    stuck = greedy.stuck
+    assert stuck is not None  # finish evaluated it
     first_goal_windows = [
         min(
             (r["step"] for r in rows if r["goals"] > 0 and r["agent"] == a and r["seed"] == sd),
@@ -492,7 +425,7 @@ def run_task(
         "options": list(options.names),
         "agents": agents,
         "seeds": run_seeds,
-        "optimal_value": evaluator.optimal_value,
+        "optimal_value": optimal_value,
         "optimal_goals_per_window": optimal_rate,
         "total_goals": [int(x) for x in previous_goals.tolist()],
         "first_goal_window": first_goal_windows,
@@ -511,6 +444,8 @@ def run_task(
         "greedy_goals_per_window": final.goals_per_window.tolist(),
         "greedy_percent_of_optimal": greedy.percent_of_optimal(final).tolist(),
         "greedy_percent_of_mentor": greedy.percent_of_mentor(final).tolist(),
+        "greedy_percent_of_optimal_stuck": greedy.percent_of_optimal(stuck).tolist(),
+        "greedy_percent_of_mentor_stuck": greedy.percent_of_mentor(stuck).tolist(),
         "greedy_value_start": final.value_start.tolist(),
         "greedy_goal_probability": final.goal_probability.tolist(),
         "wall_seconds": wall,
@@ -729,11 +664,13 @@ def write_gym_results(run_dir: Path, config: GymExperimentConfig, summaries: lis
         "",
         "Columns: *goals, last window* — arrivals at the goal states in the last "
         f"{config.window} steps (optimal: the optimal policy's renewal rate); *total goals* — "
-        "over the whole run; *value gap* — V*(μ) − V^π(μ) of the run's final greedy option "
-        "policy, both exact on the true model from the start distribution (0 = optimal); "
+        "over the whole run; *value gap* — V*(μ) − V^π(μ) of the run's final greedy policy "
+        "(the one of *greedy*, below), both exact on the true model from the start "
+        "distribution (0 = optimal); "
         "*first goal* — end of the first window with a goal (runs that never reached one are "
         "left out, and counted in *found*); *greedy* — the run's greedy policy at the end frozen "
-        "as it acts (ε = 0, ties as configured) and evaluated exactly: its long-run goals per "
+        "as it acts (ε = 0, ties as configured, a state it has tried nothing at: uniformly any "
+        "of its options there) and evaluated exactly: its long-run goals per "
         "window as a % of the mentor's own (the mentor is optimal), and the probability that an "
         "episode from μ ends at a goal.",
         "",

@@ -10,7 +10,7 @@ episodes):
     of eq. 2) against ``options`` (the same options, no mentor) and ``primitives``. Endpoints,
     declared here before any run: the step of the first opening; openings per window (the last
     window's); the exact value ``V^π(start)`` of the run's greedy option policy on the true model
-    (every ``eval_every`` steps and at the end).
+    (every ``eval_every`` steps and at the end; :func:`greedy_values`).
 
 (b) **Copying the organisation** (the same runs): seed ``s`` watches a skewer-by-skewer mentor
     when ``s − first_seed`` is even, a step-by-step one when it is odd. Endpoints: the share of
@@ -46,17 +46,19 @@ from typing import Any
 
 import torch
 
-from himit_torch.exact.planning import optimal_baseline
+from himit_torch.exact.greedy_evaluation import PolicyEvaluator, optimal_value
+from himit_torch.exact.option_models import option_models_and_durations
+from himit_torch.exact.planning import expected_steps, smdp_value_iteration
 from himit_torch.learner.config import LearnerConfig
 from himit_torch.learner.engines import ENGINES
 from himit_torch.learner.learner import Learner
 from himit_torch.mentor.demonstrations import Demonstrations
 from himit_torch.mentor.policy import record_demonstrations
 from himit_torch.mentor.puzzle_box import map_demonstrations, organisation_mentor
+from himit_torch.options.builders import primitive_options
 from himit_torch.options.bundle import Options
 from himit_torch.options.puzzle_box import intended_rollout, puzzle_box_options
 from himit_torch.runs.checkpoints import BatchShape
-from himit_torch.runs.gymnasium import GreedyEvaluator
 from himit_torch.runs.runner import (
     Checkpoints,
     check_run_dir,
@@ -198,17 +200,18 @@ def watched_organisation(seed: int, first_seed: int = 0) -> str:
 
 
 # ================================================================================ evaluation
-def greedy_values(
-    evaluator: GreedyEvaluator, learner: Learner, greedy: torch.Tensor | None = None
-) -> list[float]:
-    """``V^π(start)`` of every run's greedy option policy (``greedy [B, S]``, default
-    ``learner.greedy_options()``), exact on the true model (states where the run has tried
-    nothing act uniformly at random among the primitives).
+def greedy_values(evaluator: PolicyEvaluator, learner: Learner) -> list[float]:
+    """``V^π(start)`` of every run's frozen greedy policy
+    (:meth:`Learner.greedy_policy <himit_torch.Learner.greedy_policy>`), exact on the true model
+    (:class:`~himit_torch.exact.greedy_evaluation.PolicyEvaluator` over the learner's options).
 
-    The one place the runner evaluates greedy policies: swap it for the library's exact
-    greedy-evaluation function when that lands."""
-    greedy = learner.greedy_options() if greedy is None else greedy
-    return [evaluator.value(greedy[b]) for b in range(learner.batch)]
+    The same frozen policy as every other study's greedy endpoint: ties as the learner's
+    ``tie_break`` says (random: each tied option equally often), and a state where the run has
+    tried nothing takes any of its options there uniformly (the ``"uniform"`` rule of
+    :mod:`himit_torch.exact.greedy_evaluation`). Runs before this definition froze ties to the
+    lowest option and took a uniformly random primitive at untried states: their values are not
+    comparable with these."""
+    return evaluator.evaluate(learner.greedy_policy(), values=True).value_start.tolist()
 
 
 def greedy_plan(
@@ -259,7 +262,7 @@ class _Box:
 
     world: PuzzleBox
     options: Options
-    evaluator: GreedyEvaluator
+    evaluator: PolicyEvaluator
     value_star: float
     steps_star: float
 
@@ -267,10 +270,14 @@ class _Box:
     def build(cls, skewers: int, slip: float, pinch_slip: float | None, pinch: bool = True) -> _Box:
         world = PuzzleBox(skewers, slip=slip, pinch_slip=pinch_slip)
         options = puzzle_box_options(world, "learner", pinch=pinch)
-        best = optimal_baseline(world)
-        return cls(
-            world, options, GreedyEvaluator(world, options), best.value_start, best.steps_to_goal
-        )
+        # The optimum over primitives: its models once, for its steps and V*(start) (the exact
+        # value of its policy, so that an optimal greedy policy's gap is 0 to round-off).
+        models = option_models_and_durations(world, primitive_options(world))
+        plan = smdp_value_iteration(models[0])
+        steps = expected_steps(models[1], plan.policy, world.start_state, world.terminal_mask)
+        # The box's values only: the evaluator's window (goal rates) is unused.
+        evaluator = PolicyEvaluator(world, options, window=1)
+        return cls(world, options, evaluator, optimal_value(world, models, plan), float(steps))
 
 
 def _run_batch(
@@ -321,8 +328,8 @@ def _run_batch(
         step = learner.metrics.steps[index]
         if step != learner.t or (step % eval_every and step != steps):
             return
-        greedy = learner.greedy_options()
-        values = greedy_values(box.evaluator, learner, greedy)
+        greedy = learner.greedy_options()  # the plans: ties to the lowest option
+        values = greedy_values(box.evaluator, learner)
         plans = [greedy_plan(world, box.options, greedy[b], focus) for b in range(learner.batch)]
         evals[step] = {
             "value": values,

@@ -14,6 +14,7 @@ from himit_torch.exact.greedy_evaluation import (
     PolicyEvaluator,
     evaluate_option_choice,
     optimal_policy_evaluation,
+    optimal_value,
 )
 from himit_torch.exact.option_models import (
     option_durations,
@@ -109,6 +110,20 @@ def test_a_policy_that_never_reaches_the_goal():
     assert result.value_start.item() == pytest.approx(-10.0, rel=1e-12)
 
 
+def test_the_optimum_and_the_value_gap_on_the_corridor():
+    """Always RIGHT is optimal on the corridor: V*(μ) = 5.043310 (above). The value gap of always
+    LEFT is 5.043310 − (−10); of the optimum itself 0 (its own exact value, to the bit after
+    round-off); NaN where the values were not solved."""
+    world = corridor()
+    v_star = optimal_value(world)
+    assert v_star == pytest.approx(5.043310, abs=1e-6)
+    evaluator = PolicyEvaluator(world, primitive_options(world), window=100)
+    left, right = (OptionPolicy.deterministic(torch.tensor([a, a, a, -1])) for a in (LEFT, RIGHT))
+    assert evaluator.evaluate(left).value_gap(v_star).item() == pytest.approx(v_star + 10.0)
+    assert evaluator.evaluate(right).value_gap(v_star).item() == 0.0
+    assert math.isnan(evaluator.evaluate(right, values=False).value_gap(v_star).item())
+
+
 def test_a_coin_at_one_state_still_reaches_the_goal_surely():
     """RIGHT at 0 and 2; at 1 LEFT or RIGHT with probability ½ each (random ties). From 1 the
     run goes back to 0 half the time, but every return gets it another try: P(goal) = 1 and the
@@ -130,10 +145,16 @@ def test_a_coin_at_one_state_still_reaches_the_goal_surely():
 
 
 # ------------------------------------------------------------------------------ Monte Carlo
-def rollout_episodes(world, options: Options, policy: OptionPolicy, run: int, n: int, seed: int):
+def rollout_episodes(
+    world, options: Options, policy: OptionPolicy, run: int, n: int, seed: int, cap: int = 100_000
+):
     """``n`` independent episodes from the start distribution, each option run until β stops it
     or the episode ends (as the learner runs them): ``(steps [n], discounted return [n], ended
-    at a goal [n])``."""
+    at a goal [n], stuck [n])``. An episode that must choose at a state where the policy has no
+    option (its row sums to 0: the ``"stuck"`` rule's untried states) is stuck there for good:
+    it never ends nor reaches a goal, and its return is what it earned before (``V = 0`` at such a
+    state, as the exact evaluation defines it); its steps are those before it got stuck.
+    ``cap``: the most primitive steps any episode may take here (a guard, asserted)."""
     g = torch.Generator().manual_seed(seed)
     S = world.num_states
     start = getattr(world, "start_distribution", None)
@@ -148,7 +169,8 @@ def rollout_episodes(world, options: Options, policy: OptionPolicy, run: int, n:
 
     def choose(s):
         u = torch.rand(s.shape[0], 1, generator=g, dtype=torch.float64) * cdf[s, -1:]
-        return policy.option[s, (cdf[s] <= u).sum(1).clamp(max=cdf.shape[1] - 1)]
+        o = policy.option[s, (cdf[s] <= u).sum(1).clamp(max=cdf.shape[1] - 1)]
+        return torch.where(cdf[s, -1] > 0, o, torch.full_like(o, -1))  # −1: no option here
 
     s = torch.multinomial(start, n, replacement=True, generator=g)
     o = choose(s)
@@ -156,8 +178,10 @@ def rollout_episodes(world, options: Options, policy: OptionPolicy, run: int, n:
     ret = torch.zeros(n, dtype=torch.float64)
     discount = torch.ones(n, dtype=torch.float64)
     at_goal = torch.zeros(n, dtype=torch.bool)
-    live = torch.ones(n, dtype=torch.bool)
+    stuck = o < 0
+    live = ~stuck
     while bool(live.any()):
+        assert int(steps.max()) < cap, f"an episode ran past {cap} steps"
         i = live.nonzero()[:, 0]
         nxt, r = world.step(s[i], act[o[i], s[i]], generator=g)
         ret[i] += discount[i] * r.double()
@@ -170,7 +194,9 @@ def rollout_episodes(world, options: Options, policy: OptionPolicy, run: int, n:
         stop = ~done & (torch.rand(i.numel(), generator=g, dtype=torch.float64) < beta[o[i], nxt])
         if bool(stop.any()):
             o[i[stop]] = choose(nxt[stop])
-    return steps.double().numpy(), ret.numpy(), at_goal.double().numpy()
+            stuck[i[stop]] = o[i[stop]] < 0
+            live &= ~stuck
+    return steps.double().numpy(), ret.numpy(), at_goal.double().numpy(), stuck.numpy()
 
 
 def t_interval(x: np.ndarray) -> tuple[float, float]:
@@ -179,14 +205,19 @@ def t_interval(x: np.ndarray) -> tuple[float, float]:
 
 def assert_matches_rollouts(world, options, policy, result, n, seed):
     """Exact steps per episode, V^π(start) and P(goal) within the 99.9 % t-intervals of ``n``
-    rolled-out episodes; goals per window = W · P(goal) / E[T]."""
+    rolled-out episodes (≈ 3.3 standard errors of their means); goals per window = W · P(goal) /
+    E[T]. Where some rolled-out episode got stuck (a state without an option), the exact steps
+    per episode must be ``inf`` (and the goal rate 0); V^π and P(goal) are compared as ever: both
+    are finite, the return and the goal of an episode being settled when it gets stuck."""
     for b in range(policy.batch):
-        steps, ret, goal = rollout_episodes(world, options, policy, b, n, seed + b)
-        for exact, sample in (
-            (result.steps_per_episode[b], steps),
-            (result.value_start[b], ret),
-            (result.goal_probability[b], goal),
-        ):
+        steps, ret, goal, stuck = rollout_episodes(world, options, policy, b, n, seed + b)
+        checks = [(result.value_start[b], ret), (result.goal_probability[b], goal)]
+        if stuck.any():
+            assert math.isinf(float(result.steps_per_episode[b])), b
+            assert float(result.goals_per_window[b]) == 0.0
+        else:
+            checks.append((result.steps_per_episode[b], steps))
+        for exact, sample in checks:
             if sample.std() == 0:
                 assert float(exact) == pytest.approx(sample[0], rel=1e-9)
                 continue

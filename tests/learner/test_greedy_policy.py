@@ -1,6 +1,8 @@
 """``Learner.greedy_policy``: the frozen greedy policy is what ``choose_rows`` picks at ε = 0
-(every tied option, each equally often, or the first one), and its exact evaluation equals
-rolled-out episodes of it."""
+(every tied option, each equally often, or the first one), its rules for untried states
+(``"uniform"``, ``"stuck"``), and its exact evaluation equals rolled-out episodes of it."""
+
+import math
 
 import pytest
 import torch
@@ -85,3 +87,95 @@ def test_a_trained_learners_greedy_policies_equal_their_rollouts(world12):
         **{f: getattr(result, f)[short] for f in FIELDS}, window=result.window
     )
     assert_matches_rollouts(world12, learner.options, sub, picked, n=3000, seed=3)
+
+
+# ------------------------------------------------------------------------- the untried rules
+def learner8(world8, steps: int, tie_break: str = "random") -> Learner:
+    """Every kind of run on 8×8 after ``steps`` steps (the bco run clones where its own moves
+    explain the mentor's): few steps leave many states untried."""
+    demos = record_demonstrations(world8, mentor_policy(world8, mentor_options(world8)), 3, seed=0)
+    config = LearnerConfig(tie_break=tie_break, window=100)
+    learner = Learner(
+        world8,
+        learner_options(world8),
+        AGENTS + ["bco"],
+        [0, 0, 0, 0],
+        config=config,
+        demonstrations=demos,
+    )
+    learner.run(steps)
+    return learner
+
+
+@pytest.mark.parametrize("tie_break", ["random", "first"])
+def test_the_untried_rules_by_hand(world8, tie_break):
+    """After 300 steps on 8×8 each run has live states where it has tried none of its enabled
+    options. There the ``"uniform"`` rule (the default) takes each enabled option with
+    probability 1/k (``tie_break="first"``: the first with probability 1), and ``"stuck"``
+    gives the state no option: its row is 0 — exactly there, every other row the same bit for
+    bit. A cloned action (planted at an untried state of the bco run) is a choice under both.
+    An unknown rule is refused by name."""
+    learner = learner8(world8, 300, tie_break)
+    S, M, B = world8.num_states, learner.num_rows, learner.batch
+    live = (~learner.terminal[:S]).nonzero()[:, 0]
+    rows = learner.rows.state_rows[live]  # [L, J], padded with M
+    enabled = learner.rows.row_enabled[:, rows]  # [B, L, J]
+    tried = (enabled & (learner.model.row_count[:, rows] > 0)).any(-1)  # [B, L]
+    untried = ~tried & enabled.any(-1)
+    assert bool(untried.all(0).any()) and bool(tried.any(1).all())  # both kinds, every run
+    bco = 3
+    k = int(untried[bco].nonzero()[0, 0])
+    planted = int(learner.rows.primitive_rows[live[k]].lt(M).nonzero()[-1, 0])  # an available move
+    learner.cloning.action[bco, live[k]] = planted
+    cloned = torch.zeros_like(untried)
+    cloned[bco, k] = True
+
+    uniform = learner.greedy_policy()
+    assert torch.equal(learner.greedy_policy(untried="uniform").probability, uniform.probability)
+    stuck = learner.greedy_policy(untried="stuck")
+    assert torch.equal(stuck.option, uniform.option)
+    p_uniform, p_stuck = uniform.probability[:, live], stuck.probability[:, live]
+    no_choice = untried & ~cloned
+    for b in range(B):
+        for i in no_choice[b].nonzero()[:, 0].tolist():
+            on = enabled[b, i].double()
+            if tie_break == "first":
+                on = (on.cumsum(0) == 1) & (on > 0)
+            assert torch.equal(p_uniform[b, i], on.double() / on.sum()), (b, i)
+    assert bool((p_stuck[no_choice] == 0).all())
+    assert torch.equal(p_stuck[~no_choice], p_uniform[~no_choice])
+    assert bool(((p_stuck.sum(-1) - 1).abs() < 1e-12)[~no_choice & enabled.any(-1)].all())
+    clone_option = int(learner.rows.row_option[learner.rows.primitive_rows[live[k], planted]])
+    j = uniform.option[live[k]].tolist().index(clone_option)
+    assert float(p_stuck[bco, k, j]) == float(p_uniform[bco, k, j]) == 1.0
+    with pytest.raises(ValueError, match=r"untried='never'.*\('uniform', 'stuck'\)"):
+        learner.greedy_policy(untried="never")
+
+
+def test_both_untried_rules_equal_rollouts_of_the_same_frozen_policy(world8):
+    """The exact evaluation of the frozen greedy policies after 1000 steps on 8×8 against 3000
+    rolled-out episodes of the same policies, under each rule (random ties: stochastic
+    policies), of the runs whose episodes are short enough to roll out (the options-only run
+    has not learned the way yet). Under ``"uniform"`` every episode ends: steps per episode,
+    V^π(start) and P(goal) are compared. Under ``"stuck"`` the imitator can reach a state it has
+    not tried, where its episode stops for good: steps per episode ``inf`` (seen in the
+    rollouts: some episode gets stuck), goal rate 0, and P(goal) (the episodes that end at the
+    goal before getting stuck) and V^π(start) (no reward once stuck) against the rollouts."""
+    learner = learner8(world8, 1000)
+    runs = [0, 2, 3]  # imitation, primitives, bco
+    evaluator = PolicyEvaluator(world8, learner.options, 100)
+    results = {}
+    for rule in ("uniform", "stuck"):
+        policy = learner.greedy_policy(runs, untried=rule)
+        result = evaluator.evaluate(policy)
+        results[rule] = result
+        assert_matches_rollouts(world8, learner.options, policy, result, n=3000, seed=5)
+    assert bool((results["uniform"].steps_per_episode < 100).all())
+    stuck = results["stuck"]
+    assert math.isinf(float(stuck.steps_per_episode[0])) and float(stuck.goals_per_window[0]) == 0
+    assert 0.1 < float(stuck.goal_probability[0]) < 0.9  # some episodes end, some get stuck
+    # no untried state on its way: the same policy where it goes, the same numbers
+    same = [i for i in range(len(runs)) if math.isfinite(float(stuck.steps_per_episode[i]))]
+    assert same
+    for f in FIELDS:
+        assert torch.equal(getattr(stuck, f)[same], getattr(results["uniform"], f)[same]), f

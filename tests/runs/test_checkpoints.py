@@ -3,6 +3,7 @@ fallback, refusals of other layouts and batches, failed saves — the issue-13 t
 
 import errno
 import io
+import json
 import pickle
 import random
 import shutil
@@ -488,6 +489,13 @@ def test_resume_falls_back_to_the_previous_generation_and_ends_with_the_same_cur
     assert err.startswith(f"himit: warning: {newest}: ") and reason in err
     assert f"resuming from {previous.name} at step 1500: {redo}" in err
     assert (run_dir / "curves.csv").read_text() == (reference / "curves.csv").read_text()
+    # the final greedy policies under both rules for untried states ("stuck": computed from the
+    # final state, not checkpointed) are the uninterrupted run's
+    resumed, whole = (
+        json.loads((d / "worlds" / f"world{SIZE}.json").read_text()) for d in (run_dir, reference)
+    )
+    for key in ("greedy_percent_of_optimal", "greedy_percent_of_optimal_stuck"):
+        assert json.dumps(resumed[key]) == json.dumps(whole[key]) and len(whole[key]) == 2, key
     assert read_header(newest).step == 2000
     assert not marker.exists()
 

@@ -89,6 +89,15 @@ def test_the_greedy_policies_are_evaluated_on_their_schedule(tmp_path):
                 100 * rate / result.mentor_goals_per_window, abs=0.01
             )
     assert len(result.greedy_goals_per_window) == 2
+    # the final policies under the "stuck" rule too: the same rate where no untried state is on
+    # the way, else 0 (and in world<N>.json)
+    for uniform, stuck in (
+        (result.greedy_percent_of_optimal, result.greedy_percent_of_optimal_stuck),
+        (result.greedy_percent_of_mentor, result.greedy_percent_of_mentor_stuck),
+    ):
+        assert len(stuck) == 2 and all(s in (0.0, u) for s, u in zip(stuck, uniform))
+    saved = json.loads((tmp_path / "on" / "worlds" / "world16.json").read_text())
+    assert saved["greedy_percent_of_mentor_stuck"] == result.greedy_percent_of_mentor_stuck
     assert 0 < result.mentor_goals_per_window <= result.optimal_goals_per_window * (1 + 1e-9)
     assert all(v <= result.true_value_start + 1e-9 for v in result.greedy_value_start)
     assert "The mentor's own policy (exact)" in (tmp_path / "on" / "results.md").read_text()
@@ -97,7 +106,7 @@ def test_the_greedy_policies_are_evaluated_on_their_schedule(tmp_path):
     rows_off = read_curves(tmp_path / "off" / "curves.csv")
     assert list(rows_off[0]) == [k for k in rows[0] if not k.startswith("greedy_")]
     assert [{k: r[k] for k in rows_off[0]} for r in rows] == rows_off  # the same runs
-    assert plain.greedy_goals_per_window == []
+    assert plain.greedy_goals_per_window == [] and plain.greedy_percent_of_optimal_stuck == []
 
 
 # Two worlds of exp3 to draw its scaling figure (10 s): -m slow (CI).

@@ -11,9 +11,10 @@ import numpy as np
 import pytest
 import torch
 
+from himit_torch.exact.greedy_evaluation import OptionPolicy, PolicyEvaluator, optimal_value
+from himit_torch.exact.planning import value_iteration
 from himit_torch.runs.gymnasium import (
     TASKS,
-    GreedyEvaluator,
     GymExperimentConfig,
     mean_ci,
     neutral_value,
@@ -31,21 +32,35 @@ def cliff():
     return world, TASKS["cliffwalking"].options(world)
 
 
-def test_greedy_evaluation_is_exact(cliff):
+def test_the_value_gap_by_hand(cliff):
+    """CliffWalking (start 36, goal 47, −1 a step): V*(μ) = −(1 − γ¹³)/(1 − γ), 13 steps. The value
+    gaps of deterministic policies that have an option at every state — where the merged
+    evaluator and the old ``GreedyEvaluator`` (ties to the lowest option, untried states a
+    uniformly random primitive) define the same policy — against the old test's hand values:
+    the optimal primitive policy (gap 0), "up" forever (V = −1/(1 − γ)), and the option to the
+    top-right corner from the start; and the old rule for a run that has tried nothing, written
+    as the stochastic policy it was (each primitive ¼), against a dense solve."""
     world, options = cliff
-    ev = GreedyEvaluator(world, options)
     g = world.gamma
-    assert ev.optimal_value == pytest.approx(-(1 - g**13) / (1 - g))
+    v_star = optimal_value(world)
+    assert v_star == pytest.approx(-(1 - g**13) / (1 - g))
+    evaluator = PolicyEvaluator(world, options, window=100)
+    best = value_iteration(*world_model(world), g)
+
+    def gap(policy: OptionPolicy) -> float:
+        return float(evaluator.evaluate(policy).value_gap(v_star)[0])
+
     # the optimal primitive policy as a greedy option policy (primitives are options 0…3)
-    assert ev.value(ev.optimal.policy) == pytest.approx(ev.optimal_value, abs=1e-9)
+    assert gap(OptionPolicy.deterministic(best.policy)) == 0.0
     # "up" forever from the start bumps at the top edge: −1 a step, never ending
-    assert ev.value(torch.zeros(48, dtype=torch.int64)) == pytest.approx(-1 / (1 - g))
+    up = OptionPolicy.deterministic(torch.zeros(48, dtype=torch.int64))
+    assert gap(up) == pytest.approx(v_star + 1 / (1 - g))
     # the option to the top-right corner, then primitives: 14 steps up and right, 3 down
-    policy = ev.optimal.policy.clone()
+    policy = best.policy.clone()
     policy[36] = 5
-    up_right = -(1 - g**14) / (1 - g) + g**14 * float(ev.optimal.values[11])
-    assert ev.value(policy) == pytest.approx(up_right)
-    # nothing tried anywhere: a uniformly random primitive, against a dense solve
+    up_right = -(1 - g**14) / (1 - g) + g**14 * float(best.values[11])
+    assert gap(OptionPolicy.deterministic(policy)) == pytest.approx(v_star - up_right)
+    # every primitive with probability ¼ everywhere, against a dense solve
     P, R = world_model(world)
     K = P.to_dense().mean(0)
     r = R.mean(1)
@@ -53,7 +68,11 @@ def test_greedy_evaluation_is_exact(cliff):
     K[~live] = 0
     r[~live] = 0
     V = torch.linalg.solve(torch.eye(48, dtype=torch.float64) - g * K, r)
-    assert ev.value(torch.full((48,), -1)) == pytest.approx(float(V[36]))
+    random = OptionPolicy(
+        torch.arange(4).expand(48, 4).contiguous(),
+        torch.full((1, 48, 4), 0.25, dtype=torch.float64),
+    )
+    assert gap(random) == pytest.approx(v_star - float(V[36]))
 
 
 def test_mean_ci_by_hand():
@@ -67,8 +86,8 @@ def test_task_settings(cliff):
     world, _ = cliff
     assert neutral_value(world) == pytest.approx(-100.0)
     assert neutral_value(TASKS["frozenlake8x8"].world(0.99)) == 0.0
-    ev = GreedyEvaluator(world, cliff[1])
-    assert optimal_goals_per_window(world, ev.optimal.policy, 1300) == pytest.approx(100.0)
+    best = value_iteration(*world_model(world), world.gamma)
+    assert optimal_goals_per_window(world, best.policy, 1300) == pytest.approx(100.0)
     with pytest.raises(ValueError, match="tasks"):
         GymExperimentConfig(tasks=("pong",))
 
@@ -102,6 +121,17 @@ def test_the_script_runs_and_writes_curves_figures_and_results(tmp_path):
     assert all(float(r["value_gap"]) >= 0 and 0 <= int(r["goals"]) <= 200 for r in rows)
     summary = json.loads((run / "tasks" / "cliffwalking.json").read_text())
     assert summary["initial_value"] == pytest.approx(-100.0) and summary["steps"] == 400
+    # the final greedy policies under both rules for untried states: the "stuck" rule's rate is
+    # the "uniform" one's where no untried state is on the way, else 0
+    for rule in ("optimal", "mentor"):
+        uniform = summary[f"greedy_percent_of_{rule}"]
+        stuck = summary[f"greedy_percent_of_{rule}_stuck"]
+        assert len(stuck) == len(uniform) == 6
+        assert all(s in (0.0, u) for s, u in zip(stuck, uniform)), (stuck, uniform)
+    # the last window's value gap is the final greedy policy's, from the same evaluation
+    v_star = summary["optimal_value"]
+    gaps = [v_star - v for v in summary["greedy_value_start"]]
+    assert summary["final_value_gap"] == pytest.approx(gaps, abs=1e-9)
     # CliffWalking ends only at its goal: the first goal is exact, inside its first goal window
     assert summary["first_goal_resolution"] == 1
     for step, window in zip(summary["first_goal_step"], summary["first_goal_window"]):

@@ -11,6 +11,7 @@ import pytest
 from scipy import stats
 
 from himit_torch.cli import main
+from himit_torch.exact.planning import optimal_baseline
 from himit_torch.mentor.puzzle_box import organisation_mentor
 from himit_torch.options.puzzle_box import puzzle_box_options
 from himit_torch.runs.puzzle_box import (
@@ -108,6 +109,10 @@ def test_runner_writes_every_result(tmp_path):
     assert all((r["batch"].split("_")[0], "1000") in evaluated for r in rows)
     speed = summary["batches"][0]
     assert speed["num_states"] == 5**2 * 7 and speed["skewers"] == 2
+    # V*(start) is the optimum's (exact), and no frozen greedy policy beats it
+    assert speed["value_star"] == pytest.approx(optimal_baseline(PuzzleBox(2)).value_start)
+    for batch in summary["batches"]:
+        assert all(r["greedy_value"] <= batch["value_star"] + 1e-9 for r in batch["runs"])
     assert [r["watched"] for r in speed["runs"]] == ["skewer", "step"]
     assert summary["batches"][1]["runs"][0]["watched"] is None  # options watched nothing
     transfer = summary["batches"][-1]
