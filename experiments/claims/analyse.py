@@ -371,7 +371,7 @@ def _recommended_lines(data: dict, tests: list[Test]) -> list[str]:
         best = min(NON_IMITATORS, key=lambda b: _km(world, b).estimate)
         theirs = _km(world, best)
         ratio = theirs.estimate / mine.estimate if mine.estimate > 0 else math.nan
-        ratio_text = "∞" if math.isinf(ratio) else f"{ratio:.1f}×"
+        ratio_text = "∞" if math.isinf(ratio) else f"{ratio:.2f}×"
         sign = by[name, f"imitation − {best}", "first_goal"]
         greedy = bca_interval(world.values("imitation", "greedy_mentor"))
         cells = [
