@@ -1,12 +1,17 @@
-"""The benchmark's tables and figures, as PROTOCOL.md declared: the leaderboard (methods × worlds
-on the claims' endpoints, every method against eq. 2 paired by seed, Holm over the table) and
-one figure per stress axis.
+"""The benchmark's tables and figures, as PROTOCOL.md declared (the fair factorial of
+2026-11-26): one leaderboard per exploration schedule (average ranks for ties, every method
+against implicit imitation under the same schedule, Holm over both tables), "Does the hierarchy
+help?" (eq. 2 − eq. 1 within each schedule × fading cell, Holm over that family), each method
+under both schedules side by side, and one figure per stress axis.
 
     python experiments/benchmark/analyse.py [--results experiments/results]
 
-Reads the claims' runs (``<results>/paper-random``, ``recommended-random``), the benchmark's own
-(``<results>/benchmark/worlds``) and the stress sweep (``<results>/benchmark/stress_exp2``);
-writes ``<results>/benchmark/leaderboard.md``, ``leaderboard.csv`` and ``stress_<axis>.png``.
+Reads the factorial's records (``<results>/benchmark/<preset>/{exp1,exp2,exp3,gymnasium}`` for
+the presets ``paper``, ``mentor-fade``, ``explore-goals``, ``recommended``, and
+``<results>/benchmark/puzzlebox/<agent>_<preset>.{json,csv}``), the claims' runs (for the
+batch-independence check) and the stress sweep (``<results>/benchmark/stress_exp2``); writes
+``<results>/benchmark/leaderboard.md``, ``hierarchy.md``, ``leaderboard.csv``,
+``hierarchy.png`` and ``stress_<axis>.png``.
 """
 
 from __future__ import annotations
@@ -22,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from himit_torch.statistics import bca_interval, first_goal_survival
+from himit_torch.statistics import average_ranks, bca_interval, first_goal_survival
 
 # The claims' loader and tests, one place (loaded by path: both scripts are called analyse.py).
 _spec = importlib.util.spec_from_file_location(
@@ -31,7 +36,7 @@ _spec = importlib.util.spec_from_file_location(
 claims = importlib.util.module_from_spec(_spec)  # type: ignore[arg-type]
 sys.modules["claims_analyse"] = claims  # (its dataclasses look their module up)
 _spec.loader.exec_module(claims)  # type: ignore[union-attr]
-WORLDS, Test, World = claims.WORLDS, claims.Test, claims.World
+Test, World = claims.Test, claims.World
 _km_text, adjust, compare, load_dir = (
     claims._km_text,
     claims.adjust,
@@ -39,20 +44,44 @@ _km_text, adjust, compare, load_dir = (
     claims.load_dir,
 )
 
-
-#: Method → (folder of its runs, agent name there).
-METHODS = {
-    "eq. 2 (paper)": ("paper-random", "imitation"),
-    "eq. 2, recommended": ("recommended-random", "imitation"),
-    "implicit imitation (eq. 1)": ("benchmark", "imitation_primitives"),
-    "PBRS": ("benchmark", "pbrs"),
-    "PBRS, primitives": ("benchmark", "pbrs_primitives"),
-    "BCO": ("benchmark", "bco"),
-    "options only": ("paper-random", "options"),
-    "primitives only": ("paper-random", "primitives"),
+#: The nine worlds of the runs, then the puzzle box (ranked, but not in the mean rank).
+WORLDS = (*claims.WORLDS, "puzzlebox")
+NINE = claims.WORLDS
+#: Schedule → (preset without fading, preset with fading): the factorial's cells.
+SCHEDULES = {"decision": ("paper", "mentor-fade"), "goals": ("explore-goals", "recommended")}
+SCHEDULE_TITLES = {
+    "decision": "ε per decision (the paper's: 0.75, × 0.999 per decision after the first goal, "
+    "floor 0.01)",
+    "goals": "ε 0.75 until the run's 10th goal, then 0.01 (the recommended schedule)",
 }
-REFERENCE = "eq. 2 (paper)"
-ENDPOINTS = ("first_goal", "early", "greedy_optimal")
+#: The rows of each schedule's table: label → (agent, with mentor fading).
+METHODS = {
+    "eq. 2": ("imitation", False),
+    "eq. 2, fading": ("imitation", True),
+    "eq. 1 (implicit imitation)": ("imitation_primitives", False),
+    "eq. 1, fading": ("imitation_primitives", True),
+    "PBRS": ("pbrs", False),
+    "PBRS, primitives": ("pbrs_primitives", False),
+    "BCO": ("bco", False),
+    "options only": ("options", False),
+    "primitives only": ("primitives", False),
+}
+REFERENCE = "eq. 1 (implicit imitation)"
+#: Eq. 2 − eq. 1 pairs of the hierarchy family: fading → (eq. 2's row, eq. 1's row).
+HIERARCHY = {
+    False: ("eq. 2", "eq. 1 (implicit imitation)"),
+    True: ("eq. 2, fading", "eq. 1, fading"),
+}
+ENDPOINTS = ("greedy", "first_goal", "early", "late")
+ENDPOINT_TITLES = {
+    "greedy": "The greedy policy at the end: % of optimal (puzzle box: value gap "
+    "V*(start) − V^π(start), 0 = optimal), mean of 20 seeds",
+    "first_goal": "Steps to the first goal (Kaplan–Meier median; 'never': the curve does not "
+    "fall to ½)",
+    "early": "Goals in the first 50k steps (mean of 20 seeds)",
+    "late": "Goals in the last 50k steps (mean of 20 seeds)",
+}
+EARLY_STEPS = LATE_STEPS = 50_000
 #: The stress axes of stress_exp2.toml: setting → (label, its default).
 AXES = {
     "mentor_episodes": ("demonstrations per seed", 20),
@@ -65,11 +94,61 @@ AXES = {
 STRESS_AGENTS = ("imitation", "imitation_primitives", "pbrs", "bco", "options")
 
 
-def method_world(data: dict, method: str, world: str) -> World:
-    """The runs of ``method`` on ``world``, as a World holding only that method (as agent
-    ``method``)."""
-    folder, agent = METHODS[method]
-    source = data[folder][world]
+def preset_of(schedule: str, faded: bool) -> str:
+    return SCHEDULES[schedule][faded]
+
+
+# ------------------------------------------------------------------------------------ loading
+def load_puzzlebox(folder: Path, agent: str, preset: str) -> World:
+    """The puzzle box's runs of one cell (``puzzle_box_benchmark.py``'s records) as a World:
+    first opening, openings in the first and last 50k steps, and the greedy value gap."""
+    record = json.loads((folder / f"{agent}_{preset}.json").read_text())
+    budget = int(record["steps"])
+    early: dict = defaultdict(int)
+    late: dict = defaultdict(int)
+    with open(folder / f"{agent}_{preset}.csv") as f:
+        for row in csv.DictReader(f):
+            step, seed, n = int(row["step"]), int(row["seed"]), int(row["openings"])
+            early[seed] += n if step <= EARLY_STEPS else 0
+            late[seed] += n if step > budget - LATE_STEPS else 0
+    world = World("puzzlebox", budget)
+    for run in record["runs"]:
+        seed = run["seed"]
+        world.runs[agent, seed] = {
+            "first_goal": int(run["first_opening"]),
+            "early": early[seed],
+            "late": late[seed],
+            "greedy_gap": record["value_star"] - run["greedy_value"],
+        }
+    return world
+
+
+def load(results: Path) -> dict:
+    """preset → world → World (each World holding every agent of that preset's runs)."""
+    root = results / "benchmark"
+    data: dict = {}
+    for schedule in SCHEDULES:
+        for faded in (False, True):
+            preset = preset_of(schedule, faded)
+            worlds = load_dir(root / preset)
+            box = World("puzzlebox", 0)
+            for agent in {a for a, f in METHODS.values() if f == faded or not faded}:
+                if (root / "puzzlebox" / f"{agent}_{preset}.json").exists():
+                    cell = load_puzzlebox(root / "puzzlebox", agent, preset)
+                    box.budget = cell.budget
+                    box.runs.update(cell.runs)
+            worlds["puzzlebox"] = box
+            for world in worlds.values():  # one greedy endpoint, higher is better everywhere
+                for run in world.runs.values():
+                    run["greedy"] = run.get("greedy_optimal", -run.get("greedy_gap", math.nan))
+            data[preset] = worlds
+    return data
+
+
+def method_world(data: dict, schedule: str, method: str, world: str) -> World:
+    """The runs of ``method`` under ``schedule`` on ``world``, as agent ``method``."""
+    agent, faded = METHODS[method]
+    source = data[preset_of(schedule, faded)][world]
     out = World(world, source.budget)
     for (a, seed), run in source.runs.items():
         if a == agent:
@@ -77,99 +156,254 @@ def method_world(data: dict, method: str, world: str) -> World:
     return out
 
 
-def leaderboard(data: dict) -> tuple[list[str], list[Test]]:
+def merged(data: dict, schedule: str, world: str) -> World:
+    out = World(world, data[preset_of(schedule, False)][world].budget)
+    for m in METHODS:
+        out.runs.update(method_world(data, schedule, m, world).runs)
+    return out
+
+
+# -------------------------------------------------------------------------------------- tests
+def leaderboard_tests(data: dict) -> list[Test]:
+    """Every method against implicit imitation under the same schedule (PROTOCOL.md, test 1)."""
     tests = []
-    for world in WORLDS:
-        merged = World(world, data["paper-random"][world].budget)
-        for m in METHODS:
-            merged.runs.update(method_world(data, m, world).runs)
-        for m in METHODS:
-            if m == REFERENCE:
-                continue
-            for e in ENDPOINTS:
-                tests.append(
-                    Test(
-                        "benchmark",
-                        "",
-                        world,
-                        f"{m} − {REFERENCE}",
-                        e,
-                        "random",
-                        compare(merged, m, REFERENCE, e),
-                    )
-                )
-    adjust(tests)
-    by = {(t.world, t.comparison, t.endpoint): t for t in tests}
-
-    def cell(world: str, m: str, endpoint: str) -> str:
-        w = method_world(data, m, world)
-        if endpoint == "first_goal":
-            s = first_goal_survival(w.values(m, "first_goal"), w.budget)
-            text = _km_text(s.median).split(" [")[0]
-        else:
-            digits = 1 if endpoint == "greedy_optimal" else 0
-            text = f"{np.mean(w.values(m, endpoint)):.{digits}f}"
-        if m != REFERENCE:
-            t = by[world, f"{m} − {REFERENCE}", endpoint]
-            p = min(x for x in t.p_holm.values() if not math.isnan(x))
-            if p < 0.05:
-                if endpoint == "first_goal":
-                    better = t.result.wins > t.result.losses
-                else:
-                    better = t.result.difference.estimate > 0
-                text += " ▲" if better else " ▼"
-        return text
-
-    lines = []
-    titles = {
-        "greedy_optimal": "The greedy policy at the end, % of optimal (mean of 20 seeds)",
-        "first_goal": "Steps to the first goal (Kaplan–Meier median; 'never': the curve does "
-        "not fall to ½)",
-        "early": "Goals in the first 50k steps (mean of 20 seeds)",
-    }
-    for endpoint in ("greedy_optimal", "first_goal", "early"):
-        lines += [
-            f"## {titles[endpoint]}",
-            "",
-            "| method | " + " | ".join(WORLDS) + " | mean rank |",
-            "|---|" + "---|" * (len(WORLDS) + 1),
-        ]
-        ranks: dict = defaultdict(list)
+    for schedule in SCHEDULES:
         for world in WORLDS:
-            score = {}
+            runs = merged(data, schedule, world)
             for m in METHODS:
-                w = method_world(data, m, world)
-                if endpoint == "first_goal":
-                    s = first_goal_survival(w.values(m, "first_goal"), w.budget)
-                    score[m] = -s.median.estimate
-                else:
-                    score[m] = float(np.mean(w.values(m, endpoint)))
-            order = sorted(METHODS, key=lambda m: -score[m])
-            for rank, m in enumerate(order, 1):
-                ranks[m].append(rank)
-        for m in METHODS:
-            cells = [cell(world, m, endpoint) for world in WORLDS]
-            lines.append(f"| {m} | " + " | ".join(cells) + f" | {np.mean(ranks[m]):.1f} |")
-        lines.append("")
-    return lines, tests
+                if m == REFERENCE:
+                    continue
+                for e in ENDPOINTS:
+                    result = compare(runs, m, REFERENCE, e)
+                    tests.append(Test("leaderboard", schedule, world, f"{m} − {REFERENCE}", e,
+                                      "random", result))  # fmt: skip
+    adjust(tests)
+    return tests
 
 
-def batch_check(data: dict) -> str:
-    """Whether options-only of the benchmark's batch equals the claims' runs, run by run."""
-    same, total = 0, 0
+def hierarchy_tests(data: dict) -> list[Test]:
+    """Eq. 2 − eq. 1 within each schedule × fading cell (PROTOCOL.md, test 2)."""
+    tests = []
+    for schedule in SCHEDULES:
+        for faded, (a, b) in HIERARCHY.items():
+            for world in WORLDS:
+                runs = merged(data, schedule, world)
+                for e in ENDPOINTS:
+                    cell = f"{schedule}, {'fading' if faded else 'no fading'}"
+                    tests.append(Test("hierarchy", cell, world, f"{a} − {b}", e, "random",
+                                      compare(runs, a, b, e)))  # fmt: skip
+    adjust(tests)
+    return tests
+
+
+def significant(t: Test) -> str:
+    """▲ / ▼ where the Holm-adjusted p (the smaller of t-test and sign test) is < 0.05."""
+    p = min((x for x in t.p_holm.values() if not math.isnan(x)), default=math.nan)
+    if not p < 0.05:
+        return ""
+    r = t.result
+    better = r.wins > r.losses if t.endpoint == "first_goal" else r.difference.estimate > 0
+    return " ▲" if better else " ▼"
+
+
+# ------------------------------------------------------------------------------------ tables
+def score(world: World, method: str, endpoint: str) -> float:
+    """The number a table shows and ranks by (first goal: the KM median, lower is better)."""
+    if endpoint == "first_goal":
+        return first_goal_survival(world.values(method, "first_goal"), world.budget).median.estimate
+    return float(np.mean(world.values(method, endpoint)))
+
+
+def show(world: str, endpoint: str, value: float) -> str:
+    if endpoint == "first_goal":
+        return "never" if math.isinf(value) else f"{value / 1000:.1f}k"
+    if endpoint == "greedy":
+        return f"{-value:.3f}" if world == "puzzlebox" else f"{value:.1f}"
+    return f"{value:.0f}"
+
+
+def ranks_of(data: dict, schedule: str, endpoint: str) -> dict:
+    """world → method → average rank (1 = best; exact ties share the mean of their ranks)."""
+    out = {}
     for world in WORLDS:
-        ours = data["benchmark"][world]
-        theirs = data["paper-random"][world]
-        for (agent, seed), run in ours.runs.items():
-            if agent == "options":
-                total += 1
-                same += run == theirs.runs["options", seed]
+        runs = merged(data, schedule, world)
+        scores = {m: score(runs, m, endpoint) for m in METHODS}
+        out[world] = average_ranks(scores, higher_is_better=endpoint != "first_goal")
+    return out
+
+
+def leaderboard_lines(data: dict, tests: list[Test]) -> tuple[list[str], dict]:
+    by = {(t.claim, t.world, t.comparison, t.endpoint): t for t in tests}
+    lines, mean_ranks = [], {}
+    for schedule in SCHEDULES:
+        lines += [f"## Schedule: {SCHEDULE_TITLES[schedule]}", ""]
+        for endpoint in ENDPOINTS:
+            ranks = ranks_of(data, schedule, endpoint)
+            lines += [
+                f"### {ENDPOINT_TITLES[endpoint]}",
+                "",
+                "| method | " + " | ".join(WORLDS) + " | mean rank (nine worlds) |",
+                "|---|" + "---|" * (len(WORLDS) + 1),
+            ]
+            for m in METHODS:
+                cells = []
+                for world in WORLDS:
+                    text = show(world, endpoint, score(merged(data, schedule, world), m, endpoint))
+                    if m != REFERENCE:
+                        text += significant(by[schedule, world, f"{m} − {REFERENCE}", endpoint])
+                    cells.append(f"{text} ({ranks[world][m]:g})")
+                mean = float(np.mean([ranks[w][m] for w in NINE]))
+                mean_ranks[schedule, endpoint, m] = mean
+                lines.append(f"| {m} | " + " | ".join(cells) + f" | {mean:.2f} |")
+            lines.append("")
+    return lines, mean_ranks
+
+
+def mean_rank_lines(mean_ranks: dict) -> list[str]:
+    lines = []
+    for schedule in SCHEDULES:
+        lines += [
+            f"**{SCHEDULE_TITLES[schedule]}** — mean rank of 9 over the nine worlds (1 = best; "
+            "ties share their average rank):",
+            "",
+            "| method | greedy policy at the end | first goal | goals, first 50k steps | goals, "
+            "last 50k steps |",
+            "|---|---|---|---|---|",
+        ]
+        for m in sorted(METHODS, key=lambda m: mean_ranks[schedule, "greedy", m]):
+            lines.append(
+                f"| {m} | "
+                + " | ".join(f"{mean_ranks[schedule, e, m]:.2f}" for e in ENDPOINTS)
+                + " |"
+            )
+        lines.append("")
+    return lines
+
+
+def hierarchy_lines(data: dict, tests: list[Test]) -> list[str]:
+    by = {(t.claim, t.world, t.endpoint): t for t in tests}
+    lines = []
+    for endpoint in ENDPOINTS:
+        what = {
+            "greedy": "greedy policy at the end, eq. 2 − eq. 1 in points of % of optimal "
+            "(puzzle box: eq. 1's value gap − eq. 2's, > 0 = eq. 2 nearer the optimum)",
+            "first_goal": "first goal: seeds where eq. 2 found it first – seeds where eq. 1 did "
+            "(ties: neither or the same window), and the KM medians eq. 2 / eq. 1",
+            "early": "goals in the first 50k steps, eq. 2 − eq. 1",
+            "late": "goals in the last 50k steps, eq. 2 − eq. 1",
+        }[endpoint]
+        cells = [f"{s}, {'fading' if f else 'no fading'}" for s in SCHEDULES for f in (False, True)]
+        lines += [
+            f"### {what}",
+            "",
+            "| world | " + " | ".join(cells) + " |",
+            "|---|" + "---|" * len(cells),
+        ]
+        for world in WORLDS:
+            row = []
+            for cell in cells:
+                t = by[cell, world, endpoint]
+                r = t.result
+                if endpoint == "first_goal":
+                    schedule, fading = cell.split(", ")
+                    runs = merged(data, schedule, world)
+                    a, b = HIERARCHY[fading == "fading"]
+                    ka, kb = score(runs, a, endpoint), score(runs, b, endpoint)
+                    text = f"{r.wins}–{r.losses} ({show(world, endpoint, ka)} / " + (
+                        f"{show(world, endpoint, kb)})"
+                    )
+                else:
+                    digits = (
+                        3
+                        if (world == "puzzlebox" and endpoint == "greedy")
+                        else (1 if endpoint == "greedy" else 0)
+                    )
+                    text = f"{r.difference.format(digits)} ({r.wins}–{r.losses})"
+                row.append(text + significant(t))
+            lines.append(f"| {world} | " + " | ".join(row) + " |")
+        lines.append("")
+    return lines
+
+
+def exploration_lines(data: dict) -> list[str]:
+    """Each method under both schedules (descriptive): decision → goals."""
+    lines = []
+    for endpoint in ("greedy", "early"):
+        lines += [
+            f"### {ENDPOINT_TITLES[endpoint]}: ε per decision → ε goals",
+            "",
+            "| method | " + " | ".join(WORLDS) + " |",
+            "|---|" + "---|" * len(WORLDS),
+        ]
+        for m in METHODS:
+            cells = []
+            for world in WORLDS:
+                before = score(method_world(data, "decision", m, world), m, endpoint)
+                after = score(method_world(data, "goals", m, world), m, endpoint)
+                cells.append(f"{show(world, endpoint, before)} → {show(world, endpoint, after)}")
+            lines.append(f"| {m} | " + " | ".join(cells) + " |")
+        lines.append("")
+    return lines
+
+
+def batch_check(results: Path, data: dict) -> str:
+    """Whether the cells the claims' runs also hold give the committed runs, run by run."""
+    same = total = 0
+    for preset, folder in (("paper", "paper-random"), ("recommended", "recommended-random")):
+        theirs = load_dir(results / folder)
+        for world in NINE:
+            for (agent, seed), run in data[preset][world].runs.items():
+                if (agent, seed) in theirs[world].runs:
+                    total += 1
+                    mine = {k: v for k, v in run.items() if k in theirs[world].runs[agent, seed]}
+                    same += mine == theirs[world].runs[agent, seed]
     return (
-        f"Options-only, run again in the benchmark's batches beside the new agents, equals the "
-        f"claims' runs in {same} of {total} runs (every endpoint, every world)."
+        f"Batch independence: the factorial's runs that the claims' runs also hold (eq. 2, "
+        f"options and primitives under `paper` and `recommended`) equal them in {same} of "
+        f"{total} runs (every endpoint)."
     )
 
 
+def hierarchy_figure(tests: list[Test], out: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 3, figsize=(15, 4.5))
+    cells = [f"{s}, {'fading' if f else 'no fading'}" for s in SCHEDULES for f in (False, True)]
+    by = {(t.claim, t.world, t.endpoint): t for t in tests}
+    for ax, endpoint in zip(axes, ("greedy", "early", "late")):
+        for i, cell in enumerate(cells):
+            d = [by[cell, w, endpoint].result.difference for w in NINE]
+            x = np.arange(len(NINE)) + (i - 1.5) * 0.18
+            ax.errorbar(
+                x,
+                [v.estimate for v in d],
+                yerr=[[v.estimate - v.low for v in d], [v.high - v.estimate for v in d]],
+                fmt="o",
+                capsize=2,
+                markersize=4,
+                label=cell,
+            )
+        ax.axhline(0, color="grey", linewidth=0.8)
+        ax.set_xticks(np.arange(len(NINE)), NINE, rotation=45, ha="right")
+        ax.set_title(
+            {
+                "greedy": "greedy policy at the end, points of % of optimal",
+                "early": "goals in the first 50k steps",
+                "late": "goals in the last 50k steps",
+            }[endpoint]
+        )
+    axes[0].set_ylabel("eq. 2 − eq. 1 (mean over 20 paired seeds, 95 % BCa)")
+    axes[0].legend(fontsize=8, title="schedule, mentor fading")
+    fig.suptitle("Does the hierarchy help? Eq. 2 (options) − eq. 1 (primitives), same settings")
+    fig.tight_layout()
+    fig.savefig(out / "hierarchy.png", dpi=90)
+    plt.close(fig)
+
+
+# ----------------------------------------------------------------------------------- stresses
 def stress_figures(results: Path, out: Path) -> list[str]:
     import matplotlib
 
@@ -244,7 +478,8 @@ def _level_key(level: str, default: str) -> tuple:
 
 
 def _stress_table(rows: list[dict], steps: int) -> list[str]:
-    """Every stress cell: per agent the greedy % of optimal [BCa] and the KM first goal."""
+    """Every stress cell: per agent the greedy % of optimal [BCa], the KM first goal, and the
+    runs whose greedy policy never reaches the goal (0 % of optimal)."""
     cells = list(dict.fromkeys(r["cell"] for r in rows))
     lines = [
         "| cell | " + " | ".join(STRESS_AGENTS) + " |",
@@ -254,11 +489,53 @@ def _stress_table(rows: list[dict], steps: int) -> list[str]:
         out = []
         for agent in STRESS_AGENTS:
             rs = [r for r in rows if r["cell"] == cell and r["agent"] == agent]
-            g = bca_interval([float(r["greedy_percent_of_optimal"]) for r in rs])
+            greedy = [float(r["greedy_percent_of_optimal"]) for r in rs]
+            g = bca_interval(greedy)
             f = first_goal_survival([int(r["first_goal_step"]) for r in rs], steps).median
-            out.append(f"{g.format(1)}; {_km_text(f).split(' [')[0]}")
+            stuck = sum(x == 0.0 for x in greedy)
+            out.append(
+                f"{g.format(1)}; {_km_text(f).split(' [')[0]}"
+                + (f"; {stuck}/{len(rs)} stuck" if stuck else "")
+            )
         lines.append(f"| {cell} | " + " | ".join(out) + " |")
     return lines
+
+
+# --------------------------------------------------------------------------------------- main
+def write_csv(path: Path, tests: list[Test]) -> None:
+    with open(path, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["family", "cell", "world", "comparison", "endpoint", *claims.RESULT_COLUMNS])
+        for t in tests:
+            w.writerow([t.table, t.claim, t.world, t.comparison, t.endpoint,
+                        *claims.result_cells(t)])  # fmt: skip
+
+
+def provenance(results: Path) -> str:
+    root = results / "benchmark"
+    commits = set()
+    for preset in {p for pair in SCHEDULES.values() for p in pair}:
+        for path in (root / preset).glob("*/worlds/*.json"):
+            commits.add(json.loads(path.read_text()).get("commit"))
+        for path in (root / preset).glob("gymnasium/tasks/*.json"):
+            commits.add(json.loads(path.read_text()).get("commit"))
+    if (root / "puzzlebox" / "commit.txt").exists():
+        commits.add((root / "puzzlebox" / "commit.txt").read_text().strip())
+    timing_path = root / "timing.json"
+    timing = json.loads(timing_path.read_text()) if timing_path.exists() else {}
+    time_text = (
+        "Wall time of `python experiments/benchmark/run_benchmark.py` on a 2-core CPU, by part: "
+        + ", ".join(f"{part} {seconds / 60:.1f} min" for part, seconds in sorted(timing.items()))
+        + f" (in all {sum(timing.values()) / 60:.1f} min)."
+        if timing
+        else ""
+    )
+    named = ", ".join(f"`{c[:12]}`" for c in sorted(c for c in commits if c)) or "not recorded"
+    return (
+        f"Runs recorded at commit {named}; regenerated from the committed records by `python "
+        f"experiments/benchmark/analyse.py`; the runs by `python "
+        f"experiments/benchmark/run_benchmark.py`. {time_text}"
+    )
 
 
 def main() -> None:
@@ -267,25 +544,41 @@ def main() -> None:
     args = parser.parse_args()
     results = Path(args.results)
     out = results / "benchmark"
-    data = {
-        "paper-random": load_dir(results / "paper-random"),
-        "recommended-random": load_dir(results / "recommended-random"),
-        "benchmark": load_dir(out / "worlds"),
-    }
-    board, tests = leaderboard(data)
+    data = load(results)
+    tests = leaderboard_tests(data)
+    family = hierarchy_tests(data)
+    board, mean_ranks = leaderboard_lines(data, tests)
     stress = stress_figures(results, out)
+    hierarchy_figure(family, out)
+    header = [
+        "Every method under each exploration schedule, with the same seeds (0–19), mentor "
+        "episodes and random numbers, random ties, the endpoints of "
+        "`experiments/benchmark/PROTOCOL.md` (amendment of 2026-11-26). The greedy policy: "
+        "ε = 0, ties random, and at a state where the run tried none of its options a uniform "
+        "choice among its available options (the rule `uniform`, as the learner acts). "
+        + provenance(results),
+        "",
+    ]
     lines = [
-        "# The leaderboard (generated by `experiments/benchmark/analyse.py`)",
+        "# The leaderboards, one per exploration schedule (generated by "
+        "`experiments/benchmark/analyse.py`)",
         "",
-        "Every method at its documented settings, random ties, seeds 0–19 (20 per cell), the "
-        "endpoints of `experiments/benchmark/PROTOCOL.md`. **▲ / ▼**: better / worse than eq. 2 "
-        "(the paper preset's `imitation`) on that endpoint, paired by seed, with Holm-adjusted "
-        "p < 0.05 (the smaller of the t-test's and the sign test's; every test with its raw and "
-        "adjusted p: `leaderboard.csv`). " + batch_check(data),
+        *header,
+        "Each cell: the value, then its **average rank** among the nine rows on that world "
+        "(exact ties share the mean of the ranks they span). **▲ / ▼**: better / worse than "
+        "implicit imitation (eq. 1, no fading) under the same schedule, paired by seed, "
+        "Holm-adjusted p < 0.05 (the smaller of the t-test's and the sign test's; Holm over "
+        "every comparison of both schedules' tables; every test with its raw and adjusted p: "
+        "`leaderboard.csv`). " + batch_check(results, data),
         "",
+        *mean_rank_lines(mean_ranks),
         *board,
-        "## Stresses on experiment 2 (40×40): the greedy policy at the end, % of optimal "
-        "(mean [95 % BCa]); the first goal (KM median)",
+        "## Each method under both schedules (descriptive)",
+        "",
+        *exploration_lines(data),
+        "## Stresses on experiment 2 (40×40, the paper preset for every agent): the greedy "
+        "policy at the end, % of optimal (mean [95 % BCa]); the first goal (KM median); runs "
+        "whose greedy policy is stuck (0 %)",
         "",
         "20 seeds per cell; one setting changed at a time from the baseline (the defaults). "
         "Figures: `stress_<setting>.png`.",
@@ -294,28 +587,25 @@ def main() -> None:
         "",
     ]
     (out / "leaderboard.md").write_text("\n".join(lines) + "\n")
-    with open(out / "leaderboard.csv", "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(
-            [
-                "world",
-                "comparison",
-                "endpoint",
-                "difference",
-                "low",
-                "high",
-                "wins",
-                "losses",
-                "ties",
-                "p_t",
-                "p_sign",
-                "p_t_holm",
-                "p_sign_holm",
-            ]
-        )
-        for t in tests:
-            w.writerow([t.world, t.comparison, t.endpoint, *claims.result_cells(t)])
+    hierarchy = [
+        "# Does the hierarchy help? Eq. 2 against eq. 1 under the same settings (generated by "
+        "`experiments/benchmark/analyse.py`)",
+        "",
+        *header,
+        "Eq. 2 (`imitation`: the learner's options, the mentor term in the max) against eq. 1 "
+        "(`imitation_primitives`: primitives, Price & Boutilier's implicit imitation), within "
+        "each cell of schedule × mentor fading, paired by seed. Each cell: the mean difference "
+        "[95 % BCa interval] (seeds where eq. 2 is higher – lower); first goal: seeds where "
+        "eq. 2 found it first – where eq. 1 did, and the two KM medians. **▲ / ▼**: eq. 2 "
+        "better / worse, Holm-adjusted p < 0.05 over this family (every p-value of this page: "
+        "`leaderboard.csv`, family `hierarchy`). Figure: `hierarchy.png`.",
+        "",
+        *hierarchy_lines(data, family),
+    ]
+    (out / "hierarchy.md").write_text("\n".join(hierarchy) + "\n")
+    write_csv(out / "leaderboard.csv", tests + family)
     print((out / "leaderboard.md").read_text())
+    print((out / "hierarchy.md").read_text())
 
 
 if __name__ == "__main__":

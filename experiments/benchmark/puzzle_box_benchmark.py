@@ -1,16 +1,21 @@
-"""The benchmark's tenth world: every method on the puzzle box (Whiten et al.'s 4-skewer
-keyway-fruit box, the speed condition of ``himit run puzzlebox``), seeds 0–19, 100k steps.
+"""The benchmark's tenth world: every cell of the fair factorial on the puzzle box (Whiten et
+al.'s 4-skewer keyway-fruit box, the speed condition of ``himit run puzzlebox``), seeds 0–19,
+100k steps: every method under both exploration schedules, the methods with a mentor term with
+and without fading (PROTOCOL.md, amendment of 2026-11-26).
 
 Endpoints as PROTOCOL.md's, with one change the box imposes: its exact evaluator gives the value
 ``V^π(start)`` of the frozen greedy policy, not a goal rate, so the greedy endpoint is the value
 gap ``V*(start) − V^π(start)`` (0 = optimal). Each seed watches the mentor of the organisation
 ``himit run puzzlebox`` gives it (skewer by skewer for even seeds, step by step for odd ones).
-Every method against eq. 2 paired by seed; Holm over this table.
+The greedy policy is the one every world uses
+(``Learner.greedy_policy``: ties random, untried states uniform over the available options).
+The paired tests are made by ``analyse.py`` with the other worlds; this script runs the cells
+and writes a descriptive table.
 
     python experiments/benchmark/puzzle_box_benchmark.py [--logdir runs/benchmark/puzzlebox]
 
 Writes ``experiments/results/benchmark/puzzlebox.md`` and copies each batch's record
-(``batches/*.json``, ``*.csv``) beside it. ≈ 3–5 min on a 2-core CPU.
+(``batches/<agent>_<preset>.json``, ``.csv``) into ``puzzlebox/`` beside it.
 """
 
 from __future__ import annotations
@@ -35,29 +40,29 @@ from himit_torch.runs.puzzle_box import (
     _run_batch,
     watched_organisation,
 )
+from himit_torch.runs.runner import source_commit
 from himit_torch.statistics import (
     bca_interval,
-    first_goal_sign_test,
     first_goal_survival,
-    holm,
-    paired_comparison,
 )
 from himit_torch.worlds.puzzle_box import ORGANISATIONS
 
 HERE = Path(__file__).resolve().parent
 OUT = HERE.parent / "results" / "benchmark"
-#: Method → (agent, preset): the leaderboard's methods.
-METHODS = {
-    "eq. 2 (paper)": ("imitation", "paper"),
-    "eq. 2, recommended": ("imitation", "recommended"),
-    "implicit imitation (eq. 1)": ("imitation_primitives", "paper"),
-    "PBRS": ("pbrs", "paper"),
-    "PBRS, primitives": ("pbrs_primitives", "paper"),
-    "BCO": ("bco", "paper"),
-    "options only": ("options", "paper"),
-    "primitives only": ("primitives", "paper"),
-}
-REFERENCE = "eq. 2 (paper)"
+#: The factorial's cells on the box: (agent, preset), as run_benchmark.py's CELLS.
+ALL_AGENTS = ("imitation", "imitation_primitives", "pbrs", "pbrs_primitives", "bco", "options",
+              "primitives")  # fmt: skip
+MENTOR_AGENTS = ("imitation", "imitation_primitives")
+CELLS = [
+    (agent, preset)
+    for preset, agents in (
+        ("paper", ALL_AGENTS),
+        ("mentor-fade", MENTOR_AGENTS),
+        ("explore-goals", ALL_AGENTS),
+        ("recommended", MENTOR_AGENTS),
+    )
+    for agent in agents
+]
 EARLY_STEPS = 50_000
 
 
@@ -86,23 +91,25 @@ def main() -> None:
             org: intended_rollout(box.world, mentors[org].options, mentors[org].option)[0].tolist()
             for org in ORGANISATIONS
         }
-        for method, (agent, preset) in METHODS.items():
+        for agent, preset in CELLS:
             config = replace(base, learner=apply_preset(base.learner, preset))
             variant = AGENTS[agent]
             watched = demos if (variant.mentor or variant.shaping or variant.cloning) else None
             tag = f"{agent}_{preset}"
-            print(f"{method}: {tag}", flush=True)
+            print(tag, flush=True)
             _run_batch(config, box, tag, tag, agent, watched, base.steps, base.steps,
                        run_dir, False, False, plans)  # fmt: skip
+        (run_dir / "commit.txt").write_text(source_commit() + "\n")
     write(run_dir, base, OUT if args.seeds >= 20 else None)
 
 
 def write(run_dir: Path, base: PuzzleBoxConfig, out: Path | None) -> None:
-    """The table, into ``out`` with the batches' records beside it (``None``: printed only)."""
+    """The descriptive table, into ``out`` with the batches' records beside it (``None``:
+    printed only). The paired tests: ``analyse.py``."""
     records, early = {}, {}
-    for method, (agent, preset) in METHODS.items():
+    for agent, preset in CELLS:
         tag = f"{agent}_{preset}"
-        records[method] = json.loads((run_dir / "batches" / f"{tag}.json").read_text())
+        records[tag] = json.loads((run_dir / "batches" / f"{tag}.json").read_text())
         totals: dict[int, int] = {}
         with open(run_dir / "batches" / f"{tag}.csv") as f:
             for row in csv.DictReader(f):
@@ -110,87 +117,59 @@ def write(run_dir: Path, base: PuzzleBoxConfig, out: Path | None) -> None:
                     totals[int(row["seed"])] = totals.get(int(row["seed"]), 0) + int(
                         row["openings"]
                     )
-        early[method] = [totals[s] for s in base.seed_list]
-    star = records[REFERENCE]["value_star"]
+        early[tag] = [totals[s] for s in base.seed_list]
+    first = records["imitation_paper"]
+    commit_path = run_dir / "commit.txt"
+    commit = commit_path.read_text().strip() if commit_path.exists() else "unknown"
+    star, steps = first["value_star"], first["steps"]
 
-    def runs(method: str, key: str) -> list:
-        by_seed = {r["seed"]: r for r in records[method]["runs"]}
+    def runs(tag: str, key: str) -> list:
+        by_seed = {r["seed"]: r for r in records[tag]["runs"]}
         return [by_seed[s][key] for s in base.seed_list]
 
-    def gap(method: str) -> list[float]:
-        return [star - v for v in runs(method, "greedy_value")]
+    def k(x: float) -> str:
+        return "never" if not np.isfinite(x) else f"{x / 1000:.1f}k"
 
-    tests = {}
-    for method in METHODS:
-        if method == REFERENCE:
-            continue
-        tests[method, "first"] = first_goal_sign_test(
-            runs(method, "first_opening"), runs(REFERENCE, "first_opening")
-        )
-        tests[method, "early"] = paired_comparison(early[method], early[REFERENCE])
-        # a smaller gap is better: compare the negated gaps, so that > 0 is better
-        tests[method, "gap"] = paired_comparison(
-            [-g for g in gap(method)], [-g for g in gap(REFERENCE)]
-        )
-    keys = list(tests)
-    adjusted = holm([p for k in keys for p in (tests[k].t_p, tests[k].sign_p)])
-    p_holm = {k: (adjusted[2 * i], adjusted[2 * i + 1]) for i, k in enumerate(keys)}
-
-    def mark(method: str, endpoint: str) -> str:
-        if method == REFERENCE:
-            return ""
-        p = min(x for x in p_holm[method, endpoint] if x == x)
-        if p >= 0.05:
-            return ""
-        t = tests[method, endpoint]
-        better = t.wins > t.losses if endpoint == "first" else t.difference.estimate > 0
-        return " ▲" if better else " ▼"
-
-    steps = records[REFERENCE]["steps"]
     lines = [
-        "# The puzzle box in the benchmark (generated by "
+        "# The puzzle box in the benchmark's factorial (generated by "
         "`experiments/benchmark/puzzle_box_benchmark.py`)",
         "",
-        f"The 4-skewer box ({records[REFERENCE]['num_states']} states), {steps:,} steps per run, "
-        f"seeds 0–{base.seed_list[-1]} (each watching the mentor of the organisation `himit run "
-        "puzzlebox` gives it), random ties, every method at its documented settings. Endpoints "
-        "of `PROTOCOL.md` but the greedy one: the box's exact evaluator gives the value of the "
-        "frozen greedy policy, so the table gives its **value gap** V*(start) − V^π(start) "
-        f"(V* = {star:.3f}; 0 = optimal; mean [95 % BCa]). **▲ / ▼**: better / worse than eq. 2 "
-        "(paper preset), paired by seed, Holm-adjusted p < 0.05 over this table (t-test or sign "
-        "test).",
+        f"The 4-skewer box ({first['num_states']} states), {steps:,} steps per run, seeds "
+        f"0–{base.seed_list[-1]} (each watching the mentor of the organisation `himit run "
+        "puzzlebox` gives it), random ties, runs recorded at commit "
+        f"`{commit}`. Greedy endpoint: the **value gap** "
+        f"V*(start) − V^π(start) of the frozen greedy policy (V* = {star:.3f}; 0 = optimal; "
+        "mean [95 % BCa]); untried states: a uniform choice among the available options. "
+        "Descriptive: the paired tests, within a schedule and in 'Does the hierarchy help?', "
+        "are in `leaderboard.md` and `hierarchy.md` (`analyse.py`).",
         "",
-        "| method | first opening (KM median [95 %]) | never | openings in the first 50k "
-        "steps | greedy value gap at the end |",
-        "|---|---|---|---|---|",
+        "| agent | preset | first opening (KM median [95 %]) | never | openings in the first "
+        "50k steps | greedy value gap at the end | wall time (s) |",
+        "|---|---|---|---|---|---|---|",
     ]
-    for method in METHODS:
-        s = first_goal_survival(runs(method, "first_opening"), steps)
+    for agent, preset in CELLS:
+        tag = f"{agent}_{preset}"
+        s = first_goal_survival(runs(tag, "first_opening"), steps)
         km = s.median
-
-        def k(x: float) -> str:
-            return "never" if not np.isfinite(x) else f"{x / 1000:.1f}k"
-
+        gap = [star - v for v in runs(tag, "greedy_value")]
         lines.append(
-            f"| {method} | {k(km.estimate)} [{k(km.low)}, {k(km.high)}]{mark(method, 'first')} | "
-            f"{s.never}/{s.runs} | {np.mean(early[method]):.0f}{mark(method, 'early')} | "
-            f"{bca_interval(gap(method)).format(3)}{mark(method, 'gap')} |"
+            f"| {agent} | {preset} | {k(km.estimate)} [{k(km.low)}, {k(km.high)}] | "
+            f"{s.never}/{s.runs} | {np.mean(early[tag]):.0f} | {bca_interval(gap).format(3)} | "
+            f"{records[tag]['wall_seconds']:.0f} |"
         )
-    walls = ", ".join(f"{records[m]['wall_seconds']:.0f}" for m in METHODS)
-    lines += [
-        "",
-        f"Engine `{records[REFERENCE]['engine']}`; wall time per batch of {len(base.seed_list)} "
-        f"runs, in the table's order: {walls} s.",
-        "",
-    ]
+    lines.append("")
     if out is None:
         print("\n".join(lines))
         return
     out.mkdir(parents=True, exist_ok=True)
     (out / "puzzlebox.md").write_text("\n".join(lines))
     target = out / "puzzlebox"
-    target.mkdir(exist_ok=True)
-    for agent, preset in METHODS.values():
+    if target.exists():
+        shutil.rmtree(target)  # the records of the cells of this run only
+    target.mkdir()
+    if commit_path.exists():
+        shutil.copy(commit_path, target / "commit.txt")
+    for agent, preset in CELLS:
         for ext in ("json", "csv"):
             name = f"{agent}_{preset}.{ext}"
             shutil.copy(run_dir / "batches" / name, target / name)

@@ -1,9 +1,16 @@
 """The recommended preset's search, scored by the criteria PROTOCOL.md declared before the runs.
 
-Reads the sweeps of both rounds (``runs.csv`` and ``results.csv`` of each) and writes
-``experiments/results/presets/search.md``: every candidate on each world, and each round's choice.
+Reads the sweeps of every round (``runs.csv`` and ``results.csv`` of each, committed under
+``experiments/results/presets/records/``) and writes ``experiments/results/presets/search.md``:
+every candidate on each world, and each round's choice. Round 3 is the fair factorial's pick of
+the recommended imitator (``../benchmark/PROTOCOL.md``, amendment of 2026-11-26).
 
-    python experiments/presets/analyse_search.py [--sweeps runs/presets] [--out experiments/results/presets/search.md]
+    python experiments/presets/analyse_search.py [--sweeps experiments/results/presets/records] [--out experiments/results/presets/search.md]
+
+The records are made by ``himit sweep experiments/presets/<name>.toml --out
+runs/presets/<name>`` for each spec beside this file (rounds 1 and 2), and by
+``experiments/benchmark/run_benchmark.py --parts pick`` (round 3), then copied into
+``records/`` (``runs.csv``, ``results.csv``, ``sweep.json`` of each sweep).
 """
 
 import argparse
@@ -36,6 +43,24 @@ ROUND2 = {
     ("round2", "mentor_fade=5.0", "imitation"): "fade5_eps9998",
     ("round2", "mentor_fade=50.0", "imitation"): "fade50_eps9998",
     ("round2", "eps_schedule=goals", "imitation"): "fade20_goals",
+}
+#: Round 3, the fair factorial's pick (fresh seeds 3000–3009): every imitator cell.
+ROUND3 = {
+    (prefix, f"eps_schedule={schedule}", agent): f"{label}, {preset}"
+    for agent, label in (
+        ("imitation", "eq. 2"),
+        ("imitation_primitives", "eq. 1"),
+        ("pbrs", "PBRS"),
+        ("pbrs_primitives", "PBRS, primitives"),
+        ("bco", "BCO"),
+    )
+    for prefix, schedule, preset in (
+        ("fair_plain", "decision", "paper"),
+        ("fair_plain", "goals", "explore-goals"),
+        ("fair_fade", "decision", "mentor-fade"),
+        ("fair_fade", "goals", "recommended"),
+    )
+    if prefix == "fair_plain" or agent in ("imitation", "imitation_primitives")
 }
 #: Round 2's floor on the smaller of the two worlds' mean greedy % of the mentor's rate.
 ROUND2_FLOOR = 97.0
@@ -108,7 +133,7 @@ def table(data: dict) -> tuple[list[str], dict]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--sweeps", default="runs/presets")
+    parser.add_argument("--sweeps", default="experiments/results/presets/records")
     parser.add_argument("--out", default="experiments/results/presets/search.md")
     args = parser.parse_args()
 
@@ -121,6 +146,14 @@ def main() -> None:
     rows2, scores2 = table(read(Path(args.sweeps), ROUND2))
     eligible = [n for n, s in scores2.items() if min(g for g, _ in s) >= ROUND2_FLOOR]
     chosen2 = max(eligible, key=lambda n: sum(e for _, e in scores2[n])) if eligible else None
+
+    rows3, scores3 = table(read(Path(args.sweeps), ROUND3))
+    eligible3 = [n for n, s in scores3.items() if min(g for g, _ in s) >= ROUND2_FLOOR]
+    chosen3 = (
+        max(eligible3, key=lambda n: sum(e for _, e in scores3[n]))
+        if eligible3
+        else max(scores3, key=lambda n: min(g for g, _ in scores3[n]))
+    )
 
     lines = [
         "# The recommended preset's search: every candidate, scored as PROTOCOL.md declared",
@@ -154,6 +187,23 @@ def main() -> None:
             if chosen2
             else f"No candidate of round 2 reached min greedy ≥ {ROUND2_FLOOR:.0f} %: round "
             f"1's choice `{chosen1}` stands."
+        ),
+        "",
+        "## Round 3, the fair factorial's pick: fresh held-out seeds 3000–3009",
+        "",
+        "Declared in `experiments/benchmark/PROTOCOL.md` (amendment of 2026-11-26) before its "
+        "runs: every imitator under both exploration schedules, and with and without mentor "
+        "fading where it has a mentor term (candidate: method, preset); round 2's rule.",
+        "",
+        *rows3,
+        "",
+        (
+            f"**Round 3's choice, the recommended imitator: `{chosen3}`** — of the candidates "
+            f"with min greedy ≥ {ROUND2_FLOOR:.0f} % ({', '.join(sorted(eligible3))}), the most "
+            "early goals."
+            if eligible3
+            else f"No candidate of round 3 reached min greedy ≥ {ROUND2_FLOOR:.0f} %: the one "
+            f"with the highest, `{chosen3}`."
         ),
     ]
     Path(args.out).write_text("\n".join(lines) + "\n")
