@@ -14,7 +14,8 @@ Subcommands (``himit <command> --help`` for their options):
   ``puzzlebox``: Whiten et al.'s keyway-fruit box (``himit info --puzzle-box K`` for the box).
 * ``sweep`` — a grid of settings × seeds × worlds from a spec file, each trial a resumable run, as
   Ray tasks when Ray is installed (``himit sweep --help`` documents the spec).
-* ``plot``  — redraw a run directory's figures and ``results.md``.
+* ``plot``  — redraw a run directory's figures and ``results.md`` from its records (or a
+  sweep's ``summary.csv`` and ``summary.md`` from its ``runs.csv`` and ``sweep.json``).
 * ``bench`` — steps per second of the batched learner.
 
 User mistakes (bad arguments, invalid worlds) end with one line ``himit: error: …`` on stderr
@@ -638,9 +639,25 @@ def _refuse_flags(args: argparse.Namespace, allowed: Sequence[str], why: str) ->
 
 def _run_gymnasium(args: argparse.Namespace) -> int:
     """``himit run gymnasium``: Taxi, CliffWalking, FrozenLake 8×8 (:mod:`himit_torch.runs.gymnasium`)."""
+    from himit_torch.runs.gymnasium import run_gym_experiment
+
+    config = _gym_config(args)
+    run_dir = Path(args.logdir) / config.name
+    print(
+        f"{config.name}: tasks {list(config.tasks)}, agents {list(config.agents)}, "
+        f"{config.seeds} seeds → {run_dir}"
+    )
+    t0 = time.perf_counter()
+    run_gym_experiment(config, run_dir, force=args.force, progress=not args.quiet)
+    print(f"done in {time.perf_counter() - t0:.0f} s: {run_dir / 'results.md'}")
+    return 0
+
+
+def _gym_config(args: argparse.Namespace) -> Any:
+    """The Gymnasium comparison's configuration with ``himit run gymnasium``'s flags."""
     from dataclasses import replace
 
-    from himit_torch.runs.gymnasium import GymExperimentConfig, run_gym_experiment
+    from himit_torch.runs.gymnasium import GymExperimentConfig
 
     if args.config or args.resume:
         raise ValueError(
@@ -662,15 +679,7 @@ def _run_gymnasium(args: argparse.Namespace) -> int:
         changes["learner"] = replace(config.learner, tie_break=changes.pop("tie_break"))
     config = replace(config, **changes)
     as_device("--device", config.device)
-    run_dir = Path(args.logdir) / config.name
-    print(
-        f"{config.name}: tasks {list(config.tasks)}, agents {list(config.agents)}, "
-        f"{config.seeds} seeds → {run_dir}"
-    )
-    t0 = time.perf_counter()
-    run_gym_experiment(config, run_dir, force=args.force, progress=not args.quiet)
-    print(f"done in {time.perf_counter() - t0:.0f} s: {run_dir / 'results.md'}")
-    return 0
+    return config
 
 
 def _run_discovery(args: argparse.Namespace) -> int:
@@ -714,9 +723,25 @@ def _run_discovery(args: argparse.Namespace) -> int:
 def _run_puzzle_box(args: argparse.Namespace) -> int:
     """``himit run puzzlebox``: Whiten et al.'s three findings on the puzzle box
     (:mod:`himit_torch.runs.puzzle_box`)."""
+    from himit_torch.runs.puzzle_box import run_puzzle_box
+
+    config = _puzzle_box_config(args)
+    run_dir = Path(args.logdir) / config.name
+    print(
+        f"{config.name}: {config.skewers}- and {config.transfer_skewers}-skewer boxes, "
+        f"{config.seeds} seeds per condition → {run_dir}"
+    )
+    t0 = time.perf_counter()
+    run_puzzle_box(config, run_dir, resume=args.resume, force=args.force, progress=not args.quiet)
+    print(f"done in {time.perf_counter() - t0:.0f} s: {run_dir / 'results.md'}")
+    return 0
+
+
+def _puzzle_box_config(args: argparse.Namespace) -> Any:
+    """The puzzle box's configuration with ``himit run puzzlebox``'s flags."""
     from dataclasses import replace
 
-    from himit_torch.runs.puzzle_box import PuzzleBoxConfig, run_puzzle_box
+    from himit_torch.runs.puzzle_box import PuzzleBoxConfig
 
     refused = [
         flag for flag, value in (("--config", args.config), ("--workers", args.workers)) if value
@@ -735,16 +760,7 @@ def _run_puzzle_box(args: argparse.Namespace) -> int:
     config = PuzzleBoxConfig()
     if args.quick:
         config = config.quick()
-    config = replace(config, **changes)
-    run_dir = Path(args.logdir) / config.name
-    print(
-        f"{config.name}: {config.skewers}- and {config.transfer_skewers}-skewer boxes, "
-        f"{config.seeds} seeds per condition → {run_dir}"
-    )
-    t0 = time.perf_counter()
-    run_puzzle_box(config, run_dir, resume=args.resume, force=args.force, progress=not args.quiet)
-    print(f"done in {time.perf_counter() - t0:.0f} s: {run_dir / 'results.md'}")
-    return 0
+    return replace(config, **changes)
 
 
 def _add_run(sub: argparse.ArgumentParser) -> None:
@@ -804,17 +820,13 @@ def _add_run(sub: argparse.ArgumentParser) -> None:
 
 # ------------------------------------------------------------------------------------- plot
 def cmd_plot(args: argparse.Namespace) -> int:
-    import json
-
-    from himit_torch.runs.config import load_config
-    from himit_torch.runs.experiment import WorldResult
-    from himit_torch.viz.report import write_figures, write_results
-
     run_dir = Path(args.run_dir)
     if (run_dir / "summary.json").exists() and (run_dir / "batches").is_dir():
+        from himit_torch.runs.puzzle_box import recorded_run_command
         from himit_torch.runs.puzzle_box_report import rewrite_puzzle_box_report
 
-        rewrite_puzzle_box_report(run_dir)  # a himit run puzzlebox directory
+        # a himit run puzzlebox directory
+        rewrite_puzzle_box_report(run_dir, recorded_run_command(run_dir))
         print(f"wrote {run_dir / 'figures'} and {run_dir / 'results.md'}")
         return 0
     if (run_dir / "tasks").is_dir() and not (run_dir / "worlds").is_dir():
@@ -823,24 +835,23 @@ def cmd_plot(args: argparse.Namespace) -> int:
         rewrite_gym_report(run_dir)  # a himit run gymnasium directory
         print(f"wrote {run_dir / 'figures'} and {run_dir / 'results.md'}")
         return 0
-    config = load_config(run_dir / "config.json")
-    results = []
-    for size in config.sizes:
-        path = run_dir / "worlds" / f"world{size}.json"
-        if not path.exists():
-            raise ValueError(
-                f"{run_dir}: world {size} has not finished ({path} is missing); "
-                "finish it with himit run … --resume"
-            )
-        results.append(WorldResult(**json.loads(path.read_text())))
-    write_figures(run_dir, config, results)
-    write_results(run_dir, config, results)
+    if (run_dir / "sweep.json").exists() and (run_dir / "runs.csv").exists():
+        from himit_torch.runs.sweep import rewrite_summary
+
+        rewrite_summary(run_dir)  # a himit sweep folder: its tables from runs.csv
+        print(f"wrote {run_dir / 'summary.csv'} and {run_dir / 'summary.md'}")
+        return 0
+    from himit_torch.runs.experiment import rewrite_report
+
+    rewrite_report(run_dir)
     print(f"wrote {run_dir / 'figures'} and {run_dir / 'results.md'}")
     return 0
 
 
 def _add_plot(sub: argparse.ArgumentParser) -> None:
-    sub.add_argument("run_dir", help="a run directory written by himit run")
+    sub.add_argument(
+        "run_dir", help="a run directory written by himit run, or a sweep's folder (himit sweep)"
+    )
 
 
 # ------------------------------------------------------------------------------------ sweep
@@ -992,7 +1003,12 @@ COMMANDS: dict[
         "run a sweep spec: settings × seeds × worlds as resumable "
         "trials (on Ray when installed), with tables and 95 %% CIs",
     ),
-    "plot": (cmd_plot, _add_plot, "redraw the figures and results.md of a run directory"),
+    "plot": (
+        cmd_plot,
+        _add_plot,
+        "redraw the figures and results.md of a run directory (a sweep's summary.md) from its "
+        "records",
+    ),
     "bench": (cmd_bench, _add_bench, "steps per second of the batched learner"),
 }
 

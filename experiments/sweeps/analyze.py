@@ -138,6 +138,24 @@ say(
     "`experiments/sweeps/analyze.py`)"
 )
 say()
+_sweeps = sorted(p.name for p in root.iterdir() if (p / "sweep.json").exists())
+_commits = sorted(
+    {c for s in _sweeps for c in json.loads((root / s / "sweep.json").read_text())["commit"]}
+)
+_command = ["python", "experiments/sweeps/analyze.py"]
+if root.resolve() != (HERE.parent / "results" / "sweeps").resolve():
+    _command += ["--sweeps", args.sweeps]
+if args.out:
+    _command += ["--out", args.out]
+say(
+    "Runs recorded at commits "
+    + ", ".join(f"`{c}`" for c in _commits)
+    + " (each sweep's `sweep.json`, listed below); this page: `"
+    + " ".join(_command)
+    + "` (from each sweep folder's committed `runs.csv`, `results.csv` and `sweep.json`); the "
+    "runs: `himit sweep experiments/sweeps/<name>.toml` of each sweep below, at its commit."
+)
+say()
 say(
     "Paired differences are seed by seed (common random numbers): mean [95 % Student-t "
     "interval]; paired t-test p (`t p`); Wilcoxon signed-rank p (`W p`); seeds above / below "

@@ -79,6 +79,7 @@ from himit_torch.options.builders import primitive_options
 from himit_torch.options.bundle import Options
 
 __all__ = [
+    "GAP_ROUND_OFF",
     "UNTRIED_RULES",
     "OptionPolicy",
     "PolicyEvaluation",

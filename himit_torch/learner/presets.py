@@ -1,5 +1,7 @@
-"""Named presets of the learner's settings: ``paper`` (eq. 2 as the paper states it) and
-``recommended`` (the best imitator found, chosen on held-out seeds).
+"""Named presets of the learner's settings: ``paper`` (eq. 2 as the paper states it),
+``recommended`` (the settings the preset search chose for eq. 2 on held-out seeds) and its two
+parts on their own, ``explore-goals`` (an exploration schedule, for every agent) and
+``mentor-fade`` (a setting of the mentor term, for the agents that have one).
 
 A preset is a set of :class:`~himit_torch.learner.config.LearnerConfig` fields with a reason for
 each value: :func:`apply_preset` sets them, :func:`preset_differences` says where a configuration
@@ -148,8 +150,9 @@ MENTOR_FADE = _preset(
     **{**dict(PAPER.settings), **_MENTOR_FADE},
 )
 
-#: The best imitator found on held-out seeds (experiments/presets/PROTOCOL.md, search.md): both
-#: parts above.
+#: The settings the preset search chose for eq. 2 on held-out seeds (experiments/presets/PROTOCOL.md,
+#: search.md): both parts above. Which *method* to use is the benchmark's question, answered
+#: under a common schedule (experiments/results/benchmark/).
 RECOMMENDED = _preset(
     "recommended",
     "Eq. 2 with the mentor term fading into the learner's own value as its own experience "

@@ -53,7 +53,13 @@ from himit_torch.runs.config import EXPERIMENTS
 from himit_torch.runs.runner import check_run_dir, run_windows, source_commit, watch_demonstrations
 from himit_torch.validation import check_settings, setting
 
-__all__ = ["DiscoveryConfig", "DISCOVERY_AGENTS", "run_discovery", "mean_ci"]
+__all__ = [
+    "DiscoveryConfig",
+    "DISCOVERY_AGENTS",
+    "run_discovery",
+    "discovery_run_command",
+    "mean_ci",
+]
 
 #: The compared learners, in the order of the tables.
 DISCOVERY_AGENTS = (
@@ -423,6 +429,38 @@ def run_discovery(
     return results
 
 
+def discovery_run_command(
+    config: DiscoveryConfig, run_dir: str | os.PathLike | None = None
+) -> str | None:
+    """The ``himit run discovery`` command that rebuilds ``config`` exactly, or None where none
+    can (``worlds``, ``warmup``, ``refresh_every``, … have no flags). Its flags are those of
+    ``himit run discovery`` (``--quick``, ``--seeds``, ``--steps``, ``--engine``) that differ
+    from the defaults, applied as it applies them; the configuration they build is compared
+    with ``config`` field by field. ``run_dir`` (``<logdir>/<name>``) adds ``--logdir``."""
+    from himit_torch.runs.config import logdir_flag, setting_flag
+
+    logdir = logdir_flag(run_dir, config.name)
+    if logdir is None:
+        return None
+    for quick in (False, True):
+        base = DiscoveryConfig().quick() if quick else DiscoveryConfig()
+        changes = {
+            name: getattr(config, name)
+            for name in ("seeds", "steps", "engine")
+            if getattr(config, name) != getattr(base, name)
+        }
+        try:
+            rebuilt = replace(base, **changes)
+        except ValueError:
+            continue
+        if asdict(rebuilt) == asdict(config):
+            flags = ["--quick"] if quick else []
+            for name, value in changes.items():
+                flags += setting_flag(name, value)
+            return " ".join(["himit", "run", "discovery", *flags, *logdir])
+    return None
+
+
 def _fmt(values, digits: int = 1) -> str:
     m, h = mean_ci(values)
     return f"{m:.{digits}f} ± {h:.{digits}f}"
@@ -430,8 +468,19 @@ def _fmt(values, digits: int = 1) -> str:
 
 def _write_results(out: Path, config: DiscoveryConfig, results: list[dict], total: float) -> None:
     engine = ", ".join(sorted({r["engine"] for r in results}))
+    command = discovery_run_command(config, out)
     lines = [
         "# discovery: options discovered from the mentor's states",
+        "",
+        f"Runs recorded at commit `{source_commit()}` (the code that ran them; the records here "
+        "hold no commit); this page: written by the runs themselves (no command redraws it from "
+        "its records); the runs: "
+        + (
+            f"`{command}`."
+            if command
+            else "the settings in `config.json` (not all of them flags of `himit run "
+            "discovery`: `run_discovery` of that `DiscoveryConfig`)."
+        ),
         "",
         f"Code at commit `{source_commit()}`, engine `{engine}`, {config.seeds} seeds, warm-up {config.warmup:,} steps, initiation "
         f"sets within {config.max_steps_factor:g} × separation expected steps. Total wall time "

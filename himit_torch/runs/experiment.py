@@ -48,7 +48,7 @@ from himit_torch.mentor.policy import (
 from himit_torch.mentor.reward import mentor_reward_module
 from himit_torch.options.builders import learner_options, mentor_options, primitive_options
 from himit_torch.runs.checkpoints import BatchShape
-from himit_torch.runs.config import ExperimentConfig, load_config
+from himit_torch.runs.config import ExperimentConfig, load_config, run_command
 from himit_torch.runs.greedy import CURVE_COLUMNS, GreedyReference, GreedyTracker
 from himit_torch.runs.runner import (
     Checkpoints,
@@ -71,6 +71,7 @@ __all__ = [
     "run_experiments",
     "run_world",
     "WorldResult",
+    "rewrite_report",
     "PAPER",
 ]
 
@@ -628,8 +629,46 @@ def _finish_run_dir(
     from himit_torch.viz.report import write_figures, write_results
 
     write_figures(run_dir, config, results)
-    write_results(run_dir, config, results, agent_settings_text(config.agents, config.learner))
+    write_results(
+        run_dir,
+        config,
+        results,
+        agent_settings_text(config.agents, config.learner),
+        run_command(config, run_dir),
+    )
     return results
+
+
+def rewrite_report(run_dir: str | os.PathLike) -> None:
+    """Redraw the figures and ``results.md`` of a finished run directory from its
+    ``config.json``, ``curves.csv`` and ``worlds/world<N>.json`` (``himit plot``): the page
+    :func:`run_experiment` wrote, from the records alone.
+
+    Raises:
+        ValueError: ``config.json`` is missing or invalid, or a world has not finished.
+    """
+    run_dir = Path(run_dir)
+    config = load_config(run_dir / "config.json")
+    finished = {}
+    for size in config.sizes:
+        path = run_dir / "worlds" / f"world{size}.json"
+        if not path.exists():
+            raise ValueError(
+                f"{run_dir}: world {size} has not finished ({path} is missing); "
+                "finish it with himit run … --resume"
+            )
+        finished[size] = WorldResult(**json.loads(path.read_text()))
+    from himit_torch.viz.report import write_figures, write_results
+
+    results = [finished[size] for size in config.sizes]
+    write_figures(run_dir, config, results)
+    write_results(
+        run_dir,
+        config,
+        results,
+        agent_settings_text(config.agents, config.learner),
+        run_command(config, run_dir),
+    )
 
 
 def _share_cores(threads: int) -> None:

@@ -84,10 +84,9 @@ class GreedyTracker:
         values: solve ``V^π(start)`` at every evaluation, not at the end only (for a value gap
             per window: the Gymnasium comparison).
 
-    Attributes:
-        evaluations: step → the evaluation under the ``"uniform"`` rule (checkpointed).
-        stuck: the final policy's evaluation under the ``"stuck"`` rule, set by :meth:`finish`
-            (``None`` before).
+    ``evaluations`` maps a step to the evaluation under the ``"uniform"`` rule (checkpointed);
+    ``stuck`` is the final policy's evaluation under the ``"stuck"`` rule, set by
+    :meth:`finish` (``None`` before).
     """
 
     evaluator: PolicyEvaluator

@@ -43,6 +43,7 @@ import csv
 import json
 import math
 import os
+import shlex
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
@@ -86,6 +87,7 @@ __all__ = [
     "TASKS",
     "GymExperimentConfig",
     "run_gym_experiment",
+    "gym_run_command",
     "run_task",
     "neutral_value",
     "mean_ci",
@@ -262,6 +264,52 @@ class GymExperimentConfig:
     def with_preset(self, name: str) -> GymExperimentConfig:
         """This comparison with preset ``name``'s learner settings, and the preset recorded."""
         return replace(self, preset=name, learner=apply_preset(self.learner, name))
+
+
+def gym_run_command(
+    config: GymExperimentConfig, run_dir: str | os.PathLike | None = None
+) -> str | None:
+    """The ``himit run gymnasium`` command that rebuilds ``config`` exactly, or None where none
+    can (its other settings — tasks, agents, window, … — are the script's,
+    ``experiments/gymnasium_worlds.py``). Its flags are those of ``himit run gymnasium``
+    (``--quick``, ``--seeds``, ``--first-seed``, ``--steps``, ``--device``, ``--preset``,
+    ``--tie-break``) that differ from the comparison's defaults, applied as it applies them;
+    the configuration they build is compared with ``config`` field by field. ``run_dir``
+    (``<logdir>/<name>``) adds ``--logdir`` unless it is the default ``runs``."""
+    from himit_torch.runs.config import logdir_flag, setting_flag
+
+    logdir = logdir_flag(run_dir, config.name)
+    if logdir is None:
+        return None
+    for quick in (False, True):
+        base = GymExperimentConfig().quick() if quick else GymExperimentConfig()
+        flags = ["--quick"] if quick else []
+        try:
+            if config.preset != base.preset:
+                flags += setting_flag("preset", config.preset)
+                base = (
+                    replace(base, preset=None)
+                    if config.preset is None
+                    else base.with_preset(config.preset)
+                )
+            changes = {
+                name: getattr(config, name)
+                for name in ("seeds", "first_seed", "steps", "device")
+                if getattr(config, name) != getattr(base, name)
+            }
+            tie_break = config.learner.tie_break
+            learner = replace(base.learner, tie_break=tie_break)
+            rebuilt = replace(base, **changes, learner=learner)
+        except (ValueError, TypeError):
+            continue
+        if asdict(rebuilt) != asdict(config):
+            continue
+        for name, value in changes.items():
+            flags += setting_flag(name, value)
+        if tie_break != base.learner.tie_break:
+            flags += setting_flag("tie_break", tie_break)
+        return " ".join(["himit", "run", "gymnasium", *flags, *logdir])
+    return None
 
 
 # ================================================================================ evaluation
@@ -633,14 +681,24 @@ def _cell(values, digits: int = 1) -> str:
 
 def write_gym_results(run_dir: Path, config: GymExperimentConfig, summaries: list[dict]) -> None:
     """``results.md``: per task and agent, mean [95 % BCa interval] over seeds."""
+    commits = list(dict.fromkeys(s.get("commit", "unknown") for s in summaries))
+    command = gym_run_command(config, run_dir)
     lines = [
         f"# {config.name}: hierarchical imitation on Gymnasium's tabular environments",
         "",
-        "Produced by `himit run gymnasium` (the same as `python "
-        "experiments/gymnasium_worlds.py`); settings: `himit_torch/runs/gymnasium.py`. "
-        f"Code at commit `{summaries[0].get('commit') or source_commit()}`, engine "
+        f"Runs recorded at commit{'s' if len(commits) > 1 else ''} "
+        + ", ".join(f"`{c}`" for c in commits)
+        + " (from `tasks/*.json`), engine "
         + ", ".join(sorted({f"`{s.get('engine', 'unknown')}`" for s in summaries}))
-        + ".",
+        + f"; this page: `himit plot {shlex.quote(str(run_dir))}`; the runs: "
+        + (
+            f"`{command}`"
+            if command
+            else "the settings in `config.json` (those of `python "
+            "experiments/gymnasium_worlds.py`, not all of them flags of `himit run gymnasium`)"
+        )
+        + ". Produced by `himit run gymnasium` (the same as `python "
+        "experiments/gymnasium_worlds.py`); settings: `himit_torch/runs/gymnasium.py`.",
         "",
         f"{config.seeds} seeds per agent and task, "
         + ", ".join(f"{t} {config.steps_of(t):,}" for t in config.tasks)

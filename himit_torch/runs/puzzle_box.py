@@ -85,6 +85,8 @@ __all__ = [
     "greedy_values",
     "greedy_plan",
     "run_puzzle_box",
+    "puzzle_box_run_command",
+    "recorded_run_command",
     "VARIANTS",
 ]
 
@@ -191,6 +193,51 @@ class PuzzleBoxConfig:
 
     def to_json(self) -> str:
         return json.dumps(asdict(self), indent=2)
+
+
+def puzzle_box_run_command(
+    config: PuzzleBoxConfig, run_dir: str | os.PathLike | None = None
+) -> str | None:
+    """The ``himit run puzzlebox`` command that rebuilds ``config`` exactly, or None where none
+    can (its other settings are the scripts'). Its flags are those of ``himit run puzzlebox``
+    (``--quick``, ``--seeds``, ``--steps``, ``--engine``) that differ from the defaults, applied
+    as it applies them; the configuration they build is compared with ``config`` field by
+    field. ``run_dir`` (``<logdir>/<name>``) adds ``--logdir`` unless it is ``runs``."""
+    from himit_torch.runs.config import logdir_flag, setting_flag
+
+    logdir = logdir_flag(run_dir, config.name)
+    if logdir is None:
+        return None
+    for quick in (False, True):
+        base = PuzzleBoxConfig().quick() if quick else PuzzleBoxConfig()
+        changes = {
+            name: getattr(config, name)
+            for name in ("seeds", "steps", "engine")
+            if getattr(config, name) != getattr(base, name)
+        }
+        try:
+            rebuilt = replace(base, **changes)
+        except ValueError:
+            continue
+        if asdict(rebuilt) == asdict(config):
+            flags = ["--quick"] if quick else []
+            for name, value in changes.items():
+                flags += setting_flag(name, value)
+            return " ".join(["himit", "run", "puzzlebox", *flags, *logdir])
+    return None
+
+
+def recorded_run_command(run_dir: str | os.PathLike) -> str | None:
+    """:func:`puzzle_box_run_command` of the configuration a finished run directory's
+    ``summary.json`` records (None where it no longer builds one: an older record)."""
+    run_dir = Path(run_dir)
+    recorded = dict(json.loads((run_dir / "summary.json").read_text())["config"])
+    recorded.pop("box_steps", None)
+    try:
+        config = PuzzleBoxConfig(**recorded)
+    except (TypeError, ValueError):
+        return None
+    return puzzle_box_run_command(config, run_dir)
 
 
 def watched_organisation(seed: int, first_seed: int = 0) -> str:
@@ -579,7 +626,7 @@ def run_puzzle_box(
     )
 
     write_puzzle_box_figures(run_dir, summary)
-    write_puzzle_box_results(run_dir, summary)
+    write_puzzle_box_results(run_dir, summary, puzzle_box_run_command(config, run_dir))
     return summary
 
 

@@ -17,6 +17,7 @@ Statistics (every interval says what it is):
 from __future__ import annotations
 
 import math
+import shlex
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -112,15 +113,16 @@ def _batch(summary: dict, tag: str) -> dict:
     return next(b for b in summary["batches"] if b["batch"] == tag)
 
 
-def rewrite_puzzle_box_report(run_dir: str | Path) -> None:
+def rewrite_puzzle_box_report(run_dir: str | Path, run_command: str | None = None) -> None:
     """Redraw the figures and ``results.md`` of a finished ``himit run puzzlebox`` directory
-    from its ``summary.json`` and ``batches/`` (``himit plot``)."""
+    from its ``summary.json`` and ``batches/`` (``himit plot``); ``run_command`` as
+    :func:`write_puzzle_box_results`."""
     import json
 
     run_dir = Path(run_dir)
     summary = json.loads((run_dir / "summary.json").read_text())
     write_puzzle_box_figures(run_dir, summary)
-    write_puzzle_box_results(run_dir, summary)
+    write_puzzle_box_results(run_dir, summary, run_command)
 
 
 # ================================================================================ figures
@@ -309,8 +311,11 @@ def _organisation_groups(summary: dict, experiments=("speed", "transfer")) -> di
 
 
 # ================================================================================ results.md
-def write_puzzle_box_results(run_dir: Path, summary: dict) -> None:
-    """``results.md``: the three experiments' tables and the findings set beside the study's."""
+def write_puzzle_box_results(run_dir: Path, summary: dict, run_command: str | None = None) -> None:
+    """``results.md``: the three experiments' tables and the findings set beside the study's.
+    ``run_command``: the ``himit run puzzlebox`` command of the runs
+    (:func:`himit_torch.runs.puzzle_box.puzzle_box_run_command`; None: the settings the
+    summary records)."""
     cfg = summary["config"]
     k, K = cfg["skewers"], cfg["transfer_skewers"]
     speed = {c: _batch(summary, f"speed_{c}") for c in ("imitation", "options", "primitives")}
@@ -320,6 +325,15 @@ def write_puzzle_box_results(run_dir: Path, summary: dict) -> None:
     written = "" if now == summary["commit"] else f" (this report written at commit `{now}`)"
     lines = [
         "# The puzzle box: Whiten et al.'s (2006) three findings, run on the model",
+        "",
+        f"Runs recorded at commit `{summary['commit']}` (from `summary.json`); this page: "
+        f"`himit plot {shlex.quote(str(run_dir))}`; the runs: "
+        + (
+            f"`{run_command}`."
+            if run_command
+            else "the settings in `summary.json`'s `config` (not all of them flags of "
+            "`himit run puzzlebox`)."
+        ),
         "",
         "Produced by `himit run puzzlebox` (the same as `python experiments/puzzle_box.py`); "
         f"settings: `himit_torch/runs/puzzle_box.py`. Code at commit `{summary['commit']}`, "

@@ -83,6 +83,7 @@ import json
 import math
 import os
 import re
+import shlex
 import sys
 import time
 from collections.abc import Sequence
@@ -103,7 +104,7 @@ from himit_torch.validation import (
     read_text,
 )
 
-__all__ = ["SweepSpec", "Cell", "Trial", "load_spec", "run_sweep", "summarize"]
+__all__ = ["SweepSpec", "Cell", "Trial", "load_spec", "run_sweep", "summarize", "rewrite_summary"]
 
 _SPEC_KEYS = {
     "name",
@@ -167,6 +168,9 @@ class SweepSpec:
     factors: dict  # factor → list of levels
     cells: tuple[Cell, ...]
     worker_niceness: int = WORKER_NICENESS
+    source: str | None = None
+    """The spec file it was read from (:func:`load_spec`; None: built in code), for the
+    command that reruns it."""
 
     def trials(self, out: Path) -> list[Trial]:
         """Every trial, the largest worlds first (they take longest)."""
@@ -384,6 +388,7 @@ def load_spec(path: str | os.PathLike) -> SweepSpec:
         factors=factors,
         cells=tuple(cells),
         worker_niceness=niceness,
+        source=str(path),
     )
 
 
@@ -621,22 +626,36 @@ def summarize(spec: SweepSpec, out: Path) -> dict:
     head = ["sweep", "cell", *factor_cols]
     _write_csv(out / "results.csv", head + [k for k in results[0] if k not in head], results)
     _write_csv(out / "runs.csv", head + [k for k in runs[0] if k not in head], runs)
+    summary = _summary_rows(
+        spec.name, factor_cols, {c.slug: c.config.steps for c in spec.cells}, runs
+    )
+    _write_csv(out / "summary.csv", list(summary[0]), summary)
+    provenance = {"commit": sorted(commits), "engine": sorted(engines)}
+    _write_summary_md(_about(spec), out, summary, provenance)
+    return provenance
+
+
+def _summary_rows(
+    name: str, factor_cols: Sequence[str], steps_of: dict[str, int], runs: list[dict]
+) -> list[dict]:
+    """Per cell, world and agent (in the order of ``runs``): the mean and 95 % interval of
+    each measure, and the runs that never found the goal. ``steps_of``: each cell's steps."""
     summary = []
     groups: dict = {}
     for r in runs:
         groups.setdefault((r["cell"], r["world"], r["agent"]), []).append(r)
     for (cell, size, agent), rs in groups.items():
         row = {
-            "sweep": spec.name,
+            "sweep": name,
             "cell": cell,
             **{f: rs[0][f] for f in factor_cols},
             "world": size,
             "agent": agent,
             "n": len(rs),
         }
-        steps = spec.cells[order[cell]].config.steps
+        steps = steps_of[cell]
         for m in _MEASURES + _GREEDY_MEASURES:
-            vals = [float(r[m]) for r in rs if r[m] != ""]
+            vals = [float(r[m]) for r in rs if r.get(m, "") != ""]  # older runs.csv: no greedy
             if m == "first_goal_step":  # a run that never found the goal: just after its end
                 vals = [v if v >= 0 else steps + 1 for v in vals]
             cells: tuple[str, ...] = ("", "", "")  # greedy measures of trials without them
@@ -655,19 +674,82 @@ def summarize(spec: SweepSpec, out: Path) -> dict:
             }
         )
         summary.append(row)
+    return summary
+
+
+def _about(spec: SweepSpec) -> dict:
+    """What ``summary.md`` says of the spec (the keys ``sweep.json`` records too)."""
+    return {
+        "name": spec.name,
+        "base": spec.base,
+        "design": spec.design,
+        "seeds": spec.seeds,
+        "first_seed": spec.first_seed,
+        "worlds": list(spec.worlds),
+        "spec": spec.source,
+    }
+
+
+def rewrite_summary(out: str | os.PathLike) -> None:
+    """Rewrite a finished sweep's ``summary.csv`` and ``summary.md`` from its ``runs.csv`` and
+    ``sweep.json`` alone (``himit plot``): what :func:`summarize` writes from the trials, without
+    them (a committed sweep keeps only its tables).
+
+    Raises:
+        ValueError: ``sweep.json`` or ``runs.csv`` is missing or not a sweep's.
+    """
+    out = Path(out)
+    where = f"sweep record {out / 'sweep.json'}"
+    record = parse_document(where, read_text(where, out / "sweep.json"), "json")
+    try:
+        steps_of = {c["cell"]: int(c["config"]["steps"]) for c in record["cells"]}
+        factor_cols = list(record["factors"])
+        provenance = {"commit": list(record["commit"]), "engine": list(record["engine"])}
+        about = {
+            key: record[key] for key in ("name", "base", "design", "seeds", "first_seed", "worlds")
+        }
+    except (KeyError, TypeError) as err:
+        raise ValueError(f"{where} is not a sweep's record ({err!r} missing)") from None
+    about["spec"] = record.get("spec")
+    runs = _read_csv(out / "runs.csv")
+    if not runs:
+        raise ValueError(f"{out / 'runs.csv'} holds no runs")
+    summary = _summary_rows(about["name"], factor_cols, steps_of, runs)
     _write_csv(out / "summary.csv", list(summary[0]), summary)
-    provenance = {"commit": sorted(commits), "engine": sorted(engines)}
-    _write_summary_md(spec, out, summary, provenance)
-    return provenance
+    _write_summary_md(about, out, summary, provenance)
 
 
-def _write_summary_md(spec: SweepSpec, out: Path, summary: list[dict], provenance: dict) -> None:
+def sweep_command(about: dict, out: str | os.PathLike) -> str | None:
+    """``himit sweep <spec> [--out <out>]``: the command that reruns the sweep into ``out``
+    (None: its spec file is not known)."""
+    if not about.get("spec"):
+        return None
+    words = ["himit", "sweep", shlex.quote(str(about["spec"]))]
+    if Path(out) != Path("runs") / "sweeps" / about["name"]:
+        words += ["--out", shlex.quote(str(out))]
+    return " ".join(words)
+
+
+def _write_summary_md(about: dict, out: Path, summary: list[dict], provenance: dict) -> None:
+    command = sweep_command(about, out)
+    commits = provenance["commit"]
     lines = [
-        f"# Sweep {spec.name}",
+        f"# Sweep {about['name']}",
         "",
-        f"Base `{spec.base}`, design {spec.design}, {spec.seeds} seeds per cell "
-        f"({spec.first_seed}…{spec.first_seed + spec.seeds - 1}), worlds {list(spec.worlds)}; "
-        f"commit {', '.join(provenance['commit'])}, engine {', '.join(provenance['engine'])}.",
+        f"Runs recorded at commit{'s' if len(commits) > 1 else ''} "
+        + ", ".join(f"`{c}`" for c in commits)
+        + " (from the trials' `worlds/*.json`, as `sweep.json` records); this page: "
+        f"`himit plot {shlex.quote(str(out))}` (from `runs.csv` and `sweep.json`); the runs: "
+        + (
+            f"`{command}`."
+            if command
+            else "`himit sweep` of the spec that `sweep.json` resolves (its file not recorded)."
+        ),
+        "",
+        f"Base `{about['base']}`, design {about['design']}, {about['seeds']} seeds per cell "
+        f"({about['first_seed']}…{about['first_seed'] + about['seeds'] - 1}), worlds "
+        f"{list(about['worlds'])}; "
+        f"commit {', '.join(commits)}, engine {', '.join(provenance['engine'])}.",
         "",
         "Means with 95 % confidence intervals: for the counts (total goals, last window, late, "
         "first goal) the BCa bootstrap interval (9999 resamples; a t-interval can leave the "
@@ -760,6 +842,7 @@ def run_sweep(
         "first_seed": spec.first_seed,
         "worlds": list(spec.worlds),
         "worker_niceness": spec.worker_niceness,
+        "spec": spec.source,
         "factors": {k: [_show(v) for v in vs] for k, vs in spec.factors.items()},
         "cells": [
             {

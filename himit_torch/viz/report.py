@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import math
+import shlex
 import statistics
 from collections import defaultdict
 from dataclasses import asdict
@@ -20,6 +21,7 @@ __all__ = [
     "read_curves",
     "write_figures",
     "write_results",
+    "provenance_line",
     "plot_curves",
     "plot_scaling",
     "plot_first_goal_steps",
@@ -207,13 +209,38 @@ def _stress_lines(config) -> list[str]:
     ]
 
 
-def write_results(run_dir: Path, config, results, agent_settings: str = "") -> None:
+def provenance_line(run_dir: Path, results, run_command: str | None) -> str:
+    """The page's provenance: the commit(s) its runs recorded (each world's record), the
+    command that redraws the page from its records, and the one that reruns the runs
+    (``run_command``, from :func:`himit_torch.runs.config.run_command`; None: no ``himit run``
+    command writes these settings into this directory — a sweep's trial, the demo)."""
+    commits = list(dict.fromkeys(r.commit for r in results))
+    runs = (
+        f"`{run_command}`"
+        if run_command
+        else "`run_experiment` of the settings in `config.json` (no `himit run` command writes "
+        "them here)"
+    )
+    return (
+        f"Runs recorded at commit{'s' if len(commits) > 1 else ''} "
+        + ", ".join(f"`{c}`" for c in commits)
+        + f" (from `worlds/*.json`); this page: `himit plot {shlex.quote(str(run_dir))}`; "
+        f"the runs: {runs}."
+    )
+
+
+def write_results(
+    run_dir: Path, config, results, agent_settings: str = "", run_command: str | None = None
+) -> None:
     """``results.md``: per world and agent, our numbers beside the paper's."""
-    # agent_settings: what each agent ran with (learner.presets.agent_settings_text), given by
-    # the caller: viz does not import the learner (the layers of pyproject.toml)
+    # agent_settings: what each agent ran with (learner.presets.agent_settings_text), and
+    # run_command: the himit run command of config (runs.config.run_command), given by the
+    # caller: viz does not import the learner or the runs (the layers of pyproject.toml)
     curves = read_curves(run_dir)
     lines = [
         f"# {config.name}: results",
+        "",
+        provenance_line(run_dir, results, run_command),
         "",
         f"Worlds {', '.join(f'{s}×{s}' for s in config.sizes)} (rooms of {config.room_size} "
         f"cells), corner options: {config.corner_options}, {config.seeds} seeds, "

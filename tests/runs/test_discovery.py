@@ -29,6 +29,10 @@ def test_himit_run_discovery_quick(tmp_path, capsys):
     )
     run = tmp_path / "discovery"
     text = (run / "results.md").read_text()
+    assert (
+        "this page: written by the runs themselves (no command redraws it from its records); "
+        f"the runs: `himit run discovery --quick --steps 10000 --logdir {tmp_path}`."
+    ) in text
     for agent in DISCOVERY_AGENTS:
         assert f"| {agent} |" in text
     with (run / "curves.csv").open() as f:
@@ -65,7 +69,7 @@ def test_discovered_runs_continue_the_primitives_runs_and_refresh(tmp_path):
         assert len(goals[variant][0]) == 3
         assert list(goals[variant][0][:window]) == list(goals[source][0][:window])
     assert result["refreshes"] == [1, 1]  # at 10,000 steps (the warm-up build is not counted)
-    assert (
-        "rebuilt from its latest counts every 5,000 steps"
-        in (tmp_path / "d" / "results.md").read_text()
-    )
+    text = (tmp_path / "d" / "results.md").read_text()
+    assert "rebuilt from its latest counts every 5,000 steps" in text
+    # refresh_every is no flag of himit run discovery (and "d" no run directory it writes)
+    assert "the runs: the settings in `config.json` (not all of them flags" in text

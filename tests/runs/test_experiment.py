@@ -346,8 +346,17 @@ def test_cli_run_plot_and_errors(capsys, tmp_path):
     )
     assert (tmp_path / "exp2" / "results.md").exists()
     capsys.readouterr()
+    page = (tmp_path / "exp2" / "results.md").read_text()
+    commit = json.loads((tmp_path / "exp2" / "worlds" / "world40.json").read_text())["commit"]
+    assert (
+        f"Runs recorded at commit `{commit}` (from `worlds/*.json`); this page: "
+        f"`himit plot {tmp_path / 'exp2'}`; the runs: `himit run exp2 --agents imitation options "
+        f"--seeds 1 --steps 1000 --mentor-episodes 3 --window 1000 --logdir {tmp_path}`."
+    ) in page
+    (tmp_path / "exp2" / "results.md").unlink()
     assert main(["plot", str(tmp_path / "exp2")]) == 0
     assert "results.md" in capsys.readouterr().out
+    assert (tmp_path / "exp2" / "results.md").read_text() == page  # the records redraw it
     assert "finished run" in one_line_error(
         capsys, ["run", "exp2", "--config", str(cfg_path), "--logdir", str(tmp_path), "--quiet"]
     )
@@ -361,6 +370,68 @@ def test_cli_run_plot_and_errors(capsys, tmp_path):
         )
     assert "invalid choice" in one_line_error(capsys, ["run", "exp7"])
     assert "does not exist" in one_line_error(capsys, ["plot", str(tmp_path)])
+
+
+@pytest.mark.parametrize(
+    "config",
+    [
+        EXPERIMENTS["exp2"],
+        EXPERIMENTS["exp2"].with_preset("paper"),
+        replace(EXPERIMENTS["exp1"].with_preset("recommended"), seeds=20),
+        replace(
+            EXPERIMENTS["exp2"],
+            seeds=20,
+            learner=replace(EXPERIMENTS["exp2"].learner, tie_break="first"),
+        ),
+        replace(
+            EXPERIMENTS["exp1"],
+            agents=("imitation", "imitation_confident"),
+            learner=replace(EXPERIMENTS["exp1"].learner, mentor_override_after=5),
+        ),
+        replace(EXPERIMENTS["exp2"], steps=12_000, checkpoint_every=10_000),  # as run moves it
+        replace(EXPERIMENTS["exp2"], steps=12_000, checkpoint_every=5000),  # given
+        replace(EXPERIMENTS["exp2"], checkpoint_every=50_000, window=2500),
+        replace(EXPERIMENTS["exp1"], corner_options=False, mentor_preference=0.5, slip=0.2),
+        replace(EXPERIMENTS["exp3"], sizes=(64, 80), first_seed=7, mentor_reward="none"),
+    ],
+)
+def test_run_command_rebuilds_the_configuration(config, tmp_path):
+    """The command a results page names for its runs, read by ``himit run``'s own parser,
+    builds exactly the configuration the runs had."""
+    import shlex
+
+    from himit_torch.cli import _experiment_config, build_parser
+    from himit_torch.runs.config import run_command
+
+    command = run_command(config, tmp_path / "logs" / config.name)
+    assert command is not None and "--config" not in command
+    argv = shlex.split(command)
+    assert argv[:3] == ["himit", "run", config.name]
+    args = build_parser().parse_args(argv[1:])
+    assert args.logdir == str(tmp_path / "logs")
+    assert _experiment_config(config.name, args) == config
+    assert run_command(config, Path("runs") / config.name) == command.replace(
+        f" --logdir {tmp_path / 'logs'}", ""
+    )
+
+
+def test_run_command_where_no_flags_rebuild_it(tmp_path):
+    config = EXPERIMENTS["exp2"]
+    assert run_command_of(replace(config, name="mine")) is None  # not an experiment of himit run
+    assert run_command_of(config, tmp_path / "elsewhere") is None  # run writes <logdir>/exp2
+    # a learner departing from its recorded preset (a preset's settings changed since): no
+    # flags rebuild it, its config.json does
+    odd = replace(config, learner=replace(config.learner, mentor_fade=7.0))
+    odd.preset = "paper"  # set after the check, as no config.json could load
+    assert run_command_of(odd, tmp_path / "exp2").startswith(
+        f"himit run exp2 --config {tmp_path / 'exp2' / 'config.json'}"
+    )
+
+
+def run_command_of(config, run_dir=None):
+    from himit_torch.runs.config import run_command
+
+    return run_command(config, run_dir)
 
 
 def test_cli_demo_learning_run(capsys, tmp_path):

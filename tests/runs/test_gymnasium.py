@@ -92,6 +92,44 @@ def test_task_settings(cliff):
         GymExperimentConfig(tasks=("pong",))
 
 
+@pytest.mark.parametrize(
+    "changes",
+    [
+        {},
+        {"preset": "paper", "seeds": 20, "tie_break": "first"},
+        {"preset": "recommended", "first_seed": 3, "steps": 800},
+        {"quick": True, "tie_break": "first"},
+    ],
+)
+def test_the_run_command_rebuilds_the_configuration(changes, tmp_path):
+    """The command a Gymnasium page names for its runs, read by ``himit run``'s own parser,
+    builds exactly the configuration the runs had; a setting only the script takes has none."""
+    import shlex
+    from dataclasses import replace
+
+    from himit_torch.cli import _gym_config, build_parser
+    from himit_torch.runs.gymnasium import gym_run_command
+
+    config = GymExperimentConfig()
+    if changes.get("quick"):
+        config = config.quick()
+    if "preset" in changes:
+        config = config.with_preset(changes["preset"])
+    config = replace(
+        config,
+        **{k: v for k, v in changes.items() if k not in ("quick", "preset", "tie_break")},
+        learner=replace(config.learner, tie_break=changes.get("tie_break", "random")),
+    )
+    command = gym_run_command(config, tmp_path / "gymnasium")
+    assert command is not None
+    args = build_parser().parse_args(shlex.split(command)[1:])
+    assert args.logdir == str(tmp_path)
+    assert _gym_config(args) == config
+    assert gym_run_command(replace(config, window=500)) is None
+    assert gym_run_command(replace(config, tasks=("taxi",))) is None
+    assert gym_run_command(config, tmp_path / "elsewhere") is None
+
+
 def test_the_script_runs_and_writes_curves_figures_and_results(tmp_path):
     out = subprocess.run(
         [
@@ -136,7 +174,13 @@ def test_the_script_runs_and_writes_curves_figures_and_results(tmp_path):
     assert summary["first_goal_resolution"] == 1
     for step, window in zip(summary["first_goal_step"], summary["first_goal_window"]):
         assert (step < 0) == (window < 0) and (step < 0 or window - 200 < step <= window)
-    assert "95 % BCa bootstrap interval" in (run / "results.md").read_text()
+    page = (run / "results.md").read_text()
+    assert "95 % BCa bootstrap interval" in page
+    assert (
+        f"Runs recorded at commit `{summary['commit']}` (from `tasks/*.json`), engine "
+        f"`{summary['engine']}`; this page: `himit plot {run}`; the runs: the settings in "
+        "`config.json`"  # --tasks and --window: the script's settings, not himit run's flags
+    ) in page
     assert (run / "figures" / "curves_cliffwalking.png").read_bytes()[:4] == b"\x89PNG"
     # himit plot redraws the same results.md from the run's records (its commit kept)
     from himit_torch.cli import main

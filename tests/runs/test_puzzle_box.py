@@ -125,6 +125,10 @@ def test_runner_writes_every_result(tmp_path):
     for finding in ("| 1. Children", "| 2a.", "| 2b.", "| 3. At test"):
         assert finding in text
     assert "commit `" in text and "engine `" in text
+    assert (  # TINY's settings are no flags of himit run puzzlebox (its window, its boxes)
+        f"Runs recorded at commit `{summary['commit']}` (from `summary.json`); this page: "
+        f"`himit plot {run_dir}`; the runs: the settings in `summary.json`'s `config`"
+    ) in text
     assert len(list((run_dir / "tb").iterdir())) == len(tags) * 2
     # a finished run is refused without --force; a resumed one reads the finished batches
     with pytest.raises(ValueError, match="finished run"):
@@ -136,10 +140,34 @@ def test_runner_writes_every_result(tmp_path):
     (run_dir / "results.md").unlink()
     resumed = run_puzzle_box(TINY, run_dir, resume=True, progress=False)
     assert resumed["batches"][-1]["runs"] == summary["batches"][-1]["runs"]
-    # himit plot redraws it
+    # himit plot redraws it, the same page
+    text = (run_dir / "results.md").read_text()
     (run_dir / "results.md").unlink()
     assert main(["plot", str(run_dir)]) == 0
-    assert "## Beside Whiten et al. (2006)" in (run_dir / "results.md").read_text()
+    assert (run_dir / "results.md").read_text() == text
+
+
+@pytest.mark.parametrize(
+    "changes", [{}, {"seeds": 10, "steps": 50_000}, {"quick": True, "engine": "torch"}]
+)
+def test_the_run_command_rebuilds_the_configuration(changes, tmp_path):
+    """The command a puzzle-box page names for its runs, read by ``himit run``'s own parser,
+    builds exactly the configuration the runs had; a setting it has no flag for, none."""
+    import shlex
+    from dataclasses import replace
+
+    from himit_torch.cli import _puzzle_box_config, build_parser
+    from himit_torch.runs.puzzle_box import puzzle_box_run_command
+
+    config = PuzzleBoxConfig().quick() if changes.get("quick") else PuzzleBoxConfig()
+    config = replace(config, **{k: v for k, v in changes.items() if k != "quick"})
+    command = puzzle_box_run_command(config, tmp_path / "puzzlebox")
+    assert command is not None
+    args = build_parser().parse_args(shlex.split(command)[1:])
+    assert args.logdir == str(tmp_path)
+    assert _puzzle_box_config(args) == config
+    assert puzzle_box_run_command(replace(config, mentor_episodes=7)) is None
+    assert puzzle_box_run_command(config, tmp_path / "elsewhere") is None
 
 
 # An integration run of the command and the flat script (8 s): -m slow (CI).

@@ -247,8 +247,21 @@ def test_in_process_sweep_without_ray_says_so_and_writes_the_tables(tmp_path, mo
             if r["cell"] == row["cell"] and r["agent"] == row["agent"]
         )
         assert int(row["failed"]) == failed
-    assert "95 %" in (out / "summary.md").read_text()
+    page = (out / "summary.md").read_text()
+    assert "95 %" in page
     assert record["engine"] == ["numba"] and record["commit"][0] != "unknown"
+    assert (
+        f"Runs recorded at commit `{record['commit'][0]}` (from the trials' `worlds/*.json`, as "
+        f"`sweep.json` records); this page: `himit plot {out}` (from `runs.csv` and "
+        f"`sweep.json`); the runs: `himit sweep {tmp_path / 's.toml'} --out {out}`."
+    ) in page
+    # himit plot rewrites the same tables from runs.csv and sweep.json, without the trials
+    table = (out / "summary.csv").read_text()
+    for name in ("summary.md", "summary.csv"):
+        (out / name).unlink()
+    assert main(["plot", str(out)]) == 0
+    assert (out / "summary.md").read_text() == page
+    assert (out / "summary.csv").read_text() == table
     assert json.loads((out / "sweep.json").read_text())["cells"][1]["cell"] == "tie_break=first"
     # a rerun skips every finished trial and rewrites the same tables
     before = (out / "results.csv").read_text()
