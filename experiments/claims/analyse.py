@@ -264,6 +264,11 @@ def write(data: dict, claims: list[Test], recommended: list[Test], out: Path) ->
     lines = [
         "# The paper's claims under both tie rules, and the recommended preset on every world",
         "",
+        "Runs recorded at the commits their records hold (each run directory's `worlds/*.json` "
+        "and `tasks/*.json`; its `results.md` names them); this page: "
+        "`python experiments/claims/analyse.py` (from those committed records); the runs: "
+        "`python experiments/claims/run_claims.py`.",
+        "",
         "Endpoints and tests as `PROTOCOL.md` declared before the runs; 20 seeds (0–19) per "
         "agent, paired by seed (common random numbers). Made by "
         "`python experiments/claims/analyse.py` from `experiments/results/<preset>-<ties>/`. "
@@ -422,6 +427,41 @@ def _presets_lines(data: dict) -> list[str]:
     return lines
 
 
+def untried_rule_lines(results: Path, data: dict) -> list[str]:
+    """Plain eq. 2 on exp1 (paper preset, random ties) under both rules for states where the
+    frozen greedy policy has no tried option (``himit_torch.exact.greedy_evaluation``): read
+    from the benchmark factorial's runs of the same seeds, which record both (empty if absent)."""
+    path = results / "benchmark" / "paper" / "exp1" / "worlds" / "world80.json"
+    if not path.exists():
+        return []
+    record = json.loads(path.read_text())
+    if "greedy_percent_of_optimal_stuck" not in record:
+        return []
+    runs = sorted((s, b) for b, (a, s) in enumerate(zip(record["agents"], record["seeds"]))
+                  if a == "imitation")  # fmt: skip
+    uniform = [float(record["greedy_percent_of_optimal"][b]) for _, b in runs]
+    stuck = [float(record["greedy_percent_of_optimal_stuck"][b]) for _, b in runs]
+    ours = data["paper", "random"]["exp1"].values("imitation", "greedy_optimal")
+    same = sum(abs(u - o) < 1e-6 for u, o in zip(uniform, ours))
+    differ = sum(u != s for u, s in zip(uniform, stuck))
+    return [
+        "",
+        "## The greedy policy at states it never tried: both rules (plain eq. 2, exp1)",
+        "",
+        "Every greedy column above uses the rule `uniform`: at a state where the run tried none "
+        "of its own options, the frozen policy chooses uniformly among the options available "
+        "there, as the learner itself acts. Under the rule `stuck` such a state is never left, "
+        "so a policy that can reach one scores 0 (`docs/reproducing.md`, 'States the run has "
+        "not tried'). Plain eq. 2 on exp1 (paper preset, random ties), greedy policy at the "
+        "end, % of optimal, mean [95 % BCa] over seeds 0–19: "
+        f"**uniform {bca_interval(uniform).format(1)}**, **stuck "
+        f"{bca_interval(stuck).format(1)}**; the rules differ on {differ} of {len(runs)} "
+        "seeds. (From the benchmark factorial's runs of the same seeds, commit "
+        f"`{record.get('commit', 'unknown')}`, which record both rules; their `uniform` values "
+        f"equal this page's runs on {same} of {len(ours)} seeds.)",
+    ]
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--results", default="experiments/results")
@@ -434,6 +474,10 @@ def main() -> None:
     adjust(claims)
     adjust(recommended)
     write(data, claims, recommended, out)
+    extra = untried_rule_lines(results, data)
+    if extra:
+        with open(out / "claims.md", "a") as f:
+            f.write("\n".join(extra) + "\n")
     for preset in PRESETS:
         km_figure(data, preset, out)
     print((out / "claims.md").read_text())
