@@ -260,12 +260,30 @@ def km_figure(data: dict, preset: str, out: Path) -> None:
     plt.close(fig)
 
 
+def record_commits(results: Path) -> str:
+    """The commits the claims' run records hold, each with what it ran."""
+    found: dict = defaultdict(set)
+    for preset in PRESETS:
+        for ties in TIES:
+            root = results / f"{preset}-{ties}"
+            for path in root.glob("exp*/worlds/*.json"):
+                found[json.loads(path.read_text()).get("commit")].add("exp1–exp3")
+            for path in root.glob("gymnasium/tasks/*.json"):
+                found[json.loads(path.read_text()).get("commit")].add("Gymnasium")
+    return (
+        ", ".join(
+            f"`{c}` ({' and '.join(sorted(w))})" for c, w in sorted(found.items(), key=str) if c
+        )
+        or "not recorded"
+    )
+
+
 def write(data: dict, claims: list[Test], recommended: list[Test], out: Path) -> None:
     lines = [
         "# The paper's claims under both tie rules, and the recommended preset on every world",
         "",
-        "Runs recorded at the commits their records hold (each run directory's `worlds/*.json` "
-        "and `tasks/*.json`; its `results.md` names them); this page: "
+        f"Runs recorded at commit(s) {record_commits(out.parent)} (the `commit` of every "
+        "`worlds/*.json` and `tasks/*.json` of `experiments/results/<preset>-<ties>/`); this page: "
         "`python experiments/claims/analyse.py` (from those committed records); the runs: "
         "`python experiments/claims/run_claims.py`.",
         "",
@@ -452,7 +470,10 @@ def untried_rule_lines(results: Path, data: dict) -> list[str]:
         "of its own options, the frozen policy chooses uniformly among the options available "
         "there, as the learner itself acts. Under the rule `stuck` such a state is never left, "
         "so a policy that can reach one scores 0 (`docs/reproducing.md`, 'States the run has "
-        "not tried'). Plain eq. 2 on exp1 (paper preset, random ties), greedy policy at the "
+        "not tried'). On the grid worlds slip (0.1) can carry any policy into a state its run "
+        "never tried, so under `stuck` every run of every agent there scores 0 — the rule "
+        "measures whether a run has tried every option of every reachable state, not how good "
+        "its policy is; `uniform` is the rule the results use. Plain eq. 2 on exp1 (paper preset, random ties), greedy policy at the "
         "end, % of optimal, mean [95 % BCa] over seeds 0–19: "
         f"**uniform {bca_interval(uniform).format(1)}**, **stuck "
         f"{bca_interval(stuck).format(1)}**; the rules differ on {differ} of {len(runs)} "
