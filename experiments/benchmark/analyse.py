@@ -295,7 +295,7 @@ def hierarchy_lines(data: dict, tests: list[Test]) -> list[str]:
         }[endpoint]
         cells = [f"{s}, {'fading' if f else 'no fading'}" for s in SCHEDULES for f in (False, True)]
         lines += [
-            f"### {what}",
+            f"## {what}",
             "",
             "| world | " + " | ".join(cells) + " |",
             "|---|" + "---|" * len(cells),
