@@ -6,6 +6,8 @@
 #   make docs   — the documentation site into docs/_build/html (warnings as errors, references
 #                 and links between pages checked), then the code examples of the docs and the
 #                 docstrings run as tests; it installs the [docs] extra on first use
+#   make docs-check — after make docs: index.html and concepts.html opened offline in headless
+#                 Chromium (apt-get installs it if missing), their math typeset by MathJax
 #   make wheel-check — python -m build, twine check, and the wheel installed in a fresh venv
 #                 runs `himit --version`
 # The virtual environment lives in .venv. torch is installed first, on its own, as the build
@@ -20,7 +22,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.himit-installed
 DOCS_STAMP := $(VENV)/.himit-docs-installed
 
-.PHONY: demo test test-slow test-all lint bench install clean docs wheel-check
+.PHONY: demo test test-slow test-all lint bench install clean docs docs-check wheel-check
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -65,13 +67,24 @@ test-all: $(STAMP)
 # a page or heading that does not exist, so the internal links are checked here (the linkcheck
 # builder would check the external ones, which CI cannot reach). -E: a fresh read of every page,
 # so the generated reference pages follow the code. Then the examples: the docs' pages and the
-# README (--doctest-glob) and the package's docstrings (--doctest-modules).
+# README (--doctest-glob) and the package's docstrings (--doctest-modules). docs/check_offline.py:
+# no page loads a script, stylesheet, font, image or frame from outside the site (MathJax is
+# served from _static/mathjax, by sphinx-mathjax-offline).
 SPHINX_OPTS ?= -W --keep-going -n -E -q
 docs: $(DOCS_STAMP)
 	$(BIN)/python -m sphinx -b html $(SPHINX_OPTS) docs docs/_build/html
+	$(BIN)/python docs/check_offline.py docs/_build/html
 	$(BIN)/python -m pytest -q -p no:cacheprovider -n 0 -m "" --doctest-modules \
 		--doctest-glob="*.md" --ignore=docs/_build --ignore=docs/_ext --ignore=docs/conf.py \
 		himit_torch docs README.md
+
+# The built site in a real browser, offline: headless Chromium (Debian's, installed with apt-get
+# if missing; CI runs as root) opens index.html and concepts.html from their files, with every
+# http(s) request sent nowhere, and docs/browser_check.py fails unless MathJax typeset all their
+# math. Run after make docs (it does not rebuild the site).
+docs-check:
+	command -v chromium >/dev/null || (apt-get update -q && apt-get install -y -q chromium)
+	$(PYTHON) docs/browser_check.py --site docs/_build/html index.html concepts.html
 
 # The wheel and sdist (python -m build), their metadata (twine check --strict), then the wheel
 # installed with its dependencies into a fresh venv (torch first, as TORCH_SPEC: the CPU wheel

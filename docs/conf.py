@@ -30,6 +30,9 @@ extensions = [
     "sphinx.ext.autodoc",
     "sphinx.ext.napoleon",  # the docstrings' "Args:" / "Returns:" sections
     "sphinx.ext.mathjax",
+    # MathJax 3 from the site's own _static/mathjax (the PyPI package bundles it; it sets
+    # mathjax_path), not from a CDN: the math renders offline (make docs-check checks it).
+    "sphinx-mathjax-offline",
     "sphinx.ext.viewcode",
     "himit_docs",  # docs/_ext: the public API, the settings tables and the CLI's --help
 ]
@@ -65,6 +68,9 @@ autodoc_typehints_format = "short"
 autodoc_default_options = {"members": True, "show-inheritance": True}
 autodoc_preserve_defaults = True
 autodoc_class_signature = "mixed"
+# sphinx.ext.autosummary (himit_docs sets it up) makes the API pages' tables of names, from the
+# entries the pages already have: no stub pages generated.
+autosummary_generate = False
 napoleon_google_docstring = True
 napoleon_numpy_docstring = False
 napoleon_use_rtype = False

@@ -27,6 +27,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import os
+import re
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -76,6 +77,43 @@ class _Parser(argparse.ArgumentParser):
 
     def error(self, message: str):
         _fail(f"{self.prog.split(' ', 1)[1] + ': ' if ' ' in self.prog else ''}{message}")
+
+
+#: A Sphinx role, ``:func:`target``` or ``:py:class:`text <target>```: group 1 its content.
+_ROLE = re.compile(r":(?:[a-z]+:)?[a-z]+:`([^`]+)`")
+_LITERAL = re.compile(r"``(.+?)``", re.DOTALL)
+
+
+def _role_text(content: str) -> str:
+    """What a role shows: ``text <target>`` → text, ``~a.b.c`` → c, ``!a.b`` or ``a.b`` → a.b."""
+    if content.endswith(">") and " <" in content:
+        return content[: content.rindex(" <")].strip()
+    if content.startswith("~"):
+        return content[1:].rsplit(".", 1)[-1]
+    return content.lstrip("!")
+
+
+def plain_text(text: str) -> str:
+    """``text`` (a docstring or a setting's doc, written for Sphinx) as a terminal shows it: roles
+    replaced by what they name (``:func:`~a.b.c``` → ``c``) and double-backquoted literals by
+    their content. The docs keep rendering the original."""
+    text = _ROLE.sub(lambda m: _role_text(m.group(1)), text)
+    return _LITERAL.sub(lambda m: m.group(1), text)
+
+
+def _plain_help(parser: argparse.ArgumentParser) -> None:
+    """Every help text, description and epilog of ``parser`` and its subcommands in plain text
+    (:func:`plain_text`): they come from docstrings and settings' docs, written for Sphinx."""
+    parser.description = parser.description and plain_text(parser.description)
+    parser.epilog = parser.epilog and plain_text(parser.epilog)
+    for action in parser._actions:
+        if isinstance(action.help, str):
+            action.help = plain_text(action.help)
+        if isinstance(action, argparse._SubParsersAction):
+            for choice in action._choices_actions:
+                choice.help = choice.help and plain_text(choice.help)
+            for sub in dict.fromkeys(action.choices.values()):
+                _plain_help(sub)
 
 
 def _fail(message: str | Exception, status: int = 2) -> NoReturn:
@@ -1022,6 +1060,7 @@ def build_parser() -> argparse.ArgumentParser:
     subs = parser.add_subparsers(dest="command", metavar="command", required=True)
     for name, (_, add_arguments, help_text) in COMMANDS.items():
         add_arguments(subs.add_parser(name, help=help_text, description=help_text))
+    _plain_help(parser)
     return parser
 
 

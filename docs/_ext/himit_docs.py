@@ -97,40 +97,181 @@ def _submodules(package: Any) -> list[str]:
     return out
 
 
-class ApiDirective(SphinxDirective):
-    """Autodoc entries for every name of ``himit_torch.__all__``, in its groups."""
+#: The pages of the public API (``docs/reference/api/<name>.rst``), one per subpackage: an
+#: exported name goes to the page of the subpackage that defines it; ``runs`` and
+#: ``statistics`` export nothing from ``himit_torch``, so their pages show their modules' own
+#: ``__all__``.
+API_PAGES = ("worlds", "options", "exact", "mentor", "learner", "runs", "statistics", "viz")
 
-    has_content = False
+
+def _defined_in(name: str, value: Any) -> str:
+    """The module that defines the exported ``name``."""
+    if inspect.ismodule(value):
+        return value.__name__
+    if inspect.isclass(value) or callable(value):
+        return value.__module__
+    found = _defining_module(name, value)
+    return found[0] if found else PACKAGE
+
+
+def _page_of(modname: str) -> str:
+    return modname.split(".")[1] if modname.count(".") else ""
+
+
+def _page_modules(page: str) -> list[str]:
+    """The modules of a page without exported names (``runs``, ``statistics``), in name order."""
+    package = importlib.import_module(PACKAGE)
+    if not (Path(inspect.getfile(package)).parent / page).is_dir():
+        return [f"{PACKAGE}.{page}"]
+    return sorted(n for n in _submodules(package) if _page_of(n) == page)
+
+
+def _module_names(modname: str, skip: set[str]) -> list[str]:
+    """The names of ``modname.__all__`` that the module itself defines (not re-exports)."""
+    module = importlib.import_module(modname)
+    out = []
+    for name in getattr(module, "__all__", []):
+        if f"{modname}.{name}" in skip:
+            continue
+        value = getattr(module, name)
+        if (inspect.isclass(value) or inspect.isfunction(value)) and value.__module__ != modname:
+            continue
+        out.append(name)
+    return out
+
+
+def _data_table(name: str, value: Any) -> list[str]:
+    """A table for an exported constant whose repr is too long to read (``AGENTS``)."""
+    if name != "AGENTS":
+        return []
+    from himit_torch.learner.agents import AgentVariant
+
+    fields = AgentVariant._fields
+    rst = [".. list-table::", "   :header-rows: 1", ""]
+    rst += ["   * - agent"] + [f"     - {f}" for f in fields]
+    for agent, variant in value.items():
+        rst.append(f"   * - ``{agent}``")
+        for f in fields:
+            v = getattr(variant, f)
+            text = "✓" if v is True else "" if v is False else f"``{v}``"
+            rst.append(f"     - {text}")
+    return rst + [""]
+
+
+def _entries(directive: SphinxDirective, names: list[str]) -> list[str]:
+    """Autodoc entries of exported names, under the name users write (``himit_torch.Name``)."""
+    package = importlib.import_module(PACKAGE)
+    rst: list[str] = [f".. py:currentmodule:: {PACKAGE}", ""]
+    for name in names:
+        value = getattr(package, name)
+        if inspect.ismodule(value):
+            rst += [f".. automodule:: {value.__name__}", "   :members:", ""]
+        elif inspect.isclass(value):
+            rst += [f".. autoclass:: {PACKAGE}.{name}", ""]
+        elif callable(value):
+            rst += [f".. autofunction:: {PACKAGE}.{name}", ""]
+        else:
+            found = _defining_module(name, value)
+            if found is None:
+                logger.warning(
+                    f"himit-api: {PACKAGE}.{name} is exported but has no `#:` doc "
+                    "comment where it is defined",
+                    location=directive.get_location(),
+                )
+                doc = ""
+            else:
+                doc = found[1]
+            table = _data_table(name, value)
+            # (an automodule above may have moved the current module)
+            rst += [f".. py:currentmodule:: {PACKAGE}", ""]
+            rst += [f".. py:data:: {name}"]
+            if not table and len(repr(value)) <= 120:  # a long repr is unreadable: left out
+                rst += [f"   :value: {value!r}"]
+            rst += [""]
+            rst += ["   " + line if line else "" for line in doc.splitlines()] + [""]
+            rst += ["   " + line if line else "" for line in table]
+    return rst
+
+
+def _summary(names: list[str]) -> list[str]:
+    """An autosummary table of ``module.name`` entries (shown by their last component)."""
+    if not names:
+        return []
+    return [".. autosummary::", "   :nosignatures:", ""] + [f"   ~{n}" for n in names] + [""]
+
+
+class ApiSummaryDirective(SphinxDirective):
+    """``.. himit-api-summary:: learner`` — an autosummary table of a page's names: the exported
+    names the subpackage defines (``himit_torch.__all__``), else its modules' ``__all__``."""
+
+    required_arguments = 1
+    option_spec = {"elsewhere": lambda text: text.split()}
 
     def run(self) -> list[nodes.Node]:
+        page = self.arguments[0]
         package = importlib.import_module(PACKAGE)
-        rst: list[str] = [f".. py:currentmodule:: {PACKAGE}", ""]
-        for title, names in exported_groups():
-            heading = title[0].upper() + title[1:]
-            rst += [heading, "-" * (len(heading) + 2), ""]
+        mine = []
+        for _, names in exported_groups():
             for name in names:
                 value = getattr(package, name)
-                if inspect.ismodule(value):
-                    rst += [f".. automodule:: {value.__name__}", "   :members:", ""]
-                elif inspect.isclass(value):
-                    rst += [f".. autoclass:: {PACKAGE}.{name}", ""]
-                elif callable(value):
-                    rst += [f".. autofunction:: {PACKAGE}.{name}", ""]
-                else:
-                    found = _defining_module(name, value)
-                    if found is None:
-                        logger.warning(
-                            f"himit-api: {PACKAGE}.{name} is exported but has no `#:` doc "
-                            "comment where it is defined",
-                            location=self.get_location(),
-                        )
-                        doc = ""
-                    else:
-                        doc = found[1]
-                    # (an automodule above may have moved the current module)
-                    rst += [f".. py:currentmodule:: {PACKAGE}", ""]
-                    rst += [f".. py:data:: {name}", f"   :value: {value!r}", ""]
-                    rst += ["   " + line if line else "" for line in doc.splitlines()] + [""]
+                home = _defined_in(name, value)
+                if _page_of(home) == page:  # a module exported by name: its own path
+                    mine.append(home if inspect.ismodule(value) else f"{home}.{name}")
+        if not mine:
+            skip = set(self.options.get("elsewhere", []))
+            mine = [f"{m}.{n}" for m in _page_modules(page) for n in _module_names(m, skip)]
+        if not mine:
+            logger.warning(f"himit-api-summary: no names for {page}", location=self.get_location())
+        # relative to the current module (autosummary refuses it repeated)
+        mine = [n.removeprefix(PACKAGE + ".") for n in mine]
+        return _parse(self, [f".. py:currentmodule:: {PACKAGE}", "", *_summary(mine)])
+
+
+class ApiEntriesDirective(SphinxDirective):
+    """``.. himit-api-entries:: learner`` — the entries of a page: the exported names the
+    subpackage defines, grouped as the comments in ``himit_torch/__init__.py`` group them (a name
+    in ``:skip:`` is documented by hand on the page); or, for a subpackage that exports nothing
+    (``runs``), each of its modules with a table of its ``__all__`` and its members (but those
+    in ``:elsewhere:``, ``module.Name``, documented on another page). An exported name without a
+    docstring is a warning, so ``make docs`` (``-W``) fails on it."""
+
+    required_arguments = 1
+    option_spec = {
+        "skip": lambda text: [t.strip() for t in text.split(",")],
+        "elsewhere": lambda text: text.split(),
+    }
+
+    def run(self) -> list[nodes.Node]:
+        page = self.arguments[0]
+        package = importlib.import_module(PACKAGE)
+        skip = set(self.options.get("skip", []))
+        rst: list[str] = []
+        for title, names in exported_groups():
+            mine = [
+                n
+                for n in names
+                if _page_of(_defined_in(n, getattr(package, n))) == page and n not in skip
+            ]
+            if not mine:
+                continue
+            heading = title[0].upper() + title[1:]
+            rst += [heading, "-" * (len(heading) + 2), ""]
+            rst += _entries(self, mine)
+        if not rst:
+            elsewhere = set(self.options.get("elsewhere", []))
+            for modname in _page_modules(page):
+                heading = f"``{modname}``"
+                rst += [heading, "-" * len(heading), ""]
+                rst += [f".. py:currentmodule:: {modname}", ""]
+                own = _module_names(modname, elsewhere)
+                rst += _summary(own)
+                rst += [f".. automodule:: {modname}", "   :members:", "   :undoc-members:"]
+                excluded = [n.rpartition(".")[2] for n in elsewhere if n.startswith(modname + ".")]
+                if excluded:
+                    rst += [f"   :exclude-members: {', '.join(excluded)}"]
+                rst += [""]
+        if not rst:
+            logger.warning(f"himit-api-entries: no names for {page}", location=self.get_location())
         return _parse(self, rst)
 
 
@@ -150,10 +291,15 @@ class ModulesDirective(SphinxDirective):
     those exported by ``himit_torch`` (documented once, in the public API) and those named in
     ``:elsewhere:`` (``module.Name``, documented on another page)."""
 
-    option_spec = {"elsewhere": lambda text: text.split()}
+    option_spec = {
+        "elsewhere": lambda text: text.split(),
+        # layers whose modules have a page of their own in the API (``api/<layer>``)
+        "paged": lambda text: text.split(),
+    }
 
     def run(self) -> list[nodes.Node]:
         elsewhere = self.options.get("elsewhere", [])
+        paged = self.options.get("paged", [])
         package = importlib.import_module(PACKAGE)
         exported = set(package.__all__)
         exported_modules = {
@@ -173,6 +319,9 @@ class ModulesDirective(SphinxDirective):
             members = [n for n in names if n.split(".")[1:2] == [layer]]
             heading = f"``{PACKAGE}.{layer}``"
             rst += [heading, "-" * len(heading), ""]
+            if layer in paged:
+                rst += [f"Every module of ``{PACKAGE}.{layer}``: :doc:`api/{layer}`.", ""]
+                continue
             for modname in members:
                 if modname in exported_modules:
                     rst += [f"``{modname}``: exported, see :mod:`{modname}` in :doc:`api`.", ""]
@@ -249,26 +398,80 @@ class SettingsDirective(SphinxDirective):
         return _parse(self, rst)
 
 
+def _literal_paragraph(text: str) -> nodes.paragraph:
+    return nodes.paragraph("", "", nodes.literal(text, text))
+
+
+def presets_table(presets: Any) -> nodes.table:
+    """A table of every field any of ``presets`` (name → ``Preset``) sets: a row per field, a
+    column per preset with its value (a value that differs from the first preset's in bold), and
+    the reasons — the first preset's, then each other value's, named by the presets that take it.
+    Built as docutils nodes, so it renders the same in a MyST page as in a reST one."""
+    names = list(presets)
+    fields = list(dict.fromkeys(f for p in presets.values() for f in p.settings))
+    table = nodes.table(classes=["himit-presets"])
+    group = nodes.tgroup(cols=len(names) + 2)
+    table += group
+    for width in [16] + [10] * len(names) + [44]:
+        group += nodes.colspec(colwidth=width)
+
+    def row(cells: list[list[nodes.Node]]) -> nodes.row:
+        out = nodes.row()
+        for content in cells:
+            entry = nodes.entry()
+            entry.extend(content)
+            out += entry
+        return out
+
+    head = nodes.thead()
+    head += row(
+        [[nodes.paragraph(text="setting")]]
+        + [[_literal_paragraph(n)] for n in names]
+        + [[nodes.paragraph(text="reason")]]
+    )
+    group += head
+    body = nodes.tbody()
+    group += body
+    first = presets[names[0]]
+    for field in fields:
+        base = first.settings.get(field, (None, "not set"))
+        cells: list[list[nodes.Node]] = [[_literal_paragraph(field)]]
+        reasons: dict[tuple[str, str], list[str]] = {}
+        for name in names:
+            value, why = presets[name].settings.get(field, (None, "not set"))
+            text = repr(value)
+            literal: nodes.Node = nodes.literal(text, text)
+            if (value, why) != base:
+                literal = nodes.strong("", "", literal)
+            cells.append([nodes.paragraph("", "", literal)])
+            reasons.setdefault((text, why), []).append(name)
+        reason_nodes: list[nodes.Node] = []
+        for (text, why), takers in reasons.items():
+            label = ", ".join(takers) if len(reasons) > 1 else ""
+            para = nodes.paragraph()
+            if label:
+                para += nodes.strong(text=f"{label} ({text}): ")
+            para += nodes.Text(why)
+            reason_nodes.append(para)
+        cells.append(reason_nodes)
+        body += row(cells)
+    return table
+
+
 class PresetsDirective(SphinxDirective):
     """The presets (``himit_torch.learner.presets``): each one's summary, then a table of every
-    field any preset sets, with each preset's value and its reason."""
+    field any preset sets (:func:`presets_table`): its value under each preset and the reasons."""
 
     def run(self) -> list[nodes.Node]:
         from himit_torch.learner.presets import PRESETS
 
-        rst: list[str] = []
+        summaries = nodes.definition_list()
         for preset in PRESETS.values():
-            rst += [f"``{preset.name}``", f"   {preset.summary}", ""]
-        fields = list(dict.fromkeys(f for p in PRESETS.values() for f in p.settings))
-        rst += [".. list-table::", "   :header-rows: 1", "   :widths: 16 42 42", ""]
-        rst += ["   * - field"] + [f"     - ``{name}``" for name in PRESETS]
-        for field in fields:
-            rst.append(f"   * - ``{field}``")
-            for preset in PRESETS.values():
-                value, why = preset.settings.get(field, (None, "not set"))
-                rst.append(f"     - ``{value!r}``: {why}")
-        rst.append("")
-        return _parse(self, rst)
+            item = nodes.definition_list_item()
+            item += nodes.term("", "", nodes.literal(preset.name, preset.name))
+            item += nodes.definition("", nodes.paragraph(text=preset.summary))
+            summaries += item
+        return [summaries, presets_table(PRESETS)]
 
 
 class CliDirective(SphinxDirective):
@@ -295,7 +498,8 @@ class CliDirective(SphinxDirective):
         rst: list[str] = []
         for title, text in helps:
             label = "cli-" + title.replace(" ", "-")  # :ref:`cli-himit-sweep`
-            rst += [f".. _{label}:", "", f"``{title}``", "-" * (len(title) + 6), "", "::", ""]
+            underline = "-" * (len(title) + 6)
+            rst += [f".. _{label}:", "", f"``{title}``", underline, "", ".. code-block:: text", ""]
             rst += [textwrap.indent(line, "   ") if line else "" for line in text.splitlines()]
             rst += [""]
         return _parse(self, rst)
@@ -347,6 +551,35 @@ def warn_undocumented(app: Sphinx, what: str, name: str, obj: Any, options: Any,
         logger.warning(f"{name} is exported by {PACKAGE} but has no docstring")
 
 
+def document_settings(
+    app: Sphinx, what: str, name: str, obj: Any, options: Any, lines: list[str]
+) -> None:
+    """A configuration class declared with ``validation.setting`` (:class:`LearnerConfig`) gets
+    each field's doc as a ``:param:`` (autodoc adds its type) and a link to the Settings page,
+    which lists each field with its range and CLI flag. Not on the Settings page itself, which
+    lists the fields as entries of their own."""
+    from himit_torch.validation import Setting, settings_of
+
+    if what != "class" or not dataclasses.is_dataclass(obj) or app.env.docname.endswith("settings"):
+        return
+    fields = dataclasses.fields(obj)  # type: ignore[arg-type]
+    if not any(isinstance(v, Setting) for f in fields for v in f.metadata.values()):
+        return
+    declared = settings_of(obj)
+    if not declared:
+        return
+    lines += [
+        "",
+        "Each field's range, default and ``himit run`` flag: :doc:`/reference/settings`.",
+        "",
+    ]
+    for s in declared:
+        doc = s.info.doc.splitlines() or [""]
+        lines.append(f":param {s.name}: {doc[0]}")
+        lines += ["   " + line if line.strip() else "" for line in doc[1:]]
+    lines.append("")
+
+
 def resolve_exported(app: Sphinx, env: Any, node: Any, contnode: Any) -> Any:
     """Resolve a reference to an exported object by the path where it is defined
     (``himit_torch.worlds.table_world.world_model``), or by its bare name from inside its module
@@ -387,12 +620,15 @@ def _attribute_docstring_as_text(self: GoogleDocstring) -> list[str]:
 
 def setup(app: Sphinx) -> dict[str, Any]:
     GoogleDocstring._parse_attribute_docstring = _attribute_docstring_as_text  # type: ignore[method-assign]
-    app.add_directive("himit-api", ApiDirective)
+    app.setup_extension("sphinx.ext.autosummary")  # the API pages' tables
+    app.add_directive("himit-api-summary", ApiSummaryDirective)
+    app.add_directive("himit-api-entries", ApiEntriesDirective)
     app.add_directive("himit-settings", SettingsDirective)
     app.add_directive("himit-cli", CliDirective)
     app.add_directive("himit-presets", PresetsDirective)
     app.add_directive("himit-modules", ModulesDirective)
     app.add_directive("himit-figures", FiguresDirective)
     app.connect("autodoc-process-docstring", warn_undocumented)
+    app.connect("autodoc-process-docstring", document_settings)
     app.connect("missing-reference", resolve_exported)
     return {"version": "1", "parallel_read_safe": True, "parallel_write_safe": True}

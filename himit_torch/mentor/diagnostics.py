@@ -1,4 +1,4 @@
-"""Where the mentor term still decides eq. 2, and by how much (issue 11, item 4).
+"""Where the mentor term still decides eq. 2, and by how much.
 
 At a state ``s`` the mentor observed, eq. 2 takes ``max(own(s), m(s))``: ``own`` the best own
 option tried there (its ``Q``), ``m`` the mentor term ``R_m(s) + γ Σ p_m(s'|s) V(s')``. Where
