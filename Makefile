@@ -69,11 +69,15 @@ test-all: $(STAMP)
 # so the generated reference pages follow the code. Then the examples: the docs' pages and the
 # README (--doctest-glob) and the package's docstrings (--doctest-modules). docs/check_offline.py:
 # no page loads a script, stylesheet, font, image or frame from outside the site (MathJax is
-# served from _static/mathjax, by sphinx-mathjax-offline).
+# served from _static/mathjax, by sphinx-mathjax-offline). docs/check_tracker_words.py: no page
+# cites an issue number (a reader has no tracker). The old site is removed first, so no stale
+# page (e.g. a source listing of a module since renamed) is checked or published.
 SPHINX_OPTS ?= -W --keep-going -n -E -q
 docs: $(DOCS_STAMP)
+	rm -rf docs/_build/html
 	$(BIN)/python -m sphinx -b html $(SPHINX_OPTS) docs docs/_build/html
 	$(BIN)/python docs/check_offline.py docs/_build/html
+	$(BIN)/python docs/check_tracker_words.py docs/_build/html
 	$(BIN)/python -m pytest -q -p no:cacheprovider -n 0 -m "" --doctest-modules \
 		--doctest-glob="*.md" --ignore=docs/_build --ignore=docs/_ext --ignore=docs/conf.py \
 		himit_torch docs README.md
@@ -81,7 +85,8 @@ docs: $(DOCS_STAMP)
 # The built site in a real browser, offline: headless Chromium (Debian's, installed with apt-get
 # if missing; CI runs as root) opens index.html and concepts.html from their files, with every
 # http(s) request sent nowhere, and docs/browser_check.py fails unless MathJax typeset all their
-# math. Run after make docs (it does not rebuild the site).
+# math, and that presets.html shows its table with a column per preset. Run after make docs (it
+# does not rebuild the site).
 docs-check:
 	command -v chromium >/dev/null || (apt-get update -q && apt-get install -y -q chromium)
 	$(PYTHON) docs/browser_check.py --site docs/_build/html index.html concepts.html

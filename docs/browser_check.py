@@ -1,4 +1,5 @@
-"""Open built pages in headless Chromium and check that MathJax typeset their math.
+"""Open built pages in headless Chromium and check that MathJax typeset their math, and that
+the presets page shows its table.
 
 ``make docs-check`` runs it after ``make docs``. Each page (default: ``index.html`` and
 ``concepts.html`` of ``docs/_build/html``) is opened from its file with ``chromium --headless
@@ -100,6 +101,57 @@ def problems_of(dom: str) -> list[str]:
     return out
 
 
+#: The presets page's table must show a column per preset (the page a reader is sent to for
+#: "why each setting").
+PRESET_PAGE = "presets.html"
+PRESET_COLUMNS = ("paper", "explore-goals", "mentor-fade", "recommended")
+
+
+class _TableHeaders(HTMLParser):
+    """The header cells (``<th>``) of each ``<table>`` of a page, as text."""
+
+    def __init__(self) -> None:
+        super().__init__(convert_charrefs=True)
+        self.tables: list[list[str]] = []
+        self._in_th = False
+
+    def handle_starttag(self, tag: str, attrs: list[tuple[str, str | None]]) -> None:
+        if tag == "table":
+            self.tables.append([])
+        elif tag == "th" and self.tables:
+            self._in_th = True
+            self.tables[-1].append("")
+
+    def handle_endtag(self, tag: str) -> None:
+        if tag == "th":
+            self._in_th = False
+
+    def handle_data(self, data: str) -> None:
+        if self._in_th:
+            self.tables[-1][-1] += data.strip()
+
+
+def preset_table_problems(dom: str) -> list[str]:
+    """What is wrong with the presets page's rendered table (empty: a table has a column per
+    preset, and no reStructuredText shows as text).
+
+    >>> preset_table_problems('<table><tr><th>setting</th><th>paper</th><th>explore-goals</th>'
+    ...     '<th>mentor-fade</th><th>recommended</th></tr></table>')
+    []
+    >>> preset_table_problems('<p>.. list-table::</p>')
+    ['no table with the columns paper, explore-goals, mentor-fade, recommended', 'raw reST shown: .. list-table::']
+    """
+    scanner = _TableHeaders()
+    scanner.feed(dom)
+    scanner.close()
+    out = []
+    if not any(all(c in headers for c in PRESET_COLUMNS) for headers in scanner.tables):
+        out.append(f"no table with the columns {', '.join(PRESET_COLUMNS)}")
+    if ".. list-table::" in dom:
+        out.append("raw reST shown: .. list-table::")
+    return out
+
+
 def render(chromium: str, page: Path) -> str:
     """The page's DOM after its scripts ran, as headless Chromium dumps it."""
     result = subprocess.run(
@@ -146,8 +198,16 @@ def main(argv: list[str] | None = None) -> int:
             failures.append(f"{name}: … and {len(problems) - 6} more")
         if not problems:
             print(f"browser_check: {name}: {len(built.maths)} math elements, {typeset} typeset")
+    presets = args.site / PRESET_PAGE
+    if not presets.is_file():
+        failures.append(f"{PRESET_PAGE}: no such page under {args.site}")
+    else:
+        problems = preset_table_problems(render(chromium, presets))
+        failures += [f"{PRESET_PAGE}: {p}" for p in problems]
+        if not problems:
+            print(f"browser_check: {PRESET_PAGE}: the presets table shows a column per preset")
     if failures:
-        print("browser_check: the math is not typeset offline:")
+        print("browser_check: the built site does not show what a reader needs offline:")
         print("\n".join(f"  {f}" for f in failures))
         return 1
     return 0

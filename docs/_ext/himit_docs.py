@@ -7,7 +7,7 @@
   ``validation.setting`` (:func:`himit_torch.validation.settings_of`): type, default, range or
   choices, whether the compiled engine reads it, the CLI flag and its doc.
 * ``.. himit-figures:: experiments/results/exp1/*.png`` — the committed figures of a results
-  folder, each captioned with its path.
+  folder, each captioned in words (:func:`figure_caption`), with its file name.
 * ``.. himit-modules::`` — every module of the package, layer by layer (its docstring and the
   members the public API does not already show).
 * ``.. himit-cli::`` — ``himit --help`` and every subcommand's ``--help``, from the parser the
@@ -505,18 +505,71 @@ class CliDirective(SphinxDirective):
         return _parse(self, rst)
 
 
+#: Captions in words for the committed figures, by file name (``{n}``: the world's size, from
+#: a name ending in ``world<n>``). A name not matched here is captioned with its words.
+FIGURE_CAPTIONS: tuple[tuple[str, str], ...] = (
+    (r"fig2_world(\d+)", "The {n}×{n} world: the mentor's path and the imitator's greedy path"),
+    (r"fig3_curves_world(\d+)", "Goals per window over learning on the {n}×{n} world, each agent"),
+    (r"fig4_curves_world(\d+)", "Goals per window over learning on the {n}×{n} world, each agent"),
+    (r"fig_curves_world(\d+)", "Goals per window over learning on the {n}×{n} world, each agent"),
+    (r"fig5_scaling", "Total goals as a % of optimal by world size, each agent"),
+    (r"first_goal_world(\d+)", "Steps to the first goal on the {n}×{n} world, each agent"),
+    (r"first_goal_km_(\w+)", "Steps to the first goal (Kaplan–Meier), the {0} preset"),
+    (r"curves_taxi", "Goals over learning on Gymnasium's Taxi, each agent"),
+    (r"curves_cliffwalking", "Goals over learning on Gymnasium's CliffWalking, each agent"),
+    (r"curves_frozenlake8x8", "Goals over learning on Gymnasium's FrozenLake 8×8, each agent"),
+    (r"curves_exp(\d)", "Goals over learning, experiment {0}'s world, each agent"),
+    (r"fig_exp(\d)_curves", "Goals over learning in experiment {0}, 20 seeds per cell"),
+    (
+        r"fig_exp3_scaling",
+        "Experiment 3: the benefit of imitation by world size, 20 seeds per cell",
+    ),
+    (r"options_discovered_(\w+)_exp(\d)", "Options discovered, {0} agent, experiment {1}'s world"),
+    (r"subgoals_exp(\d)", "The subgoals found from the mentor's states, experiment {0}'s world"),
+    (r"hierarchy", "Does the hierarchy help? Eq. 2 against eq. 1 under the same settings"),
+    (
+        r"stress_(\w+)",
+        "Experiment 2's world under the {0} stress: each method's greedy policy and first goal",
+    ),
+    (r"speed", "Puzzle box: openings over learning and the greedy policy's value, per agent"),
+    (r"organisation", "Puzzle box: the organisation of the final plans, and over learning"),
+    (
+        r"transfer",
+        "Puzzle box: 4-skewer demonstrations, a 5-skewer box: openings and value per agent",
+    ),
+)
+
+
+def figure_caption(name: str) -> str:
+    """A caption in words for the figure file ``name`` (``fig2_world40.png``): from
+    :data:`FIGURE_CAPTIONS`, else the file name's words."""
+    stem = Path(name).stem
+    for pattern, text in FIGURE_CAPTIONS:
+        found = re.fullmatch(pattern, stem)
+        if found:
+            words = [g.replace("_", " ") for g in found.groups()]
+            return text.format(*words, n=words[0] if words else "")
+    words = stem.replace("_", " ").replace("-", " ")
+    return words[:1].upper() + words[1:]
+
+
 class FiguresDirective(SphinxDirective):
     """The committed figures matching a glob (relative to the repository root), in name order,
-    each captioned with its file name: a results page shows what its folder holds, and a figure
-    added or removed there shows up here without an edit. A glob matching nothing is a
-    warning."""
+    each captioned in words (:func:`figure_caption`) with its file name: a results page shows
+    what its folder holds, and a figure added or removed there shows up here without an edit.
+    ``:exclude:`` names files (comma-separated) the page already shows beside its text. A glob
+    matching nothing is a warning."""
 
     required_arguments = 1
-    option_spec = {"width": str}
+    option_spec = {
+        "width": str,
+        "exclude": lambda text: [t.strip() for t in text.split(",") if t.strip()],
+    }
 
     def run(self) -> list[nodes.Node]:
         root = Path(self.env.srcdir).parent
-        files = sorted(root.glob(self.arguments[0]))
+        exclude = set(self.options.get("exclude", []))
+        files = [p for p in sorted(root.glob(self.arguments[0])) if p.name not in exclude]
         if not files:
             logger.warning(
                 f"himit-figures: no file matches {self.arguments[0]}", location=self.get_location()
@@ -525,10 +578,13 @@ class FiguresDirective(SphinxDirective):
         out: list[nodes.Node] = []
         for path in files:
             figure = nodes.figure()
-            image = nodes.image(uri=os.path.relpath(path, docdir), alt=path.name)
+            caption = figure_caption(path.name)
+            image = nodes.image(uri=os.path.relpath(path, docdir), alt=caption)
             image["width"] = self.options.get("width", "85%")
             figure += image
-            figure += nodes.caption(text=str(path.relative_to(root)))
+            figure += nodes.caption(
+                "", "", nodes.Text(caption + " "), nodes.literal(path.name, path.name)
+            )
             out.append(figure)
         return out
 

@@ -159,8 +159,8 @@ class LearnerConfig:
         hint="the mentor's weight in own executions; None: no fading",
         kernel=True,
         doc="""
-        Shrink the mentor term towards the run's own estimate as its own experience grows (issue
-        11, item 4): where some own option was tried at ``s``, eq. 2's mentor term ``m`` is replaced
+        Shrink the mentor term towards the run's own estimate as its own experience grows: where
+        some own option was tried at ``s``, eq. 2's mentor term ``m`` is replaced
         by ``(k·m + n·own) / (k + n)`` with ``k = mentor_fade``, ``n`` the own options executed from
         ``s`` and ``own`` the best own ``Q`` there — the mentor's evidence counts as ``k`` own
         executions, so the mentor's value leads early and the run's own value decides in the limit
