@@ -6,7 +6,7 @@
 #   make docs   — the documentation site into docs/_build/html (warnings as errors, references
 #                 and links between pages checked), then the code examples of the docs and the
 #                 docstrings run as tests; it installs the [docs] extra on first use
-#   make docs-check — after make docs: index.html and concepts.html opened offline in headless
+#   make docs-check — after make docs: key pages opened offline in headless
 #                 Chromium (apt-get installs it if missing), their math typeset by MathJax
 #   make wheel-check — python -m build, twine check, and the wheel installed in a fresh venv
 #                 runs `himit --version`
@@ -85,8 +85,9 @@ docs: $(DOCS_STAMP)
 # The built site in a real browser, offline: headless Chromium (Debian's, installed with apt-get
 # if missing; CI runs as root) opens index.html and concepts.html from their files, with every
 # http(s) request sent nowhere, and docs/browser_check.py fails unless MathJax typeset all their
-# math, and that presets.html shows its table with a column per preset. Run after make docs (it
-# does not rebuild the site).
+# math, that presets.html shows its table with a column per preset, and that a tutorial, the
+# Learner API page and the benchmark's results page render with every figure an image with a
+# width. Run after make docs (it does not rebuild the site).
 docs-check:
 	command -v chromium >/dev/null || (apt-get update -q && apt-get install -y -q chromium)
 	$(PYTHON) docs/browser_check.py --site docs/_build/html index.html concepts.html

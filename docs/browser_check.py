@@ -1,5 +1,6 @@
-"""Open built pages in headless Chromium and check that MathJax typeset their math, and that
-the presets page shows its table.
+"""Open built pages in headless Chromium and check that MathJax typeset their math, that the
+presets page shows its table, and that a tutorial, the ``Learner`` API page and a results page
+render with their figures.
 
 ``make docs-check`` runs it after ``make docs``. Each page (default: ``index.html`` and
 ``concepts.html`` of ``docs/_build/html``) is opened from its file with ``chromium --headless
@@ -152,6 +153,78 @@ def preset_table_problems(dom: str) -> list[str]:
     return out
 
 
+#: Pages a reader opens first, beyond the math pages: each must render with its title, and
+#: every figure it shows must be an image with a width (the file a browser would load).
+FIGURE_PAGES = ("tutorials/quickstart.html", "reference/api/learner.html",
+                "results/benchmark/results.html")  # fmt: skip
+
+
+class _Images(HTMLParser):
+    """The ``src`` of every ``<img>`` of a page, and whether it has an ``<h1>``."""
+
+    def __init__(self) -> None:
+        super().__init__(convert_charrefs=True)
+        self.sources: list[str] = []
+        self.titled = False
+
+    def handle_starttag(self, tag: str, attrs: list[tuple[str, str | None]]) -> None:
+        if tag == "img":
+            self.sources.append(dict(attrs).get("src") or "")
+        self.titled |= tag == "h1"
+
+
+def image_width(data: bytes) -> int:
+    """The width in pixels of a PNG, JPEG or GIF image, or of an SVG's ``width``/``viewBox``
+    (0: not an image a browser could draw).
+
+    >>> image_width(bytes.fromhex("89504e470d0a1a0a0000000d4948445200000280000001e0"))
+    640
+    >>> image_width(b"not an image")
+    0
+    """
+    import re
+    import struct
+
+    if data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) >= 24:
+        return int(struct.unpack(">I", data[16:20])[0])
+    if data[:6] in (b"GIF87a", b"GIF89a"):
+        return int(struct.unpack("<H", data[6:8])[0])
+    if data[:2] == b"\xff\xd8":
+        i = 2
+        while i + 9 < len(data):
+            marker, size = data[i + 1], struct.unpack(">H", data[i + 2 : i + 4])[0]
+            if 0xC0 <= marker <= 0xCF and marker not in (0xC4, 0xC8, 0xCC):
+                return int(struct.unpack(">H", data[i + 7 : i + 9])[0])
+            i += 2 + size
+        return 0
+    text = data[:4096].decode("utf-8", "replace")
+    if "<svg" in text:
+        m = re.search(r'width="([0-9.]+)|viewBox="[-0-9. ]*? [-0-9.]+ ([0-9.]+)', text)
+        return int(float(m.group(1) or m.group(2))) if m else 0
+    return 0
+
+
+def figure_problems(dom: str, page: Path) -> list[str]:
+    """What keeps a rendered page's figures from showing: a page without a title, an image
+    whose file is missing or is no image."""
+    import base64
+    from urllib.parse import unquote
+
+    scanner = _Images()
+    scanner.feed(dom)
+    scanner.close()
+    out = [] if scanner.titled else ["no <h1>: the page did not render"]
+    for src in scanner.sources:
+        if src.startswith("data:"):
+            data = base64.b64decode(src.split(",", 1)[1]) if ";base64," in src else b""
+        else:
+            path = (page.parent / unquote(src.split("#")[0].split("?")[0])).resolve()
+            data = path.read_bytes() if path.is_file() else b""
+        if image_width(data) <= 0:
+            out.append(f"figure not shown: {src[:80]}")
+    return out
+
+
 def render(chromium: str, page: Path) -> str:
     """The page's DOM after its scripts ran, as headless Chromium dumps it."""
     result = subprocess.run(
@@ -206,6 +279,17 @@ def main(argv: list[str] | None = None) -> int:
         failures += [f"{PRESET_PAGE}: {p}" for p in problems]
         if not problems:
             print(f"browser_check: {PRESET_PAGE}: the presets table shows a column per preset")
+    for name in FIGURE_PAGES:
+        page = args.site / name
+        if not page.is_file():
+            failures.append(f"{name}: no such page under {args.site}")
+            continue
+        dom = render(chromium, page)
+        problems = figure_problems(dom, page)
+        failures += [f"{name}: {p}" for p in problems]
+        if not problems:
+            shown = dom.count("<img")
+            print(f"browser_check: {name}: renders, {shown} figure(s) shown")
     if failures:
         print("browser_check: the built site does not show what a reader needs offline:")
         print("\n".join(f"  {f}" for f in failures))

@@ -811,7 +811,9 @@ def _add_run(sub: argparse.ArgumentParser) -> None:
         "keyway-fruit box — speed, copying the organisation, a new skewer)",
     )
     sub.add_argument("--quick", action="store_true", help="tiny budget (smoke test)")
-    sub.add_argument("--logdir", default="runs", help="parent folder of the run directory")
+    sub.add_argument(
+        "--logdir", default="runs", help="parent folder of the run directory (default: runs)"
+    )
     sub.add_argument(
         "--config",
         help="a config.json (as saved in a run directory) to run instead of the experiment's "
