@@ -444,6 +444,38 @@ def logdir_flag(run_dir: str | os.PathLike | None, name: str) -> list[str] | Non
     return [] if run_dir.parent == Path("runs") else ["--logdir", shlex.quote(str(run_dir.parent))]
 
 
+def quick_run_command(
+    subcommand: str, config: Any, run_dir: str | os.PathLike | None, names: tuple[str, ...]
+) -> str | None:
+    """The ``himit run <subcommand>`` command that rebuilds ``config`` exactly from its flags
+    ``--quick`` and ``names`` (e.g. ``seeds``, ``steps``, ``engine``), or None where none can.
+    Those flags that differ from the defaults (``type(config)()``, or its ``.quick()``) are
+    applied as the command applies them, and the configuration they build is compared with
+    ``config`` field by field; ``run_dir`` (``<logdir>/<name>``) adds ``--logdir`` unless it
+    is the default ``runs``. The runners whose only flags are these (discovery, the puzzle
+    box) share it."""
+    logdir = logdir_flag(run_dir, config.name)
+    if logdir is None:
+        return None
+    for quick in (False, True):
+        base = type(config)().quick() if quick else type(config)()
+        changes = {
+            name: getattr(config, name)
+            for name in names
+            if getattr(config, name) != getattr(base, name)
+        }
+        try:
+            rebuilt = replace(base, **changes)
+        except ValueError:
+            continue
+        if asdict(rebuilt) == asdict(config):
+            flags = ["--quick"] if quick else []
+            for name, value in changes.items():
+                flags += setting_flag(name, value)
+            return " ".join(["himit", "run", subcommand, *flags, *logdir])
+    return None
+
+
 def run_command(config: ExperimentConfig, run_dir: str | os.PathLike | None = None) -> str | None:
     """The ``himit run`` command that rebuilds ``config`` exactly, or None where none can.
 

@@ -437,28 +437,9 @@ def discovery_run_command(
     ``himit run discovery`` (``--quick``, ``--seeds``, ``--steps``, ``--engine``) that differ
     from the defaults, applied as it applies them; the configuration they build is compared
     with ``config`` field by field. ``run_dir`` (``<logdir>/<name>``) adds ``--logdir``."""
-    from himit_torch.runs.config import logdir_flag, setting_flag
+    from himit_torch.runs.config import quick_run_command
 
-    logdir = logdir_flag(run_dir, config.name)
-    if logdir is None:
-        return None
-    for quick in (False, True):
-        base = DiscoveryConfig().quick() if quick else DiscoveryConfig()
-        changes = {
-            name: getattr(config, name)
-            for name in ("seeds", "steps", "engine")
-            if getattr(config, name) != getattr(base, name)
-        }
-        try:
-            rebuilt = replace(base, **changes)
-        except ValueError:
-            continue
-        if asdict(rebuilt) == asdict(config):
-            flags = ["--quick"] if quick else []
-            for name, value in changes.items():
-                flags += setting_flag(name, value)
-            return " ".join(["himit", "run", "discovery", *flags, *logdir])
-    return None
+    return quick_run_command("discovery", config, run_dir, ("seeds", "steps", "engine"))
 
 
 def _fmt(values, digits: int = 1) -> str:

@@ -624,10 +624,16 @@ def _finish_run_dir(
     config: ExperimentConfig, run_dir: Path, finished: dict[int, WorldResult]
 ) -> list[WorldResult]:
     """The finished experiment's ``curves.csv``, figures and ``results.md``."""
-    results = [finished[size] for size in config.sizes]
     _merge_curves(run_dir, config)
+    return _write_report(run_dir, config, finished)
+
+
+def _write_report(run_dir: Path, config: ExperimentConfig, finished: dict) -> list[WorldResult]:
+    """The figures and ``results.md`` of finished worlds (``size → WorldResult``), in the
+    order of ``config.sizes``: what a run writes at its end and ``himit plot`` redraws."""
     from himit_torch.viz.report import write_figures, write_results
 
+    results = [finished[size] for size in config.sizes]
     write_figures(run_dir, config, results)
     write_results(
         run_dir,
@@ -658,17 +664,7 @@ def rewrite_report(run_dir: str | os.PathLike) -> None:
                 "finish it with himit run … --resume"
             )
         finished[size] = WorldResult(**json.loads(path.read_text()))
-    from himit_torch.viz.report import write_figures, write_results
-
-    results = [finished[size] for size in config.sizes]
-    write_figures(run_dir, config, results)
-    write_results(
-        run_dir,
-        config,
-        results,
-        agent_settings_text(config.agents, config.learner),
-        run_command(config, run_dir),
-    )
+    _write_report(run_dir, config, finished)
 
 
 def _share_cores(threads: int) -> None:

@@ -835,14 +835,8 @@ def run_sweep(
     _execute(todo, address, use_ray, workers, log, spec.worker_niceness)
     provenance = summarize(spec, out)
     record = {
-        "name": spec.name,
-        "base": spec.base,
-        "design": spec.design,
-        "seeds": spec.seeds,
-        "first_seed": spec.first_seed,
-        "worlds": list(spec.worlds),
+        **_about(spec),
         "worker_niceness": spec.worker_niceness,
-        "spec": spec.source,
         "factors": {k: [_show(v) for v in vs] for k, vs in spec.factors.items()},
         "cells": [
             {
