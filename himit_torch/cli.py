@@ -273,6 +273,15 @@ def cmd_info(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     if args.env is not None and args.puzzle_box is not None:
         raise ValueError("give --env or --puzzle-box, not both")
+    if args.puzzle_box is not None and args.env_kwargs is not None:
+        raise ValueError(
+            "--env-kwargs is for a Gymnasium environment (--env), not --puzzle-box: leave it out"
+        )
+    if args.puzzle_box is None and args.pinch_slip is not None:
+        raise ValueError(
+            "--pinch-slip is the puzzle box's: give --puzzle-box K too (e.g. --puzzle-box 4 "
+            "--pinch-slip 0.2), or leave it out"
+        )
     if args.env is not None:
         return _info_gymnasium(args, t0)
     if args.puzzle_box is not None:

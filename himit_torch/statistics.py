@@ -20,6 +20,8 @@ survival and the correction for many tests — each a thin, named call of the li
   the listing.
 
 Every interval is two-sided at ``level`` (default 95 %) and says what it is where it is printed.
+Input that has no answer is refused with a ``ValueError`` naming the argument, never answered
+with NaN: an empty or NaN sample, a p-value outside ``[0, 1]``, a first goal after the budget.
 """
 
 from __future__ import annotations
@@ -58,6 +60,27 @@ __all__ = [
 RESAMPLES = 9999
 
 
+def _sample(where: str, values: Sequence[float] | np.ndarray, minimum: int = 1) -> np.ndarray:
+    """``values`` as a 1-D float array of at least ``minimum`` finite numbers (``ValueError``
+    naming ``where`` and the first bad item otherwise: a NaN has no place in a mean)."""
+    try:
+        x = np.asarray(values, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{where} must be a list of numbers, got {values!r}") from None
+    if x.ndim != 1:
+        raise ValueError(f"{where} must be a 1-D list of numbers, got shape {x.shape}")
+    if len(x) < minimum:
+        raise ValueError(
+            f"{where} holds {len(x)} value(s); give at least {minimum} (a mean of nothing is "
+            "undefined)"
+        )
+    bad = np.flatnonzero(~np.isfinite(x))
+    if bad.size:
+        i = int(bad[0])
+        raise ValueError(f"{where}[{i}]={float(x[i])!r} must be a finite number")
+    return x
+
+
 @dataclass(frozen=True)
 class Interval:
     """An estimate and its two-sided interval; ``what`` names the interval."""
@@ -73,8 +96,12 @@ class Interval:
 
 def t_interval(values: Sequence[float], level: float = 0.95) -> Interval:
     """The mean of ``values`` and its Student-t interval (n − 1 degrees of freedom). One value,
-    or values all equal: the interval is the mean itself (no spread to measure)."""
-    x = np.asarray(values, dtype=float)
+    or values all equal: the interval is the mean itself (no spread to measure).
+
+    Raises:
+        ValueError: no values (a mean of nothing), or a value that is not finite.
+    """
+    x = _sample("t_interval: values", values)
     mean = float(x.mean())
     if len(x) < 2 or np.all(x == x[0]):
         return Interval(mean, mean, mean, f"{level:.0%} t-interval of the mean")
@@ -119,13 +146,19 @@ class PairedComparison:
 def paired_comparison(
     a: Sequence[float], b: Sequence[float], level: float = 0.95, seed: int = 0
 ) -> PairedComparison:
-    """Compare ``a`` with ``b``, the i-th of each from the same seed."""
+    """Compare ``a`` with ``b``, the i-th of each from the same seed.
+
+    Raises:
+        ValueError: sequences of different lengths or of fewer than 2 values, or a value that is
+            not finite (a NaN would count as neither a win nor a loss).
+    """
     x, y = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
     if x.shape != y.shape or x.ndim != 1 or len(x) < 2:
         raise ValueError(
             f"paired_comparison needs two equally long sequences of ≥ 2 values, got "
             f"{x.shape} and {y.shape}"
         )
+    x, y = _sample("paired_comparison: a", x), _sample("paired_comparison: b", y)
     d = x - y
     wins, losses = int((d > 0).sum()), int((d < 0).sum())
     if np.ptp(d) <= 1e-9 * max(1.0, abs(float(d.mean()))):
@@ -157,8 +190,31 @@ def first_goal_survival(
 ) -> Survival:
     """The Kaplan–Meier estimate of the steps to the first goal. ``first_goal_steps``: one per
     run, −1 for a run that never reached the goal within its ``budget`` of steps (censored
-    there). The median's interval is where the pointwise log–log band of the curve crosses ½."""
-    steps = np.asarray(first_goal_steps, dtype=float)
+    there). The median's interval is where the pointwise log–log band of the curve crosses ½.
+
+    Raises:
+        ValueError: no runs, a ``budget`` that is not a whole number ≥ 1, or a first-goal step
+            that is not a whole number in ``0 … budget`` or −1 (a goal after the budget was not
+            within it: give the budget the runs had).
+    """
+    if (
+        isinstance(budget, (bool, np.bool_))
+        or not isinstance(budget, (int, np.integer, float, np.floating))
+        or not math.isfinite(budget)
+        or budget != int(budget)
+        or budget < 1
+    ):
+        raise ValueError(
+            f"first_goal_survival: budget={budget!r} must be a whole number of steps ≥ 1"
+        )
+    steps = _sample("first_goal_survival: first_goal_steps", first_goal_steps)
+    bad = np.flatnonzero((steps != np.round(steps)) | (steps < -1) | (steps > budget))
+    if bad.size:
+        i = int(bad[0])
+        raise ValueError(
+            f"first_goal_survival: first_goal_steps[{i}]={steps[i]:g} must be a whole number of "
+            f"steps in 0 … budget={budget:g}, or −1 for a run that never reached the goal"
+        )
     found = steps >= 0
     data = _stats().CensoredData(uncensored=steps[found], right=np.full((~found).sum(), budget))
     sf = _stats().ecdf(data).sf
@@ -215,7 +271,11 @@ def share_interval(count: int, total: int, level: float = 0.95) -> Interval:
 
 def holm(p_values: Sequence[float]) -> list[float]:
     """Holm-adjusted p-values of a family (NaN entries, tests not made, stay NaN and are not
-    counted in the family)."""
+    counted in the family).
+
+    Raises:
+        ValueError: a p-value outside ``[0, 1]`` (or infinite), naming it.
+    """
     try:
         from statsmodels.stats.multitest import multipletests
     except ImportError:
@@ -223,7 +283,19 @@ def holm(p_values: Sequence[float]) -> list[float]:
             "himit_torch.statistics.holm needs statsmodels: pip install 'himit_torch[analysis]'"
         ) from None
 
-    p = np.asarray(p_values, dtype=float)
+    try:
+        p = np.asarray(p_values, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"holm: p_values must be a list of numbers, got {p_values!r}") from None
+    if p.ndim != 1:
+        raise ValueError(f"holm: p_values must be a 1-D list, got shape {p.shape}")
+    outside = np.flatnonzero(~np.isnan(p) & ((p < 0) | (p > 1)))
+    if outside.size:
+        i = int(outside[0])
+        raise ValueError(
+            f"holm: p_values[{i}]={float(p[i])!r} is not a p-value; each must lie in [0, 1] (NaN: a "
+            "test not made)"
+        )
     out = np.full_like(p, np.nan)
     made = ~np.isnan(p)
     if made.any():

@@ -77,6 +77,7 @@ from himit_torch.exact.option_models import OptionModels, option_models_and_dura
 from himit_torch.exact.planning import PlanResult, smdp_value_iteration
 from himit_torch.options.builders import primitive_options
 from himit_torch.options.bundle import Options
+from himit_torch.validation import COUNT_MAX, as_int
 
 __all__ = [
     "GAP_ROUND_OFF",
@@ -262,6 +263,13 @@ class PolicyEvaluator:
             ``goal_mask`` where it has one, else every terminal state.
         models: ``(discounted, durations)`` of ``options`` if already computed
             (:func:`~himit_torch.exact.option_models.option_models_and_durations`).
+
+    Raises:
+        TypeError: ``world`` is no world (``num_states``, ``terminal_mask``, ``gamma``), or
+            ``options`` no :class:`~himit_torch.Options`.
+        ValueError: ``window`` not a whole number in ``1 … COUNT_MAX`` (``2.5``, ``"500"`` and
+            ``True`` are refused, never read as a window), options over another number of
+            states, or a bad ``goal_mask``.
     """
 
     def __init__(
@@ -272,8 +280,18 @@ class PolicyEvaluator:
         goal_mask: torch.Tensor | None = None,
         models: tuple[OptionModels, OptionModels] | None = None,
     ):
-        if int(window) < 1:
-            raise ValueError(f"window={window} must be ≥ 1 steps")
+        missing = [m for m in ("num_states", "terminal_mask", "gamma") if not hasattr(world, m)]
+        if missing:
+            raise TypeError(
+                f"PolicyEvaluator: world must be a world with a true model (num_states, "
+                f"terminal_mask, gamma, …), got {type(world).__name__} (lacks {missing})"
+            )
+        if not isinstance(options, Options):
+            raise TypeError(
+                f"PolicyEvaluator: options must be an Options bundle (e.g. "
+                f"primitive_options(world)), got {type(options).__name__}"
+            )
+        window = as_int("PolicyEvaluator: window", window, 1, COUNT_MAX)
         S = int(world.num_states)
         if options.num_states != S:
             raise ValueError(f"options are over {options.num_states} states but the world has {S}")
@@ -322,9 +340,16 @@ class PolicyEvaluator:
         evaluations that need only the goal rate.
 
         Raises:
+            TypeError: ``policy`` is not an :class:`OptionPolicy`.
             ValueError: the policy is over another number of states, names an option that does
                 not exist, or puts probability on an option unavailable at its state.
         """
+        if not isinstance(policy, OptionPolicy):
+            raise TypeError(
+                f"PolicyEvaluator.evaluate: policy must be an OptionPolicy (e.g. "
+                f"learner.greedy_policy() or OptionPolicy.deterministic(choice)), got "
+                f"{type(policy).__name__}"
+            )
         if policy.num_states != self.num_states:
             raise ValueError(
                 f"the policy is over {policy.num_states} states but the world has {self.num_states}"

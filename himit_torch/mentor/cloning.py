@@ -43,6 +43,8 @@ from typing import NamedTuple
 
 import torch
 
+from himit_torch.validation import as_int
+
 __all__ = ["INVERSE_MODELS", "TIE", "InverseModel", "inverse_model", "relabel", "clone_policy"]
 
 #: ``LearnerConfig.bco_inverse_model``: how own counts become ``p(a | s, s')`` (module docstring).
@@ -82,6 +84,7 @@ def inverse_model(
     successors: torch.Tensor,
     counts: torch.Tensor,
     kind: str = "likelihood",
+    num_states: int | None = None,
 ) -> InverseModel:
     """The inverse model ``p(a | s, s')`` of the own transitions ``(states, actions,
     successors)`` seen ``counts`` times each (step 1 of the module docstring; Torabi et al. 2018,
@@ -93,13 +96,37 @@ def inverse_model(
         counts: ``[N]`` how often each was seen (≥ 0; entries of count 0 are left out).
         kind: ``"likelihood"`` (``p ∝ n(s, a, s') / n(s, a)``, a uniform prior over actions) or
             ``"counts"`` (``p ∝ n(s, a, s')``), :data:`INVERSE_MODELS`.
+        num_states: ``S`` of the world, if known: ``states`` and ``successors`` must then lie in
+            ``0 … S − 1``.
 
     Returns:
         :class:`InverseModel`, one entry per distinct ``(s, a, s')`` of positive count.
+
+    Raises:
+        ValueError: mismatched or non-int64 columns, a negative state or action, a state ``≥
+            num_states``, counts that are not finite and ≥ 0, or states and actions so large that
+            the ``(s, s', a)`` keys would not fit in int64 (``S² · A > 2⁶³``; the model is
+            keyed by them).
     """
     if kind not in INVERSE_MODELS:
         raise ValueError(f"inverse model kind={kind!r}: use one of {INVERSE_MODELS}")
     _check_transitions("inverse_model", states, actions, successors)
+    if num_states is not None:
+        num_states = as_int("inverse_model: num_states", num_states, 1)
+        for name, column in (("states", states), ("successors", successors)):
+            if column.numel() and int(column.max()) >= num_states:
+                raise ValueError(
+                    f"inverse_model: {name} holds state {int(column.max())}; states must lie in "
+                    f"0 … num_states − 1 = {num_states - 1}"
+                )
+    if states.numel():
+        top = max(int(states.max()), int(successors.max())) + 1
+        if top * top * (int(actions.max()) + 1) > 2**63:
+            raise ValueError(
+                f"inverse_model: states up to {top - 1} and actions up to {int(actions.max())} "
+                "make (s, s', a) keys beyond int64; states must be below the world's number of "
+                "states (at most about 2³¹ with few actions)"
+            )
     counts = torch.as_tensor(counts, dtype=torch.float64, device=states.device)
     if (
         counts.shape != states.shape
@@ -174,8 +201,18 @@ def clone_policy(
         states: ``[T]`` int64, where each observed mentor transition starts.
         labels: ``[T]`` int64, its inferred action (:func:`relabel`; ``−1``: none, no vote).
         weights: ``[T]`` how often it was observed (> 0).
-        num_states, num_actions: ``S`` and ``A``.
+        num_states, num_actions: ``S`` and ``A``, whole numbers ≥ 1.
+
+    Raises:
+        ValueError: ``num_states`` or ``num_actions`` not a whole number ≥ 1, mismatched shapes,
+            weights that are not positive, or states or labels out of range.
     """
+    num_states = as_int("clone_policy: num_states", num_states, 1)
+    num_actions = as_int("clone_policy: num_actions", num_actions, 1)
+    if num_states * num_actions >= 2**63:
+        raise ValueError(
+            f"clone_policy: num_states · num_actions = {num_states * num_actions} is beyond int64"
+        )
     if states.shape != labels.shape or states.dim() != 1:
         raise ValueError("clone_policy: states and labels must be [T] each")
     weights = torch.as_tensor(weights, dtype=torch.float64, device=states.device)

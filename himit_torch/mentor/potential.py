@@ -48,6 +48,21 @@ import torch
 __all__ = ["mentor_chain_value", "shaping_potential"]
 
 
+def _check_state_columns(where: str, sources: torch.Tensor, successors: torch.Tensor) -> None:
+    """``sources`` and ``successors`` hold state indices: an integer tensor each (a float one
+    would be truncated to states it never named; a bool one is a mask, not states)."""
+    for name, column in (("sources", sources), ("successors", successors)):
+        if not isinstance(column, torch.Tensor):
+            raise TypeError(
+                f"{where}: {name} must be a tensor of states, got {type(column).__name__}"
+            )
+        if column.dtype.is_floating_point or column.dtype.is_complex or column.dtype == torch.bool:
+            raise ValueError(
+                f"{where}: {name} must hold whole state indices (an integer tensor, e.g. "
+                f"int64), got {column.dtype}; states are never truncated"
+            )
+
+
 def mentor_chain_value(
     sources: torch.Tensor,
     successors: torch.Tensor,
@@ -74,7 +89,8 @@ def mentor_chain_value(
         ``(W [S] float64, seen [S] bool)``: ``seen`` where the mentor was seen leaving.
 
     Raises:
-        ValueError: on mismatched shapes, a state out of range, a move out of a terminal state,
+        ValueError: on mismatched shapes, states that are not an integer tensor (a float
+            ``1.7`` is never truncated), a state out of range, a move out of a terminal state,
             a count that is not positive, or a chain with no way out at ``γ = 1`` (the system
             is singular).
 
@@ -88,6 +104,7 @@ def mentor_chain_value(
     >>> [round(float(w), 4) for w in W], seen.tolist()
     ([0.89, 1.0, 0.0, -1.0], [True, True, False, False])
     """
+    _check_state_columns("mentor_chain_value", sources, successors)
     E = sources.shape[0]
     if not (sources.shape == successors.shape == counts.shape == rewards.shape == (E,)):
         raise ValueError(
@@ -165,7 +182,8 @@ def shaping_potential(
     ``outside_value = v0``), 0 elsewhere, terminal states included. Arguments as
     :func:`mentor_chain_value`'s, ``initial_value`` the learner's ``v0``.
 
-    Returns ``[S]`` float64.
+    Returns ``[S]`` float64. Raises as :func:`mentor_chain_value` does (``sources`` and
+    ``successors`` an integer tensor each: float states are refused, never truncated).
 
     The chain above, with ``v0 = −1``: ``Φ(a) = 0.89 + 1``, ``Φ(b) = 1 + 1``, 0 at the goal and
     at the state never seen.
@@ -177,6 +195,7 @@ def shaping_potential(
     >>> [round(float(x), 4) for x in phi]
     [1.89, 2.0, 0.0, 0.0]
     """
+    _check_state_columns("shaping_potential", sources, successors)
     W, seen = mentor_chain_value(
         sources, successors, counts, rewards, gamma, terminal, initial_value
     )

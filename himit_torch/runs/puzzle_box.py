@@ -69,12 +69,23 @@ from himit_torch.runs.runner import (
     watch_demonstrations,
     write_atomically,
 )
+from himit_torch.validation import (
+    COUNT_MAX,
+    as_choice,
+    as_float,
+    as_folder_name,
+    as_int,
+    as_tuple,
+    check_memory,
+    refuse_unknown_fields,
+)
 from himit_torch.viz.tensorboard import TensorBoardLogger
 from himit_torch.worlds.puzzle_box import (
     ORGANISATIONS,
     PuzzleBox,
     organisation_of,
     organisation_scores,
+    puzzle_box_size,
 )
 
 __all__ = [
@@ -143,35 +154,72 @@ class PuzzleBoxConfig:
     learner: LearnerConfig = field(default_factory=_default_learner)
 
     def __post_init__(self):
-        if isinstance(self.learner, dict):
-            self.learner = LearnerConfig(**self.learner)
+        # Each field by the library's input rules (himit_torch.validation, as ExperimentConfig's
+        # are): whole numbers never truncated and at most COUNT_MAX, bools and strings never
+        # numbers, probabilities finite; then the cross-field rules.
+        def where(name: str) -> str:
+            return f"PuzzleBoxConfig.{name}"
 
         def bad(name: str, why: str):
-            raise ValueError(f"PuzzleBoxConfig.{name}={getattr(self, name)!r}: {why}")
+            raise ValueError(f"{where(name)}={getattr(self, name)!r}: {why}")
 
-        for name in ("seeds", "steps", "transfer_steps", "mentor_episodes", "window"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-                bad(name, "must be a whole number ≥ 1")
-        if not 2 <= self.skewers <= self.transfer_skewers:
+        self.name = as_folder_name(where("name"), self.name)
+        for name, minimum in (
+            ("skewers", 2),
+            ("transfer_skewers", 2),
+            ("seeds", 1),
+            ("first_seed", 0),
+            ("steps", 1),
+            ("transfer_steps", 1),
+            ("mentor_episodes", 1),
+            ("window", 1),
+            ("eval_every", 1),
+            ("checkpoint_every", 1),
+        ):
+            setattr(self, name, as_int(where(name), getattr(self, name), minimum, COUNT_MAX))
+        if not self.skewers <= self.transfer_skewers:
             bad("skewers", f"must be ≥ 2 and ≤ transfer_skewers ({self.transfer_skewers})")
         if self.transfer_skewers > 5:
             bad("transfer_skewers", "at most 5 (6 skewers: 357,000 states)")
         for name in ("eval_every", "checkpoint_every"):
-            value = getattr(self, name)
-            if value < self.window or value % self.window:
+            if getattr(self, name) % self.window:
                 bad(name, f"must be a positive multiple of the window ({self.window})")
-        if self.engine not in ENGINES:
-            bad("engine", f"use one of {ENGINES}")
-        self.variants = tuple(self.variants)
-        if set(self.variants) - set(VARIANTS):
-            bad("variants", f"use some of {VARIANTS}")
+        self.engine = as_choice(where("engine"), self.engine, ENGINES)
+        self.variants = tuple(
+            as_choice(f"{where('variants')}[{i}]", v, VARIANTS)
+            for i, v in enumerate(as_tuple(where("variants"), self.variants))
+        )
         for name in ("slip", "pinch_slip", "harder_pinch"):
             value = getattr(self, name)
-            if value is not None and not 0 <= value < 1:
-                bad(name, "must lie in [0, 1)")
+            if name == "pinch_slip" and value is None:  # the documented default: slip's
+                continue
+            setattr(self, name, as_float(where(name), value, 0.0, 1.0, high_open=True))
+        if isinstance(self.learner, dict):
+            refuse_unknown_fields(self.learner, LearnerConfig, where("learner"))
+            self.learner = LearnerConfig(**self.learner)
+        elif not isinstance(self.learner, LearnerConfig):
+            raise ValueError(
+                f"{where('learner')} must be a LearnerConfig or a dict of its fields, got "
+                f"{self.learner!r} ({type(self.learner).__name__})"
+            )
         if self.learner.window != self.window:
             self.learner = replace(self.learner, window=self.window)
+
+    def check_size(self) -> None:
+        """Refuse, before anything is recorded or run, a configuration whose batches would not
+        fit in memory (:func:`himit_torch.validation.check_memory`): each box's batch of
+        ``seeds`` runs, counted at its least — every state of the box with one (state, option)
+        row (``Learner``'s constants; the learner's own check, later, counts every row).
+        Called by :func:`run_puzzle_box` (not on construction, so that defining a
+        configuration never depends on the memory free now)."""
+        for skewers in (self.skewers, self.transfer_skewers):
+            states = puzzle_box_size(skewers)
+            check_memory(
+                f"PuzzleBoxConfig: a batch of {self.seeds:,} runs on the {skewers}-skewer box "
+                f"({states:,} states)",
+                self.seeds * states * (Learner.BYTES_PER_RUN_STATE + Learner.BYTES_PER_RUN_ROW),
+                "use fewer seeds",
+            )
 
     def quick(self) -> PuzzleBoxConfig:
         """A tiny budget on small boxes (2 and 3 skewers; smoke tests, ``--quick``)."""
@@ -504,6 +552,7 @@ def run_puzzle_box(
     configuration must be the saved one; finished batches are not rerun); a finished run is
     not overwritten unless ``force``."""
     run_dir = Path(run_dir)
+    config.check_size()
     check_run_dir(run_dir, force=force, resume=resume)
     if force:
         clear_run_dir(

@@ -154,7 +154,19 @@ def detour_waypoint(world: MultiRooms) -> int:
     no shortest path: every doorway sits in the middle of its wall, so reaching the corner of
     the top row and leaving it again costs steps a direct route does not take. (In a maze the
     only route may pass near it; the detour is then shorter.)
+
+    Raises:
+        ValueError: ``world`` is not a :class:`MultiRooms` (another world has no top-right
+            corner: give that world's waypoint state yourself; as
+            :func:`~himit_torch.mentor.policy.mentor_detour` refuses it), or the corner is the
+            world's start or goal.
     """
+    if not isinstance(world, MultiRooms):
+        raise ValueError(
+            f"detour_waypoint: world must be a MultiRooms grid (its top-right corner is the "
+            f"waypoint), got {type(world).__name__}; for another world name the waypoint state "
+            "itself"
+        )
     cell = world.size - 1
     if cell in (world.start_state, world.goal_state):
         raise ValueError(

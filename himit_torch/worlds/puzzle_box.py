@@ -88,7 +88,7 @@ from collections.abc import Sequence
 import numpy as np
 import torch
 
-from himit_torch.validation import as_float, as_int, check_memory
+from himit_torch.validation import COUNT_MAX, as_float, as_int, as_int_array, check_memory
 from himit_torch.worlds.table_world import TableWorld
 from himit_torch.worlds.tabular import DynamicsTable
 
@@ -96,6 +96,7 @@ __all__ = [
     "GRASPS",
     "ORGANISATIONS",
     "PuzzleBox",
+    "SKEWERS_MAX",
     "next_step",
     "organisation_of",
     "organisation_scores",
@@ -109,6 +110,11 @@ GRASPS = ("open", "power", "pinch")
 #: the first skewer not yet out, then the next); ``"step"`` — step by step across skewers (the
 #: next step of the least advanced skewer, the first of ties).
 ORGANISATIONS = ("skewer", "step")
+
+#: Most skewers a :class:`PuzzleBox` may have: the largest ``k`` whose box with the fewest steps
+#: (2) still has at most :data:`~himit_torch.validation.COUNT_MAX` states (``3^16 · 49``); the
+#: number of states is also held to ``COUNT_MAX`` for any ``steps``, before anything is built.
+SKEWERS_MAX = 16
 
 
 def puzzle_box_size(skewers: int, steps: int = 4) -> int:
@@ -150,7 +156,9 @@ def organisation_of(advances: Sequence[tuple[int, int]], skewers: int, steps: in
         the box was not opened, or a step was undone and redone).
     """
     done = [(int(i), int(j)) for i, j in advances]
-    if sorted(done) != [(i, j) for i in range(skewers) for j in range(1, steps + 1)]:
+    if len(done) != skewers * steps or sorted(done) != [
+        (i, j) for i in range(skewers) for j in range(1, steps + 1)
+    ]:
         return "incomplete"
     blocks = [i for n, (i, _) in enumerate(done) if n == 0 or done[n - 1][0] != i]
     if len(blocks) == skewers:  # each skewer in one run of consecutive steps
@@ -175,9 +183,21 @@ def organisation_scores(
     ``focus``: the same two scores for one skewer only (0-based) — the pairs that involve it, and
     the number of separate runs its steps are done in (``(n − runs) / (n − 1)``): how far that
     skewer (a new one, say) is fitted into each organisation.
+
+    Raises:
+        ValueError: ``skewers < 1`` or ``steps < 2`` (a box of one-step skewers has no
+            organisation to score: every order is skewer by skewer, and ``"skewer"`` would divide
+            by zero; :class:`PuzzleBox` itself needs ``steps ≥ 2``), or ``focus`` not one of the
+            skewers ``0 … skewers − 1``.
     """
+    skewers = as_int("organisation_scores: skewers", skewers, 1, SKEWERS_MAX)
+    steps = as_int("organisation_scores: steps", steps, 2, COUNT_MAX)
+    if focus is not None:
+        focus = as_int("organisation_scores: focus", focus, 0, skewers - 1)
     done = [(int(i), int(j)) for i, j in advances]
-    if sorted(done) != [(i, j) for i in range(skewers) for j in range(1, steps + 1)]:
+    if len(done) != skewers * steps or sorted(done) != [
+        (i, j) for i in range(skewers) for j in range(1, steps + 1)
+    ]:
         return {"skewer": math.nan, "step": math.nan}
     right = total = 0
     for a in range(len(done)):
@@ -203,8 +223,9 @@ class PuzzleBox(TableWorld):
     reaches, grips and moves (see the module docstring for the design and why).
 
     Args:
-        skewers: ``k ≥ 1`` (the study: 4, and 5 at its transfer test).
-        steps: ``n ≥ 2`` steps per skewer (the study: 4).
+        skewers: ``1 ≤ k ≤`` :data:`SKEWERS_MAX` (the study: 4, and 5 at its transfer test).
+        steps: ``n ≥ 2`` steps per skewer (the study: 4); the box's ``(n+1)^k (1+3k)`` states
+            at most :data:`~himit_torch.validation.COUNT_MAX`, and within the memory limit.
         slip: probability that an action fails, in ``[0, 1)`` (the paper's 0.1).
         pinch_slip: probability that the pinch grip fails, and that a motion made in a pinch
             slips, in ``[0, 1)``; default ``slip``.
@@ -224,8 +245,14 @@ class PuzzleBox(TableWorld):
         goal_reward: float = 1.0,
         gamma: float = 0.99,
     ):
-        k = as_int("PuzzleBox skewers", skewers, minimum=1)
-        n = as_int("PuzzleBox steps", steps, minimum=2)
+        k = as_int("PuzzleBox skewers", skewers, minimum=1, maximum=SKEWERS_MAX)
+        n = as_int("PuzzleBox steps", steps, minimum=2, maximum=COUNT_MAX)
+        if puzzle_box_size(k, n) > COUNT_MAX:
+            raise ValueError(
+                f"PuzzleBox(skewers={k}, steps={n}) would have {puzzle_box_size(k, n):,} states, "
+                f"more than COUNT_MAX = {COUNT_MAX:,} (the library's largest count); choose fewer "
+                "skewers or steps"
+            )
         slip = as_float("PuzzleBox slip", slip, 0.0, 1.0, high_open=True)
         if pinch_slip is None:
             pinch_slip = slip
@@ -307,18 +334,19 @@ class PuzzleBox(TableWorld):
     ) -> int:
         """The state with skewer levels ``progress`` and the hand home (``skewer=None``) or at
         ``skewer`` (0-based) with ``grasp`` (:data:`GRASPS`)."""
-        p = [int(x) for x in progress]
+        p = as_int_array("PuzzleBox.encode progress", progress).tolist()  # 1.7 is no level
         if len(p) != self.skewers or not all(0 <= x <= self.steps for x in p):
             raise ValueError(f"progress {p}: give {self.skewers} levels, each in 0 … {self.steps}")
         code = int(np.dot(p, self._radix))
         if skewer is None:
             return code * self.hand_states
-        if not 0 <= int(skewer) < self.skewers or grasp not in GRASPS:
+        at = as_int("PuzzleBox.encode skewer", skewer)
+        if not 0 <= at < self.skewers or grasp not in GRASPS:
             raise ValueError(
                 f"hand at skewer {skewer} with {grasp!r}: skewers are 0 … {self.skewers - 1}, "
                 f"grasps {GRASPS}"
             )
-        return code * self.hand_states + 1 + 3 * int(skewer) + GRASPS.index(grasp)
+        return code * self.hand_states + 1 + 3 * at + GRASPS.index(grasp)
 
     def decode(self, state: int) -> tuple[tuple[int, ...], int | None, str | None]:
         """``(progress, skewer, grasp)`` of ``state``: the levels, and the hand's skewer (0-based)
@@ -458,8 +486,27 @@ class PuzzleBox(TableWorld):
 
     @classmethod
     def from_description(cls, desc: dict) -> PuzzleBox:
+        """The box a :meth:`describe` dict names.
+
+        Raises:
+            TypeError: ``desc`` is not a dict.
+            ValueError: a description of another kind of world, one that lacks a field (naming
+                it), or a field the box refuses.
+        """
+        if not isinstance(desc, dict):
+            raise TypeError(
+                f"PuzzleBox.from_description: give a PuzzleBox.describe() dict, got "
+                f"{type(desc).__name__}"
+            )
         if desc.get("kind") != "PuzzleBox":
             raise ValueError(f"description is of a {desc.get('kind')!r} world, not PuzzleBox")
+        fields = ("skewers", "steps", "slip", "pinch_slip", "step_reward", "goal_reward", "gamma")
+        missing = [name for name in fields if name not in desc]
+        if missing:
+            raise ValueError(
+                f"PuzzleBox description lacks {missing}; a PuzzleBox.describe() dict holds "
+                f"{['kind', *fields]}"
+            )
         return cls(
             skewers=desc["skewers"],
             steps=desc["steps"],
