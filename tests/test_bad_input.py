@@ -92,7 +92,8 @@ MULTIROOMS = {
 }
 #: Every declared field of LearnerConfig, by the kind of value it takes.
 LEARNER = {
-    s.name: {int: "int", float: "float", str: "choice"}[s.kind] for s in settings_of(LearnerConfig)
+    s.name: {int: "int", float: "float", str: "choice", bool: "bool"}[s.kind]
+    for s in settings_of(LearnerConfig)
 }
 EXPERIMENT = {
     "seeds": "int",

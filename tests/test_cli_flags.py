@@ -29,6 +29,7 @@ LEARNER_FLAGS = {
     "confidence_z": ("1.96", 1.96),
     "mentor_override_after": ("7", 7),
     "mentor_fade": ("20", 20.0),
+    "mentor_segments": (None, True),  # (None: a switch, given as --mentor-segments)
     "eps_start": ("0.5", 0.5),
     "eps_decay": ("0.99", 0.99),
     "eps_min": ("0.05", 0.05),
@@ -37,6 +38,7 @@ LEARNER_FLAGS = {
     "option_models": ("exact", "exact"),
     "exact_model_count": ("1e3", 1000.0),
     "mentor_choice": ("match", "match"),
+    "mentor_trial": (None, True),
     "tie_break": ("first", "first"),
     "max_option_steps": ("500", 500),
     "resample_every": ("5", 5),
@@ -99,7 +101,7 @@ def test_help_lists_every_setting_with_its_doc():
 def test_each_learner_flag_reaches_the_config_of_the_run(planned, field):
     text, expected = LEARNER_FLAGS[field]
     extra = ["--backups", "12"] if field == "sweep_rounds" else []
-    (config,) = planned(["exp1", _flag(field), text, *extra])
+    (config,) = planned(["exp1", _flag(field), *([] if text is None else [text]), *extra])
     assert getattr(config.learner, field) == expected
     untouched = {k: v for k, v in dataclasses.asdict(config.learner).items() if k != field}
     reference = dataclasses.asdict(EXPERIMENTS["exp1"].learner)

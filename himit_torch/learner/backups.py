@@ -24,6 +24,9 @@ __all__ = [
     "option_backup_edges",
     "shaped_option_backup",
     "mentor_backup",
+    "segment_reward",
+    "segment_discount",
+    "segment_mentor_backup",
     "augmented_option_backup",
     "augmented_primitive_backup",
     "options_only_backup",
@@ -183,6 +186,89 @@ def mentor_backup(
             "[..., K] must agree"
         )
     return mentor_reward + gamma * (mentor_probs * successor_values).sum(-1)
+
+
+def segment_reward(
+    last_reward: torch.Tensor,
+    delay: torch.Tensor,
+    unseen_step_reward: torch.Tensor | float,
+    gamma: float,
+) -> torch.Tensor:
+    """Expected discounted reward of an observed mentor move of ``k`` primitive steps, scored as
+    an option is (SMDP form; Sutton, Precup & Singh 1999; ``LearnerConfig.mentor_segments``)::
+
+        r̃(s, s') = E[ Σ_{i<k−1} γ^i u + γ^(k−1) r_m(s, s') ]
+                 = u (1 − d̄) / (1 − γ) + d̄ r_m(s, s'),      d̄ = E[γ^(k−1)]
+
+    Only the move's ends are seen: its last step earns what the reward module gives the observed
+    transition (``r_m(s, s')``); each unseen step before it earns ``u``
+    (``unseen_step_reward``; the learner takes the least reward its module gives any of the
+    run's observed moves, so that ``u`` never exceeds what the mentor was seen earning for a
+    step). With every move one step (``d̄ = 1``) it is ``r_m(s, s')`` exactly.
+
+    Args:
+        last_reward: ``[...]`` ``r_m(s, s')``.
+        delay: ``[...]`` ``d̄ = E[γ^(k−1)]`` over the edge's observations (``edge_delay /
+            edge_count``), in ``(0, 1]``.
+        unseen_step_reward: ``u``, ``[...]`` or a number.
+        gamma: the world's discount, ``< 1`` (a move of unknown length cannot be summed at 1).
+
+    A 3-step move into the goal (``+1``) with ``u = −0.01``, ``γ = 0.9``:
+    ``−0.01 (1 + 0.9) + 0.81 · 1 = 0.791``.
+
+    >>> import torch
+    >>> round(float(segment_reward(torch.tensor(1.0), torch.tensor(0.81), -0.01, 0.9)), 6)
+    0.791
+    """
+    if not 0 < gamma < 1:
+        raise ValueError(
+            f"segment_reward: gamma={gamma}; the segment term needs a discount in (0, 1)"
+        )
+    return unseen_step_reward * (1 - delay) / (1 - gamma) + delay * last_reward
+
+
+def segment_discount(delay: torch.Tensor, gamma: float) -> torch.Tensor:
+    """``E[γ^k] = γ · E[γ^(k−1)]``: the discount of an observed mentor move's successor value
+    (:func:`segment_reward`'s ``delay``); ``γ`` for one-step moves."""
+    return gamma * delay
+
+
+def segment_mentor_backup(
+    segment_rewards: torch.Tensor,
+    segment_discounts: torch.Tensor,
+    mentor_probs: torch.Tensor,
+    successor_values: torch.Tensor,
+) -> torch.Tensor:
+    """The mentor term over segments (SMDP form; ``LearnerConfig.mentor_segments``): each
+    observed move ``s → s'`` scored as an option is, with its discounted reward and discount::
+
+        M(s) = Σ_{s'} p_m(s'|s) ( r̃(s, s') + E[γ^k](s, s') V(s') )
+
+    With every move one step (``r̃ = r_m``, ``E[γ^k] = γ``) it is :func:`mentor_backup`.
+
+    Args:
+        segment_rewards: ``[..., K]`` :func:`segment_reward` per successor.
+        segment_discounts: ``[..., K]`` :func:`segment_discount` per successor.
+        mentor_probs, successor_values: ``[..., K]``.
+
+    Two moves seen from ``s``: to ``a`` in 1 step (twice), to ``b`` in 3 steps (once);
+    ``γ = 0.9``, ``r̃ = (−0.01, −0.0271)``, ``V = (0.5, 1.0)``:
+    ``(2/3)(−0.01 + 0.9 · 0.5) + (1/3)(−0.0271 + 0.729 · 1.0) = 0.52730``.
+
+    >>> import torch
+    >>> m = segment_mentor_backup(torch.tensor([-0.01, -0.0271]), torch.tensor([0.9, 0.729]),
+    ...                           torch.tensor([2 / 3, 1 / 3]), torch.tensor([0.5, 1.0]))
+    >>> round(float(m), 5)
+    0.5273
+    """
+    shape = mentor_probs.shape
+    if not (segment_rewards.shape == segment_discounts.shape == successor_values.shape == shape):
+        raise ValueError(
+            f"segment_mentor_backup: segment_rewards {tuple(segment_rewards.shape)}, "
+            f"segment_discounts {tuple(segment_discounts.shape)}, mentor_probs {tuple(shape)} "
+            f"and successor_values {tuple(successor_values.shape)} must all be [..., K]"
+        )
+    return (mentor_probs * (segment_rewards + segment_discounts * successor_values)).sum(-1)
 
 
 def options_only_backup(option_q: torch.Tensor, available: torch.Tensor) -> torch.Tensor:

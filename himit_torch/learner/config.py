@@ -167,6 +167,18 @@ class LearnerConfig:
         (no lasting upward bias). Where nothing own was tried, ``m`` is used as it is. ``None`` = no
         fading (the paper's eq. 2).""",
     )
+    mentor_segments: bool = setting(
+        False,
+        doc="""
+        Score each observed mentor move as the segment it is (SMDP form, as an own option is
+        scored): a move of ``k`` primitive steps gets the discount ``γ^k`` and the discounted
+        reward of its steps, the unseen ones at the least reward the run's reward module gives
+        any observed move (:func:`~himit_torch.learner.backups.segment_reward`). The move's
+        length is what the demonstrations say (``CoarseDemonstrations.durations``: the learner
+        knows when it saw each state); full demonstrations have only one-step moves, where this
+        is the paper's term exactly. ``False`` = every observed move scored as one step (the
+        paper's eq. 1 and 2), optimistic under coarse observation.""",
+    )
     eps_start: float = setting(
         0.75,
         ge=0.0,
@@ -254,6 +266,20 @@ class LearnerConfig:
         first action's learned one-step model best reproduces the mentor's observed move,
         ``Σ_s' p̂(s'|s, π_o(s)) p_m(s'|s)``, best ``Q`` among those; greedy where no tried action
         matches.""",
+    )
+    mentor_trial: bool = setting(
+        False,
+        kernel=True,
+        doc="""
+        Trial of untried own options where the mentor leads (the option-level analogue of Price
+        & Boutilier's k-step repair): in a state where the mentor term wins eq. 2 and some enabled
+        own option was never tried there, the greedy choice tries one — of the untried options,
+        those whose first action's learned one-step model best reproduces the mentor's observed
+        move, any untried one where none does (:func:`~himit_torch.learner.choice.trial_candidates`).
+        ε-exploration is unchanged: with probability ε the run picks any enabled option, as
+        always; the trial replaces only the greedy choice, so it ends at each state once every
+        option there has been tried. Applies to eq. 1 (untried primitives) and eq. 2 alike.
+        ``False`` = the paper's greedy choice.""",
     )
     tie_break: str = setting(
         "random",
@@ -346,7 +372,7 @@ def kernel_field_types() -> dict[str, type]:
     """The number type of each of :data:`KERNEL_FIELDS` as :func:`kernel_fields` encodes it:
     ``int`` for whole numbers and choices, ``float`` for real numbers."""
     return {
-        s.name: int if s.kind in (int, str) else float
+        s.name: int if s.kind in (int, str, bool) else float
         for s in settings_of(LearnerConfig)
         if s.info.kernel
     }
@@ -366,5 +392,5 @@ def kernel_fields(config: LearnerConfig) -> dict[str, int | float]:
             value = s.info.kernel_none
         elif s.info.choices:
             value = s.info.choices.index(value)
-        out[s.name] = int(value) if s.kind in (int, str) else float(value)
+        out[s.name] = int(value) if s.kind in (int, str, bool) else float(value)
     return out

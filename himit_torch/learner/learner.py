@@ -40,6 +40,7 @@ import torch
 
 from himit_torch.exact.greedy_evaluation import OptionPolicy, check_untried_rule
 from himit_torch.learner.agents import AGENTS
+from himit_torch.learner.backups import segment_reward
 from himit_torch.learner.choice import greedy_rows
 from himit_torch.learner.cloned_policy import ClonedPolicy
 from himit_torch.learner.engines import make_engine
@@ -205,6 +206,12 @@ class Learner:
         gamma = as_float("world.gamma", world.gamma)
         if not 0 < gamma <= 1:
             raise ValueError(f"world.gamma={world.gamma} must lie in (0, 1]")
+        if config.mentor_segments and gamma == 1:
+            raise ValueError(
+                "LearnerConfig.mentor_segments needs a discounted world (γ < 1; this world's "
+                "is 1): a mentor move of unseen steps cannot be summed undiscounted; set "
+                "mentor_segments=False"
+            )
         A = as_int("world.num_actions", world.num_actions, minimum=1)
         if options.stochastic and options.policy.shape[2] != A:
             raise ValueError(
@@ -411,7 +418,10 @@ class Learner:
         ``demonstrations`` has ``transitions() -> (from [T], to [T])``; if it also has
         ``check_world(world)``, it is called first (demonstrations of another world are refused);
         if it has ``counts [T]`` (e.g. :func:`~himit_torch.mentor.policy.exact_mentor_transitions`, the
-        mentor's exact model), each transition is counted that many times instead of once.
+        mentor's exact model), each transition is counted that many times instead of once; if it
+        has ``durations() -> [T]`` (:class:`~himit_torch.mentor.observation.CoarseDemonstrations`),
+        each transition took that many primitive steps (else one), which the segment term reads
+        (``LearnerConfig.mentor_segments``).
         """
         if not callable(getattr(demonstrations, "transitions", None)):
             raise TypeError(
@@ -443,10 +453,20 @@ class Learner:
                     f"demonstrations.counts must be [T={src.numel()}] finite positive "
                     "weights, one per transition"
                 )
+        delays = None
+        if callable(getattr(demonstrations, "durations", None)):
+            steps = torch.as_tensor(demonstrations.durations(), device=self.device)
+            if steps.shape != src.shape or steps.is_floating_point() or bool((steps < 1).any()):
+                raise ValueError(
+                    f"demonstrations.durations() must be [T={src.numel()}] whole numbers ≥ 1, "
+                    "the primitive steps of each transition"
+                )
+            delays = self.gamma ** (steps.to(torch.float64) - 1)  # γ^(k−1)
         # Episodes end at a terminal state: a "transition" out of one is not the mentor's move.
         keep = ~self.terminal.index_select(0, src)
         src, dst = src[keep], dst[keep]
         counts = None if counts is None else counts[keep]
+        delays = None if delays is None else delays[keep]
         run_idx = (
             None
             if runs is None
@@ -455,7 +475,7 @@ class Learner:
                 device=self.device,
             )
         )
-        self.mentor.observe(src, dst, run_idx, counts)
+        self.mentor.observe(src, dst, run_idx, counts, delays)
         self.refresh_mentor_reward(run_idx)
         self.refit_cloned_policy(run_idx)
 
@@ -518,7 +538,13 @@ class Learner:
                     f"reward module {module!r} returned {float(r.max()):g}, above its "
                     f"declared upper_bound={bound:g}"
                 )
+            if self.config.mentor_segments and E:
+                # each move scored as the segment it is; its unseen steps at the least reward
+                # the module gives any of the run's observed moves
+                delay = mentor.edge_delay[b, :E] / mentor.edge_count[b, :E]
+                r = segment_reward(r, delay, r.min(), self.gamma)
             self.cache.mentor_edge_reward[b, :E] = r
+        self.cache.refresh_mentor_discount(changed)
         self.cache.rebuild_mentor(changed)
         # Every mentor state of the changed runs is worth a backup now.
         observed = mentor.observed().index_select(0, changed)

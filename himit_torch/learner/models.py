@@ -634,9 +634,17 @@ class DirichletMentorModel(EdgeStore):
     """The learner's model ``p_m(s' | s)`` of the mentor, from consecutive observed states only.
 
     Rows are states. Demonstrations can be added at any time, to all runs or to some.
+
+    Besides the counts, each edge keeps ``edge_delay``: the summed ``γ^(k−1)`` of its
+    observations, ``k`` the primitive steps the observed move took (1 when every state is seen,
+    so ``edge_delay = edge_count``; more under coarse observation). The segment term
+    (``LearnerConfig.mentor_segments``, :func:`~himit_torch.learner.backups.segment_reward`)
+    reads it; the paper's one-step term does not.
     """
 
     _PADDING_ROW_EDGES = False  # the mentor is only ever seen leaving a real state
+    _EDGE_FLOATS = ("edge_count", "edge_delay")
+    edge_delay: torch.Tensor
 
     def __init__(
         self,
@@ -654,10 +662,12 @@ class DirichletMentorModel(EdgeStore):
         successors: torch.Tensor,
         runs: torch.Tensor | None = None,
         counts: torch.Tensor | None = None,
+        delays: torch.Tensor | None = None,
     ) -> None:
         """Count the transitions ``sources[i] → successors[i]`` for ``runs`` (all by default),
         each once, or ``counts[i]`` times (any positive weight: expected counts of an exact
-        model, :class:`~himit_torch.mentor.policy.ExactMentorTransitions`)."""
+        model, :class:`~himit_torch.mentor.policy.ExactMentorTransitions`). ``delays[i]`` is
+        ``γ^(k_i − 1)`` for a move of ``k_i`` primitive steps (default 1: one step each)."""
         if sources.numel() == 0:
             return
         runs = torch.arange(self.batch, device=self.device) if runs is None else runs
@@ -670,6 +680,31 @@ class DirichletMentorModel(EdgeStore):
             ones = torch.as_tensor(counts, dtype=torch.float64, device=self.device).repeat(R)
         self.edge_count.index_put_((rr, e), ones, accumulate=True)
         self.row_count.index_put_((rr, src), ones, accumulate=True)
+        if delays is None:
+            self.edge_delay.index_put_((rr, e), ones, accumulate=True)
+        else:
+            d = torch.as_tensor(delays, dtype=torch.float64, device=self.device).repeat(R)
+            self.edge_delay.index_put_((rr, e), ones * d, accumulate=True)
+
+    @staticmethod
+    def _with_delay(state: dict) -> dict:
+        """A checkpoint written before ``edge_delay`` was kept: every move it counted was taken
+        as one step then, so its delay is its count."""
+        if isinstance(state, dict) and "edge_delay" not in state and "edge_count" in state:
+            return {**state, "edge_delay": state["edge_count"]}
+        return state
+
+    def check_state(self, state: dict, where: str = "model") -> int:
+        state = self._with_delay(state)
+        E = super().check_state(state, where)
+        if bool((state["edge_delay"] > state["edge_count"] * (1 + 1e-12)).any()):
+            raise DamagedState(
+                f"{where}.edge_delay", "exceeds edge_count (each observation adds γ^(k−1) ≤ 1)"
+            )
+        return E
+
+    def load_state_dict(self, state: dict, where: str = "model", *, checked: bool = False) -> None:
+        super().load_state_dict(self._with_delay(state), where, checked=checked)
 
     def observed(self) -> torch.Tensor:
         """``[B, S]`` bool: states where the mentor was seen leaving (its term exists there)."""

@@ -232,6 +232,8 @@ def agent_settings(agent: str, learner: LearnerConfig) -> dict[str, Any]:
     }
     for name in MENTOR_TERM_SETTINGS:
         out[name] = getattr(learner, name) if has_mentor else None
+    if learner.mentor_segments:  # (named only where set: older records stay as they were)
+        out["mentor_segments"] = True if has_mentor else None
     return out
 
 

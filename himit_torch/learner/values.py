@@ -37,6 +37,7 @@ from himit_torch.learner.backups import (
     MentorConfidence,
     dirichlet_variance,
     option_backup_edges,
+    segment_discount,
     trusted_augmented_backup,
 )
 from himit_torch.learner.models import DirichletMentorModel, DirichletSMDPModel
@@ -91,6 +92,11 @@ class ValueCache:
         self.mentor_numerator = torch.zeros(B, S + 1, dtype=torch.float64, device=dev)
         self.mentor_second = torch.zeros_like(self.mentor_numerator)
         self.mentor_edge_reward = torch.zeros(B, mentor.capacity, dtype=torch.float64, device=dev)
+        # E[γ^k] per mentor edge (γ: one-step moves; LearnerConfig.mentor_segments: the edge's
+        # own), derived from the mentor model and the config, so not part of the state.
+        self.mentor_edge_discount = torch.full(
+            (B, mentor.capacity), float(gamma), dtype=torch.float64, device=dev
+        )
         mentor.on_grow.append(self._grow_mentor_reward)
         self.any_confidence = bool(rows.use_confidence.any())
         self.any_mentor = bool(rows.use_mentor.any())
@@ -141,14 +147,41 @@ class ValueCache:
         for name in self._STATE:
             setattr(self, name, private_copy(state[name], self.device))
         self._grow_mentor_reward(self.mentor.capacity)
+        self.refresh_mentor_discount()
 
     def _grow_mentor_reward(self, capacity: int) -> None:
-        """Keep one edge reward per slot of the mentor model's edge lists."""
+        """Keep one edge reward and discount per slot of the mentor model's edge lists."""
         if capacity != self.mentor_edge_reward.shape[1]:
             grown = torch.zeros(self.batch, capacity, dtype=torch.float64, device=self.device)
             keep = min(capacity, self.mentor_edge_reward.shape[1])
             grown[:, :keep] = self.mentor_edge_reward[:, :keep]
             self.mentor_edge_reward = grown
+        if capacity != self.mentor_edge_discount.shape[1]:
+            grown = torch.full(
+                (self.batch, capacity), float(self.gamma), dtype=torch.float64, device=self.device
+            )
+            keep = min(capacity, self.mentor_edge_discount.shape[1])
+            grown[:, :keep] = self.mentor_edge_discount[:, :keep]
+            self.mentor_edge_discount = grown
+
+    def refresh_mentor_discount(self, runs: torch.Tensor | None = None) -> None:
+        """Set ``E[γ^k]`` of every mentor edge of ``runs`` (default: all): ``γ``, or with
+        ``LearnerConfig.mentor_segments`` :func:`~himit_torch.learner.backups.segment_discount`
+        of the edge's mean delay (``edge_delay / edge_count``; ``γ`` for one-step moves)."""
+        if runs is None:
+            runs = torch.arange(self.batch, device=self.device)
+        mentor = self.mentor
+        discount = torch.full(
+            (runs.numel(), mentor.capacity), float(self.gamma), dtype=torch.float64,
+            device=self.device,
+        )  # fmt: skip
+        if self.config.mentor_segments:
+            count = mentor.edge_count.index_select(0, runs)
+            delay = mentor.edge_delay.index_select(0, runs)
+            seen = count > 0
+            mean_delay = delay / torch.where(seen, count, torch.ones_like(count))
+            discount = torch.where(seen, segment_discount(mean_delay, self.gamma), discount)
+        self.mentor_edge_discount.index_copy_(0, runs, discount)
 
     # ============================================================================ value queries
     def _row_flat(self, runs, rows):
@@ -321,8 +354,9 @@ class ValueCache:
         mentor = self.mentor
         owner, e = mentor.index().incoming(runs, states)
         r = runs.index_select(0, owner)
-        gd = self.gamma * delta.index_select(0, owner)
         flat_e = r * mentor.capacity + e
+        discount = _take(self.mentor_edge_discount, flat_e)  # E[γ^k] (γ: one step)
+        gd = discount * delta.index_select(0, owner)
         src = _take(mentor.edge_row, flat_e)
         c = _take(mentor.edge_count, flat_e)
         if self.any_sampling:  # sampled runs: the sampled weight (n + α) w_e
@@ -338,7 +372,7 @@ class ValueCache:
         flat = self._state_flat(r, src)
         self.mentor_numerator.view(-1).index_add_(0, flat, cd)
         if self.any_confidence:
-            u_old = _take(self.mentor_edge_reward, flat_e) + self.gamma * old.index_select(0, owner)
+            u_old = _take(self.mentor_edge_reward, flat_e) + discount * old.index_select(0, owner)
             term = c * ((u_old + gd) ** 2 - u_old**2)
             keep = self.rows.use_confidence.index_select(0, r)
             self.mentor_second.view(-1).index_add_(0, flat[keep], term[keep])
@@ -461,7 +495,8 @@ class ValueCache:
             dst = mentor.edge_successor.index_select(0, runs)[:, :E].clamp(min=0)
             c = torch.where(valid, mentor.edge_count.index_select(0, runs)[:, :E], self._zero)
             v = self.values.index_select(0, runs).gather(1, dst)
-            u = self.mentor_edge_reward.index_select(0, runs)[:, :E] + self.gamma * v
+            discount = self.mentor_edge_discount.index_select(0, runs)[:, :E]
+            u = self.mentor_edge_reward.index_select(0, runs)[:, :E] + discount * v
             numerator.scatter_add_(1, src, c * u)
             confident = self.rows.use_confidence.index_select(0, runs)[:, None]
             second.scatter_add_(1, src, torch.where(confident, c * u * u, self._zero))
@@ -518,11 +553,15 @@ class ValueCache:
             self.mentor_edge_reward,
             runs[:, None] * self.mentor_edge_reward.shape[1] + edges.clamp(min=0),
         )
+        discount = _take(
+            self.mentor_edge_discount,
+            runs[:, None] * self.mentor_edge_discount.shape[1] + edges.clamp(min=0),
+        )
         succ = _take(mentor.edge_successor, flat_e).clamp(min=0)
         v = _take(self.values, self._state_flat(runs[:, None], succ))
         from himit_torch.learner.posterior_sampling import _descending_sum
 
-        acc = _descending_sum(w * (r_e + self.gamma * v), valid)
+        acc = _descending_sum(w * (r_e + discount * v), valid)
         flat_s = self._state_flat(runs, states)
         m = acc + _take(sample.mentor_unseen, flat_s) * v0
         n = _take(mentor.row_count, flat_s)

@@ -12,13 +12,15 @@ What eq. 2 then needs
     learner's own options as if it took one step. Read correctly it is an option of the
     mentor's: the term it needs is the SMDP one the learner's own options get,
     ``E[Σ_{i<τ} γ^i r_i + γ^τ V(s')]`` with ``τ`` the move's duration (``k``), which would need
-    the reward of the unseen steps and a discount ``γ^k``. The library does not change the
-    learner's equations for it: the coarse transitions enter the mentor model as they are, so
-    the mentor term discounts a ``k``-step move once and gives it one step's reward (with
-    ``KnownReward``, that of entering ``s'``). It is therefore optimistic for ``k > 1`` (by
-    ``(γ − γ^k) V(s')`` and the missing steps' costs where values are positive), and no longer
-    the sound lower bound of the paper's argument: which is what the ``observation_stride``
-    stress measures.
+    the reward of the unseen steps and a discount ``γ^k``. By default (the paper's eq. 2) the
+    coarse transitions enter the mentor term as they are: it discounts a ``k``-step move once
+    and gives it one step's reward (with ``KnownReward``, that of entering ``s'``). It is then
+    optimistic for ``k > 1`` (by ``(γ − γ^k) V(s')`` and the missing steps' costs where values
+    are positive), and no longer the sound lower bound of the paper's argument: which is what
+    the ``observation_stride`` stress measures. With ``LearnerConfig.mentor_segments`` the
+    learner scores each observed move as the segment it is
+    (:func:`~himit_torch.learner.backups.segment_mentor_backup`): :meth:`CoarseDemonstrations.durations`
+    gives each move's duration (the learner knows when it saw each state).
 """
 
 from __future__ import annotations
@@ -64,9 +66,11 @@ class CoarseDemonstrations:
             )
         self.full = demonstrations
         self.stride = as_int("observation stride", stride, 1, COUNT_MAX)
-        self._episodes = tuple(
-            e[observed_indices(len(e), self.stride)].clone() for e in demonstrations.episodes
-        )
+        kept = [observed_indices(len(e), self.stride) for e in demonstrations.episodes]
+        self._episodes = tuple(e[k].clone() for e, k in zip(demonstrations.episodes, kept))
+        # The primitive steps between consecutive kept states: the learner knows when it saw
+        # each state (the mentor's time index), so each observed move's duration is known.
+        self._durations = tuple(k.diff() for k in kept)
 
     @property
     def episodes(self) -> tuple[torch.Tensor, ...]:
@@ -89,6 +93,12 @@ class CoarseDemonstrations:
             torch.cat([e[:-1] for e in self._episodes]),
             torch.cat([e[1:] for e in self._episodes]),
         )
+
+    def durations(self) -> torch.Tensor:
+        """``[T]`` int64: the primitive steps each pair of :meth:`transitions` spans, in the same
+        order: ``stride``, except an episode's last pair, which may be shorter. The learner's
+        segment term (``LearnerConfig.mentor_segments``) discounts each move by them."""
+        return torch.cat(self._durations)
 
     def visited_states(self) -> torch.Tensor:
         """Sorted unique int64 observed states."""

@@ -257,6 +257,7 @@ class NumbaEngine:
             _np(cache.mentor_numerator),
             _np(cache.mentor_second),
             _np(cache.mentor_edge_reward),
+            _np(cache.mentor_edge_discount),
         )
         model_arrays = OptionModelArrays(
             _np(model.edge_row),

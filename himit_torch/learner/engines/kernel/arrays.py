@@ -63,6 +63,7 @@ class CacheArrays(NamedTuple):
     m_num: np.ndarray  # [B, S + 1] the mentor term's numerator
     m_sec: np.ndarray  # [B, S + 1] its second moment's
     m_edge_reward: np.ndarray  # [B, E_m] the mentor's mean reward on each edge
+    m_edge_disc: np.ndarray  # [B, E_m] its E[γ^k] (γ: one-step moves)
 
 
 class OptionModelArrays(NamedTuple):

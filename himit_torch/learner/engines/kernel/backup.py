@@ -145,15 +145,16 @@ def propagate_options(st, rows, cache, model, sweep, sample, b, x, d, v_old, sam
 @njit(inline="always")
 def propagate_mentor(st, rows, cache, mentor, sweep, sample, b, x, d, v_old, sampled):
     """The same for the mentor term of every state the mentor left towards ``x`` (a sampling
-    run: weight ``(n + α_m) w_e`` in place of the count)."""
+    run: weight ``(n + α_m) w_e`` in place of the count), each edge's change discounted by its
+    ``E[γ^k]`` (``m_edge_disc``: γ for one-step moves)."""
     thr = st.priority_threshold
-    gamma = st.gamma
     mconc = st.mentor_concentration
     any_conf = st.any_confidence and rows.use_conf[b]
     prio = sweep.prio
-    gd = gamma * d
     e = mentor.succ_head[b, x]
     while e >= 0:
+        disc = cache.m_edge_disc[b, e]
+        gd = disc * d
         src = mentor.edge_row[b, e]
         c = mentor.edge_count[b, e]
         if sampled:
@@ -161,7 +162,7 @@ def propagate_mentor(st, rows, cache, mentor, sweep, sample, b, x, d, v_old, sam
         cd = c * gd
         cache.m_num[b, src] += cd
         if any_conf:
-            u_old = cache.m_edge_reward[b, e] + gamma * v_old
+            u_old = cache.m_edge_reward[b, e] + disc * v_old
             cache.m_sec[b, src] += c * ((u_old + gd) ** 2 - u_old**2)
         p = abs(cd) / max(mentor.row_count[b, src] + mconc, 1e-300)
         if p > max(thr, prio[b, src]):  # (p > thr, and it raises the priority; one test)

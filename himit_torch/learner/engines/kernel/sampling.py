@@ -160,7 +160,6 @@ def resample(st, world, rows, cache, model, mentor, sweep, sample, key, b):
     conc = st.concentration
     mconc = st.mentor_concentration
     v0 = st.initial_value
-    gamma = st.gamma
     values = cache.values
     M = cache.q_num.shape[1] - 1
     S = world.terminal.shape[0] - 1
@@ -205,7 +204,8 @@ def resample(st, world, rows, cache, model, mentor, sweep, sample, key, b):
                 e = mentor.row_head[b, s]
                 while e >= 0:
                     acc += w_m[b, e] * (
-                        cache.m_edge_reward[b, e] + gamma * values[b, mentor.edge_succ[b, e]]
+                        cache.m_edge_reward[b, e]
+                        + cache.m_edge_disc[b, e] * values[b, mentor.edge_succ[b, e]]
                     )
                     e = mentor.row_next[b, e]
                 m = acc + wu_m[b, s] * v0

@@ -227,18 +227,12 @@ def plan(st, world, rows, cache, model, mentor, sweep, sample, scratch, b):
     return backed_up
 
 
-@phase
-def _match_mentor(st, world, rows, cache, model, mentor, scratch, b, here):
-    """The "match" rule (``choice._match_mentor``): where the mentor term wins eq. 2 at
-    ``here``, own options whose first action best reproduces the mentor's move come first
-    (their Q in ``scratch.q_buf`` raised by 10⁶)."""
-    _, _, won = backup_state(st, world, rows, cache, model, mentor, b, here)
-    if not won:
-        return
+@njit(inline="always")
+def _mentor_move_scores(rows, model, mentor, scratch, b, here):
+    """``scratch.score_buf[b, a]``: how well primitive ``a``'s learned one-step model reproduces
+    the mentor's observed move at ``here`` (``choice.mentor_move_scores``)."""
     primitive_rows = rows.primitive_rows
-    score_buf, usable_buf, q_buf = scratch.score_buf, scratch.usable_buf, scratch.q_buf
-    first = rows.row_begin[here]
-    n_rows = rows.row_begin[here + 1] - first
+    score_buf = scratch.score_buf
     n_m = max(mentor.row_count[b, here], 1.0)
     for a in range(primitive_rows.shape[1]):
         prow = primitive_rows[here, a]
@@ -253,7 +247,21 @@ def _match_mentor(st, world, rows, cache, model, mentor, scratch, b, here):
                 f = mentor.row_next[b, f]
             e = model.row_next[b, e]
         score_buf[b, a] = total
-    A_p = primitive_rows.shape[1]
+
+
+@phase
+def _match_mentor(st, world, rows, cache, model, mentor, scratch, b, here):
+    """The "match" rule (``choice._match_mentor``): where the mentor term wins eq. 2 at
+    ``here``, own options whose first action best reproduces the mentor's move come first
+    (their Q in ``scratch.q_buf`` raised by 10⁶)."""
+    _, _, won = backup_state(st, world, rows, cache, model, mentor, b, here)
+    if not won:
+        return
+    _mentor_move_scores(rows, model, mentor, scratch, b, here)
+    score_buf, usable_buf, q_buf = scratch.score_buf, scratch.usable_buf, scratch.q_buf
+    first = rows.row_begin[here]
+    n_rows = rows.row_begin[here + 1] - first
+    A_p = rows.primitive_rows.shape[1]
     best_score = 0.0
     for j in range(n_rows):
         a = min(rows.row_first_action[first + j], A_p - 1)
@@ -266,6 +274,42 @@ def _match_mentor(st, world, rows, cache, model, mentor, scratch, b, here):
             sc = score_buf[b, a] if usable_buf[b, j] else 0.0
             if sc >= best_score - _TIE:
                 q_buf[b, j] += 1e6
+
+
+@phase
+def _trial_mentor(st, world, rows, cache, model, mentor, scratch, b, here):
+    """``LearnerConfig.mentor_trial`` (``choice.trial_candidates``): where the mentor term wins
+    eq. 2 at ``here`` and some enabled row there is untried, the untried rows whose first
+    action best reproduces the mentor's move are the only greedy candidates (their Q in
+    ``scratch.q_buf`` set to 2·10⁶, above every other, and usable)."""
+    first = rows.row_begin[here]
+    n_rows = rows.row_begin[here + 1] - first
+    enabled_buf = scratch.enabled_buf
+    any_untried = False
+    for j in range(n_rows):
+        if enabled_buf[b, j] and not model.row_count[b, first + j] > 0:
+            any_untried = True
+            break
+    if not any_untried:
+        return
+    _, _, won = backup_state(st, world, rows, cache, model, mentor, b, here)
+    if not won:
+        return
+    _mentor_move_scores(rows, model, mentor, scratch, b, here)
+    score_buf, usable_buf, q_buf = scratch.score_buf, scratch.usable_buf, scratch.q_buf
+    A_p = rows.primitive_rows.shape[1]
+    best_score = -1.0
+    for j in range(n_rows):
+        if enabled_buf[b, j] and not model.row_count[b, first + j] > 0:
+            sc = score_buf[b, min(rows.row_first_action[first + j], A_p - 1)]
+            if sc > best_score:
+                best_score = sc
+    for j in range(n_rows):
+        if enabled_buf[b, j] and not model.row_count[b, first + j] > 0:
+            sc = score_buf[b, min(rows.row_first_action[first + j], A_p - 1)]
+            if sc >= best_score - _TIE:
+                q_buf[b, j] = 2e6
+                usable_buf[b, j] = True
 
 
 @njit(inline="always")
@@ -284,6 +328,8 @@ def choose(st, world, rows, cache, model, mentor, run, clone, scratch, key, b, t
         enabled_buf[b, j] = enabled
     if st.mentor_choice == MATCH and st.any_mentor:
         _match_mentor(st, world, rows, cache, model, mentor, scratch, b, here)
+    if st.mentor_trial and st.any_mentor and rows.use_mentor[b]:
+        _trial_mentor(st, world, rows, cache, model, mentor, scratch, b, here)
     top = -_INF
     for j in range(n_rows):
         if q_buf[b, j] > top:

@@ -1,0 +1,58 @@
+"""The hierarchy study's runs in one command (PROTOCOL.md): each part's sweeps, their records
+copied into ``experiments/results/hierarchy/``, then ``analyse.py``.
+
+    python experiments/hierarchy/run_hierarchy.py [--parts segments] [--logdir runs/hierarchy]
+        [--skip-runs]
+
+Each part's wall time is written to ``experiments/results/hierarchy/timing.json``.
+"""
+
+import argparse
+import json
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+RESULTS = HERE.parent / "results" / "hierarchy"
+#: Each part's sweep specs (``<name>.toml`` beside this script).
+PARTS = {"segments": ("segments_exp2", "segments_exp1")}
+#: What a sweep's record keeps in the repository: per-run summaries, per-window goals, its spec.
+RECORDS = ("runs.csv", "results.csv", "sweep.json")
+
+
+def run(*argv: str) -> None:
+    print("$", " ".join(argv), flush=True)
+    subprocess.run([sys.executable, *argv], check=True)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--parts", nargs="+", choices=list(PARTS), default=list(PARTS))
+    parser.add_argument("--logdir", default="runs/hierarchy")
+    parser.add_argument("--skip-runs", action="store_true", help="copy and analyse finished runs")
+    args = parser.parse_args()
+    logdir = Path(args.logdir)
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    timing_path = RESULTS / "timing.json"
+    timing = json.loads(timing_path.read_text()) if timing_path.exists() else {}
+    for part in args.parts:
+        started = time.perf_counter()
+        for name in PARTS[part]:
+            if not args.skip_runs:
+                run("-m", "himit_torch.cli", "sweep", str(HERE / f"{name}.toml"),
+                    "--out", str(logdir / name))  # fmt: skip
+            target = RESULTS / name
+            target.mkdir(parents=True, exist_ok=True)
+            for record in RECORDS:
+                shutil.copy(logdir / name / record, target / record)
+        if not args.skip_runs:
+            timing[part] = round((time.perf_counter() - started) / 60, 1)
+            timing_path.write_text(json.dumps(timing, indent=2) + "\n")
+    run(str(HERE / "analyse.py"))
+
+
+if __name__ == "__main__":
+    main()
