@@ -124,14 +124,10 @@ BAD = {
 
 
 def _nullable(kind_map, field):
-    return field in (
-        "untried_value",
-        "mentor_override_after",
-        "mentor_fade",
-        "mentor_preference",
-        "start",
-        "goal",
-    )
+    """None is the field's documented "off": the learner's optional settings (from the schema)
+    and these few."""
+    optional = {s.name for s in settings_of(LearnerConfig) if s.optional}
+    return field in optional or field in ("mentor_preference", "start", "goal")
 
 
 def _cases(target, spec):

@@ -30,6 +30,7 @@ LEARNER_FLAGS = {
     "mentor_override_after": ("7", 7),
     "mentor_fade": ("20", 20.0),
     "mentor_segments": (None, True),  # (None: a switch, given as --mentor-segments)
+    "mentor_feasibility": ("3", 3),
     "eps_start": ("0.5", 0.5),
     "eps_decay": ("0.99", 0.99),
     "eps_min": ("0.05", 0.05),

@@ -1,8 +1,8 @@
 """The hierarchy study's runs in one command (PROTOCOL.md): each part's sweeps, their records
 copied into ``experiments/results/hierarchy/``, then ``analyse.py``.
 
-    python experiments/hierarchy/run_hierarchy.py [--parts segments] [--logdir runs/hierarchy]
-        [--skip-runs]
+    python experiments/hierarchy/run_hierarchy.py [--parts segments trial puzzlebox]
+        [--logdir runs/hierarchy] [--skip-runs]
 
 Each part's wall time is written to ``experiments/results/hierarchy/timing.json``.
 """
@@ -18,7 +18,11 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 RESULTS = HERE.parent / "results" / "hierarchy"
 #: Each part's sweep specs (``<name>.toml`` beside this script).
-PARTS = {"segments": ("segments_exp2", "segments_exp1")}
+PARTS = {
+    "segments": ("segments_exp2", "segments_exp1"),
+    "trial": ("trial_exp1", "trial_feasibility_exp1"),
+    "puzzlebox": (),  # (its own script, puzzle_box_h2.py)
+}
 #: What a sweep's record keeps in the repository: per-run summaries, per-window goals, its spec.
 RECORDS = ("runs.csv", "results.csv", "sweep.json")
 
@@ -40,6 +44,8 @@ def main() -> None:
     timing = json.loads(timing_path.read_text()) if timing_path.exists() else {}
     for part in args.parts:
         started = time.perf_counter()
+        if part == "puzzlebox" and not args.skip_runs:
+            run(str(HERE / "puzzle_box_h2.py"), "--logdir", str(logdir))
         for name in PARTS[part]:
             if not args.skip_runs:
                 run("-m", "himit_torch.cli", "sweep", str(HERE / f"{name}.toml"),

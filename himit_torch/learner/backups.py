@@ -36,6 +36,7 @@ __all__ = [
     "confident_mentor",
     "MentorConfidence",
     "mentor_override",
+    "feasible_mentor",
     "faded_mentor_term",
     "augmented_backup",
     "trusted_augmented_backup",
@@ -457,6 +458,41 @@ def mentor_override(
     if own_tries is None:
         raise ValueError("mentor_override: override_after given, so own_tries is needed")
     return observed & (own_tries < override_after)
+
+
+def feasible_mentor(
+    reached: torch.Tensor, tries: torch.Tensor, enabled: torch.Tensor, min_tries: int
+) -> torch.Tensor:
+    """Feasibility testing over options (``LearnerConfig.mentor_feasibility``; Price &
+    Boutilier's action feasibility testing, JAIR 2003, with option termination models in place
+    of action models): the mentor term at ``s`` is dropped once the learner's own options there
+    show that none of them reproduces the mentor's move — every enabled option tried at least
+    ``min_tries`` times at ``s``, and none of those tries ended in a state the mentor was seen
+    moving to from ``s``.
+
+    The test is a confidence test: an option that never reached the mentor's successors in
+    ``n`` tries reaches them with probability below ``1 − 0.05^(1/n)`` at 95 % (Clopper–Pearson
+    with no success; ``n = 3``: 0.63, ``n = 10``: 0.26).
+
+    Args:
+        reached: ``[..., J]`` each option's tries at ``s`` that ended in one of the mentor's
+            observed successors of ``s``; tries: ``[..., J]`` each option's tries at ``s``;
+            enabled: ``[..., J]`` bool, the options the run may use; min_tries: ``n``.
+    Returns ``[...]`` bool: where the mentor term stays (False: shown infeasible). A state with
+    no enabled option keeps it.
+
+    >>> import torch
+    >>> feasible_mentor(
+    ...     torch.tensor([[0.0, 0.0], [0.0, 1.0], [0.0, 0.0]]),  # reached
+    ...     torch.tensor([[3.0, 4.0], [3.0, 4.0], [3.0, 1.0]]),  # tries
+    ...     torch.tensor([[True, True], [True, True], [True, True]]),
+    ...     3,
+    ... ).tolist()
+    [False, True, True]
+    """
+    tested = (~enabled | (tries >= min_tries)).all(-1) & enabled.any(-1)
+    none_reached = ~((reached > 0) & enabled).any(-1)
+    return ~(tested & none_reached)
 
 
 def faded_mentor_term(

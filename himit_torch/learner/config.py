@@ -179,6 +179,22 @@ class LearnerConfig:
         is the paper's term exactly. ``False`` = every observed move scored as one step (the
         paper's eq. 1 and 2), optimistic under coarse observation.""",
     )
+    mentor_feasibility: int | None = setting(
+        None,
+        ge=1,
+        kernel_none=0,
+        kernel=True,
+        hint="tries of every own option at a state; None: never tested",
+        doc="""
+        Feasibility testing over options (Price & Boutilier's action feasibility testing, with
+        option termination models in place of action models): drop the mentor term at ``s``
+        once every enabled own option has been tried there at least this many times and none of
+        those tries ended in a state the mentor was seen moving to from ``s``
+        (:func:`~himit_torch.learner.backups.feasible_mentor`) — the learner cannot reproduce
+        the mentor's move there, so its value is not the learner's. Zero successes in ``n``
+        tries bound an option's chance of reaching them below ``1 − 0.05^(1/n)`` at 95 %.
+        ``None`` = never tested (the paper's eq. 2).""",
+    )
     eps_start: float = setting(
         0.75,
         ge=0.0,

@@ -36,6 +36,7 @@ import torch
 from himit_torch.learner.backups import (
     MentorConfidence,
     dirichlet_variance,
+    feasible_mentor,
     option_backup_edges,
     segment_discount,
     trusted_augmented_backup,
@@ -253,11 +254,14 @@ class ValueCache:
         inputs (``Q`` per row, the mentor term, counts, variances) from its numerators;
         :func:`~himit_torch.learner.backups.trusted_augmented_backup` evaluates the equation."""
         cfg = self.config
-        _, q, usable, _, flat_rows, n_rows = self.own_values(runs, states)
+        rows, q, usable, enabled, flat_rows, n_rows = self.own_values(runs, states)
         flat = self._state_flat(runs, states)
         n_m = _take(self.mentor.row_count, flat)
         # The mentor term exists only where the mentor was seen (a prior does not create one).
         observed = self.rows.use_mentor[runs] & (n_m > 0)
+        if cfg.mentor_feasibility is not None:
+            reached = self.mentor_reached(runs, states, rows)
+            observed = observed & feasible_mentor(reached, n_rows, enabled, cfg.mentor_feasibility)
         m = self._mentor_at(flat, n_m)
         tries = (
             _take(self.model.state_tries, flat)
@@ -287,6 +291,29 @@ class ValueCache:
             0, states.reshape(-1)
         ).view_as(states)
         return best, has_value, mentor_won
+
+    def mentor_reached(
+        self, runs: torch.Tensor, states: torch.Tensor, rows: torch.Tensor
+    ) -> torch.Tensor:
+        """``[..., J]`` how many of each row's outcomes at ``states`` ended in a state the
+        mentor was seen moving to from there (``rows``: the states' rows, ``[..., J]``; ``runs``
+        broadcast against ``states``), for :func:`~himit_torch.learner.backups.feasible_mentor`."""
+        model, mentor = self.model, self.mentor
+        runs = runs.expand_as(states)
+        r = runs[..., None].expand_as(rows)
+        edges = model.index().forward[r, rows]  # [..., J, K]
+        ok = edges >= 0
+        flat_e = r[..., None] * model.capacity + edges.clamp(min=0)
+        count = torch.where(ok, _take(model.edge_count, flat_e), self._zero)
+        succ = torch.where(ok, _take(model.edge_successor, flat_e), torch.full_like(edges, -1))
+        m_edges = mentor.index().forward[runs, states]  # [..., Km]
+        m_ok = m_edges >= 0
+        m_flat = runs[..., None] * mentor.capacity + m_edges.clamp(min=0)
+        m_succ = torch.where(
+            m_ok, _take(mentor.edge_successor, m_flat), torch.full_like(m_edges, -2)
+        )
+        hit = (succ[..., None] == m_succ[..., None, None, :]).any(-1)  # [..., J, K]
+        return (count * hit).sum(-1)
 
     # ================================================================================ updates
     def backup_and_propagate(

@@ -40,6 +40,32 @@ def row_value(st, rows, cache, model, b, row):
 
 
 @njit(inline="always")
+def mentor_feasible(st, rows, model, mentor, b, s):
+    """Whether the mentor term at ``s`` passes feasibility testing
+    (``backups.feasible_mentor``): False once every enabled row there was tried at least
+    ``mentor_feasibility`` times and none of its outcomes ended in a state the mentor was seen
+    moving to from ``s``."""
+    need = st.mentor_feasibility
+    any_enabled = False
+    for row in range(rows.row_begin[s], rows.row_begin[s + 1]):
+        if not rows.row_enabled[b, row]:
+            continue
+        any_enabled = True
+        if model.row_count[b, row] < need:
+            return True  # not yet tested
+        e = model.row_head[b, row]
+        while e >= 0:
+            if model.edge_count[b, e] > 0:
+                f = mentor.row_head[b, s]
+                while f >= 0:
+                    if mentor.edge_succ[b, f] == model.edge_succ[b, e]:
+                        return True  # an own option reached the mentor's successor
+                    f = mentor.row_next[b, f]
+            e = model.row_next[b, e]
+    return not any_enabled
+
+
+@njit(inline="always")
 def state_backup(st, world, rows, cache, model, mentor, b, s):
     """Eq. 2 at ``s`` for run ``b`` (``ValueCache.state_backup``): ``(best, has_value, won)``,
     ``won`` when the mentor term is the maximum."""
@@ -86,6 +112,8 @@ def state_backup(st, world, rows, cache, model, mentor, b, s):
     m = (cache.m_num[b, s] + mconc * v0) / (n_m + mconc)
     override = st.mentor_override_after
     if override >= 0 and not model.state_tries[b, s] < override:
+        ok = False
+    if ok and st.mentor_feasibility > 0 and not mentor_feasible(st, rows, model, mentor, b, s):
         ok = False
     if ok and confident_run:
         second = (cache.m_sec[b, s] + mconc * v0 * v0) / (n_m + mconc)
