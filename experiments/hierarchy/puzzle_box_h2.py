@@ -1,12 +1,11 @@
-"""H2 of PROTOCOL.md: the puzzle box's study (``himit run puzzlebox``) with trial of untried
-own options where the mentor leads, and with trial and feasibility testing; the study's
-settings otherwise (seeds 0–19, the paper's ε), its variants left out.
+"""H2 of PROTOCOL.md: the puzzle box's study (``himit run puzzlebox``) without either setting,
+with trial of untried own options where the mentor leads, and with trial and feasibility
+testing; the study's settings otherwise (seeds 0–19, the paper's ε), its variants left out.
 
     python experiments/hierarchy/puzzle_box_h2.py [--logdir runs/hierarchy] [--seeds 20]
 
 Each cell's record (``summary.json``, ``results.md``, ``config.json``) is copied into
-``experiments/results/hierarchy/puzzlebox_<cell>/``; ``analyse.py`` compares them with the
-committed run without either (``experiments/results/puzzlebox/``).
+``experiments/results/hierarchy/puzzlebox_<cell>/``; ``analyse.py`` compares them.
 """
 
 from __future__ import annotations
@@ -22,6 +21,7 @@ HERE = Path(__file__).resolve().parent
 RESULTS = HERE.parent / "results" / "hierarchy"
 #: The cells: name → the learner settings they change (PROTOCOL.md, amendment of 2026-11-26).
 CELLS = {
+    "off": {},
     "trial": {"mentor_trial": True},
     "trial_feasibility": {"mentor_trial": True, "mentor_feasibility": 3},
 }
