@@ -58,6 +58,15 @@ ENDPOINTS = {
     "goals": "goals over the whole run",
 }
 TARGET = 95.0  # H1a: % of the mentor's rate
+#: H3's cells: label → (sweep, the rows' mentor_trial value or None: every row of the sweep).
+TRIAL_CELLS = {
+    "off": ("trial_exp1", "False"),
+    "trial": ("trial_exp1", "True"),
+    "trial + feasibility": ("trial_feasibility_exp1", None),
+}
+TRIAL_AGENTS = {"eq. 2": "imitation", "eq. 1": "imitation_primitives"}
+#: H2's cells (``puzzlebox_<cell>/summary.json``), labels.
+BOX_CELLS = {"off": "off", "trial": "trial", "trial_feasibility": "trial + feasibility"}
 
 
 @dataclass
@@ -82,6 +91,192 @@ class Test:
 def load_runs(path: Path) -> list[dict]:
     with path.open() as f:
         return list(csv.DictReader(f))
+
+
+def trial_cells(results: Path) -> dict:
+    """(schedule, cell, method) → {seed: run} for H3 (empty if its records are absent)."""
+    cells: dict = defaultdict(dict)
+    for cell, (sweep, trial) in TRIAL_CELLS.items():
+        path = results / sweep / "runs.csv"
+        if not path.exists():
+            return {}
+        for r in load_runs(path):
+            if trial is not None and r["learner.mentor_trial"] != trial:
+                continue
+            for method, agent in TRIAL_AGENTS.items():
+                if r["agent"] == agent:
+                    cells[r["preset"], cell, method][int(r["seed"])] = r
+    return cells
+
+
+def trial_tests(cells: dict) -> list[Test]:
+    tests = []
+    for schedule in SCHEDULES:
+        pairs = [
+            (f"{m}: {c} − off", (c, m), ("off", m))
+            for m in TRIAL_AGENTS
+            for c in ("trial", "trial + feasibility")
+        ] + [(f"{c}: eq. 2 − eq. 1", (c, "eq. 2"), (c, "eq. 1")) for c in TRIAL_CELLS]
+        for name, a, b in pairs:
+            for e in ENDPOINTS:
+                d, lo, hi, p, w, l_ = compare(cells[(schedule, *a)], cells[(schedule, *b)], e)
+                tests.append(Test("H3", name, "exp1", "", schedule, " ".join(a), " ".join(b),
+                                  e, d, lo, hi, p, w, l_))  # fmt: skip
+    for t, p in zip(tests, holm([t.p for t in tests])):
+        t.p_holm = p
+    return tests
+
+
+def trial_lines(cells: dict, tests: list[Test]) -> list[str]:
+    lines = [
+        "## H3, mismatched skills: trial and feasibility on exp1",
+        "",
+        "exp1 (80×80, 300k steps): the mentor's corner skills are not the learner's. Greedy "
+        "policy at the end (% of the mentor's rate, mean [95 % BCa]), first goal (Kaplan–Meier "
+        "median), goals over the whole run (mean); 20 seeds per cell.",
+        "",
+        "| method | cell | schedule | greedy, % of mentor | first goal | goals |",
+        "|---|---|---|---|---|---|",
+    ]
+    for schedule, title in SCHEDULES.items():
+        for cell in TRIAL_CELLS:
+            for method in TRIAL_AGENTS:
+                c = cells[schedule, cell, method]
+                lines.append(
+                    f"| {method} | {cell} | {title} | "
+                    f"{fmt_interval(bca_interval(values(c, 'greedy')))} | "
+                    f"{km_text(c, WORLDS['exp1'][1])} | "
+                    f"{bca_interval(values(c, 'goals')).estimate:.0f} |"
+                )
+    lines += [
+        "",
+        "### Paired tests (family H3: Holm over its 42 p-values)",
+        "",
+        "| comparison | schedule | endpoint | difference | p | Holm p | |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for t in tests:
+        lines.append(f"| {t.name} | {SCHEDULES[t.schedule]} | {t.endpoint} | {show_test(t)} |")
+    return lines + [""]
+
+
+def box_cells(results: Path) -> dict:
+    """cell → batch → {seed: run} for H2 (empty if its records are absent)."""
+    out: dict = {}
+    for cell in BOX_CELLS:
+        path = results / f"puzzlebox_{cell}" / "summary.json"
+        if not path.exists():
+            return {}
+        summary = json.loads(path.read_text())
+        out[cell] = {
+            b["batch"]: {int(r["seed"]): {**r, "value_star": b["value_star"]} for r in b["runs"]}
+            for b in summary["batches"]
+        }
+    return out
+
+
+def _fisher(a: int, b: int, n: int) -> float:
+    from scipy.stats import fisher_exact
+
+    return float(fisher_exact([[a, n - a], [b, n - b]]).pvalue)
+
+
+def box_tests(cells: dict) -> list[Test]:
+    tests = []
+    off = cells["off"]["speed_imitation"]
+    seeds = sorted(off)
+    n = len(seeds)
+    for cell in ("trial", "trial_feasibility"):
+        runs = cells[cell]["speed_imitation"]
+        for endpoint, count in (
+            ("stuck plans", lambda rs: sum(rs[s]["stuck_at"] is not None for s in seeds)),
+            ("watched organisation followed",
+             lambda rs: sum(rs[s]["organisation"] == rs[s]["watched"] for s in seeds)),
+        ):  # fmt: skip
+            a, b = count(runs), count(off)
+            tests.append(Test("H2", f"{BOX_CELLS[cell]} − off", "puzzlebox", "", "paper",
+                              cell, "off", endpoint, a - b, math.nan, math.nan,
+                              _fisher(a, b, n), a, b))  # fmt: skip
+        gap = [runs[s]["value_star"] - runs[s]["greedy_value"] for s in seeds]
+        gap_off = [off[s]["value_star"] - off[s]["greedy_value"] for s in seeds]
+        r = paired_comparison(gap, gap_off)
+        tests.append(Test("H2", f"{BOX_CELLS[cell]} − off", "puzzlebox", "", "paper", cell,
+                          "off", "value gap", r.difference.estimate, r.difference.low,
+                          r.difference.high, r.t_p, r.wins, r.losses))  # fmt: skip
+        never = 10**9
+        first = [runs[s]["first_opening"] if runs[s]["first_opening"] >= 0 else never
+                 for s in seeds]  # fmt: skip
+        first_off = [off[s]["first_opening"] if off[s]["first_opening"] >= 0 else never
+                     for s in seeds]  # fmt: skip
+        r = first_goal_sign_test(first, first_off)
+        tests.append(Test("H2", f"{BOX_CELLS[cell]} − off", "puzzlebox", "", "paper", cell,
+                          "off", "first opening", r.difference.estimate, math.nan, math.nan,
+                          r.sign_p, r.wins, r.losses))  # fmt: skip
+    for t, p in zip(tests, holm([t.p for t in tests])):
+        t.p_holm = p
+    return tests
+
+
+def box_lines(cells: dict, tests: list[Test], committed: Path) -> list[str]:
+    lines = [
+        "## H2, the puzzle box: trial and feasibility",
+        "",
+        "The 4-skewer box's speed condition, imitators (eq. 2) watching a mentor of one "
+        "organisation per seed (skewer by skewer for even seeds, step by step for odd), 20 "
+        "seeds, 100k steps, the paper's ε. Stuck: the greedy plan loops or stops where the run "
+        "tried nothing. Value gap: V*(start) − V^π(start) of the frozen greedy policy (0 = "
+        "optimal), mean [95 % BCa].",
+        "",
+        "| cell | stuck plans | watched organisation followed | value gap | first opening "
+        "(median) |",
+        "|---|---|---|---|---|",
+    ]
+    for cell, label in BOX_CELLS.items():
+        runs = cells[cell]["speed_imitation"]
+        seeds = sorted(runs)
+        stuck = [s for s in seeds if runs[s]["stuck_at"] is not None]
+        follows = sum(runs[s]["organisation"] == runs[s]["watched"] for s in seeds)
+        gap = [runs[s]["value_star"] - runs[s]["greedy_value"] for s in seeds]
+        first = [runs[s]["first_opening"] for s in seeds if runs[s]["first_opening"] >= 0]
+        where = f" (seeds {', '.join(map(str, stuck))})" if stuck else ""
+        lines.append(
+            f"| {label} | {len(stuck)}/{len(seeds)}{where} | {follows}/{len(seeds)} | "
+            f"{bca_interval(gap).format(4)} | {np.median(first):,.0f} |"
+        )
+    lines += [
+        "",
+        "### Paired tests (family H2: Holm over its 8 p-values)",
+        "",
+        "Shares: Fisher's exact test (difference = count − the off count); value gap: paired "
+        "t-test (difference [95 % BCa]; lower is better); first opening: sign test.",
+        "",
+        "| comparison | endpoint | difference | p | Holm p | |",
+        "|---|---|---|---|---|---|",
+    ]
+    for t in tests:
+        if t.endpoint in ("stuck plans", "watched organisation followed"):
+            diff = f"{t.difference:+.0f} ({t.wins} vs {t.losses})"
+            lines.append(f"| {t.name} | {t.endpoint} | {diff} | {t.p:.3g} | {t.p_holm:.3g} | "
+                         f"{'**differs**' if t.p_holm < 0.05 else 'n.s.'} |")  # fmt: skip
+        else:
+            lines.append(f"| {t.name} | {t.endpoint} | {show_test(t)} |")
+    # the check: learning unchanged since the committed run (its openings per seed)
+    if (committed / "summary.json").exists():
+        old = json.loads((committed / "summary.json").read_text())
+        old_runs = {b["batch"]: b["runs"] for b in old["batches"]}
+        same = all(
+            [r["openings"] for r in old_runs[batch]]
+            == [cells["off"][batch][int(r["seed"])]["openings"] for r in old_runs[batch]]
+            for batch in cells["off"]
+            if batch in old_runs
+        )
+        lines += [
+            "",
+            f"Check: the **off** run's openings per seed {'equal' if same else '**differ from**'}"
+            " the committed puzzle-box run's in every batch they share "
+            "(`../puzzlebox/summary.json`).",
+        ]
+    return lines + [""]
 
 
 def segment_cells(rows: list[dict]) -> dict:
@@ -309,17 +504,28 @@ def main() -> None:
     cells = segment_cells(rows)
     family, also = segment_tests(cells, worlds)
     helped = hierarchy_helps(family)
+    h3 = trial_cells(results)
+    h3_tests = trial_tests(h3) if h3 else []
+    h2 = box_cells(results)
+    h2_tests = box_tests(h2) if h2 else []
+    recorded = sweeps + [n for n in ("trial_exp1", "trial_feasibility_exp1") if h3]
 
-    lines = ["# Where does hierarchy help imitation?", "", provenance(results, sweeps), ""]
-    lines += ANSWER(cells, worlds, family, helped)
+    lines = ["# Where does hierarchy help imitation?", "", provenance(results, recorded), ""]
+    lines += ANSWER(worlds, family, helped, h3_tests, h2, h2_tests)
     lines += segment_lines(cells, worlds, family, also)
+    lines += box_lines(h2, h2_tests, results.parent / "puzzlebox") if h2 else []
+    lines += trial_lines(h3, h3_tests) if h3 else []
     missing = [f"segments_{w}" for w in WORLDS if w not in worlds]
+    missing += [] if h3 else ["H3 (trial_exp1, trial_feasibility_exp1)"]
+    missing += [] if h2 else ["H2 (puzzlebox_*)"]
     if missing:
         lines += [f"*Records absent, left out: {', '.join(missing)}.*", ""]
     lines += [
-        "## H2–H6",
+        "## H4–H6",
         "",
-        "Not run yet: their cells are declared in PROTOCOL.md amendments before their runs.",
+        "Not run yet: several mentors (H4) is not built, and the largest worlds (H5) and "
+        "options carrying over (H6) get their cells in a PROTOCOL.md amendment before their "
+        "runs.",
         "",
     ]
     segment_figure(cells, worlds, results / "segments.png")
@@ -328,45 +534,89 @@ def main() -> None:
         writer = csv.writer(f)
         fields = list(Test.__dataclass_fields__)
         writer.writerow(fields)
-        for t in family + also:
+        for t in family + also + h2_tests + h3_tests:
             writer.writerow([getattr(t, k) for k in fields])
     print(f"wrote {results / 'results.md'}")
 
 
-def ANSWER(cells: dict, worlds: list[str], family: list[Test], helped: list) -> list[str]:  # noqa: N802
-    """The page's opening: what H1 found, in words, from the tests."""
+def ANSWER(  # noqa: N802
+    worlds: list[str],
+    family: list[Test],
+    helped: list,
+    h3_tests: list[Test],
+    h2: dict,
+    h2_tests: list[Test],
+) -> list[str]:
+    """The page's opening: what each hypothesis found, in words, from the tests."""
 
-    def count(name, sign):
+    def count(tests, name, sign, endpoint="greedy"):
         return sum(
             1
-            for t in family
-            if t.name == name and t.endpoint == "greedy" and t.p_holm < 0.05
+            for t in tests
+            if t.name == name and t.endpoint == endpoint and t.p_holm < 0.05
             and (t.difference > 0) == (sign > 0)
         )  # fmt: skip
 
     n_conditions = len(worlds) * 2 * len(SCHEDULES)
     lines = [
-        "## The answer so far (H1)",
+        "## The answer so far",
         "",
-        f"- **The segment term repairs coarse observation.** On the greedy policy at the end it "
-        f"improves eq. 2 significantly in {count('H1b', 1)} of {n_conditions} world × stride × "
-        f"schedule conditions and eq. 1 in {count('H1c', 1)} (Holm over the family); "
-        f"worse in {count('H1b', -1)} and {count('H1c', -1)}.",
-        f"- **Hierarchy helps in {len(helped)} of {n_conditions} conditions** by the protocol's "
-        "rule (eq. 2 + segments significantly better than eq. 1 + segments on the greedy policy "
-        "or on goals, and not significantly worse on the greedy policy)"
+        f"- **H1, coarse observation: the segment term.** On the greedy policy at the end it "
+        f"improves eq. 2 significantly in "
+        f"{count(family, 'H1b', 1)} of {n_conditions} world × stride × schedule conditions and "
+        f"eq. 1 in {count(family, 'H1c', 1)} (Holm over the family); worse in "
+        f"{count(family, 'H1b', -1)} and {count(family, 'H1c', -1)}.",
+        f"- **H1: hierarchy helps in {len(helped)} of {n_conditions} conditions** by the "
+        "protocol's rule (eq. 2 + segments significantly better than eq. 1 + segments on the "
+        "greedy policy or on goals, and not significantly worse on the greedy policy)"
         + (
             ": " + "; ".join(f"{WORLDS[w][0]}, {c}, {SCHEDULES[s]}" for w, c, s in helped)
             if helped
             else "."
         )  # fmt: skip
-        + f" Eq. 2 + segments is significantly worse than eq. 1 + segments on the greedy policy "
-        f"in {count('H1d', -1)} of them.",
+        + " Eq. 2 + segments is significantly worse than eq. 1 + segments on the greedy "
+        f"policy in {count(family, 'H1d', -1)} of them.",
+    ]
+    if h2:
+        runs = {c: h2[c]["speed_imitation"] for c in BOX_CELLS}
+        stuck = {c: sum(r["stuck_at"] is not None for r in runs[c].values()) for c in runs}
+        follows = {c: sum(r["organisation"] == r["watched"] for r in runs[c].values())
+                   for c in runs}  # fmt: skip
+        n = len(runs["off"])
+        differs = [t for t in h2_tests if t.p_holm < 0.05]
+        lines.append(
+            f"- **H2, the puzzle box:** stuck greedy plans {stuck['off']}/{n} without either "
+            f"setting, {stuck['trial']}/{n} with trial, {stuck['trial_feasibility']}/{n} with "
+            f"trial and feasibility (target 0); the watched organisation followed "
+            f"{follows['off']}/{n}, {follows['trial']}/{n} and {follows['trial_feasibility']}/{n}"
+            f" (target ≥ 13). {len(differs)} of H2's {len(h2_tests)} tests differ after Holm"
+            + (": " + "; ".join(f"{t.name}, {t.endpoint}" for t in differs) if differs else "")
+            + "."
+        )
+    if h3_tests:
+        better = [t for t in h3_tests if t.p_holm < 0.05 and t.difference > 0]
+        worse = [t for t in h3_tests if t.p_holm < 0.05 and t.difference < 0]
+        hier = [
+            t for t in h3_tests if "eq. 2 − eq. 1" in t.name and t.endpoint in ("greedy", "goals")
+        ]
+        hier_better = [t for t in hier if t.p_holm < 0.05 and t.difference > 0]
+        hier_worse = [t for t in hier if t.p_holm < 0.05 and t.difference < 0]
+
+        def names(ts):
+            return "; ".join(f"{t.name} ({SCHEDULES[t.schedule]}, {t.endpoint})" for t in ts)
+
+        lines.append(
+            f"- **H3, exp1's mismatched skills:** significantly better after Holm: "
+            f"{names(better) or 'none'}; significantly worse: {names(worse) or 'none'}. "
+            f"Eq. 2 beats eq. 1 within a cell in {len(hier_better)} of {len(hier)} greedy/goals "
+            f"comparisons and loses in {len(hier_worse)}."
+        )
+    lines += [
         "",
         "![Greedy policy at the end under coarse observation](segments.png)",
         "",
-        "*The greedy policy at the end as a % of the mentor's goal rate, mean of 20 seeds with "
-        "its 95 % BCa interval; the dashed line is H1a's 95 %.*",
+        "*H1: the greedy policy at the end as a % of the mentor's goal rate, mean of 20 seeds "
+        "with its 95 % BCa interval; the dashed line is H1a's 95 %.*",
         "",
     ]
     return lines
