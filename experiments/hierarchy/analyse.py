@@ -175,6 +175,12 @@ def box_cells(results: Path) -> dict:
     return out
 
 
+def cells_equal(a: dict, b: dict) -> bool:
+    """Whether two batches' runs (seed → run) are the same runs: every recorded endpoint."""
+    keys = ("openings", "first_opening", "greedy_value", "stuck_at", "organisation")
+    return sorted(a) == sorted(b) and all(a[s].get(k) == b[s].get(k) for s in a for k in keys)
+
+
 def _fisher(a: int, b: int, n: int) -> float:
     from scipy.stats import fisher_exact
 
@@ -248,7 +254,8 @@ def box_lines(cells: dict, tests: list[Test], committed: Path) -> list[str]:
         "### Paired tests (family H2: Holm over its 8 p-values)",
         "",
         "Shares: Fisher's exact test (difference = count − the off count); value gap: paired "
-        "t-test (difference [95 % BCa]; lower is better); first opening: sign test.",
+        "t-test (difference [95 % BCa], lower is better; seeds where it is higher – lower); "
+        "first opening: sign test (seeds sooner – later).",
         "",
         "| comparison | endpoint | difference | p | Holm p | |",
         "|---|---|---|---|---|---|",
@@ -350,8 +357,11 @@ def verdict(t: Test) -> str:
 
 
 def show_test(t: Test) -> str:
-    if t.endpoint == "first_goal":
-        diff = f"median {t.difference / 1000:+.1f}k steps sooner; {t.wins}–{t.losses}"
+    if t.endpoint in ("first_goal", "first opening"):
+        when = "sooner" if t.difference >= 0 else "later"
+        diff = f"median {abs(t.difference) / 1000:.1f}k steps {when}; {t.wins}–{t.losses}"
+    elif t.endpoint == "value gap":
+        diff = f"{t.difference:+.4f} [{t.low:+.4f}, {t.high:+.4f}]; {t.wins}–{t.losses}"
     else:
         diff = f"{t.difference:+.1f} [{t.low:+.1f}, {t.high:+.1f}]; {t.wins}–{t.losses}"
     p_holm = "" if math.isnan(t.p_holm) else f"{t.p_holm:.3g}"
@@ -637,6 +647,9 @@ def ANSWER(  # noqa: N802
                    for c in runs}  # fmt: skip
         n = len(runs["off"])
         differs = [t for t in h2_tests if t.p_holm < 0.05]
+        same = all(
+            cells_equal(h2["trial"][batch], h2["trial_feasibility"][batch]) for batch in h2["trial"]
+        )
         lines.append(
             f"- **H2, the puzzle box:** stuck greedy plans {stuck['off']}/{n} without either "
             f"setting, {stuck['trial']}/{n} with trial, {stuck['trial_feasibility']}/{n} with "
@@ -644,7 +657,13 @@ def ANSWER(  # noqa: N802
             f"{follows['off']}/{n}, {follows['trial']}/{n} and {follows['trial_feasibility']}/{n}"
             f" (target ≥ 13). {len(differs)} of H2's {len(h2_tests)} tests differ after Holm"
             + (": " + "; ".join(f"{t.name}, {t.endpoint}" for t in differs) if differs else "")
-            + "."
+            + " (with 20 seeds, 3 stuck plans against 0 cannot reach significance)."
+            + (
+                " Feasibility testing changed no run: every batch with it equals the batch "
+                "with trial alone."
+                if same
+                else ""
+            )
         )
     if h3_tests:
         lines.append(h3_answer(h3, h3_tests))

@@ -4,7 +4,7 @@ testing; the study's settings otherwise (seeds 0–19, the paper's ε), its vari
 
     python experiments/hierarchy/puzzle_box_h2.py [--logdir runs/hierarchy] [--seeds 20]
 
-Each cell's record (``summary.json``, ``results.md``, ``config.json``) is copied into
+Each cell's record (``summary.json``, ``config.json``) is copied into
 ``experiments/results/hierarchy/puzzlebox_<cell>/``; ``analyse.py`` compares them.
 """
 
@@ -39,7 +39,7 @@ def main() -> None:
         run_puzzle_box(config, run_dir, force=True, progress=False)
         target = RESULTS / f"puzzlebox_{cell}"
         target.mkdir(parents=True, exist_ok=True)
-        for name in ("summary.json", "results.md", "config.json"):
+        for name in ("summary.json", "config.json"):
             shutil.copy(run_dir / name, target / name)
         print(f"{cell}: {target}")
 

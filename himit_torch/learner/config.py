@@ -380,6 +380,11 @@ class LearnerConfig:
             )
 
 
+#: Version of :class:`LearnerConfig`'s schema, recorded in every checkpoint: 1 — before it was
+#: recorded; 2 — ``mentor_segments``, ``mentor_trial`` and ``mentor_feasibility`` added. A
+#: checkpoint of an older schema resumes with each newer setting at its declared default.
+CONFIG_SCHEMA_VERSION = 2
+
 #: The fields the compiled engine reads, in declaration order (the names of its settings tuple).
 KERNEL_FIELDS: tuple[str, ...] = tuple(s.name for s in settings_of(LearnerConfig) if s.info.kernel)
 

@@ -33,7 +33,7 @@ from __future__ import annotations
 import warnings
 from collections.abc import Iterable, Sequence
 from dataclasses import asdict
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 import torch
@@ -65,6 +65,7 @@ from himit_torch.validation import (
     as_int,
     as_int_array,
     check_memory,
+    settings_of,
 )
 
 if TYPE_CHECKING:
@@ -72,7 +73,7 @@ if TYPE_CHECKING:
     from himit_torch.mentor.reward import MentorReward
     from himit_torch.worlds.tabular import TabularWorld
 
-from himit_torch.learner.config import LearnerConfig
+from himit_torch.learner.config import CONFIG_SCHEMA_VERSION, LearnerConfig
 
 __all__ = ["tried_share", "HasTransitions", "Learner"]
 
@@ -661,6 +662,7 @@ class Learner:
         and dicts only."""
         return {
             "layout": self.STATE_LAYOUT_VERSION,
+            "config_schema": CONFIG_SCHEMA_VERSION,
             "identity": self._identity(),
             "run": self.run_state.state_dict(),
             "model": self.model.state_dict(),
@@ -675,6 +677,23 @@ class Learner:
     #: The pieces of a :meth:`state_dict` (``sample`` is missing in those from before posterior
     #: sampling, ``cloning`` in those from before the ``bco`` agent).
     _STATE_KEYS = ("layout", "identity", "run", "model", "mentor", "cache", "sweeper", "metrics")
+
+    def _config_differences(self, saved: Any) -> list[str]:
+        """The settings a checkpoint's config differs in from this learner's, read through the
+        schema: a setting the checkpoint does not name takes its declared default (a checkpoint
+        written before the setting existed ran with what the default does), a setting this
+        code does not know is a difference."""
+        if not isinstance(saved, dict):
+            raise DamagedState("identity.config", f"is a {type(saved).__name__}, not a dict")
+        mine = asdict(self.config)
+        defaults = {s.name: s.default for s in settings_of(LearnerConfig)}
+        out = [f"config.{k}" for k in saved if k not in mine]
+        out += [
+            f"config.{k}"
+            for k, value in mine.items()
+            if not same_plain(value, saved.get(k, defaults.get(k)))
+        ]
+        return out
 
     def check_state(self, state: dict) -> RunMetrics:
         """Check a :meth:`state_dict` read back, in full, before any of it is restored: each
@@ -696,13 +715,28 @@ class Learner:
                 f"state layout {layout} cannot be loaded by this learner (layout "
                 f"{self.STATE_LAYOUT_VERSION}); start the run again"
             )
-        section(state, "learner state", self._STATE_KEYS, optional=("sample", "cloning"))
+        section(
+            state,
+            "learner state",
+            self._STATE_KEYS,
+            optional=("sample", "cloning", "config_schema"),
+        )
+        schema = state.get("config_schema", 1)  # (1: written before the schema was recorded)
+        if isinstance(schema, bool) or not isinstance(schema, int) or schema < 1:
+            raise DamagedState("config_schema", f"is {schema!r}, not a version number ≥ 1")
+        if schema > CONFIG_SCHEMA_VERSION:
+            raise ValueError(
+                f"checkpoint written with config schema {schema}, newer than this "
+                f"himit_torch's ({CONFIG_SCHEMA_VERSION}): resume it with the version that "
+                "wrote it, or a newer one"
+            )
         ident, mine = state["identity"], self._identity()
         if not isinstance(ident, dict):
             raise DamagedState("identity", f"is a {type(ident).__name__}, not a dict")
-        differ = sorted(k for k in mine if not same_plain(mine[k], ident.get(k)))
+        differ = [k for k in mine if k != "config" and not same_plain(mine[k], ident.get(k))]
+        differ += self._config_differences(ident.get("config"))
         if differ:
-            raise ValueError(f"checkpoint does not match this learner: {differ} differ")
+            raise ValueError(f"checkpoint does not match this learner: {sorted(differ)} differ")
         if "sample" not in state and self.sample.any:
             # (a checkpoint from before posterior sampling has no draws)
             raise ValueError("checkpoint has no posterior sample for this learner's psrl runs")

@@ -695,6 +695,8 @@ class DirichletMentorModel(EdgeStore):
         return state
 
     def check_state(self, state: dict, where: str = "model") -> int:
+        """:meth:`EdgeStore.check_state`, and each edge's delay at most its count; a state
+        without ``edge_delay`` (saved before delays were kept) is read as one-step moves."""
         state = self._with_delay(state)
         E = super().check_state(state, where)
         if bool((state["edge_delay"] > state["edge_count"] * (1 + 1e-12)).any()):
@@ -704,6 +706,8 @@ class DirichletMentorModel(EdgeStore):
         return E
 
     def load_state_dict(self, state: dict, where: str = "model", *, checked: bool = False) -> None:
+        """:meth:`EdgeStore.load_state_dict`, a state without ``edge_delay`` read as one-step
+        moves."""
         super().load_state_dict(self._with_delay(state), where, checked=checked)
 
     def observed(self) -> torch.Tensor:

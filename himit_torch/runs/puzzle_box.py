@@ -78,6 +78,7 @@ from himit_torch.validation import (
     as_tuple,
     check_memory,
     refuse_unknown_fields,
+    settings_of,
 )
 from himit_torch.viz.tensorboard import TensorBoardLogger
 from himit_torch.worlds.puzzle_box import (
@@ -540,6 +541,16 @@ def _scores(scores: dict[str, float]) -> dict[str, float | None]:
 
 
 # ================================================================================ the runner
+def _saved_config(path: Path) -> Any:
+    """A run's saved ``config.json``, its learner settings read through the schema: a setting
+    it does not name (saved before the setting existed) takes its declared default."""
+    saved = json.loads(path.read_text())
+    if isinstance(saved, dict) and isinstance(saved.get("learner"), dict):
+        defaults = {s.name: s.default for s in settings_of(LearnerConfig)}
+        saved["learner"] = {**defaults, **saved["learner"]}
+    return saved
+
+
 def run_puzzle_box(
     config: PuzzleBoxConfig,
     run_dir: str | os.PathLike,
@@ -562,11 +573,7 @@ def run_puzzle_box(
         )
     run_dir.mkdir(parents=True, exist_ok=True)
     cfg_path = run_dir / "config.json"
-    if (
-        resume
-        and cfg_path.exists()
-        and json.loads(cfg_path.read_text()) != json.loads(config.to_json())
-    ):
+    if resume and cfg_path.exists() and _saved_config(cfg_path) != json.loads(config.to_json()):
         raise ValueError(
             f"--resume: {cfg_path} holds a different configuration than the one given; "
             "resume with the same flags or start over with --force"

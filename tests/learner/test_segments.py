@@ -322,3 +322,42 @@ def test_options_only_world_is_unaffected():
         runs[segments] = _learner(world, None, segments, agents=["options"])
         runs[segments].run(300)
     assert torch.equal(runs[False].cache.values, runs[True].cache.values)
+
+
+def test_a_checkpoint_from_before_the_new_settings_resumes(world12, mentor_demos12):
+    """A checkpoint written before mentor_segments, mentor_trial and mentor_feasibility existed
+    names none of them: each takes its declared default, and the run goes on exactly."""
+    whole = _learner(world12, mentor_demos12, False, agents=["imitation"])
+    whole.run(600)
+    half = _learner(world12, mentor_demos12, False, agents=["imitation"])
+    half.run(300)
+    state = half.state_dict()
+    for name in ("mentor_segments", "mentor_trial", "mentor_feasibility"):
+        del state["identity"]["config"][name]
+    del state["mentor"]["edge_delay"]
+    assert state.pop("config_schema") == 2  # (written before the schema was recorded)
+    resumed = _learner(world12, None, False, agents=["imitation"])
+    resumed.load_state_dict(state)
+    resumed.run(300)
+    assert torch.equal(whole.cache.values, resumed.cache.values)
+    assert torch.equal(whole.metrics.curve(), resumed.metrics.curve())
+
+
+def test_a_checkpoint_of_other_settings_is_refused_naming_them(world12, mentor_demos12):
+    half = _learner(world12, mentor_demos12, False, agents=["imitation"])
+    half.run(100)
+    state = half.state_dict()
+    state["identity"]["config"]["mentor_trial"] = True  # (ran with trial: not this learner)
+    state["identity"]["config"]["from_the_future"] = 1  # (a setting this code does not know)
+    with pytest.raises(ValueError, match=r"config\.from_the_future.*config\.mentor_trial"):
+        _learner(world12, None, False, agents=["imitation"]).load_state_dict(state)
+    state["identity"]["config"] = [1, 2]
+    with pytest.raises(ValueError, match="identity.config"):
+        _learner(world12, None, False, agents=["imitation"]).load_state_dict(state)
+    good = half.state_dict()
+    good["config_schema"] = 3
+    with pytest.raises(ValueError, match="newer than this"):
+        _learner(world12, None, False, agents=["imitation"]).load_state_dict(good)
+    good["config_schema"] = "2"
+    with pytest.raises(ValueError, match="config_schema"):
+        _learner(world12, None, False, agents=["imitation"]).load_state_dict(good)

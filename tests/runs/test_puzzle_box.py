@@ -138,6 +138,11 @@ def test_runner_writes_every_result(tmp_path):
     # a batch interrupted after its last checkpoint resumes from it to the same runs
     (run_dir / "batches" / "transfer_any.json").unlink()
     (run_dir / "results.md").unlink()
+    # ...also when its config.json was saved before a learner setting existed (the setting
+    # takes its declared default)
+    saved = json.loads((run_dir / "config.json").read_text())
+    del saved["learner"]["mentor_trial"]
+    (run_dir / "config.json").write_text(json.dumps(saved))
     resumed = run_puzzle_box(TINY, run_dir, resume=True, progress=False)
     assert resumed["batches"][-1]["runs"] == summary["batches"][-1]["runs"]
     # himit plot redraws it, the same page
