@@ -684,6 +684,23 @@ def _refuse_flags(args: argparse.Namespace, allowed: Sequence[str], why: str) ->
     return {k: v for k, v in given.items() if k in allowed}
 
 
+def _learner_settings() -> tuple[str, ...]:
+    """Every learner setting a study's flags may change (``window`` is the study's own)."""
+    from himit_torch.learner.config import LearnerConfig
+    from himit_torch.validation import settings_of
+
+    return tuple(s.name for s in settings_of(LearnerConfig) if s.name != "window")
+
+
+def _with_learner_flags(config: Any, changes: dict[str, Any]) -> Any:
+    """``config`` with the learner settings among ``changes`` (taken out of it) applied to its
+    ``learner``."""
+    learner = {k: changes.pop(k) for k in list(changes) if k in _learner_settings()}
+    if not learner:
+        return config
+    return dataclasses.replace(config, learner=dataclasses.replace(config.learner, **learner))
+
+
 def _run_gymnasium(args: argparse.Namespace) -> int:
     """``himit run gymnasium``: Taxi, CliffWalking, FrozenLake 8×8 (:mod:`himit_torch.runs.gymnasium`)."""
     from himit_torch.runs.gymnasium import run_gym_experiment
@@ -713,7 +730,7 @@ def _gym_config(args: argparse.Namespace) -> Any:
         )
     changes = _refuse_flags(
         args,
-        ("seeds", "first_seed", "steps", "device", "preset", "tie_break"),
+        ("seeds", "first_seed", "steps", "device", "preset", *_learner_settings()),
         "its agents are fixed by its design and its imitators use the world's own reward, "
         "KnownReward",
     )
@@ -722,9 +739,7 @@ def _gym_config(args: argparse.Namespace) -> Any:
         config = config.quick()
     if "preset" in changes:
         config = _with_preset(config, changes.pop("preset"))
-    if "tie_break" in changes:
-        changes["learner"] = replace(config.learner, tie_break=changes.pop("tie_break"))
-    config = replace(config, **changes)
+    config = replace(_with_learner_flags(config, changes), **changes)
     as_device("--device", config.device)
     return config
 
@@ -800,14 +815,14 @@ def _puzzle_box_config(args: argparse.Namespace) -> Any:
         )
     changes = _refuse_flags(
         args,
-        ("seeds", "steps", "engine"),
+        ("seeds", "steps", "engine", *_learner_settings()),
         "its conditions are fixed by its design; --steps sets experiments (a) and (b), "
         "(c) keeps its own budget",
     )
     config = PuzzleBoxConfig()
     if args.quick:
         config = config.quick()
-    return replace(config, **changes)
+    return replace(_with_learner_flags(config, changes), **changes)
 
 
 def _add_run(sub: argparse.ArgumentParser) -> None:
@@ -848,8 +863,8 @@ def _add_run(sub: argparse.ArgumentParser) -> None:
             "experiment settings",
             "Fields of ExperimentConfig. Defaults shown are the library's; exp1, exp2 and exp3 "
             "set their own (himit_torch.runs.config.EXPERIMENTS), --config a file's. "
-            "gymnasium takes only --seeds, --first-seed, --steps, --device, --preset and "
-            "--tie-break, discovery only --seeds, "
+            "Of these, gymnasium takes only --seeds, --first-seed, --steps, --device and "
+            "--preset, puzzlebox only --seeds, --steps and --engine, discovery only --seeds, "
             "--steps and --engine.",
         ),
         ExperimentConfig,
@@ -858,8 +873,9 @@ def _add_run(sub: argparse.ArgumentParser) -> None:
     _add_setting_flags(
         sub.add_argument_group(
             "learner settings",
-            "Fields of LearnerConfig (exp1, exp2 and exp3 set plan_every=4, sweep_rounds=1). "
-            "Its window is the experiment's --window.",
+            "Fields of LearnerConfig (exp1, exp2, exp3 and puzzlebox set plan_every=4, "
+            "sweep_rounds=1). Its window is the experiment's --window. Every study but "
+            "discovery takes them.",
         ),
         LearnerConfig,
         "learner",

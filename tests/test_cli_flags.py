@@ -171,7 +171,8 @@ def test_steps_flag_keeps_a_checkpoint_before_the_end_unless_given(planned):
         (["exp1", "--slip", "nan"], "ExperimentConfig.slip=nan must be a finite number"),
         (["exp1", "--untried-value", "nope"], "invalid number: 'nope' (or none)"),
         (["paper", "--name", "x"], "takes no --name"),
-        (["gymnasium", "--mentor-fade", "3"], "takes no --mentor-fade"),
+        (["gymnasium", "--agents", "options"], "takes no --agents"),
+        (["puzzlebox", "--slip", "0.2"], "takes no --slip"),
         (["discovery", "--device", "cpu"], "takes no --device"),
     ],
 )
@@ -213,3 +214,19 @@ def test_a_flagged_run_resumes_only_with_the_configuration_it_started_with(capsy
     assert exc.value.code == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "holds a different configuration" in err
+
+
+@pytest.mark.parametrize("study", ["gymnasium", "puzzlebox"])
+@pytest.mark.parametrize("field", sorted(LEARNER_FLAGS))
+def test_each_learner_flag_reaches_the_learner_of_the_other_studies(study, field):
+    """``himit run gymnasium`` and ``himit run puzzlebox`` take every learner setting as a flag
+    (each study's own learner defaults otherwise)."""
+    from himit_torch.cli import _gym_config, _puzzle_box_config, build_parser
+
+    text, expected = LEARNER_FLAGS[field]
+    extra = ["--backups", "12"] if field == "sweep_rounds" else []
+    argv = ["run", study, _flag(field), *([] if text is None else [text]), *extra]
+    config = (_gym_config if study == "gymnasium" else _puzzle_box_config)(
+        build_parser().parse_args(argv)
+    )
+    assert getattr(config.learner, field) == expected
