@@ -815,13 +815,15 @@ def _puzzle_box_config(args: argparse.Namespace) -> Any:
         )
     changes = _refuse_flags(
         args,
-        ("seeds", "steps", "engine", *_learner_settings()),
+        ("seeds", "steps", "engine", "preset", *_learner_settings()),
         "its conditions are fixed by its design; --steps sets experiments (a) and (b), "
         "(c) keeps its own budget",
     )
     config = PuzzleBoxConfig()
     if args.quick:
         config = config.quick()
+    if "preset" in changes:
+        config = _with_preset(config, changes.pop("preset"))
     return replace(_with_learner_flags(config, changes), **changes)
 
 
@@ -864,7 +866,8 @@ def _add_run(sub: argparse.ArgumentParser) -> None:
             "Fields of ExperimentConfig. Defaults shown are the library's; exp1, exp2 and exp3 "
             "set their own (himit_torch.runs.config.EXPERIMENTS), --config a file's. "
             "Of these, gymnasium takes only --seeds, --first-seed, --steps, --device and "
-            "--preset, puzzlebox only --seeds, --steps and --engine, discovery only --seeds, "
+            "--preset, puzzlebox only --seeds, --steps, --engine and --preset, discovery only "
+            "--seeds, "
             "--steps and --engine.",
         ),
         ExperimentConfig,

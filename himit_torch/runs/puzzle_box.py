@@ -50,6 +50,7 @@ from himit_torch.exact.greedy_evaluation import PolicyEvaluator, optimal_value
 from himit_torch.exact.option_models import option_models_and_durations
 from himit_torch.exact.planning import expected_steps, smdp_value_iteration
 from himit_torch.learner.config import LearnerConfig
+from himit_torch.learner.presets import PRESETS, apply_preset, check_preset
 from himit_torch.learner.engines import ENGINES
 from himit_torch.learner.learner import Learner
 from himit_torch.mentor.demonstrations import Demonstrations
@@ -153,6 +154,10 @@ class PuzzleBoxConfig:
     checkpoint_every: int = 50_000
     engine: str = "auto"
     learner: LearnerConfig = field(default_factory=_default_learner)
+    preset: str | None = None
+    """The named preset the learner settings follow (``himit_torch.learner.presets``;
+    ``None``: none claimed), as ``ExperimentConfig.preset``: settings that contradict it are
+    refused."""
 
     def __post_init__(self):
         # Each field by the library's input rules (himit_torch.validation, as ExperimentConfig's
@@ -205,6 +210,13 @@ class PuzzleBoxConfig:
             )
         if self.learner.window != self.window:
             self.learner = replace(self.learner, window=self.window)
+        if self.preset is not None:
+            self.preset = as_choice(where("preset"), self.preset, tuple(PRESETS))
+        check_preset("PuzzleBoxConfig", self.learner, self.preset)
+
+    def with_preset(self, name: str) -> PuzzleBoxConfig:
+        """This study with preset ``name``'s learner settings, and the preset recorded."""
+        return replace(self, preset=name, learner=apply_preset(self.learner, name))
 
     def check_size(self) -> None:
         """Refuse, before anything is recorded or run, a configuration whose batches would not
@@ -545,6 +557,8 @@ def _saved_config(path: Path) -> Any:
     """A run's saved ``config.json``, its learner settings read through the schema: a setting
     it does not name (saved before the setting existed) takes its declared default."""
     saved = json.loads(path.read_text())
+    if isinstance(saved, dict):
+        saved.setdefault("preset", None)  # (saved before the field existed: none claimed)
     if isinstance(saved, dict) and isinstance(saved.get("learner"), dict):
         defaults = {s.name: s.default for s in settings_of(LearnerConfig)}
         saved["learner"] = {**defaults, **saved["learner"]}

@@ -201,3 +201,20 @@ def test_the_command_and_the_script(capsys, tmp_path):
     assert done.returncode == 0, done.stderr[-2000:]
     assert (tmp_path / "puzzlebox" / "results.md").exists()
     assert "Beside Whiten et al." in done.stdout
+
+
+def test_himit_run_puzzlebox_takes_a_preset_and_refuses_a_contradiction():
+    from himit_torch.cli import _puzzle_box_config, build_parser
+
+    args = build_parser().parse_args(["run", "puzzlebox", "--preset", "recommended"])
+    config = _puzzle_box_config(args)
+    assert config.preset == "recommended"
+    assert config.learner.mentor_fade == 20.0 and config.learner.eps_schedule == "goals"
+    assert config.learner.plan_every == PuzzleBoxConfig().learner.plan_every  # (its own)
+    args = build_parser().parse_args(
+        ["run", "puzzlebox", "--preset", "recommended", "--mentor-fade", "3"]
+    )
+    with pytest.raises(ValueError, match="preset='recommended' but learner.mentor_fade=3.0"):
+        _puzzle_box_config(args)
+    with pytest.raises(ValueError, match="PuzzleBoxConfig.preset"):
+        PuzzleBoxConfig(preset="best")
