@@ -50,9 +50,9 @@ from himit_torch.exact.greedy_evaluation import PolicyEvaluator, optimal_value
 from himit_torch.exact.option_models import option_models_and_durations
 from himit_torch.exact.planning import expected_steps, smdp_value_iteration
 from himit_torch.learner.config import LearnerConfig
-from himit_torch.learner.presets import PRESETS, apply_preset, check_preset
 from himit_torch.learner.engines import ENGINES
 from himit_torch.learner.learner import Learner
+from himit_torch.learner.presets import PRESETS, apply_preset, check_preset
 from himit_torch.mentor.demonstrations import Demonstrations
 from himit_torch.mentor.policy import record_demonstrations
 from himit_torch.mentor.puzzle_box import map_demonstrations, organisation_mentor
