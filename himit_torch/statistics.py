@@ -60,9 +60,12 @@ __all__ = [
 RESAMPLES = 9999
 
 
-def _sample(where: str, values: Sequence[float] | np.ndarray, minimum: int = 1) -> np.ndarray:
+def _sample(
+    where: str, values: Sequence[float] | np.ndarray, minimum: int = 1, nan: bool = False
+) -> np.ndarray:
     """``values`` as a 1-D float array of at least ``minimum`` finite numbers (``ValueError``
-    naming ``where`` and the first bad item otherwise: a NaN has no place in a mean)."""
+    naming ``where`` and the first bad item otherwise: a NaN has no place in a mean; ``nan``:
+    NaN allowed, where it means "not made", as in :func:`holm`)."""
     try:
         x = np.asarray(values, dtype=float)
     except (TypeError, ValueError):
@@ -74,7 +77,7 @@ def _sample(where: str, values: Sequence[float] | np.ndarray, minimum: int = 1) 
             f"{where} holds {len(x)} value(s); give at least {minimum} (a mean of nothing is "
             "undefined)"
         )
-    bad = np.flatnonzero(~np.isfinite(x))
+    bad = np.flatnonzero(~np.isfinite(x) & ~(nan & np.isnan(x)))
     if bad.size:
         i = int(bad[0])
         raise ValueError(f"{where}[{i}]={float(x[i])!r} must be a finite number")
@@ -283,12 +286,7 @@ def holm(p_values: Sequence[float]) -> list[float]:
             "himit_torch.statistics.holm needs statsmodels: pip install 'himit_torch[analysis]'"
         ) from None
 
-    try:
-        p = np.asarray(p_values, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"holm: p_values must be a list of numbers, got {p_values!r}") from None
-    if p.ndim != 1:
-        raise ValueError(f"holm: p_values must be a 1-D list, got shape {p.shape}")
+    p = _sample("holm: p_values", p_values, minimum=0, nan=True)
     outside = np.flatnonzero(~np.isnan(p) & ((p < 0) | (p > 1)))
     if outside.size:
         i = int(outside[0])

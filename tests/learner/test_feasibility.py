@@ -8,8 +8,9 @@ no option can reproduce (a teleport to the goal), the reduction, and engine pari
 import pytest
 import torch
 
-from himit_torch import Learner, LearnerConfig, MultiRooms, learner_options
+from himit_torch import LearnerConfig, MultiRooms
 from himit_torch.learner.backups import feasible_mentor
+from tests.learner.helpers import build_learner
 
 pytest.importorskip("numba")
 
@@ -48,15 +49,8 @@ class _Teleport:
 
 
 def _learner(world, demos, feasibility, engine="numba", agents=("imitation",), **config):
-    return Learner(
-        world,
-        learner_options(world),
-        list(agents),
-        list(range(len(agents))),
-        config=LearnerConfig(window=1000, mentor_feasibility=feasibility, **config),
-        demonstrations=demos,
-        engine=engine,
-    )
+    config = LearnerConfig(window=1000, mentor_feasibility=feasibility, **config)
+    return build_learner(world, demos, list(agents), engine=engine, config=config)
 
 
 @pytest.fixture(scope="module")

@@ -27,6 +27,7 @@ from himit_torch.learner.backups import (
 from himit_torch.learner.models import DirichletMentorModel
 from himit_torch.mentor.reward import KnownReward
 from himit_torch.state_checks import DamagedState
+from tests.learner.helpers import build_learner
 
 pytest.importorskip("numba")
 
@@ -181,15 +182,8 @@ def test_an_undiscounted_world_refuses_segments():
 
 # ---------------------------------------------------------------------------- the learner
 def _learner(world, demos, segments, engine="numba", agents=AGENTS, **config):
-    return Learner(
-        world,
-        learner_options(world),
-        agents,
-        list(range(len(agents))),
-        config=LearnerConfig(window=1000, mentor_segments=segments, **config),
-        demonstrations=demos,
-        engine=engine,
-    )
+    config = LearnerConfig(window=1000, mentor_segments=segments, **config)
+    return build_learner(world, demos, list(agents), engine=engine, config=config)
 
 
 def test_one_step_segments_are_the_papers_term_bit_for_bit(world12, mentor_demos12):

@@ -6,8 +6,9 @@ term, or nothing untried: the greedy rule), and engine parity."""
 import pytest
 import torch
 
-from himit_torch import Learner, LearnerConfig, learner_options, observe_every
+from himit_torch import LearnerConfig, observe_every
 from himit_torch.learner.choice import greedy_rows, trial_candidates
+from tests.learner.helpers import build_learner
 
 pytest.importorskip("numba")
 
@@ -44,15 +45,8 @@ def test_trial_candidates_by_hand():
 
 
 def _learner(world, demos, trial, engine="numba", agents=AGENTS, **config):
-    return Learner(
-        world,
-        learner_options(world),
-        agents,
-        list(range(len(agents))),
-        config=LearnerConfig(window=1000, mentor_trial=trial, **config),
-        demonstrations=demos,
-        engine=engine,
-    )
+    config = LearnerConfig(window=1000, mentor_trial=trial, **config)
+    return build_learner(world, demos, list(agents), engine=engine, config=config)
 
 
 def test_where_the_mentor_leads_the_greedy_choice_tries_an_untried_option(world12, mentor_demos12):
