@@ -25,6 +25,8 @@ import sys
 from html.parser import HTMLParser
 from pathlib import Path
 
+from site_check import check_site  # (docs/, beside this script)
+
 EXTERNAL = re.compile(r"^\s*(https?:)?//", re.IGNORECASE)
 CSS_URL = re.compile(r"""(?:url\(\s*|@import\s+)['"]?([^'")\s]+)""", re.IGNORECASE)
 
@@ -113,28 +115,24 @@ def css_external_loads(css: str) -> list[str]:
     return [f"css url() {url}" for url in CSS_URL.findall(css) if EXTERNAL.match(url)]
 
 
-def main(argv: list[str]) -> int:
-    site = Path(argv[1]) if len(argv) > 1 else Path(__file__).resolve().parent / "_build" / "html"
-    pages = sorted(site.rglob("*.html"))
-    if not pages:
-        print(f"check_offline: no .html under {site} (build the docs first: make docs)")
-        return 1
-    problems = [
-        f"{page.relative_to(site)}: {item}"
-        for page in pages
-        for item in external_loads(page.read_text(encoding="utf-8", errors="replace"))
-    ]
-    problems += [
+def css_problems(site: Path) -> list[str]:
+    """The outside resources the site's stylesheets load, ``"<file>: <item>"``."""
+    return [
         f"{css.relative_to(site)}: {item}"
         for css in sorted(site.rglob("*.css"))
         for item in css_external_loads(css.read_text(encoding="utf-8", errors="replace"))
     ]
-    if problems:
-        print(f"check_offline: {len(problems)} resource(s) loaded from outside the site:")
-        print("\n".join(f"  {p}" for p in problems))
-        return 1
-    print(f"check_offline: {len(pages)} pages load nothing from outside the site")
-    return 0
+
+
+def main(argv: list[str]) -> int:
+    return check_site(
+        argv,
+        "check_offline",
+        external_loads,
+        "resource(s) loaded from outside the site",
+        "load nothing from outside the site",
+        more=css_problems,
+    )
 
 
 if __name__ == "__main__":

@@ -22,7 +22,8 @@ from __future__ import annotations
 import re
 import sys
 from html.parser import HTMLParser
-from pathlib import Path
+
+from site_check import check_site  # (docs/, beside this script)
 
 TRACKER = re.compile(r"\b[Ii]ssues? #?\d+")
 
@@ -59,22 +60,14 @@ def tracker_words(html: str) -> list[str]:
 
 
 def main(argv: list[str]) -> int:
-    site = Path(argv[1]) if len(argv) > 1 else Path(__file__).resolve().parent / "_build" / "html"
-    pages = sorted(site.rglob("*.html"))
-    if not pages:
-        print(f"check_tracker_words: no .html under {site} (build the docs first: make docs)")
-        return 1
-    problems = [
-        f"{page.relative_to(site)}: …{words}…"
-        for page in pages
-        for words in tracker_words(page.read_text(encoding="utf-8", errors="replace"))
-    ]
-    if problems:
-        print(f"check_tracker_words: {len(problems)} citation(s) of the issue tracker:")
-        print("\n".join(f"  {p}" for p in problems[:40]))
-        return 1
-    print(f"check_tracker_words: {len(pages)} pages cite no issue numbers")
-    return 0
+    return check_site(
+        argv,
+        "check_tracker_words",
+        lambda html: [f"…{words}…" for words in tracker_words(html)],
+        "citation(s) of the issue tracker",
+        "cite no issue numbers",
+        shown=40,
+    )
 
 
 if __name__ == "__main__":

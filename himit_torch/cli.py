@@ -695,7 +695,8 @@ def _learner_settings() -> tuple[str, ...]:
 def _with_learner_flags(config: Any, changes: dict[str, Any]) -> Any:
     """``config`` with the learner settings among ``changes`` (taken out of it) applied to its
     ``learner``."""
-    learner = {k: changes.pop(k) for k in list(changes) if k in _learner_settings()}
+    names = _learner_settings()
+    learner = {k: changes.pop(k) for k in list(changes) if k in names}
     if not learner:
         return config
     return dataclasses.replace(config, learner=dataclasses.replace(config.learner, **learner))

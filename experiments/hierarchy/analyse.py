@@ -521,7 +521,7 @@ def main() -> None:
     recorded = sweeps + [n for n in ("trial_exp1", "trial_feasibility_exp1") if h3]
 
     lines = ["# Where does hierarchy help imitation?", "", provenance(results, recorded), ""]
-    lines += ANSWER(worlds, family, helped, h3, h3_tests, h2, h2_tests)
+    lines += answer_lines(worlds, family, helped, h3, h3_tests, h2, h2_tests)
     lines += segment_lines(cells, worlds, family, also)
     lines += box_lines(h2, h2_tests, results.parent / "puzzlebox") if h2 else []
     lines += trial_lines(h3, h3_tests) if h3 else []
@@ -601,7 +601,7 @@ def h3_answer(cells: dict, tests: list[Test]) -> str:
     )
 
 
-def ANSWER(  # noqa: N802
+def answer_lines(
     worlds: list[str],
     family: list[Test],
     helped: list,

@@ -78,8 +78,8 @@ from himit_torch.validation import (
     as_int,
     as_tuple,
     check_memory,
+    parse_document,
     refuse_unknown_fields,
-    settings_of,
 )
 from himit_torch.viz.tensorboard import TensorBoardLogger
 from himit_torch.worlds.puzzle_box import (
@@ -553,16 +553,16 @@ def _scores(scores: dict[str, float]) -> dict[str, float | None]:
 
 
 # ================================================================================ the runner
-def _saved_config(path: Path) -> Any:
-    """A run's saved ``config.json``, its learner settings read through the schema: a setting
-    it does not name (saved before the setting existed) takes its declared default."""
-    saved = json.loads(path.read_text())
-    if isinstance(saved, dict):
-        saved.setdefault("preset", None)  # (saved before the field existed: none claimed)
-    if isinstance(saved, dict) and isinstance(saved.get("learner"), dict):
-        defaults = {s.name: s.default for s in settings_of(LearnerConfig)}
-        saved["learner"] = {**defaults, **saved["learner"]}
-    return saved
+def _saved_config(path: Path) -> PuzzleBoxConfig:
+    """A run's saved ``config.json``, read through :class:`PuzzleBoxConfig`: a setting it does not
+    name (saved before the setting existed) takes its declared default; a damaged one is a
+    ``ValueError`` naming the file."""
+    where = f"--resume: {path}"
+    saved = parse_document(where, path.read_text(), "json")
+    if not isinstance(saved, dict):
+        raise ValueError(f"{where} holds a {type(saved).__name__}, not a configuration")
+    refuse_unknown_fields(saved, PuzzleBoxConfig, where)
+    return PuzzleBoxConfig(**saved)
 
 
 def run_puzzle_box(
@@ -587,7 +587,7 @@ def run_puzzle_box(
         )
     run_dir.mkdir(parents=True, exist_ok=True)
     cfg_path = run_dir / "config.json"
-    if resume and cfg_path.exists() and _saved_config(cfg_path) != json.loads(config.to_json()):
+    if resume and cfg_path.exists() and asdict(_saved_config(cfg_path)) != asdict(config):
         raise ValueError(
             f"--resume: {cfg_path} holds a different configuration than the one given; "
             "resume with the same flags or start over with --force"

@@ -136,6 +136,7 @@ def test_feasibility_off_or_without_a_mentor_changes_nothing(world12):
 )
 def test_engines_agree_with_feasibility(world12, mentor_demos12, config):
     agents = ("imitation", "imitation_primitives", "imitation_confident", "imitation_psrl")
+    config = dict(config)  # (the parameter's dict is shared by reruns)
     feasibility = config.pop("mentor_feasibility")
     numba = _learner(world12, mentor_demos12, feasibility, "numba", agents, **config)
     torch_run = _learner(world12, mentor_demos12, feasibility, "torch", agents, **config)

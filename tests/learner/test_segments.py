@@ -14,7 +14,6 @@ from himit_torch import (
     Learner,
     LearnerConfig,
     MultiRooms,
-    Options,
     learner_options,
     observe_every,
 )
@@ -310,7 +309,6 @@ def test_the_segment_setting_survives_a_checkpoint(world12, mentor_demos12):
 def test_options_only_world_is_unaffected():
     """A run without a mentor term reads none of it."""
     world = MultiRooms(8, 1)
-    assert isinstance(learner_options(world), Options)
     runs = {}
     for segments in (False, True):
         runs[segments] = _learner(world, None, segments, agents=["options"])
