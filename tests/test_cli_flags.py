@@ -31,6 +31,7 @@ LEARNER_FLAGS = {
     "mentor_fade": ("20", 20.0),
     "mentor_segments": (None, True),  # (None: a switch, given as --mentor-segments)
     "mentor_feasibility": ("3", 3),
+    "mentors": ("2", 2),  # (with --second-mentor noisy: a second set to watch)
     "eps_start": ("0.5", 0.5),
     "eps_decay": ("0.99", 0.99),
     "eps_min": ("0.05", 0.05),
@@ -64,6 +65,8 @@ EXPERIMENT_FLAGS = {
     "slip": (["0.2"], 0.2),
     "mentor_noise": (["0.3"], 0.3),
     "mentor_detour": ([], True),  # given as --mentor-detour
+    "second_mentor": (["noisy"], "noisy"),  # (with --mentors 2)
+    "second_mentor_noise": (["0.3"], 0.3),
     "observation_stride": (["5"], 5),
     "layout": (["maze"], "maze"),
     "goal_needs_primitives": ([], True),
@@ -101,19 +104,25 @@ def test_help_lists_every_setting_with_its_doc():
 @pytest.mark.parametrize("field", sorted(LEARNER_FLAGS))
 def test_each_learner_flag_reaches_the_config_of_the_run(planned, field):
     text, expected = LEARNER_FLAGS[field]
-    extra = ["--backups", "12"] if field == "sweep_rounds" else []
+    extra = {"sweep_rounds": ["--backups", "12"], "mentors": ["--second-mentor", "noisy"]}
+    extra = extra.get(field, [])
     (config,) = planned(["exp1", _flag(field), *([] if text is None else [text]), *extra])
     assert getattr(config.learner, field) == expected
     untouched = {k: v for k, v in dataclasses.asdict(config.learner).items() if k != field}
     reference = dataclasses.asdict(EXPERIMENTS["exp1"].learner)
-    assert untouched == {k: reference[k] for k in untouched} | ({"backups": 12} if extra else {})
+    changed = {"backups": 12} if field == "sweep_rounds" else {}
+    assert untouched == {k: reference[k] for k in untouched} | changed
 
 
 @pytest.mark.parametrize("field", sorted(EXPERIMENT_FLAGS))
 def test_each_experiment_flag_reaches_the_config_of_the_run(planned, field):
     values, expected = EXPERIMENT_FLAGS[field]
     flag = "--no-corner-options" if field == "corner_options" else _flag(field)
-    extra = {"window": ["--checkpoint-every", "4000"], "room_size": ["--sizes", "16"]}
+    extra = {
+        "window": ["--checkpoint-every", "4000"],
+        "room_size": ["--sizes", "16"],
+        "second_mentor": ["--mentors", "2"],
+    }
     (config,) = planned(["exp1", flag, *values, *extra.get(field, [])])
     assert getattr(config, field) == expected
 

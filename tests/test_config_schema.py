@@ -178,7 +178,7 @@ def test_asdict_keeps_the_field_order_and_defaults_checkpoints_compare():
         "backups", "sweep_rounds", "plan_every", "rng_chunk", "priority_threshold",
         "initial_value", "untried_value", "concentration", "mentor_concentration",
         "confidence_z", "mentor_override_after", "mentor_fade", "mentor_segments",
-        "mentor_feasibility", "eps_start", "eps_decay", "eps_min", "eps_schedule", "eps_goals", "option_models",
+        "mentor_feasibility", "mentors", "eps_start", "eps_decay", "eps_min", "eps_schedule", "eps_goals", "option_models",
         "exact_model_count", "mentor_choice", "mentor_trial", "tie_break", "window", "max_option_steps", "resample_every",
         "reward_bound_check", "bco_every", "bco_inverse_model",
     ]  # fmt: skip

@@ -37,6 +37,7 @@ __all__ = [
     "MentorConfidence",
     "mentor_override",
     "feasible_mentor",
+    "best_mentor",
     "faded_mentor_term",
     "augmented_backup",
     "trusted_augmented_backup",
@@ -493,6 +494,43 @@ def feasible_mentor(
     tested = (~enabled | (tries >= min_tries)).all(-1) & enabled.any(-1)
     none_reached = ~((reached > 0) & enabled).any(-1)
     return ~(tested & none_reached)
+
+
+def best_mentor(terms: torch.Tensor, observed: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """Several mentors (``LearnerConfig.mentors``): which mentor's term enters eq. 2 at ``s``.
+
+    Each mentor's observed move at ``s`` is one more thing the learner could do there, so the
+    augmented backup takes the largest of the mentor terms, as it takes the largest own ``Q``
+    (Price & Boutilier's augmented Bellman backup, JAIR 2003, with one term per mentor). Only a
+    mentor seen at ``s`` (and not shown infeasible there) has a term. The chosen mentor's term
+    then meets the own options as the one mentor's would: its confidence test, override and
+    fading use that mentor's counts. A poor mentor's term enters only where it is the largest,
+    so it cannot lower a state's value below what the other mentors give.
+
+    Args:
+        terms: ``[..., K]`` each mentor's posterior-mean term; observed: ``[..., K]`` bool, where
+            each has a term.
+    Returns ``(index [...], any [...])``: the mentor with the largest observed term (the first
+    of equal ones, and the first observed one where a term is NaN), 0 where none is observed;
+    and whether any is.
+
+    >>> import torch
+    >>> index, any_ = best_mentor(
+    ...     torch.tensor([[1.0, 3.0, 2.0], [5.0, 3.0, 3.0], [9.0, 1.0, 1.0], [0.0, 0.0, 0.0]]),
+    ...     torch.tensor([[True, True, True], [False, True, True], [False, False, True],
+    ...                   [False, False, False]]),
+    ... )
+    >>> index.tolist(), any_.tolist()
+    ([1, 1, 2, 0], [True, True, True, False])
+    """
+    index = torch.zeros(terms.shape[:-1], dtype=torch.int64, device=terms.device)
+    best, have = terms[..., 0], observed[..., 0]
+    for k in range(1, terms.shape[-1]):
+        take = observed[..., k] & (~have | (terms[..., k] > best))
+        index = torch.where(take, k, index)
+        best = torch.where(take, terms[..., k], best)
+        have = have | observed[..., k]
+    return index, have
 
 
 def faded_mentor_term(

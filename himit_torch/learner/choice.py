@@ -89,10 +89,12 @@ def greedy_rows(
 
 def mentor_move_scores(cache: ValueCache, runs: torch.Tensor, states: torch.Tensor) -> torch.Tensor:
     """``[R, A]`` how well each primitive action's learned one-step model reproduces the mentor's
-    observed move at ``states``: ``Σ_s' p̂(s'|s, a) p_m(s'|s)`` (maximum-likelihood means)."""
+    observed move at ``states``: ``Σ_s' p̂(s'|s, a) p_m(s'|s)`` (maximum-likelihood means; with
+    several mentors, of the mentor whose term eq. 2 takes there)."""
     prim = cache.rows.primitive_rows.index_select(0, states)  # [R, A]
     p_succ, p_w = _successor_probs(cache.model, runs[:, None], prim)  # [R, A, K]
-    m_succ, m_w = _successor_probs(cache.mentor, runs, states)  # [R, Km]
+    m_rows = cache.mentor_rows(runs, states)  # the mentor whose term eq. 2 takes
+    m_succ, m_w = _successor_probs(cache.mentor, runs, m_rows)  # [R, Km]
     same = p_succ[..., :, None] == m_succ[:, None, None, :]  # [R, A, K, Km]
     return (same * p_w[..., None] * m_w[:, None, None, :]).sum((-1, -2))
 

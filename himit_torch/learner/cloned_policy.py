@@ -85,7 +85,7 @@ class ClonedPolicy:
         )
         seen, seen_run = _edges(mentor.num_edges, mentor.edge_row, runs)
         offset = seen_run * stride
-        sources = mentor.edge_row[runs][seen] + offset
+        sources = mentor.row_states(mentor.edge_row[runs][seen]) + offset  # (mentors pooled)
         labels = relabel(inverse, sources, mentor.edge_successor[runs][seen] + offset)
         cloned = clone_policy(
             sources, labels, mentor.edge_count[runs][seen], R * stride, self.num_actions

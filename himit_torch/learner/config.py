@@ -195,6 +195,22 @@ class LearnerConfig:
         tries bound an option's chance of reaching them below ``1 − 0.05^(1/n)`` at 95 %.
         ``None`` = never tested (the paper's eq. 2).""",
     )
+    mentors: int = setting(
+        1,
+        ge=1,
+        le=64,
+        hint="how many demonstration sets the run watches, each with its own mentor model",
+        doc="""
+        Several mentors: the number of mentor models, one per demonstration set
+        (``Learner.add_demonstrations(…, mentor=k)``; they may differ in skill, skill level or
+        organisation). Each mentor's moves go to its own Dirichlet model, and eq. 2 takes the
+        largest of the mentor terms seen at ``s``
+        (:func:`~himit_torch.learner.backups.best_mentor`): each mentor's move is one more
+        thing the learner could do there, so a poor mentor's term counts only where it is the
+        best on offer. The chosen term meets the own options as one mentor's would (its
+        confidence test, override, fading and feasibility). Shaping and cloning pool the
+        mentors' moves. ``1`` = the paper's single mentor.""",
+    )
     eps_start: float = setting(
         0.75,
         ge=0.0,
@@ -381,9 +397,10 @@ class LearnerConfig:
 
 
 #: Version of :class:`LearnerConfig`'s schema, recorded in every checkpoint: 1 — before it was
-#: recorded; 2 — ``mentor_segments``, ``mentor_trial`` and ``mentor_feasibility`` added. A
-#: checkpoint of an older schema resumes with each newer setting at its declared default.
-CONFIG_SCHEMA_VERSION = 2
+#: recorded; 2 — ``mentor_segments``, ``mentor_trial`` and ``mentor_feasibility`` added; 3 —
+#: ``mentors`` added. A checkpoint of an older schema resumes with each newer setting at its
+#: declared default.
+CONFIG_SCHEMA_VERSION = 3
 
 #: The fields the compiled engine reads, in declaration order (the names of its settings tuple).
 KERNEL_FIELDS: tuple[str, ...] = tuple(s.name for s in settings_of(LearnerConfig) if s.info.kernel)

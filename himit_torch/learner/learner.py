@@ -251,7 +251,9 @@ class Learner:
             )
         self.num_rows = M = self.rows.num_rows
         self.model = DirichletSMDPModel(M, S, B, dev, config.concentration)
-        self.mentor = DirichletMentorModel(S, B, dev, config.mentor_concentration)
+        self.mentor = DirichletMentorModel(
+            S, B, dev, config.mentor_concentration, mentors=config.mentors
+        )
         self.keys = seed_streams(torch.tensor(seeds, dtype=torch.int64, device=dev))
         self.sample = PosteriorSample(self.rows, self.model, self.mentor, self.keys, config)
         self.cache = ValueCache(
@@ -289,7 +291,16 @@ class Learner:
             self._load_exact_option_models()
         self.rewards = self._reward_modules(reward, world, B)
         self._check_world_rewards(world)
-        if demonstrations is not None:
+        if isinstance(demonstrations, (list, tuple)):  # one demonstration set per mentor
+            if len(demonstrations) != config.mentors:
+                raise ValueError(
+                    f"{len(demonstrations)} demonstration sets for LearnerConfig.mentors="
+                    f"{config.mentors}: give one set per mentor (or set mentors="
+                    f"{len(demonstrations)})"
+                )
+            for k, demos in enumerate(demonstrations):
+                self.add_demonstrations(demos, mentor=k)
+        elif demonstrations is not None:
             self.add_demonstrations(demonstrations)
         self.resample(self.sampling_runs())  # the sampling runs' first model
         from himit_torch.learner.choice import choose_rows
@@ -413,8 +424,13 @@ class Learner:
                     "the world returned a NaN or infinite reward; rewards must be finite"
                 )
 
-    def add_demonstrations(self, demonstrations, runs: Sequence[int] | None = None) -> None:
-        """Add mentor state sequences to the mentor model of ``runs`` (all by default).
+    def add_demonstrations(
+        self, demonstrations, runs: Sequence[int] | None = None, mentor: int = 0
+    ) -> None:
+        """Add mentor state sequences to the mentor model of ``runs`` (all by default): of
+        mentor number ``mentor`` (``0 … LearnerConfig.mentors − 1``; each mentor has its own
+        model, and eq. 2 takes the largest of their terms,
+        :func:`~himit_torch.learner.backups.best_mentor`).
 
         ``demonstrations`` has ``transitions() -> (from [T], to [T])``; if it also has
         ``check_world(world)``, it is called first (demonstrations of another world are refused);
@@ -429,6 +445,16 @@ class Learner:
                 f"demonstrations must be Demonstrations (or anything with transitions() -> "
                 f"(from [T], to [T])), got {type(demonstrations).__name__}; read a file with "
                 "Demonstrations.load(path)"
+            )
+        if (
+            isinstance(mentor, bool)
+            or not isinstance(mentor, (int, np.integer))
+            or not 0 <= mentor < self.config.mentors
+        ):
+            raise ValueError(
+                f"mentor={mentor!r}: this learner watches LearnerConfig.mentors="
+                f"{self.config.mentors} mentor(s), numbered 0…{self.config.mentors - 1}; "
+                "raise mentors to watch more"
             )
         if hasattr(demonstrations, "check_world"):
             demonstrations.check_world(self.world)
@@ -476,7 +502,8 @@ class Learner:
                 device=self.device,
             )
         )
-        self.mentor.observe(src, dst, run_idx, counts, delays)
+        rows = src + int(mentor) * self.num_states  # mentor k's row of s (DirichletMentorModel)
+        self.mentor.observe(rows, dst, run_idx, counts, delays)
         self.refresh_mentor_reward(run_idx)
         self.refit_cloned_policy(run_idx)
 
@@ -523,7 +550,8 @@ class Learner:
                 if self.config.reward_bound_check == "error":
                     raise ValueError(message)
                 warnings.warn(message, stacklevel=3)
-            src, dst = mentor.edge_row[b, :E], mentor.edge_successor[b, :E]
+            src = mentor.row_states(mentor.edge_row[b, :E])
+            dst = mentor.edge_successor[b, :E]
             r = torch.as_tensor(
                 module.transition_reward(src, dst), dtype=torch.float64, device=self.device
             )
@@ -571,8 +599,8 @@ class Learner:
         out = torch.zeros(runs.numel(), S + 1, dtype=torch.float64, device=self.device)
         for i, b in enumerate(runs.tolist()):
             E = int(mentor.num_edges[b])
-            out[i, :S] = shaping_potential(
-                mentor.edge_row[b, :E],
+            out[i, :S] = shaping_potential(  # (several mentors: their moves pooled)
+                mentor.row_states(mentor.edge_row[b, :E]),
                 mentor.edge_successor[b, :E],
                 mentor.edge_count[b, :E],
                 self.cache.mentor_edge_reward[b, :E],

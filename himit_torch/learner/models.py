@@ -640,6 +640,10 @@ class DirichletMentorModel(EdgeStore):
     so ``edge_delay = edge_count``; more under coarse observation). The segment term
     (``LearnerConfig.mentor_segments``, :func:`~himit_torch.learner.backups.segment_reward`)
     reads it; the paper's one-step term does not.
+
+    Several mentors (``LearnerConfig.mentors``) share the store, one block of rows each: mentor
+    ``k``'s model of state ``s`` is row ``k·S + s`` (:meth:`rows_of`), so each mentor keeps its
+    own counts, edges and posterior, and one mentor is rows ``0 … S − 1`` exactly as before.
     """
 
     _PADDING_ROW_EDGES = False  # the mentor is only ever seen leaving a real state
@@ -653,8 +657,24 @@ class DirichletMentorModel(EdgeStore):
         device="cpu",
         concentration: float = 0.0,
         capacity: int = 256,
+        mentors: int = 1,
     ):
-        super().__init__(num_states, num_states, batch, device, concentration, capacity)
+        if isinstance(mentors, bool) or not isinstance(mentors, int) or mentors < 1:
+            raise ValueError(f"mentors={mentors!r}: the number of mentors must be an int ≥ 1")
+        self.mentors = mentors
+        super().__init__(mentors * num_states, num_states, batch, device, concentration, capacity)
+
+    def rows_of(self, states: torch.Tensor) -> torch.Tensor:
+        """``[..., mentors]`` each mentor's row of ``states`` (the padding state ``S`` maps to
+        the padding row, for every mentor)."""
+        S = self.num_states
+        k = torch.arange(self.mentors, device=states.device) * S
+        rows = states[..., None] + k
+        return torch.where(states[..., None] >= S, torch.full_like(rows, self.num_rows), rows)
+
+    def row_states(self, rows: torch.Tensor) -> torch.Tensor:
+        """The state each mentor row models (``row mod S``)."""
+        return rows % self.num_states if self.mentors > 1 else rows
 
     def observe(
         self,
@@ -711,8 +731,10 @@ class DirichletMentorModel(EdgeStore):
         super().load_state_dict(self._with_delay(state), where, checked=checked)
 
     def observed(self) -> torch.Tensor:
-        """``[B, S]`` bool: states where the mentor was seen leaving (its term exists there)."""
-        return self.row_count[:, : self.num_states] > 0
+        """``[B, S]`` bool: states where a mentor was seen leaving (a mentor term exists there)."""
+        S = self.num_states
+        seen = self.row_count[:, : self.num_rows] > 0
+        return seen if self.mentors == 1 else seen.view(self.batch, self.mentors, S).any(1)
 
     def mean(self, runs: torch.Tensor, states: torch.Tensor):
         """``(successors [..., K], probabilities [..., K])`` posterior means ``p_m(s'|s)``."""

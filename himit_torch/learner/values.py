@@ -12,7 +12,10 @@ is evaluated from caches rather than from the models' successor lists (the pure 
   posterior mean. When ``V(x)`` changes by ``δ``, every row with an edge to ``x`` gets
   ``+ Σγ^k · δ`` (along the reverse edges), which also yields the prioritized-sweeping priority
   ``|ΔQ|`` of the row's state.
-* ``mentor_numerator [B, S + 1]`` likewise holds ``Σ_{s'} c(s→s') (r_m + γ V(s'))``.
+* ``mentor_numerator [B, R_m + 1]`` likewise holds ``Σ_{s'} c(s→s') (r_m + γ V(s'))`` per
+  mentor row (``R_m = K·S`` for ``K`` mentors, :class:`~himit_torch.DirichletMentorModel`; one
+  mentor: a row per state). With several mentors, eq. 2 takes the largest of their terms
+  (:func:`~himit_torch.learner.backups.best_mentor`).
 * ``q_second``/``mentor_second`` hold the second moments the confidence test needs.
 
 Runs that plan on a posterior sample (the ``…_psrl`` agents, :mod:`himit_torch.learner.posterior_sampling`)
@@ -35,6 +38,7 @@ import torch
 
 from himit_torch.learner.backups import (
     MentorConfidence,
+    best_mentor,
     dirichlet_variance,
     feasible_mentor,
     option_backup_edges,
@@ -90,7 +94,7 @@ class ValueCache:
         self.potential = torch.zeros(B, S + 1, dtype=torch.float64, device=dev)
         self.q_numerator = torch.zeros(B, M + 1, dtype=torch.float64, device=dev)
         self.q_second = torch.zeros_like(self.q_numerator)  # Σ (γ^k)² V² / c per row
-        self.mentor_numerator = torch.zeros(B, S + 1, dtype=torch.float64, device=dev)
+        self.mentor_numerator = torch.zeros(B, mentor.num_rows + 1, dtype=torch.float64, device=dev)
         self.mentor_second = torch.zeros_like(self.mentor_numerator)
         self.mentor_edge_reward = torch.zeros(B, mentor.capacity, dtype=torch.float64, device=dev)
         # E[γ^k] per mentor edge (γ: one-step moves; LearnerConfig.mentor_segments: the edge's
@@ -191,6 +195,9 @@ class ValueCache:
     def _state_flat(self, runs, states):
         return runs * (self.num_states + 1) + states
 
+    def _mentor_flat(self, runs, mentor_rows):
+        return runs * (self.mentor.num_rows + 1) + mentor_rows
+
     def row_q(self, runs: torch.Tensor, rows: torch.Tensor) -> torch.Tensor:
         """Posterior-mean option values ``Q`` of ``rows`` (``runs`` broadcast against them);
         untried rows give the prior value ``v0`` if ``concentration > 0`` else ``NaN``."""
@@ -203,9 +210,67 @@ class ValueCache:
 
     def mentor_term(self, runs: torch.Tensor, states: torch.Tensor) -> torch.Tensor:
         """Posterior-mean mentor term ``R_m(s) + γ Σ p_m(s'|s) V(s')`` (NaN where not observed
-        and no prior)."""
-        flat = self._state_flat(runs, states)
+        and no prior); with several mentors, the one eq. 2 takes (:meth:`mentor_rows`)."""
+        flat = self._mentor_flat(runs, self.mentor_rows(runs, states))
         return self._mentor_at(flat, _take(self.mentor.row_count, flat))
+
+    def mentor_rows(self, runs: torch.Tensor, states: torch.Tensor) -> torch.Tensor:
+        """The mentor row whose term enters eq. 2 at ``states`` (``runs`` broadcast): the state
+        itself with one mentor; with several, the observed mentor with the largest term
+        (:func:`~himit_torch.learner.backups.best_mentor`, after feasibility testing where it
+        is on), mentor 0's row where none was seen."""
+        if self.mentor.mentors == 1:
+            return states
+        rows = self.rows.state_rows.index_select(0, states.reshape(-1)).view(*states.shape, -1)
+        flat_rows = self._row_flat(runs[..., None], rows)
+        n_rows = _take(self.model.row_count, flat_rows)
+        enabled = _take(self.rows.row_enabled, flat_rows)
+        return self._chosen_mentor(runs, states, rows, n_rows, enabled)[0]
+
+    def _chosen_mentor(self, runs, states, rows, n_rows, enabled):
+        """``(mentor row, flat index, count, posterior-mean term, observed)`` of the mentor term
+        that enters eq. 2 at ``states`` (:meth:`mentor_rows`): observed where the run imitates,
+        the mentor was seen there and (with ``mentor_feasibility``) its move is not shown
+        infeasible."""
+        cfg, mentor = self.config, self.mentor
+        imitates = self.rows.use_mentor[runs]
+        if mentor.mentors == 1:
+            flat = self._mentor_flat(runs, states)
+            n_m = _take(mentor.row_count, flat)
+            # The mentor term exists only where the mentor was seen (a prior does not create one).
+            observed = imitates & (n_m > 0)
+            if cfg.mentor_feasibility is not None:
+                reached = self.mentor_reached(runs, states, rows, states)
+                observed = observed & feasible_mentor(
+                    reached, n_rows, enabled, cfg.mentor_feasibility
+                )
+            return states, flat, n_m, self._mentor_at(flat, n_m), observed
+        runs_b = runs.expand_as(states)
+        m_rows = mentor.rows_of(states)  # [..., K]
+        flat = self._mentor_flat(runs_b[..., None], m_rows)
+        n_m = _take(mentor.row_count, flat)
+        observed = imitates.expand_as(states)[..., None] & (n_m > 0)
+        if cfg.mentor_feasibility is not None:
+            observed = torch.stack(
+                [
+                    observed[..., k]
+                    & feasible_mentor(
+                        self.mentor_reached(runs, states, rows, m_rows[..., k]),
+                        n_rows,
+                        enabled,
+                        cfg.mentor_feasibility,
+                    )
+                    for k in range(mentor.mentors)
+                ],
+                -1,
+            )
+        m = self._mentor_at(flat, n_m)
+        index, any_observed = best_mentor(m, observed)
+
+        def pick(x):
+            return x.gather(-1, index[..., None])[..., 0]
+
+        return pick(m_rows), pick(flat), pick(n_m), pick(m), any_observed
 
     def _mentor_at(self, flat, n):
         a, v0 = self.config.mentor_concentration, self.config.initial_value
@@ -255,16 +320,9 @@ class ValueCache:
         :func:`~himit_torch.learner.backups.trusted_augmented_backup` evaluates the equation."""
         cfg = self.config
         rows, q, usable, enabled, flat_rows, n_rows = self.own_values(runs, states)
-        flat = self._state_flat(runs, states)
-        n_m = _take(self.mentor.row_count, flat)
-        # The mentor term exists only where the mentor was seen (a prior does not create one).
-        observed = self.rows.use_mentor[runs] & (n_m > 0)
-        if cfg.mentor_feasibility is not None:
-            reached = self.mentor_reached(runs, states, rows)
-            observed = observed & feasible_mentor(reached, n_rows, enabled, cfg.mentor_feasibility)
-        m = self._mentor_at(flat, n_m)
+        _, flat_m, n_m, m, observed = self._chosen_mentor(runs, states, rows, n_rows, enabled)
         tries = (
-            _take(self.model.state_tries, flat)
+            _take(self.model.state_tries, self._state_flat(runs, states))
             if cfg.mentor_override_after is not None or cfg.mentor_fade is not None
             else None
         )
@@ -272,7 +330,7 @@ class ValueCache:
         if self.any_confidence and bool(self.rows.use_confidence[runs].any()):
             confidence = MentorConfidence(
                 own_var=self._row_variance(flat_rows, n_rows, q),
-                mentor_var=self._mentor_variance(flat, n_m, m),
+                mentor_var=self._mentor_variance(flat_m, n_m, m),
                 tested=self.rows.use_confidence[runs],
                 z=cfg.confidence_z,
             )
@@ -293,11 +351,16 @@ class ValueCache:
         return best, has_value, mentor_won
 
     def mentor_reached(
-        self, runs: torch.Tensor, states: torch.Tensor, rows: torch.Tensor
+        self,
+        runs: torch.Tensor,
+        states: torch.Tensor,
+        rows: torch.Tensor,
+        mentor_rows: torch.Tensor | None = None,
     ) -> torch.Tensor:
         """``[..., J]`` how many of each row's outcomes at ``states`` ended in a state the
         mentor was seen moving to from there (``rows``: the states' rows, ``[..., J]``; ``runs``
-        broadcast against ``states``), for :func:`~himit_torch.learner.backups.feasible_mentor`."""
+        broadcast against ``states``; ``mentor_rows``: which mentor's model of the states, by
+        default the first's), for :func:`~himit_torch.learner.backups.feasible_mentor`."""
         model, mentor = self.model, self.mentor
         runs = runs.expand_as(states)
         r = runs[..., None].expand_as(rows)
@@ -306,7 +369,7 @@ class ValueCache:
         flat_e = r[..., None] * model.capacity + edges.clamp(min=0)
         count = torch.where(ok, _take(model.edge_count, flat_e), self._zero)
         succ = torch.where(ok, _take(model.edge_successor, flat_e), torch.full_like(edges, -1))
-        m_edges = mentor.index().forward[runs, states]  # [..., Km]
+        m_edges = mentor.index().forward[runs, states if mentor_rows is None else mentor_rows]
         m_ok = m_edges >= 0
         m_flat = runs[..., None] * mentor.capacity + m_edges.clamp(min=0)
         m_succ = torch.where(
@@ -388,7 +451,7 @@ class ValueCache:
         c = _take(mentor.edge_count, flat_e)
         if self.any_sampling:  # sampled runs: the sampled weight (n + α) w_e
             assert self.sample is not None
-            n_src = _take(mentor.row_count, self._state_flat(r, src))
+            n_src = _take(mentor.row_count, self._mentor_flat(r, src))
             w = _take(self.sample.mentor_w, flat_e)
             c = torch.where(
                 self.rows.use_sampling.index_select(0, r),
@@ -396,7 +459,7 @@ class ValueCache:
                 c,
             )
         cd = c * gd
-        flat = self._state_flat(r, src)
+        flat = self._mentor_flat(r, src)
         self.mentor_numerator.view(-1).index_add_(0, flat, cd)
         if self.any_confidence:
             u_old = _take(self.mentor_edge_reward, flat_e) + discount * old.index_select(0, owner)
@@ -407,7 +470,7 @@ class ValueCache:
             min=1e-300
         )
         push = prio > self.config.priority_threshold
-        return r[push], src[push], prio[push]
+        return r[push], mentor.row_states(src[push]), prio[push]
 
     def add_outcome(self, runs, rows, ends, discounts, returns, c_old, g_old) -> None:
         """Fold one newly counted option outcome per run into the ``Q`` cache (after the model's
@@ -561,7 +624,8 @@ class ValueCache:
         self.q_numerator.view(-1).index_put_((flat_r,), (n + alpha) * q - alpha * v0)
 
     def apply_sample_mentor(self, runs: torch.Tensor, states: torch.Tensor) -> None:
-        """The same for the mentor numerators of ``(runs[i], states[i])`` (observed states):
+        """The same for the mentor numerators of ``(runs[i], states[i])`` (observed mentor rows:
+        states, with one mentor):
         ``m̃ = Σ_e w_e (R_m(s, s'_e) + γ V(s'_e)) + w_unseen v0``, stored as
         ``(n + α_m) m̃ − α_m v0``."""
         assert self.sample is not None
@@ -589,7 +653,7 @@ class ValueCache:
         from himit_torch.learner.posterior_sampling import _descending_sum
 
         acc = _descending_sum(w * (r_e + discount * v), valid)
-        flat_s = self._state_flat(runs, states)
+        flat_s = self._mentor_flat(runs, states)
         m = acc + _take(sample.mentor_unseen, flat_s) * v0
         n = _take(mentor.row_count, flat_s)
         self.mentor_numerator.view(-1).index_put_((flat_s,), (n + alpha) * m - alpha * v0)
@@ -598,13 +662,14 @@ class ValueCache:
         """After a fresh draw for ``runs``: rebuild all their ``Q`` (and, for imitating runs,
         mentor) numerators from the sample, and return the states whose backup now differs
         from ``V`` — ``(runs, states, |ΔV|)`` above the priority threshold — for the sweeper."""
-        M, S = self.num_rows, self.num_states
+        M = self.num_rows
         R = runs.numel()
         rows = torch.arange(M, device=self.device)
         self.apply_sample_rows(runs.repeat_interleave(M), rows.repeat(R))
         imitating = runs[self.rows.use_mentor.index_select(0, runs)]
         if imitating.numel():
-            observed = self.mentor.row_count.index_select(0, imitating)[:, :S] > 0
+            observed = self.mentor.row_count.index_select(0, imitating)[:, : self.mentor.num_rows]
+            observed = observed > 0
             rr, ss = observed.nonzero(as_tuple=True)
             if rr.numel():
                 self.apply_sample_mentor(imitating[rr], ss)

@@ -48,6 +48,10 @@ MENTOR_MODELS = ("learned", "exact")
 #: ``ExperimentConfig.layout``: every doorway open (the paper's), or a maze of rooms.
 LAYOUTS = ("open", "maze")
 
+#: ``ExperimentConfig.second_mentor``: none, or a second demonstration set watched alongside the
+#: first by a mentor that errs (``noisy``) or takes a needless detour (``detour``).
+SECOND_MENTORS = ("none", "noisy", "detour")
+
 #: The settings that stress the learner (docs/stresses.md), each with its neutral default.
 STRESS_SETTINGS = (
     "mentor_episodes",
@@ -159,6 +163,27 @@ class ExperimentConfig:
         then to the goal (``mentor_detour``, ``detour_waypoint``). Only the recorded
         demonstrations change, as for ``mentor_noise``.""",
     )
+    second_mentor: str = setting(
+        "none",
+        choices=SECOND_MENTORS,
+        doc="""
+        Several mentors (``LearnerConfig.mentors``, default ``none``: one mentor). ``noisy``: the
+        learner also watches a second mentor, the same one erring with probability
+        ``second_mentor_noise`` (as ``mentor_noise`` does); ``detour``: a second mentor taking
+        the needless detour of ``mentor_detour``. The second mentor's ``mentor_episodes``
+        episodes come from a generator of its own, and go to the learner's second mentor model
+        (set ``learner.mentors = 2``). The first mentor is the one ``mentor_noise`` and
+        ``mentor_detour`` describe; the "% of mentor" reference stays the undisturbed mentor's
+        policy.""",
+    )
+    second_mentor_noise: float = setting(
+        0.5,
+        ge=0.0,
+        lt=1.0,
+        doc="""
+        How often the ``noisy`` second mentor errs (default 0.5; read only with
+        ``second_mentor = "noisy"``).""",
+    )
     observation_stride: int = setting(
         1,
         ge=1,
@@ -267,6 +292,16 @@ class ExperimentConfig:
             )
             if getattr(self, name) != neutral
         ]
+        watched = 1 + (self.second_mentor != "none")
+        if self.learner.mentors != watched:
+            raise ValueError(
+                f"ExperimentConfig.learner.mentors={self.learner.mentors}: this experiment "
+                f"shows {watched} demonstration set(s) (second_mentor={self.second_mentor!r}); "
+                f"set learner.mentors={watched} (--mentors {watched}), or "
+                f"second_mentor={'noisy' if watched == 1 else 'none'!r}"
+            )
+        if watched > 1:
+            stressed.append(f"second_mentor={self.second_mentor!r}")
         if self.mentor_model == "exact" and stressed:
             raise ValueError(
                 f"ExperimentConfig.mentor_model='exact' is the undisturbed mentor's exact model; "
@@ -305,7 +340,8 @@ class ExperimentConfig:
         options = 4 + 4 * R * (R - 1) + (8 * R * R if self.corner_options else 0)
         rows = 4 * S + (options - 4) * (self.room_size - 1) ** 2
         batch = len(self.agents) * self.seeds
-        mentors = 2 if self.mentor_detour else 1  # a detour's first leg has its own
+        # a detour's first leg has its own
+        mentors = 2 if self.mentor_detour or self.second_mentor == "detour" else 1
         return (
             S * MultiRooms.BYTES_PER_STATE
             + (1 + mentors) * options * S * BYTES_PER_OPTION_STATE

@@ -224,6 +224,10 @@ def run_world(
     del detour
     # what the learner observes of them (config.observation_stride; stride 1: the same objects)
     demos = {s: observe_every(d, config.observation_stride) for s, d in recorded.items()}
+    second = {
+        s: observe_every(d, config.observation_stride)
+        for s, d in _second_mentor(config, world, mentor, seeds).items()
+    }
     # the mentor's own goal rate, exactly, while its options exist
     mentor_eval = (
         None
@@ -248,6 +252,8 @@ def run_world(
         engine=config.engine,
     )
     watch_demonstrations(learner, demos if exact is None else dict.fromkeys(seeds, exact))
+    if second:
+        watch_demonstrations(learner, second, mentor=1)
     optimal_steps, true_v, optimal_eval = _optimum(world, config.window)
     greedy = None
     if mentor_eval is not None:
@@ -435,6 +441,38 @@ def _write_curves(
                     ]
                 )
     os.replace(tmp, path)
+
+
+#: Added to a seed to make the generator of its second mentor's episodes
+#: (``ExperimentConfig.second_mentor``): the first mentor's episodes stay those of a run without.
+SECOND_MENTOR_STREAM = 1 << 40
+
+
+def _second_mentor(config, world, mentor, seeds) -> dict:
+    """Each seed's episodes of the second mentor (``ExperimentConfig.second_mentor``; none:
+    an empty dict): the same mentor erring with ``second_mentor_noise``, or taking the
+    detour of ``mentor_detour``, from its own generator."""
+    if config.second_mentor == "none":
+        return {}
+    detour = (
+        mentor_detour(
+            world, corners=config.corner_options, prefer_extended_within=config.mentor_preference
+        )
+        if config.second_mentor == "detour"
+        else None
+    )
+    noise = config.second_mentor_noise if config.second_mentor == "noisy" else 0.0
+    return {
+        s: record_demonstrations(
+            world,
+            mentor,
+            config.mentor_episodes,
+            seed=s + SECOND_MENTOR_STREAM,
+            noise=noise,
+            detour=detour,
+        )
+        for s in seeds
+    }
 
 
 def _world_figure(run_dir, config, world, demos, learner, agents, run_seeds, seed, size):

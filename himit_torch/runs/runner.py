@@ -251,12 +251,14 @@ def run_names(prefix: str, agents: Sequence[str], run_seeds: Sequence[int]) -> l
     return [f"{prefix}__{a}__seed{s}" for a, s in zip(agents, run_seeds)]
 
 
-def watch_demonstrations(learner: Learner, demos: Mapping[int, Any]) -> None:
+def watch_demonstrations(learner: Learner, demos: Mapping[int, Any], mentor: int = 0) -> None:
     """Each seed's runs watch that seed's mentor episodes (``demos[seed]``: what
-    :meth:`~himit_torch.learner.learner.Learner.add_demonstrations` takes), seed by seed."""
+    :meth:`~himit_torch.learner.learner.Learner.add_demonstrations` takes), seed by seed, as
+    mentor number ``mentor`` (``LearnerConfig.mentors``)."""
     seeds = list(learner.seeds)
     for s in sorted(set(seeds)):
-        learner.add_demonstrations(demos[s], runs=[b for b, rs in enumerate(seeds) if rs == s])
+        runs = [b for b, rs in enumerate(seeds) if rs == s]
+        learner.add_demonstrations(demos[s], runs=runs, mentor=mentor)
 
 
 # ======================================================================= the run directory

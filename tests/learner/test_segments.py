@@ -23,6 +23,7 @@ from himit_torch.learner.backups import (
     segment_mentor_backup,
     segment_reward,
 )
+from himit_torch.learner.config import CONFIG_SCHEMA_VERSION
 from himit_torch.learner.models import DirichletMentorModel
 from himit_torch.mentor.reward import KnownReward
 from himit_torch.state_checks import DamagedState
@@ -317,17 +318,18 @@ def test_options_only_world_is_unaffected():
 
 
 def test_a_checkpoint_from_before_the_new_settings_resumes(world12, mentor_demos12):
-    """A checkpoint written before mentor_segments, mentor_trial and mentor_feasibility existed
-    names none of them: each takes its declared default, and the run goes on exactly."""
+    """A checkpoint written before mentor_segments, mentor_trial, mentor_feasibility and
+    mentors existed names none of them: each takes its declared default, and the run goes on
+    exactly."""
     whole = _learner(world12, mentor_demos12, False, agents=["imitation"])
     whole.run(600)
     half = _learner(world12, mentor_demos12, False, agents=["imitation"])
     half.run(300)
     state = half.state_dict()
-    for name in ("mentor_segments", "mentor_trial", "mentor_feasibility"):
+    for name in ("mentor_segments", "mentor_trial", "mentor_feasibility", "mentors"):
         del state["identity"]["config"][name]
     del state["mentor"]["edge_delay"]
-    assert state.pop("config_schema") == 2  # (written before the schema was recorded)
+    assert state.pop("config_schema") == CONFIG_SCHEMA_VERSION  # (as if written before it was)
     resumed = _learner(world12, None, False, agents=["imitation"])
     resumed.load_state_dict(state)
     resumed.run(300)
@@ -347,7 +349,7 @@ def test_a_checkpoint_of_other_settings_is_refused_naming_them(world12, mentor_d
     with pytest.raises(ValueError, match="identity.config"):
         _learner(world12, None, False, agents=["imitation"]).load_state_dict(state)
     good = half.state_dict()
-    good["config_schema"] = 3
+    good["config_schema"] = CONFIG_SCHEMA_VERSION + 1
     with pytest.raises(ValueError, match="newer than this"):
         _learner(world12, None, False, agents=["imitation"]).load_state_dict(good)
     good["config_schema"] = "2"

@@ -60,8 +60,8 @@ class CacheArrays(NamedTuple):
     values: np.ndarray  # [B, S + 1] V
     q_num: np.ndarray  # [B, M + 1] each row's Q numerator
     q_sec: np.ndarray  # [B, M + 1] its second moment's (confidence runs)
-    m_num: np.ndarray  # [B, S + 1] the mentor term's numerator
-    m_sec: np.ndarray  # [B, S + 1] its second moment's
+    m_num: np.ndarray  # [B, R_m + 1] the mentor term's numerator, per mentor row (K·S rows)
+    m_sec: np.ndarray  # [B, R_m + 1] its second moment's
     m_edge_reward: np.ndarray  # [B, E_m] the mentor's mean reward on each edge
     m_edge_disc: np.ndarray  # [B, E_m] its E[γ^k] (γ: one-step moves)
 
@@ -86,10 +86,10 @@ class OptionModelArrays(NamedTuple):
 class MentorModelArrays(NamedTuple):
     """The mentor model (``DirichletMentorModel``, read only) and its linked lists."""
 
-    edge_row: np.ndarray  # [B, E_m] the state the mentor left
+    edge_row: np.ndarray  # [B, E_m] the mentor row (k·S + state) the mentor left
     edge_succ: np.ndarray  # [B, E_m]
     edge_count: np.ndarray  # [B, E_m]
-    row_count: np.ndarray  # [B, S + 1]
+    row_count: np.ndarray  # [B, R_m + 1] (R_m = K·S: a row per mentor and state)
     row_head: np.ndarray
     row_next: np.ndarray
     succ_head: np.ndarray

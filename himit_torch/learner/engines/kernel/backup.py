@@ -40,11 +40,11 @@ def row_value(st, rows, cache, model, b, row):
 
 
 @njit(inline="always")
-def mentor_feasible(st, rows, model, mentor, b, s):
-    """Whether the mentor term at ``s`` passes feasibility testing
-    (``backups.feasible_mentor``): False once every enabled row there was tried at least
-    ``mentor_feasibility`` times and none of its outcomes ended in a state the mentor was seen
-    moving to from ``s``."""
+def mentor_feasible(st, rows, model, mentor, b, s, m_row):
+    """Whether the mentor term at ``s`` (mentor row ``m_row``: ``s`` with one mentor) passes
+    feasibility testing (``backups.feasible_mentor``): False once every enabled row there was
+    tried at least ``mentor_feasibility`` times and none of its outcomes ended in a state the
+    mentor was seen moving to from ``s``."""
     need = st.mentor_feasibility
     any_enabled = False
     for row in range(rows.row_begin[s], rows.row_begin[s + 1]):
@@ -56,13 +56,37 @@ def mentor_feasible(st, rows, model, mentor, b, s):
         e = model.row_head[b, row]
         while e >= 0:
             if model.edge_count[b, e] > 0:
-                f = mentor.row_head[b, s]
+                f = mentor.row_head[b, m_row]
                 while f >= 0:
                     if mentor.edge_succ[b, f] == model.edge_succ[b, e]:
                         return True  # an own option reached the mentor's successor
                     f = mentor.row_next[b, f]
             e = model.row_next[b, e]
     return not any_enabled
+
+
+@njit(inline="always")
+def chosen_mentor(st, rows, model, mentor, cache, b, s):
+    """``(mentor row, term, count)`` of the mentor term that enters eq. 2 at ``s``
+    (``ValueCache._chosen_mentor``, ``backups.best_mentor``): among the mentors seen at ``s``
+    (and not shown infeasible there), the one with the largest posterior-mean term, the first
+    of equal ones; row −1 where there is none. One mentor: row ``s``."""
+    S = mentor.succ_head.shape[1] - 1
+    mentors = (mentor.row_count.shape[1] - 1) // S
+    mconc = st.mentor_concentration
+    v0 = st.initial_value
+    chosen, best, n_best = -1, 0.0, 0.0
+    for k in range(mentors):
+        r = k * S + s
+        n_m = mentor.row_count[b, r]
+        if not n_m > 0:
+            continue
+        if st.mentor_feasibility > 0 and not mentor_feasible(st, rows, model, mentor, b, s, r):
+            continue
+        m = (cache.m_num[b, r] + mconc * v0) / (n_m + mconc)
+        if chosen < 0 or m > best:
+            chosen, best, n_best = r, m, n_m
+    return chosen, best, n_best
 
 
 @njit(inline="always")
@@ -107,16 +131,16 @@ def state_backup(st, world, rows, cache, model, mentor, b, s):
                     if up > upper:
                         upper = up
     mconc = st.mentor_concentration
-    n_m = mentor.row_count[b, s]
-    ok = rows.use_mentor[b] and n_m > 0
-    m = (cache.m_num[b, s] + mconc * v0) / (n_m + mconc)
+    ok = False
+    m, n_m, m_row = 0.0, 0.0, -1
+    if rows.use_mentor[b]:
+        m_row, m, n_m = chosen_mentor(st, rows, model, mentor, cache, b, s)
+        ok = m_row >= 0
     override = st.mentor_override_after
     if override >= 0 and not model.state_tries[b, s] < override:
         ok = False
-    if ok and st.mentor_feasibility > 0 and not mentor_feasible(st, rows, model, mentor, b, s):
-        ok = False
     if ok and confident_run:
-        second = (cache.m_sec[b, s] + mconc * v0 * v0) / (n_m + mconc)
+        second = (cache.m_sec[b, m_row] + mconc * v0 * v0) / (n_m + mconc)
         mvar = max(second - m * m, 0.0) / (n_m + mconc + 1)
         if not (m - z * np.sqrt(mvar)) > upper:
             ok = False
@@ -179,6 +203,7 @@ def propagate_mentor(st, rows, cache, mentor, sweep, sample, b, x, d, v_old, sam
     mconc = st.mentor_concentration
     any_conf = st.any_confidence and rows.use_conf[b]
     prio = sweep.prio
+    S = mentor.succ_head.shape[1] - 1
     e = mentor.succ_head[b, x]
     while e >= 0:
         disc = cache.m_edge_disc[b, e]
@@ -193,8 +218,9 @@ def propagate_mentor(st, rows, cache, mentor, sweep, sample, b, x, d, v_old, sam
             u_old = cache.m_edge_reward[b, e] + disc * v_old
             cache.m_sec[b, src] += c * ((u_old + gd) ** 2 - u_old**2)
         p = abs(cd) / max(mentor.row_count[b, src] + mconc, 1e-300)
-        if p > max(thr, prio[b, src]):  # (p > thr, and it raises the priority; one test)
-            raise_to(sweep, b, src, p)
+        s = src if src < S else src % S  # the state of mentor row src (several mentors)
+        if p > max(thr, prio[b, s]):  # (p > thr, and it raises the priority; one test)
+            raise_to(sweep, b, s, p)
         e = mentor.succ_next[b, e]
 
 
@@ -204,11 +230,15 @@ def mentor_wins(st, world, rows, cache, model, mentor, out):
     """``out[b]``: how many of run ``b``'s mentor-observed states the mentor term wins eq. 2 in
     (:meth:`Learner.mentor_win_share`), by the kernel's own backup."""
     S = world.terminal.shape[0] - 1
+    mentors = (mentor.row_count.shape[1] - 1) // S
     for b in range(out.shape[0]):
         won_states = 0
         if rows.use_mentor[b]:
             for s in range(S):
-                if mentor.row_count[b, s] > 0:
+                seen = False
+                for k in range(mentors):
+                    seen = seen or mentor.row_count[b, k * S + s] > 0
+                if seen:
                     _, _, won = backup_state(st, world, rows, cache, model, mentor, b, s)
                     if won:
                         won_states += 1

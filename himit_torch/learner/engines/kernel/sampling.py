@@ -185,7 +185,7 @@ def resample(st, world, rows, cache, model, mentor, sweep, sample, key, b):
         k_edge = sample_key(key, ev, 2)
         k_unseen = sample_key(key, ev, 3)
         w_m, wu_m = sample.w_m, sample.wu_m
-        for s in range(S):
+        for s in range(mentor.row_count.shape[1] - 1):  # each mentor row (one mentor: states)
             n = _draw_row(
                 k_edge,
                 k_unseen,

@@ -9,6 +9,7 @@ from numba import njit
 
 from himit_torch.learner.engines.kernel.backup import (
     backup_state,
+    chosen_mentor,
     propagate_mentor,
     propagate_options,
     row_value,
@@ -228,19 +229,22 @@ def plan(st, world, rows, cache, model, mentor, sweep, sample, scratch, b):
 
 
 @njit(inline="always")
-def _mentor_move_scores(rows, model, mentor, scratch, b, here):
+def _mentor_move_scores(st, rows, cache, model, mentor, scratch, b, here):
     """``scratch.score_buf[b, a]``: how well primitive ``a``'s learned one-step model reproduces
-    the mentor's observed move at ``here`` (``choice.mentor_move_scores``)."""
+    the mentor's observed move at ``here`` (``choice.mentor_move_scores``; several mentors: the
+    move of the one whose term eq. 2 takes)."""
     primitive_rows = rows.primitive_rows
     score_buf = scratch.score_buf
-    n_m = max(mentor.row_count[b, here], 1.0)
+    m_row, _, _ = chosen_mentor(st, rows, model, mentor, cache, b, here)
+    m_row = max(m_row, here)  # (none seen: mentor 0's empty row, as the torch path reads it)
+    n_m = max(mentor.row_count[b, m_row], 1.0)
     for a in range(primitive_rows.shape[1]):
         prow = primitive_rows[here, a]
         total = 0.0
         n_p = max(model.row_count[b, prow], 1.0)
         e = model.row_head[b, prow]
         while e >= 0:
-            f = mentor.row_head[b, here]
+            f = mentor.row_head[b, m_row]
             while f >= 0:
                 if mentor.edge_succ[b, f] == model.edge_succ[b, e]:
                     total += (model.edge_count[b, e] / n_p) * (mentor.edge_count[b, f] / n_m)
@@ -257,7 +261,7 @@ def _match_mentor(st, world, rows, cache, model, mentor, scratch, b, here):
     _, _, won = backup_state(st, world, rows, cache, model, mentor, b, here)
     if not won:
         return
-    _mentor_move_scores(rows, model, mentor, scratch, b, here)
+    _mentor_move_scores(st, rows, cache, model, mentor, scratch, b, here)
     score_buf, usable_buf, q_buf = scratch.score_buf, scratch.usable_buf, scratch.q_buf
     first = rows.row_begin[here]
     n_rows = rows.row_begin[here + 1] - first
@@ -295,7 +299,7 @@ def _trial_mentor(st, world, rows, cache, model, mentor, scratch, b, here):
     _, _, won = backup_state(st, world, rows, cache, model, mentor, b, here)
     if not won:
         return
-    _mentor_move_scores(rows, model, mentor, scratch, b, here)
+    _mentor_move_scores(st, rows, cache, model, mentor, scratch, b, here)
     score_buf, usable_buf, q_buf = scratch.score_buf, scratch.usable_buf, scratch.q_buf
     A_p = rows.primitive_rows.shape[1]
     best_score = -1.0
