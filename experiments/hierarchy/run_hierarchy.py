@@ -1,7 +1,8 @@
 """The hierarchy study's runs in one command (PROTOCOL.md): each part's sweeps, their records
 copied into ``experiments/results/hierarchy/``, then ``analyse.py``.
 
-    python experiments/hierarchy/run_hierarchy.py [--parts segments trial puzzlebox]
+    python experiments/hierarchy/run_hierarchy.py
+        [--parts segments trial puzzlebox mentors largest]
         [--logdir runs/hierarchy] [--skip-runs]
 
 Each part's wall time is written to ``experiments/results/hierarchy/timing.json``.
@@ -22,6 +23,11 @@ PARTS = {
     "segments": ("segments_exp2", "segments_exp1"),
     "trial": ("trial_exp1", "trial_feasibility_exp1"),
     "puzzlebox": (),  # (its own script, puzzle_box_h2.py)
+    "mentors": (
+        "mentors_alone_exp2", "detour_alone_exp2", "mentors_exp2",
+        "mentors_alone_exp1", "detour_alone_exp1", "mentors_exp1",
+    ),  # fmt: skip
+    "largest": ("largest_exp3",),
 }
 #: What a sweep's record keeps in the repository: per-run summaries, per-window goals, its spec.
 RECORDS = ("runs.csv", "results.csv", "sweep.json")
