@@ -24,8 +24,12 @@ PARTS = {
     "trial": ("trial_exp1", "trial_feasibility_exp1"),
     "puzzlebox": (),  # (its own script, puzzle_box_h2.py)
     "mentors": (
-        "mentors_alone_exp2", "detour_alone_exp2", "mentors_exp2",
-        "mentors_alone_exp1", "detour_alone_exp1", "mentors_exp1",
+        "mentors_alone_exp2",
+        "detour_alone_exp2",
+        "mentors_exp2",
+        "mentors_alone_exp1",
+        "detour_alone_exp1",
+        "mentors_exp1",
     ),  # fmt: skip
     "largest": ("largest_exp3",),
 }
