@@ -65,6 +65,8 @@ EXPERIMENT_FLAGS = {
     "slip": (["0.2"], 0.2),
     "mentor_noise": (["0.3"], 0.3),
     "mentor_detour": ([], True),  # given as --mentor-detour
+    "mentor_coverage": (["0.5"], 0.5),
+    "mentor_goal": (["top-right"], "top-right"),
     "second_mentor": (["noisy"], "noisy"),  # (with --mentors 2)
     "second_mentor_noise": (["0.3"], 0.3),
     "observation_stride": (["5"], 5),

@@ -11,7 +11,9 @@ class AgentVariant(NamedTuple):
     """What an agent variant of :data:`AGENTS` does (a tuple: ``AGENTS[a][1]`` is ``mentor``)."""
 
     options: str
-    """``"all"`` the batch's options, or ``"primitive"`` its primitive options only."""
+    """``"all"`` the batch's options, ``"primitive"`` its primitive options only, or
+    ``"extended"`` its extended options, with primitives only at states where no extended
+    option starts (an options-only learner: it cannot act at the grain of a primitive mentor)."""
     mentor: bool
     """The mentor term of eq. 2 (eq. 1 with primitives)."""
     confident: bool
@@ -44,7 +46,9 @@ class AgentVariant(NamedTuple):
 #: 2015; :mod:`himit_torch.mentor.potential`); ``bco`` — primitives only, no mentor term, greedy
 #: choices replaced by the policy cloned from the demonstrations relabelled with an inverse model
 #: of the run's own transitions where it has one (behavioural cloning from observation, Torabi,
-#: Warnell & Stone 2018; :mod:`himit_torch.mentor.cloning`, ``LearnerConfig.bco_every``).
+#: Warnell & Stone 2018; :mod:`himit_torch.mentor.cloning`, ``LearnerConfig.bco_every``);
+#: ``imitation_extended``, ``options_extended`` — eq. 2 and the plain learner acting through
+#: extended options only, with primitives only where no extended option starts (doorway cells).
 #: Fields: :class:`AgentVariant`.
 AGENTS = {
     "imitation": AgentVariant("all", True, False, False),
@@ -60,4 +64,6 @@ AGENTS = {
     "pbrs": AgentVariant("all", False, False, False, shaping=True),
     "pbrs_primitives": AgentVariant("primitive", False, False, False, shaping=True),
     "bco": AgentVariant("primitive", False, False, False, cloning=True),
+    "imitation_extended": AgentVariant("extended", True, False, False),
+    "options_extended": AgentVariant("extended", False, False, False),
 }

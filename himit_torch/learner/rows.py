@@ -80,7 +80,12 @@ class RowTable:
 
         B = len(agents)
         primitive = options.is_primitive.to(dev)
-        enabled = torch.zeros(B, O, dtype=torch.bool, device=dev)
+        # "extended" variants: the extended options, and the primitives only at states where no
+        # extended option starts (a doorway, where a doorway option ends)
+        extended_at = torch.zeros(S + 1, dtype=torch.bool, device=dev)
+        extended_at[row_state[~primitive[row_option]]] = True
+        extended_rows = ~primitive[row_option] | ~extended_at[row_state]
+        enabled = torch.zeros(B, M, dtype=torch.bool, device=dev)
         self.use_mentor = torch.zeros(B, dtype=torch.bool, device=dev)
         self.use_confidence = torch.zeros(B, dtype=torch.bool, device=dev)
         self.use_sampling = torch.zeros(B, dtype=torch.bool, device=dev)
@@ -91,7 +96,12 @@ class RowTable:
             self.use_sampling[b] = sampling
             self.use_shaping[b] = shaping
             self.use_cloning[b] = cloning
-            enabled[b] = True if which == "all" else primitive
+            if which == "all":
+                enabled[b] = True
+            elif which == "primitive":
+                enabled[b] = primitive[row_option]
+            else:
+                enabled[b] = extended_rows
             self.use_mentor[b] = mentor
             self.use_confidence[b] = confident
         if not bool(enabled.any(1).all()):
@@ -99,6 +109,4 @@ class RowTable:
                 "an agent variant has no usable option (e.g. 'primitives' with no "
                 "primitive options in the set)"
             )
-        self.row_enabled = torch.cat(
-            [enabled[:, row_option], torch.zeros(B, 1, dtype=torch.bool, device=dev)], 1
-        )
+        self.row_enabled = torch.cat([enabled, torch.zeros(B, 1, dtype=torch.bool, device=dev)], 1)

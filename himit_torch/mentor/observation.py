@@ -25,12 +25,14 @@ What eq. 2 then needs
 
 from __future__ import annotations
 
+import math
+
 import torch
 
 from himit_torch.mentor.demonstrations import Demonstrations
-from himit_torch.validation import COUNT_MAX, as_int
+from himit_torch.validation import COUNT_MAX, as_float, as_int
 
-__all__ = ["CoarseDemonstrations", "observe_every", "observed_indices"]
+__all__ = ["CoarseDemonstrations", "first_part", "observe_every", "observed_indices"]
 
 
 def observed_indices(length: int, stride: int) -> torch.Tensor:
@@ -136,3 +138,22 @@ def observe_every(
     object for ``stride = 1``, else :class:`CoarseDemonstrations`."""
     stride = as_int("observation stride", stride, 1, COUNT_MAX)
     return demonstrations if stride == 1 else CoarseDemonstrations(demonstrations, stride)
+
+
+def first_part(demonstrations: Demonstrations, coverage: float) -> Demonstrations:
+    """Demonstrations that cover only part of the way: each episode's first
+    ``⌈coverage · T⌉`` states (``T`` its states; at least two, one move), as
+    :class:`~himit_torch.Demonstrations` of the same world. ``coverage = 1`` keeps everything.
+
+    >>> import torch
+    >>> from himit_torch import Demonstrations, MultiRooms
+    >>> demos = Demonstrations([torch.tensor([0, 1, 9, 10, 18])], MultiRooms(8, 2))
+    >>> first_part(demos, 0.5).episodes[0].tolist()
+    [0, 1, 9]
+    """
+    coverage = as_float("first_part: coverage", coverage, 0.0, 1.0, low_open=True)
+    episodes = [
+        e[: max(2, math.ceil(coverage * e.numel()))] if e.numel() > 2 else e
+        for e in demonstrations.episodes
+    ]
+    return Demonstrations(episodes, demonstrations.world_description)

@@ -48,6 +48,9 @@ MENTOR_MODELS = ("learned", "exact")
 #: ``ExperimentConfig.layout``: every doorway open (the paper's), or a maze of rooms.
 LAYOUTS = ("open", "maze")
 
+#: ``ExperimentConfig.mentor_goal``: the learner's goal, or the top-right corner cell.
+MENTOR_GOALS = ("same", "top-right")
+
 #: ``ExperimentConfig.second_mentor``: none, or a second demonstration set watched alongside the
 #: first by a mentor that errs (``noisy``) or takes a needless detour (``detour``).
 SECOND_MENTORS = ("none", "noisy", "detour")
@@ -162,6 +165,24 @@ class ExperimentConfig:
         the top-right corner cell ``(0, N − 1)`` — on no shortest path of the open layout —
         then to the goal (``mentor_detour``, ``detour_waypoint``). Only the recorded
         demonstrations change, as for ``mentor_noise``.""",
+    )
+    mentor_coverage: float = setting(
+        1.0,
+        gt=0.0,
+        le=1.0,
+        doc="""
+        Demonstrations that cover only part of the way (default 1: all of it). Each recorded
+        episode keeps its first ``⌈coverage · T⌉`` states (at least two): 0.5 shows the first
+        half of each route, and nothing of the rest.""",
+    )
+    mentor_goal: str = setting(
+        "same",
+        choices=MENTOR_GOALS,
+        doc="""
+        What the mentor demonstrates (default ``same``: the learner's task). ``top-right``: its
+        walk to the top-right corner cell ``(0, N − 1)`` (the detour's waypoint, on no
+        shortest path to the learner's goal), ending there: a mentor demonstrating another goal
+        than the learner's.""",
     )
     second_mentor: str = setting(
         "none",
@@ -302,6 +323,14 @@ class ExperimentConfig:
             )
         if watched > 1:
             stressed.append(f"second_mentor={self.second_mentor!r}")
+        for name, neutral in (("mentor_coverage", 1.0), ("mentor_goal", "same")):
+            if getattr(self, name) != neutral:
+                stressed.append(f"{name}={getattr(self, name)!r}")
+        if self.mentor_goal != "same" and self.mentor_detour:
+            raise ValueError(
+                f"ExperimentConfig.mentor_goal={self.mentor_goal!r}: a mentor demonstrating "
+                "another goal takes no detour to the learner's; set mentor_detour=False"
+            )
         if self.mentor_model == "exact" and stressed:
             raise ValueError(
                 f"ExperimentConfig.mentor_model='exact' is the undisturbed mentor's exact model; "

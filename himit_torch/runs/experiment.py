@@ -38,7 +38,8 @@ from himit_torch.learner.agents import AGENTS
 from himit_torch.learner.config import LearnerConfig
 from himit_torch.learner.learner import Learner
 from himit_torch.learner.presets import agent_settings_text
-from himit_torch.mentor.observation import observe_every
+from himit_torch.mentor.demonstrations import Demonstrations
+from himit_torch.mentor.observation import first_part, observe_every
 from himit_torch.mentor.policy import (
     exact_mentor_transitions,
     mentor_detour,
@@ -220,8 +221,10 @@ def run_world(
             detour=detour,
         )
         for s in seeds
-    }
+    } if config.mentor_goal == "same" else _other_goal(config, world, seeds)  # fmt: skip
     del detour
+    if config.mentor_coverage < 1:  # only the first part of each route (mentor_coverage)
+        recorded = {s: first_part(d, config.mentor_coverage) for s, d in recorded.items()}
     # what the learner observes of them (config.observation_stride; stride 1: the same objects)
     demos = {s: observe_every(d, config.observation_stride) for s, d in recorded.items()}
     second = {
@@ -470,6 +473,28 @@ def _second_mentor(config, world, mentor, seeds) -> dict:
             seed=s + SECOND_MENTOR_STREAM,
             noise=noise,
             detour=detour,
+        )
+        for s in seeds
+    }
+
+
+def _other_goal(config, world, seeds) -> dict:
+    """Each seed's episodes of a mentor demonstrating another goal (``ExperimentConfig.
+    mentor_goal``): its walk to the top-right corner cell, in a copy of the world with that
+    goal, shown to the learner in its own world (where the corner is no goal)."""
+    leg = mentor_detour(
+        world, corners=config.corner_options, prefer_extended_within=config.mentor_preference
+    )
+    return {
+        s: Demonstrations(
+            record_demonstrations(
+                leg.first_leg,
+                leg.to_waypoint,
+                config.mentor_episodes,
+                seed=s,
+                noise=config.mentor_noise,
+            ).episodes,
+            world,
         )
         for s in seeds
     }
