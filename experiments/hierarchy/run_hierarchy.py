@@ -2,7 +2,7 @@
 copied into ``experiments/results/hierarchy/``, then ``analyse.py``.
 
     python experiments/hierarchy/run_hierarchy.py
-        [--parts segments trial puzzlebox mentors largest]
+        [--parts segments trial puzzlebox mentors largest carryover]
         [--logdir runs/hierarchy] [--skip-runs]
 
 Each part's wall time is written to ``experiments/results/hierarchy/timing.json``.
@@ -32,6 +32,12 @@ PARTS = {
         "mentors_exp1",
     ),  # fmt: skip
     "largest": ("largest_exp3",),
+    "carryover": (
+        "partial_exp1",
+        "other_goal_exp1",
+        "options_only_exp1",
+        "options_only_feasibility_exp1",
+    ),
 }
 #: What a sweep's record keeps in the repository: per-run summaries, per-window goals, its spec.
 RECORDS = ("runs.csv", "results.csv", "sweep.json")
