@@ -13,8 +13,9 @@ survival and the correction for many tests — each a thin, named call of the li
   ``scipy.stats.CensoredData``);
 * :func:`first_goal_sign_test` — who reached the goal first, paired by seed;
 * :func:`share_interval` — a share with its exact Clopper–Pearson interval;
-* :func:`holm` — Holm's correction of a family of p-values
-  (``statsmodels.stats.multitest.multipletests``);
+* :func:`holm` — Holm's correction of a family of p-values (the step-down of
+  ``statsmodels.stats.multitest.multipletests(method="holm")``, bit for bit, in NumPy: the
+  puzzle-box report needs it without the ``analysis`` extra);
 * :func:`average_ranks` — ranks of a table's rows with exact ties sharing the mean of the ranks
   they span (``scipy.stats.rankdata``, ``method="average"``), so no row gains from its place in
   the listing.
@@ -22,13 +23,29 @@ survival and the correction for many tests — each a thin, named call of the li
 Every interval is two-sided at ``level`` (default 95 %) and says what it is where it is printed.
 Input that has no answer is refused with a ``ValueError`` naming the argument, never answered
 with NaN: an empty or NaN sample, a p-value outside ``[0, 1]``, a first goal after the budget.
+
+The runners' tables and figures use four plainer helpers, which return tuples and answer a cell
+that has nothing to show with NaN instead of refusing it (a figure's band over windows where
+some runs have no value, a share of no runs):
+
+* :func:`mean_half_width` — ``(mean, half-width of the Student-t interval, n)`` over the finite
+  values (the "mean ± 95 % t" of the Gymnasium, discovery and puzzle-box pages). The same mean
+  and interval as :func:`t_interval`, but its half-width is ``t·s/√n`` computed directly, which
+  can differ from :func:`t_interval`'s ``high − mean`` in the last bits;
+* :func:`wilson_interval` — a share with its Wilson score interval (the puzzle box's shares;
+  :func:`share_interval` is the exact Clopper–Pearson one);
+* :func:`paired_difference` — the mean of paired differences with its t half-width and the
+  Wilcoxon signed-rank p (the puzzle box's paired tests; :func:`paired_comparison` gives a BCa
+  interval, the paired t-test and the sign test);
+* :func:`paired_t_p` — the paired t-test's p on the differences alone (the discovery page's),
+  with its own rule for differences without spread.
 """
 
 from __future__ import annotations
 
 import math
 import warnings
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -54,6 +71,10 @@ __all__ = [
     "share_interval",
     "holm",
     "average_ranks",
+    "mean_half_width",
+    "wilson_interval",
+    "paired_difference",
+    "paired_t_p",
 ]
 
 #: Bootstrap resamples of :func:`bca_interval` and :func:`paired_comparison`.
@@ -273,19 +294,15 @@ def share_interval(count: int, total: int, level: float = 0.95) -> Interval:
 
 
 def holm(p_values: Sequence[float]) -> list[float]:
-    """Holm-adjusted p-values of a family (NaN entries, tests not made, stay NaN and are not
-    counted in the family).
+    """Holm-adjusted p-values of a family, in the order given (NaN entries, tests not made, stay
+    NaN and are not counted in the family). The ``i``-th smallest of ``m`` p-values (from 0) is
+    multiplied by ``m − i``, the products made non-decreasing in that order and capped at 1:
+    the numbers of ``statsmodels.stats.multitest.multipletests(p, method="holm")[1]``, bit for
+    bit (tested against it), without needing statsmodels.
 
     Raises:
         ValueError: a p-value outside ``[0, 1]`` (or infinite), naming it.
     """
-    try:
-        from statsmodels.stats.multitest import multipletests
-    except ImportError:
-        raise ImportError(
-            "himit_torch.statistics.holm needs statsmodels: pip install 'himit_torch[analysis]'"
-        ) from None
-
     p = _sample("holm: p_values", p_values, minimum=0, nan=True)
     outside = np.flatnonzero(~np.isnan(p) & ((p < 0) | (p > 1)))
     if outside.size:
@@ -295,9 +312,11 @@ def holm(p_values: Sequence[float]) -> list[float]:
             "test not made)"
         )
     out = np.full_like(p, np.nan)
-    made = ~np.isnan(p)
-    if made.any():
-        out[made] = multipletests(p[made], method="holm")[1]
+    made = np.flatnonzero(~np.isnan(p))
+    if made.size:
+        order = made[np.argsort(p[made])]
+        adjusted = np.maximum.accumulate(p[order] * np.arange(made.size, 0, -1))
+        out[order] = np.minimum(adjusted, 1.0)
     return out.tolist()
 
 
@@ -317,3 +336,57 @@ def average_ranks(scores: dict[str, float], higher_is_better: bool = True) -> di
     keys = np.array([scores[n] for n in names], dtype=float)
     ranks = _stats().rankdata(-keys if higher_is_better else keys, method="average")
     return {n: float(r) for n, r in zip(names, ranks)}
+
+
+# ============================================================= the runners' tables and figures
+def mean_half_width(
+    values: Iterable[float | None], level: float = 0.95
+) -> tuple[float, float, int]:
+    """``(mean, half-width, n)`` of the Student-t interval of the mean of ``values``: ``n`` the
+    values that are numbers and finite (``None``, NaN and ±inf are left out), the half-width
+    ``t_{(1+level)/2, n−1} · s / √n`` (``s`` the sample standard deviation). No such value:
+    ``(nan, nan, 0)``; one: ``(value, nan, 1)``; values all equal: half-width 0."""
+    v = np.asarray([x for x in values if x is not None and math.isfinite(x)], dtype=np.float64)
+    n = v.size
+    if n == 0:
+        return math.nan, math.nan, 0
+    if n == 1:
+        return float(v[0]), math.nan, 1
+    half = float(_stats().t.ppf(0.5 + level / 2, n - 1) * v.std(ddof=1) / math.sqrt(n))
+    return float(v.mean()), half, n
+
+
+def wilson_interval(k: int, n: int, level: float = 0.95) -> tuple[float, float, float]:
+    """``(k/n, low, high)``: the share ``k`` of ``n`` with its Wilson score interval
+    (``scipy.stats.binomtest(k, n).proportion_ci(method="wilson")``); ``(nan, nan, nan)`` for
+    ``n = 0``."""
+    if n == 0:
+        return math.nan, math.nan, math.nan
+    ci = _stats().binomtest(int(k), int(n)).proportion_ci(confidence_level=level, method="wilson")
+    return k / n, float(ci.low), float(ci.high)
+
+
+def paired_difference(
+    a: Sequence[float] | np.ndarray, b: Sequence[float] | np.ndarray
+) -> tuple[float, float, float]:
+    """``(mean of a − b, half-width of its 95 % t interval, Wilcoxon signed-rank p)``, paired by
+    position (:func:`mean_half_width` of the differences, so a non-finite difference is left
+    out of the mean; ``scipy.stats.wilcoxon``, two-sided; p = 1 when every difference is 0)."""
+    d = np.asarray(a, dtype=np.float64) - np.asarray(b, dtype=np.float64)
+    mean, half, _ = mean_half_width(d)
+    p = 1.0 if not np.any(d) else float(_stats().wilcoxon(d).pvalue)
+    return mean, half, p
+
+
+def paired_t_p(differences: Sequence[float] | np.ndarray) -> float:
+    """The two-sided p of the paired t-test, from the paired ``differences`` alone (the
+    one-sample t-test of their mean against 0, ``scipy.stats.ttest_1samp``): 1 when there are
+    fewer than 2 or all are 0, 0 when all are equal and not 0 (no spread: the difference is
+    exact). :func:`paired_comparison`'s ``t_p`` is the same test on the two samples
+    (``scipy.stats.ttest_rel``), with round-off-sized spread counted as none."""
+    diff = np.asarray(differences, dtype=np.float64)
+    if diff.size < 2 or not np.any(diff):
+        return 1.0
+    if np.all(diff == diff[0]):
+        return 0.0
+    return float(_stats().ttest_1samp(diff, 0.0).pvalue)

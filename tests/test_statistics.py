@@ -15,9 +15,13 @@ from himit_torch.statistics import (
     first_goal_sign_test,
     first_goal_survival,
     holm,
+    mean_half_width,
     paired_comparison,
+    paired_difference,
+    paired_t_p,
     share_interval,
     t_interval,
+    wilson_interval,
 )
 
 
@@ -105,6 +109,53 @@ def test_holm_hand_solved():
     assert holm([0.01, 0.04, 0.03]) == pytest.approx([0.03, 0.06, 0.06])
     out = holm([0.01, float("nan"), 0.04])
     assert math.isnan(out[1]) and out[0] == pytest.approx(0.02) and out[2] == pytest.approx(0.04)
+
+
+def test_holm_is_statsmodels_bit_for_bit():
+    """The step-down in NumPy gives statsmodels' numbers exactly, ties and NaNs included."""
+    multitest = pytest.importorskip("statsmodels.stats.multitest")
+    rng = np.random.default_rng(0)
+    for n in range(1, 40):
+        p = rng.random(n) ** rng.integers(1, 6)
+        if n % 3 == 0:
+            p = np.round(p, 2)  # ties
+        assert holm(p) == multitest.multipletests(p, method="holm")[1].tolist()
+    p = [0.01, math.nan, 0.04, 0.3]
+    made = multitest.multipletests([0.01, 0.04, 0.3], method="holm")[1].tolist()
+    assert [x for x in holm(p) if not math.isnan(x)] == made
+
+
+def test_mean_half_width_by_hand():
+    mean, half, n = mean_half_width([1.0, 2.0, 3.0])  # t(0.975, 2) = 4.302653, sd = 1
+    assert (mean, n) == (2.0, 3) and half == pytest.approx(4.302653 / np.sqrt(3), rel=1e-6)
+    assert mean_half_width([5.0])[:1] == (5.0,) and np.isnan(mean_half_width([5.0])[1])
+    assert mean_half_width([])[2] == 0 and np.isnan(mean_half_width([])[0])
+    # None, NaN and inf are left out; values all equal: no spread
+    assert mean_half_width([1.0, None, math.nan, math.inf, 3.0])[::2] == (2.0, 2)
+    assert mean_half_width([4.0, 4.0, 4.0])[:2] == (4.0, 0.0)
+    # the same interval as t_interval's, up to round-off
+    ci = t_interval([1.0, 2.0, 4.0, 8.0])
+    assert mean_half_width([1.0, 2.0, 4.0, 8.0])[1] == pytest.approx(ci.high - ci.estimate)
+
+
+def test_wilson_interval_and_paired_difference_by_hand():
+    share, low, high = wilson_interval(8, 10)
+    assert share == 0.8 and low == pytest.approx(0.4902, abs=1e-4)
+    assert high == pytest.approx(0.9433, abs=1e-4)
+    assert all(math.isnan(x) for x in wilson_interval(0, 0))
+    mean, half, p = paired_difference([3.0, 5.0, 4.0, 9.0], [1.0, 1.0, 2.0, 2.0])
+    assert mean == pytest.approx(3.75)
+    assert half == pytest.approx(stats.t.ppf(0.975, 3) * stats.sem([2, 4, 2, 7]))
+    assert p == pytest.approx(stats.wilcoxon([2, 4, 2, 7]).pvalue)
+    assert paired_difference([1, 2], [1, 2])[2] == 1.0
+
+
+def test_paired_t_p_by_hand():
+    d = np.array([1.0, 3.0, -0.5, 2.0])
+    assert paired_t_p(d) == pytest.approx(stats.ttest_1samp(d, 0.0).pvalue)
+    assert paired_t_p(d) == pytest.approx(stats.ttest_rel(d, np.zeros(4)).pvalue)
+    assert paired_t_p([0.0, 0.0, 0.0]) == 1.0 and paired_t_p([2.0]) == 1.0
+    assert paired_t_p([2.0, 2.0]) == 0.0  # no spread: the difference is exact
 
 
 def test_round_off_is_no_spread():

@@ -29,7 +29,8 @@ import numpy as np
 
 from himit_torch.statistics import average_ranks, bca_interval, first_goal_survival
 
-# The claims' loader and tests, one place (loaded by path: both scripts are called analyse.py).
+# The claims' loader and tests, one place (loaded by path: both scripts are called analyse.py;
+# only its public names are used).
 _spec = importlib.util.spec_from_file_location(
     "claims_analyse", Path(__file__).resolve().parents[1] / "claims" / "analyse.py"
 )
@@ -37,8 +38,8 @@ claims = importlib.util.module_from_spec(_spec)  # type: ignore[arg-type]
 sys.modules["claims_analyse"] = claims  # (its dataclasses look their module up)
 _spec.loader.exec_module(claims)  # type: ignore[union-attr]
 Test, World = claims.Test, claims.World
-_km_text, adjust, compare, load_dir = (
-    claims._km_text,
+km_text, adjust, compare, load_dir = (
+    claims.km_text,
     claims.adjust,
     claims.compare,
     claims.load_dir,
@@ -495,7 +496,7 @@ def _stress_table(rows: list[dict], steps: int) -> list[str]:
             f = first_goal_survival([int(r["first_goal_step"]) for r in rs], steps).median
             stuck = sum(x == 0.0 for x in greedy)
             out.append(
-                f"{g.format(1)}; {_km_text(f).split(' [')[0]}"
+                f"{g.format(1)}; {km_text(f).split(' [')[0]}"
                 + (f"; {stuck}/{len(rs)} stuck" if stuck else "")
             )
         lines.append(f"| {cell} | " + " | ".join(out) + " |")

@@ -35,9 +35,9 @@ from himit_torch.mentor.policy import record_demonstrations
 from himit_torch.mentor.puzzle_box import organisation_mentor
 from himit_torch.options.puzzle_box import intended_rollout
 from himit_torch.runs.puzzle_box import (
+    PreparedBox,
     PuzzleBoxConfig,
-    _Box,
-    _run_batch,
+    run_box_batch,
     watched_organisation,
 )
 from himit_torch.runs.runner import source_commit
@@ -76,7 +76,7 @@ def main() -> None:
     run_dir = Path(args.logdir)
     base = replace(PuzzleBoxConfig(), seeds=args.seeds, steps=args.steps)
     if not args.skip_runs:
-        box = _Box.build(base.skewers, base.slip, base.pinch_slip)
+        box = PreparedBox.build(base.skewers, base.slip, base.pinch_slip)
         mentors = {org: organisation_mentor(box.world, org) for org in ORGANISATIONS}
         demos = {
             s: record_demonstrations(
@@ -97,8 +97,8 @@ def main() -> None:
             watched = demos if (variant.mentor or variant.shaping or variant.cloning) else None
             tag = f"{agent}_{preset}"
             print(tag, flush=True)
-            _run_batch(config, box, tag, tag, agent, watched, base.steps, base.steps,
-                       run_dir, False, False, plans)  # fmt: skip
+            run_box_batch(config, box, tag, tag, agent, watched, base.steps, base.steps,
+                          run_dir, False, False, plans)  # fmt: skip
         (run_dir / "commit.txt").write_text(source_commit() + "\n")
     write(run_dir, base, OUT if args.seeds >= 20 else None)
 

@@ -219,7 +219,10 @@ def _km(world: World, agent: str) -> Interval:
     return first_goal_survival(world.values(agent, "first_goal"), world.budget).median
 
 
-def _km_text(ci: Interval) -> str:
+def km_text(ci: Interval) -> str:
+    """A Kaplan–Meier median and its interval in thousands of steps ("never": the curve never
+    falls to ½), as the claims' and the benchmark's pages print them."""
+
     def k(x: float) -> str:
         return "never" if math.isinf(x) else f"{x / 1000:.1f}k"
 
@@ -330,7 +333,7 @@ def write(data: dict, claims: list[Test], recommended: list[Test], out: Path) ->
                 s = first_goal_survival(world.values(agent, "first_goal"), world.budget)
                 share = share_interval(s.never, s.runs)
                 cells.append(
-                    f"{_km_text(s.median)} | {s.never}/{s.runs} [{share.low:.2f}, {share.high:.2f}]"
+                    f"{km_text(s.median)} | {s.never}/{s.runs} [{share.low:.2f}, {share.high:.2f}]"
                 )
             lines.append(f"| {name} | {agent} | {' | '.join(cells)} |")
     lines += _recommended_lines(data, recommended)
@@ -399,8 +402,8 @@ def _recommended_lines(data: dict, tests: list[Test]) -> list[str]:
         greedy = bca_interval(world.values("imitation", "greedy_mentor"))
         cells = [
             name,
-            _km_text(mine),
-            f"{best}: {_km_text(theirs)}",
+            km_text(mine),
+            f"{best}: {km_text(theirs)}",
             ratio_text,
             f"{_p(sign.p_holm['sign'])} ({sign.result.wins}–{sign.result.losses})",
             greedy.format(1),
@@ -433,7 +436,7 @@ def _presets_lines(data: dict) -> list[str]:
             cells = [
                 name,
                 preset,
-                _km_text(_km(world, "imitation")),
+                km_text(_km(world, "imitation")),
                 bca_interval(world.values("imitation", "early")).format(0),
                 bca_interval(world.values("imitation", "late")).format(0),
                 bca_interval(world.values("imitation", "greedy_optimal")).format(1),

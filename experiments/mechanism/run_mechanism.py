@@ -24,7 +24,7 @@ from himit_torch import (
 )
 from himit_torch.mentor.diagnostics import mentor_margin_summary
 from himit_torch.runs.config import EXPERIMENTS
-from himit_torch.runs.experiment import _optimum
+from himit_torch.runs.experiment import optimal_reference
 
 #: variant → (agents, LearnerConfig changes from the experiment's own learner settings)
 VARIANTS = {
@@ -85,7 +85,7 @@ def main() -> None:
         start = time.perf_counter()
         learner.run(steps)
         wall = time.perf_counter() - start
-        optimal_steps, _ = _optimum(world)
+        optimal_steps, _, _ = optimal_reference(world, config.window)
         record = {
             "experiment": args.exp,
             "variant": args.variant,

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 import os
 import time
 from dataclasses import asdict, dataclass, replace
@@ -51,6 +52,7 @@ from himit_torch.options.discovery import (
 )
 from himit_torch.runs.config import EXPERIMENTS
 from himit_torch.runs.runner import check_run_dir, run_windows, source_commit, watch_demonstrations
+from himit_torch.statistics import mean_half_width, paired_t_p
 from himit_torch.validation import check_settings, setting
 
 __all__ = [
@@ -58,7 +60,6 @@ __all__ = [
     "DISCOVERY_AGENTS",
     "run_discovery",
     "discovery_run_command",
-    "mean_ci",
 ]
 
 #: The compared learners, in the order of the tables.
@@ -160,30 +161,22 @@ class DiscoveryConfig:
         return json.dumps(asdict(self), indent=2)
 
 
-def mean_ci(values) -> tuple[float, float]:
-    """Mean and half-width of its 95 % confidence interval (Student's t; 0 for one value)."""
-    from scipy import stats
-
+def _mean_ci(values) -> tuple[float, float]:
+    """Mean and half-width of its 95 % t interval (:func:`~himit_torch.statistics.mean_half_width`)
+    as this page has always shown them: a NaN or infinite value makes both NaN (it is not left
+    out), and one value (or none) has half-width 0."""
     x = np.asarray(values, dtype=np.float64)
     if x.size < 2:
         return float(x.mean()), 0.0
-    return float(x.mean()), float(stats.t.ppf(0.975, x.size - 1) * x.std(ddof=1) / np.sqrt(x.size))
+    if not np.isfinite(x).all():
+        return float(x.mean()), math.nan
+    mean, half, _ = mean_half_width(x)
+    return mean, half
 
 
 def _window_goals(learner: Learner) -> np.ndarray:
     """``[B, W]`` goals per window so far."""
     return np.asarray([[int(g) for g in row] for row in learner.metrics.goals_in_window]).T
-
-
-def _paired_p(diff: np.ndarray) -> float:
-    """Two-sided p of the paired t-test of ``diff`` against 0 (1 when all differences are 0)."""
-    from scipy import stats
-
-    if diff.size < 2 or not np.any(diff):
-        return 1.0
-    if np.all(diff == diff[0]):
-        return 0.0
-    return float(stats.ttest_1samp(diff, 0.0).pvalue)
 
 
 def _run_world(config: DiscoveryConfig, exp: str, out: Path, progress: bool) -> dict:
@@ -443,7 +436,7 @@ def discovery_run_command(
 
 
 def _fmt(values, digits: int = 1) -> str:
-    m, h = mean_ci(values)
+    m, h = _mean_ci(values)
     return f"{m:.{digits}f} ± {h:.{digits}f}"
 
 
@@ -545,8 +538,8 @@ def _write_results(out: Path, config: DiscoveryConfig, results: list[dict], tota
         diff = np.asarray(tot["discovered_imitation"], float) - np.asarray(
             tot["imitation_primitives"], float
         )
-        d_mean, d_half = mean_ci(diff)
-        p_value = _paired_p(diff)
+        d_mean, d_half = _mean_ci(diff)
+        p_value = paired_t_p(diff)
         beats = d_mean - d_half > 0
         lines += [
             "",

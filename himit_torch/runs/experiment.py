@@ -60,6 +60,7 @@ from himit_torch.runs.runner import (
     clear_run_dir,
     run_names,
     run_windows,
+    share_cores,
     source_commit,
     watch_demonstrations,
     write_atomically,
@@ -73,6 +74,7 @@ __all__ = [
     "run_world",
     "WorldResult",
     "rewrite_report",
+    "optimal_reference",
     "PAPER",
 ]
 
@@ -132,9 +134,11 @@ class WorldResult:
         return [100.0 * g / best for g in self.goals]
 
 
-def _optimum(world: MultiRooms, window: int) -> tuple[float, float, PolicyEvaluation]:
-    """Expected steps of the optimal (primitive) policy from start to goal, V*(start), and its
-    exact evaluation (the reference of the greedy policies' "% of optimum")."""
+def optimal_reference(world: MultiRooms, window: int) -> tuple[float, float, PolicyEvaluation]:
+    """The optimum a world's runs are measured against: the expected steps of the optimal
+    (primitive) policy from start to goal, ``V*(start)``, and that policy's exact evaluation
+    over windows of ``window`` steps (the reference of the greedy policies' "% of optimum", and
+    the ``optimal_*`` numbers of :class:`WorldResult`)."""
     prims = primitive_options(world)
     models = option_models_and_durations(world, prims)
     plan = smdp_value_iteration(models[0])
@@ -257,7 +261,7 @@ def run_world(
     watch_demonstrations(learner, demos if exact is None else dict.fromkeys(seeds, exact))
     if second:
         watch_demonstrations(learner, second, mentor=1)
-    optimal_steps, true_v, optimal_eval = _optimum(world, config.window)
+    optimal_steps, true_v, optimal_eval = optimal_reference(world, config.window)
     greedy = None
     if mentor_eval is not None:
         greedy = GreedyTracker(
@@ -610,7 +614,7 @@ def run_experiments(
         pool = ProcessPoolExecutor(
             workers_used,
             mp_context=multiprocessing.get_context("spawn"),
-            initializer=_share_cores,
+            initializer=share_cores,
             initargs=(max(1, cores // workers_used),),
         )
         try:
@@ -728,19 +732,6 @@ def rewrite_report(run_dir: str | os.PathLike) -> None:
             )
         finished[size] = WorldResult(**json.loads(path.read_text()))
     _write_report(run_dir, config, finished)
-
-
-def _share_cores(threads: int) -> None:
-    """A world's process: one torch thread, ``threads`` for the compiled engine. (Numba's
-    threading layer, launched by ``set_num_threads``, resets the OpenMP thread count torch
-    shares, so torch's is set after it.)"""
-    try:
-        import numba
-
-        numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))  # type: ignore[attr-defined]
-    except ImportError:
-        pass
-    torch.set_num_threads(1)
 
 
 def _merge_curves(run_dir: Path, config: ExperimentConfig) -> None:

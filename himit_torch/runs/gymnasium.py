@@ -76,7 +76,7 @@ from himit_torch.runs.runner import (
     source_commit,
     watch_demonstrations,
 )
-from himit_torch.statistics import bca_interval
+from himit_torch.statistics import bca_interval, mean_half_width
 from himit_torch.validation import as_device, check_settings, setting
 from himit_torch.viz.tensorboard import TensorBoardLogger, tensorboard_command
 from himit_torch.worlds.gymnasium import from_gymnasium
@@ -90,7 +90,6 @@ __all__ = [
     "gym_run_command",
     "run_task",
     "neutral_value",
-    "mean_ci",
 ]
 
 
@@ -313,20 +312,6 @@ def gym_run_command(
 
 
 # ================================================================================ evaluation
-def mean_ci(values, level: float = 0.95) -> tuple[float, float, int]:
-    """``(mean, half-width, n)`` of a Student-t confidence interval for the mean over seeds."""
-    from scipy import stats
-
-    v = np.asarray([x for x in values if x is not None and math.isfinite(x)], dtype=np.float64)
-    n = v.size
-    if n == 0:
-        return float("nan"), float("nan"), 0
-    if n == 1:
-        return float(v[0]), float("nan"), 1
-    half = float(stats.t.ppf(0.5 + level / 2, n - 1) * v.std(ddof=1) / math.sqrt(n))
-    return float(v.mean()), half, n
-
-
 def episode_statistics(world: TableWorld, policy: torch.Tensor) -> tuple[float, float]:
     """``(P(goal), E[steps])`` of an episode from the start distribution under the primitive
     ``policy [S]`` (exact: :func:`~himit_torch.exact.greedy_evaluation.evaluate_option_choice`
@@ -643,7 +628,7 @@ def write_gym_figures(run_dir: Path, config: GymExperimentConfig, summaries: lis
         for agent, (steps, goals, gaps) in curves[task].items():
             color = AGENT_COLORS.get(agent)
             for ax, data in ((ax_goals, goals), (ax_gap, gaps)):
-                stats = [mean_ci(data[:, i]) for i in range(data.shape[1])]
+                stats = [mean_half_width(data[:, i]) for i in range(data.shape[1])]
                 mean = np.array([s[0] for s in stats])
                 half = np.nan_to_num(np.array([s[1] for s in stats]))
                 ax.plot(steps, mean, color=color, lw=2, label=f"{agent} (n={data.shape[0]})")

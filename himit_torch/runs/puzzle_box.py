@@ -98,6 +98,8 @@ __all__ = [
     "greedy_values",
     "greedy_plan",
     "run_puzzle_box",
+    "PreparedBox",
+    "run_box_batch",
     "puzzle_box_run_command",
     "recorded_run_command",
     "VARIANTS",
@@ -345,9 +347,11 @@ def greedy_plan(
 
 # ================================================================================ one batch
 @dataclass
-class _Box:
+class PreparedBox:
     """A box and what every batch on it shares: its learner options, the exact evaluator of
-    greedy policies, ``V*(start)`` and the optimal policy's expected steps to open it."""
+    greedy policies, ``V*(start)`` and the optimal policy's expected steps to open it. Build one
+    with :meth:`build`; :func:`run_box_batch` runs a condition's batch on it (the building block
+    of :func:`run_puzzle_box`, also for scripts that run their own set of conditions)."""
 
     world: PuzzleBox
     options: Options
@@ -356,7 +360,12 @@ class _Box:
     steps_star: float
 
     @classmethod
-    def build(cls, skewers: int, slip: float, pinch_slip: float | None, pinch: bool = True) -> _Box:
+    def build(
+        cls, skewers: int, slip: float, pinch_slip: float | None, pinch: bool = True
+    ) -> PreparedBox:
+        """The box of ``skewers`` skewers with these slips (:class:`~himit_torch.PuzzleBox`),
+        its learner options (:func:`~himit_torch.options.puzzle_box.puzzle_box_options`;
+        ``pinch=False``: without the pinch grip) and its references."""
         world = PuzzleBox(skewers, slip=slip, pinch_slip=pinch_slip)
         options = puzzle_box_options(world, "learner", pinch=pinch)
         # The optimum over primitives: its models once, for its steps and V*(start) (the exact
@@ -369,9 +378,9 @@ class _Box:
         return cls(world, options, evaluator, optimal_value(world, models, plan), float(steps))
 
 
-def _run_batch(
+def run_box_batch(
     config: PuzzleBoxConfig,
-    box: _Box,
+    box: PreparedBox,
     tag: str,
     condition: str,
     agent: str,
@@ -384,8 +393,22 @@ def _run_batch(
     mentor_plans: dict[str, list[int]],
     focus: int | None = None,
 ) -> dict[str, Any]:
-    """One condition's runs (every seed) on one box; returns the batch's summary (also written
-    to ``batches/<tag>.json`` with its window rows in ``batches/<tag>.csv``)."""
+    """One condition's runs on one box: a learner batch of ``agent`` over ``config``'s seeds
+    (its learner settings, engine and checkpoint interval), run for ``steps`` steps, every seed
+    watching its own ``demos`` (``None``: no demonstrations). Returns the batch's summary, also
+    written to ``run_dir/batches/<tag>.json`` with its window rows in ``batches/<tag>.csv``.
+
+    Args:
+        tag: the batch's name (its files, checkpoint and TensorBoard runs).
+        condition: the condition's label in the records.
+        eval_every: steps between the exact evaluations of the greedy policies (and at the end).
+        resume: continue from the batch's checkpoint and evaluations in ``run_dir``.
+        progress: print the batch's progress.
+        mentor_plans: organisation → the mentor's states when nothing slips (a run whose greedy
+            plan goes through exactly these copied the mentor's movements); ``{}``: not compared.
+        focus: also score the organisation for skewer ``focus`` alone (0-based; experiment
+            (c)'s new skewer), as :func:`greedy_plan`.
+    """
     world, seeds = box.world, config.seed_list
     agents = [agent] * len(seeds)
     learner = Learner(
@@ -606,13 +629,15 @@ def run_puzzle_box(
     }
     batches: list[dict[str, Any]] = []
 
-    def batch(box: _Box, tag, condition, agent, watched, steps, eval_every, plans, focus=None):
+    def batch(
+        box: PreparedBox, tag, condition, agent, watched, steps, eval_every, plans, focus=None
+    ):
         done = run_dir / "batches" / f"{tag}.json"
         if resume and done.exists():
             batches.append(json.loads(done.read_text()))
             return
         batches.append(
-            _run_batch(
+            run_box_batch(
                 config, box, tag, condition, agent, watched, steps, eval_every, run_dir,
                 resume, progress, plans, focus,
             )
@@ -624,7 +649,7 @@ def run_puzzle_box(
         org: intended_rollout(small, mentors[org].options, mentors[org].option)[0].tolist()
         for org in ORGANISATIONS
     }
-    speed_box = _Box.build(config.skewers, config.slip, config.pinch_slip)
+    speed_box = PreparedBox.build(config.skewers, config.slip, config.pinch_slip)
     for condition, agent in SPEED_CONDITIONS.items():
         watched = demos if agent == "imitation" else None
         batch(speed_box, f"speed_{condition}", condition, agent, watched, config.steps,
@@ -633,7 +658,7 @@ def run_puzzle_box(
     for variant in config.variants:
         if variant == "harder_pinch":
             # the same mentors on a box where their pinch fails more often: their episodes again
-            box = _Box.build(config.skewers, config.slip, config.harder_pinch)
+            box = PreparedBox.build(config.skewers, config.slip, config.harder_pinch)
             mentors_v = {org: organisation_mentor(box.world, org) for org in ORGANISATIONS}
             demos_v = {
                 s: record_demonstrations(
@@ -643,14 +668,14 @@ def run_puzzle_box(
                 for s in config.seed_list
             }  # fmt: skip
         else:  # the same box and episodes, a learner without the pinch
-            box = _Box.build(config.skewers, config.slip, config.pinch_slip, pinch=False)
+            box = PreparedBox.build(config.skewers, config.slip, config.pinch_slip, pinch=False)
             demos_v = demos
         for condition in ("imitation", "options"):
             watched = demos_v if condition == "imitation" else None
             batch(box, f"{variant}_{condition}", condition, condition, watched, config.steps,
                   config.eval_every, plans)  # fmt: skip
         del box
-    big = _Box.build(config.transfer_skewers, config.slip, config.pinch_slip)
+    big = PreparedBox.build(config.transfer_skewers, config.slip, config.pinch_slip)
     for condition, agent in TRANSFER_CONDITIONS.items():
         watched = (
             None

@@ -18,20 +18,16 @@ from __future__ import annotations
 
 import math
 import shlex
-from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from himit_torch.runs.gymnasium import mean_ci
 from himit_torch.runs.runner import source_commit
+from himit_torch.statistics import holm, mean_half_width, paired_difference, wilson_interval
 
 __all__ = [
     "rewrite_puzzle_box_report",
-    "wilson",
-    "holm",
-    "paired_difference",
     "write_puzzle_box_figures",
     "write_puzzle_box_results",
 ]
@@ -55,46 +51,13 @@ _TIME_LINES = (
 
 
 # ================================================================================ statistics
-def wilson(k: int, n: int, level: float = 0.95) -> tuple[float, float, float]:
-    """Share ``k/n`` and its Wilson score interval (``nan`` for ``n = 0``)."""
-    from scipy import stats
-
-    if n == 0:
-        return math.nan, math.nan, math.nan
-    ci = stats.binomtest(int(k), int(n)).proportion_ci(confidence_level=level, method="wilson")
-    return k / n, float(ci.low), float(ci.high)
-
-
-def holm(pvalues: Sequence[float]) -> list[float]:
-    """Holm's step-down adjusted p-values (same order as given)."""
-    p = np.asarray(pvalues, dtype=np.float64)
-    order = np.argsort(p)
-    adjusted = np.empty_like(p)
-    running = 0.0
-    for rank, i in enumerate(order):
-        running = max(running, min(1.0, (p.size - rank) * p[i]))
-        adjusted[i] = running
-    return adjusted.tolist()
-
-
-def paired_difference(a, b) -> tuple[float, float, float]:
-    """``(mean of a − b, half-width of its 95 % t interval, Wilcoxon signed-rank p)``, paired
-    by position (p = 1 when every difference is 0)."""
-    from scipy import stats
-
-    d = np.asarray(a, dtype=np.float64) - np.asarray(b, dtype=np.float64)
-    mean, half, _ = mean_ci(d)
-    p = 1.0 if not np.any(d) else float(stats.wilcoxon(d).pvalue)
-    return mean, half, p
-
-
 def _firsts(runs: list[dict], steps: int) -> np.ndarray:
     """First openings, a run that never opened counted at ``steps + 1``."""
     return np.array([r["first_opening"] if r["first_opening"] >= 0 else steps + 1 for r in runs])
 
 
 def _cell(values, digits: int = 1) -> str:
-    mean, half, n = mean_ci(values)
+    mean, half, n = mean_half_width(values)
     if n == 0:
         return "–"
     return (
@@ -105,7 +68,7 @@ def _cell(values, digits: int = 1) -> str:
 
 
 def _share(k: int, n: int) -> str:
-    share, low, high = wilson(k, n)
+    share, low, high = wilson_interval(k, n)
     return "–" if n == 0 else f"{k}/{n} = {share:.0%} [{low:.0%}, {high:.0%}]"
 
 
@@ -211,7 +174,7 @@ def write_puzzle_box_figures(run_dir: Path, summary: dict) -> None:
         ax_first.set_xlabel("step of the first opening (log; dots: seeds)")
         for c, tag in tags.items():
             at, values = _evals(run_dir, tag, "value")
-            stats = [mean_ci(values[:, i]) for i in range(values.shape[1])]
+            stats = [mean_half_width(values[:, i]) for i in range(values.shape[1])]
             mean = np.array([s[0] for s in stats])
             half = np.nan_to_num(np.array([s[1] for s in stats]))
             ax_value.plot(at, mean, color=colors[c], lw=2, label=f"{c} (n={values.shape[0]})")
@@ -248,7 +211,7 @@ def _organisation_figure(run_dir: Path, fig_dir: Path, summary: dict) -> None:
             continue
         steps, follows = _follows_over_time(run_dir, summary, tag)
         n = follows.shape[0]
-        share = np.array([wilson(int(f.sum()), n) for f in follows.T])
+        share = np.array([wilson_interval(int(f.sum()), n) for f in follows.T])
         ax_time.plot(steps, share[:, 0], color=color, ls=ls, lw=2, label=f"{label} (n={n})")
         ax_time.fill_between(steps, share[:, 1], share[:, 2], color=color, alpha=0.12, lw=0)
     ax_time.set_ylim(0, 1)

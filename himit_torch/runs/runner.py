@@ -13,8 +13,9 @@ experiment (:mod:`himit_torch.runs.discovery`) share, read top to bottom::
 Around it, what every runner needs to set a batch up and keep its run directory honest: the
 batch's runs (:func:`batch_runs`, :func:`run_names`), each seed's demonstrations
 (:func:`watch_demonstrations`), checkpoints with resume (:class:`Checkpoints`), the run
-directory's checks (:func:`check_run_dir`, :func:`clear_run_dir`) and the code's commit
-(:func:`source_commit`). What a runner measures and reports stays in its own module.
+directory's checks (:func:`check_run_dir`, :func:`clear_run_dir`), the code's commit
+(:func:`source_commit`) and the threads of a world's process among others
+(:func:`share_cores`). What a runner measures and reports stays in its own module.
 """
 
 from __future__ import annotations
@@ -54,6 +55,7 @@ __all__ = [
     "source_commit",
     "state_layout_version",
     "write_atomically",
+    "share_cores",
 ]
 
 #: A per-window hook: ``hook(learner, index)`` with ``index`` the window's entry in
@@ -317,3 +319,18 @@ def write_atomically(path: Path, text: str) -> None:
     tmp = path.with_suffix(path.suffix + ".tmp")
     tmp.write_text(text)
     os.replace(tmp, path)
+
+
+def share_cores(threads: int) -> None:
+    """Set up a process that runs one world among others on the same machine: one torch thread,
+    ``threads`` for the compiled engine (capped at Numba's ``NUMBA_NUM_THREADS``; nothing to set
+    without Numba). The world processes of ``run_experiments`` and a sweep's trials call it
+    first. (Numba's threading layer, launched by ``set_num_threads``, resets the OpenMP thread
+    count torch shares, so torch's is set after it.)"""
+    try:
+        import numba
+
+        numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))  # type: ignore[attr-defined]
+    except ImportError:
+        pass
+    torch.set_num_threads(1)

@@ -93,7 +93,7 @@ from typing import Any
 
 from himit_torch.learner.config import LearnerConfig
 from himit_torch.runs.config import EXPERIMENTS, ExperimentConfig, load_config
-from himit_torch.runs.experiment import source_commit
+from himit_torch.runs.runner import share_cores, source_commit
 from himit_torch.statistics import bca_interval, share_interval, t_interval
 from himit_torch.validation import (
     COUNT_MAX,
@@ -409,10 +409,10 @@ def _trial_state(trial: Trial) -> str:
 def run_trial(config_json: str, run_dir: str, resume: bool, threads: int | None = None) -> dict:
     """Run (or resume) one trial; what a Ray task or the in-process loop calls. Returns the
     engine, commit and wall seconds of its world."""
-    from himit_torch.runs.experiment import _share_cores, run_experiment
+    from himit_torch.runs.experiment import run_experiment
 
     if threads is not None:
-        _share_cores(threads)
+        share_cores(threads)
     data = json.loads(config_json)
     data["learner"] = LearnerConfig(**data["learner"])
     config = ExperimentConfig(**data)

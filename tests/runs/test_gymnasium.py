@@ -7,7 +7,6 @@ import subprocess
 import sys
 from pathlib import Path
 
-import numpy as np
 import pytest
 import torch
 
@@ -16,7 +15,6 @@ from himit_torch.exact.planning import value_iteration
 from himit_torch.runs.gymnasium import (
     TASKS,
     GymExperimentConfig,
-    mean_ci,
     neutral_value,
     optimal_goals_per_window,
     run_gym_experiment,
@@ -73,13 +71,6 @@ def test_the_value_gap_by_hand(cliff):
         torch.full((1, 48, 4), 0.25, dtype=torch.float64),
     )
     assert gap(random) == pytest.approx(v_star - float(V[36]))
-
-
-def test_mean_ci_by_hand():
-    mean, half, n = mean_ci([1.0, 2.0, 3.0])
-    assert (mean, n) == (2.0, 3) and half == pytest.approx(4.302653 / np.sqrt(3), rel=1e-6)
-    assert mean_ci([5.0])[:1] == (5.0,) and np.isnan(mean_ci([5.0])[1])
-    assert mean_ci([])[2] == 0
 
 
 def test_task_settings(cliff):
