@@ -15,28 +15,37 @@ import json
 import math
 import subprocess
 from collections import defaultdict
-from dataclasses import dataclass
 from pathlib import Path
 
 import matplotlib
 
 matplotlib.use("Agg")
+import later_parts as later  # noqa: E402
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from common import (  # noqa: E402
+    ENDPOINTS,
+    HERE,
+    SCHEDULES,
+    WORLDS,
+    Test,
+    compare,
+    fmt_interval,
+    km_text,
+    load_runs,
+    show_test,
+    values,
+)
 
 from himit_torch.statistics import (  # noqa: E402
     bca_interval,
     first_goal_sign_test,
-    first_goal_survival,
     holm,
     paired_comparison,
 )
 
-HERE = Path(__file__).resolve().parent
-#: The worlds of the runs: sweep base → (label, budget in steps).
-WORLDS = {"exp2": ("exp2, 40×40", 200_000), "exp1": ("exp1, 80×80", 300_000)}
-#: Schedule presets, in the order the tables show them.
-SCHEDULES = {"paper": "ε per decision (paper)", "explore-goals": "ε held until 10 goals"}
+#: H1's worlds.
+SEGMENT_WORLDS = ("exp2", "exp1")
 #: H1's methods: label → (agent, segments).
 SEGMENT_METHODS = {
     "eq. 2": ("imitation", False),
@@ -52,11 +61,6 @@ SEGMENT_TESTS = (
 )
 #: Reported beside the family, not in it (PROTOCOL.md: "also reported").
 SEGMENT_ALSO = (("H1d′", "eq. 2 + segments", "eq. 1"),)
-ENDPOINTS = {
-    "greedy": "greedy policy at the end, % of the mentor's rate",
-    "first_goal": "first goal (sign test on who reached it first)",
-    "goals": "goals over the whole run",
-}
 TARGET = 95.0  # H1a: % of the mentor's rate
 #: H3's cells: label → (sweep, the rows' mentor_trial value or None: every row of the sweep).
 TRIAL_CELLS = {
@@ -67,30 +71,6 @@ TRIAL_CELLS = {
 TRIAL_AGENTS = {"eq. 2": "imitation", "eq. 1": "imitation_primitives"}
 #: H2's cells (``puzzlebox_<cell>/summary.json``), labels.
 BOX_CELLS = {"off": "off", "trial": "trial", "trial_feasibility": "trial + feasibility"}
-
-
-@dataclass
-class Test:
-    family: str
-    name: str
-    world: str
-    condition: str
-    schedule: str
-    a: str
-    b: str
-    endpoint: str
-    difference: float
-    low: float
-    high: float
-    p: float
-    wins: int
-    losses: int
-    p_holm: float = math.nan
-
-
-def load_runs(path: Path) -> list[dict]:
-    with path.open() as f:
-        return list(csv.DictReader(f))
 
 
 def trial_cells(results: Path) -> dict:
@@ -298,25 +278,6 @@ def segment_cells(rows: list[dict]) -> dict:
     return cells
 
 
-def values(cell: dict, endpoint: str) -> np.ndarray:
-    seeds = sorted(cell)
-    if endpoint == "greedy":
-        return np.array([float(cell[s]["greedy_percent_of_mentor"]) for s in seeds])
-    if endpoint == "goals":
-        return np.array([float(cell[s]["total_goals"]) for s in seeds])
-    return np.array([int(float(cell[s]["first_goal_step"])) for s in seeds])
-
-
-def compare(a: dict, b: dict, endpoint: str) -> tuple[float, float, float, float, int, int]:
-    if sorted(a) != sorted(b):
-        raise ValueError("the cells' seeds differ: the comparison is paired by seed")
-    if endpoint == "first_goal":
-        r = first_goal_sign_test(values(a, endpoint), values(b, endpoint))
-        return r.difference.estimate, math.nan, math.nan, r.sign_p, r.wins, r.losses
-    r = paired_comparison(values(a, endpoint), values(b, endpoint))
-    return r.difference.estimate, r.difference.low, r.difference.high, r.t_p, r.wins, r.losses
-
-
 def segment_tests(cells: dict, worlds: list[str]) -> tuple[list[Test], list[Test]]:
     family, also = [], []
     for world in worlds:
@@ -338,34 +299,6 @@ def segment_tests(cells: dict, worlds: list[str]) -> tuple[list[Test], list[Test
 
 
 # ------------------------------------------------------------------------------------ output
-def fmt_interval(iv) -> str:
-    return f"{iv.estimate:.1f} [{iv.low:.1f}, {iv.high:.1f}]"
-
-
-def km_text(cell: dict, budget: int) -> str:
-    s = first_goal_survival(values(cell, "first_goal"), budget)
-    median = "never" if math.isinf(s.median.estimate) else f"{s.median.estimate / 1000:.1f}k"
-    return median + (f"; {s.never}/{s.runs} never" if s.never else "")
-
-
-def verdict(t: Test) -> str:
-    if math.isnan(t.p_holm):
-        return "(outside the family)"
-    if t.p_holm < 0.05:
-        return "**better**" if t.difference > 0 else "**worse**"
-    return "n.s."
-
-
-def show_test(t: Test) -> str:
-    if t.endpoint in ("first_goal", "first opening"):
-        when = "sooner" if t.difference >= 0 else "later"
-        diff = f"median {abs(t.difference) / 1000:.1f}k steps {when}; {t.wins}–{t.losses}"
-    elif t.endpoint == "value gap":
-        diff = f"{t.difference:+.4f} [{t.low:+.4f}, {t.high:+.4f}]; {t.wins}–{t.losses}"
-    else:
-        diff = f"{t.difference:+.1f} [{t.low:+.1f}, {t.high:+.1f}]; {t.wins}–{t.losses}"
-    p_holm = "" if math.isnan(t.p_holm) else f"{t.p_holm:.3g}"
-    return f"{diff} | {t.p:.3g} | {p_holm} | {verdict(t)}"
 
 
 def segment_lines(cells: dict, worlds: list[str], family: list[Test], also: list[Test]) -> list:
@@ -508,9 +441,11 @@ def main() -> None:
     parser.add_argument("--results", default=str(HERE.parent / "results" / "hierarchy"))
     args = parser.parse_args()
     results = Path(args.results)
-    sweeps = [f"segments_{w}" for w in WORLDS if (results / f"segments_{w}" / "runs.csv").exists()]
+    sweeps = [
+        f"segments_{w}" for w in SEGMENT_WORLDS if (results / f"segments_{w}" / "runs.csv").exists()
+    ]
     rows = [r for name in sweeps for r in load_runs(results / name / "runs.csv")]
-    worlds = [w for w in WORLDS if f"segments_{w}" in sweeps]
+    worlds = [w for w in SEGMENT_WORLDS if f"segments_{w}" in sweeps]
     cells = segment_cells(rows)
     family, also = segment_tests(cells, worlds)
     helped = hierarchy_helps(family)
@@ -519,34 +454,75 @@ def main() -> None:
     h2 = box_cells(results)
     h2_tests = box_tests(h2) if h2 else []
     recorded = sweeps + [n for n in ("trial_exp1", "trial_feasibility_exp1") if h3]
+    h4, h5, h6 = later.h4_cells(results), later.h5_cells(results), later.h6_cells(results)
+    dragged, h4_tests = (later.dragged_tests(h4), later.h4_tests(h4)) if h4 else ([], [])
+    h5_tests = later.h5_tests(h5) if h5 else []
+    h6_tests = later.h6_tests(h6) if h6 else []
+    for part, cells_ in (("H4", h4), ("H5", h5), ("H6", h6)):
+        recorded += list(later.SWEEPS[part]) if cells_ else []
 
     lines = ["# Where does hierarchy help imitation?", "", provenance(results, recorded), ""]
     lines += answer_lines(worlds, family, helped, h3, h3_tests, h2, h2_tests)
+    later_answers = (
+        (later.h4_answer(dragged, h4_tests) if h4 else [])
+        + (later.h5_answer(h5, h5_tests) if h5 else [])
+        + (later.h6_answer(h6, h6_tests) if h6 else [])
+    )
+    overall = overall_answer(family, h3_tests, h4_tests + h5_tests + h6_tests)
+    at = lines.index("![Greedy policy at the end under coarse observation](segments.png)") - 1
+    lines[at:at] = later_answers + overall
     lines += segment_lines(cells, worlds, family, also)
     lines += box_lines(h2, h2_tests, results.parent / "puzzlebox") if h2 else []
     lines += trial_lines(h3, h3_tests) if h3 else []
-    missing = [f"segments_{w}" for w in WORLDS if w not in worlds]
+    lines += later.h4_lines(h4, dragged, h4_tests) if h4 else []
+    lines += later.h5_lines(h5, h5_tests) if h5 else []
+    lines += later.h6_lines(h6, h6_tests) if h6 else []
+    if h4 or h5 or h6:
+        later.figure(h4, h5, h6, results / "later.png")
+        lines += ["![H4–H6: greedy policy at the end](later.png)", ""]
+    missing = [f"segments_{w}" for w in SEGMENT_WORLDS if w not in worlds]
     missing += [] if h3 else ["H3 (trial_exp1, trial_feasibility_exp1)"]
     missing += [] if h2 else ["H2 (puzzlebox_*)"]
+    missing += [f"{part} ({', '.join(later.SWEEPS[part])})"
+                for part, c in (("H4", h4), ("H5", h5), ("H6", h6)) if not c]  # fmt: skip
     if missing:
         lines += [f"*Records absent, left out: {', '.join(missing)}.*", ""]
-    lines += [
-        "## H4–H6",
-        "",
-        "Not run yet: several mentors (H4) is not built, and the largest worlds (H5) and "
-        "options carrying over (H6) get their cells in a PROTOCOL.md amendment before their "
-        "runs.",
-        "",
-    ]
     segment_figure(cells, worlds, results / "segments.png")
     (results / "results.md").write_text("\n".join(lines))
     with (results / "tests.csv").open("w", newline="") as f:
         writer = csv.writer(f)
         fields = list(Test.__dataclass_fields__)
         writer.writerow(fields)
-        for t in family + also + h2_tests + h3_tests:
+        for t in family + also + h2_tests + h3_tests + dragged + h4_tests + h5_tests + h6_tests:
             writer.writerow([getattr(t, k) for k in fields])
     print(f"wrote {results / 'results.md'}")
+
+
+def overall_answer(h1: list[Test], h3: list[Test], later_tests: list[Test]) -> list[str]:
+    """The issue's target, over every hierarchical − flat comparison of the study: where the
+    hierarchy helps by the protocol's rule, and where it is significantly worse on the greedy
+    policy."""
+    h1_pairs = [t for t in h1 if t.name == "H1d"]  # (one per world × stride × schedule)
+    flat = [t for t in h3 + later_tests if t.name.endswith("− eq. 1")]
+    helps, worse = later.hierarchy_verdicts(h1_pairs + flat)
+    total = len({(t.name, t.world, t.condition, t.schedule) for t in h1_pairs + flat})
+    met = len(helps) >= 3 and not worse
+
+    def where(keys):
+        return "; ".join(
+            f"{name} ({WORLDS[w][0] if w in WORLDS else w}{', ' + c if c else ''}, {SCHEDULES[s]})"
+            for name, w, c, s in keys
+        )
+
+    return [
+        f"- **Overall: hierarchy helps in {len(helps)} of {total} hierarchical − flat "
+        f"comparisons** (world × condition × schedule, by the protocol's rule)"
+        + (f": {where(helps)}" if helps else "")
+        + f"; the hierarchical imitator is significantly worse on the greedy policy in "
+        f"{len(worse)}" + (f": {where(worse)}" if worse else "") + ". The issue's target "
+        "(better in at least 3, never significantly worse) is "
+        + ("**met**." if met else "**not met**: the recommended imitator stays flat.")
+    ]
 
 
 def h3_answer(cells: dict, tests: list[Test]) -> str:
