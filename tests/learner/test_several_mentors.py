@@ -185,3 +185,33 @@ def test_bad_mentor_inputs_are_refused(world12, mentor_demos12):
             learner.add_demonstrations(mentor_demos12, mentor=bad)
     with pytest.raises(ValueError, match="3 demonstration sets for LearnerConfig.mentors=2"):
         _learner(world12, [mentor_demos12] * 3, agents=["imitation"], mentors=2)
+
+
+@pytest.mark.slow
+def test_a_poor_second_mentor_does_not_drag_the_learner_below_the_good_one_alone(world12):
+    """20 paired seeds: eq. 2 and eq. 1 watching the good mentor, and the good mentor with one
+    that errs half the time. Goals over 15k steps; one-sided paired t-tests of (good + poor) −
+    good (alternative: less), Holm over the two agents: no drag at 5 %."""
+    from scipy.stats import ttest_rel
+
+    from himit_torch import Learner, learner_options
+
+    mentor = mentor_policy(world12, mentor_options(world12))
+    seeds = list(range(20))
+    agents = ["imitation"] * 20 + ["imitation_primitives"] * 20
+    goals = {}
+    for two in (False, True):
+        learner = Learner(world12, learner_options(world12), agents, seeds + seeds,
+                          config=LearnerConfig(window=1000, mentors=2 if two else 1))  # fmt: skip
+        for s in seeds:
+            runs = [s, 20 + s]
+            learner.add_demonstrations(record_demonstrations(world12, mentor, 5, seed=s), runs)
+            if two:
+                poor = record_demonstrations(world12, mentor, 5, seed=s + 1000, noise=0.5)
+                learner.add_demonstrations(poor, runs, mentor=1)
+        learner.run(15_000)
+        goals[two] = learner.goals.double().numpy()
+    assert goals[False].min() > 0  # both learners reach the goal: the comparison means something
+    for part in (slice(0, 20), slice(20, 40)):
+        p = ttest_rel(goals[True][part], goals[False][part], alternative="less").pvalue
+        assert 2 * p > 0.05, (part, goals[True][part].mean(), goals[False][part].mean())
