@@ -181,12 +181,16 @@ def h4_answer(dragged: list[Test], tests: list[Test]) -> list[str]:
               and not t.name.endswith("− good")]  # fmt: skip
     better = sum(t.p_holm < 0.05 and t.difference > 0 for t in lifted)
     diffs = [t.difference for t in dragged]
+    slower = [t for t in tests if t.endpoint == "goals" and t.name.endswith("− good")]
+    n_slower = sum(t.p_holm < 0.05 and t.difference < 0 for t in slower)
     helps, worse = hierarchy_verdicts([t for t in tests if "eq. 2 − eq. 1" in t.name])
     return [
         f"- **H4, several mentors: a poor second mentor dragged the learner below the good "
         f"mentor alone in {n_dragged} of {len(dragged)}** world × schedule × method × poor-mentor "
         f"conditions (one-sided, Holm); (good + poor) − good alone on the greedy policy ranged "
-        f"from {min(diffs):+.1f} to {max(diffs):+.1f} points. The good mentor lifted the "
+        f"from {min(diffs):+.1f} to {max(diffs):+.1f} points ({sum(d < 0 for d in diffs)} of "
+        f"{len(diffs)} below 0). On goals over the run (learning speed) it is significantly "
+        f"lower in {n_slower} of {len(slower)} (family H4). The good mentor lifted the "
         f"learner above the poor mentor alone in {better} of {len(lifted)} (Holm, greedy "
         f"policy). Hierarchy helps (eq. 2 − eq. 1 by the protocol's rule) in {len(helps)} of "
         f"{len(helps) + len(worse) + _neither(tests)} mentor cells; eq. 2 is significantly worse "
