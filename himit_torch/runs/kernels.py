@@ -4,6 +4,9 @@ each compiling them.
 
 (The engine needs none of this: each kernel's first call in a process holds the cache's lock,
 so processes that start together compile once anyway. This only moves the compiling earlier.)
+
+``python -m himit_torch.runs.kernels`` does it once for an environment (``make install`` runs it):
+it fills the cache the kernels use by default, so that the first run afterwards only loads them.
 """
 
 from __future__ import annotations
@@ -76,3 +79,12 @@ def kernels_prepared_here() -> Iterator[None]:
     with cache_lock():
         yield
         _prepare_locked()
+
+
+if __name__ == "__main__":
+    import numba
+
+    where = numba.config.CACHE_DIR or "beside the kernels' sources"  # type: ignore[attr-defined]
+    print(
+        f"himit_torch: compiled kernels ready in {prepare_kernels():.1f} s (Numba cache: {where})"
+    )

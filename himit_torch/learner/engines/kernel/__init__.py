@@ -9,6 +9,8 @@
   predecessors.
 * :mod:`.sampling` — posterior sampling (:mod:`himit_torch.learner.posterior_sampling`).
 * :mod:`.tick` — act, learn, plan, choose, and the tick loop :func:`.tick.run_ticks`.
+* :mod:`.jit` — the flags every cached kernel is compiled with; :mod:`.stamp` — their disk cache's
+  freshness stamp, one hash over all these sources (an edit to any of them recompiles them all).
 
 Every array is allocated by the caller (:mod:`himit_torch.learner.engines.numba_engine`) and
 worked on in place. Helpers take whole arrays and indices (never slices), so the hot loop makes

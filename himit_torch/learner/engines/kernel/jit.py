@@ -4,6 +4,13 @@ from __future__ import annotations
 
 from numba import njit
 
+from himit_torch.learner.engines.kernel import stamp
+
+# Every kernel's disk cache is stamped with a hash over all the kernels' sources, not just its own
+# file (:mod:`.stamp`): registered here, before any kernel module decorates a function with
+# ``entry`` or ``phase``.
+stamp.register()
+
 # error_model="numpy": a division by zero gives inf/nan instead of raising.
 # _nrt=False: no reference counting. The functions take whole arrays, and Numba would otherwise
 # incref and decref every one of them at every call (atomic operations on counters shared by the
