@@ -598,7 +598,7 @@ def answer_lines(
 
     n_conditions = len(worlds) * 2 * len(SCHEDULES)
     lines = [
-        "## The answer so far",
+        "## The answer",
         "",
         f"- **H1, coarse observation: the segment term.** On the greedy policy at the end it "
         f"improves eq. 2 significantly in "
