@@ -80,6 +80,52 @@ def test_presets_table_is_a_table():
     assert "mentor-fade, recommended" in cells[5]
 
 
+def test_layout_table_is_generated_from_the_layers_and_docstrings():
+    """The development page's layout table is generated (``{himit-layout}``), not written by
+    hand: every module of the package has a row, in the order of the layers contract, with the
+    first sentence of its docstring."""
+    pytest.importorskip("sphinx")
+    import importlib
+
+    from docutils import nodes
+
+    sys.path.insert(0, str(DOCS / "_ext"))
+    try:
+        from himit_docs import contract_layers, layout_rows, layout_table, module_summary
+    finally:
+        sys.path.remove(str(DOCS / "_ext"))
+
+    page = (DOCS / "development.md").read_text(encoding="utf-8")
+    assert "```{himit-layout}" in page
+    assert not re.search(r"^\| `learner/`", page, re.M)  # the hand-written table is gone
+    rows = layout_rows()
+    package = ROOT / "himit_torch"
+    modules = set()
+    for path in package.rglob("*.py"):
+        parts = path.relative_to(package).with_suffix("").parts
+        modules.add(
+            "/".join(parts[:-1]) + "/" if parts[-1] == "__init__" else "/".join(parts) + ".py"
+        )
+    modules.discard("/")  # the package itself
+    assert sorted(path for _, path, _ in rows) == sorted(modules)  # each once
+    assert all(summary.endswith(".") for _, _, summary in rows)
+    # the layers in the contract's order, each named on its first row
+    labels = [label for label, _, _ in rows if label]
+    assert labels == [" | ".join(layer) for layer in contract_layers()]
+    assert module_summary("himit_torch.learner.inspect").startswith("The read-only views")
+    learner = next(i for i, (_, path, _) in enumerate(rows) if path == "learner/learner.py")
+    assert rows[learner][2] == module_summary("himit_torch.learner.learner")
+    assert importlib.import_module("himit_torch.learner.learner").__doc__.startswith(
+        rows[learner][2].rstrip(".")
+    )
+    table = layout_table()
+    assert isinstance(table, nodes.table)
+    body = table.next_node(nodes.tbody)
+    assert len(body.children) == len(rows)
+    # roles become the name they point to, as code: no cross-reference out of its module
+    assert not any(":class:" in row.astext() or "``" in row.astext() for row in body.children)
+
+
 def test_built_presets_page_has_the_table():
     """After ``make docs``: the page holds a real table naming the four presets."""
     page = DOCS / "_build" / "html" / "presets.html"

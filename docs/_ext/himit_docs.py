@@ -10,6 +10,8 @@
   folder, each captioned in words (:func:`figure_caption`), with its file name.
 * ``.. himit-modules::`` — every module of the package, layer by layer (its docstring and the
   members the public API does not already show).
+* ``.. himit-layout::`` — the same layers and modules as one table, each module with the first
+  sentence of its docstring (:func:`layout_table`; the development page's layout).
 * ``.. himit-cli::`` — ``himit --help`` and every subcommand's ``--help``, from the parser the
   command itself uses (:func:`himit_torch.cli.build_parser`).
 """
@@ -275,15 +277,145 @@ class ApiEntriesDirective(SphinxDirective):
         return _parse(self, rst)
 
 
-def package_layers() -> list[str]:
+def contract_layers() -> list[list[str]]:
     """The package's layers, top to bottom, as pyproject.toml's import-linter contract declares
-    them (``"viz | learner"`` is two), so this page follows the contract that CI checks."""
+    them: each a list of its sibling subpackages or modules (``"viz | learner"`` is two)."""
     import tomllib
 
     pyproject = Path(__file__).resolve().parents[2] / "pyproject.toml"
     contracts = tomllib.loads(pyproject.read_text())["tool"]["importlinter"]["contracts"]
     layers = next(c["layers"] for c in contracts if c["type"] == "layers")
-    return [name.strip() for layer in layers for name in layer.split("|")]
+    return [[name.strip() for name in layer.split("|")] for layer in layers]
+
+
+def package_layers() -> list[str]:
+    """The package's layers, top to bottom, as pyproject.toml's import-linter contract declares
+    them (``"viz | learner"`` is two), so this page follows the contract that CI checks."""
+    return [name for layer in contract_layers() for name in layer]
+
+
+#: A sentence's end in a docstring: a full stop before a capital (not ``e.g. x``, ``Fig. 2``).
+_SENTENCE_END = re.compile(r"\.\s+(?=[A-Z])")
+#: The inline markup of a docstring's summary: ````literal```` or ``:role:`target```.
+_INLINE = re.compile(r"``(?P<literal>.+?)``|:[\w:]+:`(?P<role>[^`]+)`")
+
+
+def module_summary(modname: str) -> str:
+    """The first sentence of a module's docstring (its first paragraph, up to a full stop
+    before a capital); empty if it has none."""
+    doc = inspect.getdoc(importlib.import_module(modname)) or ""
+    paragraph = " ".join(doc.strip().split("\n\n")[0].split())
+    return _SENTENCE_END.split(paragraph, maxsplit=1)[0].rstrip(".") + ("." if paragraph else "")
+
+
+def _inline(text: str) -> list[nodes.Node]:
+    """``text`` with its reST inline markup as docutils nodes, roles shown as the literal name
+    they point to (``:class:`~a.b.C``` → ``C``): the same in a MyST page as in a reST one, and no
+    cross-reference to resolve out of its module's context."""
+    out: list[nodes.Node] = []
+    at = 0
+    for found in _INLINE.finditer(text):
+        if found.start() > at:
+            out.append(nodes.Text(text[at : found.start()]))
+        if found.group("literal") is not None:
+            code = found.group("literal")
+        else:
+            role = found.group("role")
+            titled = re.fullmatch(r"(.+?)\s*<.+>", role)
+            code = titled.group(1) if titled else role
+            if code.startswith("~"):
+                code = code.rpartition(".")[2]
+            code = code.lstrip(".")
+        out.append(nodes.literal(code, code))
+        at = found.end()
+    if at < len(text):
+        out.append(nodes.Text(text[at:]))
+    return out
+
+
+def _module_path(modname: str) -> str:
+    """``himit_torch.learner.engines`` → ``learner/engines/``; a module → ``runs/bench.py``."""
+    module = importlib.import_module(modname)
+    parts = modname.split(".")[1:]
+    if Path(inspect.getfile(module)).name == "__init__.py":
+        return "/".join(parts) + "/"
+    return "/".join(parts) + ".py"
+
+
+def layout_rows() -> list[tuple[str, str, str]]:
+    """``(layer, module path, summary)`` for every module of the package, layer by layer top to
+    bottom as the import-linter contract declares them (:func:`contract_layers`), each layer's
+    package first and its modules in name order; the layer is given on its first row only
+    (``"viz | learner"`` for siblings of one layer)."""
+    package = importlib.import_module(PACKAGE)
+    names = sorted(_submodules(package))
+    rows: list[tuple[str, str, str]] = []
+    for layer in contract_layers():
+        label = " | ".join(layer)
+        for name in layer:
+            for modname in [n for n in names if n.split(".")[1:2] == [name]]:
+                rows.append((label, _module_path(modname), module_summary(modname)))
+                label = ""
+    return rows
+
+
+def layout_table() -> nodes.table:
+    """The package's layout as a table: layer, module, what it holds (:func:`layout_rows`), built
+    as docutils nodes (as :func:`presets_table` is), so that the development page's layout is
+    generated from the same sources as the modules page — the layers contract in
+    ``pyproject.toml`` and each module's docstring — and cannot go stale."""
+    table = nodes.table(classes=["himit-layout"])
+    group = nodes.tgroup(cols=3)
+    table += group
+    for width in (14, 30, 56):
+        group += nodes.colspec(colwidth=width)
+
+    def row(cells: list[list[nodes.Node]]) -> nodes.row:
+        out = nodes.row()
+        for content in cells:
+            entry = nodes.entry()
+            if content:
+                entry += nodes.paragraph("", "", *content)
+            out += entry
+        return out
+
+    head = nodes.thead()
+    head += row([[nodes.Text(h)] for h in ("layer", "module", "what it holds")])
+    group += head
+    body = nodes.tbody()
+    group += body
+    for layer, path, summary in layout_rows():
+        cells: list[list[nodes.Node]] = [
+            [nodes.literal(layer, layer)] if layer else [],
+            [nodes.literal(path, path)],
+            _inline(summary),
+        ]
+        body += row(cells)
+    return table
+
+
+class LayoutDirective(SphinxDirective):
+    """``.. himit-layout::`` — :func:`layout_table`. A module without a docstring, or in no layer
+    of the contract, is a warning (so ``make docs``, ``-W``, fails on it)."""
+
+    def run(self) -> list[nodes.Node]:
+        package = importlib.import_module(PACKAGE)
+        layers = package_layers()
+        for modname in sorted(_submodules(package)):
+            if modname == PACKAGE:
+                continue
+            if modname.split(".")[1] not in layers:
+                logger.warning(
+                    f"himit-layout: {modname} is in no layer of pyproject.toml's import-linter "
+                    "contract",
+                    location=self.get_location(),
+                )
+            elif not module_summary(modname):
+                logger.warning(
+                    f"himit-layout: {modname} has no docstring to say what it holds",
+                    location=self.get_location(),
+                )
+        return [layout_table()]
 
 
 class ModulesDirective(SphinxDirective):
@@ -683,6 +815,7 @@ def setup(app: Sphinx) -> dict[str, Any]:
     app.add_directive("himit-cli", CliDirective)
     app.add_directive("himit-presets", PresetsDirective)
     app.add_directive("himit-modules", ModulesDirective)
+    app.add_directive("himit-layout", LayoutDirective)
     app.add_directive("himit-figures", FiguresDirective)
     app.connect("autodoc-process-docstring", warn_undocumented)
     app.connect("autodoc-process-docstring", document_settings)

@@ -9,19 +9,25 @@ cache (:mod:`himit_torch.learner.values`) keeps the sums over successors as cach
 updated incrementally, and hands them to :func:`trusted_augmented_backup` (eq. 2 with the
 learner's rules for trusting the mentor term, :func:`confident_mentor`, :func:`mentor_override`
 and :func:`faded_mentor_term`). Where a sum over successors is computed from scratch it is the
-sparse form the models keep, per-run edge lists (:func:`option_backup_edges`). Tests check the
-incremental caches against these from-scratch sums.
+sparse form the models keep, per-run edge lists (:func:`option_backup_edges`,
+:func:`mentor_backup_edges`). Tests check the incremental caches against these from-scratch sums.
+
+Each function first checks the ranks and shapes of its arguments (as rlax asserts them): an
+argument of another shape is a ``ValueError`` naming the function, the argument, its shape and
+the shape expected, never a silent broadcast. The checks compare shapes only (no tensor op), so
+they cost the torch engine's ticks nothing measurable.
 """
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import torch
 
 __all__ = [
     "option_backup",
     "option_backup_edges",
+    "mentor_backup_edges",
     "shaped_option_backup",
     "mentor_backup",
     "segment_reward",
@@ -44,6 +50,36 @@ __all__ = [
 ]
 
 
+def _shape_text(x: Any) -> str:
+    shape = getattr(x, "shape", None)
+    return f"shape {tuple(shape)}" if shape is not None else f"no shape (a {type(x).__name__})"
+
+
+def _refuse(function: str, name: str, x: Any, expected: str) -> ValueError:
+    """The error for argument ``name`` of ``function`` whose shape is not ``expected``."""
+    return ValueError(f"{function}: {name} has {_shape_text(x)}; expected {expected}")
+
+
+def _rank(function: str, name: str, x: Any, least: int, spec: str) -> None:
+    """Refuse ``x`` unless it is a tensor of rank ``least`` or more (``spec``: ``[..., K]``)."""
+    if getattr(x, "ndim", -1) < least:
+        raise _refuse(function, name, x, f"{spec} (rank ≥ {least})")
+
+
+def _same(function: str, spec: str, shape: Any, **named: Any) -> None:
+    """Refuse each of ``named`` whose shape is not ``shape`` (``spec`` says which it is)."""
+    for name, x in named.items():
+        if getattr(x, "shape", None) != shape:
+            raise _refuse(function, name, x, f"{spec} = {tuple(shape)}")
+
+
+def _broadcasts(shape: Any, to: Any) -> bool:
+    """Whether a tensor of ``shape`` broadcasts to ``to`` without growing it (shapes only)."""
+    if len(shape) > len(to):
+        return False
+    return all(a == 1 or a == b for a, b in zip(reversed(shape), reversed(to)))
+
+
 def option_backup(
     reward: torch.Tensor, weights: torch.Tensor, successor_values: torch.Tensor
 ) -> torch.Tensor:
@@ -64,12 +100,9 @@ def option_backup(
     >>> round(float(q), 4)
     0.0205
     """
-    if weights.shape != successor_values.shape or weights.shape[:-1] != reward.shape:
-        raise ValueError(
-            f"option_backup: shapes reward {tuple(reward.shape)}, weights "
-            f"{tuple(weights.shape)}, successor_values {tuple(successor_values.shape)} "
-            "must be [...], [..., K], [..., K]"
-        )
+    _rank("option_backup", "weights", weights, 1, "[..., K]")
+    _same("option_backup", "[..., K] as weights", weights.shape, successor_values=successor_values)
+    _same("option_backup", "[...], weights' without K", weights.shape[:-1], reward=reward)
     return reward + (weights * successor_values).sum(-1)
 
 
@@ -94,16 +127,83 @@ def option_backup_edges(
         successor_values: ``[N]`` ``V(s')`` of each edge's successor.
     Returns a new ``[B, M]`` tensor.
     """
-    if reward.dim() != 2 or not (
-        runs.shape == rows.shape == weights.shape == successor_values.shape and runs.dim() == 1
-    ):
-        raise ValueError(
-            f"option_backup_edges: shapes reward {tuple(reward.shape)}, runs "
-            f"{tuple(runs.shape)}, rows {tuple(rows.shape)}, weights {tuple(weights.shape)}, "
-            f"successor_values {tuple(successor_values.shape)} must be [B, M] and four [N]"
-        )
+    if getattr(reward, "ndim", -1) != 2:
+        raise _refuse("option_backup_edges", "reward", reward, "[B, M] (rank 2)")
+    if getattr(runs, "ndim", -1) != 1:
+        raise _refuse("option_backup_edges", "runs", runs, "[N] (rank 1)")
+    _same(
+        "option_backup_edges",
+        "[N] as runs",
+        runs.shape,
+        rows=rows,
+        weights=weights,
+        successor_values=successor_values,
+    )
     out = reward.clone()
     out.view(-1).index_add_(0, runs * reward.shape[1] + rows, weights * successor_values)
+    return out
+
+
+def mentor_backup_edges(
+    shape: tuple[int, int],
+    runs: torch.Tensor,
+    rows: torch.Tensor,
+    counts: torch.Tensor,
+    rewards: torch.Tensor,
+    discounts: torch.Tensor,
+    successor_values: torch.Tensor,
+) -> torch.Tensor:
+    """The mentor term's sum over the sparse form the mentor model keeps, a COO edge list of
+    observed moves batched over runs (Price & Boutilier 2003; paper eq. 1–2; the segment form
+    of ``LearnerConfig.mentor_segments``)::
+
+        N[b, m] = Σ_{e : runs_e = b, rows_e = m} c_e (r_e + d_e V_e)
+
+    the numerator of the mentor term of row ``m`` (a state, per mentor): divided by the row's
+    count ``n = Σ c_e`` it is :func:`segment_mentor_backup` with ``p_m = c / n``, and with every
+    move one step (``d_e = γ``) :func:`mentor_backup` with ``R_m(s) = Σ p_m r_e``. Each row's
+    sum runs in edge order (so a row rebuilt from its edges is reproducible).
+
+    Args:
+        shape: ``(B, M)``, the runs and the mentor rows of the output.
+        runs, rows: ``[N]`` int64, each edge's run (``0 … B − 1``) and mentor row (``0 … M − 1``).
+        counts: ``[N]`` ``c_e``, how often the move was observed.
+        rewards: ``[N]`` ``r_e``, the reward the learner assigns the move (:func:`segment_reward`
+            of it with segments).
+        discounts: ``[N]`` ``d_e = E[γ^k]`` of the move (:func:`segment_discount`; ``γ`` for one
+            step).
+        successor_values: ``[N]`` ``V(s')`` of the move's successor.
+    Returns a new ``[B, M]`` tensor of ``counts``' dtype (0 in a row without edges).
+
+    Run 0 was seen twice moving ``0 → 1`` (``r = −0.01``, ``V(1) = 0.5``) and once ``0 → 2`` in
+    3 steps (``r = −0.0271``, ``d = 0.729``, ``V(2) = 1``); γ = 0.9:
+    ``2 (−0.01 + 0.45) + (−0.0271 + 0.729) = 1.5819``.
+
+    >>> import torch
+    >>> n = mentor_backup_edges((1, 2), torch.tensor([0, 0]), torch.tensor([0, 0]),
+    ...                         torch.tensor([2.0, 1.0]), torch.tensor([-0.01, -0.0271]),
+    ...                         torch.tensor([0.9, 0.729]), torch.tensor([0.5, 1.0]))
+    >>> [round(x, 4) for x in n[0].tolist()]
+    [1.5819, 0.0]
+    """
+    if getattr(runs, "ndim", -1) != 1:
+        raise _refuse("mentor_backup_edges", "runs", runs, "[N] (rank 1)")
+    _same(
+        "mentor_backup_edges",
+        "[N] as runs",
+        runs.shape,
+        rows=rows,
+        counts=counts,
+        rewards=rewards,
+        discounts=discounts,
+        successor_values=successor_values,
+    )
+    if len(shape) != 2:
+        raise ValueError(f"mentor_backup_edges: shape={shape!r}; expected (B, M), two sizes")
+    out = torch.zeros(shape, dtype=counts.dtype, device=counts.device)
+    out.view(-1).index_add_(
+        0, runs * shape[1] + rows, counts * (rewards + discounts * successor_values)
+    )
     return out
 
 
@@ -155,12 +255,11 @@ def shaped_option_backup(
     >>> round(float(q), 4)
     -0.66
     """
-    if successor_potentials.shape != successor_values.shape or potential.shape != reward.shape:
-        raise ValueError(
-            f"shaped_option_backup: potential {tuple(potential.shape)} must match reward "
-            f"{tuple(reward.shape)} and successor_potentials {tuple(successor_potentials.shape)} "
-            f"successor_values {tuple(successor_values.shape)}"
-        )
+    f = "shaped_option_backup"
+    _rank(f, "weights", weights, 1, "[..., K]")
+    _same(f, "[..., K] as weights", weights.shape, successor_values=successor_values)
+    _same(f, "[..., K] as weights", weights.shape, successor_potentials=successor_potentials)
+    _same(f, "[...], weights' without K", weights.shape[:-1], reward=reward, potential=potential)
     return option_backup(reward, weights, successor_values + successor_potentials) - potential
 
 
@@ -179,14 +278,19 @@ def mentor_backup(
         mentor_probs: ``[..., K]`` ``p_m(s' | s)``.
         successor_values: ``[..., K]``.
     """
-    if (
-        mentor_probs.shape != successor_values.shape
-        or mentor_probs.shape[:-1] != mentor_reward.shape
-    ):
-        raise ValueError(
-            "mentor_backup: mentor_reward [...], mentor_probs and successor_values "
-            "[..., K] must agree"
-        )
+    _rank("mentor_backup", "mentor_probs", mentor_probs, 1, "[..., K]")
+    _same(
+        "mentor_backup",
+        "[..., K] as mentor_probs",
+        mentor_probs.shape,
+        successor_values=successor_values,
+    )
+    _same(
+        "mentor_backup",
+        "[...], mentor_probs' without K",
+        mentor_probs.shape[:-1],
+        mentor_reward=mentor_reward,
+    )
     return mentor_reward + gamma * (mentor_probs * successor_values).sum(-1)
 
 
@@ -222,6 +326,17 @@ def segment_reward(
     >>> round(float(segment_reward(torch.tensor(1.0), torch.tensor(0.81), -0.01, 0.9)), 6)
     0.791
     """
+    _same("segment_reward", "[...] as last_reward", last_reward.shape, delay=delay)
+    if isinstance(unseen_step_reward, torch.Tensor) and unseen_step_reward.shape not in (
+        (),
+        last_reward.shape,
+    ):
+        raise _refuse(
+            "segment_reward",
+            "unseen_step_reward",
+            unseen_step_reward,
+            f"a number, [] or [...] as last_reward = {tuple(last_reward.shape)}",
+        )
     if not 0 < gamma < 1:
         raise ValueError(
             f"segment_reward: gamma={gamma}; the segment term needs a discount in (0, 1)"
@@ -231,7 +346,8 @@ def segment_reward(
 
 def segment_discount(delay: torch.Tensor, gamma: float) -> torch.Tensor:
     """``E[γ^k] = γ · E[γ^(k−1)]``: the discount of an observed mentor move's successor value
-    (:func:`segment_reward`'s ``delay``); ``γ`` for one-step moves."""
+    (:func:`segment_reward`'s ``delay``, ``[...]``: any shape); ``γ`` for one-step moves."""
+    _rank("segment_discount", "delay", delay, 0, "a tensor [...]")
     return gamma * delay
 
 
@@ -263,13 +379,15 @@ def segment_mentor_backup(
     >>> round(float(m), 5)
     0.5273
     """
-    shape = mentor_probs.shape
-    if not (segment_rewards.shape == segment_discounts.shape == successor_values.shape == shape):
-        raise ValueError(
-            f"segment_mentor_backup: segment_rewards {tuple(segment_rewards.shape)}, "
-            f"segment_discounts {tuple(segment_discounts.shape)}, mentor_probs {tuple(shape)} "
-            f"and successor_values {tuple(successor_values.shape)} must all be [..., K]"
-        )
+    _rank("segment_mentor_backup", "mentor_probs", mentor_probs, 1, "[..., K]")
+    _same(
+        "segment_mentor_backup",
+        "[..., K] as mentor_probs",
+        mentor_probs.shape,
+        segment_rewards=segment_rewards,
+        segment_discounts=segment_discounts,
+        successor_values=successor_values,
+    )
     return (mentor_probs * (segment_rewards + segment_discounts * successor_values)).sum(-1)
 
 
@@ -280,6 +398,8 @@ def options_only_backup(option_q: torch.Tensor, available: torch.Tensor) -> torc
         option_q: ``[..., J]``; available: ``[..., J]`` bool. States with no available option get
         ``-inf``.
     """
+    _rank("options_only_backup", "option_q", option_q, 1, "[..., J]")
+    _same("options_only_backup", "[..., J] as option_q", option_q.shape, available=available)
     neg_inf = torch.full_like(option_q, float("-inf"))
     return torch.where(available, option_q, neg_inf).max(-1).values
 
@@ -300,6 +420,15 @@ def augmented_option_backup(
         mentor_term: ``[...]`` (:func:`mentor_backup`).
         mentor_available: ``[...]`` bool, where the mentor was observed (and its term is trusted).
     """
+    _rank("augmented_option_backup", "option_q", option_q, 1, "[..., J]")
+    _same("augmented_option_backup", "[..., J] as option_q", option_q.shape, available=available)
+    _same(
+        "augmented_option_backup",
+        "[...], option_q's without J",
+        option_q.shape[:-1],
+        mentor_term=mentor_term,
+        mentor_available=mentor_available,
+    )
     own = options_only_backup(option_q, available)
     return augmented_backup(own, mentor_term, mentor_available)[0]
 
@@ -325,6 +454,13 @@ def augmented_backup(
     >>> value, won
     (tensor([-0.2000, -0.5000, -0.5000]), tensor([ True, False, False]))
     """
+    _same(
+        "augmented_backup",
+        "[...] as own_value",
+        own_value.shape,
+        mentor_term=mentor_term,
+        mentor_available=mentor_available,
+    )
     return (
         torch.where(mentor_available, torch.maximum(own_value, mentor_term), own_value),
         mentor_available & (mentor_term > own_value),
@@ -341,6 +477,14 @@ def primitives_only_backup(
     Args:
         reward: ``[..., A]``; probs, successor_values: ``[..., A, K]``.
     """
+    _rank("primitives_only_backup", "probs", probs, 2, "[..., A, K]")
+    _same(
+        "primitives_only_backup",
+        "[..., A, K] as probs",
+        probs.shape,
+        successor_values=successor_values,
+    )
+    _same("primitives_only_backup", "[..., A], probs' without K", probs.shape[:-1], reward=reward)
     return (reward + gamma * (probs * successor_values).sum(-1)).max(-1).values
 
 
@@ -363,6 +507,22 @@ def augmented_primitive_backup(
         mentor_probs, mentor_successor_values: ``[..., K]``.
         mentor_available: ``[...]`` bool.
     """
+    f = "augmented_primitive_backup"
+    _rank(f, "probs", probs, 2, "[..., A, K]")
+    _same(f, "[..., A, K] as probs", probs.shape, successor_values=successor_values)
+    _same(f, "[...], probs' without A and K", probs.shape[:-2], observer_reward=observer_reward)
+    _same(f, "[...], probs' without A and K", probs.shape[:-2], mentor_available=mentor_available)
+    _rank(f, "mentor_probs", mentor_probs, 1, "[..., K]")
+    if mentor_probs.shape[:-1] != observer_reward.shape:
+        raise _refuse(
+            f, "mentor_probs", mentor_probs, f"[..., K] with [...] = {tuple(observer_reward.shape)}"
+        )
+    _same(
+        f,
+        "[..., K] as mentor_probs",
+        mentor_probs.shape,
+        mentor_successor_values=mentor_successor_values,
+    )
     own = (probs * successor_values).sum(-1).max(-1).values
     mentor = (mentor_probs * mentor_successor_values).sum(-1)
     return observer_reward + gamma * torch.where(mentor_available, torch.maximum(own, mentor), own)
@@ -379,6 +539,10 @@ def dirichlet_value_moments(
         counts: ``[..., K]`` Dirichlet concentrations (0 = absent outcome).
         outcome_values: ``[..., K]``.
     """
+    _rank("dirichlet_value_moments", "counts", counts, 1, "[..., K]")
+    _same(
+        "dirichlet_value_moments", "[..., K] as counts", counts.shape, outcome_values=outcome_values
+    )
     total = counts.sum(-1)
     p = counts / total.clamp(min=1e-300)[..., None]
     u = torch.where(counts > 0, outcome_values, torch.zeros_like(outcome_values))
@@ -397,6 +561,9 @@ def dirichlet_variance(
 
     All ``[...]``. (:func:`dirichlet_value_moments` from counts; the learner from its cached
     numerators.)"""
+    _same(
+        "dirichlet_variance", "[...] as mean", mean.shape, second_moment=second_moment, total=total
+    )
     return (second_moment - mean * mean).clamp(min=0) / (total + 1)
 
 
@@ -418,6 +585,16 @@ def confident_mentor(
         z: width of the bounds in standard deviations.
     Returns ``[...]`` bool (True where no own option is available).
     """
+    f = "confident_mentor"
+    _rank(f, "own_mean", own_mean, 1, "[..., J]")
+    _same(f, "[..., J] as own_mean", own_mean.shape, own_var=own_var, own_available=own_available)
+    _same(
+        f,
+        "[...], own_mean's without J",
+        own_mean.shape[:-1],
+        mentor_mean=mentor_mean,
+        mentor_var=mentor_var,
+    )
     upper = (
         torch.where(
             own_available, own_mean + z * own_var.sqrt(), torch.full_like(own_mean, float("-inf"))
@@ -454,6 +631,8 @@ def mentor_override(
             ``override_after`` is ``None``).
         override_after: ``LearnerConfig.mentor_override_after``.
     """
+    if own_tries is not None:
+        _same("mentor_override", "[...] as observed", observed.shape, own_tries=own_tries)
     if override_after is None:
         return observed
     if own_tries is None:
@@ -491,6 +670,8 @@ def feasible_mentor(
     ... ).tolist()
     [False, True, True]
     """
+    _rank("feasible_mentor", "reached", reached, 1, "[..., J]")
+    _same("feasible_mentor", "[..., J] as reached", reached.shape, tries=tries, enabled=enabled)
     tested = (~enabled | (tries >= min_tries)).all(-1) & enabled.any(-1)
     none_reached = ~((reached > 0) & enabled).any(-1)
     return ~(tested & none_reached)
@@ -523,6 +704,9 @@ def best_mentor(terms: torch.Tensor, observed: torch.Tensor) -> tuple[torch.Tens
     >>> index.tolist(), any_.tolist()
     ([1, 1, 2, 0], [True, True, True, False])
     """
+    if getattr(terms, "ndim", 0) < 1 or terms.shape[-1] < 1:
+        raise _refuse("best_mentor", "terms", terms, "[..., K] with K ≥ 1 (one term per mentor)")
+    _same("best_mentor", "[..., K] as terms", terms.shape, observed=observed)
     index = torch.zeros(terms.shape[:-1], dtype=torch.int64, device=terms.device)
     best, have = terms[..., 0], observed[..., 0]
     for k in range(1, terms.shape[-1]):
@@ -543,6 +727,13 @@ def faded_mentor_term(
     Args:
         mentor_term, own_value, own_tries: ``[...]``.
     """
+    _same(
+        "faded_mentor_term",
+        "[...] as mentor_term",
+        mentor_term.shape,
+        own_value=own_value,
+        own_tries=own_tries,
+    )
     k, n = fade, own_tries
     return torch.where(
         torch.isfinite(own_value), (k * mentor_term + n * own_value) / (k + n), mentor_term
@@ -571,8 +762,35 @@ def trusted_augmented_backup(
         mentor_term: ``[...]`` (:func:`mentor_backup`); mentor_observed: ``[...]`` bool.
         own_tries: ``[...]`` own options started at ``s`` (needed by ``override_after`` and
             ``fade``).
+        confidence: :class:`MentorConfidence`: ``own_var [..., J]``, ``mentor_var [...]``,
+            ``tested`` broadcastable to ``[...]``.
     Returns ``(V [...], mentor_won [...] bool)``; ``V`` is ``-inf`` where nothing is known.
     """
+    f = "trusted_augmented_backup"
+    _rank(f, "option_q", option_q, 1, "[..., J]")
+    _same(f, "[..., J] as option_q", option_q.shape, available=available)
+    states = option_q.shape[:-1]
+    _same(f, "[...], option_q's without J", states, mentor_term=mentor_term)
+    _same(f, "[...], option_q's without J", states, mentor_observed=mentor_observed)
+    if own_tries is not None:
+        _same(f, "[...], option_q's without J", states, own_tries=own_tries)
+    if confidence is not None:
+        _same(
+            f, "[..., J] as option_q", option_q.shape, **{"confidence.own_var": confidence.own_var}
+        )
+        _same(
+            f,
+            "[...], option_q's without J",
+            states,
+            **{"confidence.mentor_var": confidence.mentor_var},
+        )
+        if not _broadcasts(getattr(confidence.tested, "shape", (None,)), states):
+            raise _refuse(
+                f,
+                "confidence.tested",
+                confidence.tested,
+                f"broadcastable to [...] = {tuple(states)}",
+            )
     own = options_only_backup(option_q, available)
     available_mentor = mentor_override(mentor_observed, own_tries, override_after)
     if confidence is not None:

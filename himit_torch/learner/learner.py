@@ -21,6 +21,10 @@ The state has one owner per piece, each with its own ``state_dict``:
 * :class:`~himit_torch.learner.run_state.RunState` — the executing options, exploration and counters;
   :class:`~himit_torch.learner.run_state.RunMetrics` — the per-window records.
 
+What only reads that state — the counters, diagnostics and greedy policies (``learner.goals``,
+``learner.greedy_policy()``) — is in :mod:`himit_torch.learner.inspect`, which ``Learner``
+inherits.
+
 An engine carries out the ticks on that state (:mod:`himit_torch.learner.engines`): ``"numba"``, a
 compiled per-run loop (the default on a CPU), or ``"torch"``, batched tensor ops (any device;
 the readable reference, read :meth:`TorchEngine.tick <himit_torch.learner.engines.TorchEngine.tick>`).
@@ -38,12 +42,11 @@ from typing import TYPE_CHECKING, Any, Protocol
 import numpy as np
 import torch
 
-from himit_torch.exact.greedy_evaluation import OptionPolicy, check_untried_rule
 from himit_torch.learner.agents import AGENTS
 from himit_torch.learner.backups import segment_reward
-from himit_torch.learner.choice import greedy_rows
 from himit_torch.learner.cloned_policy import ClonedPolicy
 from himit_torch.learner.engines import make_engine
+from himit_torch.learner.inspect import LearnerViews
 from himit_torch.learner.models import DirichletMentorModel, DirichletSMDPModel
 from himit_torch.learner.posterior_sampling import PosteriorSample
 from himit_torch.learner.prioritized_sweeping import Sweeper
@@ -54,7 +57,6 @@ from himit_torch.learner.values import ValueCache
 from himit_torch.mentor.potential import shaping_potential
 from himit_torch.mentor.reward import KnownReward
 from himit_torch.options.bundle import Options
-from himit_torch.options.execution import option_step
 from himit_torch.rng import seed_streams, uniforms
 from himit_torch.state_checks import DamagedState, in_range, same_plain, section
 from himit_torch.validation import (
@@ -75,26 +77,7 @@ if TYPE_CHECKING:
 
 from himit_torch.learner.config import CONFIG_SCHEMA_VERSION, LearnerConfig
 
-__all__ = ["tried_share", "HasTransitions", "Learner"]
-
-
-def tried_share(row_count: torch.Tensor, enabled: torch.Tensor) -> torch.Tensor:
-    """``[B]`` share of the usable rows (``enabled [B, M]``) tried at least once
-    (``row_count [B, M] > 0``); 0 for a run with no usable row.
-
-    On a CPU the two counts are numpy's ``count_nonzero`` over views of the same memory: one
-    pass each, on one thread — 10-30× faster than torch's reductions, which on a busy 2-core
-    machine wait for their second thread (a [20, 82282] batch: ≈ 2 ms instead of 40-80 ms). The
-    counts are the same integers either way, so the shares are bit-identical."""
-    if row_count.device.type == "cpu":
-        usable_np = enabled.numpy()
-        n_tried = torch.from_numpy(np.count_nonzero((row_count.numpy() > 0) & usable_np, axis=1))
-        n_usable = torch.from_numpy(np.count_nonzero(usable_np, axis=1))
-    else:
-        # (counted in int32: exact, and ≈ 4× faster than torch's default int64 sum of bools)
-        n_tried = ((row_count > 0) & enabled).sum(1, dtype=torch.int32)
-        n_usable = enabled.sum(1, dtype=torch.int32)
-    return n_tried.double() / n_usable.clamp(min=1)
+__all__ = ["HasTransitions", "Learner"]
 
 
 class HasTransitions(Protocol):
@@ -118,7 +101,7 @@ class _NoMentorReward:
 _NO_MENTOR_REWARD = _NoMentorReward()
 
 
-class Learner:
+class Learner(LearnerViews):
     """``B`` runs of the hierarchical imitation learner (or its baselines) in one batch.
 
     Args:
@@ -610,10 +593,6 @@ class Learner:
             ).to(self.device)
         return out
 
-    def sampling_runs(self) -> torch.Tensor:
-        """``[R]`` the runs that plan on a posterior sample (the ``…_psrl`` agents)."""
-        return self.rows.use_sampling.nonzero()[:, 0]
-
     def resample(self, runs: torch.Tensor) -> None:
         """Draw a fresh model from the posteriors of ``runs`` (sampling runs), rebuild their value
         caches from it and queue the states whose values it changes (posterior sampling; the
@@ -831,216 +810,3 @@ class Learner:
         shaping = self.rows.use_shaping.nonzero()[:, 0]
         if shaping.numel():
             self.cache.set_potential(shaping, self.shaping_potential(shaping), shift=False)
-
-    # ========================================================================= run state views
-    @property
-    def t(self) -> int:
-        """Ticks (primitive steps per run) so far."""
-        return self.run_state.t
-
-    @property
-    def goals(self) -> torch.Tensor:
-        """``[B]`` goals reached so far."""
-        return self.run_state.goals
-
-    @property
-    def episodes(self) -> torch.Tensor:
-        return self.run_state.episodes
-
-    @property
-    def first_goal_step(self) -> torch.Tensor:
-        """``[B]`` tick of each run's first goal (−1: none yet)."""
-        return self.run_state.first_goal_step
-
-    @property
-    def decisions(self) -> torch.Tensor:
-        return self.run_state.decisions
-
-    @property
-    def backups_done(self) -> torch.Tensor:
-        return self.run_state.backups_done
-
-    @property
-    def epsilon(self) -> torch.Tensor:
-        return self.run_state.epsilon
-
-    @property
-    def found_goal(self) -> torch.Tensor:
-        return self.run_state.found_goal
-
-    # =============================================================================== diagnostics
-    def mentor_win_share(self) -> torch.Tensor:
-        """``[B]`` share of mentor-observed states where the mentor term is the max of eq. 2
-        (NaN for runs that do not imitate)."""
-        observed = self.mentor.observed()
-        out = torch.full((self.batch,), float("nan"), dtype=torch.float64, device=self.device)
-        if not bool(observed.any()):
-            return out
-        if hasattr(self.engine, "mentor_wins"):  # the compiled backup: ~1000× faster
-            wins = self.engine.mentor_wins().to(self.device)
-        else:
-            states = observed.any(0).nonzero()[:, 0]
-            runs = torch.arange(self.batch, device=self.device)
-            _, _, won = self.cache.state_backup(runs[:, None], states[None].expand(self.batch, -1))
-            wins = (won & observed[:, states]).sum(1)
-        frac = wins.double() / observed.sum(1).clamp(min=1)
-        return torch.where(self.rows.use_mentor, frac, out)
-
-    def greedy_options(self, runs: Sequence[int] | torch.Tensor | None = None) -> torch.Tensor:
-        """``[B, S]`` greedy option per state (−1 where none is usable), ties to the lowest row;
-        ``runs``: those runs' rows only (``[len(runs), S]``; default all). A ``bco`` run's is its
-        cloned action's primitive option where it has one."""
-        which = torch.arange(self.batch) if runs is None else runs
-        r = torch.as_tensor(which, dtype=torch.int64, device=self.device).reshape(-1, 1, 1)
-        R = r.shape[0]
-        rows = self.rows.state_rows[: self.num_states][None]
-        q = self.cache.row_q(r, rows)
-        usable = self.rows.row_enabled[r, rows] & (self.model.row_count[r, rows] > 0)
-        q = torch.where(usable, q, torch.full_like(q, float("-inf")))
-        best = q.argmax(-1)
-        option = self.rows.row_option[rows.expand(R, -1, -1).gather(2, best[..., None])[..., 0]]
-        option = torch.where(usable.any(-1), option, torch.full_like(option, -1))
-        if self.cloning.any:
-            S = self.num_states
-            cloned = self.cloning.action[r[:, 0, 0], :S]  # [R, S]
-            clone_row = self.rows.primitive_rows[
-                torch.arange(S, device=self.device), cloned.clamp(min=0)
-            ]
-            use = (cloned >= 0) & (clone_row < self.num_rows)
-            option = torch.where(use, self.rows.row_option[clone_row], option)
-        return option
-
-    def greedy_policy(
-        self, runs: Sequence[int] | torch.Tensor | None = None, untried: str = "uniform"
-    ) -> OptionPolicy:
-        """Each run's frozen greedy policy now: ε = 0 over its own options, as it would choose
-        (:func:`~himit_torch.learner.choice.greedy_rows`, ``mentor_choice`` and a ``bco`` run's
-        cloned actions included). Where
-        options tie (or none is usable yet: every enabled option), ``tie_break="random"``
-        takes each with equal probability — a stochastic option policy — and ``"first"`` the
-        lowest option. Evaluate it exactly with
-        :class:`~himit_torch.exact.greedy_evaluation.PolicyEvaluator` over :attr:`options`.
-
-        ``untried`` (:data:`~himit_torch.exact.greedy_evaluation.UNTRIED_RULES`) is the rule at a
-        live state where the run has tried none of its enabled options (and has no cloned
-        action there): ``"uniform"`` (default) chooses as the run would act, among every
-        enabled option; ``"stuck"`` gives that state no option (its row sums to 0: an episode
-        that gets there never ends). Definitions: :mod:`himit_torch.exact.greedy_evaluation`.
-
-        Returns:
-            :class:`~himit_torch.exact.greedy_evaluation.OptionPolicy` on the CPU, ``option [S,
-            J]`` the rows of each state, ``probability [len(runs), S, J]``; terminal states
-            have no option.
-
-        Raises:
-            ValueError: ``untried`` is not one of the rules.
-        """
-        check_untried_rule(untried)
-        which = torch.arange(self.batch) if runs is None else runs
-        which = torch.as_tensor(which, dtype=torch.int64, device=self.device).reshape(-1)
-        S, M = self.num_states, self.num_rows
-        live = (~self.terminal[:S]).nonzero()[:, 0]
-        rows = self.rows.state_rows[:S]
-        J = rows.shape[1]
-        probability = torch.zeros(which.numel(), S, J, dtype=torch.float64)
-        for i, b in enumerate(which.tolist()):
-            runs_b = torch.full_like(live, b)
-            cloned = self.cloning.at(runs_b, live) if self.cloning.any else None
-            rows_b, greedy, _ = greedy_rows(
-                self.cache, runs_b, live, self.config.mentor_choice, cloned
-            )
-            if self.config.tie_break == "first":
-                greedy = greedy & (greedy.cumsum(1) == 1)
-            p = greedy.double() / greedy.sum(1, keepdim=True).clamp(min=1)
-            if untried == "stuck":
-                # Tried = counted in the run's own model, whatever a prior or untried_value
-                # makes usable (the same test as greedy_options' −1); a cloned action is a
-                # choice the run has, tried or not (greedy_rows takes it).
-                tried = self.rows.row_enabled[b, rows_b] & (self.model.row_count[b, rows_b] > 0)
-                chosen = tried.any(1)
-                if cloned is not None:
-                    clone_row = self.rows.primitive_rows[live, cloned.clamp(min=0)]
-                    chosen |= (cloned >= 0) & (clone_row < M)
-                p = torch.where(chosen[:, None], p, torch.zeros_like(p))
-            probability[i, live.cpu()] = p.cpu()
-        option = torch.where(rows < M, self.rows.row_option[rows], torch.full_like(rows, -1))
-        return OptionPolicy(option.cpu(), probability)
-
-    def visit_counts(self) -> torch.Tensor:
-        """``[B, S]`` how often each run has been in each state (after each primitive step)."""
-        return self.run_state.visits[:, : self.num_states]
-
-    def model_coverage(self) -> torch.Tensor:
-        """``[B]`` share of the run's usable ``(s, o)`` rows it has tried at least once."""
-        M = self.num_rows
-        return tried_share(self.model.row_count[:, :M], self.rows.row_enabled[:, :M])
-
-    def greedy_trajectory(self, run: int, max_steps: int, seed: int = 0) -> torch.Tensor:
-        """States of one episode from the start following run ``run``'s greedy options (ε = 0,
-        untried options at random), with the world's slip; stops at the goal or after
-        ``max_steps``. For pictures like the paper's Fig. 2."""
-        gen = torch.Generator(device=self.device).manual_seed(seed)
-        greedy = self.greedy_options([run])[0]
-        S = self.num_states
-        s = torch.tensor([self.start_state], device=self.device)
-        states = [int(s)]
-        option, steps = -1, 0
-        while steps < max_steps and not bool(self.terminal[s]):
-            if option < 0:
-                option = int(greedy[s])
-                if option < 0:  # nothing tried here: any usable option
-                    rows = self.rows.state_rows[s][0]
-                    rows = rows[self.rows.row_enabled[run, rows]]
-                    option = int(
-                        self.rows.row_option[
-                            rows[torch.randint(len(rows), (1,), generator=gen, device=self.device)]
-                        ]
-                    )
-            actions = None
-            if (
-                self.tables.options.policy_cdf is not None
-            ):  # stochastic options: drawn here, as always
-                actions = torch.multinomial(
-                    torch.diff(
-                        self.tables.options.policy_cdf[option * S + s],
-                        prepend=torch.zeros(1, 1, dtype=torch.float64, device=self.device),
-                    ),
-                    1,
-                    generator=gen,
-                )[:, 0]
-            u = torch.rand(s.shape, generator=gen, device=self.device, dtype=torch.float64)
-            stop = torch.rand(1, generator=gen, device=self.device, dtype=torch.float64)
-            moved = option_step(
-                self.tables.options,
-                torch.tensor([option], device=self.device),
-                s,
-                self.tables.step,
-                self.terminal,
-                slip_u=u,
-                stop_u=stop,
-                actions=actions,
-            )
-            s = moved.successors
-            steps += 1
-            states.append(int(s))
-            if bool(moved.stopped):
-                option = -1
-        return torch.tensor(states)
-
-    def state_values(self) -> torch.Tensor:
-        """``[B, S]`` current value estimates."""
-        return self.cache.values[:, : self.num_states]
-
-    def summary(self) -> dict:
-        run = self.run_state
-        return {
-            "steps": self.t,
-            "goals": run.goals.tolist(),
-            "episodes": run.episodes.tolist(),
-            "first_goal_step": run.first_goal_step.tolist(),
-            "epsilon": run.epsilon.tolist(),
-            "backups": run.backups_done.tolist(),
-            "decisions": run.decisions.tolist(),
-            "engine": self.engine.name,
-            "config": asdict(self.config),
-        }

@@ -41,6 +41,7 @@ from himit_torch.learner.backups import (
     best_mentor,
     dirichlet_variance,
     feasible_mentor,
+    mentor_backup_edges,
     option_backup_edges,
     segment_discount,
     trusted_augmented_backup,
@@ -570,26 +571,38 @@ class ValueCache:
 
     def rebuild_mentor(self, runs: torch.Tensor | None = None) -> None:
         """Recompute the mentor caches of ``runs`` (default: every run) from the mentor model's
-        counts, its edge rewards and ``V``; other runs' caches are left as they are (a sampling
-        run's hold its draw)."""
+        counts, its edge rewards and ``V``, as the propagation would have built them:
+        ``Σ_e c_e (r_e + E[γ^k]_e V(s'))`` per mentor row
+        (:func:`~himit_torch.learner.backups.mentor_backup_edges`) and the second moments
+        ``Σ_e c_e (r_e + E[γ^k]_e V(s'))²`` of the confidence test; other runs' caches are left
+        as they are (a sampling run's hold its draw). The sums run in edge order."""
         mentor = self.mentor
         if runs is None:
             runs = torch.arange(self.batch, device=self.device)
-        numerator = torch.zeros_like(self.mentor_numerator.index_select(0, runs))
-        second = torch.zeros_like(numerator)
-        E = int(mentor.num_edges.index_select(0, runs).max()) if runs.numel() else 0
-        if E:
-            edges = torch.arange(E, device=self.device)
-            valid = edges < mentor.num_edges.index_select(0, runs)[:, None]
-            src = mentor.edge_row.index_select(0, runs)[:, :E].clamp(min=0)
-            dst = mentor.edge_successor.index_select(0, runs)[:, :E].clamp(min=0)
-            c = torch.where(valid, mentor.edge_count.index_select(0, runs)[:, :E], self._zero)
-            v = self.values.index_select(0, runs).gather(1, dst)
-            discount = self.mentor_edge_discount.index_select(0, runs)[:, :E]
-            u = self.mentor_edge_reward.index_select(0, runs)[:, :E] + discount * v
-            numerator.scatter_add_(1, src, c * u)
-            confident = self.rows.use_confidence.index_select(0, runs)[:, None]
-            second.scatter_add_(1, src, torch.where(confident, c * u * u, self._zero))
+        shape = (runs.numel(), self.mentor_numerator.shape[1])
+        valid = (
+            torch.arange(mentor.capacity, device=self.device)
+            < mentor.num_edges.index_select(0, runs)[:, None]
+        )
+        local, slots = valid.nonzero(as_tuple=True)  # run by run, each run's edges in order
+        r = runs.index_select(0, local)
+        flat_e = r * mentor.capacity + slots
+        src, dst = _take(mentor.edge_row, flat_e), _take(mentor.edge_successor, flat_e)
+        c = _take(mentor.edge_count, flat_e)
+        v = _take(self.values, self._state_flat(r, dst))
+        reward = _take(self.mentor_edge_reward, r * self.mentor_edge_reward.shape[1] + slots)
+        discount = _take(self.mentor_edge_discount, r * self.mentor_edge_discount.shape[1] + slots)
+        numerator = mentor_backup_edges(shape, local, src, c, reward, discount, v)
+        # Σ_e c_e u_e²: the same edge sum with weights c_e u_e (confidence-tested runs only).
+        tested = self.rows.use_confidence.index_select(0, r)
+        u = (reward + discount * v)[tested]
+        second = option_backup_edges(
+            torch.zeros(shape, dtype=torch.float64, device=self.device),
+            local[tested],
+            src[tested],
+            c[tested] * u,
+            u,
+        )
         self.mentor_numerator.index_copy_(0, runs, numerator)
         self.mentor_second.index_copy_(0, runs, second)
 

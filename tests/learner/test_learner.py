@@ -552,7 +552,7 @@ def test_model_coverage_and_greedy_options_equal_slow_computation(learned8):
 def test_tried_share_equals_torch_counts_on_any_layout():
     """The numpy counts (CPU) equal torch's on strided views of random counts, with a run that
     has no usable row (share 0)."""
-    from himit_torch.learner.learner import tried_share
+    from himit_torch.learner.inspect import tried_share
 
     gen = torch.Generator().manual_seed(0)
     count = torch.randint(0, 3, (7, 1001), generator=gen).double()

@@ -83,7 +83,7 @@ def test_one_mentor_watched_by_a_two_mentor_learner_is_todays_run(world12, mento
     two = _learner(world12, None, engine, mentors=2)
     two.add_demonstrations(mentor_demos12, mentor=0)
     for learner in (one, two):
-        learner.run(800)
+        learner.run(500)
     _same_run(one, two)
     assert int(two.mentor.row_count[:, world12.num_states :].sum()) == 0
 
@@ -146,7 +146,7 @@ def test_engines_agree_with_several_mentors(world12, mentor_demos12, poor_demos1
     numba = _learner(world12, [good, poor], "numba", mentors=2, **config)
     torch_run = _learner(world12, [good, poor], "torch", mentors=2, **config)
     for learner in (numba, torch_run):
-        learner.run(1000)
+        learner.run(700)
     assert torch.equal(numba.metrics.curve(), torch_run.metrics.curve())
     assert torch.equal(numba.model.row_count, torch_run.model.row_count)
     torch.testing.assert_close(numba.cache.values, torch_run.cache.values, atol=1e-9, rtol=0)
