@@ -120,19 +120,26 @@ class LearnerViews:
     def mentor_win_share(self) -> torch.Tensor:
         """``[B]`` share of mentor-observed states where the mentor term is the max of eq. 2
         (NaN for runs that do not imitate)."""
+        if hasattr(self.engine, "mentor_wins"):
+            # the compiled backup, counted in NumPy: ~1000× faster than the batched backup, and
+            # no torch op (it runs at every window's end)
+            wins, seen = self.engine.mentor_wins()
+            if not seen.any():
+                frac = np.full(self.batch, np.nan)
+            else:
+                frac = wins.astype(np.float64) / np.maximum(seen, 1)
+                frac[~self.rows.use_mentor.cpu().numpy()] = np.nan
+            return torch.from_numpy(frac).to(self.device)
         observed = self.mentor.observed()
         out = torch.full((self.batch,), float("nan"), dtype=torch.float64, device=self.device)
         if not bool(observed.any()):
             return out
-        if hasattr(self.engine, "mentor_wins"):  # the compiled backup: ~1000× faster
-            wins = self.engine.mentor_wins().to(self.device)
-        else:
-            states = observed.any(0).nonzero()[:, 0]
-            runs = torch.arange(self.batch, device=self.device)
-            _, _, won = self.cache.state_backup(runs[:, None], states[None].expand(self.batch, -1))
-            wins = (won & observed[:, states]).sum(1)
-        frac = wins.double() / observed.sum(1).clamp(min=1)
-        return torch.where(self.rows.use_mentor, frac, out)
+        states = observed.any(0).nonzero()[:, 0]
+        runs = torch.arange(self.batch, device=self.device)
+        _, _, won = self.cache.state_backup(runs[:, None], states[None].expand(self.batch, -1))
+        wins_t = (won & observed[:, states]).sum(1)
+        frac_t = wins_t.double() / observed.sum(1).clamp(min=1)
+        return torch.where(self.rows.use_mentor, frac_t, out)
 
     def greedy_options(self, runs: Sequence[int] | torch.Tensor | None = None) -> torch.Tensor:
         """``[B, S]`` greedy option per state (−1 where none is usable), ties to the lowest row;

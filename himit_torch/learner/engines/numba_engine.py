@@ -231,19 +231,22 @@ class NumbaEngine:
             np.zeros(B, dtype=np.int64),
         )
         self._links: dict[str, tuple] = {}
+        # NumPy views of the state's tensors, by tensor (each call hands the kernels ~85 of
+        # them; making them anew cost ≈ 0.3 ms a window, a few % of one run's time)
+        self._views: dict[int, tuple[torch.Tensor, np.ndarray]] = {}
 
     def _rows(self) -> RowArrays:
         rows = self.state.rows
         return RowArrays(
             self.row_begin,
-            _np(rows.row_state),
-            _np(rows.row_option),
-            _np(rows.row_first_action),
-            _np(rows.primitive_rows),
-            _np(rows.row_enabled),
-            _np(rows.use_mentor),
-            _np(rows.use_confidence),
-            _np(rows.use_sampling),
+            self._view(rows.row_state),
+            self._view(rows.row_option),
+            self._view(rows.row_first_action),
+            self._view(rows.primitive_rows),
+            self._view(rows.row_enabled),
+            self._view(rows.use_mentor),
+            self._view(rows.use_confidence),
+            self._view(rows.use_sampling),
         )
 
     def _values_and_models(self) -> tuple[CacheArrays, OptionModelArrays, MentorModelArrays]:
@@ -251,43 +254,61 @@ class NumbaEngine:
         L = self.state
         cache, model, mentor = L.cache, L.model, L.mentor
         cache_arrays = CacheArrays(
-            _np(cache.values),
-            _np(cache.q_numerator),
-            _np(cache.q_second),
-            _np(cache.mentor_numerator),
-            _np(cache.mentor_second),
-            _np(cache.mentor_edge_reward),
-            _np(cache.mentor_edge_discount),
+            self._view(cache.values),
+            self._view(cache.q_numerator),
+            self._view(cache.q_second),
+            self._view(cache.mentor_numerator),
+            self._view(cache.mentor_second),
+            self._view(cache.mentor_edge_reward),
+            self._view(cache.mentor_edge_discount),
         )
         model_arrays = OptionModelArrays(
-            _np(model.edge_row),
-            _np(model.edge_successor),
-            _np(model.edge_count),
-            _np(model.edge_discount),
-            _np(model.num_edges),
-            _np(model.row_count),
-            _np(model.row_reward),
-            _np(model.state_tries),
+            self._view(model.edge_row),
+            self._view(model.edge_successor),
+            self._view(model.edge_count),
+            self._view(model.edge_discount),
+            self._view(model.num_edges),
+            self._view(model.row_count),
+            self._view(model.row_reward),
+            self._view(model.state_tries),
             *self._linked("model", model),
         )
         mentor_arrays = MentorModelArrays(
-            _np(mentor.edge_row),
-            _np(mentor.edge_successor),
-            _np(mentor.edge_count),
-            _np(mentor.row_count),
+            self._view(mentor.edge_row),
+            self._view(mentor.edge_successor),
+            self._view(mentor.edge_count),
+            self._view(mentor.row_count),
             *self._linked("mentor", mentor),
         )
         return cache_arrays, model_arrays, mentor_arrays
 
-    def mentor_wins(self) -> torch.Tensor:
-        """``[B]`` how many mentor-observed states the mentor term wins eq. 2 in, per run."""
+    def mentor_wins(self) -> tuple[np.ndarray, np.ndarray]:
+        """``([B], [B])``: per run, how many mentor-observed states the mentor term wins eq. 2
+        in, and how many states some mentor was seen leaving."""
         out = np.zeros(self.state.batch, dtype=np.int64)
-        _call(mentor_wins, self.settings, self.world, self._rows(), *self._values_and_models(), out)
-        return torch.from_numpy(out)
+        seen = np.zeros(self.state.batch, dtype=np.int64)
+        args = (self.settings, self.world, self._rows(), *self._values_and_models(), out, seen)
+        _call(mentor_wins, *args)
+        return out, seen
 
     def invalidate(self) -> None:
         """The state was changed outside this engine: relink before the next call."""
         self._links.clear()
+        self._views.clear()
+
+    def _view(self, x: torch.Tensor) -> np.ndarray:
+        """``x``'s memory as a NumPy array (:func:`_np`), made once per tensor: the state's
+        owners replace a tensor when it grows or is read back, never resize one in place, so a
+        tensor's view stays its memory. The cache holds the tensor (so its ``id`` is not
+        reused) and is emptied when it outgrows what one state holds."""
+        hit = self._views.get(id(x))
+        if hit is not None and hit[0] is x:
+            return hit[1]
+        if len(self._views) > 512:  # (tensors replaced by growth: drop them all, refill)
+            self._views.clear()
+        view = _np(x)
+        self._views[id(x)] = (x, view)
+        return view
 
     def _linked(self, key: str, store) -> tuple:
         """Linked lists over ``store``'s edges, rebuilt when its lists changed elsewhere."""
@@ -338,36 +359,38 @@ class NumbaEngine:
                     cache_arrays,
                     model_arrays,
                     mentor_arrays,
-                    SweepArrays(*self.heap, _np(sweeper.queue.priority), _np(sweeper.pending)),
+                    SweepArrays(
+                        *self.heap, self._view(sweeper.queue.priority), self._view(sweeper.pending)
+                    ),
                     RunArrays(
-                        _np(L.keys).view(np.uint64),
-                        _np(run.position),
-                        _np(run.option_start),
-                        _np(run.row),
-                        _np(run.duration),
-                        _np(run.discounted_return),
-                        _np(run.discount),
-                        _np(run.epsilon),
-                        _np(run.found_goal),
-                        _np(run.goals),
-                        _np(run.window_goals),
-                        _np(run.episodes),
-                        _np(run.episode_start),
-                        _np(run.window_episode_steps),
-                        _np(run.window_episodes),
-                        _np(run.backups_done),
-                        _np(run.decisions),
-                        _np(run.first_goal_step),
-                        _np(run.visits),
+                        self._view(L.keys).view(np.uint64),
+                        self._view(run.position),
+                        self._view(run.option_start),
+                        self._view(run.row),
+                        self._view(run.duration),
+                        self._view(run.discounted_return),
+                        self._view(run.discount),
+                        self._view(run.epsilon),
+                        self._view(run.found_goal),
+                        self._view(run.goals),
+                        self._view(run.window_goals),
+                        self._view(run.episodes),
+                        self._view(run.episode_start),
+                        self._view(run.window_episode_steps),
+                        self._view(run.window_episodes),
+                        self._view(run.backups_done),
+                        self._view(run.decisions),
+                        self._view(run.first_goal_step),
+                        self._view(run.visits),
                     ),
                     SampleArrays(
-                        _np(sample.option_w),
-                        _np(sample.option_unseen),
-                        _np(sample.mentor_w),
-                        _np(sample.mentor_unseen),
-                        _np(sample.resamples),
+                        self._view(sample.option_w),
+                        self._view(sample.option_unseen),
+                        self._view(sample.mentor_w),
+                        self._view(sample.mentor_unseen),
+                        self._view(sample.resamples),
                     ),
-                    ClonedArrays(_np(L.cloning.action)),
+                    ClonedArrays(self._view(L.cloning.action)),
                     self.scratch,
                 ),
             )
