@@ -235,21 +235,11 @@ class ValueCache:
         infeasible."""
         cfg, mentor = self.config, self.mentor
         imitates = self.rows.use_mentor[runs]
-        if mentor.mentors == 1:
-            flat = self._mentor_flat(runs, states)
-            n_m = _take(mentor.row_count, flat)
-            # The mentor term exists only where the mentor was seen (a prior does not create one).
-            observed = imitates & (n_m > 0)
-            if cfg.mentor_feasibility is not None:
-                reached = self.mentor_reached(runs, states, rows, states)
-                observed = observed & feasible_mentor(
-                    reached, n_rows, enabled, cfg.mentor_feasibility
-                )
-            return states, flat, n_m, self._mentor_at(flat, n_m), observed
         runs_b = runs.expand_as(states)
         m_rows = mentor.rows_of(states)  # [..., K]
         flat = self._mentor_flat(runs_b[..., None], m_rows)
         n_m = _take(mentor.row_count, flat)
+        # A mentor term exists only where that mentor was seen (a prior does not create one).
         observed = imitates.expand_as(states)[..., None] & (n_m > 0)
         if cfg.mentor_feasibility is not None:
             observed = torch.stack(
