@@ -323,6 +323,7 @@ class LearnerConfig:
     window: int = setting(
         5000,
         ge=1,
+        kernel=True,
         doc="""
         Steps per window of the ``goals_in_window`` metric.""",
     )

@@ -27,7 +27,18 @@ if TYPE_CHECKING:
     from himit_torch.learner.state import WorldTables
     from himit_torch.learner.values import ValueCache
 
-__all__ = ["tried_share", "LearnerViews"]
+__all__ = ["tried_share", "mentor_win_share_of", "LearnerViews"]
+
+
+def mentor_win_share_of(wins: np.ndarray, seen: np.ndarray, use_mentor: np.ndarray) -> np.ndarray:
+    """The compiled engine's mentor-win counts as shares: ``wins / seen`` per run (the last
+    axis, ``B``), NaN for the runs that do not use the mentor term (``use_mentor [B]``), and
+    NaN for every run of a record in which no run has seen a mentor (float64, ``wins``' shape:
+    ``[B]``, or ``[W, B]`` for ``W`` windows)."""
+    frac = wins.astype(np.float64) / np.maximum(seen, 1)
+    frac[..., ~use_mentor] = np.nan
+    frac[~seen.any(-1)] = np.nan
+    return frac
 
 
 def tried_share(row_count: torch.Tensor, enabled: torch.Tensor) -> torch.Tensor:
@@ -124,11 +135,7 @@ class LearnerViews:
             # the compiled backup, counted in NumPy: ~1000× faster than the batched backup, and
             # no torch op (it runs at every window's end)
             wins, seen = self.engine.mentor_wins()
-            if not seen.any():
-                frac = np.full(self.batch, np.nan)
-            else:
-                frac = wins.astype(np.float64) / np.maximum(seen, 1)
-                frac[~self.rows.use_mentor.cpu().numpy()] = np.nan
+            frac = mentor_win_share_of(wins, seen, self.rows.use_mentor.cpu().numpy())
             return torch.from_numpy(frac).to(self.device)
         observed = self.mentor.observed()
         out = torch.full((self.batch,), float("nan"), dtype=torch.float64, device=self.device)

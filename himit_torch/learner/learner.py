@@ -46,7 +46,7 @@ from himit_torch.learner.agents import AGENTS
 from himit_torch.learner.backups import segment_reward
 from himit_torch.learner.cloned_policy import ClonedPolicy
 from himit_torch.learner.engines import make_engine
-from himit_torch.learner.inspect import LearnerViews
+from himit_torch.learner.inspect import LearnerViews, mentor_win_share_of
 from himit_torch.learner.models import DirichletMentorModel, DirichletSMDPModel
 from himit_torch.learner.posterior_sampling import PosteriorSample
 from himit_torch.learner.prioritized_sweeping import Sweeper
@@ -623,22 +623,51 @@ class Learner(LearnerViews):
             bar = tqdm(total=steps, desc=f"{self.batch} runs", unit="step", mininterval=1.0)
         # the bco runs relabel and re-clone between the engine's calls, at every bco_every ticks
         every = self.config.bco_every if self.cloning.any else None
+        # the compiled engine closes the windows it crosses; with the torch engine (or a
+        # progress bar to update) the calls end at each window's end
+        per_window = not self.engine.closes_windows or bar is not None
         left = steps
         while left > 0:
-            ticks = min(left, window - self.t % window)
+            ticks = min(left, window - self.t % window) if per_window else left
             if every is not None:
                 ticks = min(ticks, every - self.t % every)
-            self.engine.advance(ticks)
+            closed = self.engine.advance(ticks)
             left -= ticks
             if bar is not None:
                 bar.update(ticks)
             if every is not None and self.t % every == 0:
                 self.refit_cloned_policy()
-            if self.t % window == 0:
+            if closed is not None:
+                self._record_closed(*closed)
+            elif self.t % window == 0:
                 self.metrics.record(self.t, self.run_state, self.mentor_win_share())
         if bar is not None:
             bar.close()
         return self.metrics
+
+    def _record_closed(self, ends: list[int], counts: np.ndarray, epsilon: np.ndarray) -> None:
+        """Record the windows the compiled engine closed (:meth:`NumbaEngine.advance
+        <himit_torch.learner.engines.NumbaEngine.advance>`'s counts, in ``WINDOW_COUNTS``'
+        order)."""
+        if not ends:
+            return
+        goals, episodes, ep_steps, ep_count, backups, decisions, wins, seen = (
+            torch.from_numpy(np.ascontiguousarray(counts[..., k])) for k in range(counts.shape[2])
+        )
+        share = mentor_win_share_of(wins.numpy(), seen.numpy(), self.rows.use_mentor.numpy())
+        self.metrics.record_closed(
+            ends,
+            {
+                "window_goals": goals,
+                "epsilon": torch.from_numpy(np.ascontiguousarray(epsilon)),
+                "episodes": episodes,
+                "window_episode_steps": ep_steps,
+                "window_episodes": ep_count,
+                "backups_done": backups,
+                "decisions": decisions,
+            },
+            torch.from_numpy(share),
+        )
 
     def plan(self, max_rounds: int = 1_000_000) -> int:
         """Sweep every run until its queue is empty (or ``max_rounds`` rounds of ``backups``

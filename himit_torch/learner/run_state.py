@@ -148,6 +148,16 @@ class RunState:
             setattr(self, name, private_copy(state[name], getattr(self, name).device))
 
 
+def mean_episode_steps(steps: torch.Tensor, episodes: torch.Tensor) -> torch.Tensor:
+    """The mean length of the episodes that ended in a window, from the window's total steps and
+    count of those episodes (NaN where none ended), as float64 (any shape)."""
+    return torch.where(
+        episodes > 0,
+        steps / episodes.clamp(min=1),
+        torch.full(episodes.shape, float("nan"), dtype=torch.float64, device=episodes.device),
+    )
+
+
 @dataclass
 class RunMetrics:
     """Per-window metrics of every run (lists over windows of ``[B]`` tensors)."""
@@ -174,16 +184,7 @@ class RunMetrics:
         self.epsilon.append(run.epsilon.cpu().clone())
         self.episodes.append(run.episodes.cpu().clone())
         self.mean_episode_steps.append(
-            torch.where(
-                run.window_episodes > 0,
-                run.window_episode_steps / run.window_episodes.clamp(min=1),
-                torch.full(
-                    run.window_episodes.shape,
-                    float("nan"),
-                    dtype=torch.float64,
-                    device=run.window_episodes.device,
-                ),
-            ).cpu()
+            mean_episode_steps(run.window_episode_steps, run.window_episodes).cpu()
         )
         self.backups.append(run.backups_done.cpu().clone())
         self.decisions.append(run.decisions.cpu().clone())
@@ -191,6 +192,25 @@ class RunMetrics:
         run.window_goals.zero_()
         run.window_episode_steps.zero_()
         run.window_episodes.zero_()
+
+    def record_closed(
+        self, ends: list[int], counts: dict[str, torch.Tensor], mentor_wins: torch.Tensor
+    ) -> None:
+        """Record windows an engine closed itself: ``ends`` their last ticks, ``counts`` the
+        run state's window counters at each end (``[W, B]`` each, named as the run state's:
+        ``window_goals``, ``epsilon``, ``episodes``, ``window_episode_steps``,
+        ``window_episodes``, ``backups_done``, ``decisions``), ``mentor_wins`` ``[W, B]`` the
+        mentor term's win share — what :meth:`record` would have recorded at each end."""
+        means = mean_episode_steps(counts["window_episode_steps"], counts["window_episodes"])
+        self.steps.extend(ends)
+        for i in range(len(ends)):
+            self.goals_in_window.append(counts["window_goals"][i].clone())
+            self.epsilon.append(counts["epsilon"][i].clone())
+            self.episodes.append(counts["episodes"][i].clone())
+            self.mean_episode_steps.append(means[i].clone())
+            self.backups.append(counts["backups_done"][i].clone())
+            self.decisions.append(counts["decisions"][i].clone())
+            self.mentor_term_wins.append(mentor_wins[i].clone())
 
     #: The dtype of each field's ``[B]`` records (``steps``: Python ints).
     _DTYPES = {

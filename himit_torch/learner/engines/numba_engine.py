@@ -27,6 +27,7 @@ import torch
 
 from himit_torch.learner.engines import kernel as _kernel_package
 from himit_torch.learner.engines.kernel.arrays import (
+    WINDOW_COUNTS,
     CacheArrays,
     ClonedArrays,
     MentorModelArrays,
@@ -36,6 +37,7 @@ from himit_torch.learner.engines.kernel.arrays import (
     SampleArrays,
     Scratch,
     SweepArrays,
+    WindowArrays,
     WorldArrays,
 )
 from himit_torch.learner.engines.kernel.backup import mentor_wins
@@ -190,6 +192,9 @@ class NumbaEngine:
     """Compiled per-run loop on the CPU (see the module docstring)."""
 
     name = "numba"
+    #: :meth:`advance` closes the windows it crosses (``Learner.run`` does it for the torch
+    #: engine, between calls).
+    closes_windows = True
 
     def __init__(self, state: BatchState):
         L = self.state = state
@@ -336,15 +341,24 @@ class NumbaEngine:
         self._links[key] = (store.version, lists)
         return lists
 
-    def advance(self, ticks: int) -> None:
-        """Carry out ``ticks`` ticks for every run (no window boundary inside)."""
+    def advance(self, ticks: int) -> tuple[list[int], np.ndarray, np.ndarray]:
+        """Carry out ``ticks`` ticks for every run, closing each window they end (its counters
+        reset). Returns the closed windows: their ends, ``[W, B, len(WINDOW_COUNTS)]`` counts
+        and ``[W, B]`` ε, in ``RunMetrics``' order."""
         if mentor_wins not in _called:
             # loaded (or compiled) at the first tick, as the loop, not in the middle of a run at
             # its first window's end; it only reads the state
             self.mentor_wins()
         L = self.state
-        t_end = L.run.t + ticks
-        t_reached = np.full(L.batch, L.run.t, dtype=np.int64)
+        window = L.config.window
+        t0, t_end = L.run.t, L.run.t + ticks
+        ends = list(range((t0 // window + 1) * window, t_end + 1, window))
+        windows = WindowArrays(
+            np.zeros((L.batch, len(ends), len(WINDOW_COUNTS)), dtype=np.int64),
+            np.zeros((L.batch, len(ends))),
+            np.zeros(L.batch, dtype=np.int64),
+        )
+        t_reached = np.full(L.batch, t0, dtype=np.int64)
         model, run, sweeper, sample = L.model, L.run, L.sweeper, L.sample
         while True:
             cache_arrays, model_arrays, mentor_arrays = self._values_and_models()
@@ -391,6 +405,7 @@ class NumbaEngine:
                         self._view(sample.resamples),
                     ),
                     ClonedArrays(self._view(L.cloning.action)),
+                    windows,
                     self.scratch,
                 ),
             )
@@ -402,3 +417,4 @@ class NumbaEngine:
             model.reserve(2 * model.capacity)  # some run filled its edge list: grow, go on
         run.t = t_end
         sweeper.queue.refresh_block_max()
+        return ends, windows.counts.transpose(1, 0, 2), windows.epsilon.T

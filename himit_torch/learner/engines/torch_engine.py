@@ -17,6 +17,9 @@ class TorchEngine:
 
     name = "torch"
 
+    #: :meth:`advance` never crosses a window's end: ``Learner.run`` closes the windows.
+    closes_windows = False
+
     def __init__(self, state: BatchState):
         self.state = state
         B, S = state.batch, state.tables.num_states

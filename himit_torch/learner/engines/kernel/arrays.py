@@ -23,6 +23,8 @@ __all__ = [
     "RunArrays",
     "SampleArrays",
     "ClonedArrays",
+    "WindowArrays",
+    "WINDOW_COUNTS",
     "Scratch",
 ]
 
@@ -148,6 +150,28 @@ class ClonedArrays(NamedTuple):
     """The cloned policy of the ``bco`` runs (``ClonedPolicy``, read only)."""
 
     action: np.ndarray  # [B, S + 1] the cloned action at each state (−1: none)
+
+
+#: The counts a window's record holds, in the order of ``WindowArrays.counts``' last axis.
+WINDOW_COUNTS = (
+    "goals_in_window",
+    "episodes",
+    "window_episode_steps",
+    "window_episodes",
+    "backups",
+    "decisions",
+    "mentor_wins",
+    "mentor_seen",
+)
+
+
+class WindowArrays(NamedTuple):
+    """The windows the tick loop closes in one call (``RunMetrics``' records, filled in by the
+    kernel at every ``window``-th tick: the Python side reads them after the call)."""
+
+    counts: np.ndarray  # [B, W, len(WINDOW_COUNTS)] int64
+    epsilon: np.ndarray  # [B, W] each run's ε at the window's end
+    closed: np.ndarray  # [B] windows closed so far in this call
 
 
 class Scratch(NamedTuple):

@@ -224,26 +224,32 @@ def propagate_mentor(st, rows, cache, mentor, sweep, sample, b, x, d, v_old, sam
         e = mentor.succ_next[b, e]
 
 
-# Serial: once a window it costs microseconds, and a parallel loop costs seconds of compiling.
-@entry
-def mentor_wins(st, world, rows, cache, model, mentor, out, seen_out):
-    """``out[b]``: how many of run ``b``'s mentor-observed states the mentor term wins eq. 2 in,
-    by the kernel's own backup; ``seen_out[b]``: how many states some mentor was seen leaving
-    in run ``b`` (:meth:`Learner.mentor_win_share` divides the two)."""
+@phase
+def run_mentor_wins(st, world, rows, cache, model, mentor, b):
+    """``(won, seen)`` for run ``b``: how many of its mentor-observed states the mentor term
+    wins eq. 2 in, by the kernel's own backup, and how many states some mentor was seen leaving
+    (the tick loop closes each window with it; :meth:`Learner.mentor_win_share` divides the
+    two)."""
     S = world.terminal.shape[0] - 1
     mentors = (mentor.row_count.shape[1] - 1) // S
+    won_states = 0
+    seen_states = 0
+    for s in range(S):
+        seen = False
+        for k in range(mentors):
+            seen = seen or mentor.row_count[b, k * S + s] > 0
+        if seen:
+            seen_states += 1
+            if rows.use_mentor[b]:
+                _, _, won = backup_state(st, world, rows, cache, model, mentor, b, s)
+                if won:
+                    won_states += 1
+    return won_states, seen_states
+
+
+# Serial: it costs microseconds, and a parallel loop costs seconds of compiling.
+@entry
+def mentor_wins(st, world, rows, cache, model, mentor, out, seen_out):
+    """:func:`run_mentor_wins` of every run, into ``out[b]`` (won) and ``seen_out[b]`` (seen)."""
     for b in range(out.shape[0]):
-        won_states = 0
-        seen_states = 0
-        for s in range(S):
-            seen = False
-            for k in range(mentors):
-                seen = seen or mentor.row_count[b, k * S + s] > 0
-            if seen:
-                seen_states += 1
-                if rows.use_mentor[b]:
-                    _, _, won = backup_state(st, world, rows, cache, model, mentor, b, s)
-                    if won:
-                        won_states += 1
-        out[b] = won_states
-        seen_out[b] = seen_states
+        out[b], seen_out[b] = run_mentor_wins(st, world, rows, cache, model, mentor, b)

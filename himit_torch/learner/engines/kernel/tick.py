@@ -13,6 +13,7 @@ from himit_torch.learner.engines.kernel.backup import (
     propagate_mentor,
     propagate_options,
     row_value,
+    run_mentor_wins,
     state_backup,
 )
 from himit_torch.learner.engines.kernel.heap import heapify, pop, push
@@ -400,12 +401,50 @@ def start_option(st, world, run, key, b, t, nxt, at_goal):
     return here
 
 
+@phase
+def close_window(st, world, rows, cache, model, mentor, run, windows, b):
+    """Record run ``b``'s window that ends now into ``windows`` (``RunMetrics.record``'s
+    counts, ``WINDOW_COUNTS``, and ε) and reset its window counters."""
+    i = windows.closed[b]
+    won, seen = run_mentor_wins(st, world, rows, cache, model, mentor, b)
+    counts = windows.counts
+    counts[b, i, 0] = run.window_goals[b]
+    counts[b, i, 1] = run.episodes[b]
+    counts[b, i, 2] = run.window_episode_steps[b]
+    counts[b, i, 3] = run.window_episodes[b]
+    counts[b, i, 4] = run.backups_done[b]
+    counts[b, i, 5] = run.decisions[b]
+    counts[b, i, 6] = won
+    counts[b, i, 7] = seen
+    windows.epsilon[b, i] = run.epsilon[b]
+    windows.closed[b] = i + 1
+    run.window_goals[b] = 0
+    run.window_episode_steps[b] = 0
+    run.window_episodes[b] = 0
+
+
 @entry  # (the flags: .jit)
 def run_ticks(
-    b, t_end, t_reached, st, world, rows, cache, model, mentor, sweep, run, sample, clone, scratch
+    b,
+    t_end,
+    t_reached,
+    st,
+    world,
+    rows,
+    cache,
+    model,
+    mentor,
+    sweep,
+    run,
+    sample,
+    clone,
+    windows,
+    scratch,
 ):
     """Advance run ``b`` from tick ``t_reached[b]`` to ``t_end``, in place: act, learn, plan,
-    choose — :meth:`TorchEngine.tick <himit_torch.learner.engines.TorchEngine.tick>` for one run.
+    choose — :meth:`TorchEngine.tick <himit_torch.learner.engines.TorchEngine.tick>` for one run
+    — closing each window (:func:`close_window`) at its last tick, as ``Learner.run`` does
+    between the torch engine's calls.
 
     The run stops early, at the start of a tick, when its edge list is full (``num_edges[b]``
     equals the capacity): the caller grows the lists and calls again. ``t_reached[b]`` says
@@ -432,6 +471,8 @@ def run_ticks(
         if ended:
             here = start_option(st, world, run, key, b, t - 1, nxt, at_goal)
             choose(st, world, rows, cache, model, mentor, run, clone, scratch, key, b, t - 1, here)
+        if t % st.window == 0:
+            close_window(st, world, rows, cache, model, mentor, run, windows, b)
     t_reached[b] = t
 
 
