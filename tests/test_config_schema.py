@@ -27,6 +27,7 @@ from himit_torch.validation import COUNT_MAX, settings_of
 EXPECTED_KERNEL_FIELDS = {
     "backups",
     "plan_every",
+    "window",  # (the kernel closes each window at its last tick)
     "max_option_steps",
     "priority_threshold",
     "initial_value",
