@@ -21,6 +21,7 @@ termination probabilities and expected durations (see :func:`option_durations`).
 from __future__ import annotations
 
 import warnings
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -190,7 +191,7 @@ def option_models(
             probabilities (requires every option to terminate with probability 1).
         step_reward: ``[S, A]`` reward per step instead of the world's (ones → expected durations).
     """
-    return _option_models(world, options, [(gamma, step_reward)])[0]
+    return _remembered(world, options, [(gamma, step_reward)])[0]
 
 
 def option_models_and_durations(world, options: Options) -> tuple[OptionModels, OptionModels]:
@@ -198,8 +199,59 @@ def option_models_and_durations(world, options: Options) -> tuple[OptionModels, 
     the options: the continuing sets and one-step kernels are built once for both (≈ 35 % less
     time than the two calls); the results are the two calls' to the bit."""
     ones = torch.ones(world.num_states, world.num_actions, dtype=torch.float64)
-    discounted, durations = _option_models(world, options, [(None, None), (1.0, ones)])
+    discounted, durations = _remembered(world, options, [(None, None), (1.0, ones)])
     return discounted, durations
+
+
+# The models of the bundles still alive, by (world, options): a study builds them for the same
+# bundle several times (the mentor's policy and the evaluation of it, the greedy tracker, the
+# optimum), ≈ 1 s each on the paper's largest worlds. An entry is used only while the world and
+# the options are the objects it was made for and the options' tensors were not written in place
+# since (their version counters), and dropped when the options are.
+_MEMO: dict[tuple[int, int], tuple[weakref.ref, weakref.ref, tuple[int, ...], dict]] = {}
+
+
+def _variant_key(world, gamma: float | None, step_reward) -> tuple[float, str] | None:
+    """The memo's name for a ``(gamma, step_reward)`` variant: the world's reward or unit costs
+    (the durations); ``None`` for any other reward (not remembered)."""
+    g = world.gamma if gamma is None else float(gamma)
+    if step_reward is None:
+        return (g, "world")
+    reward = torch.as_tensor(step_reward)
+    if reward.shape == (world.num_states, world.num_actions) and bool((reward == 1).all()):
+        return (g, "ones")
+    return None
+
+
+def _remembered(
+    world, options: Options, variants: list[tuple[float | None, torch.Tensor | None]]
+) -> list[OptionModels]:
+    """:func:`_option_models`, computing only the variants not already computed for this world
+    and these options (the results are shared: treat them as read-only)."""
+    keys = [_variant_key(world, g, r) for g, r in variants]
+    if any(k is None for k in keys) or not isinstance(options, Options):
+        return _option_models(world, options, variants)
+    versions = tuple(t._version for t in (options.initiation, options.termination, options.policy))
+    memo_key = (id(world), id(options))
+    entry = _MEMO.get(memo_key)
+    if (
+        entry is None
+        or entry[0]() is not world
+        or entry[1]() is not options
+        or entry[2] != versions
+    ):
+        try:
+            entry = (weakref.ref(world), weakref.ref(options), versions, {})
+        except TypeError:  # (a world that takes no weak reference: not remembered)
+            return _option_models(world, options, variants)
+        _MEMO[memo_key] = entry
+        weakref.finalize(options, _MEMO.pop, memo_key, None)
+    known = entry[3]
+    missing = [(k, v) for k, v in zip(keys, variants) if k not in known]
+    if missing:
+        for (k, _), models in zip(missing, _option_models(world, options, [v for _, v in missing])):
+            known[k] = models
+    return [known[k] for k in keys]
 
 
 def _option_models(

@@ -1,0 +1,62 @@
+"""The exact option models are remembered per (world, options) while both live: a second call
+returns what the first computed, without computing again, and nothing stale is ever returned."""
+
+import torch
+
+import himit_torch.exact.option_models as om
+from himit_torch import MultiRooms, learner_options
+from himit_torch.exact.option_models import (
+    option_durations,
+    option_models,
+    option_models_and_durations,
+)
+
+
+def _counting(monkeypatch) -> list[int]:
+    calls: list[int] = []
+    compute = om._option_models
+
+    def counted(world, options, variants):
+        calls.append(len(variants))
+        return compute(world, options, variants)
+
+    monkeypatch.setattr(om, "_option_models", counted)
+    return calls
+
+
+def _same(a, b) -> None:
+    assert torch.equal(a.row_state, b.row_state) and torch.equal(a.reward, b.reward)
+    assert torch.equal(a.transition.to_dense(), b.transition.to_dense())
+
+
+def test_a_second_call_reuses_the_models_and_they_equal_a_fresh_computation(monkeypatch):
+    world = MultiRooms(12, 2)
+    options = learner_options(world)
+    fresh = om._option_models(world, options, [(None, None), (1.0, torch.ones(144, 4))])
+    calls = _counting(monkeypatch)
+    first = option_models(world, options)
+    both = option_models_and_durations(world, options)
+    durations = option_durations(world, options)
+    assert calls == [1, 1]  # the discounted models once, the durations once
+    assert both[0] is first and durations is both[1]
+    _same(first, fresh[0])
+    _same(durations, fresh[1])
+
+
+def test_other_options_worlds_rewards_and_options_written_in_place_are_computed_anew(
+    monkeypatch,
+):
+    world = MultiRooms(12, 2)
+    options = learner_options(world)
+    calls = _counting(monkeypatch)
+    first = option_models(world, options)
+    option_models(world, learner_options(world))  # an equal bundle, but another object
+    option_models(MultiRooms(12, 2), options)  # another world object
+    option_models(world, options, step_reward=torch.full((144, 4), 2.0))  # not remembered
+    option_models(world, options, step_reward=torch.full((144, 4), 2.0))
+    option_models(world, options, gamma=0.5)  # another discount
+    assert calls == [1] * 6
+    options.termination[0, :] = 1.0  # written in place: the bundle's models changed
+    again = option_models(world, options)
+    assert len(calls) == 7 and again is not first
+    assert option_models(world, options) is again and len(calls) == 7
