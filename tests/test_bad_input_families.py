@@ -1,7 +1,8 @@
 """Bad input on the surfaces that were not yet held to the library's input rules: the puzzle box
-(world, configuration, ``himit run puzzlebox`` and ``himit info --puzzle-box``), the statistics
-functions, the exact evaluator of frozen policies, the detour's waypoint and the BCO and shaping
-helpers of the mentor. Each mistake is the documented exception — a ``ValueError``, or a
+(world, size, configuration, ``himit run puzzlebox`` and ``himit info --puzzle-box``), the
+grid world's description, the statistics functions, the exact evaluator of frozen policies (its
+window, world, options, models and policies), ``with_options``' learner, the detour's waypoint
+and the BCO and shaping helpers of the mentor. Each mistake is the documented exception — a ``ValueError``, or a
 ``TypeError`` for an argument that is no kind of the object asked for — with a message naming
 the argument; never a hang, a truncation, a ``KeyError``, a ``ZeroDivisionError`` or a NaN
 answer.
@@ -21,9 +22,11 @@ import torch
 
 from himit_torch.cli import main
 from himit_torch.exact.greedy_evaluation import OptionPolicy, PolicyEvaluator
+from himit_torch.exact.option_models import option_models_and_durations
+from himit_torch.learner.option_refresh import with_options
 from himit_torch.mentor.cloning import clone_policy, inverse_model
 from himit_torch.mentor.potential import mentor_chain_value, shaping_potential
-from himit_torch.options.builders import primitive_options
+from himit_torch.options.builders import mentor_options, primitive_options
 from himit_torch.runs.puzzle_box import PuzzleBoxConfig
 from himit_torch.statistics import (
     first_goal_survival,
@@ -38,6 +41,7 @@ from himit_torch.worlds.puzzle_box import (
     PuzzleBox,
     organisation_of,
     organisation_scores,
+    puzzle_box_size,
 )
 from tests.bad_inputs import Cases
 
@@ -79,6 +83,21 @@ class Context:
     @cached_property
     def grid_options(self):
         return primitive_options(self.grid)
+
+    @cached_property
+    def grid_models(self):
+        return option_models_and_durations(self.grid, self.grid_options)
+
+    @cached_property
+    def mentor_models(self):
+        """The models of another bundle over the same world."""
+        return option_models_and_durations(self.grid, mentor_options(self.grid))
+
+    @cached_property
+    def other_models(self):
+        """The primitives' models in another world."""
+        world = MultiRooms(6, 2)
+        return option_models_and_durations(world, primitive_options(world))
 
     @cached_property
     def evaluator(self) -> PolicyEvaluator:
@@ -126,6 +145,17 @@ for _value in [0.5, "0", True, math.nan, [0], 2, -1]:
         lambda c, v=_value: c.box.encode([0, 0], skewer=v),
         "skewer",
     )
+for _field, _values in {
+    "skewers": NOT_INT + [0, -1, SKEWERS_MAX + 1, 10**18],
+    "steps": NOT_INT + [1, 0, -1, COUNT_MAX + 1],
+}.items():
+    for _value in _values:
+        case(  # 10**18 skewers: a power that never finished
+            f"puzzle_box_size.{_field}",
+            _value,
+            lambda c, f=_field, v=_value: puzzle_box_size(**{"skewers": 2, "steps": 4, f: v}),
+            f"puzzle_box_size: {_field}",
+        )
 _DESCRIPTION = PuzzleBox(2).describe()
 for _key in [k for k in _DESCRIPTION if k != "kind"]:
     case(
@@ -148,6 +178,28 @@ for _value in [None, 5, "PuzzleBox", ["kind"]]:
         _value,
         lambda c, v=_value: PuzzleBox.from_description(v),
         "PuzzleBox.describe()",
+        TypeError,
+    )
+_ROOMS = MultiRooms(4, 2).describe()
+for _key in [k for k in _ROOMS if k != "kind"]:
+    case(  # a KeyError before
+        "MultiRooms.from_description.missing",
+        _key,
+        lambda c, k=_key: MultiRooms.from_description({n: v for n, v in _ROOMS.items() if n != k}),
+        f"lacks [{_key!r}]",
+    )
+case(
+    "MultiRooms.from_description.missing",
+    "all",
+    lambda c: MultiRooms.from_description({"kind": "MultiRooms"}),
+    "lacks ['size', 'rooms'",
+)
+for _value in [None, 5, "MultiRooms", ["kind"]]:
+    case(
+        "MultiRooms.from_description.desc",
+        _value,
+        lambda c, v=_value: MultiRooms.from_description(v),
+        "MultiRooms.describe()",
         TypeError,
     )
 for _field, _values in {
@@ -299,6 +351,31 @@ for _value in [None, 5, "MultiRooms"]:
         "policy",
         TypeError,
     )
+for _name, _models in {
+    "another-world": lambda c: c.other_models,
+    "another-bundle": lambda c: c.mentor_models,
+    "one-of-another": lambda c: (c.mentor_models[0], c.grid_models[1]),
+    "swapped-in-pair": lambda c: (c.grid_models[0], c.mentor_models[1]),
+}.items():
+    case(  # accepted before: the evaluation then read another bundle's rows
+        "PolicyEvaluator.models",
+        _name,
+        lambda c, m=_models: PolicyEvaluator(c.grid, c.grid_options, 5, models=m(c)),
+        "not models of these options",
+    )
+for _name, _models in {
+    "one-model": lambda c: c.grid_models[0],
+    "three": lambda c: (*c.grid_models, c.grid_models[0]),
+    "not-models": lambda c: (1, 2),
+    "a-string": lambda c: "models",
+}.items():
+    case(
+        "PolicyEvaluator.models",
+        _name,
+        lambda c, m=_models: PolicyEvaluator(c.grid, c.grid_options, 5, models=m(c)),
+        "models must be the (discounted, durations) pair",
+        TypeError,
+    )
 case(  # a policy's raw choice table is not an OptionPolicy either
     "PolicyEvaluator.evaluate.policy",
     "tensor",
@@ -306,6 +383,16 @@ case(  # a policy's raw choice table is not an OptionPolicy either
     "policy",
     TypeError,
 )
+
+# ================================================================================ with_options
+for _value in [None, 5, "learner", _Thing()]:
+    case(  # an AttributeError before
+        "with_options.learner",
+        _value,
+        lambda c, v=_value: with_options(v, c.grid_options),
+        "with_options: learner",
+        TypeError,
+    )
 
 # ============================================================== the detour, BCO and shaping
 for _value in ["box", None, 5]:
@@ -428,7 +515,11 @@ def test_good_neighbours_of_the_bad_values_are_accepted(context):
     assert box.encode(torch.tensor([1, 2])) == box.encode([1, 2])
     assert box.encode([1, 2], skewer=np.int64(0), grasp="pinch") == box.encode([1, 2], 0, "pinch")
     assert PuzzleBox.from_description(box.describe()).describe() == box.describe()
-    assert PuzzleBox(1, steps=2).num_states == 3 * 4
+    assert PuzzleBox(1, steps=2).num_states == 3 * 4 == puzzle_box_size(1.0, 2.0)
+    assert puzzle_box_size(SKEWERS_MAX, COUNT_MAX) > COUNT_MAX  # a size, computed at once
+    assert (
+        MultiRooms.from_description(context.grid.describe()).describe() == context.grid.describe()
+    )
     config = PuzzleBoxConfig(seeds=2.0, steps=1e4, slip=0, pinch_slip=None, variants=["no_pinch"])
     assert (config.seeds, config.steps, config.variants) == (2, 10_000, ("no_pinch",))
     assert config.to_json() == PuzzleBoxConfig(seeds=2, steps=10_000, slip=0.0,
@@ -444,6 +535,9 @@ def test_good_neighbours_of_the_bad_values_are_accepted(context):
     assert t_interval([5.0]).estimate == 5.0
     assert paired_comparison([1, 2, 3], [1, 2, 4]).losses == 1
     assert PolicyEvaluator(context.grid, context.grid_options, 5.0).window == 5
+    for models in (context.grid_models, list(context.grid_models)):  # its own models, any pair
+        own = PolicyEvaluator(context.grid, context.grid_options, 5, models=models)
+        assert np.array_equal(own.duration, context.evaluator.duration)
     south = context.grid_options.initiation[1]  # primitive 1 (S) where it is usable
     policy = OptionPolicy.deterministic(torch.where(south, 1, -1))
     assert context.evaluator.evaluate(policy, values=False).goals_per_window.shape == (1,)

@@ -247,6 +247,41 @@ def _reachable(graph: sp.csr_matrix, sources: np.ndarray) -> np.ndarray:
     return seen[:n]
 
 
+def _models_of(options: Options, models) -> tuple[OptionModels, OptionModels]:
+    """``models`` as ``(discounted, durations)`` after checking that both are models of
+    ``options``: their rows are its available ``(s, o)``, option by option (the rows
+    :func:`~himit_torch.exact.option_models.option_models_and_durations` builds)."""
+    if (
+        not isinstance(models, (tuple, list))
+        or len(models) != 2
+        or not all(isinstance(m, OptionModels) for m in models)
+    ):
+        raise TypeError(
+            "PolicyEvaluator: models must be the (discounted, durations) pair of "
+            "option_models_and_durations(world, options), got "
+            f"{type(models).__name__}"
+        )
+    pairs = options.initiation.nonzero()  # [M, 2] (o, s), option by option as the rows are
+    for name, model in zip(("discounted", "durations"), models):
+        same = (
+            model.num_options == options.num_options
+            and model.num_states == options.num_states
+            and model.num_rows == pairs.shape[0]
+            and torch.equal(model.row_option.cpu(), pairs[:, 0].cpu())
+            and torch.equal(model.row_state.cpu(), pairs[:, 1].cpu())
+        )
+        if not same:
+            raise ValueError(
+                f"PolicyEvaluator: models ({name}) are not models of these options: they hold "
+                f"{model.num_rows} rows of {model.num_options} options over {model.num_states} "
+                f"states, where the options have {pairs.shape[0]} available (state, option) pairs "
+                f"of {options.num_options} options over {options.num_states} states; give the "
+                "models of the same bundle (option_models_and_durations(world, options)) or "
+                "leave models out"
+            )
+    return models[0], models[1]
+
+
 class PolicyEvaluator:
     """Evaluates frozen policies over ``options`` in ``world``, exactly (module docstring).
 
@@ -269,7 +304,8 @@ class PolicyEvaluator:
             ``options`` no :class:`~himit_torch.Options`.
         ValueError: ``window`` not a whole number in ``1 … COUNT_MAX`` (``2.5``, ``"500"`` and
             ``True`` are refused, never read as a window), options over another number of
-            states, or a bad ``goal_mask``.
+            states, ``models`` not the two models of ``options`` (another bundle's: other
+            options or initiation sets), or a bad ``goal_mask``.
     """
 
     def __init__(
@@ -298,7 +334,9 @@ class PolicyEvaluator:
         self.world, self.options, self.window = world, options, int(window)
         self.num_states, self.gamma = S, float(world.gamma)
         discounted, durations = (
-            models if models is not None else option_models_and_durations(world, options)
+            option_models_and_durations(world, options)
+            if models is None
+            else _models_of(options, models)
         )
         self.terminal = torch.as_tensor(world.terminal_mask, dtype=torch.bool).cpu().numpy()
         if goal_mask is None:

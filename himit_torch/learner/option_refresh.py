@@ -224,11 +224,17 @@ def with_options(
         engine: the new learner's engine (default: ``learner``'s).
 
     Raises:
+        TypeError: ``learner`` is no :class:`~himit_torch.Learner`.
         ValueError: options over another world, without the same leading primitives, bad runs
             or agents, or a learner with exact option models.
     """
     from himit_torch.learner.learner import Learner
 
+    if not isinstance(learner, Learner):
+        raise TypeError(
+            f"with_options: learner must be the Learner to continue (a Learner over the old "
+            f"options), got {type(learner).__name__}"
+        )
     runs = (
         list(range(learner.batch))
         if runs is None

@@ -29,7 +29,7 @@ import torch
 
 from himit_torch.exact.greedy_evaluation import PolicyEvaluation, PolicyEvaluator
 from himit_torch.learner.learner import Learner
-from himit_torch.state_checks import DamagedState, section, tensor_of
+from himit_torch.state_checks import DamagedState, in_range, section, tensor_of
 from himit_torch.viz.tensorboard import TensorBoardLogger
 
 __all__ = ["GreedyTracker", "GreedyReference", "CURVE_COLUMNS"]
@@ -49,6 +49,19 @@ _FIELDS = (
     "goals_per_window",
     "reach_share",
 )
+
+#: Round-off an exact evaluation's solve may leave beyond a range's bounds.
+_ROUND_OFF = 1e-6
+_LARGEST = float(torch.finfo(torch.float64).max)
+#: Each field's ``(low, high, meaning)`` in a checkpoint (``goals_per_window``'s ``high`` is per
+#: step of the window: at most one goal a step); ``value_start`` may also be NaN (not solved).
+_RANGES = {
+    "value_start": (-_LARGEST, _LARGEST, "a finite value, or NaN where it was not solved"),
+    "goal_probability": (-_ROUND_OFF, 1 + _ROUND_OFF, "a probability"),
+    "steps_per_episode": (0.0, math.inf, "expected steps ≥ 0, inf where an episode may not end"),
+    "goals_per_window": (-_ROUND_OFF, 1 + _ROUND_OFF, "goals per window, at most one a step"),
+    "reach_share": (-_ROUND_OFF, 1 + _ROUND_OFF, "a share of the start states"),
+}
 
 
 @dataclass(frozen=True)
@@ -175,23 +188,49 @@ class GreedyTracker:
             **{f: [getattr(self.evaluations[s], f).clone() for s in steps] for f in _FIELDS},
         }
 
-    def load_state_dict(self, state: dict) -> None:
+    def load_state_dict(self, state: dict, learner: Learner | None = None) -> None:
         """Restore the evaluations of a checkpoint (one written before trackers existed holds
         none: the resumed run then lacks the evaluations before its checkpoint). What is read is
-        checked first (:class:`~himit_torch.state_checks.DamagedState` naming the field): a list
-        of steps, and per field one float64 ``[B]`` tensor per step, ``B`` the same throughout."""
+        checked first (:class:`~himit_torch.state_checks.DamagedState` naming the field), and
+        nothing is kept unless all of it passes:
+
+        - ``steps``: distinct step numbers in increasing order, each in ``1 … steps`` (the run's
+          length) and, given the ``learner`` just restored from the same checkpoint, at most
+          its step ``learner.t`` (an evaluation the run never reached is refused);
+        - per field, one float64 ``[B]`` tensor per step, ``B`` the same throughout and, given
+          ``learner``, its batch;
+        - each value in its range: probabilities and reach shares in
+          ``0 … 1``, goal rates in ``0 … window``, expected steps ``≥ 0`` (``inf``: an episode
+          may never end), values finite or NaN (not solved); never a NaN rate.
+        """
         state = section(state, "greedy", ("steps", *_FIELDS))
         steps = state["steps"]
-        if type(steps) is not list or any(type(s) is not int or s < 0 for s in steps):
-            raise DamagedState("greedy.steps", "is not a list of step numbers ≥ 0")
-        batch: int | None = None
+        last = self.steps if learner is None else min(self.steps, int(learner.t))
+        if (
+            type(steps) is not list
+            or any(type(s) is not int or not 1 <= s <= last for s in steps)
+            or any(a >= b for a, b in zip(steps, steps[1:]))
+        ):
+            reached = "" if learner is None else f", the step this checkpoint reached, {last}"
+            raise DamagedState(
+                "greedy.steps",
+                f"is not a list of distinct step numbers in increasing order, each in 1…{last} "
+                f"(the run's length{reached})",
+            )
+        batch = None if learner is None else int(learner.batch)
+        window = int(self.evaluator.window)
         for f in _FIELDS:
             values = state[f]
             if type(values) is not list or len(values) != len(steps):
                 raise DamagedState(f"greedy.{f}", f"is not a list of {len(steps)} tensors")
+            low, high, meaning = _RANGES[f]
+            high = high * window if f == "goals_per_window" else high
             for i, value in enumerate(values):
-                tensor_of(value, f"greedy.{f}[{i}]", torch.float64, (batch,))
+                where = f"greedy.{f}[{i}]"
+                tensor_of(value, where, torch.float64, (batch,))
                 batch = value.shape[0]
+                solved = ~value.isnan() if f == "value_start" else None
+                in_range(value, where, low, high, meaning, solved)
         self.evaluations = {
             s: PolicyEvaluation(
                 **{f: state[f][i].clone() for f in _FIELDS}, window=self.evaluator.window

@@ -423,8 +423,37 @@ class MultiRooms:
 
     @classmethod
     def from_description(cls, desc: dict) -> MultiRooms:
+        """The world a :meth:`describe` dict names.
+
+        Raises:
+            TypeError: ``desc`` is not a dict.
+            ValueError: a description of another kind of world, one that lacks a field (naming
+                it), or a field the world refuses.
+        """
+        if not isinstance(desc, dict):
+            raise TypeError(
+                f"MultiRooms.from_description: give a MultiRooms.describe() dict, got "
+                f"{type(desc).__name__}"
+            )
         if desc.get("kind") != "MultiRooms":
             raise ValueError(f"description is of a {desc.get('kind')!r} world, not MultiRooms")
+        fields = (
+            "size",
+            "rooms",
+            "slip",
+            "start",
+            "goal",
+            "closed_doorways",
+            "step_reward",
+            "goal_reward",
+            "gamma",
+        )
+        missing = [name for name in fields if name not in desc]
+        if missing:
+            raise ValueError(
+                f"MultiRooms description lacks {missing}; a MultiRooms.describe() dict holds "
+                f"{['kind', *fields]}"
+            )
         return cls(
             size=desc["size"],
             rooms=desc["rooms"],

@@ -118,7 +118,15 @@ SKEWERS_MAX = 16
 
 
 def puzzle_box_size(skewers: int, steps: int = 4) -> int:
-    """``|S| = (steps + 1)^skewers · (1 + 3·skewers)`` of a :class:`PuzzleBox`."""
+    """``|S| = (steps + 1)^skewers · (1 + 3·skewers)`` of a :class:`PuzzleBox`.
+
+    Raises:
+        ValueError: ``skewers`` not a whole number in ``1 …`` :data:`SKEWERS_MAX`, or ``steps``
+            not one in ``2 … COUNT_MAX`` (the box's own bounds; a power of ``10**18`` skewers
+            would never finish).
+    """
+    skewers = as_int("puzzle_box_size: skewers", skewers, 1, SKEWERS_MAX)
+    steps = as_int("puzzle_box_size: steps", steps, 2, COUNT_MAX)
     return (steps + 1) ** skewers * (1 + 3 * skewers)
 
 
