@@ -183,16 +183,22 @@ def _setting_text(kind: Any, optional: bool) -> Callable[[str], Any]:
 
 
 def _add_setting_flags(
-    group: argparse._ArgumentGroup, config_class: type, prefix: str, skip: Sequence[str] = ()
+    group: argparse._ArgumentGroup,
+    config_class: type,
+    prefix: str,
+    skip: Sequence[str] = (),
+    defaults: Any = None,
 ) -> None:
     """One flag per declared field of ``config_class`` (``--mentor-fade`` for ``mentor_fade``),
-    its help the field's doc. A flag not given leaves no attribute (``argparse.SUPPRESS``), so
-    :func:`_given_settings` tells given flags from absent ones."""
+    its help the field's doc and its default (``defaults``'s value, e.g. a study's own
+    configuration; else the declared default). A flag not given leaves no attribute
+    (``argparse.SUPPRESS``), so :func:`_given_settings` tells given flags from absent ones."""
     for s in settings_of(config_class):
         if s.name in skip or dataclasses.is_dataclass(s.kind):
             continue
         doc = " ".join(s.info.doc.split()).replace("%", "%%")
-        default = "none" if s.default is None else s.default
+        value = s.default if defaults is None else getattr(defaults, s.name)
+        default = "none" if value is None else value
         if isinstance(default, tuple):
             default = " ".join(map(str, default))
         options: dict[str, Any] = dict(
@@ -584,6 +590,92 @@ def _add_demo(sub: argparse.ArgumentParser) -> None:
 
 
 # -------------------------------------------------------------------------------------- run
+@dataclass(frozen=True)
+class StudyCommand:
+    """One ``himit run STUDY``: its configuration class, its help, which of the run's own
+    flags it takes (``config``: a saved ``config.json`` in place of its defaults; ``resume``;
+    ``workers``: worlds in parallel) and its runner (``cmd_run`` dispatches by name). Its
+    setting flags are built from the configuration class: every declared field (the learner's
+    too, where it has one, but its ``window``, which is the study's ``--window``), so a new
+    setting is a flag of every study that has it, and a flag of another study's is refused in
+    one line."""
+
+    config_class: Callable[[], type]
+    help: str
+    run_flags: tuple[str, ...] = ()
+    skip: tuple[str, ...] = ()
+
+
+def _experiment_class() -> type:
+    return ExperimentConfig
+
+
+def _gym_class() -> type:
+    from himit_torch.runs.gymnasium import GymExperimentConfig
+
+    return GymExperimentConfig
+
+
+def _discovery_class() -> type:
+    from himit_torch.runs.discovery import DiscoveryConfig
+
+    return DiscoveryConfig
+
+
+def _puzzle_box_class() -> type:
+    from himit_torch.runs.puzzle_box import PuzzleBoxConfig
+
+    return PuzzleBoxConfig
+
+
+#: ``himit run paper``: the paper's three experiments, their worlds in one pool.
+PAPER_EXPERIMENTS = ("exp1", "exp2", "exp3")
+
+#: The studies of ``himit run``, by name.
+STUDIES: dict[str, StudyCommand] = {
+    **{
+        name: StudyCommand(
+            _experiment_class,
+            f"the paper's experiment {name[-1]} (himit_torch.runs.experiment)",
+            ("config", "resume", "workers"),
+        )
+        for name in PAPER_EXPERIMENTS
+    },
+    "paper": StudyCommand(
+        _experiment_class,
+        "the paper's experiments 1, 2 and 3, their worlds shared out over the cores together "
+        "(each keeps its own name and configuration)",
+        ("resume", "workers"),
+        skip=("name",),
+    ),
+    "gymnasium": StudyCommand(
+        _gym_class,
+        "imitation against options and primitives on Gymnasium's Taxi, CliffWalking and "
+        "FrozenLake 8×8 (himit_torch.runs.gymnasium; each task is one batch, rerun with --force)",
+    ),
+    "discovery": StudyCommand(
+        _discovery_class,
+        "options discovered from the mentor's states against hand-built doorway options "
+        "(himit_torch.runs.discovery; one process on the CPU, rerun with --force)",
+    ),
+    "puzzlebox": StudyCommand(
+        _puzzle_box_class,
+        "Whiten et al.'s keyway-fruit box: speed, copying the organisation, a new skewer "
+        "(himit_torch.runs.puzzle_box; its batches run one after the other)",
+        ("resume",),
+    ),
+}
+
+
+def _study_defaults(name: str) -> Any:
+    """The configuration ``himit run name`` starts from (its flags' defaults)."""
+    if name in PAPER_EXPERIMENTS or name == "paper":
+        from himit_torch.runs.config import EXPERIMENTS
+
+        return EXPERIMENTS.get(name, ExperimentConfig())
+    return STUDIES[name].config_class()()
+
+
 def cmd_run(args: argparse.Namespace) -> int:
     from himit_torch.runs.experiment import run_experiments
 
@@ -593,13 +685,6 @@ def cmd_run(args: argparse.Namespace) -> int:
         return _run_discovery(args)
     if args.experiment == "puzzlebox":
         return _run_puzzle_box(args)
-    if args.experiment == "paper" and "experiment.name" in args:
-        raise ValueError("himit run paper takes no --name (its three experiments keep theirs)")
-    if args.experiment == "paper" and args.config:
-        raise ValueError(
-            "himit run paper takes no --config (it runs exp1, exp2 and exp3, each with its "
-            "own configuration); run one experiment with --config instead"
-        )
     names = PAPER_EXPERIMENTS if args.experiment == "paper" else (args.experiment,)
     plans = []
     for name in names:
@@ -623,8 +708,18 @@ def cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
-#: ``himit run paper``: the paper's three experiments, their worlds in one pool.
-PAPER_EXPERIMENTS = ("exp1", "exp2", "exp3")
+def _study_config(config: Any, args: argparse.Namespace) -> Any:
+    """``config`` with the command line's changes: ``--quick``, then the preset, then the
+    settings given (the learner's into its ``learner``)."""
+    if args.quick:
+        config = config.quick()
+    changes = _given_settings(args, "study")
+    if "preset" in changes:
+        config = _with_preset(config, changes.pop("preset"))
+    learner_changes = _given_settings(args, "learner")
+    if learner_changes:
+        changes["learner"] = dataclasses.replace(config.learner, **learner_changes)
+    return dataclasses.replace(config, **changes)
 
 
 def _experiment_config(name: str, args: argparse.Namespace) -> ExperimentConfig:
@@ -637,21 +732,14 @@ def _experiment_config(name: str, args: argparse.Namespace) -> ExperimentConfig:
     refuses any other."""
     from himit_torch.runs.config import EXPERIMENTS, load_config
 
-    if args.config:
+    if getattr(args, "config", None):
         config = load_config(args.config)
         if name != config.name:
             raise ValueError(f"--config {args.config} is for {config.name!r}, not {name!r}")
     else:
         config = EXPERIMENTS[name]
-    if args.quick:
-        config = config.quick()
-    changes = _given_settings(args, "experiment")
-    if "preset" in changes:
-        config = _with_preset(config, changes.pop("preset"))
-    learner_changes = _given_settings(args, "learner")
-    if learner_changes:
-        changes["learner"] = dataclasses.replace(config.learner, **learner_changes)
-    config = dataclasses.replace(config, **changes)
+    changes = _given_settings(args, "study")
+    config = _study_config(config, args)
     if "steps" in changes and "checkpoint_every" not in changes:
         # A shorter run still saves at least once before its end (at a window boundary).
         window = config.window
@@ -667,39 +755,6 @@ def _with_preset(config: Any, name: str | None) -> Any:
     """``config`` with preset ``name`` applied (``--preset none``: the recorded preset dropped,
     the settings kept)."""
     return dataclasses.replace(config, preset=None) if name is None else config.with_preset(name)
-
-
-def _refuse_flags(args: argparse.Namespace, allowed: Sequence[str], why: str) -> dict[str, Any]:
-    """The setting flags of ``allowed`` that were given; any other setting flag is refused,
-    naming the flags, those allowed and ``why``."""
-    given = _given_settings(args, "experiment")
-    refused = [_flag(k) for k in given if k not in allowed]
-    refused += [_flag(k) for k in _given_settings(args, "learner") if k not in allowed]
-    if refused:
-        raise ValueError(
-            f"himit run {args.experiment} takes no {', '.join(refused)} (of the settings only "
-            f"{', '.join(map(_flag, allowed))}: {why})"
-        )
-    given |= _given_settings(args, "learner")
-    return {k: v for k, v in given.items() if k in allowed}
-
-
-def _learner_settings() -> tuple[str, ...]:
-    """Every learner setting a study's flags may change (``window`` is the study's own)."""
-    from himit_torch.learner.config import LearnerConfig
-    from himit_torch.validation import settings_of
-
-    return tuple(s.name for s in settings_of(LearnerConfig) if s.name != "window")
-
-
-def _with_learner_flags(config: Any, changes: dict[str, Any]) -> Any:
-    """``config`` with the learner settings among ``changes`` (taken out of it) applied to its
-    ``learner``."""
-    names = _learner_settings()
-    learner = {k: changes.pop(k) for k in list(changes) if k in names}
-    if not learner:
-        return config
-    return dataclasses.replace(config, learner=dataclasses.replace(config.learner, **learner))
 
 
 def _run_gymnasium(args: argparse.Namespace) -> int:
@@ -720,61 +775,26 @@ def _run_gymnasium(args: argparse.Namespace) -> int:
 
 def _gym_config(args: argparse.Namespace) -> Any:
     """The Gymnasium comparison's configuration with ``himit run gymnasium``'s flags."""
-    from dataclasses import replace
-
     from himit_torch.runs.gymnasium import GymExperimentConfig
 
-    if args.config or args.resume:
-        raise ValueError(
-            "himit run gymnasium takes no --config or --resume (each task is one "
-            "batch; rerun a task with --force)"
-        )
-    changes = _refuse_flags(
-        args,
-        ("seeds", "first_seed", "steps", "device", "preset", *_learner_settings()),
-        "its agents are fixed by its design and its imitators use the world's own reward, "
-        "KnownReward",
-    )
-    config = GymExperimentConfig()
-    if args.quick:
-        config = config.quick()
-    if "preset" in changes:
-        config = _with_preset(config, changes.pop("preset"))
-    config = replace(_with_learner_flags(config, changes), **changes)
+    config = _study_config(GymExperimentConfig(), args)
     as_device("--device", config.device)
     return config
+
+
+def _discovery_config(args: argparse.Namespace) -> Any:
+    """The discovery experiment's configuration with ``himit run discovery``'s flags."""
+    from himit_torch.runs.discovery import DiscoveryConfig
+
+    return _study_config(DiscoveryConfig(), args)
 
 
 def _run_discovery(args: argparse.Namespace) -> int:
     """``himit run discovery``: options discovered from the mentor's states
     (:mod:`himit_torch.runs.discovery`) on experiment 1's and 2's worlds."""
-    from dataclasses import replace
+    from himit_torch.runs.discovery import run_discovery
 
-    from himit_torch.runs.discovery import DiscoveryConfig, run_discovery
-
-    refused = [
-        flag
-        for flag, value in (
-            ("--config", args.config),
-            ("--resume", args.resume),
-            ("--workers", args.workers),
-        )
-        if value
-    ]
-    if refused:
-        raise ValueError(
-            f"himit run discovery takes no {', '.join(refused)} (it runs on the CPU in one "
-            "process; rerun with --force)"
-        )
-    changes = _refuse_flags(
-        args,
-        ("seeds", "steps", "engine"),
-        "its agents are fixed by its design; it runs on the CPU with the world's own mentor reward",
-    )
-    config = DiscoveryConfig()
-    if args.quick:
-        config = config.quick()
-    config = replace(config, **changes)
+    config = _discovery_config(args)
     run_dir = Path(args.logdir) / config.name
     print(f"{config.name}: worlds {list(config.worlds)}, {config.seeds} seeds → {run_dir}")
     t0 = time.perf_counter()
@@ -802,89 +822,100 @@ def _run_puzzle_box(args: argparse.Namespace) -> int:
 
 def _puzzle_box_config(args: argparse.Namespace) -> Any:
     """The puzzle box's configuration with ``himit run puzzlebox``'s flags."""
-    from dataclasses import replace
-
     from himit_torch.runs.puzzle_box import PuzzleBoxConfig
 
-    refused = [
-        flag for flag, value in (("--config", args.config), ("--workers", args.workers)) if value
-    ]
-    if refused:
-        raise ValueError(
-            f"himit run puzzlebox takes no {', '.join(refused)} (its batches run one after "
-            "the other in one process)"
-        )
-    changes = _refuse_flags(
-        args,
-        ("seeds", "steps", "engine", "preset", *_learner_settings()),
-        "its conditions are fixed by its design; --steps sets experiments (a) and (b), "
-        "(c) keeps its own budget",
-    )
-    config = PuzzleBoxConfig()
-    if args.quick:
-        config = config.quick()
-    if "preset" in changes:
-        config = _with_preset(config, changes.pop("preset"))
-    return replace(_with_learner_flags(config, changes), **changes)
+    return _study_config(PuzzleBoxConfig(), args)
 
 
-def _add_run(sub: argparse.ArgumentParser) -> None:
-    sub.add_argument(
-        "experiment",
-        choices=["exp1", "exp2", "exp3", "paper", "gymnasium", "discovery", "puzzlebox"],
-        help="which experiment (paper: exp1, exp2 and exp3, their worlds shared out over "
-        "the cores together; gymnasium: Taxi, CliffWalking, FrozenLake 8×8; "
-        "discovery: options discovered from the mentor's states; puzzlebox: Whiten et al.'s "
-        "keyway-fruit box — speed, copying the organisation, a new skewer)",
-    )
+class _StudyParser(_Parser):
+    """One ``himit run STUDY``'s parser: a flag it does not take (another study's setting, or
+    a run flag it has no use for) is refused in one line, naming the flag."""
+
+    def parse_known_args(self, args=None, namespace=None):
+        parsed, extras = super().parse_known_args(args, namespace)
+        flags = [a.split("=", 1)[0] for a in extras if a.startswith("-")]
+        if flags:
+            self.error(
+                f"takes no {', '.join(flags)} (not a flag of this study; its flags: "
+                f"{self.prog} --help)"
+            )
+        return parsed, extras
+
+    def error(self, message: str):
+        if message.startswith("takes no"):
+            _fail(f"{self.prog} {message}")
+        super().error(message)
+
+
+def _add_study(sub: argparse.ArgumentParser, name: str, study: StudyCommand) -> None:
+    """The flags of ``himit run name``: the run's own, then one per setting of its
+    configuration class and, where it has a learner, of the learner's."""
+    sub.set_defaults(config=None, resume=False, workers=None)
     sub.add_argument("--quick", action="store_true", help="tiny budget (smoke test)")
     sub.add_argument(
         "--logdir", default="runs", help="parent folder of the run directory (default: runs)"
     )
-    sub.add_argument(
-        "--config",
-        help="a config.json (as saved in a run directory) to run instead of the experiment's "
-        "defaults; flags given beside it change it",
-    )
-    sub.add_argument(
-        "--resume",
-        action="store_true",
-        help="continue an interrupted run from its newest good checkpoint (give the flags it "
-        "started with, or --config of its config.json)",
-    )
+    if "config" in study.run_flags:
+        sub.add_argument(
+            "--config",
+            help="a config.json (as saved in a run directory) to run instead of the "
+            "experiment's defaults; flags given beside it change it",
+        )
+    if "resume" in study.run_flags:
+        sub.add_argument(
+            "--resume",
+            action="store_true",
+            help="continue an interrupted run from its newest good checkpoint (give the flags "
+            "it started with"
+            + (", or --config of its config.json)" if "config" in study.run_flags else ")"),
+        )
     sub.add_argument("--force", action="store_true", help="overwrite a finished run")
     sub.add_argument("--quiet", action="store_true", help="no progress bars")
-    sub.add_argument(
-        "--workers",
-        type=_positive_int,
-        help="worlds run in parallel, one process each (default: one per core, "
-        "at most one per world — with paper, the worlds of all three experiments; "
-        "the results do not depend on it)",
-    )
+    if "workers" in study.run_flags:
+        sub.add_argument(
+            "--workers",
+            type=_positive_int,
+            help="worlds run in parallel, one process each (default: one per core, "
+            "at most one per world — with paper, the worlds of all three experiments; "
+            "the results do not depend on it)",
+        )
+    config_class = study.config_class()
+    defaults = _study_defaults(name)
     _add_setting_flags(
         sub.add_argument_group(
-            "experiment settings",
-            "Fields of ExperimentConfig. Defaults shown are the library's; exp1, exp2 and exp3 "
-            "set their own (himit_torch.runs.config.EXPERIMENTS), --config a file's. "
-            "Of these, gymnasium takes only --seeds, --first-seed, --steps, --device and "
-            "--preset, puzzlebox only --seeds, --steps, --engine and --preset, discovery only "
-            "--seeds, "
-            "--steps and --engine.",
+            "settings",
+            f"Fields of {config_class.__name__}; the defaults shown are this study's"
+            + (" (--config: a file's)." if "config" in study.run_flags else "."),
         ),
-        ExperimentConfig,
-        "experiment",
+        config_class,
+        "study",
+        skip=study.skip,
+        defaults=defaults,
     )
-    _add_setting_flags(
-        sub.add_argument_group(
-            "learner settings",
-            "Fields of LearnerConfig (exp1, exp2, exp3 and puzzlebox set plan_every=4, "
-            "sweep_rounds=1). Its window is the experiment's --window. Every study but "
-            "discovery takes them.",
-        ),
-        LearnerConfig,
-        "learner",
-        skip=("window",),
+    if any(f.name == "learner" for f in dataclasses.fields(config_class)):
+        _add_setting_flags(
+            sub.add_argument_group(
+                "learner settings",
+                "Fields of LearnerConfig, this study's defaults shown. Its window is the "
+                "study's --window.",
+            ),
+            LearnerConfig,
+            "learner",
+            skip=("window",),
+            defaults=defaults.learner,
+        )
+
+
+def _add_run(sub: argparse.ArgumentParser) -> None:
+    studies = sub.add_subparsers(
+        dest="experiment",
+        metavar="study",
+        required=True,
+        parser_class=_StudyParser,
+        help="which study (himit run STUDY --help: its flags)",
     )
+    for name, study in STUDIES.items():
+        _add_study(studies.add_parser(name, help=study.help, description=study.help), name, study)
 
 
 # ------------------------------------------------------------------------------------- plot

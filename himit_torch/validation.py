@@ -447,7 +447,8 @@ class Setting:
     item of a ``tuple[str, ...]``) may take; ``hint`` is added to a refusal (what the value
     means). ``kernel``: the compiled engine reads the field, encoded as a number — a choice as
     its index in ``choices``, ``None`` as ``kernel_none``. ``folder``: a ``str`` field that
-    names a folder (:func:`as_folder_name`).
+    names a folder (:func:`as_folder_name`). ``empty``: a tuple field may hold no item (by
+    default it needs at least one).
     """
 
     doc: str
@@ -460,6 +461,7 @@ class Setting:
     kernel: bool = False
     kernel_none: int | float | None = None
     folder: bool = False
+    empty: bool = False
 
 
 def setting(
@@ -575,7 +577,7 @@ def check_settings(config: Any) -> None:
                 value = tuple(
                     _convert(f"{where}[{i}]", v, s.item, s.info) for i, v in enumerate(items)
                 )
-                if not value:
+                if not value and not s.info.empty:
                     raise ValueError(f"{where}=(): needs at least one item")
             else:
                 value = _convert(where, value, s.kind, s.info)

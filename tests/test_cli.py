@@ -182,7 +182,7 @@ def test_info_of_a_gymnasium_world_is_exact(capsys):
         (["info", "--env", "CartPole-v1"], "Discrete observation and action spaces"),
         (["info", "--env", "taxi", "--env-kwargs", '{"is_rainy": true}'], "give --env Taxi-v4"),
         (["info", "--env", "Taxi-v4", "--env-kwargs", "[1]"], "must be a JSON object"),
-        (["run", "gymnasium", "--resume"], "takes no --config or --resume"),
+        (["run", "gymnasium", "--resume"], "takes no --resume"),
     ],
 )
 def test_gymnasium_mistakes_are_one_line(capsys, argv, what):

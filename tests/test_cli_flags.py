@@ -93,7 +93,8 @@ def test_every_setting_has_a_value_here():
 
 def test_help_lists_every_setting_with_its_doc():
     run = build_parser()._subparsers._group_actions[0].choices["run"]  # type: ignore[union-attr]
-    text = " ".join(run.format_help().split())
+    exp1 = run._subparsers._group_actions[0].choices["exp1"]  # type: ignore[union-attr]
+    text = " ".join(exp1.format_help().split())
     for cls, skip in ((LearnerConfig, {"window"}), (ExperimentConfig, {"learner"})):
         for s in settings_of(cls):
             if s.name in skip:
@@ -182,8 +183,10 @@ def test_steps_flag_keeps_a_checkpoint_before_the_end_unless_given(planned):
         (["exp1", "--slip", "nan"], "ExperimentConfig.slip=nan must be a finite number"),
         (["exp1", "--untried-value", "nope"], "invalid number: 'nope' (or none)"),
         (["paper", "--name", "x"], "takes no --name"),
-        (["gymnasium", "--agents", "options"], "takes no --agents"),
-        (["puzzlebox", "--slip", "0.2"], "takes no --slip"),
+        (["gymnasium", "--sizes", "8"], "takes no --sizes"),
+        (["gymnasium", "--workers", "2"], "takes no --workers"),
+        (["puzzlebox", "--agents", "options"], "takes no --agents"),
+        (["puzzlebox", "--slip", "1.5"], "PuzzleBoxConfig.slip=1.5"),
         (["discovery", "--device", "cpu"], "takes no --device"),
     ],
 )

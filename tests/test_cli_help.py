@@ -15,18 +15,22 @@ from himit_torch.validation import settings_of
 MARKUP = re.compile(r"``|:(?:py:)?(?:func|meth|class|attr|data|mod|doc|ref|obj|exc|const):")
 
 
-def _helps() -> list[tuple[str, str]]:
-    parser = build_parser()
-    helps = [("himit", parser.format_help())]
+def _helps(parser: argparse.ArgumentParser | None = None, name: str = "himit") -> list:
+    """``(command, its --help)`` of ``himit`` and every subcommand, nested ones included
+    (``himit run gymnasium``)."""
+    parser = parser or build_parser()
+    helps = [(name, parser.format_help())]
     for action in parser._actions:
         if isinstance(action, argparse._SubParsersAction):
-            helps += [(f"himit {n}", sub.format_help()) for n, sub in action.choices.items()]
+            for n, sub in action.choices.items():
+                helps += _helps(sub, f"{name} {n}")
     return helps
 
 
 def test_every_subcommand_is_walked():
     names = [name for name, _ in _helps()]
     assert {"himit run", "himit sweep", "himit info", "himit plot"} <= set(names)
+    assert {"himit run exp1", "himit run gymnasium", "himit run puzzlebox"} <= set(names)
 
 
 @pytest.mark.parametrize(("command", "text"), _helps(), ids=[n for n, _ in _helps()])

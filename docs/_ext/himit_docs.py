@@ -607,7 +607,8 @@ class PresetsDirective(SphinxDirective):
 
 
 class CliDirective(SphinxDirective):
-    """``himit --help`` and each subcommand's ``--help``, each in a section of its own."""
+    """``himit --help`` and each subcommand's ``--help`` (each study of ``himit run`` too), each
+    in a section of its own."""
 
     def run(self) -> list[nodes.Node]:
         from himit_torch.cli import build_parser
@@ -615,13 +616,14 @@ class CliDirective(SphinxDirective):
         old = os.environ.get("COLUMNS")
         os.environ["COLUMNS"] = "100"  # argparse wraps to the terminal: a fixed width here
         try:
-            parser = build_parser()
-            helps = [("himit", parser.format_help())]
-            subparsers = next(
-                a for a in parser._actions if isinstance(a, argparse._SubParsersAction)
-            )
-            for name, sub in subparsers.choices.items():
-                helps.append((f"himit {name}", sub.format_help()))
+            helps: list[tuple[str, str]] = []
+            todo = [("himit", build_parser())]
+            while todo:  # each command, then its subcommands (himit run exp1, …) in order
+                title, parser = todo.pop(0)
+                helps.append((title, parser.format_help()))
+                for action in parser._actions:
+                    if isinstance(action, argparse._SubParsersAction):
+                        todo += [(f"{title} {n}", sub) for n, sub in action.choices.items()]
         finally:
             if old is None:
                 del os.environ["COLUMNS"]

@@ -8,7 +8,6 @@ choices, doc), as :class:`~himit_torch.learner.config.LearnerConfig`'s are: vali
 
 from __future__ import annotations
 
-import json
 import os
 import shlex
 from dataclasses import asdict, dataclass, fields, replace
@@ -17,14 +16,11 @@ from typing import Any
 
 from himit_torch.learner.agents import AGENTS
 from himit_torch.learner.config import LearnerConfig
-from himit_torch.learner.engines import ENGINES
 from himit_torch.learner.learner import Learner
-from himit_torch.learner.presets import PRESETS, apply_preset, check_preset
 from himit_torch.mentor.reward import MENTOR_REWARDS
+from himit_torch.runs.study import RunConfig
 from himit_torch.validation import (
-    as_device,
     check_memory,
-    check_settings,
     parse_document,
     read_text,
     refuse_unknown_fields,
@@ -68,12 +64,13 @@ STRESS_SETTINGS = (
 
 
 @dataclass
-class ExperimentConfig:
-    """One experiment: which worlds, agents, seeds, budget and learner settings."""
+class ExperimentConfig(RunConfig):
+    """One experiment: which worlds, agents, seeds, budget and learner settings (the shared
+    settings are :class:`~himit_torch.runs.study.RunConfig`'s)."""
 
-    name: str = setting(
+    name: str = RunConfig.shared(
+        "name",
         "exp2",
-        folder=True,
         doc="Experiment id (``exp1``, ``exp2``, ``exp3`` or your own; the run directory's name).",
     )
     sizes: tuple[int, ...] = setting(
@@ -95,18 +92,12 @@ class ExperimentConfig:
         choices=tuple(AGENTS),
         doc="Agent variants, each run with every seed (see ``himit_torch.AGENTS``).",
     )
-    seeds: int = setting(5, ge=1, doc="Runs per agent.")
-    first_seed: int = setting(
-        0,
-        ge=0,
-        doc="""
-        Seeds are first_seed … first_seed + seeds − 1 (a seed also picks the mentor's
-        episodes).""",
-    )
-    steps: int = setting(200_000, ge=1, doc="Primitive steps per run.")
-    mentor_episodes: int = setting(
+    seeds: int = RunConfig.shared("seeds", 5, doc="Runs per agent.")
+    first_seed: int = RunConfig.shared("first_seed", 0)
+    steps: int = RunConfig.shared("steps", 200_000)
+    mentor_episodes: int = RunConfig.shared(
+        "mentor_episodes",
         20,
-        ge=1,
         doc="""
         Mentor episodes recorded (states only) before learning, per seed (default 20). A stress
         axis: how many demonstrations (the benchmark's 1 … 100).""",
@@ -230,13 +221,7 @@ class ExperimentConfig:
         primitives reach it on purpose (default false: the bottom-right corner, which the
         corner options reach). Needs rooms of ≥ 4 cells per side.""",
     )
-    window: int = setting(
-        5000,
-        ge=1,
-        doc="""
-        Goals are counted per window of this many steps (the paper's 5000); also the learner's
-        ``window``.""",
-    )
+    window: int = RunConfig.shared("window", 5000)
     checkpoint_every: int = setting(
         25_000,
         ge=1,
@@ -257,43 +242,14 @@ class ExperimentConfig:
         ≈ 40 ms on 80×80 and ≈ 50–100 ms on 120×120 (more at the end, with ``V^π``): at the end
         only, the paper's reproduction takes ≈ 9 % longer; ``25000`` (every checkpoint) ≈ 30 %.""",
     )
-    device: str = setting(
-        "cpu",
-        hint="a torch device such as 'cpu' or 'cuda'",
-        doc="Where the batch runs (``cpu`` or ``cuda``).",
-    )
-    engine: str = setting(
-        "auto",
-        choices=ENGINES,
-        doc="""
-        Which engine carries out the ticks: ``auto`` (the compiled ``numba`` loop on a CPU, the
-        ``torch`` engine on a GPU), ``numba`` or ``torch``. Both give the same curves.""",
-    )
-    learner: LearnerConfig = setting(
-        default_factory=LearnerConfig,
-        doc="Learner settings (see ``LearnerConfig``; a dict of its fields is accepted).",
-    )
-    preset: str | None = setting(
-        None,
-        choices=tuple(PRESETS),
-        doc="""
-        The named preset the learner settings follow (``himit_torch.learner.presets``):
-        ``paper`` (eq. 2 as the paper states it), ``explore-goals`` (the paper's with ε held
-        until the 10th goal: an exploration schedule, for every agent), ``mentor-fade`` (the
-        paper's with the mentor term fading: read only by agents with a mentor term) or
-        ``recommended`` (both); ``None``: none claimed. Every agent of a run gets it: compare
-        methods under one preset. Set by :meth:`with_preset` / ``himit run --preset``; a
-        configuration whose learner departs from its preset's settings is refused. The greedy
-        tie rule is not part of a preset (``--tie-break``).""",
-    )
+    device: str = RunConfig.shared("device", "cpu")
+    engine: str = RunConfig.shared("engine", "auto")
+    learner: LearnerConfig = RunConfig.shared("learner", default_factory=LearnerConfig)
+    preset: str | None = RunConfig.shared("preset", None)
 
     def __post_init__(self):
-        check_settings(self)
-        check_preset("ExperimentConfig", self.learner, self.preset)
+        self.check_run_settings()
         # Cross-field rules (each field on its own is checked above).
-        # Written down, not run: a config naming cuda is valid on a machine without (plotting a
-        # GPU run's directory); the learner refuses it where it would run.
-        as_device("ExperimentConfig.device", self.device, available=False)
         if any(s % self.room_size for s in self.sizes):
             raise ValueError(
                 f"ExperimentConfig.sizes={self.sizes!r}: every size must be a positive multiple "
@@ -343,8 +299,6 @@ class ExperimentConfig:
                     primitives_only_goal(size, size // self.room_size)
                 except ValueError as err:
                     raise ValueError(f"ExperimentConfig.goal_needs_primitives: {err}") from None
-        if self.learner.window != self.window:
-            self.learner = replace(self.learner, window=self.window)
 
     def check_size(self) -> None:
         """Refuse, before anything runs, a world of this experiment whose world, option tables
@@ -376,13 +330,6 @@ class ExperimentConfig:
             + (1 + mentors) * options * S * BYTES_PER_OPTION_STATE
             + batch * (S * Learner.BYTES_PER_RUN_STATE + rows * Learner.BYTES_PER_RUN_ROW)
         )
-
-    def to_json(self) -> str:
-        return json.dumps(asdict(self), indent=2)
-
-    def with_preset(self, name: str) -> ExperimentConfig:
-        """This experiment with preset ``name``'s learner settings, and the preset recorded."""
-        return replace(self, preset=name, learner=apply_preset(self.learner, name))
 
     def world(self, size: int) -> MultiRooms:
         rooms = size // self.room_size

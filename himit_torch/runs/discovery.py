@@ -29,17 +29,15 @@ Goals are counted over the whole run. Results: ``config.json``, ``curves.csv``, 
 from __future__ import annotations
 
 import csv
-import json
 import math
 import os
 import time
-from dataclasses import asdict, dataclass, replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from himit_torch.learner.config import LearnerConfig
-from himit_torch.learner.engines import ENGINES
 from himit_torch.learner.learner import Learner
 from himit_torch.learner.option_refresh import with_options
 from himit_torch.mentor.policy import mentor_policy, record_demonstrations
@@ -52,8 +50,9 @@ from himit_torch.options.discovery import (
 )
 from himit_torch.runs.config import EXPERIMENTS
 from himit_torch.runs.runner import check_run_dir, run_windows, source_commit, watch_demonstrations
+from himit_torch.runs.study import RunConfig
 from himit_torch.statistics import mean_half_width, paired_t_p
-from himit_torch.validation import check_settings, setting
+from himit_torch.validation import setting
 
 __all__ = [
     "DiscoveryConfig",
@@ -74,21 +73,26 @@ DISCOVERY_AGENTS = (
 
 
 @dataclass
-class DiscoveryConfig:
+class DiscoveryConfig(RunConfig):
     """Settings of the discovery experiment, each declared with
-    :func:`~himit_torch.validation.setting` and checked by
-    :func:`~himit_torch.validation.check_settings`; the cross-field rules follow."""
+    :func:`~himit_torch.validation.setting` (the shared ones once, in
+    :class:`~himit_torch.runs.study.RunSettings`) and checked by
+    :func:`~himit_torch.validation.check_settings`; the cross-field rules follow. Its mentor
+    episodes, window and learner settings are each world's experiment's
+    (:data:`~himit_torch.runs.config.EXPERIMENTS`)."""
 
-    name: str = setting("discovery", folder=True, doc="Run name (the run directory's).")
+    name: str = RunConfig.shared("name", "discovery")
     worlds: tuple[str, ...] = setting(
         ("exp2", "exp1"),
         choices=("exp1", "exp2"),
         doc="Whose worlds (and steps, mentor episodes, learner settings) to use: ``exp1``, "
         "``exp2``.",
     )
-    seeds: int = setting(10, ge=1, doc="Runs per agent and world.")
-    first_seed: int = setting(0, ge=0, doc="Seeds are first_seed … first_seed + seeds − 1.")
-    steps: int | None = setting(None, ge=1, doc="Steps per run (None: each experiment's own).")
+    seeds: int = RunConfig.shared("seeds", 10, doc="Runs per agent and world.")
+    first_seed: int = RunConfig.shared("first_seed", 0)
+    steps: int | None = RunConfig.shared(
+        "steps", None, doc="Steps per run (None: each experiment's own)."
+    )
     warmup: int = setting(
         20_000,
         ge=1,
@@ -115,10 +119,10 @@ class DiscoveryConfig:
         ge=1,
         doc="Mentor episode counts at which subgoal precision/recall is measured.",
     )
-    engine: str = setting("auto", choices=ENGINES, doc="Which engine carries out the ticks.")
+    engine: str = RunConfig.shared("engine", "auto")
 
     def __post_init__(self):
-        check_settings(self)
+        self.check_run_settings()
         for w in self.worlds:
             window = EXPERIMENTS[w].window
             steps = self.steps_of(w)
@@ -156,9 +160,6 @@ class DiscoveryConfig:
             worlds=self.worlds[:1],
             demonstrations_needed=(2, 5),
         )
-
-    def to_json(self) -> str:
-        return json.dumps(asdict(self), indent=2)
 
 
 def _mean_ci(values) -> tuple[float, float]:

@@ -57,7 +57,6 @@ from himit_torch.runs.runner import (
     WindowHook,
     batch_runs,
     check_run_dir,
-    clear_run_dir,
     run_names,
     run_windows,
     share_cores,
@@ -65,6 +64,7 @@ from himit_torch.runs.runner import (
     watch_demonstrations,
     write_atomically,
 )
+from himit_torch.runs.study import prepare_run_dir
 from himit_torch.viz.tensorboard import TensorBoardLogger
 from himit_torch.worlds.multirooms import MultiRooms
 
@@ -662,23 +662,17 @@ def _prepare_run_dir(
 ) -> dict[int, WorldResult]:
     """Clear (``force``) or check (``resume``) ``run_dir``, save the configuration, and return
     the worlds a resumed run already finished."""
-    if force:
-        clear_run_dir(
-            run_dir,
-            ("checkpoints", "tb", "worlds", "figures"),
-            ("results.md", "curves.csv", "config.json"),
-        )
-    run_dir.mkdir(parents=True, exist_ok=True)
     cfg_path = run_dir / "config.json"
-    if resume and cfg_path.exists():
-        saved = load_config(cfg_path)
-        if asdict(saved) != asdict(config):
-            raise ValueError(
-                f"--resume: {cfg_path} holds a different configuration than the one "
-                "given; resume with the saved one (--config "
-                f"{cfg_path}) or start over with --force"
-            )
-    write_atomically(cfg_path, config.to_json())
+    prepare_run_dir(
+        run_dir,
+        config,
+        resume,
+        force,
+        ("checkpoints", "tb", "worlds", "figures"),
+        ("results.md", "curves.csv", "config.json"),
+        resume_hint=f"resume with the saved one (--config {cfg_path})",
+        load=load_config,
+    )
     finished = {}
     for size in config.sizes:
         done = run_dir / "worlds" / f"world{size}.json"

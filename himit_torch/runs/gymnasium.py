@@ -60,7 +60,7 @@ from himit_torch.exact.greedy_evaluation import (
 from himit_torch.learner.agents import AGENTS
 from himit_torch.learner.config import LearnerConfig
 from himit_torch.learner.learner import Learner
-from himit_torch.learner.presets import PRESETS, agent_settings_text, apply_preset, check_preset
+from himit_torch.learner.presets import agent_settings_text
 from himit_torch.mentor.policy import mentor_policy, record_demonstrations
 from himit_torch.mentor.reward import KnownReward
 from himit_torch.options.builders import primitive_options, subgoal_options
@@ -76,8 +76,9 @@ from himit_torch.runs.runner import (
     source_commit,
     watch_demonstrations,
 )
+from himit_torch.runs.study import RunConfig
 from himit_torch.statistics import bca_interval, mean_half_width
-from himit_torch.validation import as_device, check_settings, setting
+from himit_torch.validation import setting
 from himit_torch.viz.tensorboard import TensorBoardLogger, tensorboard_command
 from himit_torch.worlds.gymnasium import from_gymnasium
 from himit_torch.worlds.table_world import TableWorld
@@ -169,14 +170,15 @@ def _default_learner() -> LearnerConfig:
 
 
 @dataclass
-class GymExperimentConfig:
+class GymExperimentConfig(RunConfig):
     """The Gymnasium comparison: tasks, agents, seeds, budget and learner settings.
 
-    Every field is declared with :func:`~himit_torch.validation.setting` and checked by
+    Every field is declared with :func:`~himit_torch.validation.setting` (the shared ones once,
+    in :class:`~himit_torch.runs.study.RunSettings`) and checked by
     :func:`~himit_torch.validation.check_settings` (whole numbers never truncated and at most
     ``COUNT_MAX``, bools and strings never numbers), as ``ExperimentConfig``'s are."""
 
-    name: str = setting("gymnasium", folder=True, doc="Run name (the run directory's).")
+    name: str = RunConfig.shared("name", "gymnasium")
     tasks: tuple[str, ...] = setting(
         ("taxi", "cliffwalking", "frozenlake8x8"),
         choices=tuple(TASKS),
@@ -187,23 +189,16 @@ class GymExperimentConfig:
         choices=tuple(AGENTS),
         doc="Agent variants (``himit_torch.AGENTS``), each run with every seed.",
     )
-    seeds: int = setting(10, ge=1, doc="Runs per agent and task.")
-    first_seed: int = setting(
-        0,
-        ge=0,
-        doc="Seeds are first_seed … first_seed + seeds − 1 (a seed also picks its mentor "
-        "episodes).",
-    )
-    steps: int | None = setting(
+    seeds: int = RunConfig.shared("seeds", 10, doc="Runs per agent and task.")
+    first_seed: int = RunConfig.shared("first_seed", 0)
+    steps: int | None = RunConfig.shared(
+        "steps",
         None,
-        ge=1,
         doc="""
         Primitive steps per run; ``None``: each task's own budget (:data:`TASKS`: Taxi 60k,
         CliffWalking 30k, FrozenLake 100k).""",
     )
-    mentor_episodes: int = setting(
-        20, ge=1, doc="Mentor episodes recorded (states only) per seed before learning."
-    )
+    mentor_episodes: int = RunConfig.shared("mentor_episodes", 20)
     gamma: float = setting(
         0.99,
         gt=0.0,
@@ -211,8 +206,10 @@ class GymExperimentConfig:
         doc="Discount of every task (Gymnasium's envs carry none; exact value iteration needs "
         "γ < 1).",
     )
-    window: int = setting(
-        2000, ge=1, doc="Goals are counted, and the greedy policy evaluated, every this many steps."
+    window: int = RunConfig.shared(
+        "window",
+        2000,
+        doc="Goals are counted, and the greedy policy evaluated, every this many steps.",
     )
     neutral_initial_value: bool = setting(
         True,
@@ -223,26 +220,12 @@ class GymExperimentConfig:
         make holes, worth 0, the best place to go). ``False`` keeps ``learner.initial_value``
         for every task.""",
     )
-    device: str = setting("cpu", doc="Where the batches run (``cpu`` or ``cuda``).")
-    learner: LearnerConfig = setting(
-        default_factory=_default_learner,
-        doc="Learner settings (``LearnerConfig``; a dict of its fields is accepted).",
-    )
-    preset: str | None = setting(
-        None,
-        choices=tuple(PRESETS),
-        doc="""
-        The named preset the learner settings follow (``paper``, ``explore-goals``,
-        ``mentor-fade`` or ``recommended``,
-        ``himit_torch.learner.presets``; ``None``: none claimed), as ``ExperimentConfig.preset``.""",
-    )
+    device: str = RunConfig.shared("device", "cpu")
+    learner: LearnerConfig = RunConfig.shared("learner", default_factory=_default_learner)
+    preset: str | None = RunConfig.shared("preset", None)
 
     def __post_init__(self):
-        check_settings(self)
-        check_preset("GymExperimentConfig", self.learner, self.preset)
-        as_device("GymExperimentConfig.device", self.device, available=False)
-        if self.learner.window != self.window:
-            self.learner = replace(self.learner, window=self.window)
+        self.check_run_settings()
 
     def quick(self) -> GymExperimentConfig:
         """A tiny budget (smoke tests, ``--quick``)."""
@@ -256,13 +239,6 @@ class GymExperimentConfig:
     def steps_of(self, task: str) -> int:
         """Primitive steps per run in ``task``."""
         return TASKS[task].steps if self.steps is None else self.steps
-
-    def to_json(self) -> str:
-        return json.dumps(asdict(self), indent=2)
-
-    def with_preset(self, name: str) -> GymExperimentConfig:
-        """This comparison with preset ``name``'s learner settings, and the preset recorded."""
-        return replace(self, preset=name, learner=apply_preset(self.learner, name))
 
 
 def gym_run_command(

@@ -40,7 +40,7 @@ import csv
 import json
 import math
 import os
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -50,9 +50,7 @@ from himit_torch.exact.greedy_evaluation import PolicyEvaluator, optimal_value
 from himit_torch.exact.option_models import option_models_and_durations
 from himit_torch.exact.planning import expected_steps, smdp_value_iteration
 from himit_torch.learner.config import LearnerConfig
-from himit_torch.learner.engines import ENGINES
 from himit_torch.learner.learner import Learner
-from himit_torch.learner.presets import PRESETS, apply_preset, check_preset
 from himit_torch.mentor.demonstrations import Demonstrations
 from himit_torch.mentor.policy import record_demonstrations
 from himit_torch.mentor.puzzle_box import map_demonstrations, organisation_mentor
@@ -63,23 +61,19 @@ from himit_torch.runs.checkpoints import BatchShape
 from himit_torch.runs.runner import (
     Checkpoints,
     check_run_dir,
-    clear_run_dir,
     run_names,
     run_windows,
     source_commit,
     watch_demonstrations,
     write_atomically,
 )
+from himit_torch.runs.study import RunConfig, prepare_run_dir
 from himit_torch.validation import (
-    COUNT_MAX,
-    as_choice,
-    as_float,
-    as_folder_name,
-    as_int,
-    as_tuple,
     check_memory,
     parse_document,
+    read_text,
     refuse_unknown_fields,
+    setting,
 )
 from himit_torch.viz.tensorboard import TensorBoardLogger
 from himit_torch.worlds.puzzle_box import (
@@ -119,106 +113,97 @@ def _default_learner() -> LearnerConfig:
 
 
 @dataclass
-class PuzzleBoxConfig:
-    """Settings of ``himit run puzzlebox`` (module docstring)."""
+class PuzzleBoxConfig(RunConfig):
+    """Settings of ``himit run puzzlebox`` (module docstring), each declared with
+    :func:`~himit_torch.validation.setting` (the shared ones once, in
+    :class:`~himit_torch.runs.study.RunSettings`) and checked by
+    :func:`~himit_torch.validation.check_settings`; the cross-field rules follow."""
 
-    name: str = "puzzlebox"
-    skewers: int = 4
-    """Skewers of the box of (a) and (b), and of the mentor's box in (c) (the study: 4)."""
-    transfer_skewers: int = 5
-    """Skewers of the learner's box in (c) (the study's test box: 5)."""
-    seeds: int = 20
-    """Runs per condition (half watch each organisation)."""
-    first_seed: int = 0
-    steps: int = 100_000
-    """Primitive steps per run in (a) and (b)."""
-    transfer_steps: int = 300_000
-    """Primitive steps per run in (c)."""
-    mentor_episodes: int = 20
-    """Mentor episodes (states only) per seed."""
-    slip: float = 0.1
-    pinch_slip: float | None = None
-    """Failure probability of the mentor's grip, the pinch (None: ``slip``, both grips equally
-    good: the main design)."""
-    harder_pinch: float = 0.2
-    """Failure probability of the pinch in (b)'s ``harder_pinch`` variant."""
-    variants: tuple[str, ...] = ("harder_pinch", "no_pinch")
-    """(b) again, imitation and options on the ``skewers``-skewer box, with :data:`VARIANTS`:
-    ``harder_pinch`` — the mentor's pinch fails ``harder_pinch`` of the time (its movements a
-    little worse than the learner's own); ``no_pinch`` — the learner has no pinch grip (it cannot
-    pass through the mentor's states between subgoals: only its subgoals can be copied)."""
-    window: int = 5000
-    """Openings are counted per window of this many steps."""
-    eval_every: int = 10_000
-    """The greedy policies' exact values are computed every this many steps (a multiple of the
-    window) and at the end, in (a)/(b); in (c) every ``3 · eval_every`` (a 5-skewer box has
-    50,000 states)."""
-    checkpoint_every: int = 50_000
-    engine: str = "auto"
-    learner: LearnerConfig = field(default_factory=_default_learner)
-    preset: str | None = None
-    """The named preset the learner settings follow (``himit_torch.learner.presets``;
-    ``None``: none claimed), as ``ExperimentConfig.preset``: settings that contradict it are
-    refused."""
+    name: str = RunConfig.shared("name", "puzzlebox")
+    skewers: int = setting(
+        4,
+        ge=2,
+        le=5,
+        doc="Skewers of the box of (a) and (b), and of the mentor's box in (c) (the study: 4).",
+    )
+    transfer_skewers: int = setting(
+        5,
+        ge=2,
+        le=5,
+        hint="6 skewers: 357,000 states",
+        doc="Skewers of the learner's box in (c) (the study's test box: 5).",
+    )
+    seeds: int = RunConfig.shared(
+        "seeds", 20, doc="Runs per condition (half watch each organisation)."
+    )
+    first_seed: int = RunConfig.shared("first_seed", 0)
+    steps: int = RunConfig.shared("steps", 100_000, doc="Primitive steps per run in (a) and (b).")
+    transfer_steps: int = setting(300_000, ge=1, doc="Primitive steps per run in (c).")
+    mentor_episodes: int = RunConfig.shared(
+        "mentor_episodes", 20, doc="Mentor episodes (states only) per seed."
+    )
+    slip: float = setting(
+        0.1, ge=0.0, lt=1.0, doc="Probability that a movement fails, with either grip."
+    )
+    pinch_slip: float | None = setting(
+        None,
+        ge=0.0,
+        lt=1.0,
+        doc="""
+        Failure probability of the mentor's grip, the pinch (None: ``slip``, both grips equally
+        good: the main design).""",
+    )
+    harder_pinch: float = setting(
+        0.2,
+        ge=0.0,
+        lt=1.0,
+        doc="Failure probability of the pinch in (b)'s ``harder_pinch`` variant.",
+    )
+    variants: tuple[str, ...] = setting(
+        ("harder_pinch", "no_pinch"),
+        choices=VARIANTS,
+        empty=True,
+        doc="""
+        (b) again, imitation and options on the ``skewers``-skewer box, with :data:`VARIANTS`:
+        ``harder_pinch`` — the mentor's pinch fails ``harder_pinch`` of the time (its movements
+        a little worse than the learner's own); ``no_pinch`` — the learner has no pinch grip (it
+        cannot pass through the mentor's states between subgoals: only its subgoals can be
+        copied). Empty: (b) on the main design only.""",
+    )
+    window: int = RunConfig.shared(
+        "window", 5000, doc="Openings are counted per window of this many steps."
+    )
+    eval_every: int = setting(
+        10_000,
+        ge=1,
+        doc="""
+        The greedy policies' exact values are computed every this many steps (a multiple of the
+        window) and at the end, in (a)/(b); in (c) every ``3 · eval_every`` (a 5-skewer box has
+        50,000 states).""",
+    )
+    checkpoint_every: int = setting(
+        50_000, ge=1, doc="Save the whole state every this many steps (a multiple of the window)."
+    )
+    engine: str = RunConfig.shared("engine", "auto")
+    learner: LearnerConfig = RunConfig.shared("learner", default_factory=_default_learner)
+    preset: str | None = RunConfig.shared("preset", None)
 
     def __post_init__(self):
-        # Each field by the library's input rules (himit_torch.validation, as ExperimentConfig's
-        # are): whole numbers never truncated and at most COUNT_MAX, bools and strings never
-        # numbers, probabilities finite; then the cross-field rules.
-        def where(name: str) -> str:
-            return f"PuzzleBoxConfig.{name}"
-
-        def bad(name: str, why: str):
-            raise ValueError(f"{where(name)}={getattr(self, name)!r}: {why}")
-
-        self.name = as_folder_name(where("name"), self.name)
-        for name, minimum in (
-            ("skewers", 2),
-            ("transfer_skewers", 2),
-            ("seeds", 1),
-            ("first_seed", 0),
-            ("steps", 1),
-            ("transfer_steps", 1),
-            ("mentor_episodes", 1),
-            ("window", 1),
-            ("eval_every", 1),
-            ("checkpoint_every", 1),
-        ):
-            setattr(self, name, as_int(where(name), getattr(self, name), minimum, COUNT_MAX))
+        # Each field by the library's input rules (himit_torch.validation): whole numbers never
+        # truncated and at most COUNT_MAX, bools and strings never numbers, probabilities
+        # finite; then the cross-field rules.
+        self.check_run_settings()
         if not self.skewers <= self.transfer_skewers:
-            bad("skewers", f"must be ≥ 2 and ≤ transfer_skewers ({self.transfer_skewers})")
-        if self.transfer_skewers > 5:
-            bad("transfer_skewers", "at most 5 (6 skewers: 357,000 states)")
+            raise ValueError(
+                f"PuzzleBoxConfig.skewers={self.skewers!r}: must be ≥ 2 and ≤ transfer_skewers "
+                f"({self.transfer_skewers})"
+            )
         for name in ("eval_every", "checkpoint_every"):
             if getattr(self, name) % self.window:
-                bad(name, f"must be a positive multiple of the window ({self.window})")
-        self.engine = as_choice(where("engine"), self.engine, ENGINES)
-        self.variants = tuple(
-            as_choice(f"{where('variants')}[{i}]", v, VARIANTS)
-            for i, v in enumerate(as_tuple(where("variants"), self.variants))
-        )
-        for name in ("slip", "pinch_slip", "harder_pinch"):
-            value = getattr(self, name)
-            if name == "pinch_slip" and value is None:  # the documented default: slip's
-                continue
-            setattr(self, name, as_float(where(name), value, 0.0, 1.0, high_open=True))
-        if isinstance(self.learner, dict):
-            refuse_unknown_fields(self.learner, LearnerConfig, where("learner"))
-            self.learner = LearnerConfig(**self.learner)
-        elif not isinstance(self.learner, LearnerConfig):
-            raise ValueError(
-                f"{where('learner')} must be a LearnerConfig or a dict of its fields, got "
-                f"{self.learner!r} ({type(self.learner).__name__})"
-            )
-        if self.learner.window != self.window:
-            self.learner = replace(self.learner, window=self.window)
-        if self.preset is not None:
-            self.preset = as_choice(where("preset"), self.preset, tuple(PRESETS))
-        check_preset("PuzzleBoxConfig", self.learner, self.preset)
-
-    def with_preset(self, name: str) -> PuzzleBoxConfig:
-        """This study with preset ``name``'s learner settings, and the preset recorded."""
-        return replace(self, preset=name, learner=apply_preset(self.learner, name))
+                raise ValueError(
+                    f"PuzzleBoxConfig.{name}={getattr(self, name)!r}: must be a positive "
+                    f"multiple of the window ({self.window})"
+                )
 
     def check_size(self) -> None:
         """Refuse, before anything is recorded or run, a configuration whose batches would not
@@ -249,13 +234,6 @@ class PuzzleBoxConfig:
             eval_every=self.window,
             checkpoint_every=self.window,
         )
-
-    @property
-    def seed_list(self) -> list[int]:
-        return list(range(self.first_seed, self.first_seed + self.seeds))
-
-    def to_json(self) -> str:
-        return json.dumps(asdict(self), indent=2)
 
 
 def puzzle_box_run_command(
@@ -426,7 +404,7 @@ def run_box_batch(
     evals: dict[int, dict[str, list]] = {}
     if resume and evals_path.exists():
         evals = {
-            int(k): v for k, v in json.loads(evals_path.read_text()).items() if int(k) <= learner.t
+            k: v for k, v in read_evaluations(evals_path, len(seeds)).items() if k <= learner.t
         }
     paired = [watched_organisation(s, config.first_seed) for s in seeds]
     logger = TensorBoardLogger(
@@ -575,6 +553,72 @@ def _scores(scores: dict[str, float]) -> dict[str, float | None]:
     return {k: _finite(v) for k, v in scores.items()}
 
 
+#: What each evaluation of a batch's ``*.evals.json`` holds: one value per run.
+_EVALUATION_KEYS = ("value", "organisation", "watched_score", "pinch_steps")
+
+#: What a finished batch's ``batches/<tag>.json`` holds, with its type.
+_BATCH_KEYS = {
+    "batch": str,
+    "skewers": int,
+    "condition": str,
+    "agent": str,
+    "steps": int,
+    "runs": list,
+}
+
+
+def _record(path: Path) -> Any:
+    """A run directory's JSON record at ``path``, parsed; damaged: a ``ValueError`` naming it."""
+    where = f"--resume: {path}"
+    return parse_document(where, read_text(where, path), "json")
+
+
+def read_evaluations(path: Path, runs: int) -> dict[int, dict[str, list]]:
+    """A batch's saved greedy evaluations (``batches/<tag>.evals.json``: step → one list per
+    measure, one entry per run), read for ``--resume``; a damaged file is a ``ValueError``
+    naming it, not a traceback later."""
+    data = _record(path)
+    if not isinstance(data, dict):
+        raise ValueError(f"--resume: {path} holds a {type(data).__name__}, not evaluations")
+    out: dict[int, dict[str, list]] = {}
+    for key, entry in data.items():
+        if not (isinstance(key, str) and key.isdigit() and len(key) <= 12):
+            raise ValueError(f"--resume: {path}: {key!r} is not a step; delete the file")
+        if not (
+            isinstance(entry, dict)
+            and all(
+                isinstance(entry.get(k), list) and len(entry[k]) == runs for k in _EVALUATION_KEYS
+            )
+        ):
+            raise ValueError(
+                f"--resume: {path}: step {key} does not hold {', '.join(_EVALUATION_KEYS)} "
+                f"for each of the batch's {runs} runs; delete the file (the batch resumes "
+                "without its earlier evaluations) or start over with --force"
+            )
+        out[int(key)] = entry
+    return out
+
+
+def read_batch(path: Path, tag: str) -> dict[str, Any]:
+    """A finished batch's record (``batches/<tag>.json``), read for ``--resume``; a damaged
+    file is a ``ValueError`` naming it (delete it and the batch runs again)."""
+    data = _record(path)
+    fix = "delete it to run the batch again, or start over with --force"
+    if not isinstance(data, dict):
+        raise ValueError(f"--resume: {path} holds a {type(data).__name__}, not a batch; {fix}")
+    for key, kind in _BATCH_KEYS.items():
+        value = data.get(key)
+        if not isinstance(value, kind) or (kind is int and isinstance(value, bool)):
+            raise ValueError(
+                f"--resume: {path}: {key!r} must be a {kind.__name__}, got {value!r:.60}; {fix}"
+            )
+    if data["batch"] != tag:
+        raise ValueError(f"--resume: {path} is batch {data['batch']!r:.60}, not {tag!r}; {fix}")
+    if not all(isinstance(r, dict) for r in data["runs"]):
+        raise ValueError(f"--resume: {path}: 'runs' must hold one object per run; {fix}")
+    return data
+
+
 # ================================================================================ the runner
 def _saved_config(path: Path) -> PuzzleBoxConfig:
     """A run's saved ``config.json``, read through :class:`PuzzleBoxConfig`: a setting it does not
@@ -602,20 +646,15 @@ def run_puzzle_box(
     run_dir = Path(run_dir)
     config.check_size()
     check_run_dir(run_dir, force=force, resume=resume)
-    if force:
-        clear_run_dir(
-            run_dir,
-            ("checkpoints", "tb", "batches", "figures"),
-            ("results.md", "curves.csv", "config.json", "summary.json"),
-        )
-    run_dir.mkdir(parents=True, exist_ok=True)
-    cfg_path = run_dir / "config.json"
-    if resume and cfg_path.exists() and asdict(_saved_config(cfg_path)) != asdict(config):
-        raise ValueError(
-            f"--resume: {cfg_path} holds a different configuration than the one given; "
-            "resume with the same flags or start over with --force"
-        )
-    write_atomically(cfg_path, config.to_json())
+    prepare_run_dir(
+        run_dir,
+        config,
+        resume,
+        force,
+        ("checkpoints", "tb", "batches", "figures"),
+        ("results.md", "curves.csv", "config.json", "summary.json"),
+        load=_saved_config,
+    )
     small = PuzzleBox(config.skewers, slip=config.slip, pinch_slip=config.pinch_slip)
     mentors = {org: organisation_mentor(small, org) for org in ORGANISATIONS}
     demos = {
@@ -634,7 +673,7 @@ def run_puzzle_box(
     ):
         done = run_dir / "batches" / f"{tag}.json"
         if resume and done.exists():
-            batches.append(json.loads(done.read_text()))
+            batches.append(read_batch(done, tag))
             return
         batches.append(
             run_box_batch(

@@ -204,3 +204,53 @@ def test_himit_run_puzzlebox_takes_a_preset_and_refuses_a_contradiction():
         _puzzle_box_config(args)
     with pytest.raises(ValueError, match="PuzzleBoxConfig.preset"):
         PuzzleBoxConfig(preset="best")
+
+
+@pytest.fixture(scope="module")
+def finished_tiny(tmp_path_factory):
+    """A finished tiny puzzle-box run directory (copied by each test that damages it)."""
+    run_dir = tmp_path_factory.mktemp("pb") / "pb"
+    run_puzzle_box(TINY, run_dir, progress=False)
+    return run_dir
+
+
+DAMAGED = [
+    ("speed_options.json", "{"),
+    ("speed_options.json", "[]"),
+    ("speed_options.json", '{"batch": "speed_options"}'),
+    (
+        "speed_options.json",
+        '{"batch": "other", "skewers": 2, "condition": "options", '
+        '"agent": "options", "steps": 1000, "runs": []}',
+    ),  # fmt: skip
+    (
+        "speed_options.json",
+        '{"batch": "speed_options", "skewers": 2, "condition": "options", '
+        '"agent": "options", "steps": 1000, "runs": [1]}',
+    ),  # fmt: skip
+    ("speed_options.json", "[" * 100 + "]" * 100),
+    ("transfer_any.evals.json", "{"),
+    ("transfer_any.evals.json", "[1]"),
+    ("transfer_any.evals.json", '{"x": {}}'),
+    ("transfer_any.evals.json", '{"500": {"value": [1]}}'),
+    (
+        "transfer_any.evals.json",
+        '{"500": {"value": [1], "organisation": [1], "watched_score": [1], "pinch_steps": [1]}}',
+    ),  # fmt: skip
+    ("transfer_any.evals.json", '{"500": 3}'),
+]
+
+
+@pytest.mark.parametrize("name, text", DAMAGED)
+def test_resume_over_a_damaged_batch_record_is_refused_naming_the_file(
+    finished_tiny, tmp_path, capsys, name, text
+):
+    import shutil
+
+    run_dir = tmp_path / "pb"
+    shutil.copytree(finished_tiny, run_dir)
+    (run_dir / "results.md").unlink()
+    (run_dir / "batches" / "transfer_any.json").unlink()  # resumes this batch's evaluations
+    (run_dir / "batches" / name).write_text(text)
+    with pytest.raises(ValueError, match=r"--resume: .*" + name.replace(".", r"\.")):
+        run_puzzle_box(TINY, run_dir, resume=True, progress=False)

@@ -1,0 +1,274 @@
+"""What every study shares: its configuration's common settings (:class:`RunConfig`), the
+:class:`Study` protocol and :func:`run_study`, the run directory's life around a study's batches.
+
+**The settings every study shares** (a run's name, its seeds, budget, mentor episodes, window,
+engine, device, preset and learner) are declared once, with :func:`~himit_torch.validation.setting`,
+in :class:`RunSettings`. A study's configuration extends :class:`RunConfig` and takes each shared
+setting it has with :meth:`RunConfig.shared`: the declaration (type, bounds, doc) is the one
+here, only the default is the study's (the paper's experiments count goals per 5000 steps, the
+Gymnasium comparison per 2000). Each study keeps its fields in its own order, so the
+``config.json`` files and the ``himit run`` commands that runs have saved read as they always
+did; a field a saved file does not name takes its declared default.
+
+**A study** (:class:`Study`) names its configuration class, the files and folders its run
+directory holds, and how it reads a finished run back; :func:`run_study` prepares the run
+directory (refusing a finished run without ``force``, clearing it with ``force``), saves the
+configuration — on ``resume`` only after checking it is the saved one — runs the study's
+batches and writes its report.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+from typing import Any, ClassVar, Protocol, TypeVar
+
+from himit_torch.learner.config import LearnerConfig
+from himit_torch.learner.engines import ENGINES
+from himit_torch.learner.presets import PRESETS, apply_preset, check_preset
+from himit_torch.runs.runner import check_run_dir, clear_run_dir, write_atomically
+from himit_torch.validation import (
+    as_device,
+    check_settings,
+    parse_document,
+    read_text,
+    refuse_unknown_fields,
+    setting,
+)
+
+__all__ = ["RunSettings", "RunConfig", "Study", "run_study", "prepare_run_dir", "read_config"]
+
+
+@dataclass
+class RunSettings:
+    """The settings every study's configuration shares, each declared once. A study's
+    configuration takes them with :meth:`RunConfig.shared` (its own default, this
+    declaration); the defaults here are the paper's experiments'."""
+
+    name: str = setting(
+        "run", folder=True, doc="The run's name: its run directory's (``<logdir>/<name>``)."
+    )
+    seeds: int = setting(5, ge=1, doc="Runs per agent (or condition) of each batch.")
+    first_seed: int = setting(
+        0,
+        ge=0,
+        doc="""
+        Seeds are first_seed … first_seed + seeds − 1 (a seed also picks its mentor
+        episodes).""",
+    )
+    steps: int = setting(200_000, ge=1, doc="Primitive steps per run.")
+    mentor_episodes: int = setting(
+        20, ge=1, doc="Mentor episodes recorded (states only) per seed before learning."
+    )
+    window: int = setting(
+        5000,
+        ge=1,
+        doc="""
+        Goals are counted per window of this many steps (the paper's 5000), and the run's
+        per-window measures taken; also the learner's ``window``.""",
+    )
+    engine: str = setting(
+        "auto",
+        choices=ENGINES,
+        doc="""
+        Which engine carries out the ticks: ``auto`` (the compiled ``numba`` loop on a CPU, the
+        ``torch`` engine on a GPU), ``numba`` or ``torch``. Both give the same curves.""",
+    )
+    device: str = setting(
+        "cpu",
+        hint="a torch device such as 'cpu' or 'cuda'",
+        doc="Where the batches run (``cpu`` or ``cuda``).",
+    )
+    preset: str | None = setting(
+        None,
+        choices=tuple(PRESETS),
+        doc="""
+        The named preset the learner settings follow (``himit_torch.learner.presets``):
+        ``paper`` (eq. 2 as the paper states it), ``explore-goals`` (the paper's with ε held
+        until the 10th goal: an exploration schedule, for every agent), ``mentor-fade`` (the
+        paper's with the mentor term fading: read only by agents with a mentor term) or
+        ``recommended`` (both); ``None``: none claimed. Every agent of a run gets it: compare
+        methods under one preset. Set by ``with_preset`` / ``himit run --preset``; a
+        configuration whose learner departs from its preset's settings is refused. The greedy
+        tie rule is not part of a preset (``--tie-break``).""",
+    )
+    learner: LearnerConfig = setting(
+        default_factory=LearnerConfig,
+        doc="Learner settings (``LearnerConfig``; a dict of its fields is accepted).",
+    )
+
+
+#: The shared declarations, by name.
+_SHARED = {f.name: f for f in dataclasses.fields(RunSettings)}
+
+Config = TypeVar("Config", bound="RunConfig")
+
+
+class RunConfig:
+    """The base of every study's configuration (a dataclass whose fields are declared with
+    :func:`~himit_torch.validation.setting`).
+
+    The settings all studies share come from :class:`RunSettings` through :meth:`shared`;
+    :meth:`check_run_settings` checks every declared field and the shared cross-field rules (the
+    preset, the device, the learner's window), and the common methods follow."""
+
+    @staticmethod
+    def shared(
+        name: str,
+        default: Any = dataclasses.MISSING,
+        *,
+        default_factory: Any = dataclasses.MISSING,
+        doc: str | None = None,
+    ) -> Any:
+        """The shared setting ``name`` of :class:`RunSettings` as a field of a study's
+        configuration: its declaration (type rules, bounds, doc — or ``doc`` where the study
+        says it in its own words), with the study's ``default`` (or ``default_factory``;
+        neither: the shared default)."""
+        base = _SHARED[name]
+        if default is dataclasses.MISSING and default_factory is dataclasses.MISSING:
+            default, default_factory = base.default, base.default_factory
+        metadata = dict(base.metadata)
+        if doc is not None:
+            (key,) = metadata
+            metadata[key] = replace(metadata[key], doc=" ".join(doc.split()))
+        return dataclasses.field(
+            default=default, default_factory=default_factory, metadata=metadata
+        )
+
+    def check_run_settings(self) -> None:
+        """Check every declared field (:func:`~himit_torch.validation.check_settings`), then
+        the rules of the shared settings a study has: its learner follows its preset, its
+        device is written well, and the learner's window is the study's."""
+        check_settings(self)
+        config: Any = self  # a study's dataclass: the shared fields it has
+        kind = type(self).__name__
+        if hasattr(config, "learner"):
+            check_preset(kind, config.learner, getattr(config, "preset", None))
+        if hasattr(config, "device"):
+            # Written down, not run: a config naming cuda is valid on a machine without
+            # (plotting a GPU run's directory); the learner refuses it where it would run.
+            as_device(f"{kind}.device", config.device, available=False)
+        if hasattr(config, "learner") and hasattr(config, "window"):
+            if config.learner.window != config.window:
+                config.learner = replace(config.learner, window=config.window)
+
+    def with_preset(self: Config, name: str) -> Config:
+        """This configuration with preset ``name``'s learner settings, and the preset
+        recorded."""
+        config: Any = self
+        return replace(config, preset=name, learner=apply_preset(config.learner, name))
+
+    @property
+    def seed_list(self) -> list[int]:
+        """The seeds: ``first_seed`` … ``first_seed + seeds − 1``."""
+        first, n = self.first_seed, self.seeds  # type: ignore[attr-defined]
+        return list(range(first, first + n))
+
+    def to_json(self) -> str:
+        """The configuration as ``config.json`` holds it."""
+        return json.dumps(asdict(self), indent=2)  # type: ignore[call-overload]
+
+
+def read_config(cls: type[Config], data: Any, where: str) -> Config:
+    """A ``cls`` from ``data`` (a parsed ``config.json``): unknown fields and values the
+    configuration refuses are a ``ValueError`` naming ``where``; a field ``data`` does not name
+    (saved before the field existed) takes its declared default."""
+    if not isinstance(data, dict):
+        raise ValueError(f"{where} holds a {type(data).__name__}, not a configuration")
+    refuse_unknown_fields(data, cls, where)
+    try:
+        return cls(**data)
+    except (ValueError, TypeError) as err:
+        raise ValueError(f"{where}: {err}") from None
+
+
+# ================================================================================ the protocol
+class Study(Protocol):
+    """A study: what :func:`run_study` needs to run one into a run directory.
+
+    ``config_class`` is its configuration (a :class:`RunConfig`); ``folders`` and ``files``
+    what its run directory holds (cleared by ``force``, ``config.json`` always among the
+    files); :meth:`run` runs its batches and writes its records (each batch resuming from its
+    checkpoint on ``resume`` where the study checkpoints); :meth:`report` writes its figures and
+    ``results.md`` from what :meth:`run` returned."""
+
+    config_class: ClassVar[type]
+    folders: ClassVar[tuple[str, ...]]
+    files: ClassVar[tuple[str, ...]]
+
+    def run(self, config: Any, run_dir: Path, resume: bool, progress: bool) -> Any:
+        """Run every batch of ``config`` into ``run_dir``; return what :meth:`report` reads."""
+        ...
+
+    def report(self, config: Any, run_dir: Path, results: Any) -> None:
+        """Write the figures and ``results.md`` of a finished run."""
+        ...
+
+
+def run_study(
+    study: Study,
+    config: Any,
+    run_dir: str | os.PathLike,
+    resume: bool = False,
+    force: bool = False,
+    progress: bool = True,
+    check: Callable[[], None] | None = None,
+) -> Any:
+    """Run ``study`` with ``config`` into ``run_dir`` and write its report.
+
+    The run directory is prepared the same way for every study: a finished run is refused
+    unless ``force`` (which clears the study's ``folders`` and ``files``) or ``resume``; on
+    ``resume`` the saved ``config.json`` is read through the configuration's schema (a field
+    it does not name takes its default) and must equal ``config``, field by field; then
+    ``config.json`` is written and the study runs. ``check`` (e.g. the memory a batch needs)
+    runs before anything is touched.
+
+    Returns:
+        What the study's :meth:`Study.run` returned.
+    """
+    run_dir = Path(run_dir)
+    if check is not None:
+        check()
+    check_run_dir(run_dir, force=force, resume=resume)
+    prepare_run_dir(run_dir, config, resume, force, study.folders, study.files)
+    results = study.run(config, run_dir, resume, progress)
+    study.report(config, run_dir, results)
+    return results
+
+
+def prepare_run_dir(
+    run_dir: Path,
+    config: Any,
+    resume: bool,
+    force: bool,
+    folders: Sequence[str],
+    files: Sequence[str],
+    resume_hint: str = "resume with the same flags",
+    load: Callable[[Path], Any] | None = None,
+) -> None:
+    """Clear (``force``: ``folders`` and ``files``) or check (``resume``: the saved
+    ``config.json`` is ``config``) ``run_dir``, and save ``config`` in it. The saved file is
+    read by ``load`` (default: through ``config``'s class, :func:`read_config`); a resumed run
+    whose configuration differs is refused with ``resume_hint``."""
+    if force:
+        clear_run_dir(run_dir, tuple(folders), tuple(files))
+    run_dir.mkdir(parents=True, exist_ok=True)
+    cfg_path = run_dir / "config.json"
+    if resume and cfg_path.exists():
+        if load is None:
+            where = f"--resume: {cfg_path}"
+            saved = read_config(
+                type(config), parse_document(where, read_text(where, cfg_path), "json"), where
+            )
+        else:
+            saved = load(cfg_path)
+        if asdict(saved) != asdict(config):
+            raise ValueError(
+                f"--resume: {cfg_path} holds a different configuration than the one given; "
+                f"{resume_hint} or start over with --force"
+            )
+    write_atomically(cfg_path, config.to_json())
