@@ -359,62 +359,71 @@ class NumbaEngine:
             np.zeros(L.batch, dtype=np.int64),
         )
         t_reached = np.full(L.batch, t0, dtype=np.int64)
-        model, run, sweeper, sample = L.model, L.run, L.sweeper, L.sample
-        while True:
-            cache_arrays, model_arrays, mentor_arrays = self._values_and_models()
-            _run_all(
-                L.batch,
-                (
-                    t_end,
-                    t_reached,
-                    self.settings,
-                    self.world,
-                    self._rows(),
-                    cache_arrays,
-                    model_arrays,
-                    mentor_arrays,
-                    SweepArrays(
-                        *self.heap, self._view(sweeper.queue.priority), self._view(sweeper.pending)
-                    ),
-                    RunArrays(
-                        self._view(L.keys).view(np.uint64),
-                        self._view(run.position),
-                        self._view(run.option_start),
-                        self._view(run.row),
-                        self._view(run.duration),
-                        self._view(run.discounted_return),
-                        self._view(run.discount),
-                        self._view(run.epsilon),
-                        self._view(run.found_goal),
-                        self._view(run.goals),
-                        self._view(run.window_goals),
-                        self._view(run.episodes),
-                        self._view(run.episode_start),
-                        self._view(run.window_episode_steps),
-                        self._view(run.window_episodes),
-                        self._view(run.backups_done),
-                        self._view(run.decisions),
-                        self._view(run.first_goal_step),
-                        self._view(run.visits),
-                    ),
-                    SampleArrays(
-                        self._view(sample.option_w),
-                        self._view(sample.option_unseen),
-                        self._view(sample.mentor_w),
-                        self._view(sample.mentor_unseen),
-                        self._view(sample.resamples),
-                    ),
-                    ClonedArrays(self._view(L.cloning.action)),
-                    windows,
-                    self.scratch,
-                ),
-            )
-            # The kernel kept its linked lists in step with the edges it added.
-            model.version += 1
-            self._links["model"] = (model.version, tuple(model_arrays[-4:]))
-            if (t_reached == t_end).all():
-                break
-            model.reserve(2 * model.capacity)  # some run filled its edge list: grow, go on
-        run.t = t_end
-        sweeper.queue.refresh_block_max()
+        model = L.model
+        # One call per run() for a single run. A batch's threads each take the next run as they
+        # finish one, so a call ends with one thread alone on the last run; the calls of a batch
+        # end at each window's end, keeping that wait a window's, not a whole run's.
+        stops = [t_end] if L.batch == 1 else [e for e in ends if e < t_end] + [t_end]
+        for t_stop in stops:
+            while True:
+                args = self._arguments(t_stop, t_reached, windows)
+                _run_all(L.batch, args)
+                # The kernel kept its linked lists in step with the edges it added.
+                model.version += 1
+                self._links["model"] = (model.version, tuple(args[6][-4:]))
+                if (t_reached == t_stop).all():
+                    break
+                model.reserve(2 * model.capacity)  # some run filled its edge list: grow, go on
+        L.run.t = t_end
+        L.sweeper.queue.refresh_block_max()
         return ends, windows.counts.transpose(1, 0, 2), windows.epsilon.T
+
+    def _arguments(self, t_stop: int, t_reached: np.ndarray, windows: WindowArrays) -> tuple:
+        """``run_ticks``' arguments for a call that runs each run from ``t_reached`` to ``t_stop``."""
+        L = self.state
+        cache_arrays, model_arrays, mentor_arrays = self._values_and_models()
+        run, sweeper, sample = L.run, L.sweeper, L.sample
+        return (
+            t_stop,
+            t_reached,
+            self.settings,
+            self.world,
+            self._rows(),
+            cache_arrays,
+            model_arrays,
+            mentor_arrays,
+            SweepArrays(
+                *self.heap, self._view(sweeper.queue.priority), self._view(sweeper.pending)
+            ),
+            RunArrays(
+                self._view(L.keys).view(np.uint64),
+                self._view(run.position),
+                self._view(run.option_start),
+                self._view(run.row),
+                self._view(run.duration),
+                self._view(run.discounted_return),
+                self._view(run.discount),
+                self._view(run.epsilon),
+                self._view(run.found_goal),
+                self._view(run.goals),
+                self._view(run.window_goals),
+                self._view(run.episodes),
+                self._view(run.episode_start),
+                self._view(run.window_episode_steps),
+                self._view(run.window_episodes),
+                self._view(run.backups_done),
+                self._view(run.decisions),
+                self._view(run.first_goal_step),
+                self._view(run.visits),
+            ),
+            SampleArrays(
+                self._view(sample.option_w),
+                self._view(sample.option_unseen),
+                self._view(sample.mentor_w),
+                self._view(sample.mentor_unseen),
+                self._view(sample.resamples),
+            ),
+            ClonedArrays(self._view(L.cloning.action)),
+            windows,
+            self.scratch,
+        )
