@@ -1,0 +1,76 @@
+"""16 mixed runs on both cores against one run, in one process, alternating: the scaling check.
+
+Builds, for each repeat, a fresh one-run learner (an imitator) and a fresh 16-run learner
+(imitation / options / primitives in turn, seeds 0…15) on the 40×40 world with 10 rooms and the
+experiments' planning (``plan_every = 4``, ``sweep_rounds = 1``), runs each 20,000 untimed
+steps (past the first goals), then times ``learner.run(--steps)``. Prints the aggregate steps/s
+of each per repeat, their ratio, and the medians: the scaling is the median of the per-repeat
+ratios (the two measured side by side, so a change in the machine's load moves both).
+
+    python benchmarks/bench_scaling.py [--reps 5] [--steps 100000] [--batch 16]
+
+On a virtual machine, the hypervisor's steal time (``top``: ``st``) takes from the second core
+what it gives the first: read the ratio together with it.
+"""
+
+import argparse
+import statistics
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+parser.add_argument("--reps", type=int, default=5)
+parser.add_argument("--steps", type=int, default=100_000, help="timed steps per run")
+parser.add_argument("--batch", type=int, default=16)
+args = parser.parse_args()
+
+import torch  # noqa: E402
+
+from himit_torch import (  # noqa: E402
+    Learner,
+    LearnerConfig,
+    MultiRooms,
+    learner_options,
+    mentor_options,
+    mentor_policy,
+    record_demonstrations,
+)
+
+torch.set_num_threads(1)
+world = MultiRooms(40, 10)
+demos = record_demonstrations(world, mentor_policy(world, mentor_options(world, False)), 20, seed=0)
+options = learner_options(world)
+config = LearnerConfig(plan_every=4, sweep_rounds=1)
+MIX = ["imitation", "options", "primitives"]
+
+
+def rate(batch: int, steps: int) -> float:
+    """Aggregate steps/s of a fresh ``batch``-run learner over ``steps`` timed steps."""
+    learner = Learner(world, options, [MIX[b % 3] for b in range(batch)], list(range(batch)),
+                      demonstrations=demos, config=config, engine="numba")  # fmt: skip
+    learner.run(20_000)
+    began = time.perf_counter()
+    learner.run(steps)
+    return batch * steps / (time.perf_counter() - began)
+
+
+rate(1, 1000), rate(args.batch, 1000)  # (kernels loaded, pool started)
+one, many = [], []
+for rep in range(args.reps):
+    if rep % 2 == 0:  # (alternating which goes first)
+        single = rate(1, args.steps)
+        batch = rate(args.batch, args.steps)
+    else:
+        batch = rate(args.batch, args.steps)
+        single = rate(1, args.steps)
+    one.append(single)
+    many.append(batch)
+    print(f"rep {rep}: B=1 {one[-1]:,.0f}  B={args.batch} {many[-1]:,.0f} steps/s  "
+          f"ratio {many[-1] / one[-1]:.2f}", flush=True)  # fmt: skip
+ratios = [b / a for a, b in zip(one, many)]
+print(f"MEDIAN of {args.reps}: B=1 {statistics.median(one):,.0f} steps/s, B={args.batch} "
+      f"{statistics.median(many):,.0f} steps/s; scaling (median of the ratios) "
+      f"{statistics.median(ratios):.2f} (range {min(ratios):.2f}-{max(ratios):.2f})")  # fmt: skip
