@@ -919,9 +919,27 @@ def _add_run(sub: argparse.ArgumentParser) -> None:
 
 
 # ------------------------------------------------------------------------------------- plot
+def _saved_fields(run_dir: Path) -> set[str] | None:
+    """The field names of ``run_dir/config.json`` (``None``: no such file, or not a dict)."""
+    from himit_torch.validation import parse_document, read_text
+
+    path = run_dir / "config.json"
+    if not path.is_file():
+        return None
+    where = f"himit plot: {path}"
+    data = parse_document(where, read_text(where, path), "json")
+    return set(data) if isinstance(data, dict) else None
+
+
 def cmd_plot(args: argparse.Namespace) -> int:
     run_dir = Path(args.run_dir)
-    if (run_dir / "summary.json").exists() and (run_dir / "batches").is_dir():
+    if (run_dir / "summary.json").exists():
+        if not (run_dir / "batches").is_dir():
+            raise ValueError(
+                f"{run_dir} is a puzzle-box run directory without its batches/ records: its page "
+                "is redrawn from them (summary.json holds only the aggregates); put the batches/ "
+                "folder back, or run it again with himit run puzzlebox"
+            )
         from himit_torch.runs.puzzle_box import recorded_run_command
         from himit_torch.runs.puzzle_box_report import rewrite_puzzle_box_report
 
@@ -941,8 +959,18 @@ def cmd_plot(args: argparse.Namespace) -> int:
         rewrite_summary(run_dir)  # a himit sweep folder: its tables from runs.csv
         print(f"wrote {run_dir / 'summary.csv'} and {run_dir / 'summary.md'}")
         return 0
+    from himit_torch.runs.discovery import DiscoveryConfig
     from himit_torch.runs.experiment import rewrite_report
+    from himit_torch.validation import settings_of
 
+    saved = _saved_fields(run_dir)
+    discovery = {s.name for s in settings_of(DiscoveryConfig)}
+    experiment = {s.name for s in settings_of(ExperimentConfig)}
+    if saved is not None and saved <= discovery and not saved <= experiment:
+        raise ValueError(
+            f"{run_dir} is a himit run discovery directory: its results.md and figures are "
+            "written at the end of the run, and himit plot does not redraw them"
+        )
     rewrite_report(run_dir)
     print(f"wrote {run_dir / 'figures'} and {run_dir / 'results.md'}")
     return 0
