@@ -32,14 +32,17 @@ import csv
 import math
 import os
 import time
-from dataclasses import dataclass, replace
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
 
 from himit_torch.learner.config import LearnerConfig
 from himit_torch.learner.learner import Learner
 from himit_torch.learner.option_refresh import with_options
+from himit_torch.mentor.demonstrations import Demonstrations
 from himit_torch.mentor.policy import mentor_policy, record_demonstrations
 from himit_torch.options.builders import doorway_options, mentor_options, primitive_options
 from himit_torch.options.bundle import Options
@@ -49,10 +52,11 @@ from himit_torch.options.discovery import (
     one_step_counts,
 )
 from himit_torch.runs.config import EXPERIMENTS
-from himit_torch.runs.runner import check_run_dir, run_windows, source_commit, watch_demonstrations
-from himit_torch.runs.study import RunConfig
+from himit_torch.runs.runner import run_windows, source_commit, watch_demonstrations
+from himit_torch.runs.study import RunConfig, run_study
 from himit_torch.statistics import mean_half_width, paired_t_p
 from himit_torch.validation import setting
+from himit_torch.viz.results_page import provenance_line, write_results_page
 
 __all__ = [
     "DiscoveryConfig",
@@ -180,34 +184,62 @@ def _window_goals(learner: Learner) -> np.ndarray:
     return np.asarray([[int(g) for g in row] for row in learner.metrics.goals_in_window]).T
 
 
-def _run_world(config: DiscoveryConfig, exp: str, out: Path, progress: bool) -> dict:
-    base = EXPERIMENTS[exp]
-    size = base.sizes[0]
-    world = base.world(size)
-    steps, warmup, window = config.steps_of(exp), config.warmup, base.window
-    lcfg: LearnerConfig = base.learner
-    seeds = list(range(config.first_seed, config.first_seed + config.seeds))
-    mentor = mentor_policy(
-        world, mentor_options(world, corners=base.corner_options), base.mentor_preference
-    )
-    demos = {s: record_demonstrations(world, mentor, base.mentor_episodes, seed=s) for s in seeds}
-    sep = config.separation(exp)
-    log = (lambda *a: print(f"discovery {exp}:", *a, flush=True)) if progress else (lambda *a: None)
+@dataclass
+class _World:
+    """One world's setting for :func:`_run_world`: the experiment's world, its mentor and each
+    seed's episodes, the subgoals found in them, and the results gathered so far."""
 
-    # ---- subgoals: per seed, and against the number of demonstrations
-    subgoal_rows, found = [], {}
-    for s in seeds:
+    exp: str
+    base: Any
+    world: Any
+    mentor: Any
+    seeds: list[int]
+    demos: dict[int, Demonstrations]
+    separation: int
+    log: Callable[..., None]
+    prims: Options
+    found: dict[int, Any] = field(default_factory=dict)
+    goals: dict[str, dict[int, np.ndarray]] = field(
+        default_factory=lambda: {a: {} for a in DISCOVERY_AGENTS}
+    )
+    first_goal: dict[str, dict[int, int]] = field(
+        default_factory=lambda: {a: {} for a in DISCOVERY_AGENTS}
+    )
+    build_seconds: list[float] = field(default_factory=list)
+    option_counts: dict[tuple[str, int], int] = field(default_factory=dict)
+    refreshes: list[int] = field(default_factory=list)
+    wall: dict[str, float] = field(default_factory=dict)
+
+    def batch(self, lcfg: LearnerConfig, engine: str, options: Options, agents, run_seeds):
+        """A learner batch on the world, every seed watching its own episodes."""
+        learner = Learner(self.world, options, agents, run_seeds, config=lcfg, engine=engine)
+        watch_demonstrations(learner, self.demos)
+        return learner
+
+    def record(self, learner: Learner, names: list[str], run_seeds: list[int]) -> None:
+        """Each run's goals per window and first goal, under its name."""
+        g = _window_goals(learner)
+        for b, (a, s) in enumerate(zip(names, run_seeds)):
+            self.goals[a][s] = g[b]
+            self.first_goal[a][s] = int(learner.first_goal_step[b])
+
+
+def _find_subgoals(config: DiscoveryConfig, w: _World) -> tuple[list[dict], list[dict]]:
+    """The subgoals found in each seed's episodes (kept in ``w.found``), and their precision
+    and recall against the number of demonstrations."""
+    subgoal_rows = []
+    for s in w.seeds:
         t0 = time.perf_counter()
-        sg = discover_subgoals(demos[s], separation=sep)
+        sg = discover_subgoals(w.demos[s], separation=w.separation)
         seconds = time.perf_counter() - t0
-        found[s] = sg
-        pr = sg.precision_recall(world.doorways)
-        pr_all = sg.precision_recall(world.doorways, visited_only=False)
+        w.found[s] = sg
+        pr = sg.precision_recall(w.world.doorways)
+        pr_all = sg.precision_recall(w.world.doorways, visited_only=False)
         subgoal_rows.append(
             {
-                "world": exp,
+                "world": w.exp,
                 "seed": s,
-                "episodes": base.mentor_episodes,
+                "episodes": w.base.mentor_episodes,
                 "found": pr["found"],
                 "doorways_visited": pr["true"],
                 "hits": pr["hits"],
@@ -220,70 +252,61 @@ def _run_world(config: DiscoveryConfig, exp: str, out: Path, progress: bool) -> 
         )
     needed_rows = []
     for n in config.demonstrations_needed:
-        for s in seeds:
-            d = record_demonstrations(world, mentor, n, seed=s)
+        for s in w.seeds:
+            d = record_demonstrations(w.world, w.mentor, n, seed=s)
             t0 = time.perf_counter()
-            pr = discover_subgoals(d, separation=sep).precision_recall(world.doorways)
+            pr = discover_subgoals(d, separation=w.separation).precision_recall(w.world.doorways)
             needed_rows.append(
-                {"world": exp, "episodes": n, "seed": s, **pr, "seconds": time.perf_counter() - t0}
+                {
+                    "world": w.exp,
+                    "episodes": n,
+                    "seed": s,
+                    **pr,
+                    "seconds": time.perf_counter() - t0,
+                }
             )
+    return subgoal_rows, needed_rows
 
-    goals: dict[str, dict[int, np.ndarray]] = {a: {} for a in DISCOVERY_AGENTS}
-    first_goal: dict[str, dict[int, int]] = {a: {} for a in DISCOVERY_AGENTS}
-    build_seconds, option_counts = [], {}
 
-    def batch(options: Options, agents: list[str], run_seeds: list[int]) -> Learner:
-        learner = Learner(world, options, agents, run_seeds, config=lcfg, engine=config.engine)
-        watch_demonstrations(learner, demos)
-        return learner
+def _discovered(config: DiscoveryConfig, w: _World, learner: Learner, run: int, seed: int):
+    """Primitives + options to ``seed``'s subgoals from the latest one-step counts of run
+    ``run`` of ``learner``."""
+    tb = time.perf_counter()
+    built = learned_subgoal_options(
+        one_step_counts(learner, run),
+        w.world.num_actions,
+        w.found[seed],
+        terminal=w.world.terminal_mask,
+        max_steps=config.max_steps_factor * w.separation,
+        gamma=w.world.gamma,
+        usable=w.world.free_mask & ~w.world.terminal_mask,
+    )
+    w.build_seconds.append(time.perf_counter() - tb)
+    return w.prims if built is None else Options.concat(w.prims, built)
 
-    # ---- primitives only (and the first phase of the discovered-options runs)
-    prims = primitive_options(world)
-    agents = ["primitives"] * len(seeds) + ["imitation_primitives"] * len(seeds)
-    run_seeds = seeds + seeds
-    t0 = time.perf_counter()
-    phase1 = batch(prims, agents, run_seeds)
-    run_windows(phase1, warmup)
-    wall = {"primitives phase": time.perf_counter() - t0}
-    usable = world.free_mask & ~world.terminal_mask
-    refreshes: list[int] = []
 
-    def discovered(learner: Learner, run: int, seed: int) -> Options:
-        """Primitives + options to ``seed``'s subgoals from the latest one-step counts of run
-        ``run`` of ``learner``."""
-        tb = time.perf_counter()
-        built = learned_subgoal_options(
-            one_step_counts(learner, run),
-            world.num_actions,
-            found[seed],
-            terminal=world.terminal_mask,
-            max_steps=config.max_steps_factor * sep,
-            gamma=world.gamma,
-            usable=usable,
-        )
-        build_seconds.append(time.perf_counter() - tb)
-        return prims if built is None else Options.concat(prims, built)
-
-    # ---- discovered options: the primitives runs go on, their options rebuilt as they learn
-    t0 = time.perf_counter()
+def _run_discovered(config: DiscoveryConfig, w: _World, phase1: Learner, out: Path) -> None:
+    """The discovered-options runs: each primitives run of ``phase1`` goes on with the options
+    built from its own counts, rebuilt as it learns (every ``refresh_every`` steps)."""
+    steps, n_prims = config.steps_of(w.exp), phase1.options.num_options
     for variant, source, agent in (
         ("discovered_options", "primitives", "options"),
         ("discovered_imitation", "imitation_primitives", "imitation"),
     ):
-        for i, s in enumerate(seeds):
-            run = (0 if source == "primitives" else len(seeds)) + i
-            opts = discovered(phase1, run, s)
-            n_ext = opts.num_options - prims.num_options
-            option_counts[(variant, s)] = n_ext
-            if s == seeds[0] and n_ext:
+        for i, s in enumerate(w.seeds):
+            run = (0 if source == "primitives" else len(w.seeds)) + i
+            opts = _discovered(config, w, phase1, run, s)
+            n_ext = opts.num_options - n_prims
+            w.option_counts[(variant, s)] = n_ext
+            if s == w.seeds[0] and n_ext:
                 _subgoal_figure(
-                    out / "figures" / f"options_{variant}_{exp}.png",
-                    world,
-                    found[s],
-                    demos[s],
-                    opts.select(list(range(prims.num_options, opts.num_options))),
-                    f"{exp}'s world, seed {s}: subgoals and options built\nfrom "
-                    f"{source}'s model after {warmup:,} steps",
+                    out / "figures" / f"options_{variant}_{w.exp}.png",
+                    w.world,
+                    w.found[s],
+                    w.demos[s],
+                    opts.select(list(range(n_prims, opts.num_options))),
+                    f"{w.exp}'s world, seed {s}: subgoals and options built\nfrom "
+                    f"{source}'s model after {config.warmup:,} steps",
                 )
             learner = with_options(phase1, opts, runs=[run], agents=[agent])
             n_swaps = 0
@@ -293,42 +316,67 @@ def _run_world(config: DiscoveryConfig, exp: str, out: Path, progress: bool) -> 
                     stop = min(stop, learner.t + config.refresh_every)
                 run_windows(learner, stop)
                 if learner.t < steps:
-                    learner = with_options(learner, discovered(learner, 0, s))
+                    learner = with_options(learner, _discovered(config, w, learner, 0, s))
                     n_swaps += 1
-            refreshes.append(n_swaps)
-            goals[variant][s] = _window_goals(learner)[0]
-            first_goal[variant][s] = int(learner.first_goal_step[0])
-    wall["discovered options"] = time.perf_counter() - t0
-    log(f"discovered options done ({wall['discovered options']:.0f} s)")
+            w.refreshes.append(n_swaps)
+            w.goals[variant][s] = _window_goals(learner)[0]
+            w.first_goal[variant][s] = int(learner.first_goal_step[0])
 
+
+def _run_learners(config: DiscoveryConfig, w: _World, out: Path) -> str:
+    """The primitives runs (whose warm-up the discovered runs continue), the discovered-options
+    runs and the hand-built doorway options; returns the engine's name."""
+    steps, lcfg, seeds, prims = config.steps_of(w.exp), w.base.learner, w.seeds, w.prims
+    agents = ["primitives"] * len(seeds) + ["imitation_primitives"] * len(seeds)
+    run_seeds = seeds + seeds
+    t0 = time.perf_counter()
+    phase1 = w.batch(lcfg, config.engine, prims, agents, run_seeds)
+    run_windows(phase1, config.warmup)
+    w.wall["primitives phase"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    _run_discovered(config, w, phase1, out)
+    w.wall["discovered options"] = time.perf_counter() - t0
+    w.log(f"discovered options done ({w.wall['discovered options']:.0f} s)")
     # ---- the primitives runs to the end
     t0 = time.perf_counter()
     run_windows(phase1, steps)
-    wall["primitives phase"] += time.perf_counter() - t0
-    g = _window_goals(phase1)
-    for b, (a, s) in enumerate(zip(agents, run_seeds)):
-        goals[a][s] = g[b]
-        first_goal[a][s] = int(phase1.first_goal_step[b])
-    log(f"primitives done ({wall['primitives phase']:.0f} s)")
-
+    w.wall["primitives phase"] += time.perf_counter() - t0
+    w.record(phase1, agents, run_seeds)
+    w.log(f"primitives done ({w.wall['primitives phase']:.0f} s)")
     # ---- hand-built doorway options
     t0 = time.perf_counter()
-    hand = Options.concat(prims, doorway_options(world, "direct"))
+    hand = Options.concat(prims, doorway_options(w.world, "direct"))
     agents = ["options"] * len(seeds) + ["imitation"] * len(seeds)
-    learner = batch(hand, agents, run_seeds)
+    learner = w.batch(lcfg, config.engine, hand, agents, run_seeds)
     run_windows(learner, steps)
-    wall["doorway options"] = time.perf_counter() - t0
-    g = _window_goals(learner)
-    for b, (a, s) in enumerate(zip(agents, run_seeds)):
-        name = "doorway_options" if a == "options" else "doorway_imitation"
-        goals[name][s] = g[b]
-        first_goal[name][s] = int(learner.first_goal_step[b])
-    log(f"doorway options done ({wall['doorway options']:.0f} s)")
-    engine = learner.engine.name
+    w.wall["doorway options"] = time.perf_counter() - t0
+    names = ["doorway_options" if a == "options" else "doorway_imitation" for a in agents]
+    w.record(learner, names, run_seeds)
+    w.log(f"doorway options done ({w.wall['doorway options']:.0f} s)")
+    return learner.engine.name
+
+
+def _run_world(config: DiscoveryConfig, exp: str, out: Path, progress: bool) -> dict:
+    """One world: its subgoals, every learner's runs and the subgoal figure; its results."""
+    base = EXPERIMENTS[exp]
+    size = base.sizes[0]
+    world = base.world(size)
+    seeds = list(range(config.first_seed, config.first_seed + config.seeds))
+    mentor = mentor_policy(
+        world, mentor_options(world, corners=base.corner_options), base.mentor_preference
+    )
+    demos = {s: record_demonstrations(world, mentor, base.mentor_episodes, seed=s) for s in seeds}
+    log = (lambda *a: print(f"discovery {exp}:", *a, flush=True)) if progress else (lambda *a: None)
+    w = _World(
+        exp, base, world, mentor, seeds, demos, config.separation(exp), log,
+        primitive_options(world),
+    )  # fmt: skip
+    subgoal_rows, needed_rows = _find_subgoals(config, w)
+    engine = _run_learners(config, w, out)
     _subgoal_figure(
         out / "figures" / f"subgoals_{exp}.png",
         world,
-        found[seeds[0]],
+        w.found[seeds[0]],
         demos[seeds[0]],
         None,
         f"{exp}'s world ({size}×{size}), seed {seeds[0]}:\nsubgoals found in "
@@ -337,17 +385,17 @@ def _run_world(config: DiscoveryConfig, exp: str, out: Path, progress: bool) -> 
     return {
         "world": exp,
         "size": size,
-        "steps": steps,
-        "window": window,
-        "goals": goals,
-        "first_goal": first_goal,
+        "steps": config.steps_of(exp),
+        "window": base.window,
+        "goals": w.goals,
+        "first_goal": w.first_goal,
         "subgoals": subgoal_rows,
         "needed": needed_rows,
-        "build_seconds": build_seconds,
-        "refreshes": refreshes,
-        "option_counts": option_counts,
-        "wall": wall,
-        "separation": sep,
+        "build_seconds": w.build_seconds,
+        "refreshes": w.refreshes,
+        "option_counts": w.option_counts,
+        "wall": w.wall,
+        "separation": w.separation,
         "seeds": seeds,
         "engine": engine,
     }
@@ -390,37 +438,72 @@ def _curves_figure(path: Path, result: dict) -> None:
     fig.savefig(path, dpi=120)
 
 
+class _Finished(NamedTuple):
+    """What :meth:`DiscoveryStudy.run` returns: each world's results and the wall time."""
+
+    results: list[dict]
+    total: float
+
+
+class DiscoveryStudy:
+    """The discovery experiment as a :class:`~himit_torch.runs.study.Study`: one world after
+    another (:func:`_run_world`), then ``curves.csv``, ``subgoals.csv`` and
+    ``demonstrations_needed.csv``; its report the curves figures and ``results.md``. It does not
+    resume (an unfinished run starts over) and ``--force`` clears nothing (every file is written
+    again)."""
+
+    config_class: ClassVar[type] = DiscoveryConfig
+    folders: ClassVar[tuple[str, ...]] = ()
+    files: ClassVar[tuple[str, ...]] = ()
+
+    def run(self, config: DiscoveryConfig, out: Path, resume: bool, progress: bool) -> _Finished:
+        """Every world's runs, then the CSV records."""
+        t0 = time.perf_counter()
+        results = [_run_world(config, w, out, progress) for w in config.worlds]
+        total = time.perf_counter() - t0
+        with (out / "curves.csv").open("w", newline="") as f:
+            w = csv.writer(f)
+            w.writerow(["world", "agent", "seed", "step", "goals_in_window"])
+            for r in results:
+                for a in DISCOVERY_AGENTS:
+                    for s in r["seeds"]:
+                        for i, g in enumerate(r["goals"][a][s]):
+                            w.writerow([r["world"], a, s, (i + 1) * r["window"], int(g)])
+        for name, key in (("subgoals.csv", "subgoals"), ("demonstrations_needed.csv", "needed")):
+            rows = [row for r in results for row in r[key]]
+            with (out / name).open("w", newline="") as f:
+                dw = csv.DictWriter(f, fieldnames=list(rows[0]))
+                dw.writeheader()
+                dw.writerows(rows)
+        return _Finished(results, total)
+
+    def report(self, config: DiscoveryConfig, out: Path, finished: _Finished) -> None:
+        """The curves figures and ``results.md``."""
+        for r in finished.results:
+            _curves_figure(out / "figures" / f"curves_{r['world']}.png", r)
+        _write_results(out, config, finished.results, finished.total)
+
+
+def _check_steps(config: DiscoveryConfig) -> None:
+    if config.steps is not None and config.steps <= config.warmup:
+        raise ValueError(f"steps={config.steps} must exceed the warm-up ({config.warmup})")
+
+
 def run_discovery(
     config: DiscoveryConfig, run_dir: str | os.PathLike, force: bool = False, progress: bool = True
 ) -> list[dict]:
-    """Run the discovery experiment into ``run_dir`` (see the module docstring)."""
-    out = Path(run_dir)
-    if config.steps is not None and config.steps <= config.warmup:
-        raise ValueError(f"steps={config.steps} must exceed the warm-up ({config.warmup})")
-    check_run_dir(out, force=force)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "config.json").write_text(config.to_json())
-    t0 = time.perf_counter()
-    results = [_run_world(config, w, out, progress) for w in config.worlds]
-    total = time.perf_counter() - t0
-    with (out / "curves.csv").open("w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(["world", "agent", "seed", "step", "goals_in_window"])
-        for r in results:
-            for a in DISCOVERY_AGENTS:
-                for s in r["seeds"]:
-                    for i, g in enumerate(r["goals"][a][s]):
-                        w.writerow([r["world"], a, s, (i + 1) * r["window"], int(g)])
-    for name, key in (("subgoals.csv", "subgoals"), ("demonstrations_needed.csv", "needed")):
-        rows = [row for r in results for row in r[key]]
-        with (out / name).open("w", newline="") as f:
-            dw = csv.DictWriter(f, fieldnames=list(rows[0]))
-            dw.writeheader()
-            dw.writerows(rows)
-    for r in results:
-        _curves_figure(out / "figures" / f"curves_{r['world']}.png", r)
-    _write_results(out, config, results, total)
-    return results
+    """Run the discovery experiment into ``run_dir`` (see the module docstring;
+    :class:`DiscoveryStudy` through :func:`~himit_torch.runs.study.run_study`)."""
+    finished = run_study(
+        DiscoveryStudy(),
+        config,
+        run_dir,
+        resume=None,
+        force=force,
+        progress=progress,
+        check=lambda: _check_steps(config),
+    )
+    return finished.results
 
 
 def discovery_run_command(
@@ -442,26 +525,38 @@ def _fmt(values, digits: int = 1) -> str:
 
 
 def _write_results(out: Path, config: DiscoveryConfig, results: list[dict], total: float) -> None:
+    """``results.md`` (:func:`~himit_torch.viz.results_page.write_results_page`): the
+    provenance, what runs, then each world's subgoals and learning."""
     engine = ", ".join(sorted({r["engine"] for r in results}))
     command = discovery_run_command(config, out)
-    lines = [
-        "# discovery: options discovered from the mentor's states",
-        "",
-        f"Runs recorded at commit `{source_commit()}` (the code that ran them; the records here "
-        "hold no commit); this page: written by the runs themselves (no command redraws it from "
-        "its records); the runs: "
-        + (
+    provenance = [
+        provenance_line(
+            [source_commit()],
+            " (the code that ran them; the records here hold no commit)",
+            "written by the runs themselves (no command redraws it from its records)",
             f"`{command}`."
             if command
             else "the settings in `config.json` (not all of them flags of `himit run "
-            "discovery`: `run_discovery` of that `DiscoveryConfig`)."
+            "discovery`: `run_discovery` of that `DiscoveryConfig`).",
         ),
-        "",
-        f"Code at commit `{source_commit()}`, engine `{engine}`, {config.seeds} seeds, warm-up {config.warmup:,} steps, initiation "
-        f"sets within {config.max_steps_factor:g} × separation expected steps. Total wall time "
-        f"{total:.0f} s. Numbers: mean ± half-width of the 95 % confidence interval "
-        "(Student's t) over seeds.",
-        "",
+        f"Code at commit `{source_commit()}`, engine `{engine}`, {config.seeds} seeds, warm-up "
+        f"{config.warmup:,} steps, initiation sets within {config.max_steps_factor:g} × "
+        f"separation expected steps. Total wall time {total:.0f} s. Numbers: mean ± half-width "
+        "of the 95 % confidence interval (Student's t) over seeds.",
+    ]
+    sections = [_what_runs(config)]
+    for r in results:
+        sections += [_subgoals_section(config, r), _learning_section(r)]
+    write_results_page(
+        out,
+        "discovery: options discovered from the mentor's states",
+        provenance,
+        [*sections, [""]],
+    )
+
+
+def _what_runs(config: DiscoveryConfig) -> list[str]:
+    return [
         "What runs (see `himit_torch/runs/discovery.py`): `primitives` / "
         "`imitation_primitives` — primitive options only, without / with the mentor term; "
         "`doorway_options` / `doorway_imitation` — primitives + the hand-built doorway options "
@@ -481,78 +576,86 @@ def _write_results(out: Path, config: DiscoveryConfig, results: list[dict], tota
         "and learner settings; each seed its own mentor episodes.",
         "",
     ]
-    for r in results:
-        seeds = r["seeds"]
-        tot = {a: [int(r["goals"][a][s].sum()) for s in seeds] for a in DISCOVERY_AGENTS}
-        last = {a: [int(r["goals"][a][s][-1]) for s in seeds] for a in DISCOVERY_AGENTS}
-        reached = {a: sum(1 for s in seeds if r["first_goal"][a][s] >= 0) for a in DISCOVERY_AGENTS}
-        sg = r["subgoals"]
-        lines += [
-            f"## {r['world']}'s world ({r['size']}×{r['size']}), {r['steps']:,} steps",
-            "",
-            "### Subgoals",
-            "",
-            f"Separation {r['separation']} moves; {EXPERIMENTS[r['world']].mentor_episodes} "
-            "mentor episodes per seed. Recall against the doorways the mentor passed "
-            "(recall_all: against all doorways of the world).",
-            "",
-            "| found | doorways passed | precision | recall | recall_all | time (ms) |",
-            "|---|---|---|---|---|---|",
-            f"| {_fmt([x['found'] for x in sg])} | {_fmt([x['doorways_visited'] for x in sg])} | "
-            f"{_fmt([x['precision'] for x in sg], 2)} | "
-            f"{_fmt([x['recall_visited'] for x in sg], 2)} | "
-            f"{np.mean([x['recall_all'] for x in sg]):.3f} | "
-            f"{1000 * np.mean([x['seconds'] for x in sg]):.1f} |",
-            "",
-            "Demonstrations needed (precision / recall, mean over seeds):",
-            "",
-            "| mentor episodes | precision | recall |",
-            "|---|---|---|",
-        ]
-        for n in config.demonstrations_needed:
-            rows = [x for x in r["needed"] if x["episodes"] == n]
-            lines.append(
-                f"| {n} | {_fmt([x['precision'] for x in rows], 2)} | "
-                f"{_fmt([x['recall'] for x in rows], 2)} |"
-            )
-        n_opts = [v for (variant, _), v in r["option_counts"].items()]
-        lines += [
-            "",
-            f"Options built at the warm-up per run: {_fmt(n_opts)} (min {min(n_opts)}); "
-            f"building them took {1000 * np.mean(r['build_seconds']):.0f} ms a time, "
-            f"{np.mean(r['refreshes']):.0f} rebuilds a run after the warm-up.",
-            "",
-            "### Learning",
-            "",
-            "| agent | total goals | goals in last window | runs that reached the goal |",
-            "|---|---|---|---|",
-        ]
-        for a in DISCOVERY_AGENTS:
-            lines.append(f"| {a} | {_fmt(tot[a])} | {_fmt(last[a])} | {reached[a]}/{len(seeds)} |")
-        hand, disc, prim = (
-            np.mean(tot["doorway_imitation"]),
-            np.mean(tot["discovered_imitation"]),
-            np.mean(tot["imitation_primitives"]),
+
+
+def _subgoals_section(config: DiscoveryConfig, r: dict) -> list[str]:
+    """A world's heading and its subgoals: found, precision and recall, against the episodes."""
+    sg = r["subgoals"]
+    lines = [
+        f"## {r['world']}'s world ({r['size']}×{r['size']}), {r['steps']:,} steps",
+        "",
+        "### Subgoals",
+        "",
+        f"Separation {r['separation']} moves; {EXPERIMENTS[r['world']].mentor_episodes} "
+        "mentor episodes per seed. Recall against the doorways the mentor passed "
+        "(recall_all: against all doorways of the world).",
+        "",
+        "| found | doorways passed | precision | recall | recall_all | time (ms) |",
+        "|---|---|---|---|---|---|",
+        f"| {_fmt([x['found'] for x in sg])} | {_fmt([x['doorways_visited'] for x in sg])} | "
+        f"{_fmt([x['precision'] for x in sg], 2)} | "
+        f"{_fmt([x['recall_visited'] for x in sg], 2)} | "
+        f"{np.mean([x['recall_all'] for x in sg]):.3f} | "
+        f"{1000 * np.mean([x['seconds'] for x in sg]):.1f} |",
+        "",
+        "Demonstrations needed (precision / recall, mean over seeds):",
+        "",
+        "| mentor episodes | precision | recall |",
+        "|---|---|---|",
+    ]
+    for n in config.demonstrations_needed:
+        rows = [x for x in r["needed"] if x["episodes"] == n]
+        lines.append(
+            f"| {n} | {_fmt([x['precision'] for x in rows], 2)} | "
+            f"{_fmt([x['recall'] for x in rows], 2)} |"
         )
-        ratio = disc / hand if hand else float("nan")
-        # Paired over seeds: a seed's two runs share its mentor episodes and, here, its warm-up.
-        diff = np.asarray(tot["discovered_imitation"], float) - np.asarray(
-            tot["imitation_primitives"], float
-        )
-        d_mean, d_half = _mean_ci(diff)
-        p_value = paired_t_p(diff)
-        beats = d_mean - d_half > 0
-        lines += [
-            "",
-            f"Discovered-options imitator / hand-built imitator (total goals): "
-            f"**{100 * ratio:.0f} %** (target ≥ 80 % on exp2's world); vs primitives-only "
-            f"imitation: {disc:.0f} vs {prim:.0f}, paired difference {d_mean:+.1f} ± "
-            f"{d_half:.1f} goals (paired t-test p = {p_value:.3g}; "
-            f"{'beats it' if beats else 'does not beat it'}: the interval "
-            f"{'lies above' if beats else 'does not lie above'} 0).",
-            "",
-            "Wall time: " + ", ".join(f"{k} {v:.0f} s" for k, v in r["wall"].items()),
-            "",
-        ]
-        r["ratio"] = ratio
-    (out / "results.md").write_text("\n".join(lines) + "\n")
+    n_opts = [v for (variant, _), v in r["option_counts"].items()]
+    return lines + [
+        "",
+        f"Options built at the warm-up per run: {_fmt(n_opts)} (min {min(n_opts)}); "
+        f"building them took {1000 * np.mean(r['build_seconds']):.0f} ms a time, "
+        f"{np.mean(r['refreshes']):.0f} rebuilds a run after the warm-up.",
+        "",
+    ]
+
+
+def _learning_section(r: dict) -> list[str]:
+    """A world's learning table and the discovered imitator against the others."""
+    seeds = r["seeds"]
+    tot = {a: [int(r["goals"][a][s].sum()) for s in seeds] for a in DISCOVERY_AGENTS}
+    last = {a: [int(r["goals"][a][s][-1]) for s in seeds] for a in DISCOVERY_AGENTS}
+    reached = {a: sum(1 for s in seeds if r["first_goal"][a][s] >= 0) for a in DISCOVERY_AGENTS}
+    lines = [
+        "### Learning",
+        "",
+        "| agent | total goals | goals in last window | runs that reached the goal |",
+        "|---|---|---|---|",
+    ]
+    for a in DISCOVERY_AGENTS:
+        lines.append(f"| {a} | {_fmt(tot[a])} | {_fmt(last[a])} | {reached[a]}/{len(seeds)} |")
+    hand, disc, prim = (
+        np.mean(tot["doorway_imitation"]),
+        np.mean(tot["discovered_imitation"]),
+        np.mean(tot["imitation_primitives"]),
+    )
+    ratio = disc / hand if hand else float("nan")
+    # Paired over seeds: a seed's two runs share its mentor episodes and, here, its warm-up.
+    diff = np.asarray(tot["discovered_imitation"], float) - np.asarray(
+        tot["imitation_primitives"], float
+    )
+    d_mean, d_half = _mean_ci(diff)
+    p_value = paired_t_p(diff)
+    beats = d_mean - d_half > 0
+    r["ratio"] = ratio
+    return lines + [
+        "",
+        f"Discovered-options imitator / hand-built imitator (total goals): "
+        f"**{100 * ratio:.0f} %** (target ≥ 80 % on exp2's world); vs primitives-only "
+        f"imitation: {disc:.0f} vs {prim:.0f}, paired difference {d_mean:+.1f} ± "
+        f"{d_half:.1f} goals (paired t-test p = {p_value:.3g}; "
+        f"{'beats it' if beats else 'does not beat it'}: the interval "
+        f"{'lies above' if beats else 'does not lie above'} 0).",
+        "",
+        "Wall time: " + ", ".join(f"{k} {v:.0f} s" for k, v in r["wall"].items()),
+        "",
+    ]

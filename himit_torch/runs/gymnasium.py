@@ -43,11 +43,10 @@ import csv
 import json
 import math
 import os
-import shlex
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 import torch
@@ -63,22 +62,22 @@ from himit_torch.learner.learner import Learner
 from himit_torch.learner.presets import agent_settings_text
 from himit_torch.mentor.policy import mentor_policy, record_demonstrations
 from himit_torch.mentor.reward import KnownReward
-from himit_torch.options.builders import primitive_options, subgoal_options
+from himit_torch.options.builders import primitive_options
 from himit_torch.options.bundle import Options
 from himit_torch.options.taxi import taxi_navigation_options
+from himit_torch.options.toy_text import cliff_options, frozen_lake_options
 from himit_torch.runs.greedy import CURVE_COLUMNS, GreedyReference, GreedyTracker
 from himit_torch.runs.runner import (
     batch_runs,
-    check_run_dir,
-    clear_run_dir,
     run_names,
     run_windows,
     source_commit,
     watch_demonstrations,
 )
-from himit_torch.runs.study import RunConfig
+from himit_torch.runs.study import RunConfig, run_study
 from himit_torch.statistics import bca_interval, mean_half_width
 from himit_torch.validation import setting
+from himit_torch.viz.results_page import plot_command, provenance_line, write_results_page
 from himit_torch.viz.tensorboard import TensorBoardLogger, tensorboard_command
 from himit_torch.worlds.gymnasium import from_gymnasium
 from himit_torch.worlds.table_world import TableWorld
@@ -111,28 +110,6 @@ class GymTask:
     def options(self, world: TableWorld) -> Options:
         """Primitives first, then the extended options."""
         return Options.concat([primitive_options(world), self.extended_options(world)])
-
-
-def _cells(world: TableWorld, cells: dict[str, int]) -> Options:
-    """Subgoal options to single cells of a grid task, by name."""
-    targets = {}
-    for name, s in cells.items():
-        mask = torch.zeros(world.num_states, dtype=torch.bool)
-        mask[s] = True
-        targets[name] = mask
-    return subgoal_options(world, targets)
-
-
-def cliff_options(world: TableWorld) -> Options:
-    """CliffWalking (4×12, start (3, 0), goal (3, 11)): options to the two top corners, so the
-    goal itself needs primitives (the "insufficient options" of the paper's experiment 2)."""
-    return _cells(world, {"to top-left (0,0)": 0, "to top-right (0,11)": 11})
-
-
-def frozen_lake_options(world: TableWorld) -> Options:
-    """FrozenLake 8×8: options to the two free corners (0, 7) and (7, 0), each by the policy of
-    fewest expected steps on the slippery true model (holes count as never arriving)."""
-    return _cells(world, {"to top-right (0,7)": 7, "to bottom-left (7,0)": 56})
 
 
 #: The tasks, by name.
@@ -316,10 +293,29 @@ def neutral_value(world: TableWorld) -> float:
 
 
 # ================================================================================ the runner
-def run_task(
-    config: GymExperimentConfig, task_name: str, run_dir: Path, progress: bool = True
-) -> dict:
-    """One task: every agent × seed in one batch; returns the task's summary (also written)."""
+@dataclass
+class _TaskBatch:
+    """One task's batch as :func:`run_task` builds it: the world, the learner's options, the
+    mentor, the learner (every agent × seed, demonstrations watched) and its references."""
+
+    name: str
+    task: GymTask
+    world: TableWorld
+    options: Options
+    mentor: Any
+    known: KnownReward
+    learner_config: LearnerConfig
+    learner: Learner
+    agents: list[str]
+    run_seeds: list[int]
+    optimal_rate: float
+    optimal_value: float
+    greedy: GreedyTracker
+
+
+def _build_task_batch(config: GymExperimentConfig, task_name: str) -> _TaskBatch:
+    """The task's world, options and optimal mentor; one learner batch of every agent × seed
+    watching its seed's mentor episodes; the exact optimum and the greedy tracker."""
     task = TASKS[task_name]
     world = task.world(config.gamma)
     options = task.options(world)
@@ -344,8 +340,6 @@ def run_task(
     )
     # The optimum over primitives, exact: its goal rate, and V*(μ) for the value gap.
     optimal = optimal_policy_evaluation(world, config.window)
-    optimal_rate = float(optimal.goals_per_window[0])
-    optimal_value = float(optimal.value_start[0])
     # Every window: the greedy policies' goal rates and values (the value gap), one evaluation.
     greedy = GreedyTracker(
         PolicyEvaluator(world, options, config.window),
@@ -356,33 +350,40 @@ def run_task(
         config.steps_of(task_name),
         values=True,
     )
-    goal = world.goal_mask.to(learner.device)
-    # A task has no resume: a rerun starts its runs' TensorBoard folders over.
-    logger = TensorBoardLogger(
-        run_dir / "tb", run_names(task_name, agents, run_seeds), overwrite=True
-    )
-    greedy.logger = logger
-    rows: list[dict[str, Any]] = []
-    previous_goals = torch.zeros(learner.batch, dtype=torch.int64)
+    return _TaskBatch(
+        task_name, task, world, options, mentor, known, learner_config, learner, agents,
+        run_seeds, float(optimal.goals_per_window[0]), float(optimal.value_start[0]), greedy,
+    )  # fmt: skip
 
-    def log_window(learner: Learner, index: int) -> None:
-        """The window's rows of ``curves.csv`` and its scalars: goals (arrivals at the goal
-        states, from the visit counts), episodes, ε, the greedy policy's exact value gap."""
-        nonlocal previous_goals
-        reached = learner.visit_counts()[:, goal].sum(1).cpu()
-        goals, previous_goals = reached - previous_goals, reached
+
+class _WindowLog:
+    """The ``on_window`` callback of a task's batch: each window's rows of ``curves.csv``
+    (``rows``) and its scalars: goals (arrivals at the goal states, from the visit counts),
+    episodes, ε, the greedy policy's exact value gap. ``reached``: each run's goals so far (at
+    the last window's end)."""
+
+    def __init__(self, run: _TaskBatch, logger: TensorBoardLogger):
+        self.run, self.logger = run, logger
+        self.goal = run.world.goal_mask.to(run.learner.device)
+        self.rows: list[dict[str, Any]] = []
+        self.reached = torch.zeros(run.learner.batch, dtype=torch.int64)
+
+    def __call__(self, learner: Learner, index: int) -> None:
+        run, greedy = self.run, self.run.greedy
+        reached = learner.visit_counts()[:, self.goal].sum(1).cpu()
+        goals, self.reached = reached - self.reached, reached
         m = learner.metrics
         greedy(learner, index)  # every window is on its schedule (every = window)
         evaluation = greedy.evaluations.get(learner.t)
         if evaluation is None:
             evaluation = greedy.evaluate(learner)
-        gap = evaluation.value_gap(optimal_value).tolist()
+        gap = evaluation.value_gap(run.optimal_value).tolist()
         coverage = learner.model_coverage().cpu()
         for b in range(learner.batch):
             row: dict[str, Any] = {
-                "task": task_name,
-                "agent": agents[b],
-                "seed": run_seeds[b],
+                "task": run.name,
+                "agent": run.agents[b],
+                "seed": run.run_seeds[b],
                 "step": learner.t,
                 "goals": int(goals[b]),
                 "episodes": int(m.goals_in_window[index][b]),
@@ -391,7 +392,7 @@ def run_task(
                 "mentor_term_wins": float(m.mentor_term_wins[index][b]),
                 **dict(zip(CURVE_COLUMNS, greedy.curve_cells(learner.t, b))),
             }
-            rows.append(row)
+            self.rows.append(row)
             scalars = {
                 "charts/goals_in_window": row["goals"],
                 "charts/episodes_in_window": row["episodes"],
@@ -402,14 +403,14 @@ def run_task(
             }
             if math.isfinite(row["mentor_term_wins"]):
                 scalars["mentor/term_wins"] = row["mentor_term_wins"]
-            logger.scalars(b, scalars, learner.t)
+            self.logger.scalars(b, scalars, learner.t)
 
-    wall = run_windows(
-        learner,
-        config.steps_of(task_name),
-        on_window=[log_window],
-        progress=f"{task_name} B={learner.batch}" if progress else None,
-    )
+
+def _task_summary(
+    config: GymExperimentConfig, run: _TaskBatch, log: _WindowLog, wall: float
+) -> dict:
+    """The task's record (``tasks/<task>.json``) from its finished batch and window rows."""
+    learner, world, greedy, rows = run.learner, run.world, run.greedy, log.rows
     last = [r for r in rows if r["step"] == learner.t] if rows else []
     final = greedy.finish(learner)
     stuck = greedy.stuck
@@ -419,24 +420,24 @@ def run_task(
             (r["step"] for r in rows if r["goals"] > 0 and r["agent"] == a and r["seed"] == sd),
             default=-1,
         )
-        for a, sd in zip(agents, run_seeds)
+        for a, sd in zip(run.agents, run.run_seeds)
     ]
     every_end_a_goal = bool(torch.equal(world.terminal_mask.cpu(), world.goal_mask.cpu()))
-    summary = {
-        "task": task_name,
-        "env_id": task.env_id,
-        "kwargs": task.kwargs,
-        "about": task.about,
+    return {
+        "task": run.name,
+        "env_id": run.task.env_id,
+        "kwargs": run.task.kwargs,
+        "about": run.task.about,
         "engine": learner.engine.name,
         "commit": source_commit(),
         "num_states": world.num_states,
         "num_actions": world.num_actions,
-        "options": list(options.names),
-        "agents": agents,
-        "seeds": run_seeds,
-        "optimal_value": optimal_value,
-        "optimal_goals_per_window": optimal_rate,
-        "total_goals": [int(x) for x in previous_goals.tolist()],
+        "options": list(run.options.names),
+        "agents": run.agents,
+        "seeds": run.run_seeds,
+        "optimal_value": run.optimal_value,
+        "optimal_goals_per_window": run.optimal_rate,
+        "total_goals": [int(x) for x in log.reached.tolist()],
         "first_goal_window": first_goal_windows,
         # Each run's first goal (−1: never). Exact where every terminal state is a goal (the
         # learner's first episode end is then its first goal: Taxi, CliffWalking); where some
@@ -459,15 +460,23 @@ def run_task(
         "greedy_goal_probability": final.goal_probability.tolist(),
         "wall_seconds": wall,
         "steps": learner.t,
-        "initial_value": learner_config.initial_value,
-        "ambiguous_reward_pairs": known.ambiguous_pairs,
-        "known_reward": known.note,
+        "initial_value": run.learner_config.initial_value,
+        "ambiguous_reward_pairs": run.known.ambiguous_pairs,
+        "known_reward": run.known.note,
     }
+
+
+def _write_task_records(
+    run_dir: Path, run: _TaskBatch, log: _WindowLog, logger: TensorBoardLogger, summary: dict
+) -> None:
+    """The task's hyperparameters in TensorBoard, then ``tasks/<task>.json`` and
+    ``tasks/<task>.csv``."""
     # Settings without the seed, so that a task's seeds of one agent form one HParams group; the
     # metrics at step 0, where SummaryWriter.add_hparams put them.
-    hp = {k: v for k, v in asdict(learner_config).items() if v is not None}
+    hp = {k: v for k, v in asdict(run.learner_config).items() if v is not None}
+    last = [r for r in log.rows if r["step"] == run.learner.t] if log.rows else []
     logger.hparams(
-        [dict(hp, task=task_name, agent=a) for a in agents],
+        [dict(hp, task=run.name, agent=a) for a in run.agents],
         [
             {
                 "hparam/total_goals": float(summary["total_goals"][b]),
@@ -475,14 +484,35 @@ def run_task(
                 if last
                 else float("nan"),
             }
-            for b in range(learner.batch)
+            for b in range(run.learner.batch)
         ],
         0,
     )
     logger.close()
     (run_dir / "tasks").mkdir(parents=True, exist_ok=True)
-    (run_dir / "tasks" / f"{task_name}.json").write_text(json.dumps(summary, indent=1))
-    _write_rows(run_dir / "tasks" / f"{task_name}.csv", rows)
+    (run_dir / "tasks" / f"{run.name}.json").write_text(json.dumps(summary, indent=1))
+    _write_rows(run_dir / "tasks" / f"{run.name}.csv", log.rows)
+
+
+def run_task(
+    config: GymExperimentConfig, task_name: str, run_dir: Path, progress: bool = True
+) -> dict:
+    """One task: every agent × seed in one batch; returns the task's summary (also written)."""
+    run = _build_task_batch(config, task_name)
+    # A task has no resume: a rerun starts its runs' TensorBoard folders over.
+    logger = TensorBoardLogger(
+        run_dir / "tb", run_names(task_name, run.agents, run.run_seeds), overwrite=True
+    )
+    run.greedy.logger = logger
+    log = _WindowLog(run, logger)
+    wall = run_windows(
+        run.learner,
+        config.steps_of(task_name),
+        on_window=[log],
+        progress=f"{task_name} B={run.learner.batch}" if progress else None,
+    )
+    summary = _task_summary(config, run, log, wall)
+    _write_task_records(run_dir, run, log, logger, summary)
     return summary
 
 
@@ -508,31 +538,46 @@ def _write_rows(path: Path, rows: list[dict]) -> None:
             out.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
 
 
+class GymnasiumStudy:
+    """The Gymnasium comparison as a :class:`~himit_torch.runs.study.Study`: one batch per task
+    (:func:`run_task`), then ``curves.csv`` (every task's rows); its report the figures and
+    ``results.md``. It does not resume: an unfinished run starts over."""
+
+    config_class: ClassVar[type] = GymExperimentConfig
+    folders: ClassVar[tuple[str, ...]] = ("tb", "tasks", "figures")
+    #: ``--force`` clears the folders only (the files are written again).
+    files: ClassVar[tuple[str, ...]] = ()
+
+    def run(
+        self, config: GymExperimentConfig, run_dir: Path, resume: bool, progress: bool
+    ) -> list[dict]:
+        """Every task's batch, then ``curves.csv``; the tasks' summaries."""
+        summaries = [run_task(config, t, run_dir, progress) for t in config.tasks]
+        with (run_dir / "curves.csv").open("w", newline="") as out:
+            out.write(",".join(_COLUMNS) + "\n")
+            for t in config.tasks:
+                lines = (run_dir / "tasks" / f"{t}.csv").read_text().splitlines()[1:]
+                out.write("".join(line + "\n" for line in lines))
+        return summaries
+
+    def report(self, config: GymExperimentConfig, run_dir: Path, summaries: list[dict]) -> None:
+        """The figures and ``results.md``."""
+        write_gym_figures(run_dir, config, summaries)
+        write_gym_results(run_dir, config, summaries)
+
+
 def run_gym_experiment(
     config: GymExperimentConfig,
     run_dir: str | os.PathLike,
     force: bool = False,
     progress: bool = True,
 ) -> list[dict]:
-    """Run every task of ``config`` into ``run_dir``, then figures and ``results.md``.
+    """Run every task of ``config`` into ``run_dir``, then figures and ``results.md``
+    (:class:`GymnasiumStudy` through :func:`~himit_torch.runs.study.run_study`).
 
     A directory holding a finished run is not overwritten unless ``force``.
     """
-    run_dir = Path(run_dir)
-    check_run_dir(run_dir, force=force)
-    if force:
-        clear_run_dir(run_dir, ("tb", "tasks", "figures"))
-    run_dir.mkdir(parents=True, exist_ok=True)
-    (run_dir / "config.json").write_text(config.to_json())
-    summaries = [run_task(config, t, run_dir, progress) for t in config.tasks]
-    with (run_dir / "curves.csv").open("w", newline="") as out:
-        out.write(",".join(_COLUMNS) + "\n")
-        for t in config.tasks:
-            lines = (run_dir / "tasks" / f"{t}.csv").read_text().splitlines()[1:]
-            out.write("".join(line + "\n" for line in lines))
-    write_gym_figures(run_dir, config, summaries)
-    write_gym_results(run_dir, config, summaries)
-    return summaries
+    return run_study(GymnasiumStudy(), config, run_dir, resume=None, force=force, progress=progress)
 
 
 # ================================================================================ reporting
@@ -558,9 +603,44 @@ def rewrite_gym_report(run_dir: str | os.PathLike) -> None:
         summary = parse_document(where, read_text(where, path), "json")
         if not isinstance(summary, dict):
             raise ValueError(f"{where} must hold a JSON object")
+        _check_task_record(where, summary)
         summaries.append(summary)
     write_gym_figures(run_dir, config, summaries)
     write_gym_results(run_dir, config, summaries)
+
+
+#: What a task record (``tasks/<task>.json``) must hold for its page, with the type of each.
+_TASK_RECORD_KEYS: dict[str, type | tuple[type, ...]] = {
+    "task": str,
+    "about": str,
+    "agents": list,
+    "options": list,
+    "steps": int,
+    "optimal_value": (int, float),
+    "optimal_goals_per_window": (int, float),
+    "initial_value": (int, float),
+    "known_reward": str,
+    "wall_seconds": (int, float),
+    "first_goal_window": list,
+    "total_goals": list,
+    "final_goals": list,
+    "final_value_gap": list,
+    "mentor_term_wins": list,
+    "greedy_percent_of_mentor": list,
+    "greedy_goal_probability": list,
+}
+
+
+def _check_task_record(where: str, summary: dict) -> None:
+    """Refuse a task record that lacks a field the page reads, or holds it as another type."""
+    for key, kind in _TASK_RECORD_KEYS.items():
+        value = summary.get(key)
+        if not isinstance(value, kind) or isinstance(value, bool):
+            names = kind.__name__ if isinstance(kind, type) else "number"
+            raise ValueError(
+                f"{where}: field {key!r} must be a {names}, got {value!r:.60}; the record is "
+                "damaged (run the task again, or restore the file)"
+            )
 
 
 def read_gym_curves(run_dir: str | os.PathLike) -> dict:
@@ -641,18 +721,34 @@ def _cell(values, digits: int = 1) -> str:
 
 
 def write_gym_results(run_dir: Path, config: GymExperimentConfig, summaries: list[dict]) -> None:
-    """``results.md``: per task and agent, mean [95 % BCa interval] over seeds."""
+    """``results.md``: per task and agent, mean [95 % BCa interval] over seeds
+    (:func:`~himit_torch.viz.results_page.write_results_page`: the provenance, then this
+    study's sections)."""
+    write_results_page(
+        run_dir,
+        f"{config.name}: hierarchical imitation on Gymnasium's tabular environments",
+        [_provenance(run_dir, config, summaries)],
+        [
+            _settings_section(config),
+            *(_task_section(config, s) for s in summaries),
+            [
+                f"Curves: `curves.csv`. TensorBoard: `{tensorboard_command(Path(run_dir) / 'tb')}`.",
+                "",
+            ],
+        ],
+    )
+
+
+def _provenance(run_dir: Path, config: GymExperimentConfig, summaries: list[dict]) -> str:
+    """Which commits and engines ran the tasks, how the page is redrawn and the runs rerun."""
     commits = list(dict.fromkeys(s.get("commit", "unknown") for s in summaries))
     command = gym_run_command(config, run_dir)
-    lines = [
-        f"# {config.name}: hierarchical imitation on Gymnasium's tabular environments",
-        "",
-        f"Runs recorded at commit{'s' if len(commits) > 1 else ''} "
-        + ", ".join(f"`{c}`" for c in commits)
-        + " (from `tasks/*.json`), engine "
-        + ", ".join(sorted({f"`{s.get('engine', 'unknown')}`" for s in summaries}))
-        + f"; this page: `himit plot {shlex.quote(str(run_dir))}`; the runs: "
-        + (
+    engines = ", ".join(sorted({f"`{s.get('engine', 'unknown')}`" for s in summaries}))
+    return provenance_line(
+        commits,
+        f" (from `tasks/*.json`), engine {engines}",
+        plot_command(run_dir),
+        (
             f"`{command}`"
             if command
             else "the settings in `config.json` (those of `python "
@@ -660,7 +756,12 @@ def write_gym_results(run_dir: Path, config: GymExperimentConfig, summaries: lis
         )
         + ". Produced by `himit run gymnasium` (the same as `python "
         "experiments/gymnasium_worlds.py`); settings: `himit_torch/runs/gymnasium.py`.",
-        "",
+    )
+
+
+def _settings_section(config: GymExperimentConfig) -> list[str]:
+    """The budgets, the learner's and agents' settings, and what the columns mean."""
+    return [
         f"{config.seeds} seeds per agent and task, "
         + ", ".join(f"{t} {config.steps_of(t):,}" for t in config.tasks)
         + " steps per run, "
@@ -694,45 +795,43 @@ def write_gym_results(run_dir: Path, config: GymExperimentConfig, summaries: lis
         "episode from μ ends at a goal.",
         "",
     ]
-    for s in summaries:
-        lines += [
-            f"## {s['task']}",
-            "",
-            s["about"] + f"; {s['steps']:,} steps per run.",
-            "",
-            f"Options of the learner: {', '.join(s['options'])}.",
-            "",
-            f"Optimal: V*(μ) = {s['optimal_value']:.3f}, "
-            f"{s['optimal_goals_per_window']:.1f} goals per {config.window} steps. "
-            f"Learner's initial value: {s['initial_value']:g}. "
-            f"KnownReward: {s['known_reward']}.",
-            "",
-            "| agent | n | found | goals, last window | total goals | value gap | first goal | "
-            "mentor term wins | greedy, % of mentor | greedy, P(goal) |",
-            "|---|---|---|---|---|---|---|---|---|---|",
-        ]
-        for agent in dict.fromkeys(s["agents"]):
-            idx = [b for b, a in enumerate(s["agents"]) if a == agent]
-            firsts = [s["first_goal_window"][b] for b in idx]
-            found = [f for f in firsts if f >= 0]
-            lines.append(
-                f"| {agent} | {len(idx)} | {len(found)}/{len(idx)} | "
-                f"{_cell([s['final_goals'][b] for b in idx]) if s['final_goals'] else '–'} | "
-                f"{_cell([s['total_goals'][b] for b in idx], 0)} | "
-                f"{_cell([s['final_value_gap'][b] for b in idx], 3) if s['final_value_gap'] else '–'} | "
-                f"{_cell(found, 0)} | "
-                f"{_cell([s['mentor_term_wins'][b] for b in idx], 2) if s['mentor_term_wins'] else '–'} | "
-                f"{_cell([s['greedy_percent_of_mentor'][b] for b in idx])} | "
-                f"{_cell([s['greedy_goal_probability'][b] for b in idx], 3)} |"
-            )
-        lines += [
-            "",
-            f"Wall time for this task's batch of {len(s['agents'])} runs: "
-            f"{s['wall_seconds']:.0f} s. Figure: `figures/curves_{s['task']}.png`.",
-            "",
-        ]
-    lines += [
-        f"Curves: `curves.csv`. TensorBoard: `{tensorboard_command(Path(run_dir) / 'tb')}`.",
+
+
+def _task_section(config: GymExperimentConfig, s: dict) -> list[str]:
+    """One task's section: its options and optimum, and the table of its agents."""
+    lines = [
+        f"## {s['task']}",
+        "",
+        s["about"] + f"; {s['steps']:,} steps per run.",
+        "",
+        f"Options of the learner: {', '.join(s['options'])}.",
+        "",
+        f"Optimal: V*(μ) = {s['optimal_value']:.3f}, "
+        f"{s['optimal_goals_per_window']:.1f} goals per {config.window} steps. "
+        f"Learner's initial value: {s['initial_value']:g}. "
+        f"KnownReward: {s['known_reward']}.",
+        "",
+        "| agent | n | found | goals, last window | total goals | value gap | first goal | "
+        "mentor term wins | greedy, % of mentor | greedy, P(goal) |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for agent in dict.fromkeys(s["agents"]):
+        idx = [b for b, a in enumerate(s["agents"]) if a == agent]
+        firsts = [s["first_goal_window"][b] for b in idx]
+        found = [f for f in firsts if f >= 0]
+        lines.append(
+            f"| {agent} | {len(idx)} | {len(found)}/{len(idx)} | "
+            f"{_cell([s['final_goals'][b] for b in idx]) if s['final_goals'] else '–'} | "
+            f"{_cell([s['total_goals'][b] for b in idx], 0)} | "
+            f"{_cell([s['final_value_gap'][b] for b in idx], 3) if s['final_value_gap'] else '–'} | "
+            f"{_cell(found, 0)} | "
+            f"{_cell([s['mentor_term_wins'][b] for b in idx], 2) if s['mentor_term_wins'] else '–'} | "
+            f"{_cell([s['greedy_percent_of_mentor'][b] for b in idx])} | "
+            f"{_cell([s['greedy_goal_probability'][b] for b in idx], 3)} |"
+        )
+    return lines + [
+        "",
+        f"Wall time for this task's batch of {len(s['agents'])} runs: "
+        f"{s['wall_seconds']:.0f} s. Figure: `figures/curves_{s['task']}.png`.",
         "",
     ]
-    (run_dir / "results.md").write_text("\n".join(lines))

@@ -40,9 +40,9 @@ import csv
 import json
 import math
 import os
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import torch
 
@@ -60,14 +60,13 @@ from himit_torch.options.puzzle_box import intended_rollout, puzzle_box_options
 from himit_torch.runs.checkpoints import BatchShape
 from himit_torch.runs.runner import (
     Checkpoints,
-    check_run_dir,
     run_names,
     run_windows,
     source_commit,
     watch_demonstrations,
     write_atomically,
 )
-from himit_torch.runs.study import RunConfig, prepare_run_dir
+from himit_torch.runs.study import RunConfig, run_study
 from himit_torch.validation import (
     check_memory,
     parse_document,
@@ -92,6 +91,7 @@ __all__ = [
     "greedy_values",
     "greedy_plan",
     "run_puzzle_box",
+    "PuzzleBoxStudy",
     "PreparedBox",
     "run_box_batch",
     "puzzle_box_run_command",
@@ -252,8 +252,10 @@ def puzzle_box_run_command(
 def recorded_run_command(run_dir: str | os.PathLike) -> str | None:
     """:func:`puzzle_box_run_command` of the configuration a finished run directory's
     ``summary.json`` records (None where it no longer builds one: an older record)."""
+    from himit_torch.runs.puzzle_box_report import read_summary
+
     run_dir = Path(run_dir)
-    recorded = dict(json.loads((run_dir / "summary.json").read_text())["config"])
+    recorded = dict(read_summary(run_dir)["config"])
     recorded.pop("box_steps", None)
     try:
         config = PuzzleBoxConfig(**recorded)
@@ -401,11 +403,7 @@ def run_box_batch(
     )
     elapsed = checkpoints.start(learner, resume)
     evals_path = run_dir / "batches" / f"{tag}.evals.json"
-    evals: dict[int, dict[str, list]] = {}
-    if resume and evals_path.exists():
-        evals = {
-            k: v for k, v in read_evaluations(evals_path, len(seeds)).items() if k <= learner.t
-        }
+    evals = _saved_evaluations(evals_path, len(seeds), learner.t) if resume else {}
     paired = [watched_organisation(s, config.first_seed) for s in seeds]
     logger = TensorBoardLogger(
         run_dir / "tb",
@@ -413,32 +411,7 @@ def run_box_batch(
         true_value_start=box.value_star,
         resume_step=learner.t if resume else None,
     )
-
-    def evaluate(learner: Learner, index: int) -> None:
-        step = learner.metrics.steps[index]
-        if step != learner.t or (step % eval_every and step != steps):
-            return
-        greedy = learner.greedy_options()  # the plans: ties to the lowest option
-        values = greedy_values(box.evaluator, learner)
-        plans = [greedy_plan(world, box.options, greedy[b], focus) for b in range(learner.batch)]
-        evals[step] = {
-            "value": values,
-            "organisation": [p["organisation"] for p in plans],
-            "watched_score": [p["scores"][o] for p, o in zip(plans, paired)],
-            "pinch_steps": [p["pinch_steps"] for p in plans],
-        }
-        for b, v in enumerate(values):
-            logger.scalars(
-                b,
-                {
-                    "eval/greedy_value_gap": box.value_star - v,
-                    "eval/follows_watched": float(plans[b]["organisation"] == paired[b]),
-                    "eval/pinch_steps": float(plans[b]["pinch_steps"]),
-                },
-                step,
-            )
-        write_atomically(evals_path, json.dumps(evals))
-
+    evaluate = _Evaluations(box, evals, evals_path, paired, logger, eval_every, steps, focus)
     evals_path.parent.mkdir(parents=True, exist_ok=True)
     wall = run_windows(
         learner,
@@ -449,10 +422,103 @@ def run_box_batch(
         progress=f"{tag} B={learner.batch}" if progress else None,
         elapsed=elapsed,
     )
+    runs = _final_runs(config, box, learner, evals, demos, mentor_plans, focus)
+    summary = _batch_summary(box, tag, condition, agent, learner, wall, runs)
+    _close_logger(logger, condition, world.skewers, runs, learner.t)
+    for r in runs:  # the states were for the comparison; the subgoals say what a reader needs
+        del r["states"]
+    rows = _window_rows(config, tag, condition, learner, evals, demos is not None)
+    _write_rows(run_dir / "batches" / f"{tag}.csv", rows)
+    write_atomically(run_dir / "batches" / f"{tag}.json", json.dumps(summary, indent=1))
+    return summary
+
+
+def _close_logger(logger: TensorBoardLogger, condition, skewers, runs, t: int) -> None:
+    """Each run's hyperparameters and final metrics, then close the batch's logger."""
+    logger.hparams(
+        [{"condition": condition, "skewers": skewers} for _ in runs],
+        [
+            {
+                "hparam/total_goals": float(r["openings"]),
+                "hparam/first_goal_step": float(
+                    r["first_opening"] if r["first_opening"] >= 0 else t + 1
+                ),
+            }
+            for r in runs
+        ],
+        t,
+    )
+    logger.close()
+
+
+def _batch_summary(box, tag, condition, agent, learner, wall, runs) -> dict[str, Any]:
+    """A finished batch's record (``batches/<tag>.json``)."""
+    return {
+        "batch": tag,
+        "skewers": box.world.skewers,
+        "num_states": box.world.num_states,
+        "condition": condition,
+        "agent": agent,
+        "steps": learner.t,
+        "value_star": box.value_star,
+        "optimal_steps": box.steps_star,
+        "engine": learner.engine.name,
+        "wall_seconds": wall,
+        "runs": runs,
+    }
+
+
+def _saved_evaluations(path: Path, runs: int, t: int) -> dict[int, dict[str, list]]:
+    """A resumed batch's saved evaluations up to its checkpoint's step ``t`` (none saved: ``{}``)."""
+    if not path.exists():
+        return {}
+    return {k: v for k, v in read_evaluations(path, runs).items() if k <= t}
+
+
+class _Evaluations:
+    """The ``on_window`` hook of a batch: at every ``eval_every`` steps and at the end, each
+    run's greedy policy evaluated exactly and its plan read (into ``evals``, saved to
+    ``evals_path``), with the scalars logged."""
+
+    def __init__(self, box, evals, evals_path, paired, logger, eval_every, steps, focus):
+        self.box, self.evals, self.evals_path, self.paired = box, evals, evals_path, paired
+        self.logger, self.eval_every, self.steps, self.focus = logger, eval_every, steps, focus
+
+    def __call__(self, learner: Learner, index: int) -> None:
+        box, paired = self.box, self.paired
+        step = learner.metrics.steps[index]
+        if step != learner.t or (step % self.eval_every and step != self.steps):
+            return
+        greedy = learner.greedy_options()  # the plans: ties to the lowest option
+        values = greedy_values(box.evaluator, learner)
+        plans = [
+            greedy_plan(box.world, box.options, greedy[b], self.focus) for b in range(learner.batch)
+        ]
+        self.evals[step] = {
+            "value": values,
+            "organisation": [p["organisation"] for p in plans],
+            "watched_score": [p["scores"][o] for p, o in zip(plans, paired)],
+            "pinch_steps": [p["pinch_steps"] for p in plans],
+        }
+        for b, v in enumerate(values):
+            self.logger.scalars(
+                b,
+                {
+                    "eval/greedy_value_gap": box.value_star - v,
+                    "eval/follows_watched": float(plans[b]["organisation"] == paired[b]),
+                    "eval/pinch_steps": float(plans[b]["pinch_steps"]),
+                },
+                step,
+            )
+        write_atomically(self.evals_path, json.dumps(self.evals))
+
+
+def _final_runs(config, box, learner, evals, demos, mentor_plans, focus) -> list[dict]:
+    """Each run's record at the end: its first opening, openings, final greedy value and plan."""
     greedy = learner.greedy_options()
     runs = []
-    for b, seed in enumerate(seeds):
-        plan = greedy_plan(world, box.options, greedy[b], focus)
+    for b, seed in enumerate(config.seed_list):
+        plan = greedy_plan(box.world, box.options, greedy[b], focus)
         watched = watched_organisation(seed, config.first_seed)
         reference = mentor_plans.get(watched)
         runs.append(
@@ -469,14 +535,19 @@ def run_box_batch(
                 **plan,
             }
         )
+    return runs
+
+
+def _window_rows(config, tag, condition, learner, evals, watching: bool) -> list[dict]:
+    """The batch's rows of ``curves.csv``: per window and run."""
     m = learner.metrics
-    rows = [
+    return [
         {
             "batch": tag,
-            "skewers": world.skewers,
+            "skewers": learner.world.skewers,
             "condition": condition,
             "seed": seed,
-            "watched": watched_organisation(seed, config.first_seed) if demos is not None else "",
+            "watched": watched_organisation(seed, config.first_seed) if watching else "",
             "step": step,
             "openings": int(m.goals_in_window[i][b]),
             "epsilon": float(m.epsilon[i][b]),
@@ -484,40 +555,8 @@ def run_box_batch(
             "organisation": evals[step]["organisation"][b] if step in evals else "",
         }
         for i, step in enumerate(m.steps)
-        for b, seed in enumerate(seeds)
+        for b, seed in enumerate(config.seed_list)
     ]
-    summary = {
-        "batch": tag,
-        "skewers": world.skewers,
-        "num_states": world.num_states,
-        "condition": condition,
-        "agent": agent,
-        "steps": learner.t,
-        "value_star": box.value_star,
-        "optimal_steps": box.steps_star,
-        "engine": learner.engine.name,
-        "wall_seconds": wall,
-        "runs": runs,
-    }
-    logger.hparams(
-        [{"condition": condition, "skewers": world.skewers} for _ in seeds],
-        [
-            {
-                "hparam/total_goals": float(r["openings"]),
-                "hparam/first_goal_step": float(
-                    r["first_opening"] if r["first_opening"] >= 0 else learner.t + 1
-                ),
-            }
-            for r in runs
-        ],
-        learner.t,
-    )
-    logger.close()
-    for r in runs:  # the states were for the comparison; the subgoals say what a reader needs
-        del r["states"]
-    _write_rows(run_dir / "batches" / f"{tag}.csv", rows)
-    write_atomically(run_dir / "batches" / f"{tag}.json", json.dumps(summary, indent=1))
-    return summary
 
 
 _COLUMNS = (
@@ -632,80 +671,50 @@ def _saved_config(path: Path) -> PuzzleBoxConfig:
     return PuzzleBoxConfig(**saved)
 
 
-def run_puzzle_box(
-    config: PuzzleBoxConfig,
-    run_dir: str | os.PathLike,
-    resume: bool = False,
-    force: bool = False,
-    progress: bool = True,
-) -> dict[str, Any]:
-    """Run experiments (a)–(c) of ``config`` into ``run_dir``; then ``curves.csv``,
-    ``summary.json``, figures and ``results.md``. ``resume`` continues an interrupted run (the
-    configuration must be the saved one; finished batches are not rerun); a finished run is
-    not overwritten unless ``force``."""
-    run_dir = Path(run_dir)
-    config.check_size()
-    check_run_dir(run_dir, force=force, resume=resume)
-    prepare_run_dir(
-        run_dir,
-        config,
-        resume,
-        force,
-        ("checkpoints", "tb", "batches", "figures"),
-        ("results.md", "curves.csv", "config.json", "summary.json"),
-        load=_saved_config,
-    )
-    small = PuzzleBox(config.skewers, slip=config.slip, pinch_slip=config.pinch_slip)
-    mentors = {org: organisation_mentor(small, org) for org in ORGANISATIONS}
-    demos = {
-        s: record_demonstrations(
-            small,
-            mentors[watched_organisation(s, config.first_seed)],
-            config.mentor_episodes,
-            seed=s,
-        )
-        for s in config.seed_list
-    }
-    batches: list[dict[str, Any]] = []
+@dataclass
+class _Batches:
+    """Runs the batches of one run directory in order (a finished one, on ``resume``, is read
+    back instead) and keeps their summaries."""
 
-    def batch(
-        box: PreparedBox, tag, condition, agent, watched, steps, eval_every, plans, focus=None
-    ):
-        done = run_dir / "batches" / f"{tag}.json"
-        if resume and done.exists():
-            batches.append(read_batch(done, tag))
+    config: PuzzleBoxConfig
+    run_dir: Path
+    resume: bool
+    progress: bool
+    done: list[dict[str, Any]] = field(default_factory=list)
+
+    def __call__(
+        self, box: PreparedBox, tag, condition, agent, watched, steps, eval_every, plans, focus=None
+    ) -> None:
+        done = self.run_dir / "batches" / f"{tag}.json"
+        if self.resume and done.exists():
+            self.done.append(read_batch(done, tag))
             return
-        batches.append(
+        self.done.append(
             run_box_batch(
-                config, box, tag, condition, agent, watched, steps, eval_every, run_dir,
-                resume, progress, plans, focus,
+                self.config, box, tag, condition, agent, watched, steps, eval_every,
+                self.run_dir, self.resume, self.progress, plans, focus,
             )
         )  # fmt: skip
 
-    # each mentor's own plan (its states when nothing slips): a greedy plan through exactly
-    # these states copies the mentor's movements, not only its subgoals
-    plans = {
-        org: intended_rollout(small, mentors[org].options, mentors[org].option)[0].tolist()
-        for org in ORGANISATIONS
+
+def _episodes(config: PuzzleBoxConfig, box: PuzzleBox, mentors: dict) -> dict:
+    """Each seed's mentor episodes on ``box``, from the mentor of the organisation it watches."""
+    return {
+        s: record_demonstrations(
+            box, mentors[watched_organisation(s, config.first_seed)], config.mentor_episodes, seed=s
+        )
+        for s in config.seed_list
     }
-    speed_box = PreparedBox.build(config.skewers, config.slip, config.pinch_slip)
-    for condition, agent in SPEED_CONDITIONS.items():
-        watched = demos if agent == "imitation" else None
-        batch(speed_box, f"speed_{condition}", condition, agent, watched, config.steps,
-              config.eval_every, plans)  # fmt: skip
-    del speed_box
+
+
+def _run_variants(config: PuzzleBoxConfig, batch: _Batches, demos: dict, plans: dict) -> None:
+    """(b) again on each of :attr:`PuzzleBoxConfig.variants`' boxes, imitation and options."""
     for variant in config.variants:
         if variant == "harder_pinch":
             # the same mentors on a box where their pinch fails more often: their episodes again
             box = PreparedBox.build(config.skewers, config.slip, config.harder_pinch)
             mentors_v = {org: organisation_mentor(box.world, org) for org in ORGANISATIONS}
-            demos_v = {
-                s: record_demonstrations(
-                    box.world, mentors_v[watched_organisation(s, config.first_seed)],
-                    config.mentor_episodes, seed=s,
-                )
-                for s in config.seed_list
-            }  # fmt: skip
+            demos_v = _episodes(config, box.world, mentors_v)
         else:  # the same box and episodes, a learner without the pinch
             box = PreparedBox.build(config.skewers, config.slip, config.pinch_slip, pinch=False)
             demos_v = demos
@@ -714,15 +723,67 @@ def run_puzzle_box(
             batch(box, f"{variant}_{condition}", condition, condition, watched, config.steps,
                   config.eval_every, plans)  # fmt: skip
         del box
-    big = PreparedBox.build(config.transfer_skewers, config.slip, config.pinch_slip)
-    for condition, agent in TRANSFER_CONDITIONS.items():
-        watched = (
-            None
-            if agent != "imitation"
-            else {s: map_demonstrations(d, small, big.world, condition) for s, d in demos.items()}
+
+
+class PuzzleBoxStudy:
+    """The puzzle box as a :class:`~himit_torch.runs.study.Study`: experiments (a)–(c), one
+    batch per condition (:func:`run_box_batch`; finished batches are read back on resume),
+    then ``curves.csv`` and ``summary.json``; its report the figures and ``results.md``
+    (:mod:`himit_torch.runs.puzzle_box_report`)."""
+
+    config_class: ClassVar[type] = PuzzleBoxConfig
+    folders: ClassVar[tuple[str, ...]] = ("checkpoints", "tb", "batches", "figures")
+    files: ClassVar[tuple[str, ...]] = ("results.md", "curves.csv", "config.json", "summary.json")
+
+    def run(
+        self, config: PuzzleBoxConfig, run_dir: Path, resume: bool, progress: bool
+    ) -> dict[str, Any]:
+        """Every batch of (a)–(c), then ``curves.csv`` and ``summary.json``; the summary."""
+        small = PuzzleBox(config.skewers, slip=config.slip, pinch_slip=config.pinch_slip)
+        mentors = {org: organisation_mentor(small, org) for org in ORGANISATIONS}
+        demos = _episodes(config, small, mentors)
+        batch = _Batches(config, run_dir, resume, progress)
+        # each mentor's own plan (its states when nothing slips): a greedy plan through exactly
+        # these states copies the mentor's movements, not only its subgoals
+        plans = {
+            org: intended_rollout(small, mentors[org].options, mentors[org].option)[0].tolist()
+            for org in ORGANISATIONS
+        }
+        speed_box = PreparedBox.build(config.skewers, config.slip, config.pinch_slip)
+        for condition, agent in SPEED_CONDITIONS.items():
+            watched = demos if agent == "imitation" else None
+            batch(speed_box, f"speed_{condition}", condition, agent, watched, config.steps,
+                  config.eval_every, plans)  # fmt: skip
+        del speed_box
+        _run_variants(config, batch, demos, plans)
+        big = PreparedBox.build(config.transfer_skewers, config.slip, config.pinch_slip)
+        for condition, agent in TRANSFER_CONDITIONS.items():
+            watched = (
+                None
+                if agent != "imitation"
+                else {
+                    s: map_demonstrations(d, small, big.world, condition) for s, d in demos.items()
+                }
+            )
+            batch(big, f"transfer_{condition}", condition, agent, watched, config.transfer_steps,
+                  3 * config.eval_every, {}, focus=config.skewers)  # fmt: skip
+        return _write_summary(config, run_dir, small, plans, batch.done)
+
+    def report(self, config: PuzzleBoxConfig, run_dir: Path, summary: dict[str, Any]) -> None:
+        """The figures and ``results.md``."""
+        from himit_torch.runs.puzzle_box_report import (
+            write_puzzle_box_figures,
+            write_puzzle_box_results,
         )
-        batch(big, f"transfer_{condition}", condition, agent, watched, config.transfer_steps,
-              3 * config.eval_every, {}, focus=config.skewers)  # fmt: skip
+
+        write_puzzle_box_figures(run_dir, summary)
+        write_puzzle_box_results(run_dir, summary, puzzle_box_run_command(config, run_dir))
+
+
+def _write_summary(
+    config: PuzzleBoxConfig, run_dir: Path, small: PuzzleBox, plans: dict, batches: list[dict]
+) -> dict[str, Any]:
+    """``curves.csv`` (every batch's rows) and ``summary.json``; the summary."""
     with (run_dir / "curves.csv").open("w", newline="") as out:
         out.write(",".join(_COLUMNS) + "\n")
         for b in batches:
@@ -735,14 +796,31 @@ def run_puzzle_box(
         "batches": batches,
     }
     write_atomically(run_dir / "summary.json", json.dumps(summary, indent=1))
-    from himit_torch.runs.puzzle_box_report import (
-        write_puzzle_box_figures,
-        write_puzzle_box_results,
-    )
-
-    write_puzzle_box_figures(run_dir, summary)
-    write_puzzle_box_results(run_dir, summary, puzzle_box_run_command(config, run_dir))
     return summary
+
+
+def run_puzzle_box(
+    config: PuzzleBoxConfig,
+    run_dir: str | os.PathLike,
+    resume: bool = False,
+    force: bool = False,
+    progress: bool = True,
+) -> dict[str, Any]:
+    """Run experiments (a)–(c) of ``config`` into ``run_dir``; then ``curves.csv``,
+    ``summary.json``, figures and ``results.md`` (:class:`PuzzleBoxStudy` through
+    :func:`~himit_torch.runs.study.run_study`). ``resume`` continues an interrupted run (the
+    configuration must be the saved one; finished batches are not rerun); a finished run is
+    not overwritten unless ``force``."""
+    return run_study(
+        PuzzleBoxStudy(),
+        config,
+        run_dir,
+        resume=resume,
+        force=force,
+        progress=progress,
+        check=config.check_size,
+        load=_saved_config,
+    )
 
 
 def mentors_subgoals(box: PuzzleBox, states: list[int]) -> list[str]:

@@ -27,6 +27,7 @@ from himit_torch.runs.runner import source_commit
 from himit_torch.statistics import holm, mean_half_width, paired_difference, wilson_interval
 
 __all__ = [
+    "read_summary",
     "rewrite_puzzle_box_report",
     "write_puzzle_box_figures",
     "write_puzzle_box_results",
@@ -76,14 +77,54 @@ def _batch(summary: dict, tag: str) -> dict:
     return next(b for b in summary["batches"] if b["batch"] == tag)
 
 
+#: What ``summary.json`` must hold for the page, with the type of each.
+_SUMMARY_KEYS = {"config": dict, "commit": str, "mentor_plans": dict, "batches": list}
+#: What its ``config`` must hold for the page.
+_SUMMARY_CONFIG_KEYS = (
+    "skewers", "transfer_skewers", "seeds", "steps", "transfer_steps", "mentor_episodes", "slip",
+    "window", "learner", "box_steps",
+)  # fmt: skip
+#: What each of its ``batches`` must hold for the page.
+_SUMMARY_BATCH_KEYS = (
+    "batch", "steps", "runs", "engine", "wall_seconds", "num_states", "optimal_steps",
+    "value_star",
+)  # fmt: skip
+
+
+def read_summary(run_dir: str | Path) -> dict:
+    """A finished ``himit run puzzlebox`` directory's ``summary.json``, checked for what its
+    page reads: a damaged file (not JSON, or a field missing or of another type) is a
+    ``ValueError`` naming the file and the field."""
+    from himit_torch.validation import parse_document, read_text
+
+    path = Path(run_dir) / "summary.json"
+    where = f"summary {path}"
+    data = parse_document(where, read_text(where, path), "json")
+    fix = "the record is damaged (run the study again, or restore the file)"
+    if not isinstance(data, dict):
+        raise ValueError(f"{where} holds a {type(data).__name__}, not a summary; {fix}")
+    for key, kind in _SUMMARY_KEYS.items():
+        if not isinstance(data.get(key), kind):
+            raise ValueError(
+                f"{where}: field {key!r} must be a {kind.__name__}, got {data.get(key)!r:.60}; {fix}"
+            )
+    for key in _SUMMARY_CONFIG_KEYS:
+        if key not in data["config"]:
+            raise ValueError(f"{where}: field 'config.{key}' is missing; {fix}")
+    for i, batch in enumerate(data["batches"]):
+        missing = [k for k in _SUMMARY_BATCH_KEYS if not isinstance(batch, dict) or k not in batch]
+        if missing or not isinstance(batch["runs"], list):
+            field = f"batches[{i}].{missing[0] if missing else 'runs'}"
+            raise ValueError(f"{where}: field {field!r} is missing or damaged; {fix}")
+    return data
+
+
 def rewrite_puzzle_box_report(run_dir: str | Path, run_command: str | None = None) -> None:
     """Redraw the figures and ``results.md`` of a finished ``himit run puzzlebox`` directory
     from its ``summary.json`` and ``batches/`` (``himit plot``); ``run_command`` as
     :func:`write_puzzle_box_results`."""
-    import json
-
     run_dir = Path(run_dir)
-    summary = json.loads((run_dir / "summary.json").read_text())
+    summary = read_summary(run_dir)
     write_puzzle_box_figures(run_dir, summary)
     write_puzzle_box_results(run_dir, summary, run_command)
 

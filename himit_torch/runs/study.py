@@ -213,10 +213,12 @@ def run_study(
     study: Study,
     config: Any,
     run_dir: str | os.PathLike,
-    resume: bool = False,
+    resume: bool | None = False,
     force: bool = False,
     progress: bool = True,
     check: Callable[[], None] | None = None,
+    resume_hint: str = "resume with the same flags",
+    load: Callable[[Path], Any] | None = None,
 ) -> Any:
     """Run ``study`` with ``config`` into ``run_dir`` and write its report.
 
@@ -227,6 +229,14 @@ def run_study(
     ``config.json`` is written and the study runs. ``check`` (e.g. the memory a batch needs)
     runs before anything is touched.
 
+    Args:
+        resume: continue an interrupted run; ``False``: an unfinished run is refused (resume
+            it or start over with ``force``); ``None``: the study cannot resume, an unfinished
+            run starts over (:func:`~himit_torch.runs.runner.check_run_dir`). The study's
+            :meth:`Study.run` is given ``bool(resume)``.
+        resume_hint, load: as :func:`prepare_run_dir` (how a resumed run's saved configuration
+            is read, and what a refusal of a different one suggests).
+
     Returns:
         What the study's :meth:`Study.run` returned.
     """
@@ -234,8 +244,17 @@ def run_study(
     if check is not None:
         check()
     check_run_dir(run_dir, force=force, resume=resume)
-    prepare_run_dir(run_dir, config, resume, force, study.folders, study.files)
-    results = study.run(config, run_dir, resume, progress)
+    prepare_run_dir(
+        run_dir,
+        config,
+        bool(resume),
+        force,
+        study.folders,
+        study.files,
+        resume_hint=resume_hint,
+        load=load,
+    )
+    results = study.run(config, run_dir, bool(resume), progress)
     study.report(config, run_dir, results)
     return results
 

@@ -184,3 +184,35 @@ def test_the_script_runs_and_writes_curves_figures_and_results(tmp_path):
     config = GymExperimentConfig(tasks=("cliffwalking",))
     with pytest.raises(ValueError, match="already holds a finished run"):
         run_gym_experiment(config, run, progress=False)
+
+
+_RECORDS = Path(__file__).resolve().parents[2] / "experiments" / "results"
+
+
+@pytest.mark.parametrize(
+    ("record", "field"),
+    [
+        ({}, "task"),
+        ({"task": "taxi"}, "about"),
+        ({"task": "taxi", "about": "x", "agents": "imitation"}, "agents"),
+        ([], None),
+    ],
+)
+def test_himit_plot_refuses_a_damaged_task_record_naming_the_file_and_field(
+    record, field, tmp_path, capsys
+):
+    import shutil
+
+    from himit_torch.cli import main
+
+    run_dir = tmp_path / "gymnasium"
+    shutil.copytree(_RECORDS / "paper-first" / "gymnasium", run_dir)
+    (run_dir / "tasks" / "taxi.json").write_text(json.dumps(record))
+    with pytest.raises(SystemExit) as exc:
+        main(["plot", str(run_dir)])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("himit: error: "), err
+    assert str(run_dir / "tasks" / "taxi.json") in err
+    if field is not None:
+        assert repr(field) in err

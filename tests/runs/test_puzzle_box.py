@@ -254,3 +254,41 @@ def test_resume_over_a_damaged_batch_record_is_refused_naming_the_file(
     (run_dir / "batches" / name).write_text(text)
     with pytest.raises(ValueError, match=r"--resume: .*" + name.replace(".", r"\.")):
         run_puzzle_box(TINY, run_dir, resume=True, progress=False)
+
+
+_RECORDS = Path(__file__).resolve().parents[2] / "experiments" / "results"
+
+
+@pytest.mark.parametrize(
+    ("change", "field"),
+    [
+        (lambda s: {}, "config"),
+        (lambda s: [], None),
+        (lambda s: {**s, "commit": None}, "commit"),
+        (
+            lambda s: {**s, "config": {k: v for k, v in s["config"].items() if k != "window"}},
+            "config.window",
+        ),
+        (lambda s: {**s, "batches": [{}]}, "batches[0].batch"),
+        (lambda s: {**s, "mentor_plans": 3}, "mentor_plans"),
+    ],
+)
+def test_himit_plot_refuses_a_damaged_summary_naming_the_file_and_field(
+    change, field, tmp_path, capsys
+):
+    import shutil
+
+    from himit_torch.cli import main
+
+    run_dir = tmp_path / "puzzlebox"
+    shutil.copytree(_RECORDS / "puzzlebox", run_dir)
+    summary = json.loads((run_dir / "summary.json").read_text())
+    (run_dir / "summary.json").write_text(json.dumps(change(summary)))
+    with pytest.raises(SystemExit) as exc:
+        main(["plot", str(run_dir)])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("himit: error: "), err
+    assert str(run_dir / "summary.json") in err
+    if field is not None:
+        assert repr(field) in err
