@@ -17,7 +17,6 @@ Statistics (every interval says what it is):
 from __future__ import annotations
 
 import math
-import shlex
 from pathlib import Path
 from typing import Any
 
@@ -25,6 +24,7 @@ import numpy as np
 
 from himit_torch.runs.runner import source_commit
 from himit_torch.statistics import holm, mean_half_width, paired_difference, wilson_interval
+from himit_torch.viz.results_page import plot_command, provenance_line, write_results_page
 
 __all__ = [
     "read_summary",
@@ -316,34 +316,57 @@ def _organisation_groups(summary: dict, experiments=("speed", "transfer")) -> di
 
 # ================================================================================ results.md
 def write_puzzle_box_results(run_dir: Path, summary: dict, run_command: str | None = None) -> None:
-    """``results.md``: the three experiments' tables and the findings set beside the study's.
-    ``run_command``: the ``himit run puzzlebox`` command of the runs
+    """``results.md``: the three experiments' tables and the findings set beside the study's
+    (:func:`~himit_torch.viz.results_page.write_results_page`: the provenance, then this study's
+    sections). ``run_command``: the ``himit run puzzlebox`` command of the runs
     (:func:`himit_torch.runs.puzzle_box.puzzle_box_run_command`; None: the settings the
     summary records)."""
     cfg = summary["config"]
-    k, K = cfg["skewers"], cfg["transfer_skewers"]
     speed = {c: _batch(summary, f"speed_{c}") for c in ("imitation", "options", "primitives")}
     transfer = {c: _batch(summary, f"transfer_{c}") for c in ("options", "plain", "any")}
+    org_lines, org_facts = _organisation_section(summary, speed)
+    transfer_lines, transfer_facts = _transfer_section(cfg, transfer)
+    write_results_page(
+        run_dir,
+        "The puzzle box: Whiten et al.'s (2006) three findings, run on the model",
+        _provenance(run_dir, summary, run_command),
+        [
+            _settings_section(cfg, speed, transfer),
+            _speed_section(cfg, speed),
+            org_lines,
+            transfer_lines,
+            _findings_table(cfg, speed, org_facts, transfer_facts),
+            _closing_section(summary),
+        ],
+    )
+
+
+def _provenance(run_dir: Path, summary: dict, run_command: str | None) -> list[str]:
+    """Which commit and engines ran the batches, how the page is redrawn and the runs rerun."""
     engines = sorted({b["engine"] for b in summary["batches"]})
     now = source_commit()
     written = "" if now == summary["commit"] else f" (this report written at commit `{now}`)"
-    lines = [
-        "# The puzzle box: Whiten et al.'s (2006) three findings, run on the model",
-        "",
-        f"Runs recorded at commit `{summary['commit']}` (from `summary.json`); this page: "
-        f"`himit plot {shlex.quote(str(run_dir))}`; the runs: "
-        + (
+    return [
+        provenance_line(
+            [summary["commit"]],
+            " (from `summary.json`)",
+            plot_command(run_dir),
             f"`{run_command}`."
             if run_command
             else "the settings in `summary.json`'s `config` (not all of them flags of "
-            "`himit run puzzlebox`)."
+            "`himit run puzzlebox`).",
         ),
-        "",
         "Produced by `himit run puzzlebox` (the same as `python experiments/puzzle_box.py`); "
         f"settings: `himit_torch/runs/puzzle_box.py`. Code at commit `{summary['commit']}`, "
         f"engine {', '.join(f'`{e}`' for e in engines)}{written}. The world: "
         "`himit_torch/worlds/puzzle_box.py` (`himit info --puzzle-box K`).",
-        "",
+    ]
+
+
+def _settings_section(cfg: dict, speed: dict[str, dict], transfer: dict[str, dict]) -> list[str]:
+    """What runs (seeds, steps, mentors, learner settings), the intervals, and the two boxes."""
+    k, K = cfg["skewers"], cfg["transfer_skewers"]
+    return [
         f"{cfg['seeds']} seeds per condition; {cfg['steps']:,} steps per run on the {k}-skewer "
         f"box, {cfg['transfer_steps']:,} on the {K}-skewer box; {cfg['mentor_episodes']} mentor "
         f"episodes (states only) per seed, the seed's mentor showing skewer by skewer (even seeds) "
@@ -366,15 +389,13 @@ def write_puzzle_box_results(run_dir: Path, summary: dict, run_command: str | No
         "optimal with equal cost (exact planning: `himit info --puzzle-box K`).",
         "",
     ]
-    lines += _speed_section(cfg, speed)
-    org_lines, org_facts = _organisation_section(summary, speed)
-    lines += org_lines
-    transfer_lines, transfer_facts = _transfer_section(cfg, transfer)
-    lines += transfer_lines
-    lines += _findings_table(cfg, speed, org_facts, transfer_facts)
+
+
+def _closing_section(summary: dict) -> list[str]:
+    """The learning wall time of every batch, and where the curves and logs are."""
     wall = sum(b["wall_seconds"] for b in summary["batches"])
     each = ", ".join(f"{b['batch']} {b['wall_seconds']:.0f} s" for b in summary["batches"])
-    lines += [
+    return [
         "",
         f"Learning wall time, all batches: {wall:.0f} s ({each}).",
         "",
@@ -382,7 +403,6 @@ def write_puzzle_box_results(run_dir: Path, summary: dict, run_command: str | No
         "`tb/` (`tensorboard --logdir <run dir>/tb`).",
         "",
     ]
-    (Path(run_dir) / "results.md").write_text("\n".join(lines))
 
 
 def _speed_rows(batches: dict[str, dict], reference: str) -> tuple[list[str], dict]:
@@ -456,9 +476,11 @@ def _score(run: dict, organisation: str, key: str = "scores") -> float:
 
 
 def _organisation_section(summary: dict, speed: dict[str, dict]) -> tuple[list[str], dict]:
-    from scipy import stats
-
+    """(b): the organisation each design's runs follow, their low-level movements, their first
+    openings, and the mentors' own plans; with the facts the findings table reads, per design
+    (``follows``, ``others``, ``fisher``, ``holm``, ``pinch``, ``same``, ``n``, ``first``)."""
     cfg = summary["config"]
+    rows, facts = _organisation_rows(summary)
     lines = [
         "## (b) Copying the organisation",
         "",
@@ -479,7 +501,21 @@ def _organisation_section(summary: dict, speed: dict[str, dict]) -> tuple[list[s
         "(paired) | Fisher p | watched-organisation score: imitators | non-imitators | paired "
         "difference, Wilcoxon p | Holm p |",
         "|---|---|---|---|---|---|---|---|",
+        *rows,
+        *_organisation_counts(summary),
+        *_low_level_table(summary, facts),
+        *_design_firsts_table(summary, facts),
+        *_stuck_plans_note(summary),
     ]
+    return lines, facts
+
+
+def _organisation_rows(summary: dict) -> tuple[list[str], dict[str, Any]]:
+    """Rows of (b)'s first table, per design: imitators and non-imitators following the watched
+    organisation (Fisher's exact test) and their scores for it (paired, Holm over the designs);
+    with each design's ``follows``, ``others``, ``fisher`` and ``holm``."""
+    from scipy import stats
+
     facts: dict[str, Any] = {}
     rows, tests = [], []
     for prefix, about in _DESIGNS:
@@ -498,6 +534,7 @@ def _organisation_section(summary: dict, speed: dict[str, dict]) -> tuple[list[s
         rows.append((about, a, len(imit), b, len(others), fisher, mine, theirs, diff, len(both)))
         facts[prefix] = {"follows": (a, len(imit)), "others": (b, len(others)), "fisher": fisher}
     adjusted = holm(tests) if tests else []
+    lines = []
     for (about, a, n, b, m, fisher, mine, theirs, diff, pairs), q in zip(rows, adjusted):
         d = (
             "–"
@@ -511,7 +548,12 @@ def _organisation_section(summary: dict, speed: dict[str, dict]) -> tuple[list[s
         )
     for prefix, q in zip([p for p, _ in _DESIGNS if p in facts], adjusted):
         facts[prefix]["holm"] = q
-    lines += [
+    return lines, facts
+
+
+def _organisation_counts(summary: dict) -> list[str]:
+    """What the scores are over, then how many runs of each group follow each organisation."""
+    lines = [
         "",
         "Scores are over the runs whose plan opens the box (mean ± 95 % t); the paired "
         "difference is over seeds where both plans open it.",
@@ -522,7 +564,14 @@ def _organisation_section(summary: dict, speed: dict[str, dict]) -> tuple[list[s
     for label, runs in _organisation_groups(summary, ("speed", "harder_pinch", "no_pinch")).items():
         counts = [sum(r["organisation"] == o for r in runs) for o in _ORDER]
         lines.append(f"| {label} | {len(runs)} | " + " | ".join(map(str, counts)) + " |")
-    lines += [
+    return lines
+
+
+def _low_level_table(summary: dict, facts: dict[str, Any]) -> list[str]:
+    """Per design: the share of the plans' steps done in the mentor's pinch, the plans that are
+    the mentor's own, and the imitators' stuck plans; adds ``pinch``, ``same`` and ``n`` to each
+    design's ``facts``."""
+    lines = [
         "",
         "Low-level movements. The mentor does every step in a pinch grip, the learner's own "
         "skills in a power grip; in the first two designs the learner can also make the pinch "
@@ -551,7 +600,13 @@ def _organisation_section(summary: dict, speed: dict[str, dict]) -> tuple[list[s
             f"{same['imitation']}/{len(groups['imitation'])} | {same['options']}/"
             f"{len(groups['options'])} | {len(stuck)}{': ' + where if stuck else ''} |"
         )
-    lines += [
+    return lines
+
+
+def _design_firsts_table(summary: dict, facts: dict[str, Any]) -> list[str]:
+    """Per design: the median first openings of imitators and options runs and their paired
+    difference; adds ``first`` (the two medians and the Wilcoxon p) to each design's ``facts``."""
+    lines = [
         "",
         "First openings in each design (the main design's are (a)'s; the controls' were not "
         "among (a)'s declared comparisons): median step, and the paired difference imitation − "
@@ -574,8 +629,13 @@ def _organisation_section(summary: dict, speed: dict[str, dict]) -> tuple[list[s
             f"| {about} | {np.median(a_first):,.0f} | {np.median(o_first):,.0f} | "
             f"{mean:+,.0f} ± {half:,.0f} | {p:.2g} |"
         )
+    return lines
+
+
+def _stuck_plans_note(summary: dict) -> list[str]:
+    """What a stuck plan is, and the mentors' own plans."""
     plans = summary["mentor_plans"]
-    lines += [
+    return [
         "",
         "A stuck plan comes back to a state it has left with the same option (a loop) or stops "
         "where the run has tried nothing; the table names the state and the greedy option "
@@ -587,7 +647,6 @@ def _organisation_section(summary: dict, speed: dict[str, dict]) -> tuple[list[s
         f"`{' '.join(plans['step'])}` (`i.j` = skewer i, step j).",
         "",
     ]
-    return lines, facts
 
 
 def _transfer_section(cfg: dict, transfer: dict[str, dict]) -> tuple[list[str], dict]:
@@ -675,7 +734,40 @@ def _verdict(ok: bool, partly: bool = False) -> str:
 
 
 def _findings_table(cfg: dict, speed: dict, org: dict, transfer: dict) -> list[str]:
-    """The study's findings beside ours, each verdict computed from the numbers above."""
+    """The study's findings beside ours, each verdict computed from the numbers above (one row
+    per finding: :func:`_speed_finding`, :func:`_organisation_findings`,
+    :func:`_assimilation_finding`), then the rules of the verdicts."""
+    K = cfg["transfer_skewers"]
+    return [
+        "## Beside Whiten et al. (2006)",
+        "",
+        "| finding of the study (3-year-olds, keyway-fruit box) | here | verdict | evidence |",
+        "|---|---|---|---|",
+        _speed_finding(cfg, speed, org, transfer),
+        *_organisation_findings(org),
+        _assimilation_finding(cfg, transfer),
+        "",
+        "Verdicts are computed from the numbers (`himit_torch/runs/puzzle_box_report.py`, "
+        "`_findings_table`): 1 reproduced when imitators open the box significantly sooner than "
+        "options-only learners in (a) (Holm p < 0.05), partly when they are significantly better "
+        "on another of (a)'s endpoints (openings in the last window, greedy value) — the rule "
+        "declared with the code of the first run (commit 5f23ff7); exploratory, by a rule added "
+        "after that run (commit 652878d): partly also when they open the "
+        f"{K}-skewer box of (c) significantly sooner with the *any* mapping; 2a when imitators "
+        "follow the watched organisation significantly more often than non-imitators (Fisher "
+        "p < 0.05) in the main design; 2b when no imitator's plan is the mentor's movement for "
+        "movement and imitators do at most 10 points more of their steps in the mentor's grip "
+        "than non-imitators (partly: only the first); 3 when at least half of the *any*-mapped "
+        "imitators follow the watched organisation over every skewer, partly when some do or "
+        "when the new skewer's step-by-step score beats the options runs' (Wilcoxon p < 0.05). "
+        "Skewer by skewer is the weak test of assimilation (a learner that leaves the new "
+        "skewer to the end is still skewer by skewer); step by step is the strict one.",
+    ]
+
+
+def _speed_finding(cfg: dict, speed: dict, org: dict, transfer: dict) -> str:
+    """Finding 1 (watching a solution helps): (a)'s endpoints, (b)'s controls' first openings and
+    (c)'s first opening with the *any* mapping, and its verdict."""
     imit, opts = speed["imitation"]["runs"], speed["options"]["runs"]
     steps = speed["imitation"]["steps"]
     first_i, first_o = np.median(_firsts(imit, steps)), np.median(_firsts(opts, steps))
@@ -700,6 +792,22 @@ def _findings_table(cfg: dict, speed: dict, org: dict, transfer: dict) -> list[s
         for p in ("harder_pinch", "no_pinch")
         if p in org and "first" in org[p]
     )
+    return (
+        "| 1. Children who watched a solution did much better than those who did not | "
+        f"{cfg['skewers']} skewers: first opening, median: imitation {first_i:,.0f} vs options "
+        f"{first_o:,.0f} steps; paired difference {faster[0]:+,.0f} ± {faster[1]:,.0f} (Holm p = "
+        f"{faster[3]:.2g}); openings in the last window {later[0]:+.1f} ± {later[1]:.1f} (Holm "
+        f"p = {later[3]:.2g}); final greedy value {better[0]:+.4f} ± {better[1]:.4f} (Holm p = "
+        f"{better[3]:.2g}). First openings in (b)'s controls, imitation vs options: "
+        f"{first_controls}. {cfg['transfer_skewers']} skewers, *any* mapping: first opening "
+        f"{sooner5[0]:+,.0f} ± {sooner5[1]:,.0f} steps against options (Holm p = "
+        f"{sooner5[3]:.2g}) | {verdict1} | (a), (b), (c) |"
+    )
+
+
+def _organisation_findings(org: dict) -> list[str]:
+    """Findings 2a (the organisation watched is copied) and 2b (the mentor's low-level movements
+    are not), from (b)'s facts, and their verdicts."""
     main = org["speed"]
     a, n = main["follows"]
     b, m = main["others"]
@@ -717,6 +825,22 @@ def _findings_table(cfg: dict, speed: dict, org: dict, transfer: dict) -> list[s
         for p in ("harder_pinch",)
         if p in org and org[p]["pinch"]["imitation"] and org[p]["pinch"]["options"]
     )
+    return [
+        "| 2a. They copied whichever hierarchical organisation they saw | "
+        f"main design: imitators following the watched organisation {_share(a, n)} vs "
+        f"non-imitators {_share(b, m)} (Fisher p = {main['fisher']:.2g}); controls — "
+        f"{controls} | {_verdict(ok2a, a > b)} | (b) |",
+        "| 2b. … but not the demonstrator's low-level movements | main design: steps done in the "
+        f"mentor's pinch: imitators {pinch['imitation']:.0%}, non-imitators "
+        f"{pinch['options']:.0%}; whole plan the mentor's: {main['same']['imitation']}/"
+        f"{main['n']} imitators; {pinch_controls} | "
+        f"{_verdict(ok2b, main['same']['imitation'] == 0)} | (b) |",
+    ]
+
+
+def _assimilation_finding(cfg: dict, transfer: dict) -> str:
+    """Finding 3 (a new skewer is assimilated into the organisation watched), from (c)'s facts,
+    and its verdict."""
     K = cfg["transfer_skewers"]
     step_any, step_plain = transfer[("any", "step")], transfer[("plain", "step")]
     strict_any = sum(transfer[("any", o)]["strict"][0] for o in ("skewer", "step"))
@@ -732,49 +856,11 @@ def _findings_table(cfg: dict, speed: dict, org: dict, transfer: dict) -> list[s
     def diff_text(d):
         return "–" if d is None else f"{d[0]:+.2f} ± {d[1]:.2f}, p = {d[2]:.2g}"
 
-    return [
-        "## Beside Whiten et al. (2006)",
-        "",
-        "| finding of the study (3-year-olds, keyway-fruit box) | here | verdict | evidence |",
-        "|---|---|---|---|",
-        "| 1. Children who watched a solution did much better than those who did not | "
-        f"{cfg['skewers']} skewers: first opening, median: imitation {first_i:,.0f} vs options "
-        f"{first_o:,.0f} steps; paired difference {faster[0]:+,.0f} ± {faster[1]:,.0f} (Holm p = "
-        f"{faster[3]:.2g}); openings in the last window {later[0]:+.1f} ± {later[1]:.1f} (Holm "
-        f"p = {later[3]:.2g}); final greedy value {better[0]:+.4f} ± {better[1]:.4f} (Holm p = "
-        f"{better[3]:.2g}). First openings in (b)'s controls, imitation vs options: "
-        f"{first_controls}. {K} skewers, *any* mapping: first opening {sooner5[0]:+,.0f} ± "
-        f"{sooner5[1]:,.0f} steps against options (Holm p = {sooner5[3]:.2g}) | "
-        f"{verdict1} | (a), (b), (c) |",
-        "| 2a. They copied whichever hierarchical organisation they saw | "
-        f"main design: imitators following the watched organisation {_share(a, n)} vs "
-        f"non-imitators {_share(b, m)} (Fisher p = {main['fisher']:.2g}); controls — "
-        f"{controls} | {_verdict(ok2a, a > b)} | (b) |",
-        "| 2b. … but not the demonstrator's low-level movements | main design: steps done in the "
-        f"mentor's pinch: imitators {pinch['imitation']:.0%}, non-imitators "
-        f"{pinch['options']:.0%}; whole plan the mentor's: {main['same']['imitation']}/"
-        f"{main['n']} imitators; {pinch_controls} | "
-        f"{_verdict(ok2b, main['same']['imitation'] == 0)} | (b) |",
+    return (
         f"| 3. At test they assimilated a new (fifth) skewer into the rule they had inferred | "
         f"strict, *any* mapping: {_share(strict_any, n_any)}; skewer {K}'s step-by-step score "
         f"after watching step by step: *plain* {mean_new(step_plain)} (paired difference to "
         f"the options runs {diff_text(d_plain)}), *any* {mean_new(step_any)} (paired "
         f"difference {diff_text(d_any)}) | "
-        f"{_verdict(ok3, partly3)} | (c) |",
-        "",
-        "Verdicts are computed from the numbers (`himit_torch/runs/puzzle_box_report.py`, "
-        "`_findings_table`): 1 reproduced when imitators open the box significantly sooner than "
-        "options-only learners in (a) (Holm p < 0.05), partly when they are significantly better "
-        "on another of (a)'s endpoints (openings in the last window, greedy value) — the rule "
-        "declared with the code of the first run (commit 5f23ff7); exploratory, by a rule added "
-        "after that run (commit 652878d): partly also when they open the "
-        f"{K}-skewer box of (c) significantly sooner with the *any* mapping; 2a when imitators "
-        "follow the watched organisation significantly more often than non-imitators (Fisher "
-        "p < 0.05) in the main design; 2b when no imitator's plan is the mentor's movement for "
-        "movement and imitators do at most 10 points more of their steps in the mentor's grip "
-        "than non-imitators (partly: only the first); 3 when at least half of the *any*-mapped "
-        "imitators follow the watched organisation over every skewer, partly when some do or "
-        "when the new skewer's step-by-step score beats the options runs' (Wilcoxon p < 0.05). "
-        "Skewer by skewer is the weak test of assimilation (a learner that leaves the new "
-        "skewer to the end is still skewer by skewer); step by step is the strict one.",
-    ]
+        f"{_verdict(ok3, partly3)} | (c) |"
+    )

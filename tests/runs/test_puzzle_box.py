@@ -115,6 +115,12 @@ def test_runner_writes_every_result(tmp_path):
         f"Runs recorded at commit `{summary['commit']}` (from `summary.json`); this page: "
         f"`himit plot {run_dir}`; the runs: the settings in `summary.json`'s `config`"
     ) in text
+    # laid out by the shared writer (viz/results_page.py): title, provenance, then sections
+    title, _, first, _, second, _, settings = text.split("\n")[:7]
+    assert title == "# The puzzle box: Whiten et al.'s (2006) three findings, run on the model"
+    assert first.startswith("Runs recorded at commit") and second.startswith("Produced by")
+    assert settings.startswith(f"{TINY.seeds} seeds per condition")
+    assert text.endswith("`tb/` (`tensorboard --logdir <run dir>/tb`).\n")
     assert len(list((run_dir / "tb").iterdir())) == len(tags) * 2
     # a finished run is refused without --force; a resumed one reads the finished batches
     with pytest.raises(ValueError, match="finished run"):
