@@ -59,6 +59,8 @@ nitpick_ignore_regex = [
     (r"py:.*", r"(collections\.abc|typing|pathlib|os|dataclasses|argparse|enum|types)\..*"),
     (r"py:.*", r"(Any|Sequence|Mapping|Iterable|Iterator|Literal|NamedTuple|Self|NoReturn)"),
     (r"py:.*", r"(optional|default|callable|array_like|array-like)"),
+    # the type variable of a study's own configuration class (runs.study), not a class
+    (r"py:class", r"himit_torch\.runs\.study\.Config"),
 ]
 
 # --------------------------------------------------------------------------------- autodoc

@@ -60,6 +60,8 @@ from himit_torch.viz.results_page import provenance_line, write_results_page
 
 __all__ = [
     "DiscoveryConfig",
+    "DiscoveryStudy",
+    "DiscoveryResults",
     "DISCOVERY_AGENTS",
     "run_discovery",
     "discovery_run_command",
@@ -438,8 +440,9 @@ def _curves_figure(path: Path, result: dict) -> None:
     fig.savefig(path, dpi=120)
 
 
-class _Finished(NamedTuple):
-    """What :meth:`DiscoveryStudy.run` returns: each world's results and the wall time."""
+class DiscoveryResults(NamedTuple):
+    """What :meth:`DiscoveryStudy.run` returns and its report reads: each world's results (a dict
+    per world) and the wall time of all of them, in seconds."""
 
     results: list[dict]
     total: float
@@ -447,7 +450,7 @@ class _Finished(NamedTuple):
 
 class DiscoveryStudy:
     """The discovery experiment as a :class:`~himit_torch.runs.study.Study`: one world after
-    another (:func:`_run_world`), then ``curves.csv``, ``subgoals.csv`` and
+    another (``_run_world``), then ``curves.csv``, ``subgoals.csv`` and
     ``demonstrations_needed.csv``; its report the curves figures and ``results.md``. It does not
     resume (an unfinished run starts over) and ``--force`` clears nothing (every file is written
     again)."""
@@ -456,7 +459,9 @@ class DiscoveryStudy:
     folders: ClassVar[tuple[str, ...]] = ()
     files: ClassVar[tuple[str, ...]] = ()
 
-    def run(self, config: DiscoveryConfig, out: Path, resume: bool, progress: bool) -> _Finished:
+    def run(
+        self, config: DiscoveryConfig, out: Path, resume: bool, progress: bool
+    ) -> DiscoveryResults:
         """Every world's runs, then the CSV records."""
         t0 = time.perf_counter()
         results = [_run_world(config, w, out, progress) for w in config.worlds]
@@ -475,9 +480,9 @@ class DiscoveryStudy:
                 dw = csv.DictWriter(f, fieldnames=list(rows[0]))
                 dw.writeheader()
                 dw.writerows(rows)
-        return _Finished(results, total)
+        return DiscoveryResults(results, total)
 
-    def report(self, config: DiscoveryConfig, out: Path, finished: _Finished) -> None:
+    def report(self, config: DiscoveryConfig, out: Path, finished: DiscoveryResults) -> None:
         """The curves figures and ``results.md``."""
         for r in finished.results:
             _curves_figure(out / "figures" / f"curves_{r['world']}.png", r)

@@ -2,7 +2,11 @@
 
 One :class:`ExperimentConfig` per experiment holds the paper's settings, field by field; it is
 saved as JSON in the run directory and can be loaded back (``himit run --config``). All agents
-and seeds of one world run in one :class:`~himit_torch.Learner` batch. A run directory holds::
+and seeds of one world run in one :class:`~himit_torch.Learner` batch (:func:`run_world`, in named
+steps: the mentor and its demonstrations, the learner, the greedy tracker, checkpoints and logger,
+the run, the result). The experiments are a study (:class:`ExperimentStudy`, run by
+:func:`~himit_torch.runs.study.run_study`); :func:`run_experiments` shares several experiments'
+worlds out over one pool with the same pieces. A run directory holds::
 
     config.json                 the configuration
     curves.csv                  per window: world, agent, seed, step, goals, ε, episodes, …
@@ -17,12 +21,15 @@ and seeds of one world run in one :class:`~himit_torch.Learner` batch. A run dir
 from __future__ import annotations
 
 import csv
+import io
 import json
 import os
+import re
 import sys
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import MISSING, asdict, dataclass, field, fields
 from pathlib import Path
+from typing import ClassVar
 
 import torch
 
@@ -48,6 +55,7 @@ from himit_torch.mentor.policy import (
 )
 from himit_torch.mentor.reward import mentor_reward_module
 from himit_torch.options.builders import learner_options, mentor_options, primitive_options
+from himit_torch.options.bundle import Options
 from himit_torch.runs.checkpoints import BatchShape
 from himit_torch.runs.config import ExperimentConfig, load_config, run_command
 from himit_torch.runs.greedy import CURVE_COLUMNS, GreedyReference, GreedyTracker
@@ -64,14 +72,18 @@ from himit_torch.runs.runner import (
     watch_demonstrations,
     write_atomically,
 )
-from himit_torch.runs.study import prepare_run_dir
+from himit_torch.runs.study import prepare_run_dir, run_study
+from himit_torch.validation import parse_document, read_text, refuse_unknown_fields
 from himit_torch.viz.tensorboard import TensorBoardLogger
 from himit_torch.worlds.multirooms import MultiRooms
 
 __all__ = [
+    "ExperimentStudy",
     "run_experiment",
     "run_experiments",
     "run_world",
+    "read_world_result",
+    "check_curves",
     "WorldResult",
     "rewrite_report",
     "optimal_reference",
@@ -182,6 +194,33 @@ def _hparams(config: ExperimentConfig, size: int, agent: str) -> dict:
     return hp
 
 
+@dataclass
+class _WorldBatch:
+    """One world's batch as :func:`run_world` sets it up: the experiment, the world and its
+    runs (every agent × seed, agent-major), and where its records go."""
+
+    config: ExperimentConfig
+    size: int
+    run_dir: Path
+    world: MultiRooms
+    seeds: list[int]
+    agents: list[str]
+    run_seeds: list[int]
+
+
+@dataclass
+class _Mentoring:
+    """What the mentor leaves a batch: each seed's recorded episodes, what the learner observes
+    of them (and of the second mentor's), the mentor's exact goal rate (``None`` without greedy
+    evaluations) and its exact transitions (``mentor_model="exact"``; else ``None``)."""
+
+    recorded: dict
+    demos: dict
+    second: dict
+    mentor_eval: PolicyEvaluation | None
+    exact: object | None
+
+
 def run_world(
     config: ExperimentConfig,
     size: int,
@@ -191,12 +230,52 @@ def run_world(
     on_window: Callable | None = None,
 ) -> WorldResult:
     """Run every agent × seed of one world in one batch (resuming from its checkpoint)."""
-    world = config.world(size)
     seeds, agents, run_seeds = batch_runs(config.agents, config.first_seed, config.seeds)
-    # The mentor (its own [O, S] option tables: 0.23 GB on 120×120 with corners) records every
-    # seed's episodes and is gone before the learner's tables are built, so the two never share
-    # the process's peak memory. Each seed's episodes come from its own generator: the order
-    # changes nothing.
+    batch = _WorldBatch(config, size, run_dir, config.world(size), seeds, agents, run_seeds)
+    mentoring = _mentoring(batch)
+    learner, options = _learner(batch, mentoring)
+    optimal_steps, true_v, optimal_eval = optimal_reference(batch.world, config.window)
+    greedy = _greedy_tracker(batch, options, mentoring.mentor_eval, optimal_eval)
+    checkpoints = Checkpoints(
+        run_dir / "checkpoints" / f"world{size}.pt",
+        BatchShape(tuple(agents), tuple(run_seeds), batch.world.num_states),
+        config.checkpoint_every,
+        config.device,
+        companions={} if greedy is None else {"greedy": greedy},
+    )
+    elapsed = checkpoints.start(learner, resume)
+    logger = _logger(batch, learner, options, true_v, resume)
+    wall = _run_batch(
+        batch, learner, logger, greedy, checkpoints, mentoring.demos, progress, on_window, elapsed
+    )
+    final = None if greedy is None else greedy.finish(learner)
+    result = _world_result(batch, learner, optimal_steps, true_v, wall)
+    if greedy is not None and final is not None:
+        _add_greedy_results(result, greedy, final)
+    _log_hparams(batch, logger, learner, result)
+    logger.close()
+    _write_curves(run_dir / "worlds" / f"curves{size}.csv", learner, size, greedy)
+    write_atomically(run_dir / "worlds" / f"world{size}.json", json.dumps(asdict(result), indent=1))
+    _world_figure(
+        run_dir,
+        config,
+        batch.world,
+        mentoring.recorded[seeds[0]],
+        learner,
+        agents,
+        run_seeds,
+        seeds[0],
+        size,
+    )
+    return result
+
+
+def _mentoring(batch: _WorldBatch) -> _Mentoring:
+    """The mentor's part of a batch: its episodes for every seed, what the learner observes of
+    them, and the exact references it leaves. The mentor (its own [O, S] option tables: 0.23 GB
+    on 120×120 with corners) is gone when this returns, before the learner's tables are built,
+    so the two never share the process's peak memory."""
+    config, world, seeds = batch.config, batch.world, batch.seeds
     mentor = mentor_policy(
         world,
         mentor_options(world, corners=config.corner_options),
@@ -204,31 +283,7 @@ def run_world(
         # the paper's worlds keep their mentor; a maze or a moved goal may trap it in a cycle
         break_cycles=config.layout != "open" or config.goal_needs_primitives,
     )
-    # The stresses on the mentor (config.mentor_noise, .mentor_detour) change what it shows, not
-    # its policy: the "% of mentor" reference below stays the undisturbed one.
-    detour = (
-        mentor_detour(
-            world,
-            corners=config.corner_options,
-            prefer_extended_within=config.mentor_preference,
-        )
-        if config.mentor_detour
-        else None
-    )
-    recorded = {
-        s: record_demonstrations(
-            world,
-            mentor,
-            config.mentor_episodes,
-            seed=s,
-            noise=config.mentor_noise,
-            detour=detour,
-        )
-        for s in seeds
-    } if config.mentor_goal == "same" else _other_goal(config, world, seeds)  # fmt: skip
-    del detour
-    if config.mentor_coverage < 1:  # only the first part of each route (mentor_coverage)
-        recorded = {s: first_part(d, config.mentor_coverage) for s, d in recorded.items()}
+    recorded = _mentor_episodes(config, world, mentor, seeds)
     # what the learner observes of them (config.observation_stride; stride 1: the same objects)
     demos = {s: observe_every(d, config.observation_stride) for s, d in recorded.items()}
     second = {
@@ -246,44 +301,96 @@ def run_world(
         if config.mentor_model == "exact"
         else None
     )
-    del mentor
+    return _Mentoring(recorded, demos, second, mentor_eval, exact)
+
+
+def _mentor_episodes(config: ExperimentConfig, world: MultiRooms, mentor, seeds) -> dict:
+    """Each seed's recorded mentor episodes, from that seed's own generator (so the order of the
+    seeds changes nothing), with the stresses on what the mentor shows: noise, a detour,
+    another goal, only the first part of each route (``mentor_coverage``). The stresses change
+    what it shows, not its policy: the "% of mentor" reference stays the undisturbed one."""
+    if config.mentor_goal != "same":
+        recorded = _other_goal(config, world, seeds)
+    else:
+        detour = (
+            mentor_detour(
+                world,
+                corners=config.corner_options,
+                prefer_extended_within=config.mentor_preference,
+            )
+            if config.mentor_detour
+            else None
+        )
+        recorded = {
+            s: record_demonstrations(
+                world,
+                mentor,
+                config.mentor_episodes,
+                seed=s,
+                noise=config.mentor_noise,
+                detour=detour,
+            )
+            for s in seeds
+        }
+        del detour
+    if config.mentor_coverage < 1:  # only the first part of each route (mentor_coverage)
+        recorded = {s: first_part(d, config.mentor_coverage) for s, d in recorded.items()}
+    return recorded
+
+
+def _learner(batch: _WorldBatch, mentoring: _Mentoring) -> tuple[Learner, Options]:
+    """The batch's learner on the learner's options, every run watching its seed's mentor
+    (the exact mentor model instead, with ``mentor_model="exact"``) and its second mentor."""
+    config, world = batch.config, batch.world
     options = learner_options(world, corners=config.corner_options)
     learner = Learner(
         world,
         options,
-        agents,
-        run_seeds,
+        batch.agents,
+        batch.run_seeds,
         config=config.learner,
-        reward=mentor_rewards(config, world, agents, run_seeds, demos),
+        reward=mentor_rewards(config, world, batch.agents, batch.run_seeds, mentoring.demos),
         device=config.device,
         engine=config.engine,
     )
-    watch_demonstrations(learner, demos if exact is None else dict.fromkeys(seeds, exact))
-    if second:
-        watch_demonstrations(learner, second, mentor=1)
-    optimal_steps, true_v, optimal_eval = optimal_reference(world, config.window)
-    greedy = None
-    if mentor_eval is not None:
-        greedy = GreedyTracker(
-            PolicyEvaluator(world, options, config.window),
-            GreedyReference(optimal_eval, mentor_eval),
-            config.greedy_every or 0,
-            config.steps,
-        )
-    checkpoints = Checkpoints(
-        run_dir / "checkpoints" / f"world{size}.pt",
-        BatchShape(tuple(agents), tuple(run_seeds), world.num_states),
-        config.checkpoint_every,
-        config.device,
-        companions={} if greedy is None else {"greedy": greedy},
+    exact = mentoring.exact
+    watch_demonstrations(
+        learner, mentoring.demos if exact is None else dict.fromkeys(batch.seeds, exact)
     )
-    elapsed = checkpoints.start(learner, resume)
-    # A resumed run purges what it logged after its last checkpoint (windows up to t were logged
-    # before the checkpoint); a fresh one refuses folders that hold another run's events.
+    if mentoring.second:
+        watch_demonstrations(learner, mentoring.second, mentor=1)
+    return learner, options
+
+
+def _greedy_tracker(
+    batch: _WorldBatch,
+    options: Options,
+    mentor_eval: PolicyEvaluation | None,
+    optimal_eval: PolicyEvaluation,
+) -> GreedyTracker | None:
+    """The tracker of the runs' frozen greedy policies (``None`` with ``greedy_every=None``)."""
+    if mentor_eval is None:
+        return None
+    config = batch.config
+    return GreedyTracker(
+        PolicyEvaluator(batch.world, options, config.window),
+        GreedyReference(optimal_eval, mentor_eval),
+        config.greedy_every or 0,
+        config.steps,
+    )
+
+
+def _logger(
+    batch: _WorldBatch, learner: Learner, options: Options, true_v: float, resume: bool
+) -> TensorBoardLogger:
+    """The batch's TensorBoard logger. A resumed run purges what it logged after its last
+    checkpoint (windows up to t were logged before the checkpoint); a fresh one refuses folders
+    that hold another run's events, and logs each run's settings."""
+    config = batch.config
     logger = TensorBoardLogger(
-        run_dir / "tb",
-        run_names(f"world{size}", agents, run_seeds),
-        world=world,
+        batch.run_dir / "tb",
+        run_names(f"world{batch.size}", batch.agents, batch.run_seeds),
+        world=batch.world,
         options=options,
         true_value_start=true_v,
         initial_value=config.learner.initial_value,
@@ -291,17 +398,35 @@ def run_world(
     )
     if not resume or learner.t == 0:
         for b in range(learner.batch):
-            logger.text(b, "settings", f"seed {run_seeds[b]}\n\n```\n{config.to_json()}\n```")
+            logger.text(b, "settings", f"seed {batch.run_seeds[b]}\n\n```\n{config.to_json()}\n```")
+    return logger
+
+
+def _run_batch(
+    batch: _WorldBatch,
+    learner: Learner,
+    logger: TensorBoardLogger,
+    greedy: GreedyTracker | None,
+    checkpoints: Checkpoints,
+    demos: dict,
+    progress: bool,
+    on_window: Callable | None,
+    elapsed: float,
+) -> float:
+    """Run the batch to its last step (:func:`~himit_torch.runs.runner.run_windows`): each
+    window logged and, on their schedule, evaluated greedily, maps drawn and a checkpoint
+    saved. Returns the run's wall seconds."""
+    config, run_seeds = batch.config, batch.run_seeds
     # Maps during training for the first two seeds of every agent: more than one seed, at a cost
     # (≈ 0.2 s a run and checkpoint) that stays small beside the run.
-    map_runs = [b for b, s in enumerate(run_seeds) if s in seeds[:2]]
+    map_runs = [b for b, s in enumerate(run_seeds) if s in batch.seeds[:2]]
     # ... half-way and at the end (drawing them costs ≈ 0.2 s a run: at every checkpoint they
     # took longer than the learning itself)
     maps_every = config.checkpoint_every * max(1, round(config.steps / 2 / config.checkpoint_every))
     mentor_visits = {
         b: torch.bincount(
             torch.cat([torch.as_tensor(e) for e in demos[run_seeds[b]].episodes]),
-            minlength=world.num_states,
+            minlength=batch.world.num_states,
         )
         for b in map_runs
     }
@@ -311,29 +436,34 @@ def run_world(
         hooks.append(greedy)
     if on_window is not None:
         hooks.append(lambda learner, _: on_window(learner))
-    wall = run_windows(
+    return run_windows(
         learner,
         config.steps,
         on_window=hooks,
         logger=logger,
         maps=Maps(map_runs, maps_every, mentor_visits),
         checkpoints=checkpoints,
-        progress=f"{config.name} {size}×{size} B={learner.batch}" if progress else None,
+        progress=f"{config.name} {batch.size}×{batch.size} B={learner.batch}" if progress else None,
         elapsed=elapsed,
     )
-    final = None if greedy is None else greedy.finish(learner)
-    m = learner.metrics
-    result = WorldResult(
-        size=size,
+
+
+def _world_result(
+    batch: _WorldBatch, learner: Learner, optimal_steps: float, true_v: float, wall: float
+) -> WorldResult:
+    """The finished batch's :class:`WorldResult` (the greedy policies' part apart)."""
+    world, m = batch.world, learner.metrics
+    return WorldResult(
+        size=batch.size,
         rooms=world.rooms,
-        agents=agents,
-        seeds=run_seeds,
+        agents=batch.agents,
+        seeds=batch.run_seeds,
         optimal_steps=optimal_steps,
-        optimal_goals_per_window=config.window / optimal_steps,
+        optimal_goals_per_window=batch.config.window / optimal_steps,
         goals=learner.goals.tolist(),
         first_goal_step=learner.first_goal_step.tolist(),
         final_window_goals=(
-            m.goals_in_window[-1].tolist() if m.goals_in_window else [0] * len(agents)
+            m.goals_in_window[-1].tolist() if m.goals_in_window else [0] * len(batch.agents)
         ),
         value_start=learner.state_values()[:, world.start_state].tolist(),
         true_value_start=true_v,
@@ -343,22 +473,34 @@ def run_world(
         engine=learner.engine.name,
         commit=source_commit(),
     )
-    if greedy is not None and final is not None:
-        result.greedy_goals_per_window = final.goals_per_window.tolist()
-        result.greedy_percent_of_optimal = greedy.percent_of_optimal(final).tolist()
-        result.greedy_percent_of_mentor = greedy.percent_of_mentor(final).tolist()
-        result.greedy_value_start = final.value_start.tolist()
-        result.greedy_reach_share = final.reach_share.tolist()
-        stuck = greedy.stuck
-        if stuck is not None:
-            result.greedy_percent_of_optimal_stuck = greedy.percent_of_optimal(stuck).tolist()
-            result.greedy_percent_of_mentor_stuck = greedy.percent_of_mentor(stuck).tolist()
-        result.mentor_goals_per_window = greedy.reference.mentor_goals_per_window
-        result.mentor_value_start = float(greedy.reference.mentor.value_start[0])
+
+
+def _add_greedy_results(
+    result: WorldResult, greedy: GreedyTracker, final: PolicyEvaluation
+) -> None:
+    """``result`` with the frozen greedy policies at the end (``final``), against the optimum
+    and the mentor, and with the "stuck" rule where the tracker evaluated it."""
+    result.greedy_goals_per_window = final.goals_per_window.tolist()
+    result.greedy_percent_of_optimal = greedy.percent_of_optimal(final).tolist()
+    result.greedy_percent_of_mentor = greedy.percent_of_mentor(final).tolist()
+    result.greedy_value_start = final.value_start.tolist()
+    result.greedy_reach_share = final.reach_share.tolist()
+    stuck = greedy.stuck
+    if stuck is not None:
+        result.greedy_percent_of_optimal_stuck = greedy.percent_of_optimal(stuck).tolist()
+        result.greedy_percent_of_mentor_stuck = greedy.percent_of_mentor(stuck).tolist()
+    result.mentor_goals_per_window = greedy.reference.mentor_goals_per_window
+    result.mentor_value_start = float(greedy.reference.mentor.value_start[0])
+
+
+def _log_hparams(
+    batch: _WorldBatch, logger: TensorBoardLogger, learner: Learner, result: WorldResult
+) -> None:
+    """Each run's settings and final measures in TensorBoard's HParams dashboard."""
     # A run that never found the goal counts as finding it just after its end.
     firsts = [f if f >= 0 else learner.t + 1 for f in result.first_goal_step]
     logger.hparams(
-        [_hparams(config, size, a) for a in agents],
+        [_hparams(batch.config, batch.size, a) for a in batch.agents],
         [
             {
                 "hparam/total_goals": result.goals[b],
@@ -375,13 +517,6 @@ def run_world(
         ],
         learner.t,
     )
-    logger.close()
-    _write_curves(run_dir / "worlds" / f"curves{size}.csv", learner, size, greedy)
-    write_atomically(run_dir / "worlds" / f"world{size}.json", json.dumps(asdict(result), indent=1))
-    _world_figure(
-        run_dir, config, world, recorded[seeds[0]], learner, agents, run_seeds, seeds[0], size
-    )
-    return result
 
 
 def mentor_rewards(config: ExperimentConfig, world, agents, run_seeds, demos) -> list | None:
@@ -528,7 +663,74 @@ def _world_figure(run_dir, config, world, demos, learner, agents, run_seeds, see
     )
 
 
-# ================================================================================ the runner
+# ================================================================================ the study
+class ExperimentStudy:
+    """The paper's experiments as a :class:`~himit_torch.runs.study.Study`: one run directory
+    per experiment, one learner batch per world (:func:`run_world`), the figures and
+    ``results.md`` at the end.
+
+    ``workers``: the processes its worlds run in (:func:`run_experiment`). :meth:`prepare`,
+    :meth:`finished`, :func:`run_world` and :meth:`report` are also the pieces of
+    :func:`run_experiments`, which shares several experiments' worlds out over one pool."""
+
+    config_class: ClassVar[type] = ExperimentConfig
+    folders: ClassVar[tuple[str, ...]] = ("checkpoints", "tb", "worlds", "figures")
+    files: ClassVar[tuple[str, ...]] = ("results.md", "curves.csv", "config.json")
+
+    def __init__(self, workers: int | None = None):
+        self.workers = workers
+
+    @staticmethod
+    def resume_hint(run_dir: str | os.PathLike) -> str:
+        """What a refused ``--resume`` with another configuration suggests."""
+        return f"resume with the saved one (--config {Path(run_dir) / 'config.json'})"
+
+    def prepare(self, config: ExperimentConfig, run_dir: Path, resume: bool, force: bool) -> None:
+        """Clear (``force``) or check (``resume``) ``run_dir`` and save the configuration
+        (:func:`~himit_torch.runs.study.prepare_run_dir`; the saved one read by
+        :func:`~himit_torch.runs.config.load_config`)."""
+        prepare_run_dir(
+            run_dir,
+            config,
+            resume,
+            force,
+            self.folders,
+            self.files,
+            resume_hint=self.resume_hint(run_dir),
+            load=load_config,
+        )
+
+    @staticmethod
+    def finished(config: ExperimentConfig, run_dir: Path, resume: bool) -> dict[int, WorldResult]:
+        """The worlds a resumed run already finished (``size → WorldResult``; none unless
+        ``resume``)."""
+        finished = {}
+        for size in config.sizes:
+            done = run_dir / "worlds" / f"world{size}.json"
+            if resume and done.exists():
+                finished[size] = read_world_result(done, size)
+        return finished
+
+    def run(
+        self, config: ExperimentConfig, run_dir: Path, resume: bool, progress: bool
+    ) -> list[WorldResult]:
+        """Run the worlds ``run_dir`` has not finished (``workers`` at a time); returns every
+        world's result in the order of ``config.sizes``."""
+        run_dir = Path(run_dir)
+        [results] = _run_worlds(
+            self, [(config, run_dir)], [self.finished(config, run_dir, resume)], resume, progress
+        )
+        return results
+
+    def report(
+        self, config: ExperimentConfig, run_dir: Path, results: Sequence[WorldResult]
+    ) -> None:
+        """The finished experiment's ``curves.csv`` (its worlds' merged), figures and
+        ``results.md``."""
+        _merge_curves(run_dir, config)
+        _write_report(run_dir, config, {r.size: r for r in results})
+
+
 def run_experiment(
     config: ExperimentConfig,
     run_dir: str | os.PathLike,
@@ -548,7 +750,18 @@ def run_experiment(
     compiled engine gets ``cores // workers`` threads. Each world is independent of the others,
     so the results are the same for any ``workers``. ``workers=1`` runs them in this process.
     """
-    return run_experiments([(config, run_dir)], resume, force, progress, workers)[0]
+    study = ExperimentStudy(workers)
+    return run_study(
+        study,
+        config,
+        run_dir,
+        resume=bool(resume),
+        force=force,
+        progress=progress,
+        check=config.check_size,
+        resume_hint=study.resume_hint(run_dir),
+        load=load_config,
+    )
 
 
 def run_experiments(
@@ -578,10 +791,33 @@ def run_experiments(
     for (config, _), run_dir in zip(plans, dirs, strict=True):
         config.check_size()
         check_run_dir(run_dir, force=force, resume=bool(resume))
-    finished: list[dict[int, WorldResult]] = [
-        _prepare_run_dir(config, run_dir, resume, force)
-        for (config, _), run_dir in zip(plans, dirs, strict=True)
-    ]
+    study = ExperimentStudy(workers)
+    finished = []
+    for (config, _), run_dir in zip(plans, dirs, strict=True):
+        study.prepare(config, run_dir, resume, force)
+        finished.append(study.finished(config, run_dir, resume))
+    return _run_worlds(
+        study,
+        [(config, run_dir) for (config, _), run_dir in zip(plans, dirs, strict=True)],
+        finished,
+        resume,
+        progress,
+        report=True,
+    )
+
+
+def _run_worlds(
+    study: ExperimentStudy,
+    plans: Sequence[tuple[ExperimentConfig, Path]],
+    finished: list[dict[int, WorldResult]],
+    resume: bool,
+    progress: bool,
+    report: bool = False,
+) -> list[list[WorldResult]]:
+    """Run the worlds of ``plans`` that are not ``finished`` (per plan, ``size → result``; each
+    new one added as it ends), ``study.workers`` processes at a time, the most expensive first.
+    With ``report``, each plan gets its report (:meth:`ExperimentStudy.report`) as soon as its
+    last world is done. Returns per plan its worlds' results in the order of its sizes."""
     todo = [
         (i, size)
         for i, (config, _) in enumerate(plans)
@@ -593,7 +829,14 @@ def run_experiments(
     todo.sort(key=lambda job: _world_cost(plans[job[0]][0], job[1]), reverse=True)
     results: list[list[WorldResult] | None] = [None] * len(plans)
     cores = os.cpu_count() or 1
+    workers = study.workers
     workers_used = min(len(todo), cores) if workers is None else min(int(workers), len(todo))
+
+    def plan_done(i: int) -> None:
+        config, run_dir = plans[i]
+        results[i] = done = [finished[i][size] for size in config.sizes]
+        if report:
+            study.report(config, run_dir, done)
 
     def world_done(i: int, size: int, result: WorldResult) -> None:
         finished[i][size] = result
@@ -601,39 +844,54 @@ def run_experiments(
         if progress and workers_used > 1:
             print(f"{config.name}: world {size}×{size} done", file=sys.stderr, flush=True)
         if all(s in finished[i] for s in config.sizes):
-            results[i] = _finish_run_dir(config, dirs[i], finished[i])
+            plan_done(i)
 
     for i, (config, _) in enumerate(plans):  # nothing left to run (a resumed, finished run)
         if all(s in finished[i] for s in config.sizes):
-            results[i] = _finish_run_dir(config, dirs[i], finished[i])
+            plan_done(i)
     if workers_used > 1:
-        import multiprocessing
-        from concurrent.futures import ProcessPoolExecutor, as_completed
-
-        # "spawn": a forked child of a process whose OpenMP threads already ran can hang.
-        pool = ProcessPoolExecutor(
-            workers_used,
-            mp_context=multiprocessing.get_context("spawn"),
-            initializer=share_cores,
-            initargs=(max(1, cores // workers_used),),
-        )
-        try:
-            # A cold Numba cache is compiled once, here, while the workers set up their worlds;
-            # they wait for it at their first tick instead of each compiling it too.
-            with _kernels_prepared_here([plans[i][0] for i, _ in todo]):
-                futures = {
-                    pool.submit(run_world, plans[i][0], size, dirs[i], resume, False): (i, size)
-                    for i, size in todo
-                }
-            for future in as_completed(futures):
-                world_done(*futures[future], future.result())
-        finally:  # a failed world stops the rest instead of letting them run to the end
-            pool.shutdown(wait=True, cancel_futures=True)
+        _run_in_pool(study, plans, todo, resume, workers_used, cores, world_done)
     else:
         for i, size in todo:
-            world_done(i, size, run_world(plans[i][0], size, dirs[i], resume, progress))
+            config, run_dir = plans[i]
+            world_done(i, size, run_world(config, size, run_dir, resume, progress))
     assert all(r is not None for r in results)  # every world of every plan ran or was resumed
     return [r for r in results if r is not None]
+
+
+def _run_in_pool(
+    study: ExperimentStudy,
+    plans: Sequence[tuple[ExperimentConfig, Path]],
+    todo: Sequence[tuple[int, int]],
+    resume: bool,
+    workers: int,
+    cores: int,
+    world_done: Callable[[int, int, WorldResult], None],
+) -> None:
+    """Run the worlds ``todo`` (``(plan, size)``, in this order) in ``workers`` processes, the
+    cores shared out between them; ``world_done(plan, size, result)`` as each ends."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    # "spawn": a forked child of a process whose OpenMP threads already ran can hang.
+    pool = ProcessPoolExecutor(
+        workers,
+        mp_context=multiprocessing.get_context("spawn"),
+        initializer=share_cores,
+        initargs=(max(1, cores // workers),),
+    )
+    try:
+        # A cold Numba cache is compiled once, here, while the workers set up their worlds;
+        # they wait for it at their first tick instead of each compiling it too.
+        with _kernels_prepared_here([plans[i][0] for i, _ in todo]):
+            futures = {
+                pool.submit(run_world, plans[i][0], size, plans[i][1], resume, False): (i, size)
+                for i, size in todo
+            }
+        for future in as_completed(futures):
+            world_done(*futures[future], future.result())
+    finally:  # a failed world stops the rest instead of letting them run to the end
+        pool.shutdown(wait=True, cancel_futures=True)
 
 
 def _kernels_prepared_here(configs: Sequence[ExperimentConfig]):
@@ -655,38 +913,6 @@ def _world_cost(config: ExperimentConfig, size: int) -> int:
     """A world's relative cost for scheduling: primitive steps of all its runs × its side (a
     sweep's work grows with the states the options reach)."""
     return config.steps * config.seeds * len(config.agents) * size
-
-
-def _prepare_run_dir(
-    config: ExperimentConfig, run_dir: Path, resume: bool, force: bool
-) -> dict[int, WorldResult]:
-    """Clear (``force``) or check (``resume``) ``run_dir``, save the configuration, and return
-    the worlds a resumed run already finished."""
-    cfg_path = run_dir / "config.json"
-    prepare_run_dir(
-        run_dir,
-        config,
-        resume,
-        force,
-        ("checkpoints", "tb", "worlds", "figures"),
-        ("results.md", "curves.csv", "config.json"),
-        resume_hint=f"resume with the saved one (--config {cfg_path})",
-        load=load_config,
-    )
-    finished = {}
-    for size in config.sizes:
-        done = run_dir / "worlds" / f"world{size}.json"
-        if resume and done.exists():
-            finished[size] = WorldResult(**json.loads(done.read_text()))
-    return finished
-
-
-def _finish_run_dir(
-    config: ExperimentConfig, run_dir: Path, finished: dict[int, WorldResult]
-) -> list[WorldResult]:
-    """The finished experiment's ``curves.csv``, figures and ``results.md``."""
-    _merge_curves(run_dir, config)
-    return _write_report(run_dir, config, finished)
 
 
 def _write_report(run_dir: Path, config: ExperimentConfig, finished: dict) -> list[WorldResult]:
@@ -712,7 +938,9 @@ def rewrite_report(run_dir: str | os.PathLike) -> None:
     :func:`run_experiment` wrote, from the records alone.
 
     Raises:
-        ValueError: ``config.json`` is missing or invalid, or a world has not finished.
+        ValueError: ``config.json`` is missing or invalid, a world has not finished, or a
+            record is damaged (a world's record that is not one, a ``curves.csv`` that is not
+            UTF-8 CSV with the columns a run writes); the message names the file.
     """
     run_dir = Path(run_dir)
     config = load_config(run_dir / "config.json")
@@ -724,8 +952,120 @@ def rewrite_report(run_dir: str | os.PathLike) -> None:
                 f"{run_dir}: world {size} has not finished ({path} is missing); "
                 "finish it with himit run … --resume"
             )
-        finished[size] = WorldResult(**json.loads(path.read_text()))
+        finished[size] = read_world_result(path, size)
+    check_curves(run_dir / "curves.csv")
     _write_report(run_dir, config, finished)
+
+
+#: The per-run lists of a :class:`WorldResult` (one entry per run); the greedy ones may be
+#: empty (runs without greedy evaluations, or written before they existed).
+_PER_RUN = ("agents", "seeds", "goals", "first_goal_step", "final_window_goals")
+_PER_RUN_NUMBERS = ("value_start", "mentor_term_wins")
+_GREEDY_PER_RUN = tuple(f.name for f in fields(WorldResult) if f.name.startswith("greedy_"))
+_NUMBERS = (
+    "size",
+    "rooms",
+    "optimal_steps",
+    "optimal_goals_per_window",
+    "true_value_start",
+    "wall_seconds",
+    "steps",
+    "mentor_goals_per_window",
+    "mentor_value_start",
+)
+
+
+def read_world_result(path: Path, size: int) -> WorldResult:
+    """The :class:`WorldResult` a finished world left in ``path`` (``worlds/world<size>.json``).
+
+    Raises:
+        ValueError: the file is not UTF-8 JSON, or not a record of world ``size``: not an
+            object, a field missing or unknown, a number or list of another type, or a per-run
+            list whose length is not the number of runs; the message names the file and the
+            field (rerun the world: ``himit run … --resume`` after deleting the file).
+    """
+    where = f"world record {path}"
+    data = parse_document(where, read_text(where, path), "json")
+    fix = "; delete it and rerun the world (himit run … --resume)"
+    if not isinstance(data, dict):
+        raise ValueError(f"{where} holds a JSON {type(data).__name__}, not an object{fix}")
+    refuse_unknown_fields(data, WorldResult, where)
+    required = [
+        f.name for f in fields(WorldResult) if f.default is MISSING and f.default_factory is MISSING
+    ]
+    missing = [name for name in required if name not in data]
+    if missing:
+        raise ValueError(f"{where}: fields {missing} are missing{fix}")
+
+    def refuse(name: str, what: str) -> ValueError:
+        return ValueError(f"{where}: {name}={data[name]!r:.60} {what}{fix}")
+
+    for name in _NUMBERS:
+        if name in data and (
+            isinstance(data[name], bool) or not isinstance(data[name], (int, float))
+        ):
+            raise refuse(name, "is not a number")
+    for name in ("engine", "commit"):
+        if name in data and not isinstance(data[name], str):
+            raise refuse(name, "is not a string")
+    if data["size"] != size:
+        raise refuse("size", f"is not this file's world ({size})")
+    runs = data["agents"]
+    if not isinstance(runs, list) or not all(isinstance(a, str) for a in runs):
+        raise refuse("agents", "is not a list of agent names")
+    for name in _PER_RUN[1:] + _PER_RUN_NUMBERS + _GREEDY_PER_RUN:
+        value = data.get(name, [])
+        whole = name in _PER_RUN
+        if (
+            not isinstance(value, list)
+            or len(value) not in ((0, len(runs)) if name in _GREEDY_PER_RUN else (len(runs),))
+            or any(
+                isinstance(v, bool) or not isinstance(v, int if whole else (int, float))
+                for v in value
+            )
+        ):
+            kind = "whole numbers" if whole else "numbers"
+            raise refuse(name, f"is not a list of {len(runs)} {kind} (one per run)")
+    return WorldResult(**data)
+
+
+#: The columns of ``curves.csv`` the report reads.
+_CURVE_KEYS = ("world", "agent", "seed", "step", "goals_in_window")
+_WHOLE = re.compile(r"-?[0-9]+")
+
+
+def check_curves(path: Path) -> None:
+    """Refuse a ``curves.csv`` the report could not read: not UTF-8 CSV (or a field over the
+    csv module's limit), a column it reads missing, or a number that is not one.
+
+    Raises:
+        ValueError: naming the file, and the line and column where one is at fault.
+    """
+    where = f"curves file {path}"
+    text = read_text(where, path)
+    fix = "; rerun the experiment (himit run … --force) to write it again"
+    reader = csv.reader(io.StringIO(text, newline=""))
+    try:
+        header = next(reader, [])
+        missing = [key for key in _CURVE_KEYS if key not in header]
+        if missing:
+            raise ValueError(f"{where}: columns {missing} are missing{fix}")
+        index = {key: header.index(key) for key in _CURVE_KEYS}
+        for row in reader:
+            if len(row) != len(header):
+                raise ValueError(
+                    f"{where}, line {reader.line_num}: {len(row)} cells, not {len(header)}{fix}"
+                )
+            for key in ("world", "seed", "step", "goals_in_window"):
+                if not _WHOLE.fullmatch(row[index[key]]):
+                    raise ValueError(
+                        f"{where}, line {reader.line_num}: {key}={row[index[key]]!r:.60} is not "
+                        f"a whole number{fix}"
+                    )
+    except csv.Error as err:
+        raise ValueError(
+            f"{where}, line {reader.line_num}: not CSV a run writes ({err}){fix}"
+        ) from None
 
 
 def _merge_curves(run_dir: Path, config: ExperimentConfig) -> None:

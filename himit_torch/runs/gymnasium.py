@@ -86,6 +86,7 @@ __all__ = [
     "GymTask",
     "TASKS",
     "GymExperimentConfig",
+    "GymnasiumStudy",
     "run_gym_experiment",
     "gym_run_command",
     "run_task",

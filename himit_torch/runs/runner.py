@@ -138,7 +138,11 @@ class Checkpoints:
     """A batch's checkpoint generations (:class:`~himit_torch.runs.checkpoints.CheckpointGenerations`
     at ``path``): saved every ``every`` steps by :func:`run_windows`, restored by :meth:`start`.
     ``companions``: other state saved with the learner's (by name; objects with ``state_dict``
-    and ``load_state_dict``, e.g. a :class:`~himit_torch.runs.greedy.GreedyTracker`)."""
+    and ``load_state_dict(state, learner)``, e.g. a :class:`~himit_torch.runs.greedy.GreedyTracker`):
+    on resume each is given its state and the learner just restored from the same checkpoint,
+    against which it checks what it reads (its batch, the step it reached); a
+    :class:`~himit_torch.state_checks.DamagedState` it raises skips the generation as a damaged
+    learner state does."""
 
     path: Path
     batch: BatchShape
@@ -206,7 +210,7 @@ class Checkpoints:
                 ) from None
             for name, companion in self.companions.items():  # (each checks what it reads)
                 if name in payload:
-                    companion.load_state_dict(payload[name])
+                    companion.load_state_dict(payload[name], learner)
             elapsed.append(float(seconds))
 
         try:

@@ -92,6 +92,7 @@ from pathlib import Path
 from typing import Any
 
 from himit_torch.learner.config import LearnerConfig
+from himit_torch.learner.presets import apply_preset
 from himit_torch.runs.config import EXPERIMENTS, ExperimentConfig, load_config
 from himit_torch.runs.runner import share_cores, source_commit
 from himit_torch.statistics import bca_interval, share_interval, t_interval
@@ -242,7 +243,9 @@ def _check_type(cls, name: str, value: Any, where: str) -> None:
 
 
 def _apply(config: ExperimentConfig, settings: dict) -> ExperimentConfig:
-    """``config`` with the dotted ``settings``; the dataclasses check the values."""
+    """``config`` with the dotted ``settings``, in one step that the dataclasses check: a
+    preset among them first, then the learner settings beside it (so that one departing from
+    the preset is refused, as ``himit run`` refuses it)."""
     for key, value in settings.items():
         if key.startswith("learner."):
             _check_type(LearnerConfig, key[len("learner.") :], value, "learner")
@@ -253,9 +256,10 @@ def _apply(config: ExperimentConfig, settings: dict) -> ExperimentConfig:
     for key in ("agents", "sizes"):
         if key in top and isinstance(top[key], list):
             top[key] = tuple(top[key])
+    base_learner = config.learner
     if top.get("preset") is not None:  # the preset first, then the settings beside it
-        config = config.with_preset(top.pop("preset"))
-    new_learner = replace(config.learner, **learner) if learner else config.learner
+        base_learner = apply_preset(base_learner, top["preset"])
+    new_learner = replace(base_learner, **learner) if learner else base_learner
     return replace(config, **top, learner=new_learner)
 
 
@@ -282,6 +286,10 @@ def _level(value: Any) -> Any:
 def load_spec(path: str | os.PathLike) -> SweepSpec:
     """Read and check a sweep spec (``.toml`` or ``.json``), building every cell's configuration.
 
+    Each cell's configuration is the base with the ``[set]`` settings and the cell's levels
+    applied in one step: a preset first (from either), then the learner settings; a cell whose
+    learner settings depart from its preset is refused as ``himit run`` refuses it.
+
     Raises:
         ValueError: the file is missing, a directory, not UTF-8, not valid TOML/JSON or nested
             too deep, a key or setting is unknown, the name is not a folder name, or a value is
@@ -298,21 +306,7 @@ def load_spec(path: str | os.PathLike) -> SweepSpec:
     unknown = sorted(set(data) - _SPEC_KEYS)
     if unknown:
         raise ValueError(f"{where}: unknown keys {unknown}; known: {sorted(_SPEC_KEYS)}")
-    base_name = data.get("base", "exp2")
-    if not isinstance(base_name, str):
-        raise ValueError(f"{where}: base must be exp1, exp2, exp3 or a config.json path")
-    if base_name in EXPERIMENTS:
-        base = EXPERIMENTS[base_name]
-    else:
-        config_path = (
-            (path.parent / base_name) if not Path(base_name).is_absolute() else Path(base_name)
-        )
-        if not config_path.exists():
-            raise ValueError(
-                f"{where}: base={base_name!r} is neither one of {sorted(EXPERIMENTS)} "
-                f"nor an existing config file"
-            )
-        base = load_config(config_path)
+    base_name, base = _spec_base(data, path, where)
 
     def whole(key, default, minimum, maximum=COUNT_MAX):
         return as_int(f"{where}: {key}", data.get(key, default), minimum, maximum)
@@ -328,6 +322,47 @@ def load_spec(path: str | os.PathLike) -> SweepSpec:
     design = data.get("design", "factorial")
     if design not in _DESIGNS:
         raise ValueError(f"{where}: design={design!r}; use one of {list(_DESIGNS)}")
+    fixed, factors = _spec_settings(data, where)
+    # The sweep's folder is runs/sweeps/<name>: never ".", ".." or a path.
+    name = as_folder_name(f"{where}: name", data.get("name", path.stem))
+    owned = {"name": name, "sizes": tuple(worlds), "seeds": seeds, "first_seed": first_seed}
+    return SweepSpec(
+        name=name,
+        base=base_name,
+        seeds=seeds,
+        first_seed=first_seed,
+        seeds_per_trial=per_trial,
+        worlds=tuple(worlds),
+        design=design,
+        factors=factors,
+        cells=tuple(_cells(where, base, fixed, factors, design, owned)),
+        worker_niceness=niceness,
+        source=str(path),
+    )
+
+
+def _spec_base(data: dict, path: Path, where: str) -> tuple[str, ExperimentConfig]:
+    """The spec's ``base``: its name as written, and its configuration (an experiment's, or a
+    ``config.json`` relative to the spec)."""
+    base_name = data.get("base", "exp2")
+    if not isinstance(base_name, str):
+        raise ValueError(f"{where}: base must be exp1, exp2, exp3 or a config.json path")
+    if base_name in EXPERIMENTS:
+        return base_name, EXPERIMENTS[base_name]
+    config_path = (
+        (path.parent / base_name) if not Path(base_name).is_absolute() else Path(base_name)
+    )
+    if not config_path.exists():
+        raise ValueError(
+            f"{where}: base={base_name!r} is neither one of {sorted(EXPERIMENTS)} "
+            f"nor an existing config file"
+        )
+    return base_name, load_config(config_path)
+
+
+def _spec_settings(data: dict, where: str) -> tuple[dict, dict]:
+    """The spec's ``[set]`` settings (dotted name → value) and ``[grid]`` factors (dotted name
+    → its levels), each setting checked by name."""
     for key in ("set", "grid"):
         if not isinstance(data.get(key, {}), dict):
             raise ValueError(f"{where}: [{key}] must be a table of settings")
@@ -345,6 +380,15 @@ def load_spec(path: str | os.PathLike) -> SweepSpec:
     overlap = sorted(set(fixed) & set(factors))
     if overlap:
         raise ValueError(f"{where}: {overlap} both in [set] and in [grid]")
+    return fixed, factors
+
+
+def _cells(
+    where: str, base: ExperimentConfig, fixed: dict, factors: dict, design: str, owned: dict
+) -> list[Cell]:
+    """The sweep's cells: per combination of the factors' levels (every one, or one factor at
+    a time), the base with the ``[set]`` settings, the levels and the sweep's own settings
+    (``owned``: name, sizes, seeds) applied together (:func:`_apply`)."""
     if design == "factorial":
         combos = [dict(zip(factors, c)) for c in itertools.product(*factors.values())]
     else:
@@ -352,10 +396,8 @@ def load_spec(path: str | os.PathLike) -> SweepSpec:
         combos = [baseline] + [
             {**baseline, n: v} for n, levels in factors.items() for v in levels[1:]
         ]
-    # The sweep's folder is runs/sweeps/<name>: never ".", ".." or a path.
-    name = as_folder_name(f"{where}: name", data.get("name", path.stem))
     try:
-        base = _apply(base, fixed)
+        _apply(base, fixed)  # what [set] alone is refused for is named as the [set]'s
     except (ValueError, TypeError) as err:
         raise ValueError(f"{where} [set]: {err}") from None
     cells, slugs = [], set()
@@ -366,10 +408,7 @@ def load_spec(path: str | os.PathLike) -> SweepSpec:
             else levels
         )
         try:
-            config = _apply(
-                replace(base, name=name, sizes=tuple(worlds), seeds=seeds, first_seed=first_seed),
-                levels,
-            )
+            config = _apply(base, {**fixed, **levels, **owned})
         except (ValueError, TypeError) as err:
             raise ValueError(f"{where}: cell {_slug(levels)}: {err}") from None
         slug = _slug(shown)
@@ -377,19 +416,7 @@ def load_spec(path: str | os.PathLike) -> SweepSpec:
             raise ValueError(f"{where}: two cells are the same ({slug}); a factor repeats a level")
         slugs.add(slug)
         cells.append(Cell(i, slug, levels, config))
-    return SweepSpec(
-        name=name,
-        base=base_name,
-        seeds=seeds,
-        first_seed=first_seed,
-        seeds_per_trial=per_trial,
-        worlds=tuple(worlds),
-        design=design,
-        factors=factors,
-        cells=tuple(cells),
-        worker_niceness=niceness,
-        source=str(path),
-    )
+    return cells
 
 
 # ============================================================================= the trials
@@ -457,32 +484,24 @@ def _execute(
                 f"({time.perf_counter() - start:.0f} s)"
             )
         return
-    cores = os.cpu_count() or 1
-    # every worker of this job starts at this niceness (Ray's own job supervisor sets its
-    # workers' the same way: RAY_worker_niceness in the runtime_env, ray-project/ray#34727)
-    job_env = {"env_vars": {"RAY_worker_niceness": str(niceness)}}
-    address = address or os.environ.get("RAY_ADDRESS") or None  # Ray's own variable
-    if address is None:
-        n = workers or cores
-        where = f"local, {n} CPUs"
-        ray.init(
-            # "local": a Ray of its own, even where `ray start` left a cluster's address in
-            # /tmp/ray for a bare ray.init() to join (joining one takes --address or RAY_ADDRESS)
-            address="local",
-            num_cpus=n,
-            include_dashboard=False,
-            log_to_driver=True,
-            configure_logging=False,
-            runtime_env=job_env,
-        )
-    else:
-        from himit_torch.runs.ray_cluster import prepare_to_join
+    _execute_on_ray(ray, todo, address, workers, log, niceness, start)
 
-        where = f"{address}, {prepare_to_join(address)}"
-        ray.init(
-            address=address, include_dashboard=False, configure_logging=False, runtime_env=job_env
-        )
-        n = workers or int(ray.cluster_resources().get("CPU", 1))
+
+def _execute_on_ray(
+    ray: Any,
+    todo: list[tuple[Trial, str]],
+    address: str | None,
+    workers: int | None,
+    log,
+    niceness: int,
+    start: float,
+) -> None:
+    """Run the trials ``todo`` as Ray tasks: on a local Ray of the sweep's own (``workers``
+    CPUs; default: the cores), or on the cluster at ``address`` (or ``RAY_ADDRESS``); the
+    workers at ``niceness``. Ctrl-C or a failed trial cancels the tasks still running."""
+    cores = os.cpu_count() or 1
+    address = address or os.environ.get("RAY_ADDRESS") or None  # Ray's own variable
+    where, n = _start_ray(ray, address, workers, niceness, cores)
     pending: list = []
     try:
         # each task's compiled engine gets its share of a machine's cores
@@ -518,6 +537,35 @@ def _execute(
         raise
     finally:
         ray.shutdown()
+
+
+def _start_ray(
+    ray: Any, address: str | None, workers: int | None, niceness: int, cores: int
+) -> tuple[str, int]:
+    """Start a local Ray of the sweep's own (``address`` None) or join the cluster at
+    ``address``, its workers at ``niceness``; returns where it runs (for the log) and the
+    tasks it runs at once."""
+    # every worker of this job starts at this niceness (Ray's own job supervisor sets its
+    # workers' the same way: RAY_worker_niceness in the runtime_env, ray-project/ray#34727)
+    job_env = {"env_vars": {"RAY_worker_niceness": str(niceness)}}
+    if address is None:
+        n = workers or cores
+        ray.init(
+            # "local": a Ray of its own, even where `ray start` left a cluster's address in
+            # /tmp/ray for a bare ray.init() to join (joining one takes --address or RAY_ADDRESS)
+            address="local",
+            num_cpus=n,
+            include_dashboard=False,
+            log_to_driver=True,
+            configure_logging=False,
+            runtime_env=job_env,
+        )
+        return f"local, {n} CPUs", n
+    from himit_torch.runs.ray_cluster import prepare_to_join
+
+    where = f"{address}, {prepare_to_join(address)}"
+    ray.init(address=address, include_dashboard=False, configure_logging=False, runtime_env=job_env)
+    return where, workers or int(ray.cluster_resources().get("CPU", 1))
 
 
 # ============================================================================== the tables

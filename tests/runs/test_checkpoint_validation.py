@@ -28,6 +28,7 @@ from himit_torch.learner.config import LearnerConfig
 from himit_torch.learner.learner import Learner
 from himit_torch.mentor.policy import mentor_policy, record_demonstrations
 from himit_torch.options.builders import learner_options, mentor_options
+from himit_torch.runs.experiment import run_experiment
 from himit_torch.state_checks import DamagedState
 from himit_torch.validation import json_depth
 from tests.runs.test_checkpoints import (
@@ -36,6 +37,7 @@ from tests.runs.test_checkpoints import (
     one_line_error,
     reference,  # noqa: F401  (the module's uninterrupted run, a fixture)
     resume_argv,
+    small_config,
     unfinished_copy,
 )
 
@@ -164,6 +166,44 @@ def test_with_both_generations_planted_the_resume_stops_in_one_line_with_status_
     newest, previous = newest_and_previous(run_dir)
     assert f"{newest}: " in err and f"{previous}: " in err and "--force" in err
     assert err.count(field) == 2, err  # named for each file
+
+
+def plant_greedy(path: Path, runs: int) -> None:
+    """Rewrite the checkpoint at ``path`` with the greedy tracker's tensors cut to their first
+    ``runs`` runs (the checksum recomputed: a file that verifies)."""
+    found = ckpt.read_checkpoint(path)
+    greedy = found.payload["greedy"]
+    for name, values in greedy.items():
+        if name != "steps":
+            greedy[name] = [value[:runs].clone() for value in values]
+    header = found.header
+    path.write_bytes(
+        ckpt.encode(
+            found.payload,
+            step=header.step,
+            batch=header.batch,
+            state_layout_version=header.state_layout_version,
+        )
+    )
+    ckpt.read_checkpoint(path)  # it verifies
+
+
+def test_greedy_evaluations_of_another_batch_are_refused_on_resume(tmp_path, capsys):
+    """A 4-run checkpoint whose greedy tracker holds 1 run's evaluations: refused by name in
+    one line (the tracker checks them against the learner restored beside it), not an
+    ``IndexError`` when the run next reads them."""
+    run_dir = tmp_path / "exp2"
+    run_experiment(small_config(seeds=2), run_dir, progress=False)  # 2 agents × 2 seeds
+    (run_dir / "worlds" / f"world{SIZE}.json").unlink()
+    (run_dir / "results.md").unlink()
+    paths = newest_and_previous(run_dir)
+    assert ckpt.read_checkpoint(paths[0]).payload["greedy"]["steps"]  # evaluations to cut
+    for path in paths:
+        plant_greedy(path, runs=1)
+    err = one_line_error(capsys, resume_argv(run_dir))
+    assert f"{paths[0]}: " in err and f"{paths[1]}: " in err and "--force" in err, err
+    assert err.count("greedy.") == 2, err  # named for each file
+    assert "IndexError" not in err
 
 
 # ------------------------------------------------------------------------------ in process

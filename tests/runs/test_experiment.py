@@ -372,6 +372,93 @@ def test_cli_run_plot_and_errors(capsys, tmp_path):
     assert "does not exist" in one_line_error(capsys, ["plot", str(tmp_path)])
 
 
+def _world_record(change):
+    """A damage of ``worlds/world16.json``: ``change(record)`` replaces the record (a dict)."""
+
+    def damage(run_dir: Path) -> None:
+        path = run_dir / "worlds" / "world16.json"
+        path.write_text(json.dumps(change(json.loads(path.read_text()))))
+
+    return damage
+
+
+def _curves(change):
+    """A damage of ``curves.csv``: ``change(rows)`` edits its rows (the header first) in place."""
+
+    def damage(run_dir: Path) -> None:
+        path = run_dir / "curves.csv"
+        with path.open(newline="") as f:
+            rows = list(csv.reader(f))
+        change(rows)
+        with path.open("w", newline="") as f:
+            csv.writer(f).writerows(rows)
+
+    return damage
+
+
+def _drop_column(rows: list, name: str) -> None:
+    k = rows[0].index(name)
+    for row in rows:
+        del row[k]
+
+
+def _set_cell(rows: list, name: str, value: str) -> None:
+    rows[1][rows[0].index(name)] = value
+
+
+#: Damaged records of a finished run, and what ``himit plot``'s refusal must say.
+PLOT_DAMAGE = {
+    "a list for a world's record": (_world_record(lambda r: []), "holds a JSON list, not an"),
+    "an empty world record": (_world_record(lambda r: {}), "are missing"),
+    "an unknown field": (_world_record(lambda r: {**r, "bogus": 1}), "unknown fields ['bogus']"),
+    "another world's record": (_world_record(lambda r: {**r, "size": 40}), "not this file's"),
+    "goals not a list": (_world_record(lambda r: {**r, "goals": "x"}), "goals='x' is not a list"),
+    "one run's goals short": (
+        _world_record(lambda r: {**r, "goals": r["goals"][1:]}),
+        "is not a list of 4 whole numbers",
+    ),
+    "a text value start": (
+        _world_record(lambda r: {**r, "value_start": ["a"] * 4}),
+        "value_start=",
+    ),
+    "a record that is not JSON": (
+        lambda d: (d / "worlds" / "world16.json").write_text("{"),
+        "is not valid JSON",
+    ),
+    "curves without goals_in_window": (
+        _curves(lambda rows: _drop_column(rows, "goals_in_window")),
+        "columns ['goals_in_window'] are missing",
+    ),
+    "a 200 kB field in curves": (
+        _curves(lambda rows: _set_cell(rows, "agent", "a" * 200_000)),
+        "field larger than field limit",
+    ),
+    "a goal count that is not a number": (
+        _curves(lambda rows: _set_cell(rows, "goals_in_window", "many")),
+        "goals_in_window='many' is not a whole number",
+    ),
+    "a short row in curves": (_curves(lambda rows: rows[1].pop()), "cells, not"),
+    "no curves": (lambda d: (d / "curves.csv").unlink(), "does not exist"),
+    "curves that are not text": (
+        lambda d: (d / "curves.csv").write_bytes(b"\xff\xfe\x00"),
+        "is not UTF-8",
+    ),
+}
+
+
+@pytest.mark.parametrize("kind", list(PLOT_DAMAGE))
+def test_plot_refuses_a_damaged_record_in_one_line(small_run, tmp_path, capsys, kind):
+    import shutil
+
+    run_dir = tmp_path / "run"
+    shutil.copytree(small_run[0], run_dir, ignore=shutil.ignore_patterns("tb", "checkpoints"))
+    damage, message = PLOT_DAMAGE[kind]
+    damage(run_dir)
+    err = one_line_error(capsys, ["plot", str(run_dir)])
+    assert message in err, err
+    assert "curves" in err or "world16.json" in err, err  # the file is named
+
+
 @pytest.mark.parametrize(
     "config",
     [

@@ -111,6 +111,53 @@ def test_bad_specs_are_refused_naming_what_is_wrong(tmp_path, text, message):
         load_spec(path)
 
 
+#: A preset beside learner settings: each cell's learner is the preset's with the [set] or
+#: level settings on top, so one that departs from the preset is refused as himit run refuses it.
+PRESET_SPECS = {
+    "[set] against a preset level": (
+        '[set]\nlearner.mentor_fade = 5.0\n[grid]\npreset = ["none", "recommended"]',
+        "cell preset=recommended: ExperimentConfig: preset='recommended' but "
+        "learner.mentor_fade=5.0 (the preset: 20.0)",
+    ),
+    "a level against the [set] preset": (
+        '[set]\npreset = "recommended"\n[grid]\nlearner.mentor_fade = [20.0, 5.0]',
+        "cell mentor_fade=5.0: ExperimentConfig: preset='recommended' but learner.mentor_fade=5.0",
+    ),
+    "[set] against its own preset": (
+        '[set]\npreset = "recommended"\nlearner.mentor_fade = 5.0',
+        "[set]: ExperimentConfig: preset='recommended' but learner.mentor_fade=5.0",
+    ),
+}
+
+
+@pytest.mark.parametrize("kind", list(PRESET_SPECS))
+def test_learner_settings_that_depart_from_a_cells_preset_are_refused(tmp_path, capsys, kind):
+    text, message = PRESET_SPECS[kind]
+    path = tmp_path / "preset.toml"
+    path.write_text(text)
+    with pytest.raises(ValueError) as err:
+        load_spec(path)
+    assert message in str(err.value), err.value
+    with pytest.raises(SystemExit) as exit_:  # himit sweep --dry-run: one line, exit 2
+        main(["sweep", str(path), "--dry-run"])
+    assert exit_.value.code == 2
+    out = capsys.readouterr().err
+    assert out.count("\n") == 1 and out.startswith("himit: error: sweep spec") and message in out
+
+
+def test_a_preset_level_keeps_the_set_settings_it_does_not_name(tmp_path):
+    path = tmp_path / "preset.toml"
+    path.write_text(
+        "[set]\nlearner.plan_every = 7\nlearner.mentor_fade = 20.0\n"
+        '[grid]\npreset = ["none", "recommended"]'
+    )
+    none, recommended = load_spec(path).cells
+    assert none.config.preset is None and recommended.config.preset == "recommended"
+    assert none.config.learner.plan_every == recommended.config.learner.plan_every == 7
+    assert none.config.learner.mentor_fade == recommended.config.learner.mentor_fade == 20.0
+    assert recommended.config.learner.eps_schedule != none.config.learner.eps_schedule
+
+
 def test_json_specs_and_missing_files(tmp_path):
     path = tmp_path / "s.json"
     path.write_text(
