@@ -46,6 +46,7 @@ from himit_torch.learner.agents import AGENTS
 from himit_torch.learner.backups import segment_reward
 from himit_torch.learner.cloned_policy import ClonedPolicy
 from himit_torch.learner.engines import make_engine
+from himit_torch.learner.engines.kernel.arrays import WINDOW_COUNTS
 from himit_torch.learner.inspect import LearnerViews, mentor_win_share_of
 from himit_torch.learner.models import DirichletMentorModel, DirichletSMDPModel
 from himit_torch.learner.posterior_sampling import PosteriorSample
@@ -647,27 +648,17 @@ class Learner(LearnerViews):
 
     def _record_closed(self, ends: list[int], counts: np.ndarray, epsilon: np.ndarray) -> None:
         """Record the windows the compiled engine closed (:meth:`NumbaEngine.advance
-        <himit_torch.learner.engines.NumbaEngine.advance>`'s counts, in ``WINDOW_COUNTS``'
-        order)."""
+        <himit_torch.learner.engines.NumbaEngine.advance>`'s counts, named by ``WINDOW_COUNTS``)."""
         if not ends:
             return
-        goals, episodes, ep_steps, ep_count, backups, decisions, wins, seen = (
-            torch.from_numpy(np.ascontiguousarray(counts[..., k])) for k in range(counts.shape[2])
-        )
+        named = {
+            name: torch.from_numpy(np.ascontiguousarray(counts[..., k]))
+            for k, name in enumerate(WINDOW_COUNTS)
+        }
+        wins, seen = named.pop("mentor_wins"), named.pop("mentor_seen")
+        named["epsilon"] = torch.from_numpy(np.ascontiguousarray(epsilon))
         share = mentor_win_share_of(wins.numpy(), seen.numpy(), self.rows.use_mentor.numpy())
-        self.metrics.record_closed(
-            ends,
-            {
-                "window_goals": goals,
-                "epsilon": torch.from_numpy(np.ascontiguousarray(epsilon)),
-                "episodes": episodes,
-                "window_episode_steps": ep_steps,
-                "window_episodes": ep_count,
-                "backups_done": backups,
-                "decisions": decisions,
-            },
-            torch.from_numpy(share),
-        )
+        self.metrics.record_closed(ends, named, torch.from_numpy(share))
 
     def plan(self, max_rounds: int = 1_000_000) -> int:
         """Sweep every run until its queue is empty (or ``max_rounds`` rounds of ``backups``

@@ -178,20 +178,24 @@ class RunMetrics:
         return torch.stack(self.goals_in_window)
 
     def record(self, t: int, run: RunState, mentor_wins: torch.Tensor) -> None:
-        """Close a window: record it from ``run`` and reset the run's window counters."""
-        self.steps.append(t)
-        self.goals_in_window.append(run.window_goals.cpu().clone())
-        self.epsilon.append(run.epsilon.cpu().clone())
-        self.episodes.append(run.episodes.cpu().clone())
-        self.mean_episode_steps.append(
-            mean_episode_steps(run.window_episode_steps, run.window_episodes).cpu()
-        )
-        self.backups.append(run.backups_done.cpu().clone())
-        self.decisions.append(run.decisions.cpu().clone())
-        self.mentor_term_wins.append(mentor_wins.cpu())
+        """Close a window: record it from ``run`` (:meth:`record_closed` of one window) and
+        reset the run's window counters."""
+        counts = {name: getattr(run, name).cpu()[None] for name in self._WINDOW_FIELDS}
+        self.record_closed([t], counts, mentor_wins.cpu()[None])
         run.window_goals.zero_()
         run.window_episode_steps.zero_()
         run.window_episodes.zero_()
+
+    #: The run state's fields a window's record is read from.
+    _WINDOW_FIELDS = (
+        "window_goals",
+        "epsilon",
+        "episodes",
+        "window_episode_steps",
+        "window_episodes",
+        "backups_done",
+        "decisions",
+    )
 
     def record_closed(
         self, ends: list[int], counts: dict[str, torch.Tensor], mentor_wins: torch.Tensor

@@ -152,13 +152,14 @@ class ClonedArrays(NamedTuple):
     action: np.ndarray  # [B, S + 1] the cloned action at each state (−1: none)
 
 
-#: The counts a window's record holds, in the order of ``WindowArrays.counts``' last axis.
+#: The counts a window's record holds, in the order of ``WindowArrays.counts``' last axis: the
+#: run state's counters (named as its fields) and the mentor term's wins and observed states.
 WINDOW_COUNTS = (
-    "goals_in_window",
+    "window_goals",
     "episodes",
     "window_episode_steps",
     "window_episodes",
-    "backups",
+    "backups_done",
     "decisions",
     "mentor_wins",
     "mentor_seen",
