@@ -97,11 +97,12 @@ CASES: dict[str, tuple[Callable[[dict], None], str]] = {
 }
 
 
-def plant(path: Path, change: Callable[[dict], None]) -> None:
-    """Rewrite the checkpoint at ``path`` with ``change`` applied to its learner state and the
-    checksum recomputed: a file that verifies, as anyone can write one."""
+def plant(path: Path, change: Callable[[dict], None], section: str = "learner") -> None:
+    """Rewrite the checkpoint at ``path`` with ``change`` applied to its ``section`` (the learner
+    state by default) and the checksum recomputed: a file that verifies, as anyone can write
+    one."""
     found = ckpt.read_checkpoint(path)
-    change(found.payload["learner"])
+    change(found.payload[section])
     header = found.header
     path.write_bytes(
         ckpt.encode(
@@ -171,21 +172,13 @@ def test_with_both_generations_planted_the_resume_stops_in_one_line_with_status_
 def plant_greedy(path: Path, runs: int) -> None:
     """Rewrite the checkpoint at ``path`` with the greedy tracker's tensors cut to their first
     ``runs`` runs (the checksum recomputed: a file that verifies)."""
-    found = ckpt.read_checkpoint(path)
-    greedy = found.payload["greedy"]
-    for name, values in greedy.items():
-        if name != "steps":
-            greedy[name] = [value[:runs].clone() for value in values]
-    header = found.header
-    path.write_bytes(
-        ckpt.encode(
-            found.payload,
-            step=header.step,
-            batch=header.batch,
-            state_layout_version=header.state_layout_version,
-        )
-    )
-    ckpt.read_checkpoint(path)  # it verifies
+
+    def cut(greedy: dict) -> None:
+        for name, values in greedy.items():
+            if name != "steps":
+                greedy[name] = [value[:runs].clone() for value in values]
+
+    plant(path, cut, section="greedy")
 
 
 def test_greedy_evaluations_of_another_batch_are_refused_on_resume(tmp_path, capsys):
