@@ -9,7 +9,8 @@ run as their first axis; shared ones (world, options, row table) have none.
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from collections.abc import Callable
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -26,6 +27,8 @@ __all__ = [
     "WindowArrays",
     "WINDOW_COUNTS",
     "Scratch",
+    "SHARED_FIELDS",
+    "map_per_run",
 ]
 
 
@@ -186,3 +189,30 @@ class Scratch(NamedTuple):
     usable_buf: np.ndarray  # [B, J] usable, then the candidates
     enabled_buf: np.ndarray  # [B, J]
     score_buf: np.ndarray  # [B, A] the "match" rule's score of each first action
+
+
+#: The arrays every run shares (no run axis), by group; every other array of a group has the run
+#: as its first axis.
+SHARED_FIELDS: dict[type, frozenset[str]] = {
+    WorldArrays: frozenset(WorldArrays._fields),
+    RowArrays: frozenset(
+        ("row_begin", "row_state", "row_option", "row_first_action", "primitive_rows")
+    ),
+}
+
+
+def map_per_run(arg: Any, f: Callable[[np.ndarray], np.ndarray]) -> Any:
+    """``arg`` (a kernel argument: an array, a group of them, or anything else) with ``f``
+    applied to each of its per-run arrays: an array is per-run, a group's array is unless
+    :data:`SHARED_FIELDS` names it, and anything else (scalars, the settings) is left alone."""
+    if isinstance(arg, np.ndarray):
+        return f(arg)
+    if not (isinstance(arg, tuple) and hasattr(arg, "_fields")):
+        return arg
+    shared = SHARED_FIELDS.get(type(arg), frozenset())
+    return type(arg)(
+        *(
+            f(x) if isinstance(x, np.ndarray) and name not in shared else x
+            for name, x in zip(arg._fields, arg)
+        )
+    )

@@ -1,0 +1,96 @@
+"""A batch on the compiled engine's threads: each run gets its own rows of the per-run arrays,
+the small ones in copies whose rows start cache lines of their own, and the runs advance a
+window at a time from a shared queue. None of that may change a number."""
+
+import numba
+import numpy as np
+import pytest
+import torch
+
+from himit_torch import Learner, LearnerConfig, learner_options
+from himit_torch.learner.engines import numba_engine
+from himit_torch.learner.engines.kernel.arrays import RowArrays, WorldArrays, map_per_run
+
+AGENTS = ["imitation", "primitives", "options", "imitation_confident", "imitation"]
+
+
+@pytest.mark.parametrize(
+    ("shape", "dtype"),
+    [((5,), np.int64), ((3,), np.bool_), ((4, 3), np.float64), ((3, 2, 9), np.int64),
+     ((2, 17), np.bool_)],
+)  # fmt: skip
+def test_lined_copy_puts_each_runs_row_on_its_own_cache_lines(shape, dtype):
+    x = (np.arange(np.prod(shape)) % 7).astype(dtype).reshape(shape)
+    lined = numba_engine._lined(x)
+    np.testing.assert_array_equal(lined, x)
+    assert lined.dtype == x.dtype and lined.shape == x.shape
+    starts = [lined[b:].ctypes.data for b in range(shape[0])]
+    assert all(a % 64 == 0 for a in starts), starts
+    # rows of different runs share no line: each ends before the next one's line begins
+    assert all(b - a >= max(x[0].nbytes, 1) for a, b in zip(starts, starts[1:]))
+    for b in range(shape[0]):  # one run's rows: contiguous, as a one-run batch's arrays
+        assert lined[b : b + 1].flags.c_contiguous
+    lined[-1] = 1  # a copy: the original is untouched
+    assert not np.shares_memory(lined, x)
+
+
+def test_map_per_run_cuts_the_per_run_arrays_and_leaves_the_shared_ones():
+    world = WorldArrays(*(np.zeros(3) for _ in WorldArrays._fields))
+    rows = RowArrays(*(np.zeros((2, 4)) for _ in RowArrays._fields))
+    assert all(a is b for a, b in zip(map_per_run(world, lambda x: x[1:2]), world))
+    cut = map_per_run(rows, lambda x: x[1:2])
+    shared = {"row_begin", "row_state", "row_option", "row_first_action", "primitive_rows"}
+    for name, before, after in zip(RowArrays._fields, rows, cut):
+        assert (after is before) == (name in shared), name
+        assert after.shape == ((2, 4) if name in shared else (1, 4))
+    assert map_per_run(7, lambda x: x[1:2]) == 7
+    np.testing.assert_array_equal(map_per_run(np.arange(4), lambda x: x[1:2]), [1])
+
+
+def _learner(world, demos, agents, seeds) -> Learner:
+    return Learner(
+        world, learner_options(world), agents, seeds, config=LearnerConfig(window=500),
+        demonstrations=demos, engine="numba",
+    )  # fmt: skip
+
+
+def _state(learner: Learner) -> dict:
+    flat = {}
+
+    def walk(prefix, value):
+        if isinstance(value, dict):
+            for k, v in value.items():
+                walk(f"{prefix}.{k}", v)
+        elif isinstance(value, torch.Tensor):
+            flat[prefix] = value
+
+    walk("", learner.state_dict())
+    return flat
+
+
+@pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="needs two Numba threads")
+def test_a_batch_on_two_threads_equals_one_thread_and_each_run_alone(world12, mentor_demos12):
+    seeds = [3, 0, 1, 2, 3]
+    before = numba.get_num_threads()
+    try:
+        runs = {}
+        for threads in (1, 2):
+            numba.set_num_threads(threads)
+            learner = _learner(world12, mentor_demos12, AGENTS, seeds)
+            for ticks in (1700, 2300):  # (a window's end inside a call, and between calls)
+                learner.run(ticks)
+            runs[threads] = learner
+    finally:
+        numba.set_num_threads(before)
+    one, two = _state(runs[1]), _state(runs[2])
+    assert one.keys() == two.keys() and len(one) > 20
+    for name in one:
+        torch.testing.assert_close(one[name], two[name], rtol=0, atol=0, equal_nan=True)
+    assert int(runs[2].run_state.goals.sum()) > 0  # (the runs got somewhere)
+    # the batch's first run is the same as that run alone (no batch: whole arrays, one call)
+    alone = _learner(world12, mentor_demos12, AGENTS[:1], seeds[:1])
+    alone.run(4000)
+    for field in ("position", "goals", "decisions", "backups_done", "epsilon"):
+        got = getattr(runs[2].run_state, field)[0]
+        torch.testing.assert_close(got, getattr(alone.run_state, field)[0], rtol=0, atol=0)
+    torch.testing.assert_close(runs[2].cache.values[0], alone.cache.values[0], rtol=0, atol=0)
