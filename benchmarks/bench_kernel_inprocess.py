@@ -98,25 +98,25 @@ learner = Learner(
     agents,
     list(range(batch)),
     demonstrations=demos,
-    config=LearnerConfig(plan_every=4, sweep_rounds=1),  # as himit bench
+    # as himit bench, with no window closing in the timed ticks (the base kernel closed none)
+    config=LearnerConfig(plan_every=4, sweep_rounds=1, window=1_000_000),
     engine="numba",
 )
 caught: dict = {}
 run_ticks = numba_engine.run_ticks
 
 
-def catch(b, *kernel_args):
+def catch(*kernel_args):
     caught.setdefault("args", kernel_args)
-    return run_ticks(b, *kernel_args)
+    return run_ticks(*kernel_args)
 
 
 learner.run(args.warmup)
 numba_engine.run_ticks = catch
 learner.run(1)
 numba_engine.run_ticks = run_ticks
-t_end, t_reached, st, world_a, rows, cache, model, mentor, sweep, run, sample, clone, scratch = (
-    caught["args"]
-)
+(t_end, t_reached, st, world_a, rows, cache, model, mentor, sweep, run, sample, clone, windows,
+ scratch) = caught["args"]  # fmt: skip
 
 # the pre-redesign kernel's settings arrays, from the settings tuple
 K = base_kernel
@@ -165,7 +165,7 @@ base_args = (
     *run[1:],
     r.use_sampling, *sample, *scratch,
 )  # fmt: skip
-new_args = (st, world_a, rows, cache, model, mentor, sweep, run, sample, clone, scratch)
+new_args = (st, world_a, rows, cache, model, mentor, sweep, run, sample, clone, windows, scratch)
 
 arrays = [a for group in new_args if isinstance(group, tuple) for a in group]
 arrays = [a for a in arrays if isinstance(a, np.ndarray)] + [t_reached]
@@ -179,7 +179,7 @@ def timed(kernel: str) -> tuple[float, int, list]:
         a[...] = s
     began = time.perf_counter()
     if kernel == "new":
-        run_ticks(0, start + args.ticks, t_reached, *new_args)
+        run_ticks(start + args.ticks, t_reached, *new_args)
     else:
         base_kernel._run(0, start + args.ticks, t_reached, *base_args)
     seconds = time.perf_counter() - began

@@ -130,9 +130,9 @@ kernel_seconds = [0.0]
 run_ticks = numba_engine.run_ticks
 
 
-def timed_run_ticks(b, *rest):
+def timed_run_ticks(*args):
     began = time.perf_counter()
-    run_ticks(b, *rest)
+    run_ticks(*args)
     kernel_seconds[0] += time.perf_counter() - began
 
 

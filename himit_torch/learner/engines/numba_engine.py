@@ -176,7 +176,7 @@ def _run_all(stops: list[int], args: tuple, seconds: np.ndarray) -> None:
     one-run batch's arrays are, so one compiled loop serves both."""
     t_reached = args[0]
     if t_reached.shape[0] == 1:
-        _call(run_ticks, 0, stops[-1], *args)
+        _call(run_ticks, stops[-1], *args)
         return
     threads = min(t_reached.shape[0], _numba_threads())
     copies: list[tuple[np.ndarray, np.ndarray]] = []
@@ -205,7 +205,7 @@ def _run_each(threads: int, stops: list[int], args: tuple, seconds: np.ndarray) 
         t = t_reached[b]
         stop = next(s for s in stops if s > t)
         began = time.perf_counter()
-        _call(run_ticks, 0, stop, *(map_per_run(arg, lambda x: x[b : b + 1]) for arg in args))
+        _call(run_ticks, stop, *(map_per_run(arg, lambda x: x[b : b + 1]) for arg in args))
         seconds[b] += time.perf_counter() - began
         return bool(t_reached[b] == stop) and stop < stops[-1]
 

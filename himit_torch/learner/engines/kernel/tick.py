@@ -425,7 +425,6 @@ def close_window(st, world, rows, cache, model, mentor, run, windows, b):
 
 @entry  # (the flags: .jit)
 def run_ticks(
-    b,
     t_end,
     t_reached,
     st,
@@ -441,15 +440,19 @@ def run_ticks(
     windows,
     scratch,
 ):
-    """Advance run ``b`` from tick ``t_reached[b]`` to ``t_end``, in place: act, learn, plan,
+    """Advance the run from tick ``t_reached[0]`` to ``t_end``, in place: act, learn, plan,
     choose — :meth:`TorchEngine.tick <himit_torch.learner.engines.TorchEngine.tick>` for one run
     — closing each window (:func:`close_window`) at its last tick, as ``Learner.run`` does
     between the torch engine's calls.
 
-    The run stops early, at the start of a tick, when its edge list is full (``num_edges[b]``
-    equals the capacity): the caller grows the lists and calls again. ``t_reached[b]`` says
-    where it stopped. Runs touch only their own row of every per-run array, so any number of
-    them can run at once on separate threads."""
+    Every per-run array holds this one run's row (``B = 1``): a one-run batch's arrays, or one
+    run's rows of a batch's (``x[b : b + 1]``, :class:`~himit_torch.learner.engines.NumbaEngine`),
+    so any number of runs can advance at once on separate threads. The run stops early, at the
+    start of a tick, when its edge list is full (``num_edges[0]`` equals the capacity): the
+    caller grows the lists and calls again. ``t_reached[0]`` says where it stopped."""
+    # One run per call, row 0 of every per-run array (a one-run batch's, or a run's rows of a
+    # batch: NumbaEngine): a constant, so every per-run index is an offset LLVM computes once.
+    b = 0
     capacity = model.edge_row.shape[1]
     heapify(sweep, b, world.terminal.shape[0])
     key = np.uint64(run.keys[b])
