@@ -92,8 +92,10 @@ class ClonedPolicy:
         )
         self.action[runs, :S] = cloned.view(R, stride)[:, :S]
 
-    def state_dict(self) -> dict:
-        return {"action": self.action.clone()}
+    def state_dict(self, copy: bool = True) -> dict:
+        """The cloned actions; ``copy=False``: the live tensor, not a copy (see
+        :meth:`~himit_torch.Learner.state_dict`)."""
+        return {"action": self.action.clone() if copy else self.action}
 
     def check_state(self, state: dict, where: str = "cloning") -> None:
         """Check a :meth:`state_dict` read back: ``action`` int64 ``[B, S + 1]``, ``−1`` or an

@@ -256,17 +256,16 @@ class EdgeStore:
         """Edge slots in use by the fullest run (what a checkpoint keeps of the lists)."""
         return max(1, int(self.num_edges.max()))
 
-    def state_dict(self) -> dict:
-        """The edge lists (only the slots in use), counts and per-row sums."""
+    def state_dict(self, copy: bool = True) -> dict:
+        """The edge lists (only the slots in use), counts and per-row sums; ``copy=False``: the
+        live tensors and views of them, not copies (see :meth:`~himit_torch.Learner.state_dict`)."""
         used = self.used
         out = {
-            name: getattr(self, name)[:, :used].clone()
+            name: getattr(self, name)[:, :used]
             for name in ("edge_row", "edge_successor") + self._EDGE_FLOATS
         }
-        out.update(
-            {name: getattr(self, name).clone() for name in ("num_edges",) + self._ROW_FLOATS}
-        )
-        return out
+        out.update({name: getattr(self, name) for name in ("num_edges",) + self._ROW_FLOATS})
+        return {k: v.clone() if copy else v for k, v in out.items()}
 
     #: Whether an edge may start at the padding row ``num_rows`` (an option executed at a state
     #: without rows is counted there, as both engines do), or only at a real row.
@@ -538,8 +537,9 @@ class DirichletSMDPModel(EdgeStore):
             batch, num_states + 1, dtype=torch.float64, device=self.device
         )
 
-    def state_dict(self) -> dict:
-        return {**super().state_dict(), "state_tries": self.state_tries.clone()}
+    def state_dict(self, copy: bool = True) -> dict:
+        tries = self.state_tries.clone() if copy else self.state_tries
+        return {**super().state_dict(copy), "state_tries": tries}
 
     def _state_keys(self) -> tuple[str, ...]:
         return (*super()._state_keys(), "state_tries")

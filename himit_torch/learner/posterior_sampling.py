@@ -340,14 +340,18 @@ class PosteriorSample:
         self.option_w[runs, edges] = self.option_w[runs, edges] + (1.0 - s)
 
     # ------------------------------------------------------------------------- checkpoints
-    def state_dict(self) -> dict:
-        return {
-            "option_w": self.option_w[:, : self.model.used].clone(),
-            "option_unseen": self.option_unseen.clone(),
-            "mentor_w": self.mentor_w[:, : self.mentor.used].clone(),
-            "mentor_unseen": self.mentor_unseen.clone(),
-            "resamples": self.resamples.clone(),
+    def state_dict(self, copy: bool = True) -> dict:
+        """The draws (per edge only in the slots the models use) and the resample counts;
+        ``copy=False``: the live tensors and views of them, not copies (see
+        :meth:`~himit_torch.Learner.state_dict`)."""
+        out = {
+            "option_w": self.option_w[:, : self.model.used],
+            "option_unseen": self.option_unseen,
+            "mentor_w": self.mentor_w[:, : self.mentor.used],
+            "mentor_unseen": self.mentor_unseen,
+            "resamples": self.resamples,
         }
+        return {k: v.clone() if copy else v for k, v in out.items()}
 
     _STATE = ("option_w", "option_unseen", "mentor_w", "mentor_unseen", "resamples")
 

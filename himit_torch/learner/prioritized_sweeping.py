@@ -130,8 +130,11 @@ class Sweeper:
         self.pending = torch.zeros(batch, dtype=torch.int64, device=device)
         self.num_states = num_states
 
-    def state_dict(self) -> dict:
-        return {"priority": self.queue.priority.clone(), "pending": self.pending.clone()}
+    def state_dict(self, copy: bool = True) -> dict:
+        """The queue's priorities and the pending decisions; ``copy=False``: the live tensors,
+        not copies (see :meth:`~himit_torch.Learner.state_dict`)."""
+        out = {"priority": self.queue.priority, "pending": self.pending}
+        return {k: v.clone() if copy else v for k, v in out.items()}
 
     def check_state(self, state: dict, where: str = "sweeper") -> None:
         """Check a :meth:`state_dict` read back: the priorities of this queue's shape, ≥ 0 (``inf``

@@ -96,8 +96,11 @@ class RunState:
         self.t = 0
         self.num_states, self.pad_row = num_states, pad_row
 
-    def state_dict(self) -> dict:
-        return {"t": self.t, **{name: getattr(self, name).clone() for name in self._STATE}}
+    def state_dict(self, copy: bool = True) -> dict:
+        """The run state; ``copy=False``: its live tensors, not copies (see
+        :meth:`~himit_torch.Learner.state_dict`)."""
+        tensors = {name: getattr(self, name) for name in self._STATE}
+        return {"t": self.t, **{k: v.clone() if copy else v for k, v in tensors.items()}}
 
     #: The most ticks a checkpoint may say were run (far beyond any run; the counters of the
     #: random streams and the tick counts stay well inside int64).

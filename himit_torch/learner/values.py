@@ -123,10 +123,14 @@ class ValueCache:
         "mentor_edge_reward",
     )
 
-    def state_dict(self) -> dict:
-        out = {name: getattr(self, name).clone() for name in self._STATE}
-        out["mentor_edge_reward"] = self.mentor_edge_reward[:, : self.mentor.used].clone()
-        return out
+    def state_dict(self, copy: bool = True) -> dict:
+        """The cache, the mentor's edge rewards only in the slots the mentor model uses;
+        ``copy=False``: the live tensors (and a view of the edge rewards), not copies (see
+        :meth:`~himit_torch.Learner.state_dict`)."""
+        out = {name: getattr(self, name) for name in self._STATE}
+        # (the slots in use only: sliced before any copy, so the whole table is never copied)
+        out["mentor_edge_reward"] = self.mentor_edge_reward[:, : self.mentor.used]
+        return {k: v.clone() if copy else v for k, v in out.items()}
 
     def check_state(self, state: dict, mentor_edges: int, where: str = "cache") -> None:
         """Check a :meth:`state_dict` read back (``mentor_edges``: the length of the mentor

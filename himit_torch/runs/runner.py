@@ -166,9 +166,12 @@ class Checkpoints:
         return 0.0
 
     def save(self, learner: Learner, elapsed: float) -> None:
+        """Save the learner's state (its own tensors, not copies: the file is written before
+        the learner runs again), ``elapsed`` and the companions' states as the newest
+        generation."""
         companions = {name: c.state_dict() for name, c in self.companions.items()}
         self.generations.save(
-            {"learner": learner.state_dict(), "elapsed": elapsed, **companions},
+            {"learner": learner.state_dict(copy=False), "elapsed": elapsed, **companions},
             step=learner.t,
             batch=self.batch,
             state_layout_version=self.layout,

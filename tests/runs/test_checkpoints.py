@@ -10,6 +10,7 @@ import shutil
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+import numpy as np
 import pytest
 import torch
 
@@ -127,6 +128,39 @@ def test_a_learners_whole_state_loads_weights_only_and_continues_exactly(world8)
     assert torch.equal(a.metrics.curve(), b.metrics.curve())
 
 
+def _tensors(obj) -> list[torch.Tensor]:
+    if isinstance(obj, torch.Tensor):
+        return [obj]
+    items = obj.values() if isinstance(obj, dict) else obj if isinstance(obj, list) else []
+    return [t for item in items for t in _tensors(item)]
+
+
+def test_a_learners_live_state_is_written_as_its_copies_byte_for_byte(world8):
+    """``state_dict(copy=False)`` (what a checkpoint saves: no copies, views for the edge lists'
+    slots in use) gives the file ``state_dict()`` gives, byte for byte — for every owner of
+    state: imitation, posterior sampling, behavioural cloning."""
+    options = learner_options(world8)
+    demos = record_demonstrations(world8, mentor_policy(world8, mentor_options(world8)), 2, seed=0)
+    agents = ["imitation", "imitation_psrl", "bco", "primitives"]
+    learner = Learner(world8, options, agents, [0, 1, 2, 3], demonstrations=demos)
+    learner.run(700)
+    copied, live = learner.state_dict(), learner.state_dict(copy=False)
+    assert live["model"]["row_count"] is learner.model.row_count  # the learner's own tensors
+    live_storages = {t.untyped_storage().data_ptr() for t in _tensors(live)}
+    assert (
+        not {  # ... and copies of them (the metrics' records are never copied: they are kept)
+            t.untyped_storage().data_ptr()
+            for k, v in copied.items()
+            if k != "metrics"
+            for t in _tensors(v)
+        }
+        & live_storages
+    )
+    assert any(not t.is_contiguous() for t in _tensors(live))  # (views: the slots in use)
+    kwargs = dict(step=learner.t, batch=BATCH, state_layout_version=1)
+    assert encode({"learner": live}, **kwargs) == encode({"learner": copied}, **kwargs)
+
+
 @dataclass
 class _Stats:
     goals: int
@@ -181,6 +215,52 @@ def test_damaged_files_are_refused_before_anything_is_unpickled(tmp_path, malici
         read_checkpoint(path)
     assert str(path) in str(err.value) and reason in err.value.reason
     assert not marker.exists()
+
+
+@pytest.mark.parametrize(
+    "kind", [*DAMAGE, "one byte more", "one header byte flipped", "other format", "missing"]
+)
+def test_the_check_before_promoting_refuses_every_damaged_file(tmp_path, malicious, kind):
+    """``_file_is_intact`` (streamed through the checksum, never unpickled: what lets a newest
+    file become the previous one) refuses every file that reading refuses as damaged, and of
+    another format; and accepts the good file."""
+    marker = tmp_path / "marker"
+    good = encode(small_payload(), step=10, batch=BATCH, state_layout_version=1)
+    path = tmp_path / "c.pt"
+    path.write_bytes(good)
+    assert ckpt._file_is_intact(path)
+    current = f'"format_version":{ckpt.FORMAT_VERSION}'.encode()
+    damaged = {
+        "one byte more": good + b"\0",
+        "one header byte flipped": good.replace(b'"step":10', b'"step":11'),
+        "other format": good.replace(current, b'"format_version":9'),
+        "missing": None,
+    }
+    data = damaged[kind] if kind in damaged else DAMAGE[kind][0](good, marker, malicious)
+    if data is None:
+        path.unlink()
+    else:
+        path.write_bytes(data)
+    assert not ckpt._file_is_intact(path)
+    with pytest.raises((DamagedCheckpoint, IncompatibleCheckpoint)):
+        read_checkpoint(path)
+    assert not marker.exists()
+
+
+def test_the_check_before_promoting_reads_files_larger_than_its_chunk(tmp_path, monkeypatch):
+    """Read a chunk at a time: a file of many chunks passes whole, and fails for one byte
+    flipped in any of them, or one missing at the end."""
+    monkeypatch.setattr(ckpt, "_CHUNK", 4096)
+    good = encode(small_payload(), step=10, batch=BATCH, state_layout_version=1)
+    assert len(good) > 3 * 4096
+    path = tmp_path / "c.pt"
+    path.write_bytes(good)
+    assert ckpt._file_is_intact(path)
+    for at in (len(good) - 1, len(good) - 5000, len(ckpt.MAGIC) + 500, 9000):
+        path.write_bytes(good[:at] + bytes([good[at] ^ 0x10]) + good[at + 1 :])
+        assert not ckpt._file_is_intact(path), at
+    path.write_bytes(good[:-1])
+    assert not ckpt._file_is_intact(path)
 
 
 def test_a_forged_checksum_still_never_runs_code(tmp_path, malicious):
@@ -324,6 +404,68 @@ def test_a_format_1_file_still_reads(tmp_path):
     assert_same_bits(payload, back.payload)
 
 
+def _saved(obj) -> bytes:
+    buffer = io.BytesIO()
+    torch.save(obj, buffer)
+    return buffer.getvalue()
+
+
+def _gathered_by_torch(tensor: torch.Tensor) -> torch.Tensor:
+    """What ``_stored`` made of a mostly-zero tensor before NumPy gathered its values (and
+    found them in a bool array): the nonzero bit patterns' indices from NumPy, the values
+    gathered by torch's indexing."""
+    bits = tensor
+    if tensor.is_floating_point():
+        bits = tensor.view({2: torch.int16, 4: torch.int32, 8: torch.int64}[tensor.element_size()])
+    where = np.flatnonzero(bits.numpy().reshape(-1))
+    indices = torch.from_numpy(np.stack(np.unravel_index(where, tensor.shape)))
+    values = tensor.reshape(-1)[torch.from_numpy(where)]
+    return torch.sparse_coo_tensor(
+        indices, values, tensor.shape, is_coalesced=True, check_invariants=False
+    )
+
+
+@pytest.mark.parametrize(
+    "name", ["values", "counts", "flags", "float32", "nested", "all zeros", "all zeros 2-D"]
+)
+def test_sparse_storage_gathered_by_numpy_is_what_torch_gathered_byte_for_byte(name):
+    """``_stored`` gathers the values with NumPy (faster) and writes what torch's indexing
+    gave: the same values and bit patterns, the same torch.save bytes — an empty tensor's
+    strides included."""
+    tensors = {
+        **mostly_zeros(),
+        "all zeros": torch.zeros(5000, dtype=torch.float64),
+        "all zeros 2-D": torch.zeros(3, 5000, dtype=torch.float64),
+    }
+    tensor = tensors[name] if name != "nested" else tensors["nested"][0][0]
+    stored = ckpt._stored(tensor)
+    assert stored.layout == torch.sparse_coo
+    assert _saved(stored) == _saved(_gathered_by_torch(tensor))
+
+
+def test_a_view_is_written_as_its_copy():
+    """A view of a larger tensor (what ``state_dict(copy=False)`` gives for the edge lists'
+    slots in use) is written as its ``clone()`` is — not with the whole table behind it."""
+    table = torch.zeros(4, 9000, dtype=torch.float64)
+    table[:, :6000] = torch.arange(24_000, dtype=torch.float64).view(4, 6000)  # dense part
+    table[:, 7000] = 1.0  # the rest mostly zeros
+    one_run = torch.arange(9000, dtype=torch.int64).view(1, 9000)
+    views = {
+        "slots in use, stored dense": table[:, :6000],
+        "mostly zeros, stored sparse": table[:, 6000:],
+        "small": table[:, :10],
+        "a row (contiguous, offset)": table[2],
+        "one run's slots (contiguous, a larger storage)": one_run[:, :5000],
+    }
+    kwargs = dict(step=1, batch=BATCH, state_layout_version=1)
+    for name, view in views.items():
+        as_copy = encode({"x": view.clone()}, **kwargs)
+        assert encode({"x": view}, **kwargs) == as_copy, name
+        assert len(as_copy) < view.untyped_storage().nbytes(), name  # (not the whole table)
+    transposed = torch.arange(5000.0).view(50, 100).T  # its whole storage, strides kept
+    assert ckpt._stored(transposed) is transposed
+
+
 # ------------------------------------------------------------------------------ generations
 def save(generations: CheckpointGenerations, step: int):
     return generations.save(
@@ -360,6 +502,18 @@ def test_a_damaged_newest_falls_back_and_is_never_promoted(tmp_path):
     assert gens.load().step == 20
 
 
+def test_a_newest_altered_in_place_is_never_promoted(tmp_path):
+    """One byte flipped, the size unchanged: only its checksum tells, and it is checked."""
+    gens = CheckpointGenerations(tmp_path / "w.pt")
+    save(gens, 10)
+    save(gens, 20)
+    data = gens.newest.read_bytes()
+    gens.newest.write_bytes(data[:-100] + bytes([data[-100] ^ 1]) + data[-99:])
+    save(gens, 30)
+    assert [read_header(p).step for p in gens.paths] == [30, 10]
+    assert gens.load().step == 30
+
+
 def test_no_good_generation_names_each_file(tmp_path):
     gens = CheckpointGenerations(tmp_path / "w.pt")
     save(gens, 10)
@@ -376,8 +530,9 @@ def test_no_good_generation_names_each_file(tmp_path):
 def half_then_disk_full(calls: list):
     """A ``_write_file`` that writes half the bytes, then fails as a full disk does."""
 
-    def write(path: Path, data: bytes) -> None:
+    def write(path: Path, parts: list[bytes]) -> None:
         calls.append(path)
+        data = b"".join(parts)
         with path.open("wb") as f:
             f.write(data[: len(data) // 2])
         raise OSError(errno.ENOSPC, "No space left on device")
@@ -563,12 +718,12 @@ def test_a_failed_save_stops_the_run_in_one_line_and_keeps_the_last_good_checkpo
     failing = half_then_disk_full(writes)
     real_write = ckpt._write_file
 
-    def third_save_fails(path: Path, data: bytes) -> None:
+    def third_save_fails(path: Path, parts: list[bytes]) -> None:
         if len(writes) < 2:
             writes.append(path)
-            return real_write(path, data)
+            return real_write(path, parts)
         snapshot.update({p: p.read_bytes() for p in (newest, previous)})
-        failing(path, data)
+        failing(path, parts)
 
     monkeypatch.setattr(ckpt, "_write_file", third_save_fails)
     argv = ["run", "exp2", "--config", str(cfg), "--logdir", str(tmp_path), "--quiet"]
