@@ -278,26 +278,48 @@ def _wrap_to_width(text: Text, width_px: float, renderer) -> None:
         text.set_fontsize(max(6.0, size * 0.85))
 
 
+def _place_boxes(fig: Figure, renderer) -> None:
+    """Put the axes of ``fig`` where a draw would, without drawing: the layout engine's pass
+    (as :meth:`Figure.draw` runs it) and each axes' aspect (as :meth:`Axes.draw` applies it).
+
+    That is all of a draw that a title's horizontal extent depends on (an axes title is centred
+    on its axes' box, the suptitle on the figure); the rest of a draw (ticks, legends, the
+    titles' heights) each later draw does again from these boxes, so the saved pixels are a
+    full draw's. Drawing every artist for nothing was a third of :func:`fit_titles`'s time."""
+    engine = fig.get_layout_engine()
+    if fig.axes and engine is not None:
+        try:
+            engine.execute(fig)
+        except ValueError:
+            pass  # (Figure.draw ignores it too: a figure too small for its decorations)
+    for ax in fig.axes:
+        locator = ax.get_axes_locator()
+        ax.apply_aspect(locator(ax, renderer) if locator else None)
+
+
 def fit_titles(fig: Figure, margin: float = 0.01) -> None:
     """Make every title of ``fig`` (axes titles, the suptitle, and texts registered with
     ``fig._himit_titles``) fit inside the figure: lines are re-broken at spaces to the width
     available around the title's anchor, then the figure is laid out again (a constrained
-    layout makes room above the axes for the extra lines). Call before saving."""
+    layout makes room above the axes for the extra lines). Call before saving: the boxes are
+    placed, the rest (ticks, the titles' heights) is left to the figure's next draw."""
     renderer = (
         fig.canvas.get_renderer()
         if hasattr(fig.canvas, "get_renderer")
         else FigureCanvasAgg(fig).get_renderer()
     )
-    # A draw places the axes (a layout engine) and their titles (at draw time); a figure of
-    # fixed boxes whose only titles are figure texts (the maps) needs neither draw: its texts
-    # stay where they were put, and its caller's draw shows them (a full draw each, 2 of the 3
-    # per map image).
+    # The axes are placed (a layout engine, an aspect) before their titles are measured; a
+    # figure of fixed boxes whose only titles are figure texts (the maps) needs no placing: its
+    # texts stay where they were put, and its caller's draw shows them. The second placing
+    # stays even where no title was re-broken: a constrained layout does not settle in one
+    # pass, so the number of passes shows in the saved pixels (one pass fewer changes a dozen
+    # pixels of exp1's curves).
     laid_out = fig.get_layout_engine() is not None
     texts = [ax.title for ax in fig.axes if ax.title.get_text()]
     if laid_out or texts:
         with warnings.catch_warnings():  # the unwrapped titles may not leave the axes room yet
             warnings.filterwarnings("ignore", "constrained_layout not applied", UserWarning)
-            fig.draw_without_rendering()
+            _place_boxes(fig, renderer)
     texts += [t for t in (getattr(fig, "_suptitle", None),) if t is not None and t.get_text()]
     texts += [t for t in getattr(fig, "_himit_titles", []) if t.get_text()]
     width = fig.bbox.width
@@ -310,7 +332,7 @@ def fit_titles(fig: Figure, margin: float = 0.01) -> None:
         if box.width > room or box.x0 < 0 or box.x1 > width:
             _wrap_to_width(text, max(room, 20.0), renderer)
     if laid_out:
-        fig.draw_without_rendering()
+        _place_boxes(fig, renderer)
 
 
 def save_world_figure(

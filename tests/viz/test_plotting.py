@@ -7,7 +7,13 @@ import torch
 from matplotlib.figure import Figure
 
 from himit_torch.mentor.demonstrations import Demonstrations
-from himit_torch.viz.plotting import LEARNER_COLOR, MENTOR_COLOR, plot_world, save_world_figure
+from himit_torch.viz.plotting import (
+    LEARNER_COLOR,
+    MENTOR_COLOR,
+    plot_goal_curves,
+    plot_world,
+    save_world_figure,
+)
 from himit_torch.worlds.multirooms import MultiRooms
 
 N = 8
@@ -217,6 +223,71 @@ def test_long_titles_are_wrapped_inside_the_figure(world, tmp_path):
     fit_titles(fig)
     fig.canvas.draw()
     assert _inside(fig, ax.title) and _inside(fig, fig._suptitle)
+
+
+def test_fit_titles_places_boxes_as_a_full_draw_would(world, monkeypatch):
+    """fit_titles places the axes without drawing the figure (a layout pass and the axes'
+    aspects): the titles it wraps, their font sizes and the saved PNG's bytes are those of the
+    full draws it placed them with before — on a world (equal-aspect axes in a constrained
+    layout), one anchored on the left (its title is centred on the square the aspect leaves,
+    not on the axes' slot: measured before the aspect, it looks as if it fitted), curves
+    with the legend beside the axes and a suptitle, and a figure without a layout engine; a
+    title that fits is left as it is."""
+    import io
+
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from himit_torch.viz import plotting
+
+    steps = np.arange(1, 21) * 5000
+    goals = {
+        "a": np.random.default_rng(0).integers(0, 40, (3, 20)),
+        "b": np.random.default_rng(1).integers(0, 40, (3, 20)),
+    }
+
+    def curves(layout, title, suptitle=None):
+        fig = Figure(figsize=(6, 4), layout=layout)
+        ax = fig.add_subplot()
+        plot_goal_curves(ax, steps, goals, optimum=45.0, window=5000)
+        ax.set_title(title, fontsize="medium")
+        if suptitle:
+            fig.suptitle(suptitle)
+        return fig
+
+    def world_on_the_left():  # its title centred on the square, not on the axes' slot
+        fig = Figure(figsize=(9, 4), layout="constrained")
+        ax = fig.add_subplot()
+        plot_world(world, ax=ax, title=LONG_TITLE[:110])
+        ax.set_anchor("W")
+        return fig
+
+    makers = {
+        "world on the left": world_on_the_left,
+        "world": lambda: plot_world(
+            world, Demonstrations(EPISODES, world), [0, 1, 2], title=LONG_TITLE
+        ),
+        "curves": lambda: curves("constrained", LONG_TITLE, suptitle=LONG_TITLE[:130]),
+        "no layout engine": lambda: curves(None, LONG_TITLE[:150]),
+        "short": lambda: curves("constrained", "fits"),
+    }
+
+    def fitted_and_saved(make):
+        fig = make()
+        FigureCanvasAgg(fig)
+        plotting.fit_titles(fig)
+        titles = [fig.axes[0].title, *([fig._suptitle] if fig._suptitle else [])]
+        png = io.BytesIO()
+        fig.savefig(png, dpi=110, format="png")
+        return [(t.get_text(), t.get_fontsize()) for t in titles], png.getvalue()
+
+    placed = {name: fitted_and_saved(make) for name, make in makers.items()}
+    monkeypatch.setattr(
+        plotting, "_place_boxes", lambda fig, renderer: fig.draw_without_rendering()
+    )
+    for name, make in makers.items():
+        titles, png = placed[name]
+        assert (titles, png) == fitted_and_saved(make), name
+        assert all(("\n" in text) == (name != "short") for text, _ in titles), (name, titles)
 
 
 def test_tensorboard_hint_runs_as_typed(monkeypatch, tmp_path):
