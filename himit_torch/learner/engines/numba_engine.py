@@ -154,9 +154,9 @@ def _lined(x: np.ndarray) -> np.ndarray:
 def _run_all(stops: list[int], args: tuple, seconds: np.ndarray) -> None:
     """Advance every run of the batch to ``stops[-1]``: ``run_ticks`` on up to
     ``numba.get_num_threads()`` threads (this one included), never more than the batch.
-    ``args`` are ``run_ticks``' after its first two (``t_end = stops[-1]``, then ``t_reached``,
-    ``[B]``, which says where each run is); ``stops`` are the window ends crossed, and
-    ``seconds[b]`` run ``b``'s time in the last call, updated here.
+    ``args``: ``run_ticks``' arguments after ``t_end``, the first of them ``t_reached`` (``[B]``,
+    where each run is); ``stops``: the window ends crossed, then the end; ``seconds[b]``: run
+    ``b``'s time in the last call of this function (the order of the next), updated here.
 
     The runs are independent (each touches only its own row of every per-run array), so which
     thread runs which, and in what pieces, does not change anything. ``run_ticks`` releases the
@@ -311,7 +311,7 @@ class NumbaEngine:
             np.zeros(B, dtype=np.int64),
         )
         self._links: dict[str, tuple] = {}
-        self._seconds = np.zeros(B)  # each run's last call (the order of the next: _run_all)
+        self._seconds = np.zeros(B)  # each run's time in the last advance (_run_all's order)
         # NumPy views of the state's tensors, by tensor (each call hands the kernels ~85 of
         # them; making them anew cost ≈ 0.3 ms a window, a few % of one run's time)
         self._views: dict[int, tuple[torch.Tensor, np.ndarray]] = {}
