@@ -294,7 +294,7 @@ def _place_boxes(fig: Figure, renderer) -> None:
             pass  # (Figure.draw ignores it too: a figure too small for its decorations)
     for ax in fig.axes:
         locator = ax.get_axes_locator()
-        ax.apply_aspect(locator(ax, renderer) if locator else None)
+        ax.apply_aspect(None if locator is None else locator(ax, renderer))
 
 
 def fit_titles(fig: Figure, margin: float = 0.01) -> None:
