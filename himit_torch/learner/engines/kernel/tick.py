@@ -446,7 +446,7 @@ def run_ticks(
     between the torch engine's calls.
 
     Every per-run array holds this one run's row (``B = 1``): a one-run batch's arrays, or one
-    run's rows of a batch's (``x[b : b + 1]``, :class:`~himit_torch.learner.engines.NumbaEngine`),
+    run's rows of a batch's (``x[b : b + 1]``, the compiled engine's ``_run_all``),
     so any number of runs can advance at once on separate threads. The run stops early, at the
     start of a tick, when its edge list is full (``num_edges[0]`` equals the capacity): the
     caller grows the lists and calls again. ``t_reached[0]`` says where it stopped."""
