@@ -29,6 +29,7 @@ __all__ = [
     "all_finite",
     "same_plain",
     "private_copy",
+    "saved",
 ]
 
 
@@ -164,6 +165,13 @@ def same_plain(a: Any, b: Any) -> bool:
     if type(a) in (bool, int, float, str, type(None)):
         return a == b
     return False
+
+
+def saved(tensors: Mapping[str, torch.Tensor], copy: bool) -> dict[str, torch.Tensor]:
+    """What an owner's ``state_dict`` returns of its ``tensors``: copies, or with ``copy=False``
+    the tensors themselves (its live tensors and views of them), for a writer that stores them
+    before the owner changes again (:meth:`~himit_torch.Learner.state_dict`)."""
+    return {name: t.clone() if copy else t for name, t in tensors.items()}
 
 
 def private_copy(value: torch.Tensor, device: torch.device) -> torch.Tensor:

@@ -21,7 +21,7 @@ import torch
 from himit_torch.learner.models import DirichletMentorModel, DirichletSMDPModel
 from himit_torch.learner.rows import RowTable
 from himit_torch.mentor.cloning import clone_policy, inverse_model, relabel
-from himit_torch.state_checks import DamagedState, in_range, private_copy, section, tensor
+from himit_torch.state_checks import DamagedState, in_range, private_copy, saved, section, tensor
 
 __all__ = ["ClonedPolicy"]
 
@@ -95,7 +95,7 @@ class ClonedPolicy:
     def state_dict(self, copy: bool = True) -> dict:
         """The cloned actions; ``copy=False``: the live tensor, not a copy (see
         :meth:`~himit_torch.Learner.state_dict`)."""
-        return {"action": self.action.clone() if copy else self.action}
+        return saved({"action": self.action}, copy)
 
     def check_state(self, state: dict, where: str = "cloning") -> None:
         """Check a :meth:`state_dict` read back: ``action`` int64 ``[B, S + 1]``, ``−1`` or an

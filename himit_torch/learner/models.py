@@ -31,6 +31,7 @@ from himit_torch.state_checks import (
     all_finite,
     in_range,
     private_copy,
+    saved,
     section,
     tensor,
 )
@@ -265,7 +266,7 @@ class EdgeStore:
             for name in ("edge_row", "edge_successor") + self._EDGE_FLOATS
         }
         out.update({name: getattr(self, name) for name in ("num_edges",) + self._ROW_FLOATS})
-        return {k: v.clone() if copy else v for k, v in out.items()}
+        return saved(out, copy)
 
     #: Whether an edge may start at the padding row ``num_rows`` (an option executed at a state
     #: without rows is counted there, as both engines do), or only at a real row.
@@ -538,8 +539,7 @@ class DirichletSMDPModel(EdgeStore):
         )
 
     def state_dict(self, copy: bool = True) -> dict:
-        tries = self.state_tries.clone() if copy else self.state_tries
-        return {**super().state_dict(copy), "state_tries": tries}
+        return {**super().state_dict(copy), **saved({"state_tries": self.state_tries}, copy)}
 
     def _state_keys(self) -> tuple[str, ...]:
         return (*super()._state_keys(), "state_tries")

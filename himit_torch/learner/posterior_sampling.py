@@ -44,7 +44,7 @@ import math
 import torch
 
 from himit_torch.rng import _shr, splitmix64
-from himit_torch.state_checks import all_finite, in_range, private_copy, section, tensor
+from himit_torch.state_checks import all_finite, in_range, private_copy, saved, section, tensor
 
 __all__ = [
     "fixed_log",
@@ -351,7 +351,7 @@ class PosteriorSample:
             "mentor_unseen": self.mentor_unseen,
             "resamples": self.resamples,
         }
-        return {k: v.clone() if copy else v for k, v in out.items()}
+        return saved(out, copy)
 
     _STATE = ("option_w", "option_unseen", "mentor_w", "mentor_unseen", "resamples")
 

@@ -14,7 +14,7 @@ import math
 
 import torch
 
-from himit_torch.state_checks import in_range, private_copy, section, tensor
+from himit_torch.state_checks import in_range, private_copy, saved, section, tensor
 
 __all__ = ["BlockPriorityQueue", "Sweeper"]
 
@@ -133,8 +133,7 @@ class Sweeper:
     def state_dict(self, copy: bool = True) -> dict:
         """The queue's priorities and the pending decisions; ``copy=False``: the live tensors,
         not copies (see :meth:`~himit_torch.Learner.state_dict`)."""
-        out = {"priority": self.queue.priority, "pending": self.pending}
-        return {k: v.clone() if copy else v for k, v in out.items()}
+        return saved({"priority": self.queue.priority, "pending": self.pending}, copy)
 
     def check_state(self, state: dict, where: str = "sweeper") -> None:
         """Check a :meth:`state_dict` read back: the priorities of this queue's shape, ≥ 0 (``inf``

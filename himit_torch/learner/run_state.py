@@ -15,6 +15,7 @@ from himit_torch.state_checks import (
     all_finite,
     in_range,
     private_copy,
+    saved,
     section,
     tensor,
     tensor_of,
@@ -99,8 +100,7 @@ class RunState:
     def state_dict(self, copy: bool = True) -> dict:
         """The run state; ``copy=False``: its live tensors, not copies (see
         :meth:`~himit_torch.Learner.state_dict`)."""
-        tensors = {name: getattr(self, name) for name in self._STATE}
-        return {"t": self.t, **{k: v.clone() if copy else v for k, v in tensors.items()}}
+        return {"t": self.t, **saved({name: getattr(self, name) for name in self._STATE}, copy)}
 
     #: The most ticks a checkpoint may say were run (far beyond any run; the counters of the
     #: random streams and the tick counts stay well inside int64).

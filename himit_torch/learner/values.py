@@ -48,7 +48,7 @@ from himit_torch.learner.backups import (
 )
 from himit_torch.learner.models import DirichletMentorModel, DirichletSMDPModel
 from himit_torch.learner.rows import RowTable
-from himit_torch.state_checks import all_finite, private_copy, section, tensor
+from himit_torch.state_checks import all_finite, private_copy, saved, section, tensor
 
 if TYPE_CHECKING:
     from himit_torch.learner.config import LearnerConfig
@@ -130,7 +130,7 @@ class ValueCache:
         out = {name: getattr(self, name) for name in self._STATE}
         # (the slots in use only: sliced before any copy, so the whole table is never copied)
         out["mentor_edge_reward"] = self.mentor_edge_reward[:, : self.mentor.used]
-        return {k: v.clone() if copy else v for k, v in out.items()}
+        return saved(out, copy)
 
     def check_state(self, state: dict, mentor_edges: int, where: str = "cache") -> None:
         """Check a :meth:`state_dict` read back (``mentor_edges``: the length of the mentor
