@@ -270,12 +270,14 @@ def _assemble(world, dense: Sequence[Options], specs: Sequence[_SparseOption]) -
             d.policy,
         )
         o += n
-    for spec in specs:
-        cells = torch.from_numpy(spec.cells)
-        initiation[o, cells] = True
-        termination[o, cells] = 0.0  # runs until it reaches the target or leaves
-        policy[o, cells] = torch.from_numpy(spec.actions).to(policy.dtype)
-        o += 1
+    if specs:  # every spec's cells at once, as flat indices into the tables
+        sizes = [spec.cells.size for spec in specs]
+        rows = np.repeat(np.arange(o, o + len(specs)), sizes)
+        flat = torch.from_numpy(rows * S + np.concatenate([spec.cells for spec in specs]))
+        initiation.view(-1)[flat] = True
+        termination.view(-1)[flat] = 0.0  # runs until it reaches the target or leaves
+        actions = np.concatenate([spec.actions for spec in specs])
+        policy.view(-1)[flat] = torch.from_numpy(actions).to(policy.dtype)
     return Options(
         initiation,
         termination,

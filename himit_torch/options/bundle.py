@@ -97,7 +97,10 @@ class Options:
                 f"Options.termination must be a [O, S] = [{O}, {S}] float tensor, got "
                 f"{tuple(beta.shape)} {beta.dtype}"
             )
-        if not torch.isfinite(beta).all() or (beta < 0).any() or (beta > 1).any():
+        # One pass and no [O, S] temporaries: NaN fails both comparisons, ±inf one of them
+        # (isfinite, < 0 and > 1 apart took 0.5 s on 120×120's 38 M entries, aminmax 0.01 s).
+        low, high = torch.aminmax(beta) if beta.numel() else (0.0, 0.0)
+        if not (0 <= float(low) and float(high) <= 1):
             raise ValueError("Options.termination (β) must hold probabilities in [0, 1]")
         if pol.dim() == 2:
             if pol.shape != (O, S) or pol.dtype not in ACTION_DTYPES:

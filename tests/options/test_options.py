@@ -164,6 +164,8 @@ def make_tensors(O: int = 2, S: int = 5, A: int = 4):
         (lambda t: t[1].__setitem__((0, 0), 1.5), r"probabilities in \[0, 1\]"),
         (lambda t: t[1].__setitem__((0, 0), -0.1), r"probabilities in \[0, 1\]"),
         (lambda t: t[1].__setitem__((0, 0), float("nan")), r"probabilities in \[0, 1\]"),
+        (lambda t: t[1].__setitem__((1, 4), float("inf")), r"probabilities in \[0, 1\]"),
+        (lambda t: t[1].__setitem__((1, 2), -float("inf")), r"probabilities in \[0, 1\]"),
         (lambda t: t.__setitem__(2, t[2].to(torch.uint8)), "integer actions"),
         (lambda t: t.__setitem__(2, t[2].bool()), "integer actions"),
         (lambda t: t.__setitem__(2, torch.zeros(2, 4, dtype=torch.int64)), "integer actions"),
