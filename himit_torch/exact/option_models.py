@@ -102,29 +102,6 @@ _DENSE_LIMIT = 1024
 _CHAIN_BATCH = 128
 
 
-def _kernel_entries(
-    P_csr: tuple[np.ndarray, np.ndarray, np.ndarray], policy: np.ndarray, states: np.ndarray, S: int
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """One-step kernel rows ``K[states, :]`` under a policy (actions [S] or probabilities [S, A])
-    as triplets ``(row, next_state, probability)``, ``row`` indexing ``states``; duplicates (one
-    per action of a stochastic policy) are meant to be summed.
-
-    Plain NumPy on the CSR arrays: scipy's per-call overhead dominated when this ran per option.
-    """
-    indptr, indices, data = P_csr
-    if policy.ndim == 1:
-        rows = policy[states].astype(np.int64) * S + states
-        owner, weight = np.arange(states.size), None
-    else:
-        owner, act = np.nonzero(policy[states] > 0)
-        rows, weight = act * S + states[owner], policy[states[owner], act]
-    counts = indptr[rows + 1] - indptr[rows]
-    first = np.repeat(indptr[rows] - (np.cumsum(counts) - counts), counts)
-    idx = first + np.arange(first.size)
-    prob = data[idx] if weight is None else data[idx] * np.repeat(weight, counts)
-    return np.repeat(owner, counts), indices[idx], prob
-
-
 def _chains(c_from: np.ndarray, c_to: np.ndarray, n: int) -> list[np.ndarray]:
     """The continuing states ``0 … n−1`` of an option in groups to solve one at a time: all of
     them at once when they fit a dense solve (``n ≤ _DENSE_LIMIT``), else their weakly connected
@@ -155,11 +132,6 @@ def _chains(c_from: np.ndarray, c_to: np.ndarray, n: int) -> list[np.ndarray]:
         filled += members.size
     groups.append(np.sort(np.concatenate(current)))
     return groups
-
-
-def _stop_at(terminal: np.ndarray, beta: np.ndarray, states: np.ndarray) -> np.ndarray:
-    """An option's termination probabilities ``β`` at ``states``, forced to 1 at terminal states."""
-    return np.where(terminal[states], 1.0, beta[states])
 
 
 def _dense(
@@ -258,7 +230,11 @@ def _option_models(
     world, options: Options, variants: list[tuple[float | None, torch.Tensor | None]]
 ) -> list[OptionModels]:
     """:func:`option_models` for each ``(gamma, step_reward)`` of ``variants``, sharing the
-    per-option work that does not depend on them (continuing sets, kernel entries)."""
+    per-option work that does not depend on them (each option's chain,
+    :func:`~himit_torch.exact.option_chains.option_chain`)."""
+    # (imported here: Numba's import, ≈ 0.5 s, stays out of ``import himit_torch``)
+    from himit_torch.exact.option_chains import option_chain
+
     P, R_world = world_model(world)
     A, S, _ = P.shape
     if options.num_states != S:
@@ -276,14 +252,18 @@ def _option_models(
     P_csr = (P_stack.indptr.astype(np.int64), P_stack.indices.astype(np.int64), P_stack.data)
     terminal = world.terminal_mask.numpy()
     init_all = options.initiation.numpy()
-    beta_all = options.termination.double().numpy()
+    beta_all = options.termination.numpy()  # (each option's row as float64 when it is used)
     policy_all = options.policy.numpy()
     if options.stochastic:  # float32 rows (checked to 1e-5) would let Σ_s' P^o exceed E[γ^k]
         policy_all = options.policy.double().numpy()
         sums = policy_all.sum(-1, keepdims=True)
         policy_all = np.divide(policy_all, sums, out=np.zeros_like(policy_all), where=sums > 0)
-    local = np.full(S, -1, dtype=np.int64)  # scratch: state -> index in C (reset per option)
-    in_C = np.zeros(S, dtype=bool)  # scratch: the continuing states C (reset per option)
+    # option_chain's policy: [S, k] actions and their weights (a deterministic one: k = 1, 1.0)
+    if options.stochastic:
+        actions = np.tile(np.arange(A, dtype=np.int64), (S, 1))
+    else:
+        always = np.ones((S, 1))
+    scratch = np.full(S, -1, dtype=np.int64)  # option_chain's state -> index in C
 
     row_state: list[np.ndarray] = []
     row_option: list[np.ndarray] = []
@@ -291,48 +271,37 @@ def _option_models(
     out: list[tuple[list[np.ndarray], ...]] = [([], [], [], []) for _ in variants]
     offset = 0
     for o in range(options.num_options):
-        # (per option only what the states it reaches need: O(S) work per option dominated)
-        policy, beta = policy_all[o], beta_all[o]
+        policy = policy_all[o]
         start = np.flatnonzero(init_all[o])
-        # Continuing states reachable from the initiation set: the transient states C.
-        found = []
-        frontier = start
-        while frontier.size:
-            _, cols, prob = _kernel_entries(P_csr, policy, frontier, S)
-            new = np.unique(cols[(prob > 0) & (1.0 - _stop_at(terminal, beta, cols) > 0)])
-            new = new[~in_C[new]]
-            in_C[new] = True
-            found.append(new)
-            frontier = new
-        C = np.sort(np.concatenate(found)) if found else start[:0]
-        in_C[C] = False
+        chain = option_chain(
+            *P_csr,
+            terminal,
+            beta_all[o].astype(np.float64),
+            actions if options.stochastic else policy.astype(np.int64)[:, None],
+            policy if options.stochastic else always,
+            start,
+            scratch,
+        )
+        C = chain.continuing
         nI, nC = start.size, C.size
         both = np.concatenate([start, C])
-        own, cols, prob = _kernel_entries(P_csr, policy, both, S)
-        stop = _stop_at(terminal, beta, cols)
-        go_on, ends = prob * (1.0 - stop), prob * stop
-        hit = (own < nI) & (ends > 0)
         if nC:
-            local[C] = np.arange(nC)
-            on_C, on_I = (own >= nI) & (go_on > 0), (own < nI) & (go_on > 0)
-            out_C = (own >= nI) & (ends > 0)
-            exits, exit_col = np.unique(cols[out_C], return_inverse=True)
-            E_C = _dense(own[out_C] - nI, exit_col, ends[out_C], (nC, exits.size))
+            E_C = _dense(chain.exit_row, chain.exit_col, chain.exit_value, (nC, chain.exits.size))
             dense = nC <= _DENSE_LIMIT
             T_CC = (_dense if dense else _sparse)(
-                own[on_C] - nI, local[cols[on_C]], go_on[on_C], (nC, nC)
+                chain.cc_row, chain.cc_col, chain.cc_value, (nC, nC)
             )
             # chains of C that never meet are solved apart (T_CC is block-diagonal over them)
-            groups = [] if dense else _chains(own[on_C] - nI, local[cols[on_C]], nC)
-            J, j_row = np.unique(own[on_I], return_inverse=True)
+            groups = [] if dense else _chains(chain.cc_row, chain.cc_col, nC)
+            J = chain.j_state
             T_JC = (_dense if dense else _sparse)(
-                j_row, local[cols[on_I]], go_on[on_I], (J.size, nC)
+                chain.jc_row, chain.jc_col, chain.jc_value, (J.size, nC)
             )
         for (rewards_v, rows_v, cols_v, vals_v), gamma, R in zip(out, gammas, rewards):
             # r1 at the starts, then at C
             r1 = (R[both] * policy[both]).sum(1) if policy.ndim == 2 else R[both, policy[both]]
             # Stopping at once: gamma K[s, s'] beta(s').
-            rows_o, cols_o, vals_o = [own[hit]], [cols[hit]], [gamma * ends[hit]]
+            rows_o, cols_o, vals_o = [chain.hit_row], [chain.hit_state], [gamma * chain.hit_value]
             r = r1[:nI].copy()
             if nC:
                 rhs = np.concatenate([gamma * E_C, r1[nI:][:, None]], axis=1)
@@ -354,15 +323,13 @@ def _option_models(
                 via = np.asarray(gamma * (T_JC @ W))
                 jr, jc = np.nonzero(via)
                 rows_o.append(J[jr])
-                cols_o.append(exits[jc])
+                cols_o.append(chain.exits[jc])
                 vals_o.append(via[jr, jc])
                 r[J] += gamma * (T_JC @ rho)
             rows_v.append(np.concatenate(rows_o) + offset)
             cols_v.append(np.concatenate(cols_o))
             vals_v.append(np.concatenate(vals_o))
             rewards_v.append(r)
-        if nC:
-            local[C] = -1
         row_state.append(start)
         row_option.append(np.full(nI, o))
         offset += nI
