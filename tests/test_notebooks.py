@@ -18,8 +18,16 @@ def execute(name: str, workdir: Path) -> nbformat.NotebookNode:
     nb = nbformat.read(NOTEBOOKS / f"{name}.ipynb", as_version=4)
     nb.cells.append(nbformat.v4.new_code_cell("import sys; print(sys.prefix)"))
     # kernel.json says "python": jupyter_client runs it as sys.executable, this interpreter.
+    # iopub_timeout: after a cell's reply, how long its outputs may take to arrive. nbclient's
+    # 4 s default dropped them silently on a loaded machine (the last cell's print came back
+    # empty); waited for longer here, and a timeout fails the test instead.
     client = nbclient.NotebookClient(
-        nb, timeout=120, kernel_name="python3", resources={"metadata": {"path": str(workdir)}}
+        nb,
+        timeout=120,
+        iopub_timeout=60,
+        raise_on_iopub_timeout=True,
+        kernel_name="python3",
+        resources={"metadata": {"path": str(workdir)}},
     )
     client.execute()
     return nb
@@ -67,7 +75,8 @@ def test_notebook_runs_with_a_tiny_budget(name, tiny_budget):
     pngs = [o for o in outputs(nb, "display_data") if "image/png" in o.get("data", {})]
     assert pngs, f"{name}: no figure was drawn"
     streams = outputs(nb, "stream")
-    assert streams[-1]["text"].strip() == sys.prefix, "the kernel ran another interpreter"
+    last = [o["text"] for o in nb.cells[-1].outputs if o.output_type == "stream"]
+    assert "".join(last).strip() == sys.prefix, "the kernel ran another interpreter"
     assert not [s for s in streams if s["name"] == "stderr"], (
         f"{name} wrote to stderr: {[s['text'][:300] for s in streams if s['name'] == 'stderr']}"
     )
