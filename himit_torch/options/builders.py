@@ -4,7 +4,6 @@ target states (subgoals)."""
 
 from __future__ import annotations
 
-import heapq
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -141,50 +140,48 @@ def target_policy(
     style keeps off a room's middle). Among equally cheap moves it takes the one that closes the
     larger of the row/column gaps to the target, so paths run as straight as the grid allows.
     """
-    return _target_policy(world._next.tolist(), world.size, region, target, penalized, penalty)
+    cells, actions = _TargetSearch(world).policy(
+        np.asarray(list(region), dtype=np.int64),
+        int(target),
+        np.asarray(sorted(penalized), dtype=np.int64),
+        penalty,
+    )
+    return dict(zip(cells.tolist(), actions.tolist()))
 
 
-def _target_policy(
-    nxt: list[list[int]],
-    size: int,
-    region: Sequence[int],
-    target: int,
-    penalized: frozenset[int],
-    penalty: float = 10.0,
-) -> dict[int, int]:
-    """:func:`target_policy` on the world's successor table as lists (``world._next.tolist()``,
-    made once for all of a world's options: reading a numpy table one int at a time was most of
-    the cost of building them)."""
-    allowed = set(region) | {target}
-    cost = {c: 1.0 + (penalty if c in penalized else 0.0) for c in allowed}
-    dist = {target: 0.0}
-    queue = [(0.0, target)]
-    while queue:  # Dijkstra backwards from the target; grid moves are symmetric.
-        d, u = heapq.heappop(queue)
-        if d > dist[u]:
-            continue
-        nd = d + cost[u]
-        for v in nxt[u]:
-            if v == u or v not in allowed or v == target:
-                continue
-            if nd < dist.get(v, np.inf):
-                dist[v] = nd
-                heapq.heappush(queue, (nd, v))
-    tr, tc = divmod(target, size)
-    policy = {}
-    for s in region:
-        r, c = divmod(s, size)
-        best = None
-        for a, v in enumerate(nxt[s]):
-            if v == s or v not in dist:
-                continue
-            along = abs(tr - r) if ACTION_DELTAS[a][0] else abs(tc - c)  # the gap it closes
-            key = (cost[v] + dist[v], -along, a)
-            if best is None or key < best[0]:
-                best = (key, a)
-        if best is not None:  # cells cut off from the target inside the region are left out
-            policy[s] = best[1]
-    return policy
+class _TargetSearch:
+    """:func:`~himit_torch.options.target_paths.target_actions` on one world, with the scratch
+    arrays it needs made once for all of a world's options."""
+
+    def __init__(self, world: MultiRooms):
+        # (imported here: Numba's import, ≈ 0.5 s, stays out of ``import himit_torch``)
+        from himit_torch.options.target_paths import target_actions
+
+        self._target_actions = target_actions
+        S = world.num_states
+        self.successors = np.ascontiguousarray(world._next, dtype=np.int64)
+        self.vertical = np.array([dr != 0 for dr, _ in ACTION_DELTAS])
+        self.size = world.size
+        self.allowed = np.zeros(S, dtype=bool)
+        self.cost = np.ones(S)
+        self.distance = np.full(S, np.inf)
+
+    def policy(
+        self, region: np.ndarray, target: int, penalized: np.ndarray, penalty: float = 10.0
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """:func:`target_policy` as ``(cells, actions)`` arrays, in the order of ``region``."""
+        allowed, cost = self.allowed, self.cost
+        allowed[region] = True
+        allowed[target] = True
+        cost[penalized] = 1.0 + penalty
+        actions = self._target_actions(
+            self.successors, self.vertical, self.size, allowed, cost, target, region, self.distance
+        )
+        allowed[region] = False
+        allowed[target] = False
+        cost[penalized] = 1.0
+        found = actions >= 0  # cells cut off from the target inside the region are left out
+        return region[found], actions[found]
 
 
 def _room_perimeter(world: MultiRooms, cells: list[int]) -> set[int]:
@@ -221,7 +218,7 @@ def _room_target_specs(
             "(along the room's walls, the mentor's)"
         )
     goal = world.goal_state
-    nxt = world._next.tolist()
+    search = _TargetSearch(world)
     specs = []
     for room in range(world.num_rooms):
         cells = world.room_cells(room)
@@ -233,20 +230,19 @@ def _room_target_specs(
             if style == "walls"
             else frozenset()
         )
+        in_room = np.array(sorted(set(cells) | set(doors)), dtype=np.int64)
+        kept_off = np.array(sorted(penalized), dtype=np.int64)
         rr, rc = divmod(room, world.rooms)
         for label, target in targets_of_room(world, room, cells, doors):
-            region = sorted((set(cells) | set(doors)) - {target, goal})
-            if not region:
+            region = in_room[(in_room != target) & (in_room != goal)]
+            if not region.size:
                 continue
-            pol = _target_policy(nxt, world.size, region, target, penalized=penalized - {target})
-            if not pol:
+            states, actions = search.policy(region, target, kept_off[kept_off != target])
+            if not states.size:
                 continue
             specs.append(
                 _SparseOption(
-                    f"{kind} room({rr},{rc})->{label}{world.coords(target)}",
-                    kind,
-                    np.fromiter(pol.keys(), np.int64, len(pol)),
-                    np.fromiter(pol.values(), np.int64, len(pol)),
+                    f"{kind} room({rr},{rc})->{label}{world.coords(target)}", kind, states, actions
                 )
             )
     return specs
