@@ -1,12 +1,12 @@
-"""What each world of ``himit run paper`` costs besides its learning: ``run_world`` with one
-window of steps, in one process, for the six worlds (exp1 80×80, exp2 40×40, exp3 120×120,
-96×96, 80×80 and 64×64, 5 seeds, the committed settings).
+"""What each world of ``himit run paper`` costs before its learning starts: the first steps of
+``run_world`` (its private helpers, in its order), in one process, for the six worlds (exp1
+80×80, exp2 40×40, exp3 120×120, 96×96, 80×80 and 64×64, 5 seeds, the committed settings).
 
-That is the mentor's exact policy and its demonstrations, both option sets, the exact option
-models of the greedy references, the optimum's evaluation, the learner, logger, checkpoint,
-greedy evaluation, curves and world figure: everything but the learning's steps (5,000 of them
-per run here, ≈ 0.1–0.5 s a world). The kernels are loaded first, untimed. Prints each world's
-seconds and their sum per repeat, and the median sum.
+That is the mentor's options, exact policy, demonstrations and exact goal rate; the learner's
+options and the learner; the optimum's evaluation; the exact option models of the greedy
+references. (Not the logger, checkpoints or the world's figure: what those cost depends on the
+learning.) The kernels are loaded first, untimed. Prints each world's seconds and their sum per
+repeat, and the median sum.
 
     python benchmarks/bench_setup.py [--repeats 3]
 
@@ -15,11 +15,9 @@ imports ``himit_torch`` from ``PYTHONPATH`` first), alternating the two.
 """
 
 import argparse
-import dataclasses
 import os
 import statistics
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -31,11 +29,27 @@ parser.add_argument("--repeats", type=int, default=3)
 args = parser.parse_args()
 
 import himit_torch  # noqa: E402
+from himit_torch.runs import experiment  # noqa: E402
 from himit_torch.runs.config import EXPERIMENTS  # noqa: E402
-from himit_torch.runs.experiment import run_world  # noqa: E402
 from himit_torch.runs.kernels import prepare_kernels  # noqa: E402
 
 WORLDS = [("exp1", 80), ("exp2", 40), ("exp3", 120), ("exp3", 96), ("exp3", 80), ("exp3", 64)]
+
+
+def set_up(name: str, size: int) -> float:
+    """Seconds of ``run_world``'s steps before the learning, for one world."""
+    config = EXPERIMENTS[name]
+    seeds, agents, run_seeds = experiment.batch_runs(config.agents, config.first_seed, config.seeds)
+    start = time.perf_counter()
+    batch = experiment._WorldBatch(
+        config, size, Path("unused"), config.world(size), seeds, agents, run_seeds
+    )
+    mentoring = experiment._mentoring(batch)
+    _, options = experiment._learner(batch, mentoring)
+    _, _, optimal = experiment.optimal_reference(batch.world, config.window)
+    experiment._greedy_tracker(batch, options, mentoring.mentor_eval, optimal)
+    return time.perf_counter() - start
+
 
 print(f"himit_torch from {Path(himit_torch.__file__).parent}", flush=True)
 prepare_kernels()
@@ -43,12 +57,7 @@ sums = []
 for repeat in range(args.repeats):
     parts, total = [], 0.0
     for name, size in WORLDS:
-        config = EXPERIMENTS[name]
-        short = dataclasses.replace(config, steps=config.window, checkpoint_every=config.window)
-        with tempfile.TemporaryDirectory() as run_dir:
-            start = time.perf_counter()
-            run_world(short, size, Path(run_dir), resume=False, progress=False)
-            seconds = time.perf_counter() - start
+        seconds = set_up(name, size)
         parts.append(f"{name}/{size} {seconds:.2f}")
         total += seconds
     sums.append(total)
