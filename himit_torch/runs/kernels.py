@@ -7,6 +7,8 @@ so processes that start together compile once anyway. This only moves the compil
 
 ``python -m himit_torch.runs.kernels`` does it once for an environment (``make install`` runs it):
 it fills the cache the kernels use by default, so that the first run afterwards only loads them.
+On the way it builds options and a mentor, and so compiles the set-up's own compiled functions
+too (``himit_torch.options.target_paths``, ``himit_torch.exact.option_chains``).
 """
 
 from __future__ import annotations
