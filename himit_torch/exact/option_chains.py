@@ -90,9 +90,10 @@ def _chain(indptr, indices, data, terminal, beta, actions, weights, start, scrat
     n_start = start.size
 
     # The continuing states C: reached from a start by steps it may go on after. ``scratch``
-    # marks them found (≥ 0) while searching, then holds their index in C.
+    # marks them found (≥ 0) while searching, then holds their index in C. The search expands
+    # every state of I then of C once, so it also counts the kernel's entries from I ∪ C.
     found = np.empty(S, np.int64)
-    n_found = expanded = 0
+    n_found = expanded = total = 0
     while expanded < n_start + n_found:  # the starts, then what was found
         s = start[expanded] if expanded < n_start else found[expanded - n_start]
         expanded += 1
@@ -100,6 +101,7 @@ def _chain(indptr, indices, data, terminal, beta, actions, weights, start, scrat
             if not weights[s, j] > 0:
                 continue
             row = actions[s, j] * S + s
+            total += indptr[row + 1] - indptr[row]
             for k in range(indptr[row], indptr[row + 1]):
                 nxt = indices[k]
                 stop = 1.0 if terminal[nxt] else beta[nxt]
@@ -113,13 +115,6 @@ def _chain(indptr, indices, data, terminal, beta, actions, weights, start, scrat
         scratch[continuing[i]] = i
 
     # The kernel's entries from I then C, each into its parts (each part holds at most all).
-    total = 0
-    for i in range(n_start + n_cont):
-        s = start[i] if i < n_start else continuing[i - n_start]
-        for j in range(width):
-            if weights[s, j] > 0:
-                row = actions[s, j] * S + s
-                total += indptr[row + 1] - indptr[row]
     rows = np.empty((4, total), np.int64)  # hit, T_CC, E_C, T_JC
     cols = np.empty((4, total), np.int64)
     values = np.empty((4, total), np.float64)
