@@ -207,3 +207,20 @@ def test_building_the_parser_leaves_scipy_stats_unimported():
     from himit_torch.statistics import t_interval
 
     assert t_interval([1.0, 2.0, 3.0]).low < 2.0 < t_interval([1.0, 2.0, 3.0]).high
+
+
+def test_importing_the_package_leaves_numba_and_networkx_unimported():
+    """Numba (≈ 0.5 s) is imported by what compiles (the engine, the exact option models, the
+    option builders' search) and networkx (≈ 0.2 s) by what builds a mentor graph, each at first
+    use: ``import himit_torch`` and building the CLI's parser load neither."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, himit_torch; from himit_torch.cli import build_parser; build_parser(); "
+        "print(sorted(m for m in ('numba', 'networkx') if m in sys.modules))"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True
+    ).stdout
+    assert out.strip() == "[]"

@@ -35,14 +35,17 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
-import networkx as nx
 import numpy as np
 import scipy.sparse as sp
 import torch
 
 from himit_torch.options.bundle import Options
 from himit_torch.validation import COUNT_MAX, as_float, as_int, as_int_array
+
+if TYPE_CHECKING:  # (imported where a graph is built: networkx costs every process ≈ 0.2 s)
+    import networkx as nx
 
 __all__ = [
     "Subgoals",
@@ -78,6 +81,8 @@ def _episodes(demonstrations) -> list[np.ndarray]:
 
 def mentor_graph(demonstrations) -> nx.Graph:
     """The mentor's state graph: visited states, an undirected edge per observed move ``s ≠ s'``."""
+    import networkx as nx
+
     graph = nx.Graph()
     for ep in _episodes(demonstrations):
         graph.add_nodes_from(ep.tolist())
@@ -172,6 +177,8 @@ def discover_subgoals(
     episodes = _episodes(demonstrations)
     graph, degree, share, first = subgoal_scores(episodes)
     ends = {int(e[0]) for e in episodes} | {int(e[-1]) for e in episodes}
+    import networkx as nx
+
     cut = set(nx.articulation_points(graph))
     candidates = sorted(
         (s for s in cut if share[s] >= min_episode_share - 1e-12 and s not in ends),
