@@ -6,6 +6,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from himit_torch.learner.engines.kernel.jit import ix
+
 
 @njit(inline="always")
 def _before(k1, s1, k2, s2):
@@ -21,29 +23,29 @@ def _before(k1, s1, k2, s2):
 @njit(inline="always")
 def _sift_up(sw, b, i):
     heap, hkey, hpos = sw.heap, sw.hkey, sw.hpos
-    s = heap[b, i]
-    k = hkey[b, i]
+    s = heap[b, ix(i)]
+    k = hkey[b, ix(i)]
     while i > 0:
         parent = (i - 1) >> 1
-        p = heap[b, parent]
-        kp = hkey[b, parent]
+        p = heap[b, ix(parent)]
+        kp = hkey[b, ix(parent)]
         if not _before(k, s, kp, p):
             break
-        heap[b, i] = p
-        hkey[b, i] = kp
-        hpos[b, p] = i
+        heap[b, ix(i)] = p
+        hkey[b, ix(i)] = kp
+        hpos[b, ix(p)] = i
         i = parent
-    heap[b, i] = s
-    hkey[b, i] = k
-    hpos[b, s] = i
+    heap[b, ix(i)] = s
+    hkey[b, ix(i)] = k
+    hpos[b, ix(s)] = i
 
 
 @njit(inline="always")
 def _sift_down(sw, b, i):
     heap, hkey, hpos = sw.heap, sw.hkey, sw.hpos
     n = sw.hsize[b]
-    s = heap[b, i]
-    k = hkey[b, i]
+    s = heap[b, ix(i)]
+    k = hkey[b, ix(i)]
     while True:
         child = 2 * i + 1
         if child >= n:
@@ -52,39 +54,44 @@ def _sift_down(sw, b, i):
             # the child that comes first, by arithmetic on the index rather than a branch
             # (which child wins is a coin flip for the branch predictor)
             child += np.int64(
-                _before(hkey[b, child + 1], heap[b, child + 1], hkey[b, child], heap[b, child])
+                _before(
+                    hkey[b, ix(child + 1)],
+                    heap[b, ix(child + 1)],
+                    hkey[b, ix(child)],
+                    heap[b, ix(child)],
+                )
             )
-        c = heap[b, child]
-        kc = hkey[b, child]
+        c = heap[b, ix(child)]
+        kc = hkey[b, ix(child)]
         if not _before(kc, c, k, s):
             break
-        heap[b, i] = c
-        hkey[b, i] = kc
-        hpos[b, c] = i
+        heap[b, ix(i)] = c
+        hkey[b, ix(i)] = kc
+        hpos[b, ix(c)] = i
         i = child
-    heap[b, i] = s
-    hkey[b, i] = k
-    hpos[b, s] = i
+    heap[b, ix(i)] = s
+    hkey[b, ix(i)] = k
+    hpos[b, ix(s)] = i
 
 
 @njit(inline="always")
 def push(sw, b, s, p):
     """Raise the priority of ``s`` to at least ``p`` (a scatter-max, as the torch queue)."""
-    if p > sw.prio[b, s]:
+    if p > sw.prio[b, ix(s)]:
         raise_to(sw, b, s, p)
 
 
 @njit(inline="always")
 def raise_to(sw, b, s, p):
     """Set the priority of ``s`` to ``p``, which is above its priority now."""
-    sw.prio[b, s] = p
-    i = sw.hpos[b, s]
+    sw.prio[b, ix(s)] = p
+    i = sw.hpos[b, ix(s)]
     n = sw.hsize[b]
     new = i < 0  # (not queued: a new slot at the end; without a branch)
     i = n if new else i
     sw.hsize[b] = n + np.int64(new)
-    sw.heap[b, i] = s
-    sw.hkey[b, i] = p
+    sw.heap[b, ix(i)] = s
+    sw.hkey[b, ix(i)] = p
     _sift_up(sw, b, i)
 
 
@@ -95,13 +102,13 @@ def pop(sw, b):
     s = heap[b, 0]
     sw.hsize[b] -= 1
     n = sw.hsize[b]
-    hpos[b, s] = -1
-    sw.prio[b, s] = 0.0
+    hpos[b, ix(s)] = -1
+    sw.prio[b, ix(s)] = 0.0
     if n > 0:
-        last = heap[b, n]
+        last = heap[b, ix(n)]
         heap[b, 0] = last
-        hkey[b, 0] = hkey[b, n]
-        hpos[b, last] = 0
+        hkey[b, 0] = hkey[b, ix(n)]
+        hpos[b, ix(last)] = 0
         _sift_down(sw, b, 0)
     return s
 
@@ -112,11 +119,11 @@ def heapify(sw, b, num):
     heap, hkey, hpos, prio = sw.heap, sw.hkey, sw.hpos, sw.prio
     n = 0
     for s in range(num):
-        hpos[b, s] = -1
-        if prio[b, s] > 0.0:
-            heap[b, n] = s
-            hkey[b, n] = prio[b, s]
-            hpos[b, s] = n
+        hpos[b, ix(s)] = -1
+        if prio[b, ix(s)] > 0.0:
+            heap[b, ix(n)] = s
+            hkey[b, ix(n)] = prio[b, ix(s)]
+            hpos[b, ix(s)] = n
             n += 1
     sw.hsize[b] = n
     for i in range((n >> 1) - 1, -1, -1):

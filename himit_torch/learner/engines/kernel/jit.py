@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 from numba import njit
 
 from himit_torch.learner.engines.kernel import stamp
@@ -37,3 +38,13 @@ _FLAGS = dict(cache=True, error_model="numpy", _nrt=False, nogil=True)
 entry = njit(**_FLAGS, no_cfunc_wrapper=True)  # type: ignore[call-overload]  # (not in the stubs)
 # a phase compiled on its own, called from the loop only
 phase = njit(**_FLAGS, no_cpython_wrapper=True, no_cfunc_wrapper=True)  # type: ignore[call-overload]
+
+# ``array[b, ix(i)]``: an index made unsigned where the hot path reads and writes. Numba wraps a
+# negative signed index (``i < 0`` → ``i + len``): two instructions more for each access, and each
+# array's length kept live for it. In a loop this large the lengths do not fit the registers, so
+# the compiled loop reloaded them from the stack at every access. An unsigned index has no
+# wraparound, and every index on the hot path is ≥ 0 (a −1 "none" is tested before it indexes).
+# One imitator ran 1.2x as fast with the heap, eq. 2 and the propagation indexed so
+# (benchmarks/bench_vs_limit.py); the state it reaches is bit-identical
+# (benchmarks/state_fingerprint.py).
+ix = np.uint64

@@ -17,7 +17,7 @@ from himit_torch.learner.engines.kernel.backup import (
     state_backup,
 )
 from himit_torch.learner.engines.kernel.heap import heapify, pop, push
-from himit_torch.learner.engines.kernel.jit import entry, phase
+from himit_torch.learner.engines.kernel.jit import entry, ix, phase
 from himit_torch.learner.engines.kernel.sampling import (
     fexp,
     flog,
@@ -49,36 +49,36 @@ def act(st, world, rows, run, key, b, t):
     u0 = uniform(key, t, 0)
     u1 = uniform(key, t, 1)
     row = run.row_of[b]
-    option = rows.row_option[row]
+    option = rows.row_option[ix(row)]
     pos = run.position[b]
     flat = option * S + pos
     if st.stochastic:
         policy_cdf = world.policy_cdf
         action = 0
-        while action < policy_cdf.shape[1] - 1 and policy_cdf[flat, action] < u1:
+        while action < policy_cdf.shape[1] - 1 and policy_cdf[ix(flat), ix(action)] < u1:
             action += 1
         stop_u = uniform(key, t, 2)
     else:
-        action = world.policy[flat]
+        action = world.policy[ix(flat)]
         stop_u = u1
     slot = 0
     for k in range(K):
-        if world.dyn_cdf[pos, action, k] <= u0:
+        if world.dyn_cdf[ix(pos), ix(action), ix(k)] <= u0:
             slot += 1
     if slot > K - 1:
         slot = K - 1
-    nxt = world.dyn_succ[pos, action, slot]
-    run.disc_return[b] += run.discount[b] * world.dyn_rew[pos, action, slot]
+    nxt = world.dyn_succ[ix(pos), ix(action), ix(slot)]
+    run.disc_return[b] += run.discount[b] * world.dyn_rew[ix(pos), ix(action), ix(slot)]
     run.discount[b] *= st.gamma
     run.duration[b] += 1
-    at_goal = world.terminal[nxt]
+    at_goal = world.terminal[ix(nxt)]
     ended = (
         at_goal
-        or world.termination[option * S + nxt] > stop_u
+        or world.termination[ix(option * S + nxt)] > stop_u
         or run.duration[b] >= st.max_option_steps
     )
     run.position[b] = nxt
-    run.visits[b, nxt] += 1
+    run.visits[b, ix(nxt)] += 1
     if at_goal:
         t_after = t + 1
         run.goals[b] += 1
@@ -118,49 +118,49 @@ def count_outcome(st, rows, cache, model, sweep, run, sample, key, b, row, nxt):
     g = run.discount[b]
     edge_succ, edge_count, edge_disc = model.edge_succ, model.edge_count, model.edge_disc
     row_head, row_next = model.row_head, model.row_next
-    e = row_head[b, row]
-    while e >= 0 and edge_succ[b, e] != nxt:
-        e = row_next[b, e]
+    e = row_head[b, ix(row)]
+    while e >= 0 and edge_succ[b, ix(e)] != nxt:
+        e = row_next[b, ix(e)]
     if e < 0:  # a new edge, linked at the heads of its row's and its successor's lists
         e = model.num_edges[b]
         model.num_edges[b] += 1
-        model.edge_row[b, e] = row
-        edge_succ[b, e] = nxt
-        edge_count[b, e] = 0.0
-        edge_disc[b, e] = 0.0
-        row_next[b, e] = row_head[b, row]
-        row_head[b, row] = e
-        model.succ_next[b, e] = model.succ_head[b, nxt]
-        model.succ_head[b, nxt] = e
-    c_old = edge_count[b, e]
-    g_old = edge_disc[b, e]
-    n_old = model.row_count[b, row]
-    edge_count[b, e] = c_old + 1
-    edge_disc[b, e] = g_old + g
-    model.row_count[b, row] += 1
-    model.row_reward[b, row] += ret
-    model.state_tries[b, start] += 1
+        model.edge_row[b, ix(e)] = row
+        edge_succ[b, ix(e)] = nxt
+        edge_count[b, ix(e)] = 0.0
+        edge_disc[b, ix(e)] = 0.0
+        row_next[b, ix(e)] = row_head[b, ix(row)]
+        row_head[b, ix(row)] = e
+        model.succ_next[b, ix(e)] = model.succ_head[b, ix(nxt)]
+        model.succ_head[b, ix(nxt)] = e
+    c_old = edge_count[b, ix(e)]
+    g_old = edge_disc[b, ix(e)]
+    n_old = model.row_count[b, ix(row)]
+    edge_count[b, ix(e)] = c_old + 1
+    edge_disc[b, ix(e)] = g_old + g
+    model.row_count[b, ix(row)] += 1
+    model.row_reward[b, ix(row)] += ret
+    model.state_tries[b, ix(start)] += 1
     if rows.use_sampling[b]:
         # the sample moves to the updated posterior; the row is rebuilt from it
         w_opt = sample.w_opt
         u = uniform(sample_key(key, 0, 4), run.decisions[b], 0)
         total = n_old + st.concentration
         keep = fexp(flog(u) / total) if total > 0 else 0.0
-        f = row_head[b, row]
+        f = row_head[b, ix(row)]
         while f >= 0:
-            w_opt[b, f] = w_opt[b, f] * keep
-            f = row_next[b, f]
-        sample.wu_opt[b, row] = sample.wu_opt[b, row] * keep
-        w_opt[b, e] = w_opt[b, e] + (1.0 - keep)
+            w_opt[b, ix(f)] = w_opt[b, ix(f)] * keep
+            f = row_next[b, ix(f)]
+        sample.wu_opt[b, ix(row)] = sample.wu_opt[b, ix(row)] * keep
+        w_opt[b, ix(e)] = w_opt[b, ix(e)] + (1.0 - keep)
         sampled_row_q(st, cache, model, sample, b, row)
     else:
-        v_end = cache.values[b, nxt]
-        cache.q_num[b, row] += ret + g * v_end
+        v_end = cache.values[b, ix(nxt)]
+        cache.q_num[b, ix(row)] += ret + g * v_end
         if rows.use_conf[b]:
             c_new = c_old + 1
             g_new = g_old + g
             old_term = g_old * g_old / max(c_old, 1.0) if c_old > 0 else 0.0
-            cache.q_sec[b, row] += (g_new * g_new / c_new - old_term) * v_end * v_end
+            cache.q_sec[b, ix(row)] += (g_new * g_new / c_new - old_term) * v_end * v_end
     push(sweep, b, start, _INF)  # the start state goes first
     sweep.pending[b] += 1
     run.decisions[b] += 1
@@ -197,33 +197,33 @@ def plan(st, world, rows, cache, model, mentor, sweep, sample, scratch, b):
         n = min(round_size, budget - done)
         k = 0
         while k < n and sweep.hsize[b] > 0 and sweep.hkey[b, 0] > threshold:
-            round_states[b, k] = pop(sweep, b)
+            round_states[b, ix(k)] = pop(sweep, b)
             k += 1
         if k == 0:
             break
         for i in range(k):  # the round's states are backed up together...
-            s = round_states[b, i]
+            s = round_states[b, ix(i)]
             best, has_value, _ = state_backup(st, world, rows, cache, model, mentor, b, s)
-            round_old[b, i] = values[b, s]
-            round_delta[b, i] = best - values[b, s] if has_value else 0.0
-            round_best[b, i] = best if has_value else values[b, s]
+            round_old[b, ix(i)] = values[b, ix(s)]
+            round_delta[b, ix(i)] = best - values[b, ix(s)] if has_value else 0.0
+            round_best[b, ix(i)] = best if has_value else values[b, ix(s)]
         for i in range(k):
-            values[b, round_states[b, i]] = round_best[b, i]
+            values[b, ix(round_states[b, ix(i)])] = round_best[b, ix(i)]
         backed_up += k
         for i in range(k):  # ...then their changes propagate
-            d = round_delta[b, i]
+            d = round_delta[b, ix(i)]
             if d != 0:
                 propagate_options(
-                    st, rows, cache, model, sweep, sample, b, round_states[b, i], d,
-                    round_old[b, i], sampled,
+                    st, rows, cache, model, sweep, sample, b, round_states[b, ix(i)], d,
+                    round_old[b, ix(i)], sampled,
                 )  # fmt: skip
         if mentor_run:
             for i in range(k):
-                d = round_delta[b, i]
+                d = round_delta[b, ix(i)]
                 if d != 0:
                     propagate_mentor(
-                        st, rows, cache, mentor, sweep, sample, b, round_states[b, i], d,
-                        round_old[b, i], sampled,
+                        st, rows, cache, mentor, sweep, sample, b, round_states[b, ix(i)], d,
+                        round_old[b, ix(i)], sampled,
                     )  # fmt: skip
         done += round_size
     return backed_up
@@ -324,42 +324,43 @@ def choose(st, world, rows, cache, model, mentor, run, clone, scratch, key, b, t
     action's primitive row where it has one (``choice.greedy_rows``)."""
     M = cache.q_num.shape[1] - 1
     q_buf, usable_buf, enabled_buf = scratch.q_buf, scratch.usable_buf, scratch.enabled_buf
-    first = rows.row_begin[here]  # the rows of ``here``: first, first + 1, ..., first + n_rows - 1
-    n_rows = rows.row_begin[here + 1] - first
+    # the rows of ``here``: first, first + 1, ..., first + n_rows - 1
+    first = rows.row_begin[ix(here)]
+    n_rows = rows.row_begin[ix(here + 1)] - first
     for j in range(n_rows):
         q, usable, enabled = row_value(st, rows, cache, model, b, first + j)
-        q_buf[b, j] = q if usable else -_INF
-        usable_buf[b, j] = usable
-        enabled_buf[b, j] = enabled
+        q_buf[b, ix(j)] = q if usable else -_INF
+        usable_buf[b, ix(j)] = usable
+        enabled_buf[b, ix(j)] = enabled
     if st.mentor_choice == MATCH and st.any_mentor:
         _match_mentor(st, world, rows, cache, model, mentor, scratch, b, here)
     if st.mentor_trial and st.any_mentor and rows.use_mentor[b]:
         _trial_mentor(st, world, rows, cache, model, mentor, scratch, b, here)
     top = -_INF
     for j in range(n_rows):
-        if q_buf[b, j] > top:
-            top = q_buf[b, j]
+        if q_buf[b, ix(j)] > top:
+            top = q_buf[b, ix(j)]
     any_greedy = False
     for j in range(n_rows):
-        if usable_buf[b, j] and q_buf[b, j] >= top - _TIE:
+        if usable_buf[b, ix(j)] and q_buf[b, ix(j)] >= top - _TIE:
             any_greedy = True
             break
     clone_row = M  # (M: no cloned action here)
-    cloned = clone.action[b, here]
+    cloned = clone.action[b, ix(here)]
     if cloned >= 0:
-        clone_row = rows.primitive_rows[here, cloned]
+        clone_row = rows.primitive_rows[ix(here), ix(cloned)]
     explore = uniform(key, t, 3) < run.epsilon[b]
     count = 0
     for j in range(n_rows):
         if explore:
-            cand = enabled_buf[b, j]
+            cand = enabled_buf[b, ix(j)]
         elif clone_row < M:
             cand = first + j == clone_row
         elif not any_greedy:
-            cand = enabled_buf[b, j]
+            cand = enabled_buf[b, ix(j)]
         else:
-            cand = usable_buf[b, j] and q_buf[b, j] >= top - _TIE
-        usable_buf[b, j] = cand  # from here on: the candidate mask
+            cand = usable_buf[b, ix(j)] and q_buf[b, ix(j)] >= top - _TIE
+        usable_buf[b, ix(j)] = cand  # from here on: the candidate mask
         if cand:
             count += 1
     pick = min(np.int64(uniform(key, t, 4) * count), count - 1)
@@ -368,7 +369,7 @@ def choose(st, world, rows, cache, model, mentor, run, clone, scratch, key, b, t
     chosen = first if n_rows > 0 else M  # (M: no row, as the torch engine's padding)
     seen = 0
     for j in range(n_rows):
-        if usable_buf[b, j]:
+        if usable_buf[b, ix(j)]:
             if seen == pick:
                 chosen = first + j
                 break
