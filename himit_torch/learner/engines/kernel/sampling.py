@@ -11,7 +11,7 @@ from numba import njit
 from himit_torch.learner import posterior_sampling as _ps
 from himit_torch.learner.engines.kernel.backup import backup_state
 from himit_torch.learner.engines.kernel.heap import push
-from himit_torch.learner.engines.kernel.jit import phase
+from himit_torch.learner.engines.kernel.jit import ix, phase
 from himit_torch.learner.engines.kernel.streams import splitmix, uniform
 
 _INF = np.inf
@@ -108,18 +108,19 @@ def sampled_row_q(st, cache, model, sample, b, row):
     conc = st.concentration
     v0 = st.initial_value
     values = cache.values
-    n = model.row_count[b, row]
-    rbar = model.row_reward[b, row] / n if n > 0 else 0.0
+    n = model.row_count[b, ix(row)]
+    rbar = model.row_reward[b, ix(row)] / n if n > 0 else 0.0
     acc = 0.0
-    e = model.row_head[b, row]
+    e = model.row_head[b, ix(row)]
     while e >= 0:
-        acc += sample.w_opt[b, e] * (
+        acc += sample.w_opt[b, ix(e)] * (
             rbar
-            + (model.edge_disc[b, e] / model.edge_count[b, e]) * values[b, model.edge_succ[b, e]]
+            + (model.edge_disc[b, ix(e)] / model.edge_count[b, ix(e)])
+            * values[b, ix(model.edge_succ[b, ix(e)])]
         )
-        e = model.row_next[b, e]
-    q = acc + sample.wu_opt[b, row] * v0
-    cache.q_num[b, row] = (n + conc) * q - conc * v0
+        e = model.row_next[b, ix(e)]
+    q = acc + sample.wu_opt[b, ix(row)] * v0
+    cache.q_num[b, ix(row)] = (n + conc) * q - conc * v0
 
 
 @njit(inline="always")
@@ -128,28 +129,28 @@ def _draw_row(k_edge, k_unseen, conc, b, row, heads, nexts, counts, row_count, w
     the arrays given): gamma draws over the row's edges and its unseen successor, normalised
     into ``w[b, e]`` and ``wu[b, row]``."""
     total = 0.0
-    e = heads[b, row]
+    e = heads[b, ix(row)]
     while e >= 0:
-        gd = gamma_draw(k_edge, e, counts[b, e])
-        w[b, e] = gd
+        gd = gamma_draw(k_edge, e, counts[b, ix(e)])
+        w[b, ix(e)] = gd
         total += gd
-        e = nexts[b, e]
+        e = nexts[b, ix(e)]
     gu = gamma_draw(k_unseen, row, conc) if conc > 0 else 0.0
     total += gu
-    n = row_count[b, row]
-    e = heads[b, row]
+    n = row_count[b, ix(row)]
+    e = heads[b, ix(row)]
     while e >= 0:
         if total > 0:
-            w[b, e] = w[b, e] / total
+            w[b, ix(e)] = w[b, ix(e)] / total
         else:
-            w[b, e] = counts[b, e] / max(n + conc, 1e-300)
-        e = nexts[b, e]
+            w[b, ix(e)] = counts[b, ix(e)] / max(n + conc, 1e-300)
+        e = nexts[b, ix(e)]
     if total > 0:
-        wu[b, row] = gu / total
+        wu[b, ix(row)] = gu / total
     elif n + conc > 0:
-        wu[b, row] = conc / max(n + conc, 1e-300)
+        wu[b, ix(row)] = conc / max(n + conc, 1e-300)
     else:
-        wu[b, row] = 0.0
+        wu[b, ix(row)] = 0.0
     return n
 
 
@@ -201,20 +202,20 @@ def resample(st, world, rows, cache, model, mentor, sweep, sample, key, b):
             )
             if n > 0:
                 acc = 0.0
-                e = mentor.row_head[b, s]
+                e = mentor.row_head[b, ix(s)]
                 while e >= 0:
-                    acc += w_m[b, e] * (
-                        cache.m_edge_reward[b, e]
-                        + cache.m_edge_disc[b, e] * values[b, mentor.edge_succ[b, e]]
+                    acc += w_m[b, ix(e)] * (
+                        cache.m_edge_reward[b, ix(e)]
+                        + cache.m_edge_disc[b, ix(e)] * values[b, ix(mentor.edge_succ[b, ix(e)])]
                     )
-                    e = mentor.row_next[b, e]
-                m = acc + wu_m[b, s] * v0
-                cache.m_num[b, s] = (n + mconc) * m - mconc * v0
+                    e = mentor.row_next[b, ix(e)]
+                m = acc + wu_m[b, ix(s)] * v0
+                cache.m_num[b, ix(s)] = (n + mconc) * m - mconc * v0
     sample.resamples[b] += 1
     thr = st.priority_threshold
     for s in range(S):
         best, has_value, _ = backup_state(st, world, rows, cache, model, mentor, b, s)
         if has_value:
-            p = abs(best - values[b, s])
+            p = abs(best - values[b, ix(s)])
             if p > thr:
                 push(sweep, b, s, p)
