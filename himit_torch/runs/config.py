@@ -227,8 +227,8 @@ class ExperimentConfig(RunConfig):
         ge=1,
         doc="""
         Save the whole state every this many steps (a multiple of ``window``), and at the
-        end. A save of exp1's state (15 runs on 80×80) takes ≈ 0.2 s, and its 100,000 steps
-        take ≈ 1.5 s to learn on two cores, so a kill loses at most that much.""",
+        end. A save of exp1's state (20 runs on 80×80) takes ≈ 0.25 s, and 100,000 steps of
+        its runs take ≈ 1.5 s to learn on two cores: a kill loses at most that much.""",
     )
     greedy_every: int | None = setting(
         0,
