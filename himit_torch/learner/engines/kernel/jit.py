@@ -46,5 +46,7 @@ phase = njit(**_FLAGS, no_cpython_wrapper=True, no_cfunc_wrapper=True)  # type: 
 # wraparound, and every index on the hot path is ≥ 0 (a −1 "none" is tested before it indexes).
 # One imitator ran 1.2x as fast with the heap, eq. 2 and the propagation indexed so
 # (benchmarks/bench_vs_limit.py); the state it reaches is bit-identical
-# (benchmarks/state_fingerprint.py).
+# (benchmarks/state_fingerprint.py). Under ``NUMBA_BOUNDSCHECK=1`` an index that went negative
+# raises ``IndexError`` at an ``ix`` site (unsigned indices are checked too), where a signed one
+# would have wrapped around unnoticed.
 ix = np.uint64
