@@ -25,7 +25,9 @@ and exit status 2, never a traceback.
 from __future__ import annotations
 
 import argparse
+import atexit
 import dataclasses
+import gc
 import os
 import re
 import sys
@@ -1154,12 +1156,31 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _quick_exit() -> None:
+    """At exit, leave the objects still alive out of the interpreter's last garbage collections.
+
+    Those collections walk every object a command leaves behind (torch's, matplotlib's,
+    TensorBoard's): ≈ 1 s after a ``himit run`` here, against ≈ 0.3 s without them. Nothing
+    of ours waits on them: files and writers are closed where they are used, and
+    ``weakref.finalize`` callbacks run at exit anyway (cycles the freeze keeps are freed with
+    the process). Registered once per process: in a test session calling :func:`main`, the
+    freeze waits for that session's exit too."""
+    global _exit_frozen
+    if not _exit_frozen:
+        atexit.register(gc.freeze)
+        _exit_frozen = True
+
+
+_exit_frozen = False
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``himit``; returns 0 on success, raises ``SystemExit(2)`` on a user mistake.
 
     Torch runs on one thread (``HIMIT_THREADS`` to change): the learner's tensors are small, and
     on a CPU two processes use two cores far better than two threads in one."""
     args = build_parser().parse_args(argv)
+    _quick_exit()
     threads = os.environ.get("HIMIT_THREADS", "1")
     if not threads.strip().isdigit() or int(threads) < 1:
         _fail(f"HIMIT_THREADS={threads!r} must be a whole number ≥ 1")

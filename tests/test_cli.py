@@ -1,6 +1,8 @@
 """The ``himit`` command line, run in-process with tiny budgets."""
 
 import re
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -192,9 +194,6 @@ def test_gymnasium_mistakes_are_one_line(capsys, argv, what):
 def _loaded_by_a_fresh_parser(modules: tuple[str, ...]) -> list[str]:
     """Which of ``modules`` a new interpreter has loaded after ``import himit_torch`` and
     building the CLI's parser (what every command does first)."""
-    import subprocess
-    import sys
-
     code = (
         "import sys, himit_torch; from himit_torch.cli import build_parser; build_parser(); "
         f"print(' '.join(m for m in {modules!r} if m in sys.modules))"
@@ -222,3 +221,25 @@ def test_importing_the_package_leaves_numba_and_networkx_unimported():
     assert _loaded_by_a_fresh_parser(("numba", "networkx")) == []
     # ...and the helper does see a module that is loaded
     assert _loaded_by_a_fresh_parser(("torch",)) == ["torch"]
+
+
+def _freeze_count_at_exit(call: str) -> int:
+    """How many objects a fresh interpreter had frozen out of the garbage collector when its
+    exit handlers ran, after ``call`` (a handler registered first runs last)."""
+    code = (
+        "import atexit, gc, sys\n"
+        "atexit.register(lambda: sys.stdout.write(f'frozen {gc.get_freeze_count()}\\n'))\n"
+        "from himit_torch.cli import main\n"
+        f"{call}\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True
+    ).stdout
+    return int(re.search(r"^frozen (\d+)$", out, flags=re.M).group(1))
+
+
+def test_a_command_leaves_its_objects_out_of_the_exit_collections():
+    """The interpreter's last garbage collections walked every object a command left (≈ 1 s
+    after a ``himit run``): :func:`main` freezes them at exit, once per process."""
+    assert _freeze_count_at_exit("main(['info', '--size', '20', '--rooms', '2'])") > 10_000
+    assert _freeze_count_at_exit("pass") == 0  # (no command, no freeze)

@@ -255,7 +255,9 @@ def run_world(
     _log_hparams(batch, logger, learner, result)
     logger.close()
     _write_curves(run_dir / "worlds" / f"curves{size}.csv", learner, size, greedy)
-    write_atomically(run_dir / "worlds" / f"world{size}.json", json.dumps(asdict(result), indent=1))
+    # The world's figures are drawn here, as it ends, not with the report after the last
+    # world (where they were ≈ 3 s of `himit run paper`'s tail); the record comes last, so a
+    # world with a record has its figures.
     _world_figure(
         run_dir,
         config,
@@ -267,6 +269,8 @@ def run_world(
         seeds[0],
         size,
     )
+    _world_curve_figures(run_dir, config, result)
+    write_atomically(run_dir / "worlds" / f"world{size}.json", json.dumps(asdict(result), indent=1))
     return result
 
 
@@ -638,6 +642,16 @@ def _other_goal(config, world, seeds) -> dict:
     }
 
 
+def _world_curve_figures(run_dir: Path, config: ExperimentConfig, result: WorldResult) -> None:
+    """The world's curves and first goals (:func:`~himit_torch.viz.report.write_world_figures`),
+    from the curves it has just written."""
+    from himit_torch.viz.report import read_curves, write_world_figures
+
+    curves = read_curves(run_dir, f"worlds/curves{result.size}.csv").get(result.size)
+    if curves:  # (none: fewer steps than one window)
+        write_world_figures(run_dir, config, result, curves)
+
+
 def _world_figure(run_dir, config, world, demos, learner, agents, run_seeds, seed, size):
     from himit_torch.viz.plotting import save_world_figure
 
@@ -727,7 +741,7 @@ class ExperimentStudy:
         """The finished experiment's ``curves.csv`` (its worlds' merged), figures and
         ``results.md``."""
         _merge_curves(run_dir, config)
-        _write_report(run_dir, config, {r.size: r for r in results})
+        _write_report(run_dir, config, {r.size: r for r in results}, redraw_worlds=False)
 
 
 def run_experiment(
@@ -914,13 +928,17 @@ def _world_cost(config: ExperimentConfig, size: int) -> int:
     return config.steps * config.seeds * len(config.agents) * size
 
 
-def _write_report(run_dir: Path, config: ExperimentConfig, finished: dict) -> list[WorldResult]:
+def _write_report(
+    run_dir: Path, config: ExperimentConfig, finished: dict, redraw_worlds: bool = True
+) -> list[WorldResult]:
     """The figures and ``results.md`` of finished worlds (``size → WorldResult``), in the
-    order of ``config.sizes``: what a run writes at its end and ``himit plot`` redraws."""
+    order of ``config.sizes``: what a run writes at its end and ``himit plot`` redraws.
+    ``redraw_worlds=False`` (a run's end): each world's own figures only where its process
+    has not drawn them."""
     from himit_torch.viz.report import write_figures, write_results
 
     results = [finished[size] for size in config.sizes]
-    write_figures(run_dir, config, results)
+    write_figures(run_dir, config, results, worlds=redraw_worlds)
     write_results(
         run_dir,
         config,

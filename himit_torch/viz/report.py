@@ -20,6 +20,7 @@ from himit_torch.viz.tensorboard import tensorboard_command
 __all__ = [
     "read_curves",
     "write_figures",
+    "write_world_figures",
     "write_results",
     "provenance_line",
     "plot_curves",
@@ -49,10 +50,11 @@ AGENT_COLORS = {
 PAPER_OPTIMAL_GOALS = {40: 53.2, 80: 26.3}
 
 
-def read_curves(run_dir: str | Path) -> dict:
-    """``{world: {agent: {seed: (steps [W], goals [W])}}}`` from ``curves.csv``."""
+def read_curves(run_dir: str | Path, name: str = "curves.csv") -> dict:
+    """``{world: {agent: {seed: (steps [W], goals [W])}}}`` from ``run_dir/name``: the run's
+    ``curves.csv``, or one world's own (``name="worlds/curves<N>.csv"``)."""
     out: dict = defaultdict(lambda: defaultdict(dict))
-    with (Path(run_dir) / "curves.csv").open() as f:
+    with (Path(run_dir) / name).open() as f:
         rows = list(csv.DictReader(f))
     acc: dict = defaultdict(lambda: ([], []))
     for r in rows:
@@ -149,32 +151,53 @@ def _save(fig: Figure, path: Path) -> None:
     fig.savefig(path, dpi=110)
 
 
-def write_figures(run_dir: Path, config, results) -> None:
+def _world_figure_paths(run_dir: Path, config, size: int) -> tuple[Path, Path]:
+    number = {"exp1": 3, "exp2": 4}.get(config.name, "")
+    return (
+        run_dir / "figures" / f"fig{number}_curves_world{size}.png",
+        run_dir / "figures" / f"first_goal_world{size}.png",
+    )
+
+
+def write_world_figures(run_dir: Path, config, result, curves_of_world: dict) -> None:
+    """One finished world's figures in ``run_dir/figures``: its goal curves (the paper's Figs. 3
+    and 4, from ``curves_of_world``: one world's entry of :func:`read_curves`) and each run's
+    first goal (from ``result``, its :class:`~himit_torch.runs.experiment.WorldResult`)."""
+    size = result.size
+    paper = PAPER_OPTIMAL_GOALS.get(size) if result.rooms == 10 and config.window == 5000 else None
+    where = (
+        f"{config.name}: {size}×{size}, a {result.rooms}×{result.rooms} grid of rooms of "
+        f"{config.room_size}×{config.room_size} cells"
+        f"{', corner options' if config.corner_options else ''}"
+    )
+    curves_path, first_goal_path = _world_figure_paths(run_dir, config, size)
+    _save(
+        plot_curves(
+            curves_of_world,
+            result.optimal_goals_per_window,
+            where,
+            paper_optimal=paper,
+            window=config.window,
+        ),
+        curves_path,
+    )
+    _save(plot_first_goal_steps(result, f"{where}: first goal of each run"), first_goal_path)
+
+
+def write_figures(run_dir: Path, config, results, worlds: bool = True) -> None:
+    """The run's figures in ``run_dir/figures``: each world's (:func:`write_world_figures`) and,
+    for several worlds, the goals as a share of the optimum's per world size (Fig. 5).
+
+    ``worlds=False``: only the world figures not drawn yet. A run's world processes draw
+    their own as each world ends (off the report's critical path); a run resumed from an
+    older version may lack some."""
     curves = read_curves(run_dir)
     for r in results:
         if not curves.get(r.size):
             continue  # fewer steps than one window: no curve to draw
-        number = {"exp1": 3, "exp2": 4}.get(config.name, "")
-        paper = PAPER_OPTIMAL_GOALS.get(r.size) if r.rooms == 10 and config.window == 5000 else None
-        where = (
-            f"{config.name}: {r.size}×{r.size}, a {r.rooms}×{r.rooms} grid of rooms of "
-            f"{config.room_size}×{config.room_size} cells"
-            f"{', corner options' if config.corner_options else ''}"
-        )
-        _save(
-            plot_curves(
-                curves[r.size],
-                r.optimal_goals_per_window,
-                where,
-                paper_optimal=paper,
-                window=config.window,
-            ),
-            run_dir / "figures" / f"fig{number}_curves_world{r.size}.png",
-        )
-        _save(
-            plot_first_goal_steps(r, f"{where}: first goal of each run"),
-            run_dir / "figures" / f"first_goal_world{r.size}.png",
-        )
+        drawn = all(p.exists() for p in _world_figure_paths(run_dir, config, r.size))
+        if worlds or not drawn:
+            write_world_figures(run_dir, config, r, curves[r.size])
     if len(results) > 1:
         _save(plot_scaling(results, list(config.agents)), run_dir / "figures" / "fig5_scaling.png")
 

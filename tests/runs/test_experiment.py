@@ -357,9 +357,16 @@ def test_cli_run_plot_and_errors(capsys, tmp_path):
         f"--seeds 1 --steps 1000 --mentor-episodes 3 --window 1000 --logdir {tmp_path}`."
     ) in page
     (tmp_path / "exp2" / "results.md").unlink()
+    # The world's process drew its figures; `himit plot` redraws them from the records.
+    figures = tmp_path / "exp2" / "figures"
+    drawn = {p.name: p.read_bytes() for p in figures.glob("*.png")}
+    assert {"fig4_curves_world40.png", "first_goal_world40.png"} <= set(drawn)
+    (figures / "fig4_curves_world40.png").write_bytes(b"stale")
+    (figures / "first_goal_world40.png").unlink()
     assert main(["plot", str(tmp_path / "exp2")]) == 0
     assert "results.md" in capsys.readouterr().out
     assert (tmp_path / "exp2" / "results.md").read_text() == page  # the records redraw it
+    assert {p.name: p.read_bytes() for p in figures.glob("*.png")} == drawn
     assert "finished run" in one_line_error(
         capsys, ["run", "exp2", "--config", str(cfg_path), "--logdir", str(tmp_path), "--quiet"]
     )
@@ -447,6 +454,33 @@ PLOT_DAMAGE = {
         "is not UTF-8",
     ),
 }
+
+
+def test_a_runs_report_draws_only_the_world_figures_not_drawn_yet(small_run, tmp_path):
+    """At a run's end the report leaves each world's figures to its process (drawn as the world
+    ended) and draws a world's where one is missing (a run resumed from an older version);
+    ``himit plot`` redraws them all."""
+    import shutil
+
+    from himit_torch.runs.experiment import ExperimentStudy
+
+    run_dir = tmp_path / "run"
+    shutil.copytree(small_run[0], run_dir, ignore=shutil.ignore_patterns("tb", "checkpoints"))
+    config = load_config(run_dir / "config.json")
+    curves, first = run_dir / "figures" / "fig4_curves_world16.png", run_dir / "figures" / (
+        "first_goal_world16.png"
+    )
+    drawn = curves.read_bytes(), first.read_bytes()
+    curves.write_bytes(b"kept")
+    ExperimentStudy().report(config, run_dir, [small_run[1]])
+    assert curves.read_bytes() == b"kept"  # not redrawn
+    first.unlink()
+    ExperimentStudy().report(config, run_dir, [small_run[1]])
+    # the world's figures drawn again, the same as its process drew them
+    assert (curves.read_bytes(), first.read_bytes()) == drawn
+    curves.write_bytes(b"kept")
+    assert main(["plot", str(run_dir)]) == 0
+    assert curves.read_bytes() == drawn[0]
 
 
 @pytest.mark.parametrize("kind", list(PLOT_DAMAGE))
