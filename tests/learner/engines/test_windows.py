@@ -83,3 +83,25 @@ def test_the_records_are_those_of_the_run_state_at_each_windows_end(world12, men
         assert int(run.window_goals.abs().sum() + run.window_episodes.abs().sum()) == 0
         assert torch.equal(torch.stack(m.goals_in_window).sum(0), run.goals)
     assert int(run.goals.sum()) > 0
+
+
+def test_the_linked_lists_kept_across_growths_are_those_a_rebuild_gives(world12, mentor_demos12):
+    """When the edge lists grow between calls, the engine lengthens its linked lists instead of
+    relinking every edge: they must be the lists :func:`link_edges` builds from the edges."""
+    import numpy as np
+
+    learner = _learner(world12, mentor_demos12)
+    model = learner.state.model
+    capacities = {model.capacity}
+    for _ in range(12):
+        learner.run(500)
+        capacities.add(model.capacity)
+    assert len(capacities) >= 3, capacities  # it grew at least twice on the way
+    engine = learner.engine
+    kept = engine._linked("model", model)
+    assert kept[1].shape[1] == model.capacity
+    engine.invalidate()  # (forgets the lists: the next call relinks every edge)
+    rebuilt = engine._linked("model", model)
+    assert kept[1] is not rebuilt[1]
+    for a, b in zip(kept, rebuilt):
+        np.testing.assert_array_equal(a, b)
