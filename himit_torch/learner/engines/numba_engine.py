@@ -411,10 +411,14 @@ class NumbaEngine:
                 # rebuild gives the same lists (the kernel links a new edge at its lists' heads,
                 # as link_edges does walking the edges in order) after walking every edge: ≈ 1 s
                 # of `himit run paper`, over its worlds' growths.
-                lists = (row_head, _lengthen(row_next, store.capacity), succ_head)
-                lists += (_lengthen(succ_next, store.capacity),)
-                self._links[key] = (store.version, lists)
-                return lists
+                grown = (
+                    row_head,
+                    _lengthen(row_next, store.capacity),
+                    succ_head,
+                    _lengthen(succ_next, store.capacity),
+                )
+                self._links[key] = (store.version, grown)
+                return grown
         B, E = store.batch, store.capacity
         lists = (
             np.empty((B, store.num_rows + 1), dtype=np.int64),
