@@ -35,8 +35,7 @@ args = parser.parse_args()
 import himit_torch  # noqa: E402, F401
 import himit_torch.runs.runner as runner  # noqa: E402
 import himit_torch.viz.tensorboard as tensorboard  # noqa: E402
-from himit_torch.runs import experiment  # noqa: E402
-from himit_torch.runs import greedy  # noqa: E402
+from himit_torch.runs import experiment, greedy  # noqa: E402
 from himit_torch.runs.config import EXPERIMENTS  # noqa: E402
 from himit_torch.runs.kernels import prepare_kernels  # noqa: E402
 
@@ -91,7 +90,9 @@ finally:
         shutil.rmtree(run_dir.parent, ignore_errors=True)
 
 inside = sum(seconds.get(k, 0.0) for k in ("  saves", "  greedy evaluations", "  maps"))
-print(f"{args.experiment} {args.size}×{args.size}: imports {imports:.2f} s, kernels {kernels:.2f} s")
+print(
+    f"{args.experiment} {args.size}×{args.size}: imports {imports:.2f} s, kernels {kernels:.2f} s"
+)
 print(f"run_world {total:.2f} s")
 for _, _, label in STEPS:
     print(f"  {label:22s} {seconds.get(label, 0.0):6.2f}")
