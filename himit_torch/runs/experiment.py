@@ -229,7 +229,8 @@ def run_world(
     progress: bool = True,
     on_window: Callable | None = None,
 ) -> WorldResult:
-    """Run every agent × seed of one world in one batch (resuming from its checkpoint)."""
+    """Run every agent × seed of one world in one batch (resuming from its checkpoint), and
+    write its curves, figures and record (``worlds/world<size>.json``, last)."""
     seeds, agents, run_seeds = batch_runs(config.agents, config.first_seed, config.seeds)
     batch = _WorldBatch(config, size, run_dir, config.world(size), seeds, agents, run_seeds)
     mentoring = _mentoring(batch)
@@ -738,8 +739,8 @@ class ExperimentStudy:
     def report(
         self, config: ExperimentConfig, run_dir: Path, results: Sequence[WorldResult]
     ) -> None:
-        """The finished experiment's ``curves.csv`` (its worlds' merged), figures and
-        ``results.md``."""
+        """The finished experiment's ``curves.csv`` (its worlds' merged), figures (those across
+        worlds; a world's own only where its process did not draw them) and ``results.md``."""
         _merge_curves(run_dir, config)
         _write_report(run_dir, config, {r.size: r for r in results}, redraw_worlds=False)
 

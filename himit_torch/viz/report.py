@@ -152,6 +152,7 @@ def _save(fig: Figure, path: Path) -> None:
 
 
 def _world_figure_paths(run_dir: Path, config, size: int) -> tuple[Path, Path]:
+    """Where :func:`write_world_figures` puts world ``size``'s curves and first goals."""
     number = {"exp1": 3, "exp2": 4}.get(config.name, "")
     return (
         run_dir / "figures" / f"fig{number}_curves_world{size}.png",

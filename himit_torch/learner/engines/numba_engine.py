@@ -399,7 +399,8 @@ class NumbaEngine:
         return view
 
     def _linked(self, key: str, store) -> tuple:
-        """Linked lists over ``store``'s edges, rebuilt when its lists changed elsewhere."""
+        """Linked lists over ``store``'s edges: rebuilt when its lists changed elsewhere,
+        lengthened when it only grew."""
         cached = self._links.get(key)
         if cached is not None and cached[0] == store.version:
             row_head, row_next, succ_head, succ_next = cached[1]
