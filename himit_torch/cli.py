@@ -1163,15 +1163,10 @@ def _quick_exit() -> None:
     TensorBoard's): ≈ 1 s after a ``himit run`` here, against ≈ 0.3 s without them. Nothing
     of ours waits on them: files and writers are closed where they are used, and
     ``weakref.finalize`` callbacks run at exit anyway (cycles the freeze keeps are freed with
-    the process). Registered once per process: in a test session calling :func:`main`, the
-    freeze waits for that session's exit too."""
-    global _exit_frozen
-    if not _exit_frozen:
-        atexit.register(gc.freeze)
-        _exit_frozen = True
-
-
-_exit_frozen = False
+    the process). Registered once per process (a test session calling :func:`main` many times
+    freezes once, at its own exit)."""
+    atexit.unregister(gc.freeze)  # (removes an earlier registration, if any)
+    atexit.register(gc.freeze)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -191,6 +191,13 @@ def test_gymnasium_mistakes_are_one_line(capsys, argv, what):
     assert what in run_error(capsys, argv)
 
 
+def _python_stdout(code: str) -> str:
+    """What a fresh interpreter running ``code`` prints."""
+    return subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True
+    ).stdout
+
+
 def _loaded_by_a_fresh_parser(modules: tuple[str, ...]) -> list[str]:
     """Which of ``modules`` a new interpreter has loaded after ``import himit_torch`` and
     building the CLI's parser (what every command does first)."""
@@ -198,10 +205,7 @@ def _loaded_by_a_fresh_parser(modules: tuple[str, ...]) -> list[str]:
         "import sys, himit_torch; from himit_torch.cli import build_parser; build_parser(); "
         f"print(' '.join(m for m in {modules!r} if m in sys.modules))"
     )
-    out = subprocess.run(
-        [sys.executable, "-c", code], capture_output=True, text=True, check=True
-    ).stdout
-    return out.split()
+    return _python_stdout(code).split()
 
 
 def test_building_the_parser_leaves_scipy_stats_unimported():
@@ -232,10 +236,7 @@ def _freeze_count_at_exit(call: str) -> int:
         "from himit_torch.cli import main\n"
         f"{call}\n"
     )
-    out = subprocess.run(
-        [sys.executable, "-c", code], capture_output=True, text=True, check=True
-    ).stdout
-    return int(re.search(r"^frozen (\d+)$", out, flags=re.M).group(1))
+    return int(re.search(r"^frozen (\d+)$", _python_stdout(code), flags=re.M).group(1))
 
 
 def test_a_command_leaves_its_objects_out_of_the_exit_collections():
