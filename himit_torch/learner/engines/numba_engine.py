@@ -263,13 +263,6 @@ def _row_begin(state_rows: torch.Tensor, num_rows: int) -> np.ndarray:
     return begin.numpy()
 
 
-def _lengthen(links: np.ndarray, capacity: int) -> np.ndarray:
-    """``[B, E]`` per-edge links as ``[B, capacity]``, the new columns −1 (none)."""
-    longer = np.full((links.shape[0], capacity), -1, dtype=links.dtype)
-    longer[:, : links.shape[1]] = links
-    return longer
-
-
 class NumbaEngine:
     """Compiled per-run loop on the CPU (see the module docstring)."""
 
@@ -399,27 +392,14 @@ class NumbaEngine:
         return view
 
     def _linked(self, key: str, store) -> tuple:
-        """Linked lists over ``store``'s edges: rebuilt when its lists changed elsewhere,
-        lengthened when it only grew."""
+        """Linked lists over ``store``'s edges, rebuilt when its lists changed elsewhere."""
         cached = self._links.get(key)
-        if cached is not None and cached[0] == store.version:
-            row_head, row_next, succ_head, succ_next = cached[1]
-            if row_next.shape[1] == store.capacity:
-                return cached[1]
-            if row_next.shape[1] < store.capacity:
-                # The store only grew (reserve): its edges kept their ids and the new columns
-                # hold none, so the lists stand, each edge's link lengthened with "none". A
-                # rebuild gives the same lists (the kernel links a new edge at its lists' heads,
-                # as link_edges does walking the edges in order) after walking every edge: ≈ 1 s
-                # of `himit run paper`, over its worlds' growths.
-                grown = (
-                    row_head,
-                    _lengthen(row_next, store.capacity),
-                    succ_head,
-                    _lengthen(succ_next, store.capacity),
-                )
-                self._links[key] = (store.version, grown)
-                return grown
+        if (
+            cached is not None
+            and cached[0] == store.version
+            and cached[1][1].shape[1] == store.capacity
+        ):
+            return cached[1]
         B, E = store.batch, store.capacity
         lists = (
             np.empty((B, store.num_rows + 1), dtype=np.int64),

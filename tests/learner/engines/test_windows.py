@@ -86,8 +86,8 @@ def test_the_records_are_those_of_the_run_state_at_each_windows_end(world12, men
 
 
 def test_the_linked_lists_kept_across_growths_are_those_a_rebuild_gives(world12, mentor_demos12):
-    """When the edge lists grow between calls, the engine lengthens its linked lists instead of
-    relinking every edge: they must be the lists :func:`link_edges` builds from the edges."""
+    """The kernel links each edge it adds into the engine's lists as it goes, across the edge
+    lists' growths: at the end they must be the lists :func:`link_edges` builds from the edges."""
     import numpy as np
 
     learner = _learner(world12, mentor_demos12)
