@@ -240,54 +240,94 @@ class LearnerViews:
     def greedy_trajectory(self, run: int, max_steps: int, seed: int = 0) -> torch.Tensor:
         """States of one episode from the start following run ``run``'s greedy options (ε = 0,
         untried options at random), with the world's slip; stops at the goal or after
-        ``max_steps``. For pictures like the paper's Fig. 2."""
+        ``max_steps``. For pictures like the paper's Fig. 2.
+
+        The draws of ``torch.Generator(seed)`` on the learner's device, per step in this order:
+        a stochastic option's action, the slip's uniform, the termination's uniform; and where
+        the run has tried nothing, the option (uniform over the run's enabled ones)."""
         gen = torch.Generator(device=self.device).manual_seed(seed)
-        greedy = self.greedy_options([run])[0]
-        S = self.num_states
-        s = torch.tensor([self.start_state], device=self.device)
-        states = [int(s)]
+        greedy = self.greedy_options([run])[0].tolist()
+        terminal = self.terminal.tolist()
+        move = self._trajectory_move(gen)
+        s = self.start_state
+        states = [s]
         option, steps = -1, 0
-        while steps < max_steps and not bool(self.terminal[s]):
+        while steps < max_steps and not terminal[s]:
             if option < 0:
-                option = int(greedy[s])
+                option = greedy[s]
                 if option < 0:  # nothing tried here: any usable option
-                    rows = self.rows.state_rows[s][0]
+                    rows = self.rows.state_rows[s]
                     rows = rows[self.rows.row_enabled[run, rows]]
-                    option = int(
-                        self.rows.row_option[
-                            rows[torch.randint(len(rows), (1,), generator=gen, device=self.device)]
-                        ]
-                    )
-            actions = None
-            if (
-                self.tables.options.policy_cdf is not None
-            ):  # stochastic options: drawn here, as always
-                actions = torch.multinomial(
-                    torch.diff(
-                        self.tables.options.policy_cdf[option * S + s],
-                        prepend=torch.zeros(1, 1, dtype=torch.float64, device=self.device),
-                    ),
-                    1,
-                    generator=gen,
-                )[:, 0]
-            u = torch.rand(s.shape, generator=gen, device=self.device, dtype=torch.float64)
-            stop = torch.rand(1, generator=gen, device=self.device, dtype=torch.float64)
-            moved = option_step(
-                self.tables.options,
-                torch.tensor([option], device=self.device),
-                s,
-                self.tables.step,
-                self.terminal,
-                slip_u=u,
-                stop_u=stop,
-                actions=actions,
-            )
-            s = moved.successors
+                    pick = torch.randint(len(rows), (1,), generator=gen, device=self.device)
+                    option = int(self.rows.row_option[rows[pick]])
+            s, stopped = move(option, s)
             steps += 1
-            states.append(int(s))
-            if bool(moved.stopped):
+            states.append(s)
+            if stopped:
                 option = -1
         return torch.tensor(states)
+
+    def _trajectory_move(self, gen: torch.Generator):
+        """``move(option, s) -> (s', stopped)``: one primitive step of ``option`` from ``s``
+        (:func:`~himit_torch.options.execution.option_step`) with uniforms drawn from ``gen``.
+
+        Deterministic options on a world with a :class:`~himit_torch.DynamicsTable` step in
+        Python numbers, as :meth:`DynamicsTable.step <himit_torch.DynamicsTable.step>` and
+        :func:`option_step` do (the slot is the first whose cumulative probability exceeds
+        ``u``, the option stops where ``β(s') > stop_u``): a step of torch ops on one state costs
+        ≈ 50 µs, and a path on 120×120 is up to 28,800 steps. Other options and worlds step by
+        :func:`option_step` itself."""
+        tables, device, S = self.tables, self.device, self.num_states
+
+        def uniform() -> torch.Tensor:
+            return torch.rand(1, generator=gen, device=device, dtype=torch.float64)
+
+        dynamics, policy = tables.dynamics, tables.options.policy
+        if dynamics is None or policy is None:
+            cdf = tables.options.policy_cdf
+
+            def move_by_tensors(option: int, s: int) -> tuple[int, bool]:
+                state = torch.tensor([s], device=device)
+                actions = None
+                if cdf is not None:  # stochastic options: drawn here, as always
+                    probability = torch.diff(
+                        cdf[option * S + state],
+                        prepend=torch.zeros(1, 1, dtype=torch.float64, device=device),
+                    )
+                    actions = torch.multinomial(probability, 1, generator=gen)[:, 0]
+                u = uniform()
+                moved = option_step(
+                    tables.options,
+                    torch.tensor([option], device=device),
+                    state,
+                    tables.step,
+                    self.terminal,
+                    slip_u=u,
+                    stop_u=uniform(),
+                    actions=actions,
+                )
+                return int(moved.successors), bool(moved.stopped)
+
+            return move_by_tensors
+
+        A, K = dynamics.cdf.shape[1:]
+        slot_cdf = dynamics.cdf.reshape(-1).tolist()  # (S·A·K numbers, ≈ 230k on 120×120)
+        successor = dynamics.successors.reshape(-1).tolist()
+        action = policy.cpu().numpy()  # (O·S entries: read one at a time, not listed)
+        beta = tables.options.termination.cpu().numpy()
+        terminal = self.terminal.tolist()
+
+        def move_by_numbers(option: int, s: int) -> tuple[int, bool]:
+            flat = (s * A + action.item(option * S + s)) * K
+            u = uniform().item()
+            stop_u = uniform().item()
+            k = 0
+            while k < K - 1 and slot_cdf[flat + k] <= u:
+                k += 1
+            after = successor[flat + k]
+            return after, terminal[after] or beta.item(option * S + after) > stop_u
+
+        return move_by_numbers
 
     def state_values(self) -> torch.Tensor:
         """``[B, S]`` current value estimates."""

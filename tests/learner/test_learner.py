@@ -2,6 +2,7 @@
 recomputation from the model's counts, determinism, batch independence, bad input, and learning
 sanity on small worlds."""
 
+import dataclasses
 from collections import Counter
 
 import numpy as np
@@ -876,6 +877,40 @@ def test_terminal_states_keep_value_zero_even_with_demonstrations_through_the_go
     learner.plan()
     assert float(learner.state_values()[0, world8.goal_state]) == 0.0
     assert float(learner.state_values()[0].max()) <= 1.0
+
+
+@pytest.mark.parametrize("trained_steps", [0, 300, 4000])
+def test_greedy_trajectory_in_numbers_equals_option_step(world12, mentor_demos12, trained_steps):
+    """The greedy path's step in Python numbers (deterministic options, a world with a dynamics
+    table) draws the same states as option_step on the world's own step: untrained runs (every
+    option drawn at random where nothing was tried), partly and well trained, paths cut at
+    max_steps and paths that end at the goal, for several seeds."""
+    learner = Learner(
+        world12,
+        learner_options(world12),
+        ["imitation", "options", "primitives"],
+        [0, 1, 2],
+        demonstrations=mentor_demos12,
+    )
+    learner.run(trained_steps)
+    in_numbers = learner.tables
+    assert in_numbers.dynamics is not None and in_numbers.options.policy is not None
+    by_tensors = dataclasses.replace(in_numbers, dynamics=None)  # (world.step, option_step)
+    lengths = set()
+    for run in range(3):
+        for seed in range(3):
+            learner.tables = in_numbers
+            fast = learner.greedy_trajectory(run, max_steps=150, seed=seed)
+            learner.tables = by_tensors
+            slow = learner.greedy_trajectory(run, max_steps=150, seed=seed)
+            assert torch.equal(fast, slow), (run, seed)
+            lengths.add(len(fast))
+    learner.tables = in_numbers
+    # (both kinds of path were compared: some cut at max_steps, some ended at the goal)
+    if trained_steps == 4000:
+        assert any(n < 151 for n in lengths)
+    if trained_steps == 0:
+        assert 151 in lengths
 
 
 def test_stochastic_policy_options_run_match_and_draw(world8, demos8):
