@@ -919,7 +919,15 @@ def _run_in_pool(
     )
 
     def lane() -> None:
-        """One other lane: its worlds, one at a time, each in the pool."""
+        """One other lane: its worlds, one at a time, each in the pool. It takes its first
+        once its process has started (imported this package): it takes the most expensive
+        world left then, not while its process still starts."""
+        try:
+            pool.submit(os.getpid).result()
+        except BaseException as err:
+            failed.set()
+            ended.put((-1, -1, err))
+            return
         while (job := take()) is not None:
             i, size = job
             try:

@@ -696,6 +696,32 @@ def test_experiments_in_one_pool_end_as_each_alone(tmp_path):
     assert (tmp_path / "pool" / "exp3" / "figures" / "fig5_scaling.png").exists()
 
 
+@pytest.mark.slow
+def test_a_world_failing_in_this_process_stops_the_pool_and_restores_its_threads(
+    tmp_path, monkeypatch
+):
+    """This process is one of the pool's lanes: a world that fails in it raises from
+    ``run_experiments`` (the other lanes take no more worlds), and its thread counts are its
+    own again afterwards."""
+    import numba
+
+    import himit_torch.runs.experiment as experiment
+
+    ran = []
+
+    def failing_world(config, size, *args, **kwargs):
+        ran.append(size)
+        raise RuntimeError(f"world {size} failed")
+
+    monkeypatch.setattr(experiment, "run_world", failing_world)
+    threads = numba.get_num_threads(), torch.get_num_threads()
+    config = tiny("exp3", sizes=(16, 24), room_size=8, corner_options=False)
+    with pytest.raises(RuntimeError, match="world 24 failed"):
+        run_experiments([(config, tmp_path / "exp3")], progress=False, workers=2)
+    assert ran == [24]  # the most expensive world, taken first by this process
+    assert (numba.get_num_threads(), torch.get_num_threads()) == threads
+
+
 def test_run_experiments_refuses_two_plans_in_one_directory(tmp_path):
     config = tiny("exp2", sizes=(16,))
     with pytest.raises(ValueError, match="two plans share a run directory"):
