@@ -877,7 +877,8 @@ def _add_study(sub: argparse.ArgumentParser, name: str, study: StudyCommand) -> 
         sub.add_argument(
             "--workers",
             type=_positive_int,
-            help="worlds run in parallel, one process each (default: one per core, "
+            help="worlds run in parallel, one per process: this one and WORKERS-1 it "
+            "starts (default: one per core, "
             "at most one per world — with paper, the worlds of all three experiments; "
             "the results do not depend on it)",
         )

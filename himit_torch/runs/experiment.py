@@ -760,10 +760,11 @@ def run_experiment(
     the saved one) and ends with exactly the curves an uninterrupted run gives. A directory with a
     finished run is not overwritten unless ``force``.
 
-    Worlds run in parallel, one process each, ``workers`` at a time (default: as many as there
-    are cores, at most one per world); the cores are shared out between them, so each world's
-    compiled engine gets ``cores // workers`` threads. Each world is independent of the others,
-    so the results are the same for any ``workers``. ``workers=1`` runs them in this process.
+    Worlds run in parallel, ``workers`` at a time (default: as many as there are cores, at most
+    one per world): this process runs one at a time and ``workers − 1`` processes it starts the
+    others; the cores are shared out between them, so each world's compiled engine gets
+    ``cores // workers`` threads. Each world is independent of the others, so the results are
+    the same for any ``workers``. ``workers=1`` runs them all in this process.
     """
     study = ExperimentStudy(workers)
     return run_study(
@@ -830,7 +831,7 @@ def _run_worlds(
     report: bool = False,
 ) -> list[list[WorldResult]]:
     """Run the worlds of ``plans`` that are not ``finished`` (per plan, ``size → result``; each
-    new one added as it ends), ``study.workers`` processes at a time, the most expensive first.
+    new one added as it ends), ``study.workers`` at a time, the most expensive first.
     With ``report``, each plan gets its report (:meth:`ExperimentStudy.report`) as soon as its
     last world is done. Returns per plan its worlds' results in the order of its sizes."""
     todo = [
