@@ -275,8 +275,9 @@ class LearnerViews:
         Python numbers, as :meth:`DynamicsTable.step <himit_torch.DynamicsTable.step>` and
         :func:`option_step` do (the slot is the first whose cumulative probability exceeds
         ``u``, the option stops where ``β(s') > stop_u``): a step of torch ops on one state costs
-        ≈ 50 µs, and a path on 120×120 is up to 28,800 steps. Other options and worlds step by
-        :func:`option_step` itself."""
+        ≈ 0.2 ms, and a world figure's path on 120×120 is up to 28,800 steps (≈ 6 s that way,
+        ≈ 0.4 s this way, ``benchmarks/bench_greedy_path.py``). Other options and worlds step
+        by :func:`option_step` itself."""
         tables, device, S = self.tables, self.device, self.num_states
 
         def uniform() -> torch.Tensor:
