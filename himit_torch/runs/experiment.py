@@ -978,17 +978,18 @@ def _cores_shared(threads: int) -> Iterator[None]:
     """A block in which this process runs as one world among others
     (:func:`~himit_torch.runs.runner.share_cores`); its thread counts are restored after."""
     try:
-        import numba
-    except ImportError:
-        numba = None
-    numba_threads = None if numba is None else numba.get_num_threads()
+        from numba import get_num_threads, set_num_threads
+    except ImportError:  # (no compiled engine: torch's threads only)
+        numba_threads = None
+    else:
+        numba_threads = get_num_threads()
     torch_threads = torch.get_num_threads()
     share_cores(threads)
     try:
         yield
     finally:
-        if numba is not None:
-            numba.set_num_threads(numba_threads)
+        if numba_threads is not None:
+            set_num_threads(numba_threads)
         torch.set_num_threads(torch_threads)
 
 
