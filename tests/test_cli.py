@@ -241,6 +241,10 @@ def _freeze_count_at_exit(call: str) -> int:
 
 def test_a_command_leaves_its_objects_out_of_the_exit_collections():
     """The interpreter's last garbage collections walked every object a command left (≈ 1 s
-    after a ``himit run``): :func:`main` freezes them at exit, once per process."""
+    after a ``himit run``): :func:`main` freezes them at exit, once per process, and so does
+    each process of a pool of worlds."""
     assert _freeze_count_at_exit("main(['info', '--size', '20', '--rooms', '2'])") > 10_000
     assert _freeze_count_at_exit("pass") == 0  # (no command, no freeze)
+    # each world process of `himit run paper`'s pool too (the run waits for them to end)
+    pool_process = "from himit_torch.runs.experiment import _world_process; _world_process(1)"
+    assert _freeze_count_at_exit(pool_process) > 10_000

@@ -66,6 +66,7 @@ from himit_torch.runs.runner import (
     WindowHook,
     batch_runs,
     check_run_dir,
+    freeze_at_exit,
     run_names,
     run_windows,
     share_cores,
@@ -915,7 +916,7 @@ def _run_in_pool(
     pool = ProcessPoolExecutor(
         workers - 1,
         mp_context=multiprocessing.get_context("spawn"),
-        initializer=share_cores,
+        initializer=_world_process,
         initargs=(max(1, cores // workers),),
     )
 
@@ -971,6 +972,15 @@ def _run_in_pool(
     finally:  # a failed world stops the rest instead of letting them run to the end
         failed.set()
         pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _world_process(threads: int) -> None:
+    """Set up one of the pool's processes: its share of the cores
+    (:func:`~himit_torch.runs.runner.share_cores`), and an exit that skips the last garbage
+    collections (:func:`~himit_torch.runs.runner.freeze_at_exit`): the run waits for its
+    processes to end, ≈ 1.2 s each without it, ≈ 0.25 s with it."""
+    share_cores(threads)
+    freeze_at_exit()
 
 
 @contextmanager
