@@ -248,7 +248,7 @@ class LearnerViews:
         gen = torch.Generator(device=self.device).manual_seed(seed)
         greedy = self.greedy_options([run])[0].tolist()
         terminal = self.terminal.tolist()
-        move = self._trajectory_move(gen)
+        move = self._trajectory_move(gen, terminal)
         s = self.start_state
         states = [s]
         option, steps = -1, 0
@@ -267,9 +267,10 @@ class LearnerViews:
                 option = -1
         return torch.tensor(states)
 
-    def _trajectory_move(self, gen: torch.Generator):
+    def _trajectory_move(self, gen: torch.Generator, terminal: list[bool]):
         """``move(option, s) -> (s', stopped)``: one primitive step of ``option`` from ``s``
-        (:func:`~himit_torch.options.execution.option_step`) with uniforms drawn from ``gen``.
+        (:func:`~himit_torch.options.execution.option_step`) with uniforms drawn from ``gen``;
+        ``terminal``: :attr:`terminal` as a list.
 
         Deterministic options on a world with a :class:`~himit_torch.DynamicsTable` step in
         Python numbers, as :meth:`DynamicsTable.step <himit_torch.DynamicsTable.step>` and
@@ -316,7 +317,6 @@ class LearnerViews:
         successor = dynamics.successors.reshape(-1).tolist()
         action = policy.cpu().numpy()  # (O·S entries: read one at a time, not listed)
         beta = tables.options.termination.cpu().numpy()
-        terminal = self.terminal.tolist()
 
         def move_by_numbers(option: int, s: int) -> tuple[int, bool]:
             flat = (s * A + action.item(option * S + s)) * K

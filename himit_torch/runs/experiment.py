@@ -905,7 +905,7 @@ def _run_in_pool(
 
     jobs = deque(todo)
     taking = threading.Lock()
-    ended: queue.Queue = queue.Queue()  # (plan, size, result or the error) of the other lanes
+    ended: queue.Queue = queue.Queue()  # the other lanes' (plan, size, result), or their error
     failed = threading.Event()
 
     def take() -> tuple[int, int] | None:
@@ -926,20 +926,15 @@ def _run_in_pool(
         world left then, not while its process still starts."""
         try:
             pool.submit(os.getpid).result()
-        except BaseException as err:
-            failed.set()
-            ended.put((-1, -1, err))
-            return
-        while (job := take()) is not None:
-            i, size = job
-            try:
+            while (job := take()) is not None:
+                i, size = job
                 future = pool.submit(run_world, plans[i][0], size, plans[i][1], resume, False)
-                ended.put((i, size, future.result()))
-            except BaseException as err:  # (handed to this thread, which raises it)
-                failed.set()
-                ended.put((i, size, err))
-                return
-            announce(i, size)
+                result = future.result()
+                announce(i, size)
+                ended.put((i, size, result))
+        except BaseException as err:  # (handed to this thread, which raises it)
+            failed.set()
+            ended.put((None, None, err))
 
     def collect(wait: bool) -> None:
         """``world_done`` of what the other lanes ended (``wait``: until they all stop)."""
