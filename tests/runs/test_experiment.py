@@ -469,7 +469,7 @@ def test_a_runs_report_draws_only_the_world_figures_not_drawn_yet(small_run, tmp
     config = load_config(run_dir / "config.json")
     curves, first = (
         run_dir / "figures" / "fig4_curves_world16.png",
-        run_dir / "figures" / ("first_goal_world16.png"),
+        run_dir / "figures" / "first_goal_world16.png",
     )
     drawn = curves.read_bytes(), first.read_bytes()
     curves.write_bytes(b"kept")
