@@ -16,7 +16,7 @@ import torch
 
 from himit_torch.exact.greedy_evaluation import OptionPolicy, check_untried_rule
 from himit_torch.learner.choice import greedy_rows
-from himit_torch.options.execution import option_step
+from himit_torch.options.execution import option_step, option_step_in_numbers
 
 if TYPE_CHECKING:
     from himit_torch.learner.cloned_policy import ClonedPolicy
@@ -273,12 +273,11 @@ class LearnerViews:
         ``terminal``: :attr:`terminal` as a list.
 
         Deterministic options on a world with a :class:`~himit_torch.DynamicsTable` step in
-        Python numbers, as :meth:`DynamicsTable.step <himit_torch.DynamicsTable.step>` and
-        :func:`option_step` do (the slot is the first whose cumulative probability exceeds
-        ``u``, the option stops where ``β(s') > stop_u``): a step of torch ops on one state costs
-        ≈ 0.2 ms, and a world figure's path on 120×120 is up to 28,800 steps (≈ 6 s that way,
-        ≈ 0.4 s this way, ``benchmarks/bench_greedy_path.py``). Other options and worlds step
-        by :func:`option_step` itself."""
+        Python numbers (:func:`~himit_torch.options.execution.option_step_in_numbers`, the same
+        step to the bit): a step of torch ops on one state costs ≈ 0.2 ms, and a world figure's
+        path on 120×120 is up to 28,800 steps (≈ 6 s that way, ≈ 0.4 s this way,
+        ``benchmarks/bench_greedy_path.py``). Other options and worlds step by
+        :func:`option_step` itself."""
         tables, device, S = self.tables, self.device, self.num_states
 
         def uniform() -> torch.Tensor:
@@ -312,21 +311,11 @@ class LearnerViews:
 
             return move_by_tensors
 
-        A, K = dynamics.cdf.shape[1:]
-        slot_cdf = dynamics.cdf.reshape(-1).tolist()  # (S·A·K numbers, ≈ 230k on 120×120)
-        successor = dynamics.successors.reshape(-1).tolist()
-        action = policy.cpu().numpy()  # (O·S entries: read one at a time, not listed)
-        beta = tables.options.termination.cpu().numpy()
+        move = option_step_in_numbers(tables.options, dynamics, terminal)
 
         def move_by_numbers(option: int, s: int) -> tuple[int, bool]:
-            flat = (s * A + action.item(option * S + s)) * K
             u = uniform().item()
-            stop_u = uniform().item()
-            k = 0
-            while k < K - 1 and slot_cdf[flat + k] <= u:
-                k += 1
-            after = successor[flat + k]
-            return after, terminal[after] or beta.item(option * S + after) > stop_u
+            return move(option, s, u, uniform().item())
 
         return move_by_numbers
 

@@ -132,3 +132,62 @@ def test_mentor_errors(world, policy):
         run_mentor(world, policy, episodes=1, seed=0, generator=torch.Generator())
     with pytest.raises(ValueError, match="did not reach the goal within max_steps_per_episode=5"):
         run_mentor(world, policy, episodes=2, seed=0, max_steps_per_episode=5)
+
+
+def _rollout_fields(rollout) -> list[tuple[str, int, torch.Tensor]]:
+    return [
+        (name, e, x)
+        for name in ("states", "decisions", "decision_states", "randomised")
+        for e, x in enumerate(getattr(rollout, name))
+    ]
+
+
+def _mentors():
+    from himit_torch.options.builders import primitive_options
+    from himit_torch.worlds.gymnasium import from_gymnasium
+
+    rooms = MultiRooms(size=20, rooms=2, slip=0.1)
+    corners = MultiRooms(size=32, rooms=4, slip=0.2)
+    taxi = from_gymnasium("Taxi-v3" if _gym_has("Taxi-v3") else "Taxi-v4")
+    lake = from_gymnasium("FrozenLake-v1", is_slippery=True)
+    return [
+        ("rooms", rooms, mentor_policy(rooms, mentor_options(rooms))),
+        ("corners", corners, mentor_policy(corners, mentor_options(corners, corners=True))),
+        ("taxi (a start distribution)", taxi, mentor_policy(taxi, primitive_options(taxi))),
+        ("slippery lake (three slots)", lake, mentor_policy(lake, primitive_options(lake))),
+    ]
+
+
+def _gym_has(name: str) -> bool:
+    import gymnasium
+
+    return name in gymnasium.envs.registry
+
+
+@pytest.mark.parametrize("index", range(4))
+def test_rollout_in_numbers_equals_the_batch_of_torch_ops(index, monkeypatch):
+    """run_mentor steps deterministic options on a world with a dynamics table in Python numbers
+    (_rollout_in_numbers); the batch's torch ops (_rollout_in_tensors) are the obvious
+    computation: the same states, decisions, decision states and flags, dtypes included, and
+    the same error when an episode runs out of steps."""
+    import himit_torch.mentor.policy as policy_module
+
+    name, world, mentor = _mentors()[index]
+    assert policy_module._steps_by_table(world) is not None  # (the fast path is taken)
+    for seed in range(3):
+        fast = run_mentor(world, mentor, episodes=6, seed=seed, max_steps_per_episode=10_000)
+        with monkeypatch.context() as m:
+            m.setattr(policy_module, "_steps_by_table", lambda world: None)
+            slow = run_mentor(world, mentor, episodes=6, seed=seed, max_steps_per_episode=10_000)
+        assert sum(len(s) for s in slow.states) > 6 * 3, name  # (episodes of some length)
+        for (field, e, a), (_, _, b) in zip(_rollout_fields(fast), _rollout_fields(slow)):
+            assert a.dtype == b.dtype and torch.equal(a, b), f"{name}, seed {seed}: {field}[{e}]"
+    longest = max(len(s) for s in slow.states)
+    messages = []
+    for steps_by_table in (policy_module._steps_by_table, lambda world: None):
+        with monkeypatch.context() as m:
+            m.setattr(policy_module, "_steps_by_table", steps_by_table)
+            with pytest.raises(ValueError, match="did not reach the goal") as err:
+                run_mentor(world, mentor, episodes=6, seed=2, max_steps_per_episode=longest - 2)
+        messages.append(str(err.value))
+    assert messages[0] == messages[1]
