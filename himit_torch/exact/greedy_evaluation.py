@@ -69,12 +69,11 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.csgraph as csgraph
 import scipy.sparse.linalg as spla
 import torch
 
 from himit_torch.exact.option_models import OptionModels, option_models_and_durations
-from himit_torch.exact.planning import PlanResult, smdp_value_iteration
+from himit_torch.exact.planning import PlanResult, reachable, smdp_value_iteration
 from himit_torch.options.builders import primitive_options
 from himit_torch.options.bundle import Options
 from himit_torch.validation import COUNT_MAX, as_int
@@ -231,20 +230,6 @@ def _scipy_csr(t: torch.Tensor) -> sp.csr_matrix:
         (c.values().numpy(), c.col_indices().numpy(), c.crow_indices().numpy()),
         shape=tuple(c.shape),
     )
-
-
-def _reachable(graph: sp.csr_matrix, sources: np.ndarray) -> np.ndarray:
-    """``[n]`` bool: the states reachable from ``sources`` (themselves included) along the
-    nonzero entries of ``graph [n, n]`` (one breadth-first search from an added root)."""
-    n = graph.shape[0]
-    if sources.size == 0:
-        return np.zeros(n, dtype=bool)
-    indptr = np.append(graph.indptr, graph.indptr[-1] + sources.size)
-    indices = np.concatenate([graph.indices, sources])
-    rooted = sp.csr_matrix((np.ones(indices.size), indices, indptr), shape=(n + 1, n + 1))
-    seen = np.zeros(n + 1, dtype=bool)
-    seen[csgraph.breadth_first_order(rooted, n, directed=True, return_predecessors=False)] = True
-    return seen[:n]
 
 
 def _models_of(options: Options, models) -> tuple[OptionModels, OptionModels]:
@@ -418,15 +403,15 @@ class PolicyEvaluator:
         # system fails to factor (seen on FrozenLake 8×8 with first-index ties).
         K.data[np.abs(K.data) < ROUND_OFF] = 0.0
         K.eliminate_zeros()
-        reach = _reachable(K, self.sources)
+        reach = reachable(K, self.sources)
         live = np.flatnonzero(reach & ~self.terminal)
         back = K.T.tocsr()  # predecessors
-        can_end = _reachable(back, np.flatnonzero(reach & self.terminal))
+        can_end = reachable(back, np.flatnonzero(reach & self.terminal))
         doomed = live[~can_end[live]]
         ends = live[can_end[live]]
         # A goal is certain from s unless s can reach a doomed state or a non-goal ending.
         bad = np.concatenate([doomed, np.flatnonzero(reach & self.terminal & ~self.goal)])
-        unsure = _reachable(back, bad)
+        unsure = reachable(back, bad)
         mu = self.start
         share = float(mu[self.sources][~unsure[self.sources]].sum())
         # Undiscounted: goal probabilities and expected steps on the states that can end.

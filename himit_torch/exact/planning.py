@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
+import scipy.sparse.csgraph as csgraph
 import scipy.sparse.linalg as spla
 import torch
 
@@ -171,59 +172,64 @@ def expected_steps(
     probability 1.
     """
     S = durations.num_states
-    key = durations.row_state * durations.num_options + durations.row_option
-    chosen = policy.clamp(min=0)
-    wanted = torch.arange(S) * durations.num_options + chosen
-    lookup = {int(k): i for i, k in enumerate(key.tolist())}
-    T = durations.transition.to_sparse_coo().coalesce()
-    idx = T.indices().numpy()
-    Tm = sp.csr_matrix((T.values().numpy(), (idx[0], idx[1])), shape=tuple(T.shape))
     term = terminal.numpy()
     if term[int(start)]:
         return 0.0
-    # Reachable non-terminal states under the policy.
-    seen = {int(start)}
-    frontier = [int(start)]
-    rows = {}
-    parents: dict[int, list[int]] = {}
-    while frontier:
-        nxt = []
-        for s in frontier:
-            if term[s]:
-                continue
-            row = lookup.get(int(wanted[s]))
-            if row is None or policy[s] < 0:
-                return float("inf")
-            rows[s] = row
-            for t in Tm.indices[Tm.indptr[row] : Tm.indptr[row + 1]]:
-                parents.setdefault(int(t), []).append(s)
-                if int(t) not in seen:
-                    seen.add(int(t))
-                    nxt.append(int(t))
-        frontier = nxt
+    T = durations.transition.to_sparse_coo().coalesce()
+    idx = T.indices().numpy()
+    Tm = sp.csr_matrix((T.values().numpy(), (idx[0], idx[1])), shape=tuple(T.shape))
+    # The model row of (s, π(s)) at each state (−1: no option there, or no row for it).
+    pol = policy.numpy()
+    row_state, row_option = durations.row_state.numpy(), durations.row_option.numpy()
+    used = (pol[row_state] >= 0) & (row_option == pol[row_state])
+    row_of = np.full(S, -1, dtype=np.int64)
+    row_of[row_state[used]] = np.flatnonzero(used)
+    # Reachable states under the policy: along every stored entry of the chosen rows.
+    acting = np.flatnonzero((row_of >= 0) & ~term)
+    reach = reachable(_rows_graph(Tm, row_of, acting, S), np.array([int(start)]))
+    if (row_of[reach & ~term] < 0).any():
+        return float("inf")  # a reachable state where the policy has no option
     # The goal is reached with probability 1 iff every reachable state can reach a terminal one;
     # otherwise the system below is singular (a closed loop), so answer before solving it.
-    finishing = [s for s in seen if term[s]]
-    can_finish = set(finishing)
-    while finishing:
-        for p in parents.get(finishing.pop(), ()):
-            if p not in can_finish:
-                can_finish.add(p)
-                finishing.append(p)
-    if len(can_finish) < len(seen):
+    states = np.flatnonzero(reach & ~term)
+    back = _rows_graph(Tm, row_of, states, S).T.tocsr()
+    if not reachable(back, np.flatnonzero(reach & term))[reach].all():
         return float("inf")
-    states = np.array(sorted(rows))
-    pos = {s: i for i, s in enumerate(states)}
-    sub = Tm[[rows[s] for s in states]].tocoo()
-    keep = np.isin(sub.col, states)
     n = states.size
+    index = np.full(S, -1, dtype=np.int64)
+    index[states] = np.arange(n)
+    sub = Tm[row_of[states]].tocoo()
+    keep = np.isin(sub.col, states)
     system = sp.identity(n, format="csr") - sp.csr_matrix(
-        (sub.data[keep], (sub.row[keep], [pos[c] for c in sub.col[keep]])), shape=(n, n)
+        (sub.data[keep], (sub.row[keep], index[sub.col[keep]])), shape=(n, n)
     )
-    dur = durations.reward.numpy()[[rows[s] for s in states]]
-    t = spla.spsolve(system.tocsc(), dur)
-    value = float(np.atleast_1d(t)[pos[int(start)]])
+    t = spla.spsolve(system.tocsc(), durations.reward.numpy()[row_of[states]])
+    value = float(np.atleast_1d(t)[index[int(start)]])
     return value if np.isfinite(value) and value > 0 else float("inf")
+
+
+def _rows_graph(T: sp.csr_matrix, row_of: np.ndarray, states: np.ndarray, S: int) -> sp.csr_matrix:
+    """``[S, S]``: state ``s`` of ``states`` (sorted) linked to every state stored in its model
+    row ``T[row_of[s]]`` (zeros stored included); the other states to none."""
+    rows = T[row_of[states]]
+    counts = np.zeros(S, dtype=np.int64)
+    counts[states] = np.diff(rows.indptr)
+    indptr = np.concatenate([[0], np.cumsum(counts)])
+    return sp.csr_matrix((np.ones(rows.indices.size), rows.indices, indptr), shape=(S, S))
+
+
+def reachable(graph: sp.csr_matrix, sources: np.ndarray) -> np.ndarray:
+    """``[n]`` bool: the states reachable from ``sources`` (themselves included) along the
+    stored entries of ``graph [n, n]`` (one breadth-first search from an added root)."""
+    n = graph.shape[0]
+    if sources.size == 0:
+        return np.zeros(n, dtype=bool)
+    indptr = np.append(graph.indptr, graph.indptr[-1] + sources.size)
+    indices = np.concatenate([graph.indices, sources])
+    rooted = sp.csr_matrix((np.ones(indices.size), indices, indptr), shape=(n + 1, n + 1))
+    seen = np.zeros(n + 1, dtype=bool)
+    seen[csgraph.breadth_first_order(rooted, n, directed=True, return_predecessors=False)] = True
+    return seen[:n]
 
 
 @dataclass(frozen=True)

@@ -1,6 +1,7 @@
 """Exact planners: hand-solved MDPs, fast paths against slow ones, expected trip lengths."""
 
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -273,3 +274,92 @@ def test_value_iteration_bad_inputs(make, match):
     P, R, gamma = make(*three_state_mdp())
     with pytest.raises(ValueError, match=match):
         value_iteration(P, R, gamma)
+
+
+def _expected_steps_by_search(durations, policy, start, terminal) -> float:
+    """expected_steps written plainly: a breadth-first search over dicts from the start, the
+    states that can finish by walking back from the terminal ones, then the same solve."""
+    import scipy.sparse.linalg as spla
+
+    key = (durations.row_state * durations.num_options + durations.row_option).tolist()
+    lookup = {k: i for i, k in enumerate(key)}
+    Tm = sp.csr_matrix(durations.transition.to_dense().numpy())
+    term = terminal.numpy()
+    if term[start]:
+        return 0.0
+    seen, frontier, rows, parents = {start}, [start], {}, {}
+    while frontier:
+        nxt = []
+        for s in frontier:
+            if term[s]:
+                continue
+            row = lookup.get(s * durations.num_options + max(int(policy[s]), 0))
+            if row is None or policy[s] < 0:
+                return math.inf
+            rows[s] = row
+            for t in Tm.indices[Tm.indptr[row] : Tm.indptr[row + 1]].tolist():
+                parents.setdefault(t, []).append(s)
+                if t not in seen:
+                    seen.add(t)
+                    nxt.append(t)
+        frontier = nxt
+    finishing = [s for s in seen if term[s]]
+    can_finish = set(finishing)
+    while finishing:
+        for p in parents.get(finishing.pop(), ()):
+            if p not in can_finish:
+                can_finish.add(p)
+                finishing.append(p)
+    if len(can_finish) < len(seen):
+        return math.inf
+    states = sorted(rows)
+    pos = {s: i for i, s in enumerate(states)}
+    sub = Tm[[rows[s] for s in states]].tocoo()
+    keep = np.isin(sub.col, states)
+    n = len(states)
+    system = sp.identity(n, format="csr") - sp.csr_matrix(
+        (sub.data[keep], (sub.row[keep], [pos[c] for c in sub.col[keep]])), shape=(n, n)
+    )
+    t = spla.spsolve(system.tocsc(), durations.reward.numpy()[[rows[s] for s in states]])
+    value = float(np.atleast_1d(t)[pos[start]])
+    return value if np.isfinite(value) and value > 0 else math.inf
+
+
+@pytest.mark.parametrize("size, rooms, slip", [(8, 2, 0.0), (20, 4, 0.1), (40, 10, 0.1)])
+def test_expected_steps_equals_the_search_over_dicts(size, rooms, slip):
+    """expected_steps (array masks and scipy's breadth-first search) gives the plain search's
+    answer to the bit: optimal policies over primitives and over options, and random policies
+    (closed loops: inf; states without an option on the way: inf; some that finish)."""
+    world = MultiRooms(size=size, rooms=rooms, slip=slip)
+    terminal, S = world.terminal_mask, world.num_states
+    cases = []
+    if slip == 0.0:  # a closed loop: west into the wall at the start, forever
+        west = smdp_value_iteration(option_models(world, primitive_options(world))).policy.clone()
+        west[world.start_state] = primitive_options(world).names.index("primitive W")
+        cases.append((option_durations(world, primitive_options(world)), west, world.start_state))
+    for options in (primitive_options(world), learner_options(world)):
+        durations = option_durations(world, options)
+        plan = smdp_value_iteration(option_models(world, options))
+        cases.append((durations, plan.policy, world.start_state))
+        cases.append((durations, plan.policy, int(torch.nonzero(terminal)[0])))  # (at the goal)
+        gen = torch.Generator().manual_seed(size)
+        for _ in range(6):
+            # the plan's option, replaced at random states by a random available one or none
+            policy = plan.policy.clone()
+            where = torch.rand(S, generator=gen) < 0.05
+            for s in torch.nonzero(where).flatten().tolist():
+                available = torch.nonzero(options.initiation[:, s]).flatten()
+                pick = int(torch.randint(len(available) + 1, (1,), generator=gen))
+                policy[s] = available[pick] if pick < len(available) else -1
+            cases.append((durations, policy, world.start_state))
+    answers = []
+    for durations, policy, start in cases:
+        with warnings.catch_warnings():  # (a closed loop is answered before a singular solve)
+            warnings.simplefilter("error")
+            got = expected_steps(durations, policy, start, terminal)
+        assert got == _expected_steps_by_search(durations, policy, start, terminal)
+        answers.append(got)
+    assert (
+        any(math.isinf(a) for a in answers)
+        and sum(math.isfinite(a) and a > 0 for a in answers) >= 2
+    )
