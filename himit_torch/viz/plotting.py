@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import os
 import warnings
+import weakref
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -622,13 +623,27 @@ _POLICY_PALETTE = {
 }
 
 
+#: This process's map figures (:class:`MapRenderer`), by kind, dpi and legend.
+_MAP_FIGURES: dict[tuple, dict[str, Any]] = {}
+
+
+def _mentor_dot_area(N: int) -> float:
+    """The mentor's dots on an ``N × N`` visits map, in points²: half a cell wide, so that the
+    learner's colour stays visible around them."""
+    cell = 0.60 * 5.6 * 72 / N
+    return (cell / 2) ** 2
+
+
 class MapRenderer:
     """The maps of one world logged to TensorBoard — state values, greedy option, visits — as
     ``[H, W, 3]`` uint8 images with their colorbar or legend, about 500 × 400 pixels.
 
     Each kind of map is one figure built on first use and redrawn with new data afterwards
     (≈ 3× faster than building a figure per image, which matters when many runs log maps
-    during training).
+    during training). The figures are this process's, shared by every renderer: a renderer of
+    another world sets their images to its grid (the same pixels as a figure built for it,
+    ``tests/viz``), so a process that logs the maps of several worlds builds each kind once
+    (≈ 0.3 s a world on the paper's).
 
     Args:
         world: the world.
@@ -641,11 +656,40 @@ class MapRenderer:
         self, world: MultiRooms, options=None, initial_value: float = -1.0, dpi: int = 100
     ):
         self.world, self.options, self.initial_value, self.dpi = world, options, initial_value, dpi
-        self._figures: dict = {}
+        self._option_codes: np.ndarray | None = None  # (the policy map's colour of each option)
 
     def _figure(self, kind: str):
-        if kind in self._figures:
-            return self._figures[kind]
+        """The process's figure of ``kind`` (its legend's texts: the dpi, and the initial value
+        for the values map), built on first use, its images set to this renderer's world."""
+        key = (kind, self.dpi, self.initial_value if kind == "values" else None)
+        parts = _MAP_FIGURES.get(key)
+        if parts is None:
+            parts = _MAP_FIGURES[key] = self._build(kind)
+        elif parts["world"]() is not self.world:
+            self._fit_world(parts)
+        return parts
+
+    def _fit_world(self, parts) -> None:
+        """Set a figure built for another world to this one: its images' grids and extents
+        (the axes' limits follow) and the mentor's dots' size. What a figure holds besides
+        (legend, colour bar, title, boxes) does not depend on the world."""
+        N = self.world.size
+        extent = (-0.5, N - 0.5, N - 0.5, -0.5)  # (imshow's own for an N × N grid)
+        parts["image"].set_data(np.ma.masked_all((N, N)))
+        parts["walls"].set_data(self._walls())
+        for image in (parts["image"], parts["walls"]):
+            image.set_extent(extent)
+        if "mentor" in parts:
+            parts["mentor"].set_sizes([_mentor_dot_area(N)])
+        parts["world"] = weakref.ref(self.world)
+
+    def _walls(self) -> np.ma.MaskedArray:
+        N = self.world.size
+        return np.ma.masked_array(
+            np.ones(self.world.num_states), ~self.world.wall_mask.numpy()
+        ).reshape(N, N)
+
+    def _build(self, kind: str):
         N = self.world.size
         # Fixed boxes (no layout engine): the same pixels for every redraw, room for a two-line
         # title above, the legend below and the colorbar or key on the right.
@@ -664,12 +708,8 @@ class MapRenderer:
                 vmax=len(keys) - 0.5,
                 interpolation="nearest",
             )
-            ax.imshow(
-                np.ma.masked_array(
-                    np.ones(self.world.num_states), ~self.world.wall_mask.numpy()
-                ).reshape(N, N),
-                cmap=ListedColormap([WALL_COLOR]),
-                interpolation="nearest",
+            parts["walls"] = ax.imshow(
+                self._walls(), cmap=ListedColormap([WALL_COLOR]), interpolation="nearest"
             )
             ax.set_xticks([])
             ax.set_yticks([])
@@ -699,15 +739,14 @@ class MapRenderer:
             parts["image"] = plot_state_map(
                 ax, self.world, blank + 1, label="", log=log, colorbar=False
             )
+            parts["walls"] = ax.images[-1]  # (plot_state_map draws the walls over the map)
             cax = fig.add_axes((0.68, 0.18, 0.035, 0.60))
             label = "visits of the learner (log scale)" if log else "V(s), the learner's value"
             parts["colorbar"] = fig.colorbar(parts["image"], cax=cax, label=label)
             extra = []
             if log:
-                # Dots half a cell wide: the learner's colour stays visible around them.
-                cell = 0.60 * 5.6 * 72 / N
                 parts["mentor"] = ax.scatter(
-                    [], [], s=(cell / 2) ** 2, color="#e8590c", marker="o", linewidths=0
+                    [], [], s=_mentor_dot_area(N), color="#e8590c", marker="o", linewidths=0
                 )
                 extra = [
                     Line2D(
@@ -738,7 +777,7 @@ class MapRenderer:
             )
         parts["title"] = fig.text(0.33, 0.975, "", ha="center", va="top", fontsize="medium")
         fig._himit_titles = [parts["title"]]  # type: ignore[attr-defined]  # read by fit_titles
-        self._figures[kind] = parts
+        parts["world"] = weakref.ref(self.world)
         return parts
 
     @staticmethod
@@ -828,14 +867,14 @@ class MapRenderer:
         g = _numpy(greedy).reshape(-1).astype(np.int64)
         codes = np.full(g.shape, -1, dtype=np.int64)
         keys = parts["keys"]
-        if "codes" not in parts:  # the colour of each option, looked up once
+        if self._option_codes is None:  # the colour of each option, looked up once
             option_codes = []
             for kind, name in zip(self.options.kinds, self.options.names):
                 key = name[-1] if kind == "primitive" else kind
                 option_codes.append(keys.index(key) if key in keys else keys.index("custom"))
-            parts["codes"] = np.array(option_codes, dtype=np.int64)
+            self._option_codes = np.array(option_codes, dtype=np.int64)
         tried = g >= 0
-        codes[tried] = parts["codes"][g[tried]]
+        codes[tried] = self._option_codes[g[tried]]
         hide = (codes < 0) | self.world.wall_mask.numpy()
         N = self.world.size
         parts["image"].set_data(np.ma.masked_array(codes, hide).reshape(N, N))

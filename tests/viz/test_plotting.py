@@ -213,7 +213,7 @@ def test_long_titles_are_wrapped_inside_the_figure(world, tmp_path):
     save_world_figure(tmp_path / "w.png", world, title=LONG_TITLE)
     renderer = MapRenderer(world)
     renderer.values(torch.zeros(world.num_states), title=LONG_TITLE)
-    parts = renderer._figures["values"]
+    parts = renderer._figure("values")
     assert _inside(parts["fig"], parts["title"])
     fig = Figure(figsize=(6, 5), layout="constrained")
     ax = fig.add_subplot()
@@ -329,7 +329,7 @@ def test_each_map_image_is_the_figures_full_draw():
     S = world.num_states
 
     def full_draw(kind: str) -> np.ndarray:
-        parts = renderer._figures[kind]
+        parts = renderer._figure(kind)
         for artist in parts["fig"].findobj():
             artist.set_animated(False)
         parts["canvas"].draw()
@@ -351,3 +351,44 @@ def test_each_map_image_is_the_figures_full_draw():
             assert np.array_equal(image, full_draw(kind)), (kind, k)
             images += 1
     assert images == 9
+
+
+def test_maps_on_the_process_figures_are_those_of_figures_built_for_the_world(monkeypatch):
+    """Renderers share the process's map figures, each setting them to its world's grid: every
+    image must be pixel for pixel what a figure built for that world gives (the obvious path,
+    a renderer with no figures to share) — worlds of other sizes and walls, back and forth, two
+    renderers taking turns, a world the figures were built for coming back."""
+    from himit_torch.options.builders import learner_options
+    from himit_torch.viz import plotting
+
+    monkeypatch.setattr(plotting, "_MAP_FIGURES", {})
+    worlds = [
+        MultiRooms(size=16, rooms=4),
+        MultiRooms(size=24, rooms=3),
+        MultiRooms(size=12, rooms=3),
+    ]
+    renderers = [plotting.MapRenderer(w, learner_options(w, corners=True)) for w in worlds]
+    gen = torch.Generator().manual_seed(1)
+    figures = set()
+    for turn, r in enumerate([0, 1, 0, 2, 1, 2, 0]):
+        renderer, S = renderers[r], worlds[r].num_states
+        values = -torch.rand(S, generator=gen, dtype=torch.float64)
+        values[:7] = -1.0
+        visits = torch.randint(0, 1000, (S,), generator=gen)
+        mentor = (torch.rand(S, generator=gen) < 0.1).long()
+        greedy = torch.randint(-1, len(renderer.options.names), (S,), generator=gen)
+        title = f"turn {turn}: world {worlds[r].size}"
+        for kind, data in (
+            ("values", (values,)),
+            ("visits", (visits, mentor)),
+            ("policy", (greedy,)),
+        ):
+            shared = getattr(renderer, kind)(*data, title)
+            figures.add(id(renderer._figure(kind)["fig"]))
+            with monkeypatch.context() as m:
+                m.setattr(plotting, "_MAP_FIGURES", {})
+                built = getattr(plotting.MapRenderer(worlds[r], renderer.options), kind)(
+                    *data, title
+                )
+            assert shared.shape == built.shape and np.array_equal(shared, built), (kind, turn)
+    assert len(figures) == 3  # (one figure of each kind served every world)
