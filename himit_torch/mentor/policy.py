@@ -299,7 +299,7 @@ def run_mentor(
         raise ValueError(f"the mentor has no option at the start state {_where(world, bad)}")
     dynamics = _steps_by_table(world)
     if noise == 0 and tables.policy is not None and dynamics is not None:
-        # (one episode's step in Python numbers: the same episodes, ≈ 10× faster than the
+        # (one episode's step in Python numbers: the same episodes, ≈ 3× faster than the
         # batch's torch ops on the few episodes a study records)
         return _rollout_in_numbers(
             world, options, choice, tables, dynamics, pos, generator, max_steps

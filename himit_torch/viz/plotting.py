@@ -16,6 +16,7 @@ figures to leak); :func:`save_world_figure` renders with the Agg canvas.
 from __future__ import annotations
 
 import os
+import threading
 import warnings
 import weakref
 from collections.abc import Sequence
@@ -623,8 +624,10 @@ _POLICY_PALETTE = {
 }
 
 
-#: This process's map figures (:class:`MapRenderer`), by kind, dpi and legend.
+#: This process's map figures (:class:`MapRenderer`), by kind, dpi and legend, and the lock a
+#: map holds while it is drawn (renderers in two threads share the figures).
 _MAP_FIGURES: dict[tuple, dict[str, Any]] = {}
+_MAP_LOCK = threading.RLock()
 
 
 def _mentor_dot_area(N: int) -> float:
@@ -643,7 +646,8 @@ class MapRenderer:
     during training). The figures are this process's, shared by every renderer: a renderer of
     another world sets their images to its grid (the same pixels as a figure built for it,
     ``tests/viz``), so a process that logs the maps of several worlds builds each kind once
-    (≈ 0.3 s a world on the paper's).
+    (≈ 0.3 s a world on the paper's). A map is drawn under a lock of the process: renderers in
+    several threads take turns.
 
     Args:
         world: the world.
@@ -839,46 +843,49 @@ class MapRenderer:
         """``values [S]``: colour = ``V(s)``; cells still at the initial value (−1: the value of
         never reaching the goal, kept until the learned model links the cell to the goal) grey."""
         v = _numpy(values).reshape(-1)
-        parts = self._figure("values")
-        self._field(parts, v, np.isclose(v, self.initial_value, rtol=0, atol=1e-9), log=False)
-        return self._render(parts, title)
+        with _MAP_LOCK:
+            parts = self._figure("values")
+            self._field(parts, v, np.isclose(v, self.initial_value, rtol=0, atol=1e-9), log=False)
+            return self._render(parts, title)
 
     def visits(self, visits, mentor_visits=None, title: str = "") -> np.ndarray:
         """``visits [S]`` of the learner (log colour scale, never visited grey) with the mentor's
         states (``mentor_visits [S] > 0``) marked."""
         v = _numpy(visits).reshape(-1)
-        parts = self._figure("visits")
-        self._field(parts, v, np.zeros_like(v, dtype=bool), log=True)
-        if mentor_visits is not None:
-            rows, cols = np.divmod(
-                np.flatnonzero(_numpy(mentor_visits).reshape(-1) > 0), self.world.size
-            )
-            parts["mentor"].set_offsets(np.column_stack([cols, rows]))
-        else:
-            parts["mentor"].set_offsets(np.zeros((0, 2)))
-        return self._render(parts, title)
+        with _MAP_LOCK:
+            parts = self._figure("visits")
+            self._field(parts, v, np.zeros_like(v, dtype=bool), log=True)
+            if mentor_visits is not None:
+                rows, cols = np.divmod(
+                    np.flatnonzero(_numpy(mentor_visits).reshape(-1) > 0), self.world.size
+                )
+                parts["mentor"].set_offsets(np.column_stack([cols, rows]))
+            else:
+                parts["mentor"].set_offsets(np.zeros((0, 2)))
+            return self._render(parts, title)
 
     def policy(self, greedy, title: str = "") -> np.ndarray:
         """``greedy [S]`` option per state (−1: nothing tried), coloured by kind and, for
         primitives, direction."""
         if self.options is None:
             raise ValueError("MapRenderer.policy needs the options (MapRenderer(world, options))")
-        parts = self._figure("policy")
-        g = _numpy(greedy).reshape(-1).astype(np.int64)
-        codes = np.full(g.shape, -1, dtype=np.int64)
-        keys = parts["keys"]
-        if self._option_codes is None:  # the colour of each option, looked up once
-            option_codes = []
-            for kind, name in zip(self.options.kinds, self.options.names):
-                key = name[-1] if kind == "primitive" else kind
-                option_codes.append(keys.index(key) if key in keys else keys.index("custom"))
-            self._option_codes = np.array(option_codes, dtype=np.int64)
-        tried = g >= 0
-        codes[tried] = self._option_codes[g[tried]]
-        hide = (codes < 0) | self.world.wall_mask.numpy()
-        N = self.world.size
-        parts["image"].set_data(np.ma.masked_array(codes, hide).reshape(N, N))
-        return self._render(parts, title)
+        with _MAP_LOCK:
+            parts = self._figure("policy")
+            g = _numpy(greedy).reshape(-1).astype(np.int64)
+            codes = np.full(g.shape, -1, dtype=np.int64)
+            keys = parts["keys"]
+            if self._option_codes is None:  # the colour of each option, looked up once
+                option_codes = []
+                for kind, name in zip(self.options.kinds, self.options.names):
+                    key = name[-1] if kind == "primitive" else kind
+                    option_codes.append(keys.index(key) if key in keys else keys.index("custom"))
+                self._option_codes = np.array(option_codes, dtype=np.int64)
+            tried = g >= 0
+            codes[tried] = self._option_codes[g[tried]]
+            hide = (codes < 0) | self.world.wall_mask.numpy()
+            N = self.world.size
+            parts["image"].set_data(np.ma.masked_array(codes, hide).reshape(N, N))
+            return self._render(parts, title)
 
 
 def value_image(
