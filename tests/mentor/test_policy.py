@@ -1,5 +1,7 @@
 """The mentor: optimal over its own options with a preference for extended ones, state-only demos."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 import torch
@@ -169,7 +171,7 @@ def test_rollout_in_numbers_equals_the_batch_of_torch_ops(index, monkeypatch):
     """run_mentor steps deterministic options on a world with a dynamics table in Python numbers
     (_rollout_in_numbers); the batch's torch ops (_rollout_in_tensors) are the obvious
     computation: the same states, decisions, decision states and flags, dtypes included, and
-    the same error when an episode runs out of steps."""
+    the same errors when an episode runs out of steps and where the policy has no option."""
     import himit_torch.mentor.policy as policy_module
 
     name, world, mentor = _mentors()[index]
@@ -189,5 +191,18 @@ def test_rollout_in_numbers_equals_the_batch_of_torch_ops(index, monkeypatch):
             m.setattr(policy_module, "_steps_by_table", steps_by_table)
             with pytest.raises(ValueError, match="did not reach the goal") as err:
                 run_mentor(world, mentor, episodes=6, seed=2, max_steps_per_episode=longest - 2)
+        messages.append(str(err.value))
+    assert messages[0] == messages[1]
+    # a state on the way (not a start) where the policy has no option: the same error both ways
+    decided, starts = torch.cat(slow.decision_states), torch.stack([s[0] for s in slow.states])
+    on_the_way = int(decided[~torch.isin(decided, starts)][0])
+    broken = dataclasses.replace(mentor, option=mentor.option.clone())
+    broken.option[on_the_way] = -1
+    messages = []
+    for steps_by_table in (policy_module._steps_by_table, lambda world: None):
+        with monkeypatch.context() as m:
+            m.setattr(policy_module, "_steps_by_table", steps_by_table)
+            with pytest.raises(ValueError, match="has no usable option at state") as err:
+                run_mentor(world, broken, episodes=6, seed=2, max_steps_per_episode=10_000)
         messages.append(str(err.value))
     assert messages[0] == messages[1]
