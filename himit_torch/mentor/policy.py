@@ -344,9 +344,7 @@ def _rollout_in_numbers(
         for e in need:
             o = chosen[pos[e]]
             if o < 0 or not usable[o, pos[e]]:
-                raise ValueError(
-                    f"the mentor's policy has no usable option at state {_where(world, pos[e])}"
-                )
+                raise _no_usable_option(world, pos[e])
         for e in need:
             current[e] = chosen[pos[e]]
             decisions[e].append(current[e])
@@ -363,11 +361,7 @@ def _rollout_in_numbers(
         if not any(active):
             break
     if any(active):
-        raise ValueError(
-            f"the mentor did not reach the goal within max_steps_per_episode="
-            f"{max_steps} steps in {sum(active)} of {E} episodes; is its "
-            "policy able to reach the goal?"
-        )
+        raise _goal_not_reached(max_steps, sum(active), E)
     # each episode up to its first arrival at the goal (the start's own, if it is one)
     ends = [next(i for i, s in enumerate(path) if terminal[s]) for path in states]
     return MentorRollout(
@@ -376,6 +370,17 @@ def _rollout_in_numbers(
         options=options,
         decision_states=tuple(torch.tensor(d, dtype=torch.int64) for d in decided_at),
         randomised=tuple(torch.zeros(len(d), dtype=torch.bool) for d in decisions),
+    )
+
+
+def _no_usable_option(world, state: int) -> ValueError:
+    return ValueError(f"the mentor's policy has no usable option at state {_where(world, state)}")
+
+
+def _goal_not_reached(max_steps: int, left: int, episodes: int) -> ValueError:
+    return ValueError(
+        f"the mentor did not reach the goal within max_steps_per_episode={max_steps} steps in "
+        f"{left} of {episodes} episodes; is its policy able to reach the goal?"
     )
 
 
@@ -421,9 +426,7 @@ def _rollout_in_tensors(
                 picked = torch.where(randomised, drawn, picked)
             if (picked < 0).any() or not init[picked, pos[need]].all():
                 bad = int(pos[need][(picked < 0) | ~init[picked.clamp(min=0), pos[need]]][0])
-                raise ValueError(
-                    f"the mentor's policy has no usable option at state {_where(world, bad)}"
-                )
+                raise _no_usable_option(world, bad)
             current[need] = picked
             decided_episode.append(torch.nonzero(need).flatten())
             decided_option.append(picked)
@@ -445,11 +448,7 @@ def _rollout_in_tensors(
         if not active.any():
             break
     if active.any():
-        raise ValueError(
-            f"the mentor did not reach the goal within max_steps_per_episode="
-            f"{max_steps} steps in {int(active.sum())} of {E} episodes; is its "
-            "policy able to reach the goal?"
-        )
+        raise _goal_not_reached(max_steps, int(active.sum()), E)
     hist = torch.stack(history)  # [T + 1, E]
     reached = terminal[hist].int().argmax(0)  # first arrival at the goal
     states = tuple(hist[: int(reached[e]) + 1, e].clone() for e in range(E))

@@ -144,37 +144,33 @@ def _rollout_fields(rollout) -> list[tuple[str, int, torch.Tensor]]:
     ]
 
 
-def _mentors():
+def _mentor_in(name: str):
+    """``(world, mentor)``: the worlds the mentor's fast path is checked on."""
     from himit_torch.options.builders import primitive_options
     from himit_torch.worlds.gymnasium import from_gymnasium
 
-    rooms = MultiRooms(size=20, rooms=2, slip=0.1)
-    corners = MultiRooms(size=32, rooms=4, slip=0.2)
-    taxi = from_gymnasium("Taxi-v3" if _gym_has("Taxi-v3") else "Taxi-v4")
-    lake = from_gymnasium("FrozenLake-v1", is_slippery=True)
-    return [
-        ("rooms", rooms, mentor_policy(rooms, mentor_options(rooms))),
-        ("corners", corners, mentor_policy(corners, mentor_options(corners, corners=True))),
-        ("taxi (a start distribution)", taxi, mentor_policy(taxi, primitive_options(taxi))),
-        ("slippery lake (three slots)", lake, mentor_policy(lake, primitive_options(lake))),
-    ]
+    if name in ("rooms", "corners"):
+        world = MultiRooms(size=20, rooms=2) if name == "rooms" else MultiRooms(32, 4, slip=0.2)
+        return world, mentor_policy(world, mentor_options(world, corners=name == "corners"))
+    world = (
+        from_gymnasium("Taxi-v4")
+        if name == "taxi (a start distribution)"
+        else from_gymnasium("FrozenLake-v1", is_slippery=True)
+    )
+    return world, mentor_policy(world, primitive_options(world))
 
 
-def _gym_has(name: str) -> bool:
-    import gymnasium
-
-    return name in gymnasium.envs.registry
-
-
-@pytest.mark.parametrize("index", range(4))
-def test_rollout_in_numbers_equals_the_batch_of_torch_ops(index, monkeypatch):
+@pytest.mark.parametrize(
+    "name", ["rooms", "corners", "taxi (a start distribution)", "slippery lake (three slots)"]
+)
+def test_rollout_in_numbers_equals_the_batch_of_torch_ops(name, monkeypatch):
     """run_mentor steps deterministic options on a world with a dynamics table in Python numbers
     (_rollout_in_numbers); the batch's torch ops (_rollout_in_tensors) are the obvious
     computation: the same states, decisions, decision states and flags, dtypes included, and
     the same errors when an episode runs out of steps and where the policy has no option."""
     import himit_torch.mentor.policy as policy_module
 
-    name, world, mentor = _mentors()[index]
+    world, mentor = _mentor_in(name)
     assert policy_module._steps_by_table(world) is not None  # (the fast path is taken)
     for seed in range(3):
         fast = run_mentor(world, mentor, episodes=6, seed=seed, max_steps_per_episode=10_000)
@@ -184,25 +180,21 @@ def test_rollout_in_numbers_equals_the_batch_of_torch_ops(index, monkeypatch):
         assert sum(len(s) for s in slow.states) > 6 * 3, name  # (episodes of some length)
         for (field, e, a), (_, _, b) in zip(_rollout_fields(fast), _rollout_fields(slow)):
             assert a.dtype == b.dtype and torch.equal(a, b), f"{name}, seed {seed}: {field}[{e}]"
+
+    def error_both_ways(policy, max_steps: int, match: str) -> None:
+        messages = []
+        for steps_by_table in (policy_module._steps_by_table, lambda world: None):
+            with monkeypatch.context() as m:
+                m.setattr(policy_module, "_steps_by_table", steps_by_table)
+                with pytest.raises(ValueError, match=match) as err:
+                    run_mentor(world, policy, episodes=6, seed=2, max_steps_per_episode=max_steps)
+            messages.append(str(err.value))
+        assert messages[0] == messages[1]
+
     longest = max(len(s) for s in slow.states)
-    messages = []
-    for steps_by_table in (policy_module._steps_by_table, lambda world: None):
-        with monkeypatch.context() as m:
-            m.setattr(policy_module, "_steps_by_table", steps_by_table)
-            with pytest.raises(ValueError, match="did not reach the goal") as err:
-                run_mentor(world, mentor, episodes=6, seed=2, max_steps_per_episode=longest - 2)
-        messages.append(str(err.value))
-    assert messages[0] == messages[1]
-    # a state on the way (not a start) where the policy has no option: the same error both ways
+    error_both_ways(mentor, longest - 2, "did not reach the goal")
+    # a state on the way (not a start) where the policy has no option
     decided, starts = torch.cat(slow.decision_states), torch.stack([s[0] for s in slow.states])
-    on_the_way = int(decided[~torch.isin(decided, starts)][0])
     broken = dataclasses.replace(mentor, option=mentor.option.clone())
-    broken.option[on_the_way] = -1
-    messages = []
-    for steps_by_table in (policy_module._steps_by_table, lambda world: None):
-        with monkeypatch.context() as m:
-            m.setattr(policy_module, "_steps_by_table", steps_by_table)
-            with pytest.raises(ValueError, match="has no usable option at state") as err:
-                run_mentor(world, broken, episodes=6, seed=2, max_steps_per_episode=10_000)
-        messages.append(str(err.value))
-    assert messages[0] == messages[1]
+    broken.option[int(decided[~torch.isin(decided, starts)][0])] = -1
+    error_both_ways(broken, 10_000, "has no usable option at state")
