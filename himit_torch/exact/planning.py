@@ -186,19 +186,20 @@ def expected_steps(
     row_of[row_state[used]] = np.flatnonzero(used)
     # Reachable states under the policy: along every stored entry of the chosen rows.
     acting = np.flatnonzero((row_of >= 0) & ~term)
-    reach = reachable(_rows_graph(Tm, row_of, acting, S), np.array([int(start)]))
+    reach = reachable(_rows_graph(Tm[row_of[acting]], acting, S), np.array([int(start)]))
     if (row_of[reach & ~term] < 0).any():
         return float("inf")  # a reachable state where the policy has no option
     # The goal is reached with probability 1 iff every reachable state can reach a terminal one;
     # otherwise the system below is singular (a closed loop), so answer before solving it.
     states = np.flatnonzero(reach & ~term)
-    back = _rows_graph(Tm, row_of, states, S).T.tocsr()
+    chosen = Tm[row_of[states]]  # (the chosen rows of the states the system is over)
+    back = _rows_graph(chosen, states, S).T.tocsr()
     if not reachable(back, np.flatnonzero(reach & term))[reach].all():
         return float("inf")
     n = states.size
     index = np.full(S, -1, dtype=np.int64)
     index[states] = np.arange(n)
-    sub = Tm[row_of[states]].tocoo()
+    sub = chosen.tocoo()
     keep = np.isin(sub.col, states)
     system = sp.identity(n, format="csr") - sp.csr_matrix(
         (sub.data[keep], (sub.row[keep], index[sub.col[keep]])), shape=(n, n)
@@ -208,10 +209,9 @@ def expected_steps(
     return value if np.isfinite(value) and value > 0 else float("inf")
 
 
-def _rows_graph(T: sp.csr_matrix, row_of: np.ndarray, states: np.ndarray, S: int) -> sp.csr_matrix:
-    """``[S, S]``: state ``s`` of ``states`` (sorted) linked to every state stored in its model
-    row ``T[row_of[s]]`` (zeros stored included); the other states to none."""
-    rows = T[row_of[states]]
+def _rows_graph(rows: sp.csr_matrix, states: np.ndarray, S: int) -> sp.csr_matrix:
+    """``[S, S]``: state ``states[i]`` (sorted) linked to every state stored in ``rows[i]``
+    (zeros stored included); the other states to none."""
     counts = np.zeros(S, dtype=np.int64)
     counts[states] = np.diff(rows.indptr)
     indptr = np.concatenate([[0], np.cumsum(counts)])
