@@ -87,6 +87,8 @@ def test_a_batch_on_two_threads_equals_one_thread_and_each_run_alone(world12, me
     for name in one:
         torch.testing.assert_close(one[name], two[name], rtol=0, atol=0, equal_nan=True)
     assert int(runs[2].run_state.goals.sum()) > 0  # (the runs got somewhere)
+    # (the edge lists grew on the way: some run stopped short for it, on two threads too)
+    assert runs[2].model.capacity > 256
     # the batch's first run is the same as that run alone (no batch: whole arrays, one call)
     alone = _learner(world12, mentor_demos12, AGENTS[:1], seeds[:1])
     alone.run(4000)
@@ -94,3 +96,51 @@ def test_a_batch_on_two_threads_equals_one_thread_and_each_run_alone(world12, me
         got = getattr(runs[2].run_state, field)[0]
         torch.testing.assert_close(got, getattr(alone.run_state, field)[0], rtol=0, atol=0)
     torch.testing.assert_close(runs[2].cache.values[0], alone.cache.values[0], rtol=0, atol=0)
+
+
+@pytest.mark.parametrize(
+    ("left", "threads", "take"),
+    [(40, 1, 20), (41, 1, 21), (40, 2, 10), (3, 2, 1), (4, 2, 1), (5, 2, 2), (1, 4, 1), (0, 2, 1)],
+)
+def test_stops_per_take_is_a_2_threads_th_of_the_stops_left_at_least_one(left, threads, take):
+    assert numba_engine._stops_per_take(left, threads) == take
+
+
+def _scheduled(monkeypatch, stops, batch, short=None):
+    """``_run_each`` on one thread (a fixed order) with a kernel that records each call as
+    ``(run, from, to)`` and goes to its stop, or, for ``short = (run, tick)``, stops that run's
+    first call at ``tick`` as a full edge list does. Returns the calls and where each run is."""
+    calls = []
+
+    def kernel(stop, t_reached, run):
+        b, t = int(run[0, 0]), int(t_reached[0])
+        end = short[1] if short is not None and b == short[0] and not calls_of(b) else stop
+        calls.append((b, t, end))
+        t_reached[0] = end
+
+    def calls_of(b):
+        return [c for c in calls if c[0] == b]
+
+    monkeypatch.setattr(numba_engine, "run_ticks", kernel)
+    monkeypatch.setattr(numba_engine, "_called", {kernel})
+    t_reached = np.zeros(batch, dtype=np.int64)
+    numba_engine._run_each(1, stops, (t_reached, np.arange(batch)[:, None]), np.zeros(batch))
+    return calls, t_reached.tolist()
+
+
+def test_runs_go_whole_while_much_is_left_and_a_few_stops_at_a_time_at_the_end(monkeypatch):
+    calls, reached = _scheduled(monkeypatch, list(range(100, 1001, 100)), 4)
+    # 40 stops left: run 0 may take 20 (all its 10), then 30 → 15, 20 → 10 (whole runs);
+    # 10 left → 5, then 5 → 3, 2 → 1, 1 → 1
+    assert calls == [
+        (0, 0, 1000), (1, 0, 1000), (2, 0, 1000),
+        (3, 0, 500), (3, 500, 800), (3, 800, 900), (3, 900, 1000),
+    ]  # fmt: skip
+    assert reached == [1000] * 4
+
+
+def test_a_full_edge_list_stops_the_queue_so_the_lists_grow_at_once(monkeypatch):
+    calls, reached = _scheduled(monkeypatch, list(range(100, 1001, 100)), 4, short=(1, 250))
+    # run 1 stops short at tick 250: no run is taken after it; the caller grows, calls again
+    assert calls == [(0, 0, 1000), (1, 0, 250)]
+    assert reached == [1000, 250, 0, 0]
