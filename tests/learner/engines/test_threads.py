@@ -1,6 +1,7 @@
 """A batch on the compiled engine's threads: each run gets its own rows of the per-run arrays,
-the small ones in copies whose rows start cache lines of their own, and the runs advance a
-window at a time from a shared queue. None of that may change a number."""
+the small ones in copies whose rows start cache lines of their own, and the runs advance from
+a shared queue, several windows a take while much is left and one at the end, stopping for a
+full edge list. None of that may change a number."""
 
 import numba
 import numpy as np
