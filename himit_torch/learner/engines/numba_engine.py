@@ -174,11 +174,12 @@ def _run_all(stops: list[int], args: tuple, seconds: np.ndarray) -> None:
     finds its rows gone from the core's caches: taken a window at a time throughout, 16 runs on
     one thread took ≈ 10 % longer than each run to its end in one call.
 
-    A run whose edge list fills stops short of its stop (``run_ticks``); then no thread takes
-    another run, and this returns once the runs under way reach their stops, so that the
-    caller grows the lists at once and every run goes on together. Left to the end of the call
-    instead, the runs that filled their lists would run alone after the others, one thread
-    idle: measured, 2 runs on 2 threads then took as long as on one.
+    A run whose edge list fills stops short of its stop (``run_ticks``); then the threads take
+    runs a window at a time while some thread ends a longer take, and this returns once none is
+    in a run, so that the caller grows the lists and every run goes on together, no thread idle
+    for more than a window of one run. Left to the end of the call instead, the runs that
+    filled their lists would run alone after the others, one thread idle: measured, 2 runs on
+    2 threads then took as long as on one.
 
     Each run of a batch gets its own call's arguments: its row of each per-run array
     (``x[b : b + 1]``, run 0 of the call), the small ones in lined copies (:func:`_lined`)
@@ -209,7 +210,8 @@ def _run_all(stops: list[int], args: tuple, seconds: np.ndarray) -> None:
 def _run_each(threads: int, stops: list[int], args: tuple, seconds: np.ndarray) -> None:
     """The runs of :func:`_run_all` on ``threads`` threads, from stop to stop."""
     t_reached = args[0]
-    full = False  # some run's edge list is full: take no more runs (the caller grows them)
+    full = False  # some run's edge list is full (the caller grows the lists once all stop)
+    long_takes = 0  # threads in a take of more than one stop
 
     def step(b: int, take: int = 1) -> bool:
         """Run ``b`` ``take`` stops on (at most to the last); whether it is to go on."""
@@ -237,15 +239,21 @@ def _run_each(threads: int, stops: list[int], args: tuple, seconds: np.ndarray) 
     lock = threading.Lock()
 
     def work() -> None:
+        nonlocal long_takes
         while True:
             with lock:
-                if full or not queue:
+                # Once a list is full, the lists grow when no thread is in a run: a thread goes
+                # on a window at a time while another ends a longer take, then stops.
+                if not queue or (full and long_takes == 0):
                     return
                 b = queue.popleft()
-                take = _stops_per_take(sum(left.values()), threads)
+                take = 1 if full else min(_stops_per_take(sum(left.values()), threads), left[b])
                 del left[b]
-            if step(b, take):
-                with lock:
+                long_takes += take > 1
+            go_on = step(b, take)
+            with lock:
+                long_takes -= take > 1
+                if go_on:
                     queue.append(b)
                     left[b] = sum(s > t_reached[b] for s in stops)
 

@@ -145,3 +145,39 @@ def test_a_full_edge_list_stops_the_queue_so_the_lists_grow_at_once(monkeypatch)
     # run 1 stops short at tick 250: no run is taken after it; the caller grows, calls again
     assert calls == [(0, 0, 1000), (1, 0, 250)]
     assert reached == [1000, 250, 0, 0]
+
+
+def test_after_a_full_list_a_thread_goes_on_a_window_at_a_time_while_another_ends_its_take(
+    monkeypatch,
+):
+    # Two threads, four runs of ten stops, run 0 first (the slowest last time): one thread takes
+    # run 0 whole and is held in it; the other takes run 1, whose list fills at once. That one
+    # must not wait idle for run 0's take: it runs the others a window at a time (the third
+    # such call lets run 0 end), and both stop once no thread is in a run (run 1 stays short).
+    import threading
+
+    stops = list(range(100, 1001, 100))
+    calls, singles, release = [], [], threading.Event()
+
+    def kernel(stop, t_reached, run):
+        b, t = int(run[0, 0]), int(t_reached[0])
+        if b == 0:
+            release.wait(timeout=5)
+        end = 150 if b == 1 and t == 0 else stop
+        calls.append((b, t, end))
+        if b in (2, 3):
+            singles.append((b, t, end))
+            if len(singles) == 3:
+                release.set()
+        t_reached[0] = end
+
+    monkeypatch.setattr(numba_engine, "run_ticks", kernel)
+    monkeypatch.setattr(numba_engine, "_called", {kernel})
+    t_reached = np.zeros(4, dtype=np.int64)
+    seconds = np.array([4.0, 3.0, 2.0, 1.0])
+    numba_engine._run_each(2, stops, (t_reached, np.arange(4)[:, None]), seconds)
+    assert release.is_set(), calls  # the other runs went on while run 0 ran
+    assert (0, 0, 1000) in calls and (1, 0, 150) in calls
+    # a window at a time after the full list (how many before run 0's thread wakes: timing)
+    assert all(end - t == 100 for _, t, end in singles), singles
+    assert t_reached[0] == 1000 and t_reached[1] == 150
