@@ -84,25 +84,26 @@ def calibrate(call, seconds: float) -> int:
         n *= 4
 
 
-tables = [permutation_cycle(8 << 20, seed) for seed in (0, 1)]  # 8 Mi int64 = 64 MiB each
-kinds = {
-    "compute": [lambda n: compute(n), lambda n: compute(n)],
-    "memory": [lambda n, t=tables[0]: memory(t, n), lambda n, t=tables[1]: memory(t, n)],
-}
-for kind, (first, second) in kinds.items():
+def ceiling(kind: str, first, second) -> None:
+    """Print each repeat's ``2 × alone / together`` for ``first`` and ``second`` (callables of
+    ``n``), and their median."""
     first(1000), second(1000)  # compile
     n = calibrate(first, args.seconds)
+    pair = [lambda: first(n), lambda: second(n)]
     ratios = []
     for rep in range(args.reps):
-        pair = lambda: together([lambda: first(n), lambda: second(n)])  # noqa: E731
-        alone = lambda: together([lambda: first(n)])  # noqa: E731
-        if rep % 2:
-            t2, t1 = pair(), alone()
+        if rep % 2:  # (alternating which goes first)
+            t2, t1 = together(pair), together(pair[:1])
         else:
-            t1, t2 = alone(), pair()
+            t1, t2 = together(pair[:1]), together(pair)
         ratios.append(2 * t1 / t2)
         print(f"{kind} rep {rep}: alone {t1:.3f} s, two at once {t2:.3f} s, ratio {ratios[-1]:.3f}")
     print(
         f"MEDIAN of {args.reps}: {kind}, two threads give {statistics.median(ratios):.2f}× one "
         f"(range {min(ratios):.2f}-{max(ratios):.2f})"
     )
+
+
+tables = [permutation_cycle(8 << 20, seed) for seed in (0, 1)]  # 8 Mi int64 = 64 MiB each
+ceiling("compute", compute, compute)
+ceiling("memory", lambda n: memory(tables[0], n), lambda n: memory(tables[1], n))
