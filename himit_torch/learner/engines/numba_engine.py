@@ -167,17 +167,18 @@ def _run_all(stops: list[int], args: tuple, seconds: np.ndarray) -> None:
     One run goes to ``stops[-1]`` in one call. A batch's runs go from stop to stop, each thread
     taking the run at the head of a queue and putting it back at its tail, the runs that took
     longest last time first: runs differ in cost (an imitator plans more than a primitives-only
-    run), and the runs end together, the threads waiting at most a window of one run at the
-    end, not a window at every window's end. A run taken goes as many stops as a
-    ``2 × threads``-th of the stops the queued runs have left (:func:`_stops_per_take`): whole
-    while much is left, a window at a time near the end. A run taken back after others ran
-    finds its rows gone from the core's caches: taken a window at a time throughout, 16 runs on
-    one thread took ≈ 10 % longer than each run to its end in one call.
+    run), and the runs end together, the threads waiting at most for the last take of one run
+    (a window or a few) at the end, not a window at every window's end. A run taken goes as
+    many stops as a ``2 × threads``-th of the stops the queued runs have left
+    (:func:`_stops_per_take`): whole while much is left, fewer as less is, a window at a time
+    at the end. A run taken back after others ran finds its rows gone from the core's caches:
+    taken a window at a time throughout, 16 runs on one thread took ≈ 10 % longer than each run
+    to its end in one call.
 
     A run whose edge list fills stops short of its stop (``run_ticks``); then the threads take
     runs a window at a time while some thread ends a longer take, and this returns once none is
     in a run, so that the caller grows the lists and every run goes on together, no thread idle
-    for more than a window of one run. Left to the end of the call instead, the runs that
+    while there are runs to take. Left to the end of the call instead, the runs that
     filled their lists would run alone after the others, one thread idle: measured, 2 runs on
     2 threads then took as long as on one.
 
@@ -268,9 +269,9 @@ def _run_each(threads: int, stops: list[int], args: tuple, seconds: np.ndarray) 
 def _stops_per_take(stops_left: int, threads: int) -> int:
     """How many stops a run taken from :func:`_run_each`'s queue goes (at most its own left):
     a ``2 × threads``-th of the ``stops_left`` of the runs queued, at least one ("guided"
-    scheduling). The last takes are then a window each, so the threads end within a window of
-    one run of each other, and the first are whole runs, each one call on a core whose caches
-    hold its rows."""
+    scheduling). The takes shrink as the work left does, the last ones a window each, so the
+    threads end close together, and the first are whole runs, each one call on a core whose
+    caches hold its rows."""
     return max(1, -(-stops_left // (2 * threads)))
 
 
