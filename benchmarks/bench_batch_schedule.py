@@ -15,11 +15,6 @@ each repeat's seconds and the speed-up, and their median.
 
 import argparse
 import statistics
-import sys
-import time
-from pathlib import Path
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
 parser.add_argument("--reps", type=int, default=9)
@@ -28,25 +23,10 @@ parser.add_argument("--batch", type=int, default=16)
 args = parser.parse_args()
 
 import numba  # noqa: E402
-import torch  # noqa: E402
+from mixed_batch import timed  # noqa: E402
 
-from himit_torch import (  # noqa: E402
-    Learner,
-    LearnerConfig,
-    MultiRooms,
-    learner_options,
-    mentor_options,
-    mentor_policy,
-    record_demonstrations,
-)
 from himit_torch.learner.engines import numba_engine  # noqa: E402
 
-torch.set_num_threads(1)
-world = MultiRooms(40, 10)
-demos = record_demonstrations(world, mentor_policy(world, mentor_options(world, False)), 20, seed=0)
-options = learner_options(world)
-config = LearnerConfig(plan_every=4, sweep_rounds=1)
-MIX = ["imitation", "options", "primitives"]
 GUIDED = numba_engine._stops_per_take
 
 
@@ -54,29 +34,23 @@ def window_at_a_time(stops_left: int, threads: int) -> int:
     return 1
 
 
-def timed(take, steps: int) -> float:
+def timed_with(take, steps: int) -> float:
     """Seconds of ``steps`` timed steps of a fresh batch whose runs go ``take`` stops a take."""
     numba_engine._stops_per_take = take
     try:
-        runs = list(range(args.batch))
-        learner = Learner(world, options, [MIX[b % 3] for b in runs], runs,
-                          demonstrations=demos, config=config, engine="numba")  # fmt: skip
-        learner.run(20_000)
-        began = time.perf_counter()
-        learner.run(steps)
-        return time.perf_counter() - began
+        return timed(list(range(args.batch)), steps)
     finally:
         numba_engine._stops_per_take = GUIDED
 
 
 print(f"{args.batch} runs on {numba.get_num_threads()} threads, {args.steps:,} timed steps each")
-timed(GUIDED, 1000)  # (kernels loaded, pool started)
+timed_with(GUIDED, 1000)  # (kernels loaded, pool started)
 speedups = []
 for rep in range(args.reps):
     if rep % 2 == 0:  # (alternating which goes first)
-        old, new = timed(window_at_a_time, args.steps), timed(GUIDED, args.steps)
+        old, new = timed_with(window_at_a_time, args.steps), timed_with(GUIDED, args.steps)
     else:
-        new, old = timed(GUIDED, args.steps), timed(window_at_a_time, args.steps)
+        new, old = timed_with(GUIDED, args.steps), timed_with(window_at_a_time, args.steps)
     speedups.append(old / new)
     print(f"rep {rep}: a window at a time {old:.3f} s, guided {new:.3f} s, "
           f"speed-up {speedups[-1]:.3f}", flush=True)  # fmt: skip

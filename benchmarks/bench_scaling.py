@@ -23,11 +23,6 @@ what it gives the first: read the ratio together with it.
 
 import argparse
 import statistics
-import sys
-import time
-from pathlib import Path
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
 parser.add_argument("--reps", type=int, default=5)
@@ -41,35 +36,7 @@ parser.add_argument(
 )
 args = parser.parse_args()
 
-import torch  # noqa: E402
-
-from himit_torch import (  # noqa: E402
-    Learner,
-    LearnerConfig,
-    MultiRooms,
-    learner_options,
-    mentor_options,
-    mentor_policy,
-    record_demonstrations,
-)
-
-torch.set_num_threads(1)
-world = MultiRooms(40, 10)
-demos = record_demonstrations(world, mentor_policy(world, mentor_options(world, False)), 20, seed=0)
-options = learner_options(world)
-config = LearnerConfig(plan_every=4, sweep_rounds=1)
-MIX = ["imitation", "options", "primitives"]
-
-
-def timed(runs: list[int], steps: int) -> float:
-    """Seconds of ``steps`` timed steps of a fresh learner of the mix's ``runs`` (after 20,000
-    untimed steps)."""
-    learner = Learner(world, options, [MIX[b % 3] for b in runs], runs,
-                      demonstrations=demos, config=config, engine="numba")  # fmt: skip
-    learner.run(20_000)
-    began = time.perf_counter()
-    learner.run(steps)
-    return time.perf_counter() - began
+from mixed_batch import timed  # noqa: E402
 
 
 def rate(batch: int, steps: int) -> float:
