@@ -363,6 +363,13 @@ def _numpy(x) -> np.ndarray:
     return np.asarray(x, dtype=np.float64)
 
 
+def _wall_layer(world: MultiRooms) -> np.ma.MaskedArray:
+    """``[N, N]``: 1 on the walls, masked elsewhere: the layer a map draws over its field in
+    ``WALL_COLOR``."""
+    N = world.size
+    return np.ma.masked_array(np.ones(world.num_states), ~world.wall_mask.numpy()).reshape(N, N)
+
+
 def plot_state_map(
     ax: Axes,
     world: MultiRooms,
@@ -428,11 +435,7 @@ def plot_state_map(
         norm=norm,
         interpolation="nearest",
     )
-    ax.imshow(
-        np.ma.masked_array(np.ones(world.num_states), ~wall).reshape(N, N),
-        cmap=ListedColormap([WALL_COLOR]),
-        interpolation="nearest",
-    )
+    ax.imshow(_wall_layer(world), cmap=ListedColormap([WALL_COLOR]), interpolation="nearest")
     ax.set_xticks([])
     ax.set_yticks([])
     if title is not None:
@@ -680,18 +683,12 @@ class MapRenderer:
         N = self.world.size
         extent = (-0.5, N - 0.5, N - 0.5, -0.5)  # (imshow's own for an N × N grid)
         parts["image"].set_data(np.ma.masked_all((N, N)))
-        parts["walls"].set_data(self._walls())
+        parts["walls"].set_data(_wall_layer(self.world))
         for image in (parts["image"], parts["walls"]):
             image.set_extent(extent)
         if "mentor" in parts:
             parts["mentor"].set_sizes([_mentor_dot_area(N)])
         parts["world"] = weakref.ref(self.world)
-
-    def _walls(self) -> np.ma.MaskedArray:
-        N = self.world.size
-        return np.ma.masked_array(
-            np.ones(self.world.num_states), ~self.world.wall_mask.numpy()
-        ).reshape(N, N)
 
     def _build(self, kind: str):
         N = self.world.size
@@ -713,7 +710,7 @@ class MapRenderer:
                 interpolation="nearest",
             )
             parts["walls"] = ax.imshow(
-                self._walls(), cmap=ListedColormap([WALL_COLOR]), interpolation="nearest"
+                _wall_layer(self.world), cmap=ListedColormap([WALL_COLOR]), interpolation="nearest"
             )
             ax.set_xticks([])
             ax.set_yticks([])
