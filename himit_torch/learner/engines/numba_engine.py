@@ -172,8 +172,8 @@ def _run_all(stops: list[int], args: tuple, seconds: np.ndarray) -> None:
     many stops as a ``2 × threads``-th of the stops the queued runs have left
     (:func:`_stops_per_take`): whole while much is left, fewer as less is, a window at a time
     at the end. A run taken back after others ran finds its rows gone from the core's caches:
-    taken a window at a time throughout, 16 runs on one thread took ≈ 10 % longer than each run
-    to its end in one call.
+    taken a window at a time throughout, 16 mixed runs on two threads ran 1.03–1.10× slower
+    (``benchmarks/bench_batch_schedule.py``, medians of 9).
 
     A run whose edge list fills stops short of its stop (``run_ticks``); then the threads take
     runs a window at a time while some thread ends a longer take, and this returns once none is
