@@ -504,8 +504,9 @@ def overall_answer(h1: list[Test], h3: list[Test], later_tests: list[Test]) -> l
     policy."""
     h1_pairs = [t for t in h1 if t.name == "H1d"]  # (one per world × stride × schedule)
     flat = [t for t in h3 + later_tests if t.name.endswith("− eq. 1")]
-    helps, worse = later.hierarchy_verdicts(h1_pairs + flat)
-    total = len({(t.name, t.world, t.condition, t.schedule) for t in h1_pairs + flat})
+    distinct, repeats = distinct_comparisons(h1_pairs + flat)
+    helps, worse = later.hierarchy_verdicts(distinct)
+    total = len({(t.name, t.world, t.condition, t.schedule) for t in distinct})
     met = len(helps) >= 3 and not worse
 
     def where(keys):
@@ -515,14 +516,42 @@ def overall_answer(h1: list[Test], h3: list[Test], later_tests: list[Test]) -> l
         )
 
     return [
-        f"- **Overall: hierarchy helps in {len(helps)} of {total} hierarchical − flat "
-        f"comparisons** (world × condition × schedule, by the protocol's rule)"
+        f"- **Overall: hierarchy helps in {len(helps)} of {total} distinct hierarchical − flat "
+        f"comparisons** (world × condition × schedule, by the protocol's rule; "
+        f"{len(repeats)} more compare runs whose every per-seed result equals one of these, and "
+        f"are counted once: {where(repeats)})"
         + (f": {where(helps)}" if helps else "")
         + f"; the hierarchical imitator is significantly worse on the greedy policy in "
         f"{len(worse)}" + (f": {where(worse)}" if worse else "") + ". The issue's target "
         "(better in at least 3, never significantly worse) is "
         + ("**met**." if met else "**not met**: the recommended imitator stays flat.")
     ]
+
+
+def distinct_comparisons(tests: list[Test]) -> tuple[list[Test], list[tuple]]:
+    """``tests`` without the comparisons that repeat an earlier one, and the keys (name, world,
+    condition, schedule) of those left out. Two comparisons are the same pair of runs when they
+    are on the same world and schedule and every endpoint's test has the same numbers (the
+    difference, its interval, p and the seeds won and lost): a feasibility cell whose runs
+    feasibility never changed, or a cell of one part that is another part's cell. Counting such a
+    pair twice would count one result twice."""
+    by: dict = {}
+    for t in tests:
+        by.setdefault((t.name, t.world, t.condition, t.schedule), []).append(t)
+    seen: set = set()
+    kept: list[Test] = []
+    repeats: list[tuple] = []
+    for key, ts in by.items():
+        numbers = tuple(
+            sorted((t.endpoint, t.difference, t.low, t.high, t.p, t.wins, t.losses) for t in ts)
+        )
+        identity = (key[1], key[3], numbers)
+        if identity in seen:
+            repeats.append(key)
+            continue
+        seen.add(identity)
+        kept += ts
+    return kept, repeats
 
 
 def h3_answer(cells: dict, tests: list[Test]) -> str:
