@@ -154,3 +154,29 @@ def tests_table(tests: list[Test], title: str) -> list[str]:
             f"| {t.name} | {world} | {SCHEDULES[t.schedule]} | {t.endpoint} | {show_test(t)} |"
         )
     return lines + [""]
+
+
+def distinct_comparisons(tests: list[Test]) -> tuple[list[Test], list[tuple]]:
+    """``tests`` without the comparisons that repeat an earlier one, and the keys (name, world,
+    condition, schedule) of those left out. Two comparisons are the same pair of runs when they
+    are on the same world and schedule and every endpoint's test has the same numbers (the
+    difference, its interval, p and the seeds won and lost): a feasibility cell whose runs
+    feasibility never changed, or a cell of one part that is another part's cell. Counting such a
+    pair twice would count one result twice."""
+    by: dict = {}
+    for t in tests:
+        by.setdefault((t.name, t.world, t.condition, t.schedule), []).append(t)
+    seen: set = set()
+    kept: list[Test] = []
+    repeats: list[tuple] = []
+    for key, ts in by.items():
+        numbers = tuple(
+            sorted((t.endpoint, t.difference, t.low, t.high, t.p, t.wins, t.losses) for t in ts)
+        )
+        identity = (key[1], key[3], numbers)
+        if identity in seen:
+            repeats.append(key)
+            continue
+        seen.add(identity)
+        kept += ts
+    return kept, repeats

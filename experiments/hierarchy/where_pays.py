@@ -1,0 +1,347 @@
+"""Where hierarchy pays (PROTOCOL.md, amendment of 2026-11-29): each question's tables and
+paired tests, every gain split into the options' own effect and imitation's.
+
+    python experiments/hierarchy/where_pays.py [--results experiments/results/hierarchy]
+
+Reads the records of the round's runs (Q1 on a Gymnasium task: ``<results>/q1_<task>_<schedule>/``,
+a ``himit run gymnasium`` run directory's ``config.json`` and ``tasks/<task>.{json,csv}``);
+writes ``<results>/where_pays.md`` and ``<results>/where_pays_tests.csv``. A cell whose records
+are absent is left out, and the page says so.
+
+The split (the protocol's "controls"): per seed, the options' own effect is options-only −
+primitives-only; eq. 2's imitation effect is eq. 2 − options-only, eq. 1's is eq. 1 −
+primitives-only; hierarchy's effect on imitation is the difference of the two imitation
+effects. Endpoints: the greedy policy at the end as an exact % of the optimum; the first goal
+(the sign test on who reached it first, "never" losing to any finite step; for hierarchy's
+effect, the sign of the difference of the two speed-ups, "never" censored at the budget);
+goals in the first quarter of the budget (the windows that end within it).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import subprocess
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from common import (
+    HERE,
+    SCHEDULES,
+    Test,
+    adjust,
+    distinct_comparisons,
+    show_test,
+)
+
+from himit_torch.statistics import (
+    bca_interval,
+    first_goal_sign_test,
+    first_goal_survival,
+    paired_comparison,
+)
+
+#: Q1's Gymnasium tasks: the task's name in ``himit run gymnasium`` → its label.
+Q1_TASKS = {"taxi": "Taxi"}
+#: The four learners of every cell: eq. 2, its no-mentor control, eq. 1, its no-mentor control.
+EQ2, OPTIONS, EQ1, PRIMITIVES = "imitation", "options", "imitation_primitives", "primitives"
+AGENT_LABELS = {
+    EQ2: "eq. 2",
+    OPTIONS: "options only",
+    EQ1: "eq. 1",
+    PRIMITIVES: "primitives only",
+}
+ENDPOINTS = {
+    "greedy": "greedy policy at the end, % of the optimum",
+    "first_goal": "first goal",
+    "goals_q1": "goals in the first quarter of the budget",
+}
+
+
+@dataclass(frozen=True)
+class Cell:
+    """One task × schedule: per agent, per-seed endpoint arrays (seeds in the same order)."""
+
+    task: str
+    schedule: str
+    budget: int
+    commit: str
+    seeds: tuple[int, ...]
+    greedy: dict[str, np.ndarray]
+    first_goal: dict[str, np.ndarray]  # steps, −1 for a run that never reached the goal
+    goals_q1: dict[str, np.ndarray]
+    quarter_steps: int  # the steps the first-quarter goals cover (whole windows)
+
+
+def load_gymnasium_cell(directory: Path, task: str, schedule: str) -> Cell:
+    """A ``himit run gymnasium`` run directory's records of ``task`` as a :class:`Cell`."""
+    config = json.loads((directory / "config.json").read_text())
+    summary = json.loads((directory / "tasks" / f"{task}.json").read_text())
+    budget = int(summary["steps"])
+    window = int(config["window"])
+    quarter = (budget // 4) // window * window
+    runs = list(zip(summary["agents"], summary["seeds"]))
+    seeds = tuple(sorted({int(s) for _, s in runs}))
+
+    def per_agent(values) -> dict[str, np.ndarray]:
+        out: dict[str, dict[int, float]] = {}
+        for (agent, seed), v in zip(runs, values):
+            out.setdefault(agent, {})[int(seed)] = float(v)
+        return {a: np.array([by[s] for s in seeds]) for a, by in out.items()}
+
+    first = [
+        -1 if step is None or (isinstance(step, float) and not np.isfinite(step)) else step
+        for step in summary["first_goal_step"]
+    ]
+    goals: dict[tuple[str, int], float] = {}
+    with (directory / "tasks" / f"{task}.csv").open() as f:
+        for row in csv.DictReader(f):
+            if int(row["step"]) <= quarter:
+                key = (row["agent"], int(row["seed"]))
+                goals[key] = goals.get(key, 0.0) + float(row["goals"])
+    return Cell(
+        task=task,
+        schedule=schedule,
+        budget=budget,
+        commit=str(summary.get("commit", "?"))[:7],
+        seeds=seeds,
+        greedy=per_agent(summary["greedy_percent_of_optimal"]),
+        first_goal=per_agent(first),
+        goals_q1=per_agent([goals.get((a, int(s)), 0.0) for a, s in runs]),
+        quarter_steps=quarter,
+    )
+
+
+#: The protocol's five contrasts: name → (a, b), each a function of the cell's per-agent arrays
+#: giving per-seed values; the test is a − b paired by seed.
+Contrast = tuple[Callable[[dict], np.ndarray], Callable[[dict], np.ndarray]]
+CONTRASTS: dict[str, Contrast] = {
+    "options' own effect (options only − primitives only)": (
+        lambda v: v[OPTIONS],
+        lambda v: v[PRIMITIVES],
+    ),
+    "eq. 2's imitation effect (eq. 2 − options only)": (lambda v: v[EQ2], lambda v: v[OPTIONS]),
+    "eq. 1's imitation effect (eq. 1 − primitives only)": (
+        lambda v: v[EQ1],
+        lambda v: v[PRIMITIVES],
+    ),
+    "hierarchy's effect on imitation (eq. 2's − eq. 1's)": (
+        lambda v: v[EQ2] - v[OPTIONS],
+        lambda v: v[EQ1] - v[PRIMITIVES],
+    ),
+    "eq. 2 − eq. 1": (lambda v: v[EQ2], lambda v: v[EQ1]),
+}
+HIERARCHY = "hierarchy's effect on imitation (eq. 2's − eq. 1's)"
+DIRECT = "eq. 2 − eq. 1"
+
+
+def cell_tests(family: str, cell: Cell) -> list[Test]:
+    """The five contrasts × three endpoints of one cell, as unadjusted :class:`Test` rows."""
+    out = []
+    # first goal: steps with "never" at the budget, so that differences of differences exist
+    censored = {a: np.where(x < 0, cell.budget, x) for a, x in cell.first_goal.items()}
+    for name, (a, b) in CONTRASTS.items():
+        for endpoint in ENDPOINTS:
+            if endpoint == "first_goal":
+                if name == HIERARCHY:
+                    # speed-ups (positive: sooner); their difference's sign, paired by seed
+                    r = paired_comparison(
+                        censored[OPTIONS] - censored[EQ2], censored[PRIMITIVES] - censored[EQ1]
+                    )
+                    d, lo, hi, p = (
+                        r.difference.estimate,
+                        r.difference.low,
+                        r.difference.high,
+                        r.sign_p,
+                    )
+                else:
+                    r = first_goal_sign_test(a(cell.first_goal), b(cell.first_goal))
+                    d, lo, hi, p = r.difference.estimate, np.nan, np.nan, r.sign_p
+            else:
+                values = getattr(cell, endpoint)
+                r = paired_comparison(a(values), b(values))
+                d, lo, hi, p = r.difference.estimate, r.difference.low, r.difference.high, r.t_p
+            out.append(
+                Test(
+                    family,
+                    name,
+                    cell.task,
+                    "",
+                    cell.schedule,
+                    "",
+                    "",
+                    endpoint,
+                    d,
+                    lo,
+                    hi,
+                    p,
+                    r.wins,
+                    r.losses,
+                )  # fmt: skip
+            )
+    return out
+
+
+def helps(tests: list[Test], task: str, schedule: str) -> tuple[bool, bool]:
+    """(hierarchy helps imitation, eq. 2 significantly worse than eq. 1 on the greedy policy) at
+    one condition, by the protocol's rule."""
+
+    def find(name, endpoint):
+        (t,) = [
+            t
+            for t in tests
+            if (t.name, t.world, t.schedule, t.endpoint) == (name, task, schedule, endpoint)
+        ]
+        return t
+
+    better = any(
+        find(HIERARCHY, e).p_holm < 0.05 and find(HIERARCHY, e).difference > 0
+        for e in ("greedy", "goals_q1")
+    )
+    worse = find(DIRECT, "greedy").p_holm < 0.05 and find(DIRECT, "greedy").difference < 0
+    return better and not worse, worse
+
+
+def agents_table(cells: list[Cell], label: str) -> list[str]:
+    lines = [
+        f"### {label}: the four learners",
+        "",
+        "Mean of the seeds [95 % BCa interval of the mean]; first goal: Kaplan–Meier median "
+        "('never': the curve does not fall to ½), and how many runs never reached the goal.",
+        "",
+        "| schedule | learner | greedy policy, % of optimum | first goal | goals, first quarter |",
+        "|---|---|---|---|---|",
+    ]
+    for cell in cells:
+        for agent, name in AGENT_LABELS.items():
+            greedy = bca_interval(cell.greedy[agent]).format(1)
+            goals = bca_interval(cell.goals_q1[agent]).format(0)
+            s = first_goal_survival(cell.first_goal[agent], cell.budget)
+            median = (
+                "never"
+                if not np.isfinite(s.median.estimate)
+                else f"{s.median.estimate / 1000:.1f}k"
+            )
+            never = f"; {s.never}/{s.runs} never" if s.never else ""
+            lines.append(
+                f"| {SCHEDULES[cell.schedule]} | {name} | {greedy} | {median}{never} | {goals} |"
+            )
+    return lines + [""]
+
+
+def tests_table(tests: list[Test], label: str) -> list[str]:
+    lines = [
+        f"### {label}: the split, paired by seed",
+        "",
+        "Each row: a − b paired by seed (mean difference [95 % BCa], seeds a won–lost), the "
+        "paired t-test's p (greedy policy, goals) or the sign test's (first goal), Holm's p "
+        "over the family.",
+        "",
+        "| contrast | schedule | endpoint | difference | p | Holm p | |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for t in tests:
+        shown = show_test(t)
+        if t.endpoint == "first_goal" and t.name == HIERARCHY:
+            # the mean of the seeds' differences of speed-ups (not a median of first goals)
+            shown = shown.replace("median", "mean").replace("sooner", "more speed-up")
+            shown = shown.replace("later", "less speed-up")
+        lines.append(f"| {t.name} | {SCHEDULES[t.schedule]} | {ENDPOINTS[t.endpoint]} | {shown} |")
+    return lines + [""]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--results", default=str(HERE.parent / "results" / "hierarchy"))
+    args = parser.parse_args()
+    results = Path(args.results)
+    cells, missing = [], []
+    for task in Q1_TASKS:
+        for schedule in SCHEDULES:
+            directory = results / f"q1_{task}_{schedule}"
+            if (directory / "tasks" / f"{task}.json").exists():
+                cells.append(load_gymnasium_cell(directory, task, schedule))
+            else:
+                missing.append(directory.name)
+    q1 = adjust([t for cell in cells for t in cell_tests("Q1", cell)])
+    verdicts = {(c.task, c.schedule): helps(q1, c.task, c.schedule) for c in cells}
+    distinct, repeats = distinct_comparisons([t for t in q1 if t.name == HIERARCHY])
+    n_conditions = len({(t.world, t.schedule) for t in distinct})
+    n_helps = sum(h for h, _ in verdicts.values())
+    n_worse = sum(w for _, w in verdicts.values())
+    head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
+                          text=True, cwd=HERE).stdout.strip()  # fmt: skip
+    commits = ", ".join(sorted({c.commit for c in cells})) or "–"
+    lines = [
+        "# Where does hierarchy pay? Subgoal tasks, subgoal observation, transfer",
+        "",
+        f"*Runs at commit {commits}; this page written at {head} by `python "
+        "experiments/hierarchy/where_pays.py` from the committed records, as the protocol's "
+        "amendment of 2026-11-29 declared them before the runs.*",
+        "",
+        "## The answers so far",
+        "",
+    ]
+    for (task, schedule), (h, w) in verdicts.items():
+        direct = [t for t in q1 if (t.name, t.world, t.schedule, t.endpoint) == (DIRECT, task, schedule, "greedy")][0]  # fmt: skip
+        split = {
+            t.name: t for t in q1 if (t.world, t.schedule, t.endpoint) == (task, schedule, "greedy")
+        }
+        lines.append(
+            f"- **Q1, {Q1_TASKS[task]}, {SCHEDULES[schedule]}:** hierarchy "
+            + ("**helps** imitation" if h else "does not help imitation")
+            + " by the protocol's rule"
+            + (" (eq. 2 significantly worse than eq. 1 on the greedy policy)" if w else "")
+            + ". On the greedy policy (points of % of the optimum, mean [95 % BCa]): the "
+            f"options' own effect {split[list(CONTRASTS)[0]].difference:+.1f} "
+            f"[{split[list(CONTRASTS)[0]].low:+.1f}, {split[list(CONTRASTS)[0]].high:+.1f}], "
+            f"eq. 2's imitation effect {split[list(CONTRASTS)[1]].difference:+.1f}, eq. 1's "
+            f"{split[list(CONTRASTS)[2]].difference:+.1f}, hierarchy's effect on imitation "
+            f"{split[HIERARCHY].difference:+.1f} [{split[HIERARCHY].low:+.1f}, "
+            f"{split[HIERARCHY].high:+.1f}]; eq. 2 − eq. 1 {direct.difference:+.1f}."
+        )
+    lines += [
+        f"- **Tally so far:** hierarchy helps imitation in {n_helps} of {n_conditions} distinct "
+        f"conditions (each pair of runs counted once; {len(repeats)} repeats), and eq. 2 is "
+        f"significantly worse than eq. 1 on the greedy policy in {n_worse}. The protocol's goal "
+        "needs ≥ 3 with none worse; the round is not finished (below).",
+        "- **Not run yet:** Q1 on MiniGrid and the puzzle box, Q2 (observation at the mentor's "
+        "option ends), Q3 (transfer), Q4 (the fifth skewer) and F (feasibility at N = 1 and "
+        "3): their cells follow in amendments before their runs, as the settings and worlds "
+        "land.",
+        "",
+        "## Q1, subgoal tasks",
+        "",
+    ]
+    for task, label in Q1_TASKS.items():
+        task_cells = [c for c in cells if c.task == task]
+        if not task_cells:
+            continue
+        c0 = task_cells[0]
+        lines += [
+            f"{label}: {len(c0.seeds)} seeds ({c0.seeds[0]}–{c0.seeds[-1]}) per learner and "
+            f"schedule, {c0.budget:,} steps a run; trial of untried own options on for both "
+            f"imitators; goals in the first quarter counted over the first {c0.quarter_steps:,} "
+            "steps (the whole windows within it). Run: `python "
+            "experiments/hierarchy/run_hierarchy.py --parts q1`.",
+            "",
+        ]
+        lines += agents_table(task_cells, label)
+        lines += tests_table([t for t in q1 if t.world == task], label)
+    if missing:
+        lines += [f"*Records absent, left out: {', '.join(missing)}.*", ""]
+    (results / "where_pays.md").write_text("\n".join(lines))
+    with (results / "where_pays_tests.csv").open("w", newline="") as f:
+        writer = csv.writer(f)
+        fields = list(Test.__dataclass_fields__)
+        writer.writerow(fields)
+        for t in q1:
+            writer.writerow([getattr(t, k) for k in fields])
+    print(f"wrote {results / 'where_pays.md'}")
+
+
+if __name__ == "__main__":
+    main()
