@@ -45,7 +45,11 @@ from himit_torch.learner.presets import PRESETS, Preset, apply_preset, preset_di
 from himit_torch.learner.prioritized_sweeping import BlockPriorityQueue
 from himit_torch.mentor.cloning import InverseModel, clone_policy, inverse_model, relabel
 from himit_torch.mentor.demonstrations import DEMONSTRATIONS_FORMAT_VERSION, Demonstrations
-from himit_torch.mentor.observation import CoarseDemonstrations, observe_every
+from himit_torch.mentor.observation import (
+    CoarseDemonstrations,
+    observe_at_option_ends,
+    observe_every,
+)
 from himit_torch.mentor.policy import (
     ExactMentorTransitions,
     MentorDetour,
@@ -189,6 +193,7 @@ __all__ = [
     "detour_waypoint",
     "CoarseDemonstrations",
     "observe_every",
+    "observe_at_option_ends",
     # mentor reward
     "MentorReward",
     "KnownReward",

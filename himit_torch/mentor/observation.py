@@ -1,7 +1,9 @@
-"""Coarse observation of the mentor: the learner sees only every k-th state of its episodes.
+"""Coarse observation of the mentor: the learner sees only some states of its episodes.
 
-:func:`observe_every` keeps states ``0, k, 2k, …`` of each episode and always its last state,
-and returns :class:`CoarseDemonstrations`: what the learner is given instead of the full
+:func:`observe_every` keeps states ``0, k, 2k, …`` of each episode and always its last state;
+:func:`observe_at_option_ends` keeps the states where the mentor's options ended (its subgoals:
+a doorway, a key picked up), with the first and the last. Both return
+:class:`CoarseDemonstrations`: what the learner is given instead of the full
 :class:`~himit_torch.Demonstrations`.
 
 What eq. 2 then needs
@@ -26,13 +28,21 @@ What eq. 2 then needs
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import torch
 
 from himit_torch.mentor.demonstrations import Demonstrations
-from himit_torch.validation import COUNT_MAX, as_float, as_int
+from himit_torch.mentor.policy import MentorRollout
+from himit_torch.validation import COUNT_MAX, as_float, as_int, as_int_array
 
-__all__ = ["CoarseDemonstrations", "first_part", "observe_every", "observed_indices"]
+__all__ = [
+    "CoarseDemonstrations",
+    "first_part",
+    "observe_at_option_ends",
+    "observe_every",
+    "observed_indices",
+]
 
 
 def observed_indices(length: int, stride: int) -> torch.Tensor:
@@ -47,7 +57,8 @@ def observed_indices(length: int, stride: int) -> torch.Tensor:
 
 
 class CoarseDemonstrations:
-    """What a learner observing every ``stride``-th mentor state sees of ``demonstrations``.
+    """What a learner observing every ``stride``-th mentor state, or the states at the given
+    ``positions`` of each episode, sees of ``demonstrations``.
 
     It offers what :meth:`Learner.add_demonstrations <himit_torch.Learner.add_demonstrations>`,
     the reward modules and the figures read of :class:`~himit_torch.Demonstrations` —
@@ -56,19 +67,37 @@ class CoarseDemonstrations:
     those); consecutive kept states are up to ``stride`` primitive steps apart, so it is not a
     :class:`~himit_torch.Demonstrations` and is not saved (save the full ones).
 
+    Args:
+        demonstrations: the full demonstrations.
+        stride: keep states ``0, k, 2k, …`` and the last of each episode; or
+        positions: per episode the positions to keep (whole numbers in ``0 … T_e``, any order,
+            repeats allowed); the first and the last state are always kept. Give one of the two.
+
     Attributes:
         full: the demonstrations observed.
-        stride: ``k``.
+        stride: ``k``, or ``None`` where the positions were given.
     """
 
-    def __init__(self, demonstrations: Demonstrations, stride: int):
+    def __init__(
+        self,
+        demonstrations: Demonstrations,
+        stride: int | None = None,
+        *,
+        positions: Sequence[Sequence[int] | torch.Tensor] | None = None,
+    ):
         if not isinstance(demonstrations, Demonstrations):
             raise TypeError(
                 f"CoarseDemonstrations observes Demonstrations, got {type(demonstrations).__name__}"
             )
+        if (stride is None) == (positions is None):
+            raise ValueError("CoarseDemonstrations: give either stride or positions, not both")
         self.full = demonstrations
-        self.stride = as_int("observation stride", stride, 1, COUNT_MAX)
-        kept = [observed_indices(len(e), self.stride) for e in demonstrations.episodes]
+        if positions is None:
+            self.stride: int | None = as_int("observation stride", stride, 1, COUNT_MAX)
+            kept = [observed_indices(len(e), self.stride) for e in demonstrations.episodes]
+        else:
+            self.stride = None
+            kept = _kept_positions(positions, demonstrations.episodes)
         self._episodes = tuple(e[k].clone() for e, k in zip(demonstrations.episodes, kept))
         # The primitive steps between consecutive kept states: the learner knows when it saw
         # each state (the mentor's time index), so each observed move's duration is known.
@@ -125,10 +154,32 @@ class CoarseDemonstrations:
         return self._episodes[index]
 
     def __repr__(self) -> str:
+        how = f"stride={self.stride}" if self.stride is not None else "positions given"
         return (
-            f"CoarseDemonstrations(stride={self.stride}, episodes={self.num_episodes}, "
+            f"CoarseDemonstrations({how}, episodes={self.num_episodes}, "
             f"transitions={self.num_transitions})"
         )
+
+
+def _kept_positions(positions, episodes: Sequence[torch.Tensor]) -> list[torch.Tensor]:
+    """Per episode the sorted unique positions of ``positions``, with its first and last."""
+    if isinstance(positions, (str, bytes, torch.Tensor)) or not isinstance(positions, Sequence):
+        raise TypeError(
+            "CoarseDemonstrations: positions must be a sequence with one sequence of positions "
+            f"per episode, got {type(positions).__name__}"
+        )
+    if len(positions) != len(episodes):
+        raise ValueError(
+            f"CoarseDemonstrations: {len(positions)} lists of positions for {len(episodes)} "
+            "episodes; give one per episode"
+        )
+    kept = []
+    for e, (given, episode) in enumerate(zip(positions, episodes)):
+        last = len(episode) - 1
+        at = as_int_array(f"CoarseDemonstrations: positions[{e}]", given, 0, last)
+        both_ends = torch.tensor([0, last], dtype=torch.int64)
+        kept.append(torch.unique(torch.cat([torch.from_numpy(at).reshape(-1), both_ends])))
+    return kept
 
 
 def observe_every(
@@ -138,6 +189,37 @@ def observe_every(
     object for ``stride = 1``, else :class:`CoarseDemonstrations`."""
     stride = as_int("observation stride", stride, 1, COUNT_MAX)
     return demonstrations if stride == 1 else CoarseDemonstrations(demonstrations, stride)
+
+
+def observe_at_option_ends(rollout: MentorRollout, world) -> CoarseDemonstrations:
+    """The mentor's episodes as a learner sees them that watches only where the mentor's options
+    end — its subgoals (a doorway reached, a key picked up, a door opened) — and the first and
+    last state: the paper's goal-based imitation, the subgoals without the movements.
+
+    ``rollout`` is :func:`~himit_torch.mentor.policy.run_mentor`'s, whose ``decision_steps``
+    say where each option began (and so where the one before it ended); ``world`` the world it
+    ran in. Each observed move is one of the mentor's options, its duration known to the learner
+    (:meth:`CoarseDemonstrations.durations`, read by ``LearnerConfig.mentor_segments``).
+
+    >>> from himit_torch import MultiRooms, mentor_options, mentor_policy, run_mentor
+    >>> world = MultiRooms(8, 2)
+    >>> rollout = run_mentor(world, mentor_policy(world, mentor_options(world)), 1, seed=0)
+    >>> seen = observe_at_option_ends(rollout, world)
+    >>> seen.num_transitions < len(rollout.states[0]) - 1
+    True
+    """
+    if not isinstance(rollout, MentorRollout):
+        raise TypeError(
+            f"observe_at_option_ends observes a MentorRollout (run_mentor's), got "
+            f"{type(rollout).__name__}"
+        )
+    if len(rollout.decision_steps) != len(rollout.states):
+        raise ValueError(
+            "observe_at_option_ends: the rollout does not say where its options began "
+            "(decision_steps); make it with run_mentor"
+        )
+    demonstrations = Demonstrations(list(rollout.states), world)
+    return CoarseDemonstrations(demonstrations, positions=list(rollout.decision_steps))
 
 
 def first_part(demonstrations: Demonstrations, coverage: float) -> Demonstrations:

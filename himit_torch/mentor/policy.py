@@ -196,6 +196,11 @@ class MentorRollout:
         decision_states: per episode an int64 tensor of the state of each decision.
         randomised: per episode a bool tensor, True where the decision was a random primitive
             (``run_mentor(noise=…)``) instead of the policy's own option.
+        decision_steps: per episode an int64 tensor of each decision's position in ``states``
+            (``states[e][decision_steps[e]] == decision_states[e]``): 0 for the first, then
+            where each option ended and the next began. With the episode's last position, where
+            the last option ended, these are the states a learner seeing the mentor only at its
+            subgoals sees (:func:`~himit_torch.mentor.observation.observe_at_option_ends`).
     """
 
     states: tuple[torch.Tensor, ...]
@@ -203,6 +208,7 @@ class MentorRollout:
     options: Options
     decision_states: tuple[torch.Tensor, ...] = ()
     randomised: tuple[torch.Tensor, ...] = ()
+    decision_steps: tuple[torch.Tensor, ...] = ()
 
     def decision_counts(self) -> dict[str, int]:
         """Number of decisions per option kind over all episodes, e.g. ``{"doorway": 40, ...}``."""
@@ -339,6 +345,7 @@ def _rollout_in_numbers(
     states: list[list[int]] = [[s] for s in pos]
     decisions: list[list[int]] = [[] for _ in range(E)]
     decided_at: list[list[int]] = [[] for _ in range(E)]
+    decided_step: list[list[int]] = [[] for _ in range(E)]
     for _ in range(max_steps):
         need = [e for e in range(E) if active[e] and current[e] < 0]
         for e in need:
@@ -349,6 +356,7 @@ def _rollout_in_numbers(
             current[e] = chosen[pos[e]]
             decisions[e].append(current[e])
             decided_at[e].append(pos[e])
+            decided_step[e].append(len(states[e]) - 1)
         u = torch.rand(3, E, generator=generator, dtype=torch.float64)
         slip_u, stop_u = u[1].float().tolist(), u[2].tolist()  # (the slip's uniform in float32)
         for e in range(E):
@@ -370,6 +378,7 @@ def _rollout_in_numbers(
         options=options,
         decision_states=tuple(torch.tensor(d, dtype=torch.int64) for d in decided_at),
         randomised=tuple(torch.zeros(len(d), dtype=torch.bool) for d in decisions),
+        decision_steps=tuple(torch.tensor(d, dtype=torch.int64) for d in decided_step),
     )
 
 
@@ -407,6 +416,7 @@ def _rollout_in_tensors(
     current = torch.full((E,), -1, dtype=torch.int64)
     history = [pos.clone()]
     decided_episode, decided_option, decided_random, decided_state = [], [], [], []
+    decided_step = []
     for _ in range(max_steps):
         need = active & (current < 0)
         if need.any():
@@ -432,6 +442,7 @@ def _rollout_in_tensors(
             decided_option.append(picked)
             decided_random.append(randomised)
             decided_state.append(pos[need])
+            decided_step.append(torch.full_like(picked, len(history) - 1))
         u = torch.rand(3, E, generator=generator, dtype=torch.float64)
         o = current.clamp(min=0)
         # (the cdf's rows need not end at exactly 1: the action uniform is scaled to the row)
@@ -456,12 +467,14 @@ def _rollout_in_tensors(
     opt = torch.cat(decided_option)
     rand = torch.cat(decided_random)
     where_decided = torch.cat(decided_state)
+    when_decided = torch.cat(decided_step)
     return MentorRollout(
         states=states,
         decisions=tuple(opt[ep == e] for e in range(E)),
         options=options,
         decision_states=tuple(where_decided[ep == e] for e in range(E)),
         randomised=tuple(rand[ep == e] for e in range(E)),
+        decision_steps=tuple(when_decided[ep == e] for e in range(E)),
     )
 
 

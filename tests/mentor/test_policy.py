@@ -139,7 +139,7 @@ def test_mentor_errors(world, policy):
 def _rollout_fields(rollout) -> list[tuple[str, int, torch.Tensor]]:
     return [
         (name, e, x)
-        for name in ("states", "decisions", "decision_states", "randomised")
+        for name in ("states", "decisions", "decision_states", "randomised", "decision_steps")
         for e, x in enumerate(getattr(rollout, name))
     ]
 

@@ -1,5 +1,6 @@
 """The stresses on the mentor's demonstrations (issue 26, part 2): a mentor that errs
-(``noise``), a needless detour, and coarse observation (``observe_every``)."""
+(``noise``), a needless detour, coarse observation (``observe_every``) and observation at the
+mentor's option ends (``observe_at_option_ends``)."""
 
 from collections import deque
 
@@ -10,7 +11,12 @@ from scipy.stats import binomtest, chisquare
 
 from himit_torch.learner.learner import Learner
 from himit_torch.mentor.demonstrations import Demonstrations
-from himit_torch.mentor.observation import CoarseDemonstrations, observe_every, observed_indices
+from himit_torch.mentor.observation import (
+    CoarseDemonstrations,
+    observe_at_option_ends,
+    observe_every,
+    observed_indices,
+)
 from himit_torch.mentor.policy import (
     MentorPolicy,
     _nominal_ends,
@@ -290,3 +296,73 @@ def test_a_coarse_mentor_term_is_the_one_step_term_of_a_k_step_move(grid):
     assert float(term[0]) == pytest.approx(-0.01 + 0.99 * v2)
     assert float(term[0]) - two_steps == pytest.approx(0.0099 + 0.0099 * v2)
     assert float(term[0]) > two_steps  # optimistic: no longer a lower bound
+
+
+# -------------------------------------------------------- observation at the mentor's option ends
+def test_given_positions_keep_those_states_and_both_ends(walks):
+    """Positions in any order, repeats allowed; the first and the last state always kept."""
+    coarse = CoarseDemonstrations(walks, positions=[[3, 1, 3], torch.tensor([5])])
+    assert coarse.stride is None and "positions given" in repr(coarse)
+    assert [e.tolist() for e in coarse.episodes] == [[0, 1, 3, 15], [0, 13, 15]]
+    # (walks: [0, 1, 2, 3, 7, 11, 15] and [0, 0, 4, 8, 12, 13, 14, 15])
+    assert coarse.durations().tolist() == [1, 2, 3, 5, 2]
+    src, dst = coarse.transitions()
+    assert list(zip(src.tolist(), dst.tolist())) == [(0, 1), (1, 3), (3, 15), (0, 13), (13, 15)]
+
+
+@pytest.mark.parametrize(
+    "kwargs, error, match",
+    [
+        ({}, ValueError, "either stride or positions"),
+        ({"stride": 2, "positions": [[1], [1]]}, ValueError, "either stride or positions"),
+        ({"positions": [[1]]}, ValueError, "1 lists of positions for 2 episodes"),
+        ({"positions": [[1], [8]]}, ValueError, r"positions\[1\]"),  # (episode 1 has 8 states)
+        ({"positions": [[-1], [1]]}, ValueError, r"positions\[0\]"),
+        ({"positions": [[1.5], [1]]}, ValueError, r"positions\[0\]"),
+        ({"positions": [[True], [1]]}, ValueError, r"positions\[0\]"),
+        ({"positions": "01"}, TypeError, "one sequence of positions per episode"),
+        ({"positions": torch.tensor([[1], [1]])}, TypeError, "one sequence of positions"),
+    ],
+)
+def test_bad_positions_are_refused(walks, kwargs, error, match):
+    with pytest.raises(error, match=match):
+        CoarseDemonstrations(walks, **kwargs)
+    assert CoarseDemonstrations(walks, positions=[[1], [7]]).num_transitions == 3  # a valid one
+
+
+@pytest.mark.parametrize("corners", [False, True])
+def test_the_learner_sees_the_mentor_where_its_options_end(corners):
+    """Each observed move is one of the mentor's options, from where it began to where it ended:
+    the option may end there (β > 0), the first state is the start, the last the goal, and the
+    moves' durations add up to the episode's steps."""
+    world = MultiRooms(32, 4, slip=0.1)
+    options = mentor_options(world, corners=corners)
+    rollout = run_mentor(world, mentor_policy(world, options), episodes=5, seed=3)
+    seen = observe_at_option_ends(rollout, world)
+    assert seen.num_transitions < sum(len(s) - 1 for s in rollout.states)  # (fewer than all)
+    for e, (states, steps, chosen) in enumerate(
+        zip(rollout.states, rollout.decision_steps, rollout.decisions, strict=True)
+    ):
+        assert torch.equal(states[steps], rollout.decision_states[e])
+        ends = torch.cat([steps[1:], torch.tensor([len(states) - 1])])
+        assert torch.equal(seen.episodes[e], states[torch.cat([steps[:1], ends])])
+        assert (options.termination[chosen, states[ends]] > 0).all()
+        # between one option's start and its end, no state where it had to stop (β = 1) …
+        for o, a, b in zip(chosen.tolist(), steps.tolist(), ends.tolist()):
+            assert (options.termination[o, states[a + 1 : b]] < 1).all()
+    assert int(seen.durations().sum()) == sum(len(s) - 1 for s in rollout.states)
+    learner = Learner(world, learner_options(world), ["imitation"], [0], engine="torch")
+    learner.add_demonstrations(seen)  # (with its durations: the segment term reads them)
+    assert learner.mentor.observed()[0, seen.visited_states()[:-1]].any()
+
+
+def test_observe_at_option_ends_takes_a_rollout(world, policy):
+    demos = record_demonstrations(world, policy, 2, seed=0)
+    with pytest.raises(TypeError, match="MentorRollout"):
+        observe_at_option_ends(demos, world)
+    rollout = run_mentor(world, policy, 2, seed=0)
+    import dataclasses
+
+    with pytest.raises(ValueError, match="decision_steps"):
+        observe_at_option_ends(dataclasses.replace(rollout, decision_steps=()), world)
+    assert observe_at_option_ends(rollout, world).num_episodes == 2
