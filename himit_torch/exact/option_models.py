@@ -29,6 +29,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 import torch
 
+from himit_torch.exact import reference_cache
 from himit_torch.options.bundle import Options
 from himit_torch.worlds.table_world import world_model
 
@@ -221,8 +222,18 @@ def _remembered(
     known = entry[3]
     missing = [(k, v) for k, v in zip(keys, variants) if k not in known]
     if missing:
+        # the models of the same content computed before, by this process or another run
+        # (exact.reference_cache: on disk, checked when read)
+        stored = {k: reference_cache.models_key(world, options, *k) for k, _ in missing}
+        for k, _ in missing:
+            cached = reference_cache.load_models(stored[k], options)
+            if cached is not None:
+                known[k] = cached
+        missing = [(k, v) for k, v in missing if k not in known]
+    if missing:
         for (k, _), models in zip(missing, _option_models(world, options, [v for _, v in missing])):
             known[k] = models
+            reference_cache.store_models(stored[k], models)
     return [known[k] for k in keys]
 
 
