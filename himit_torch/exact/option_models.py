@@ -220,16 +220,16 @@ def _remembered(
         _MEMO[memo_key] = entry
         weakref.finalize(options, _MEMO.pop, memo_key, None)
     known = entry[3]
-    missing = [(k, v) for k, v in zip(keys, variants) if k not in known]
-    if missing:
-        # the models of the same content computed before, by this process or another run
-        # (exact.reference_cache: on disk, checked when read)
-        stored = {k: reference_cache.models_key(world, options, *k) for k, _ in missing}
-        for k, _ in missing:
-            cached = reference_cache.load_models(stored[k], options)
-            if cached is not None:
-                known[k] = cached
-        missing = [(k, v) for k, v in missing if k not in known]
+    # (every key is a variant's name here: the None ones returned above)
+    missing = [(k, v) for k, v in zip(keys, variants) if k is not None and k not in known]
+    # the models of the same content computed before, by this process or another run
+    # (exact.reference_cache: on disk, checked when read)
+    stored = {k: reference_cache.models_key(world, options, *k) for k, _ in missing}
+    for k, _ in missing:
+        cached = reference_cache.load_models(stored[k], options)
+        if cached is not None:
+            known[k] = cached
+    missing = [(k, v) for k, v in missing if k not in known]
     if missing:
         for (k, _), models in zip(missing, _option_models(world, options, [v for _, v in missing])):
             known[k] = models

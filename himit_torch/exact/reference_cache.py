@@ -113,7 +113,7 @@ def options_fingerprint(options) -> str:
     for t in tensors:
         array = t.detach().cpu().contiguous().numpy()
         digest.update(f"|{array.dtype.str}{array.shape}|".encode())
-        digest.update(memoryview(array).cast("B"))
+        digest.update(array.data.cast("B"))
     fingerprint = digest.hexdigest()
     try:
         _FINGERPRINTS[id(options)] = (weakref.ref(options), versions, fingerprint)
@@ -160,7 +160,7 @@ def _digest(arrays: dict[str, np.ndarray]) -> str:
     for name in _ARRAYS:
         a = np.ascontiguousarray(arrays[name])
         digest.update(f"|{name}{a.dtype.str}{a.shape}|".encode())
-        digest.update(memoryview(a).cast("B"))
+        digest.update(a.data.cast("B"))
     return digest.hexdigest()
 
 

@@ -886,7 +886,11 @@ class MapRenderer:
         inside = lambda ticks: [t for t in ticks if lo - 1e-12 <= t <= hi + 1e-12]
         left = x1 + (_TICK + _TICK_PAD) * points
         if log:
-            for t in inside(LogLocator(base=10, subs=[2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0]).tick_values(lo, hi)):
+            for t in inside(
+                LogLocator(base=10, subs=[2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0]).tick_values(
+                    lo, hi
+                )
+            ):
                 mark(t, _MINOR_TICK)
             for t in inside(LogLocator(base=10).tick_values(lo, hi)):
                 mark(t, _TICK)
