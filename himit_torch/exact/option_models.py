@@ -226,7 +226,7 @@ def _remembered(
     # (exact.reference_cache: on disk, checked when read)
     stored = {k: reference_cache.models_key(world, options, *k) for k, _ in missing}
     for k, _ in missing:
-        cached = reference_cache.load_models(stored[k], options)
+        cached = reference_cache.load_models(stored[k], options, _from_arrays)
         if cached is not None:
             known[k] = cached
     missing = [(k, v) for k, v in missing if k not in known]
@@ -235,6 +235,21 @@ def _remembered(
             known[k] = models
             reference_cache.store_models(stored[k], models)
     return [known[k] for k in keys]
+
+
+def _from_arrays(arrays: dict[str, np.ndarray], num_options: int, num_states: int) -> OptionModels:
+    """The :class:`OptionModels` of a cache entry's arrays (exact.reference_cache)."""
+    matrix = sp.csr_matrix(
+        (arrays["data"], arrays["indices"], arrays["indptr"]),
+        shape=(arrays["row_state"].shape[0], num_states),
+    )
+    return OptionModels(
+        row_state=torch.from_numpy(arrays["row_state"]),
+        row_option=torch.from_numpy(arrays["row_option"]),
+        reward=torch.from_numpy(arrays["reward"]),
+        transition=csr_from_scipy(matrix),
+        num_options=num_options,
+    )
 
 
 def _option_models(

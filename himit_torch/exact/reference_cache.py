@@ -36,10 +36,11 @@ import os
 import tempfile
 import weakref
 from collections import OrderedDict
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
-import torch
 
 __all__ = [
     "CACHE_ENV",
@@ -208,11 +209,9 @@ def store_models(key: str, models) -> None:
         pass  # (a read-only or full disk: the models stay this process's)
 
 
-def _read(path: Path, key: str, num_options: int, num_states: int):
-    """The entry at ``path`` as an ``OptionModels``, or ``None`` where it is missing or fails
-    a check (module docstring)."""
-    from himit_torch.exact.option_models import OptionModels, csr_from_scipy
-
+def _read(path: Path, key: str, num_options: int, num_states: int) -> dict | None:
+    """The arrays of the entry at ``path``, or ``None`` where it is missing or fails a check
+    (module docstring)."""
     try:
         with np.load(io.BytesIO(path.read_bytes()), allow_pickle=False) as entry:
             if set(entry.files) != {"header", *_ARRAYS}:
@@ -221,8 +220,6 @@ def _read(path: Path, key: str, num_options: int, num_states: int):
             arrays = {name: entry[name] for name in _ARRAYS}
     except Exception:  # (whatever a damaged archive raises: zip, NPY or JSON errors)
         return None
-    import scipy.sparse as sp
-
     S, O = num_states, num_options
     M = arrays["row_state"].shape[0] if arrays["row_state"].ndim == 1 else -1
     checks = (
@@ -247,24 +244,17 @@ def _read(path: Path, key: str, num_options: int, num_states: int):
         or indptr[-1] != indices.size
         or (np.diff(indptr) < 0).any()
         or (indices.size and (indices.min() < 0 or indices.max() >= S))
-        or (M and (arrays["row_state"].min() < 0 or arrays["row_state"].max() >= S))
-        or (M and (arrays["row_option"].min() < 0 or arrays["row_option"].max() >= O))
     ):
         return None
-    matrix = sp.csr_matrix((arrays["data"], indices, indptr), shape=(M, S))
-    return OptionModels(
-        row_state=torch.from_numpy(arrays["row_state"]),
-        row_option=torch.from_numpy(arrays["row_option"]),
-        reward=torch.from_numpy(arrays["reward"]),
-        transition=csr_from_scipy(matrix),
-        num_options=O,
-    )
+    return arrays
 
 
-def load_models(key: str, options):
+def load_models(key: str, options, build: Callable[[dict[str, np.ndarray], int, int], Any]):
     """The models kept under ``key`` for ``options``, or ``None``: this process's first, then
-    the disk's, checked (module docstring); a damaged entry is removed (the caller computes
-    the models again and stores them)."""
+    the disk's, checked (module docstring) and made by ``build(arrays, num_options)`` (the
+    arrays :func:`store_models` writes: ``row_state``, ``row_option``, ``reward`` and the
+    transition's CSR ``indptr``, ``indices``, ``data``); a damaged entry is removed (the caller
+    computes the models again and stores them)."""
     known = _BY_CONTENT.get(key)
     if known is not None:
         _BY_CONTENT.move_to_end(key)
@@ -275,17 +265,18 @@ def load_models(key: str, options):
     path = _path(folder, key)
     if not path.is_file():
         return None
-    models = _read(path, key, int(options.num_options), int(options.num_states))
-    if models is not None:
+    arrays = _read(path, key, int(options.num_options), int(options.num_states))
+    if arrays is not None:
         # its rows are the options' available (state, option) pairs, option by option
-        pairs = options.initiation.nonzero()
+        pairs = options.initiation.nonzero().cpu().numpy()
         if not (
-            torch.equal(models.row_option, pairs[:, 0].cpu())
-            and torch.equal(models.row_state, pairs[:, 1].cpu())
+            np.array_equal(arrays["row_option"], pairs[:, 0])
+            and np.array_equal(arrays["row_state"], pairs[:, 1])
         ):
-            models = None
-    if models is None:
+            arrays = None
+    if arrays is None:
         path.unlink(missing_ok=True)  # damaged: never trusted, computed again
         return None
+    models = build(arrays, int(options.num_options), int(options.num_states))
     _keep(key, models)
     return models

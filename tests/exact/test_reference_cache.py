@@ -142,7 +142,7 @@ def test_another_worlds_options_or_settings_entry_is_never_used(cache, monkeypat
     source = cache / f"{reference_cache.models_key(world, options, 0.99, 'world')}.npz"
     (cache / f"{key}.npz").write_bytes(source.read_bytes())
     _fresh_process()
-    assert reference_cache.load_models(key, learner_options(others[0])) is None
+    assert reference_cache.load_models(key, learner_options(others[0]), om._from_arrays) is None
     assert not (cache / f"{key}.npz").exists()
 
 
