@@ -6,7 +6,7 @@ mentor's policy and the exact evaluation of it, the greedy tracker, the optimum 
 for every batch, preset and process (≈ 1 s each on the paper's largest worlds). An entry here is
 keyed by what the models are computed from, never by an object's identity:
 
-* the world's content fingerprint (:func:`~himit_torch.worlds.table_world.model_fingerprint`:
+* the world's content fingerprint (``himit_torch.worlds.table_world.model_fingerprint``:
   its dynamics, rewards, terminal states and start),
 * the options' content (:func:`options_fingerprint`: initiation sets, terminations, policies),
 * the setting: the discount and the per-step reward (the world's, or unit costs for the

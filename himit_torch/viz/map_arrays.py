@@ -155,17 +155,13 @@ def draw_text(
 
 @dataclass(frozen=True)
 class MapFrame:
-    """The pixels of one kind of map that never change, and where the rest goes.
-
-    Attributes:
-        pixels: ``[H, W, 3]`` uint8, the frame (legend, outlines, colorbar gradient and label).
-        box: ``(x0, y0, x1, y1)``: the map axes' box in pixels (columns; rows from the top).
-        inner: ``(row0, row1, col0, col1)``: the pixels inside the axes' outline, the map's.
-        colorbar: the colorbar axes' box as ``box``, or ``None`` (the greedy-option map).
-        title: ``(x, y)``: where the title's first line is centred and its top.
-        dpi: pixels per inch (text sizes are in points).
-        font: the text's size in points (matplotlib's ``"medium"``).
-    """
+    """The pixels of one kind of map that never change, and where the rest goes: ``pixels``
+    ``[H, W, 3]`` uint8, the frame (legend, colorbar gradient and label); ``box`` ``(x0, y0, x1,
+    y1)``, the map axes' box in pixels (columns; rows from the top); ``inner`` ``(row0, row1,
+    col0, col1)``, the map's pixels; ``colorbar``, the colorbar axes' box as ``box``, or
+    ``None`` (the greedy-option map); ``title`` ``(x, y)``, where the title's lines are centred
+    and its top; ``dpi``, pixels per inch (text sizes are in points); ``font``, the text's
+    size in points (matplotlib's ``"medium"``)."""
 
     pixels: np.ndarray
     box: tuple[float, float, float, float]
