@@ -1,6 +1,8 @@
 """Shared test set-up: one torch thread (tiny tensors; two threads only add contention on a busy
-2-core machine), a seeded generator fixture, and a live malicious pickle for the tests that files
-are read without unpickling code."""
+2-core machine), no disk cache of exact option models unless ``HIMIT_EXACT_CACHE`` names one
+(the suite writes nothing into the user's cache; tests/exact/test_reference_cache.py turns it
+on in a temporary folder), a seeded generator fixture, and a live malicious pickle for the tests
+that files are read without unpickling code."""
 
 import os
 import shlex
@@ -12,6 +14,7 @@ import torch
 from himit_torch.worlds.multirooms import MultiRooms
 
 torch.set_num_threads(1)
+os.environ.setdefault("HIMIT_EXACT_CACHE", "off")
 
 
 @pytest.fixture

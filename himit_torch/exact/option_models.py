@@ -29,6 +29,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 import torch
 
+from himit_torch.exact import reference_cache
 from himit_torch.options.bundle import Options
 from himit_torch.worlds.table_world import world_model
 
@@ -219,11 +220,36 @@ def _remembered(
         _MEMO[memo_key] = entry
         weakref.finalize(options, _MEMO.pop, memo_key, None)
     known = entry[3]
-    missing = [(k, v) for k, v in zip(keys, variants) if k not in known]
+    # (every key is a variant's name here: the None ones returned above)
+    missing = [(k, v) for k, v in zip(keys, variants) if k is not None and k not in known]
+    # the models of the same content computed before, by this process or another run
+    # (exact.reference_cache: on disk, checked when read)
+    stored = {k: reference_cache.models_key(world, options, *k) for k, _ in missing}
+    for k, _ in missing:
+        cached = reference_cache.load_models(stored[k], options, _from_arrays)
+        if cached is not None:
+            known[k] = cached
+    missing = [(k, v) for k, v in missing if k not in known]
     if missing:
         for (k, _), models in zip(missing, _option_models(world, options, [v for _, v in missing])):
             known[k] = models
+            reference_cache.store_models(stored[k], models)
     return [known[k] for k in keys]
+
+
+def _from_arrays(arrays: dict[str, np.ndarray], num_options: int, num_states: int) -> OptionModels:
+    """The :class:`OptionModels` of a cache entry's arrays (exact.reference_cache)."""
+    matrix = sp.csr_matrix(
+        (arrays["data"], arrays["indices"], arrays["indptr"]),
+        shape=(arrays["row_state"].shape[0], num_states),
+    )
+    return OptionModels(
+        row_state=torch.from_numpy(arrays["row_state"]),
+        row_option=torch.from_numpy(arrays["row_option"]),
+        reward=torch.from_numpy(arrays["reward"]),
+        transition=csr_from_scipy(matrix),
+        num_options=num_options,
+    )
 
 
 def _option_models(

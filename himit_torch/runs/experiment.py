@@ -424,11 +424,10 @@ def _run_batch(
     window logged and, on their schedule, evaluated greedily, maps drawn and a checkpoint
     saved. Returns the run's wall seconds."""
     config, run_seeds = batch.config, batch.run_seeds
-    # Maps for the first seed of every agent, at the end. Drawing them costs ≈ 0.3 s a run on
-    # 80×80: for two seeds half-way and at the end (as before) that was 5 s a world, as long as
-    # its learning, the largest cost of `himit run paper` after it.
+    # Maps for the first seed of every agent, half-way (the first window end from there) and
+    # at the end: drawn as arrays, a few ms a map (viz.plotting.MapRenderer).
     map_runs = [b for b, s in enumerate(run_seeds) if s == batch.seeds[0]]
-    maps_every = config.steps
+    maps_every = -(-config.steps // (2 * config.window)) * config.window
     mentor_visits = {
         b: torch.bincount(
             torch.cat([torch.as_tensor(e) for e in demos[run_seeds[b]].episodes]),

@@ -15,10 +15,9 @@ figures to leak); :func:`save_world_figure` renders with the Agg canvas.
 
 from __future__ import annotations
 
+import math
 import os
-import threading
 import warnings
-import weakref
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -625,32 +624,176 @@ _POLICY_PALETTE = {
     "corner": "#8c564b",
     "custom": "#17becf",
 }
+_POLICY_NAMES = {
+    "N": "primitive N",
+    "S": "primitive S",
+    "W": "primitive W",
+    "E": "primitive E",
+    "doorway": "doorway option",
+    "corner": "corner option",
+    "custom": "other option",
+}
+#: The mentor's states on the visits map.
+_MENTOR_DOT_COLOR = "#e8590c"
+#: A map figure's size (inches), its axes' and colorbar's boxes (figure fractions) and where
+#: its title is anchored (the top centre of the axes' column).
+_MAP_FIGSIZE = (5.6, 4.8)
+_MAP_AXES = (0.03, 0.13, 0.60, 0.70)
+_MAP_COLORBAR = (0.68, 0.18, 0.035, 0.60)
+_MAP_TITLE = (0.33, 0.975)
+#: Tick lengths on the colorbar (points: matplotlib's defaults, major and minor) and the gap
+#: between a major tick and its label.
+_TICK, _MINOR_TICK, _TICK_PAD = 3.5, 2.0, 3.5
+
+#: This process's map frames (:class:`~himit_torch.viz.map_arrays.MapFrame`), by kind, dpi and
+#: legend: they do not depend on the world, so every renderer of the process shares them.
+_MAP_FRAMES: dict[tuple, Any] = {}
 
 
-#: This process's map figures (:class:`MapRenderer`), by kind, dpi and legend, and the lock a
-#: map holds while it is drawn (renderers in two threads share the figures).
-_MAP_FIGURES: dict[tuple, dict[str, Any]] = {}
-_MAP_LOCK = threading.RLock()
+def _map_frame(kind: str, dpi: int, initial_value: float):
+    """The frame of a map of ``kind`` (``values``, ``visits``, ``policy``), drawn by matplotlib
+    once per process: the legend, the colorbar's gradient, outline and label; no data, no
+    ticks, no title (each map draws those into its copy of the frame)."""
+    from matplotlib.colors import LogNorm, Normalize
+
+    from himit_torch.viz.map_arrays import MapFrame
+
+    key = (kind, dpi, initial_value if kind == "values" else None)
+    frame = _MAP_FRAMES.get(key)
+    if frame is not None:
+        return frame
+    fig = Figure(figsize=_MAP_FIGSIZE, dpi=dpi)
+    ax = fig.add_axes(_MAP_AXES)
+    ax.set_axis_off()  # (the map and its outline are drawn into the array)
+    colorbar = None
+    if kind == "policy":
+        keys = list(_POLICY_PALETTE)
+        handles = [Patch(facecolor=_POLICY_PALETTE[k], label=_POLICY_NAMES[k]) for k in keys]
+        handles += [
+            Patch(facecolor=NO_DATA_COLOR, edgecolor="0.5", label="nothing tried"),
+            Patch(facecolor=WALL_COLOR, label="wall"),
+        ]
+        fig.legend(
+            handles=handles,
+            loc="center left",
+            bbox_to_anchor=(0.64, 0.48),
+            fontsize="small",
+            frameon=False,
+        )
+    else:
+        log = kind == "visits"
+        import matplotlib
+
+        image = ax.imshow(
+            np.ones((1, 1)),
+            cmap=matplotlib.colormaps[MAP_CMAP],
+            norm=LogNorm(1, 10) if log else Normalize(0, 1),
+        )
+        cax = fig.add_axes(_MAP_COLORBAR)
+        label = "visits of the learner (log scale)" if log else "V(s), the learner's value"
+        bar = fig.colorbar(image, cax=cax, label=label)
+        bar.set_ticks([])
+        bar.minorticks_off()
+        # (where the label sits beside tick labels about 4 characters wide)
+        cax.yaxis.set_label_coords(3.3 if log else 3.6, 0.5)
+        colorbar = cax
+        extra = []
+        if log:
+            extra = [
+                Line2D(
+                    [],
+                    [],
+                    marker="o",
+                    color=_MENTOR_DOT_COLOR,
+                    linestyle="none",
+                    markersize=4,
+                    label="mentor's states",
+                )
+            ]
+            no_data = "never visited"
+        else:
+            initial = f"{initial_value:g}".replace("-", "−")
+            no_data = f"V = {initial}: no route to the goal known yet"
+        fig.legend(
+            handles=[
+                Patch(facecolor=WALL_COLOR, label="wall"),
+                Patch(facecolor=NO_DATA_COLOR, edgecolor="0.5", label=no_data),
+                *extra,
+            ],
+            loc="lower center",
+            bbox_to_anchor=(0.45, 0.0),
+            ncol=3 if extra else 2,
+            fontsize="small",
+            frameon=False,
+        )
+        image.remove()  # (the colorbar keeps its gradient; the map is the array's)
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    pixels = np.asarray(canvas.buffer_rgba())[..., :3].copy()
+    H = pixels.shape[0]
+
+    def box(axes) -> tuple[float, float, float, float]:
+        b = axes.bbox  # (display coordinates: y up)
+        return (b.x0, H - b.y1, b.x1, H - b.y0)
+
+    x0, y0, x1, y1 = box(ax)
+    inner = (
+        int(math.ceil(y0 - 0.5)),
+        int(math.floor(y1 - 0.5)) + 1,
+        int(math.ceil(x0 - 0.5)),
+        int(math.floor(x1 - 0.5)) + 1,
+    )
+    pixels.flags.writeable = False
+    frame = MapFrame(
+        pixels=pixels,
+        box=(x0, y0, x1, y1),
+        inner=inner,
+        colorbar=None if colorbar is None else box(colorbar),
+        title=(_MAP_TITLE[0] * pixels.shape[1], (1 - _MAP_TITLE[1]) * H),
+        dpi=float(dpi),
+        font=float(matplotlib_font_size("medium")),
+    )
+    _MAP_FRAMES[key] = frame
+    return frame
 
 
-def _mentor_dot_area(N: int) -> float:
-    """The mentor's dots on an ``N × N`` visits map, in points²: half a cell wide, so that the
-    learner's colour stays visible around them."""
-    cell = 0.60 * 5.6 * 72 / N
-    return (cell / 2) ** 2
+def matplotlib_font_size(size: str) -> float:
+    """A named font size (``"medium"``, ``"small"``) in points, as matplotlib resolves it."""
+    from matplotlib.font_manager import FontProperties
+
+    return float(FontProperties(size=size).get_size_in_points())
+
+
+def _rgb(colour) -> np.ndarray:
+    """``[3]`` uint8 of a matplotlib colour, looked up once."""
+    from himit_torch.viz.map_arrays import rgb_bytes
+
+    rgb = _RGB.get(colour)
+    if rgb is None:
+        rgb = _RGB[colour] = rgb_bytes(colour)
+    return rgb
+
+
+_RGB: dict[str, np.ndarray] = {}
+
+
+def _mentor_dot_diameter(cell_px: float) -> float:
+    """The mentor's dots on a visits map, in pixels: half a cell wide, so that the learner's
+    colour stays visible around them."""
+    return cell_px / 2
 
 
 class MapRenderer:
     """The maps of one world logged to TensorBoard — state values, greedy option, visits — as
-    ``[H, W, 3]`` uint8 images with their colorbar or legend, about 500 × 400 pixels.
+    ``[H, W, 3]`` uint8 images with their colorbar or legend, 560 × 480 pixels at 100 dpi.
 
-    Each kind of map is one figure built on first use and redrawn with new data afterwards
-    (≈ 3× faster than building a figure per image, which matters when many runs log maps
-    during training). The figures are this process's, shared by every renderer: a renderer of
-    another world sets their images to its grid (the same pixels as a figure built for it,
-    ``tests/viz``), so a process that logs the maps of several worlds builds each kind once
-    (≈ 0.3 s a world on the paper's). A map is drawn under a lock of the process: renderers in
-    several threads take turns.
+    Drawn as arrays (:mod:`himit_torch.viz.map_arrays`): the frame of each kind of map
+    (legend, colorbar and its label) is drawn by matplotlib once per process and shared by
+    every renderer; each map copies it and draws its cells (the colormap applied in NumPy,
+    walls and no-data cells in their colours, the mentor's states as dots), the colorbar's
+    ticks and labels and its title into the copy: a few milliseconds a map on 80×80, against
+    ≈ 0.1–0.2 s for a figure redrawn per map (``benchmarks/bench_maps.py``). Renderers in
+    several threads share nothing they write.
 
     Args:
         world: the world.
@@ -664,225 +807,196 @@ class MapRenderer:
     ):
         self.world, self.options, self.initial_value, self.dpi = world, options, initial_value, dpi
         self._option_codes: np.ndarray | None = None  # (the policy map's colour of each option)
+        self._walls = world.wall_mask.numpy().copy()
+        self._grid: tuple | None = None  # (each pixel's cell, the mentor's dots' pixels)
 
-    def _figure(self, kind: str):
-        """The process's figure of ``kind`` (its legend's texts: the dpi, and the initial value
-        for the values map), built on first use, its images set to this renderer's world."""
-        key = (kind, self.dpi, self.initial_value if kind == "values" else None)
-        parts = _MAP_FIGURES.get(key)
-        if parts is None:
-            parts = _MAP_FIGURES[key] = self._build(kind)
-        elif parts["world"]() is not self.world:
-            self._fit_world(parts)
-        return parts
+    def _frame(self, kind: str):
+        return _map_frame(kind, self.dpi, self.initial_value)
 
-    def _fit_world(self, parts) -> None:
-        """Set a figure built for another world to this one: its images' grids and extents
-        (the axes' limits follow) and the mentor's dots' size. What a figure holds besides
-        (legend, colour bar, title, boxes) does not depend on the world."""
+    def _pixels_of_cells(self, frame) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(rows, cols, dot)``: the cell row of each pixel row of the map and the cell column
+        of each pixel column (``imshow``'s nearest-neighbour sampling), and ``[h, w]`` bool,
+        the pixels of a dot centred in their cell (the mentor's, half a cell wide, so that the learner's colour stays visible around
+        them). The same for every kind of map (one axes box)."""
+        if self._grid is None:
+            from himit_torch.viz.map_arrays import cell_of_pixels, disc_mask
+
+            N = self.world.size
+            x0, y0, x1, y1 = frame.box
+            r0, r1, c0, c1 = frame.inner
+            rows = cell_of_pixels(N, y0, y1 - y0, r0, r1)
+            cols = cell_of_pixels(N, x0, x1 - x0, c0, c1)
+            dy = disc_mask(N, y0, y1 - y0, r0, r1, 0.0)
+            dx = disc_mask(N, x0, x1 - x0, c0, c1, 0.0)
+            radius = _mentor_dot_diameter((x1 - x0) / N) / 2
+            self._grid = (rows, cols, (dy[:, None] ** 2 + dx[None, :] ** 2) <= radius**2)
+        return self._grid
+
+    def _compose(self, kind: str, colours: np.ndarray, title: str, dots=None, scale=None):
+        """The map of ``kind``: the frame with ``colours [S, 3]`` (walls drawn over them) in the
+        axes, ``dots [S]`` (bool) as the mentor's dots, the colorbar's ``scale`` ``(lo, hi,
+        log)`` and ``title``."""
+        frame = self._frame(kind)
+        image = frame.pixels.copy()
         N = self.world.size
-        extent = (-0.5, N - 0.5, N - 0.5, -0.5)  # (imshow's own for an N × N grid)
-        parts["image"].set_data(np.ma.masked_all((N, N)))
-        parts["walls"].set_data(_wall_layer(self.world))
-        for image in (parts["image"], parts["walls"]):
-            image.set_extent(extent)
-        if "mentor" in parts:
-            parts["mentor"].set_sizes([_mentor_dot_area(N)])
-        parts["world"] = weakref.ref(self.world)
+        colours = colours.copy()
+        colours[self._walls] = _rgb(WALL_COLOR)
+        rows, cols, dot = self._pixels_of_cells(frame)
+        # the cells' columns repeated, then whole pixel rows (gathering [S, 3] per pixel at
+        # once is ≈ 10× slower: 3-byte items)
+        pixels = np.take(np.take(colours.reshape(N, N, 3), cols, axis=1), rows, axis=0)
+        if dots is not None and dots.any():
+            marked = np.take(np.take(dots.reshape(N, N), cols, axis=1), rows, axis=0) & dot
+            pixels[marked] = _rgb(_MENTOR_DOT_COLOR)
+        r0, r1, c0, c1 = frame.inner
+        image[r0:r1, c0:c1] = pixels
+        # the axes' outline: one pixel around the map
+        image[r0, c0:c1] = image[r1 - 1, c0:c1] = 0
+        image[r0:r1, c0] = image[r0:r1, c1 - 1] = 0
+        if scale is not None:
+            self._colorbar_ticks(image, frame, *scale)
+        self._title(image, frame, title)
+        return image
 
-    def _build(self, kind: str):
-        N = self.world.size
-        # Fixed boxes (no layout engine): the same pixels for every redraw, room for a two-line
-        # title above, the legend below and the colorbar or key on the right.
-        fig = Figure(figsize=(5.6, 4.8), dpi=self.dpi)
-        ax = fig.add_axes((0.03, 0.13, 0.60, 0.70))
-        blank = np.zeros(self.world.num_states)
-        parts: dict[str, Any] = {"fig": fig, "ax": ax, "canvas": FigureCanvasAgg(fig)}
-        if kind == "policy":
-            keys = list(_POLICY_PALETTE)
-            colours = ListedColormap([_POLICY_PALETTE[k] for k in keys])
-            parts["keys"] = keys
-            parts["image"] = ax.imshow(
-                np.ma.masked_all((N, N)),
-                cmap=colours.with_extremes(bad=NO_DATA_COLOR),
-                vmin=-0.5,
-                vmax=len(keys) - 0.5,
-                interpolation="nearest",
-            )
-            parts["walls"] = ax.imshow(
-                _wall_layer(self.world), cmap=ListedColormap([WALL_COLOR]), interpolation="nearest"
-            )
-            ax.set_xticks([])
-            ax.set_yticks([])
-            names = {
-                "N": "primitive N",
-                "S": "primitive S",
-                "W": "primitive W",
-                "E": "primitive E",
-                "doorway": "doorway option",
-                "corner": "corner option",
-                "custom": "other option",
-            }
-            handles = [Patch(facecolor=_POLICY_PALETTE[k], label=names[k]) for k in keys]
-            handles += [
-                Patch(facecolor=NO_DATA_COLOR, edgecolor="0.5", label="nothing tried"),
-                Patch(facecolor=WALL_COLOR, label="wall"),
-            ]
-            fig.legend(
-                handles=handles,
-                loc="center left",
-                bbox_to_anchor=(0.64, 0.48),
-                fontsize="small",
-                frameon=False,
-            )
-        else:
-            log = kind == "visits"
-            parts["image"] = plot_state_map(
-                ax, self.world, blank + 1, label="", log=log, colorbar=False
-            )
-            parts["walls"] = ax.images[-1]  # (plot_state_map draws the walls over the map)
-            cax = fig.add_axes((0.68, 0.18, 0.035, 0.60))
-            label = "visits of the learner (log scale)" if log else "V(s), the learner's value"
-            parts["colorbar"] = fig.colorbar(parts["image"], cax=cax, label=label)
-            extra = []
+    @staticmethod
+    def _colorbar_ticks(image: np.ndarray, frame, lo: float, hi: float, log: bool) -> None:
+        """The colorbar's ticks and their labels for the scale ``lo … hi``, where matplotlib's
+        locators put them (a colorbar's: ``MaxNLocator`` with 9 bins on a linear scale,
+        ``LogLocator`` on a log one, its minor ticks unlabelled)."""
+        from matplotlib.ticker import LogLocator, MaxNLocator, ScalarFormatter
+
+        from himit_torch.viz.map_arrays import draw_text
+
+        assert frame.colorbar is not None
+        x0, y0, x1, y1 = frame.colorbar
+        points = frame.dpi / 72
+
+        def row(v: float) -> float:
             if log:
-                parts["mentor"] = ax.scatter(
-                    [], [], s=_mentor_dot_area(N), color="#e8590c", marker="o", linewidths=0
-                )
-                extra = [
-                    Line2D(
-                        [],
-                        [],
-                        marker="o",
-                        color="#e8590c",
-                        linestyle="none",
-                        markersize=4,
-                        label="mentor's states",
-                    )
-                ]
-                no_data = "never visited"
+                share = (math.log10(v) - math.log10(lo)) / (math.log10(hi) - math.log10(lo))
             else:
-                initial = f"{self.initial_value:g}".replace("-", "−")
-                no_data = f"V = {initial}: no route to the goal known yet"
-            fig.legend(
-                handles=[
-                    Patch(facecolor=WALL_COLOR, label="wall"),
-                    Patch(facecolor=NO_DATA_COLOR, edgecolor="0.5", label=no_data),
-                    *extra,
-                ],
-                loc="lower center",
-                bbox_to_anchor=(0.45, 0.0),
-                ncol=3 if extra else 2,
-                fontsize="small",
-                frameon=False,
-            )
-        parts["title"] = fig.text(0.33, 0.975, "", ha="center", va="top", fontsize="medium")
-        fig._himit_titles = [parts["title"]]  # type: ignore[attr-defined]  # read by fit_titles
-        parts["world"] = weakref.ref(self.world)
-        return parts
+                share = (v - lo) / (hi - lo)
+            return y1 - share * (y1 - y0)
+
+        def mark(v: float, length: float) -> None:
+            r = int(math.floor(row(v)))
+            r = min(max(r, int(y0)), int(math.ceil(y1)) - 1)
+            image[r, int(round(x1)) : int(round(x1 + length * points))] = 0
+
+        inside = lambda ticks: [t for t in ticks if lo - 1e-12 <= t <= hi + 1e-12]
+        left = x1 + (_TICK + _TICK_PAD) * points
+        if log:
+            for t in inside(
+                LogLocator(base=10, subs=[2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0]).tick_values(
+                    lo, hi
+                )
+            ):
+                mark(t, _MINOR_TICK)
+            for t in inside(LogLocator(base=10).tick_values(lo, hi)):
+                mark(t, _TICK)
+                exponent = str(int(round(math.log10(t)))).replace("-", "−")
+                width = draw_text(image, "10", left, row(t) + 1, frame.font, frame.dpi, va="center")
+                draw_text(
+                    image,
+                    exponent,
+                    left + width + 1,
+                    row(t) - 0.35 * frame.font * points,
+                    0.7 * frame.font,
+                    frame.dpi,
+                    va="center",
+                )
+            return
+        ticks = inside(MaxNLocator(nbins=9, steps=[1, 2, 2.5, 5, 10]).tick_values(lo, hi))
+        formatter = ScalarFormatter()
+        formatter.create_dummy_axis()
+        assert formatter.axis is not None
+        formatter.axis.set_view_interval(lo, hi)
+        formatter.axis.set_data_interval(lo, hi)
+        for t, text in zip(ticks, formatter.format_ticks(ticks)):
+            mark(t, _TICK)
+            draw_text(image, text, left, row(t), frame.font, frame.dpi, va="center")
+        offset = formatter.get_offset()
+        if offset:
+            draw_text(image, offset, x0, y0 - 4, frame.font, frame.dpi, va="baseline")
 
     @staticmethod
-    def _render(parts, title: str) -> np.ndarray:
-        parts["title"].set_text(title)
-        parts["title"].set_fontsize("medium")
-        fig, canvas = parts["fig"], parts["canvas"]
-        fit_titles(fig)
-        dynamic = MapRenderer._dynamic(parts)
-        if "background" not in parts:
-            # What never changes (the figure's background, the legend, the axes' patches and
-            # empty tick machinery) is drawn once; each image redraws the rest on top of it.
-            canvas.draw()
-            parts["background"] = canvas.copy_from_bbox(fig.bbox)
-        else:
-            canvas.restore_region(parts["background"])
-        for artist in dynamic:
-            fig.draw_artist(artist)
-        return np.asarray(canvas.buffer_rgba())[..., :3].copy()
+    def _title(image: np.ndarray, frame, title: str) -> None:
+        """``title`` centred above the map, its lines re-broken at spaces where wider than the
+        room around the anchor (as :func:`fit_titles` does)."""
+        from himit_torch.viz.map_arrays import draw_text, text_alpha
 
-    @staticmethod
-    def _dynamic(parts) -> list:
-        """What changes between images, marked animated (a full draw leaves it out), in the
-        order a full draw draws it: the map's images, dots and frame (the frame lies over the
-        images); the colorbar's mesh, outline and long axis (its ticks follow the colour range;
-        the colorbar makes a new mesh when the range changes, hence a new list per image); the
-        title. None of it overlaps what stays (the legend lies outside the axes, the colorbar
-        and the title; the axes' patches lie beneath), so the pixels are a full draw's."""
-        ax = parts["ax"]
-        # (the axes' own patch and the tick machinery that draws nothing stay)
-        panels = [(ax, {ax.patch, *ax._axis_map.values()})]
-        if "colorbar" in parts:
-            bar = parts["colorbar"]
-            panels.append((bar.ax, {bar.ax.patch, bar._short_axis()}))
-        dynamic: list = []
-        for panel, still in panels:
-            still |= {panel.title, panel._left_title, panel._right_title}
-            # (Axes.draw's order: a stable sort by zorder)
-            children = sorted(panel.get_children(), key=lambda a: a.get_zorder())
-            dynamic += [a for a in children if a not in still]
-        dynamic.append(parts["title"])
-        for artist in dynamic:
-            artist.set_animated(True)
-        return dynamic
+        x, top = frame.title
+        W = image.shape[1]
+        room = 2 * min(x - 0.01 * W, 0.99 * W - x)
+        lines: list[str] = []
+        for line in title.split("\n"):
+            current = ""
+            for word in line.split():
+                trial = f"{current} {word}".strip()
+                if current and text_alpha(trial, frame.font, frame.dpi)[0].shape[1] > room:
+                    lines.append(current)
+                    current = word
+                else:
+                    current = trial
+            lines.append(current)
+        px = frame.font * frame.dpi / 72
+        for i, line in enumerate(lines):
+            if line:
+                baseline = top + 0.95 * px + 1.2 * px * i
+                draw_text(image, line, x, baseline, frame.font, frame.dpi, "center", "baseline")
 
-    def _field(self, parts, values: np.ndarray, hide: np.ndarray, log: bool) -> None:
-        N = self.world.size
-        hide = hide | self.world.wall_mask.numpy() | ~np.isfinite(values)
+    def _field(self, values: np.ndarray, hide: np.ndarray, log: bool):
+        """``(colours [S, 3], (lo, hi, log))``: ``values`` coloured on the range of those shown
+        (walls, ``hide``, non-finite and, on a log scale, values ≤ 0 are grey)."""
+        from himit_torch.viz.map_arrays import colour_cells, colour_lut
+
+        hide = hide | self._walls | ~np.isfinite(values)
         if log:
             hide |= values <= 0
         shown = values[~hide]
         lo, hi = (shown.min(), shown.max()) if shown.size else ((1.0, 10.0) if log else (0.0, 1.0))
         if hi <= lo:
             hi = lo * 10 if log else lo + 1e-3
-        parts["image"].set_data(np.ma.masked_array(values, hide).reshape(N, N))
-        parts["image"].set_clim(lo, hi)
+        colours = np.empty((values.size, 3), dtype=np.uint8)
+        colours[~hide] = colour_cells(shown, float(lo), float(hi), log, colour_lut(MAP_CMAP))
+        colours[hide] = _rgb(NO_DATA_COLOR)
+        return colours, (float(lo), float(hi), log)
 
     def values(self, values, title: str = "") -> np.ndarray:
         """``values [S]``: colour = ``V(s)``; cells still at the initial value (−1: the value of
         never reaching the goal, kept until the learned model links the cell to the goal) grey."""
         v = _numpy(values).reshape(-1)
-        with _MAP_LOCK:
-            parts = self._figure("values")
-            self._field(parts, v, np.isclose(v, self.initial_value, rtol=0, atol=1e-9), log=False)
-            return self._render(parts, title)
+        hide = np.isclose(v, self.initial_value, rtol=0, atol=1e-9)
+        colours, scale = self._field(v, hide, log=False)
+        return self._compose("values", colours, title, scale=scale)
 
     def visits(self, visits, mentor_visits=None, title: str = "") -> np.ndarray:
         """``visits [S]`` of the learner (log colour scale, never visited grey) with the mentor's
         states (``mentor_visits [S] > 0``) marked."""
         v = _numpy(visits).reshape(-1)
-        with _MAP_LOCK:
-            parts = self._figure("visits")
-            self._field(parts, v, np.zeros_like(v, dtype=bool), log=True)
-            if mentor_visits is not None:
-                rows, cols = np.divmod(
-                    np.flatnonzero(_numpy(mentor_visits).reshape(-1) > 0), self.world.size
-                )
-                parts["mentor"].set_offsets(np.column_stack([cols, rows]))
-            else:
-                parts["mentor"].set_offsets(np.zeros((0, 2)))
-            return self._render(parts, title)
+        colours, scale = self._field(v, np.zeros_like(v, dtype=bool), log=True)
+        dots = None if mentor_visits is None else _numpy(mentor_visits).reshape(-1) > 0
+        return self._compose("visits", colours, title, dots=dots, scale=scale)
 
     def policy(self, greedy, title: str = "") -> np.ndarray:
         """``greedy [S]`` option per state (−1: nothing tried), coloured by kind and, for
         primitives, direction."""
         if self.options is None:
             raise ValueError("MapRenderer.policy needs the options (MapRenderer(world, options))")
-        with _MAP_LOCK:
-            parts = self._figure("policy")
-            g = _numpy(greedy).reshape(-1).astype(np.int64)
-            codes = np.full(g.shape, -1, dtype=np.int64)
-            keys = parts["keys"]
-            if self._option_codes is None:  # the colour of each option, looked up once
-                option_codes = []
-                for kind, name in zip(self.options.kinds, self.options.names):
-                    key = name[-1] if kind == "primitive" else kind
-                    option_codes.append(keys.index(key) if key in keys else keys.index("custom"))
-                self._option_codes = np.array(option_codes, dtype=np.int64)
-            tried = g >= 0
-            codes[tried] = self._option_codes[g[tried]]
-            hide = (codes < 0) | self.world.wall_mask.numpy()
-            N = self.world.size
-            parts["image"].set_data(np.ma.masked_array(codes, hide).reshape(N, N))
-            return self._render(parts, title)
+        keys = list(_POLICY_PALETTE)
+        if self._option_codes is None:  # the colour of each option, looked up once
+            option_codes = []
+            for kind, name in zip(self.options.kinds, self.options.names):
+                key = name[-1] if kind == "primitive" else kind
+                option_codes.append(keys.index(key) if key in keys else keys.index("custom"))
+            self._option_codes = np.array(option_codes, dtype=np.int64)
+        g = _numpy(greedy).reshape(-1).astype(np.int64)
+        palette = np.stack([_rgb(_POLICY_PALETTE[k]) for k in keys])
+        colours = np.empty((g.size, 3), dtype=np.uint8)
+        colours[:] = _rgb(NO_DATA_COLOR)
+        tried = g >= 0
+        colours[tried] = palette[self._option_codes[g[tried]]]
+        return self._compose("policy", colours, title)
 
 
 def value_image(

@@ -1,15 +1,25 @@
 """The exact option models are remembered per (world, options) while both live: a second call
 returns what the first computed, without computing again, and nothing stale is ever returned."""
 
+import pytest
 import torch
 
 import himit_torch.exact.option_models as om
 from himit_torch import MultiRooms, learner_options
+from himit_torch.exact import reference_cache
 from himit_torch.exact.option_models import (
     option_durations,
     option_models,
     option_models_and_durations,
 )
+
+
+@pytest.fixture(autouse=True)
+def _nothing_shared_by_content():
+    """These tests count computations: no models of the same content from earlier tests."""
+    reference_cache._BY_CONTENT.clear()
+    yield
+    reference_cache._BY_CONTENT.clear()
 
 
 def _counting(monkeypatch) -> list[int]:
@@ -46,17 +56,20 @@ def test_a_second_call_reuses_the_models_and_they_equal_a_fresh_computation(monk
 def test_other_options_worlds_rewards_and_options_written_in_place_are_computed_anew(
     monkeypatch,
 ):
+    """Other rewards, discounts and options written in place are computed anew; an equal
+    bundle or world of another object shares the models by content (exact.reference_cache)."""
     world = MultiRooms(12, 2)
     options = learner_options(world)
     calls = _counting(monkeypatch)
     first = option_models(world, options)
-    option_models(world, learner_options(world))  # an equal bundle, but another object
-    option_models(MultiRooms(12, 2), options)  # another world object
+    assert option_models(world, learner_options(world)) is first  # an equal bundle: by content
+    assert option_models(MultiRooms(12, 2), options) is first  # an equal world: by content
     option_models(world, options, step_reward=torch.full((144, 4), 2.0))  # not remembered
     option_models(world, options, step_reward=torch.full((144, 4), 2.0))
     option_models(world, options, gamma=0.5)  # another discount
-    assert calls == [1] * 6
-    options.termination[0, :] = 1.0  # written in place: the bundle's models changed
+    option_models(MultiRooms(12, 2, slip=0.2), options)  # another world's dynamics
+    assert calls == [1] * 5
+    options.termination[-1, :] = 1.0  # written in place (a doorway option): its models changed
     again = option_models(world, options)
-    assert len(calls) == 7 and again is not first
-    assert option_models(world, options) is again and len(calls) == 7
+    assert len(calls) == 6 and again is not first
+    assert option_models(world, options) is again and len(calls) == 6

@@ -212,9 +212,12 @@ def test_long_titles_are_wrapped_inside_the_figure(world, tmp_path):
     # the saved figure, the TensorBoard maps and the report's curves do it themselves
     save_world_figure(tmp_path / "w.png", world, title=LONG_TITLE)
     renderer = MapRenderer(world)
-    renderer.values(torch.zeros(world.num_states), title=LONG_TITLE)
-    parts = renderer._figure("values")
-    assert _inside(parts["fig"], parts["title"])
+    short = renderer.values(torch.zeros(world.num_states), title="short")
+    wrapped = renderer.values(torch.zeros(world.num_states), title=LONG_TITLE)
+    above = lambda image: (image[:70] < 128).any(-1)  # the title's dark pixels, above the map
+    assert above(wrapped).any(0)[[0, -1]].tolist() == [False, False]  # not cut at the edges
+    # re-broken onto more lines: it reaches further down than a short title
+    assert np.flatnonzero(above(wrapped).any(1)).max() > np.flatnonzero(above(short).any(1)).max()
     fig = Figure(figsize=(6, 5), layout="constrained")
     ax = fig.add_subplot()
     ax.set_title(LONG_TITLE[:200])
@@ -315,80 +318,150 @@ def test_tensorboard_hint_runs_as_typed(monkeypatch, tmp_path):
         assert os.path.samefile(command[0], sys.executable)
 
 
-def test_each_map_image_is_the_figures_full_draw():
-    """The maps redraw only what changes over a background drawn once; every image must be
-    pixel for pixel what a full draw of the same figure gives (the obvious, slow path) —
-    across colour ranges, titles, mentor dots and greedy options that change between images."""
-    from himit_torch.options.builders import learner_options
+def _imshow_cells(world, field, log: bool, no_data=None, dpi: int = 100) -> np.ndarray:
+    """The slow obvious path: ``plot_state_map`` (matplotlib's ``imshow``) of ``field`` into the
+    maps' axes box, drawn; the ``[N, N, 3]`` pixels at the cells' centres."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from himit_torch.viz import plotting
+
+    fig = Figure(figsize=plotting._MAP_FIGSIZE, dpi=dpi)
+    ax = fig.add_axes(plotting._MAP_AXES)
+    plotting.plot_state_map(ax, world, field, label="", log=log, no_data=no_data, colorbar=False)
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    return _cell_centres(np.asarray(canvas.buffer_rgba())[..., :3], world, dpi)
+
+
+def _cell_centres(image: np.ndarray, world, dpi: int = 100) -> np.ndarray:
+    from himit_torch.viz import plotting
+
+    N, H, W = world.size, image.shape[0], image.shape[1]
+    x0, y0, w, h = plotting._MAP_AXES
+    centres = (np.arange(N) + 0.5) / N
+    cols = np.floor((x0 + w * centres) * W).astype(int)
+    rows = np.floor((1 - (y0 + h) + h * centres) * H).astype(int)
+    return image[rows[:, None], cols[None, :]]
+
+
+def test_map_arrays_colour_each_cell_as_imshow_does():
+    """The maps drawn as arrays against matplotlib's ``imshow`` of the same field in the same
+    box (``plot_state_map``, the slow obvious path): every cell's centre pixel the same, for
+    values with cells still at the initial value, visits on a log scale with never-visited
+    cells, walls black throughout."""
     from himit_torch.viz.plotting import MapRenderer
 
     world = MultiRooms(size=16, rooms=4)
-    options = learner_options(world, corners=True)
-    renderer = MapRenderer(world, options)
-    gen = torch.Generator().manual_seed(0)
     S = world.num_states
-
-    def full_draw(kind: str) -> np.ndarray:
-        parts = renderer._figure(kind)
-        for artist in parts["fig"].findobj():
-            artist.set_animated(False)
-        parts["canvas"].draw()
-        return np.asarray(parts["canvas"].buffer_rgba())[..., :3].copy()
-
-    images = 0
-    for k in range(3):
-        values = -torch.rand(S, generator=gen, dtype=torch.float64) * (k + 1)
-        values[: 5 * k] = -1.0  # some cells still at the initial value
-        visits = torch.randint(0, 10 ** (k + 1), (S,), generator=gen)
-        mentor = (torch.rand(S, generator=gen) < 0.1 * k).long()
-        greedy = torch.randint(-1, len(options.names), (S,), generator=gen)
-        title = "a title " * (1 + 6 * k)  # the longest wraps onto two lines
-        for kind, image in (
-            ("values", renderer.values(values, title)),
-            ("visits", renderer.visits(visits, mentor if k else None, title)),
-            ("policy", renderer.policy(greedy, title)),
-        ):
-            assert np.array_equal(image, full_draw(kind)), (kind, k)
-            images += 1
-    assert images == 9
+    gen = torch.Generator().manual_seed(0)
+    renderer = MapRenderer(world)
+    values = -torch.rand(S, generator=gen, dtype=torch.float64)
+    values[:40] = -1.0
+    image = renderer.values(values, "values")
+    expected = _imshow_cells(world, values, log=False, no_data=values == -1.0)
+    assert np.array_equal(_cell_centres(image, world), expected)
+    visits = torch.randint(0, 3000, (S,), generator=gen)
+    visits[100:140] = 0
+    image = renderer.visits(visits, None, "visits")
+    assert np.array_equal(_cell_centres(image, world), _imshow_cells(world, visits, log=True))
+    walls = world.wall_mask.numpy().reshape(16, 16)
+    assert (_cell_centres(image, world)[walls] == 0).all() and walls.any()
 
 
-def test_maps_on_the_process_figures_are_those_of_figures_built_for_the_world(monkeypatch):
-    """Renderers share the process's map figures, each setting them to its world's grid: every
-    image must be pixel for pixel what a figure built for that world gives (the obvious path,
-    a renderer with no figures to share) — worlds of other sizes and walls, back and forth, two
-    renderers taking turns, a world the figures were built for coming back."""
-    from himit_torch.options.builders import learner_options
+def test_a_tiny_hand_made_map_has_the_known_pixels():
+    """A 4 × 4 world drawn by hand: each cell's centre pixel is the colour worked out here
+    from the colormap's table (viridis: its first colour at the lowest value, its last at the
+    highest), the walls black, a cell still at the initial value grey, the mentor's dot at
+    the centre of its cell only."""
+    import matplotlib
+    from matplotlib.colors import to_rgb
+
+    from himit_torch.viz.plotting import NO_DATA_COLOR, MapRenderer
+
+    world = MultiRooms(size=4, rooms=1)  # (no walls: 16 free cells)
+    assert not world.wall_mask.any()
+    inside = np.array([[0, 0], [1, 1], [2, 2], [3, 3]])
+    a, b, c, d = (int(r * 4 + k) for r, k in inside)
+    values = torch.full((16,), 0.5, dtype=torch.float64)
+    values[a], values[b], values[c], values[d] = 0.0, 1.0, 0.25, -1.0  # d: no route known
+    image = MapRenderer(world).values(values, "hand-made")
+    cells = _cell_centres(image, world)
+    viridis = matplotlib.colormaps["viridis"](np.arange(256), bytes=True)[:, :3]
+    grey = (np.array(to_rgb(NO_DATA_COLOR)) * 255).round()
+    # on the scale 0 … 1 of the cells shown: 0 → colour 0, 1 → colour 255, 0.25 → colour 64
+    assert cells[tuple(inside[0])].tolist() == viridis[0].tolist()
+    assert cells[tuple(inside[1])].tolist() == viridis[255].tolist()
+    assert cells[tuple(inside[2])].tolist() == viridis[64].tolist()
+    assert cells[tuple(inside[3])].tolist() == grey.tolist()
+    assert cells[0, 1].tolist() == viridis[128].tolist()  # 0.5
+    visits = torch.zeros(16, dtype=torch.int64)  # (never visited: grey)
+    visits[[a, b, c, d]] = torch.tensor([1, 10, 100, 1000])
+    mentor = torch.zeros(16, dtype=torch.int64)
+    mentor[b] = 3
+    image = MapRenderer(world).visits(visits, mentor, "hand-made")
+    cells = _cell_centres(image, world)
+    orange = (np.array(to_rgb("#e8590c")) * 255).round().tolist()
+    assert cells[tuple(inside[1])].tolist() == orange  # the mentor's dot
+    # on the log scale 1 … 1000: 1 → colour 0, 100 → ⌊2/3 · 256⌋ = 170, 1000 → colour 255
+    assert cells[tuple(inside[0])].tolist() == viridis[0].tolist()
+    assert cells[tuple(inside[2])].tolist() == viridis[170].tolist()
+    assert cells[tuple(inside[3])].tolist() == viridis[255].tolist()
+    # the dot is half a cell wide: the cell's corner keeps the learner's colour
+    H, W = image.shape[:2]
     from himit_torch.viz import plotting
 
-    monkeypatch.setattr(plotting, "_MAP_FIGURES", {})
-    worlds = [
-        MultiRooms(size=16, rooms=4),
-        MultiRooms(size=24, rooms=3),
-        MultiRooms(size=12, rooms=3),
-    ]
-    renderers = [plotting.MapRenderer(w, learner_options(w, corners=True)) for w in worlds]
-    gen = torch.Generator().manual_seed(1)
-    figures = set()
-    for turn, r in enumerate([0, 1, 0, 2, 1, 2, 0]):
-        renderer, S = renderers[r], worlds[r].num_states
-        values = -torch.rand(S, generator=gen, dtype=torch.float64)
-        values[:7] = -1.0
-        visits = torch.randint(0, 1000, (S,), generator=gen)
-        mentor = (torch.rand(S, generator=gen) < 0.1).long()
-        greedy = torch.randint(-1, len(renderer.options.names), (S,), generator=gen)
-        title = f"turn {turn}: world {worlds[r].size}"
-        for kind, data in (
-            ("values", (values,)),
-            ("visits", (visits, mentor)),
-            ("policy", (greedy,)),
-        ):
-            shared = getattr(renderer, kind)(*data, title)
-            figures.add(id(renderer._figure(kind)["fig"]))
-            with monkeypatch.context() as m:
-                m.setattr(plotting, "_MAP_FIGURES", {})
-                built = getattr(plotting.MapRenderer(worlds[r], renderer.options), kind)(
-                    *data, title
-                )
-            assert shared.shape == built.shape and np.array_equal(shared, built), (kind, turn)
-    assert len(figures) == 3  # (one figure of each kind served every world)
+    x0, y0, w, h = plotting._MAP_AXES
+    r, k = inside[1]
+    corner = image[int((1 - (y0 + h) + h * (r + 0.1) / 4) * H), int((x0 + w * (k + 0.1) / 4) * W)]
+    assert corner.tolist() == viridis[85].tolist()  # 10 → ⌊1/3 · 256⌋
+
+
+def test_policy_map_colours_options_by_kind_and_direction():
+    from matplotlib.colors import to_rgb
+
+    from himit_torch.options.builders import learner_options
+    from himit_torch.viz.plotting import _POLICY_PALETTE, NO_DATA_COLOR, MapRenderer
+
+    world = MultiRooms(size=16, rooms=4)
+    options = learner_options(world, corners=True)
+    free = np.flatnonzero(~world.wall_mask.numpy())
+    greedy = torch.full((world.num_states,), -1, dtype=torch.int64)
+    kinds = {k: i for i, k in enumerate(options.kinds)}  # the last option of each kind
+    names = {n: i for i, n in enumerate(options.names)}
+    chosen = {
+        free[0]: next(i for n, i in names.items() if n.endswith("N")),
+        free[1]: kinds["doorway"],
+        free[2]: kinds["corner"],
+    }
+    for s, o in chosen.items():
+        greedy[s] = o
+    cells = _cell_centres(MapRenderer(world, options).policy(greedy, "p"), world).reshape(-1, 3)
+    rgb = lambda c: (np.array(to_rgb(c)) * 255).round().tolist()
+    assert cells[free[0]].tolist() == rgb(_POLICY_PALETTE["N"])
+    assert cells[free[1]].tolist() == rgb(_POLICY_PALETTE["doorway"])
+    assert cells[free[2]].tolist() == rgb(_POLICY_PALETTE["corner"])
+    assert cells[free[3]].tolist() == rgb(NO_DATA_COLOR)  # nothing tried
+
+
+def test_map_colorbar_ticks_follow_the_range():
+    """The colorbar's gradient is the frame's; its ticks and labels are the map's: two ranges
+    give the same gradient and different labels, and the gradient runs from viridis' first
+    colour at the bottom to its last at the top."""
+    import matplotlib
+
+    from himit_torch.viz import plotting
+
+    world = MultiRooms(size=16, rooms=4)
+    renderer = plotting.MapRenderer(world)
+    one = renderer.values(torch.linspace(-1, 0, world.num_states), "t")
+    other = renderer.values(torch.linspace(-0.5, 300.0, world.num_states), "t")
+    x0, y0, x1, y1 = renderer._frame("values").colorbar
+    middle = int((x0 + x1) / 2)
+    bar = slice(int(y0) + 2, int(y1) - 2)
+    assert np.array_equal(one[bar, middle], other[bar, middle])
+    viridis = matplotlib.colormaps["viridis"](np.arange(256), bytes=True)[:, :3]
+    assert np.abs(one[int(y1) - 3, middle].astype(int) - viridis[0]).max() <= 8
+    assert np.abs(one[int(y0) + 3, middle].astype(int) - viridis[255]).max() <= 8
+    labels = (slice(int(y0) - 8, int(y1) + 8), slice(int(x1) + 8, int(x1) + 45))
+    assert not np.array_equal(one[labels], other[labels])
+    assert (one[labels] < 100).any()  # some text drawn
