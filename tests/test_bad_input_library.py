@@ -1,0 +1,433 @@
+"""Bad input on the library's families left from the last rounds: the demonstrations a learner
+with several mentors is given (``transitions()``, ``durations()``, ``counts``), the backups'
+tensor arguments, ``first_part``, demonstration files, the puzzle box's helpers, the stress and
+baseline helpers and the exact greedy API. Each mistake is the documented exception — a
+``ValueError``, or a ``TypeError`` for an argument that is no kind of the object asked for —
+with a message naming the argument; never an ``AttributeError``, an ``IndexError``, a
+``MemoryError``, a ``RuntimeError`` or a value silently cast (``9.5`` read as state 9).
+
+Beside every family stands its valid neighbour (``GOOD``): the same call with good arguments
+gives the right answer, so no case can pass by refusing everything.
+
+The cases are generated (``len(CASES)`` is asserted below); the worlds are 4×4 grids and
+2-skewer boxes and nothing ticks a learner, so the lot runs in seconds.
+"""
+
+from __future__ import annotations
+
+import inspect
+import math
+from functools import cached_property
+
+import numpy as np
+import pytest
+import torch
+
+from himit_torch.learner import backups
+from himit_torch.learner.config import LearnerConfig
+from himit_torch.learner.learner import Learner
+from himit_torch.mentor.demonstrations import Demonstrations
+from himit_torch.mentor.observation import CoarseDemonstrations, first_part
+from himit_torch.options.builders import primitive_options
+from himit_torch.worlds.multirooms import MultiRooms
+from tests.bad_inputs import Cases
+
+
+class _Thing:
+    def __repr__(self):
+        return "<thing>"
+
+
+CASES = Cases()
+case = CASES.add
+#: The valid neighbours: ``(name, check(context))``, each asserting what the good call gives.
+GOOD: list = []
+
+
+def good(name: str):
+    def register(check):
+        GOOD.append(pytest.param(check, id=name))
+        return check
+
+    return register
+
+
+class Context:
+    """What the cases build on, made on first use."""
+
+    @cached_property
+    def grid(self) -> MultiRooms:
+        return MultiRooms(4, 2)
+
+    @cached_property
+    def learner(self) -> Learner:
+        """A learner watching two mentors (the torch engine: nothing compiles)."""
+        grid = self.grid
+        return Learner(
+            grid,
+            primitive_options(grid),
+            ["imitation"],
+            [0],
+            config=LearnerConfig(mentors=2, mentor_segments=True),
+            engine="torch",
+        )
+
+    @cached_property
+    def demos(self) -> Demonstrations:
+        return Demonstrations([torch.tensor([0, 1, 5, 6])], self.grid)
+
+
+# ====================================================================== several mentors
+class _Moves:
+    """A demonstrations object of one's own: ``transitions()`` (and optionally ``durations()``
+    and ``counts``) as given."""
+
+    def __init__(self, src, dst, counts=None):
+        self.src, self.dst = src, dst
+        if counts is not None:
+            self.counts = counts
+
+    def transitions(self):
+        return self.src, self.dst
+
+
+class _Timed(_Moves):
+    def __init__(self, src, dst, durations):
+        super().__init__(src, dst)
+        self.steps = durations
+
+    def durations(self):
+        return self.steps
+
+
+class _Odd:
+    """``transitions()`` returns something other than a pair."""
+
+    def __init__(self, value):
+        self.value = value
+
+    def transitions(self):
+        return self.value
+
+
+#: Columns that are never states of a 16-state world (fractional, bool, NaN, beyond it, no
+#: numbers at all, 2-D).
+NOT_STATES = [
+    [9.5],
+    [0.5],
+    torch.tensor([2.5]),
+    np.array([1.25]),
+    [True],
+    torch.tensor([True]),
+    np.array([False]),
+    [math.nan],
+    [math.inf],
+    torch.tensor([math.nan]),
+    torch.tensor([1j]),
+    ["1"],
+    None,
+    "01",
+    {"a": 1},
+    _Thing(),
+    torch.tensor([[0]]),
+    np.array([[1]]),
+    [-1],
+    [16],
+    torch.tensor([2**40]),
+]
+for _end in ("from", "to"):
+    for _value in NOT_STATES:
+        _field = (
+            "another world"
+            if _value in ([-1], [16])
+            or (
+                isinstance(_value, torch.Tensor)
+                and _value.dtype == torch.int64
+                and _value.dim() == 1
+            )
+            else f"demonstrations.transitions() {_end}"
+        )
+        case(
+            f"add_demonstrations.transitions.{_end}",
+            _value,
+            lambda c, e=_end, v=_value: c.learner.add_demonstrations(
+                _Moves(v, [1]) if e == "from" else _Moves([0], v), mentor=1
+            ),
+            _field,
+        )
+for _pair in [([0, 1], [1]), ([0], [1, 5]), ([], [1]), (torch.tensor([0, 1]), torch.tensor([1]))]:
+    case(  # an IndexError before
+        "add_demonstrations.transitions.lengths",
+        _pair,
+        lambda c, p=_pair: c.learner.add_demonstrations(_Moves(*p), mentor=1),
+        "of one length",
+    )
+for _value in [None, torch.tensor([0, 1]), ([0], [1], [5]), "ab", 5]:
+    case(
+        "add_demonstrations.transitions.pair",
+        _value,
+        lambda c, v=_value: c.learner.add_demonstrations(_Odd(v), mentor=1),
+        "transitions() must return the pair",
+        TypeError,
+    )
+for _value in [
+    None,  # a RuntimeError before
+    [True],  # a bool: accepted silently before
+    torch.tensor([True]),
+    [1.5],
+    torch.tensor([2.5]),
+    [math.nan],
+    [0],
+    [-2],
+    ["2"],
+    "2",
+    [[1]],
+    torch.tensor([[1]]),
+    [1, 1],
+    [],
+    [2**40],
+]:
+    case(
+        "add_demonstrations.durations",
+        _value,
+        lambda c, v=_value: c.learner.add_demonstrations(_Timed([0], [1], v), mentor=1),
+        "demonstrations.durations()",
+    )
+for _value in [[0.0], [-1.0], [math.nan], [math.inf], [True], ["1"], [1.0, 1.0], "1", 5]:
+    case(
+        "add_demonstrations.counts",
+        _value,
+        lambda c, v=_value: c.learner.add_demonstrations(_Moves([0], [1], v), mentor=1),
+        "demonstrations.counts",
+    )
+
+
+@good("add_demonstrations")
+def _(c):
+    """Whole floats, NumPy columns and a second mentor are fine; the moves land in mentor 1's
+    rows (its block of states), with their durations."""
+    learner = c.learner
+    before = int(learner.mentor.num_edges[0])
+    learner.add_demonstrations(_Timed(np.array([0.0, 1.0]), [1, 5], torch.tensor([1, 3])), mentor=1)
+    assert int(learner.mentor.num_edges[0]) == before + 2
+    learner.add_demonstrations(_Moves([1], [5], counts=[2.0]), mentor=0)
+    learner.add_demonstrations(CoarseDemonstrations(c.demos, 2), mentor=1)
+    assert int(learner.mentor.num_edges[0]) >= before + 3
+
+
+# ============================================================================== backups
+def _t(*shape, dtype=torch.float64):
+    n = math.prod(shape)
+    return (torch.arange(n, dtype=torch.float64) / 10 - 0.2).reshape(shape).to(dtype)
+
+
+def _mask(*shape):
+    return (torch.arange(math.prod(shape)) % 2 == 0).reshape(shape)
+
+
+#: Valid arguments of each backup (batch [2], J/K 3, A 4); masks are bool.
+BACKUPS = {
+    "option_backup": dict(reward=_t(2), weights=_t(2, 3), successor_values=_t(2, 3)),
+    "option_backup_edges": dict(
+        reward=_t(1, 2),
+        runs=torch.tensor([0, 0]),
+        rows=torch.tensor([0, 1]),
+        weights=_t(2),
+        successor_values=_t(2),
+    ),
+    "mentor_backup_edges": dict(
+        shape=(1, 2),
+        runs=torch.tensor([0, 0]),
+        rows=torch.tensor([0, 1]),
+        counts=_t(2) + 1,
+        rewards=_t(2),
+        discounts=_t(2) + 0.5,
+        successor_values=_t(2),
+    ),
+    "shaped_option_backup": dict(
+        reward=_t(2),
+        weights=_t(2, 3),
+        successor_values=_t(2, 3),
+        potential=_t(2),
+        successor_potentials=_t(2, 3),
+    ),
+    "mentor_backup": dict(
+        mentor_reward=_t(2), mentor_probs=_t(2, 3), successor_values=_t(2, 3), gamma=0.9
+    ),
+    "segment_reward": dict(
+        last_reward=_t(2), delay=_t(2) + 0.5, unseen_step_reward=-0.01, gamma=0.9
+    ),
+    "segment_discount": dict(delay=_t(2), gamma=0.9),
+    "segment_mentor_backup": dict(
+        segment_rewards=_t(2, 3),
+        segment_discounts=_t(2, 3),
+        mentor_probs=_t(2, 3),
+        successor_values=_t(2, 3),
+    ),
+    "options_only_backup": dict(option_q=_t(2, 3), available=_mask(2, 3)),
+    "augmented_option_backup": dict(
+        option_q=_t(2, 3), available=_mask(2, 3), mentor_term=_t(2), mentor_available=_mask(2)
+    ),
+    "augmented_backup": dict(own_value=_t(2), mentor_term=_t(2), mentor_available=_mask(2)),
+    "primitives_only_backup": dict(
+        reward=_t(2, 4), probs=_t(2, 4, 3), successor_values=_t(2, 4, 3), gamma=0.9
+    ),
+    "augmented_primitive_backup": dict(
+        observer_reward=_t(2),
+        probs=_t(2, 4, 3),
+        successor_values=_t(2, 4, 3),
+        mentor_probs=_t(2, 3),
+        mentor_successor_values=_t(2, 3),
+        mentor_available=_mask(2),
+        gamma=0.9,
+    ),
+    "dirichlet_value_moments": dict(counts=_t(2, 3) + 1, outcome_values=_t(2, 3)),
+    "dirichlet_variance": dict(mean=_t(2), second_moment=_t(2) + 1, total=_t(2) + 1),
+    "confident_mentor": dict(
+        mentor_mean=_t(2),
+        mentor_var=_t(2) + 1,
+        own_mean=_t(2, 3),
+        own_var=_t(2, 3) + 1,
+        own_available=_mask(2, 3),
+        z=1.0,
+    ),
+    "mentor_override": dict(observed=_mask(2), own_tries=_t(2) + 1, override_after=3.0),
+    "feasible_mentor": dict(
+        reached=_t(2, 3) + 1, tries=_t(2, 3) + 3, enabled=_mask(2, 3), min_tries=3
+    ),
+    "best_mentor": dict(terms=_t(2, 3), observed=_mask(2, 3)),
+    "faded_mentor_term": dict(mentor_term=_t(2), own_value=_t(2), own_tries=_t(2) + 1, fade=2.0),
+    "trusted_augmented_backup": dict(
+        option_q=_t(2, 3),
+        available=_mask(2, 3),
+        mentor_term=_t(2),
+        mentor_observed=_mask(2),
+        own_tries=_t(2) + 1,
+        fade=2.0,
+    ),
+}
+#: Number arguments each backup checks.
+BACKUP_NUMBERS = {
+    "segment_reward": ("unseen_step_reward", "gamma"),
+    "mentor_override": ("override_after",),
+    "faded_mentor_term": ("fade",),
+    "trusted_augmented_backup": ("fade",),
+}
+for _fn, _kwargs in BACKUPS.items():
+    for _arg, _valid in _kwargs.items():
+        if not isinstance(_valid, torch.Tensor):
+            continue
+        _optional = _arg == "own_tries"  # None is its documented "not needed"
+        _bads = [None] * (not _optional) + [_valid.tolist(), _valid.numpy(), "x", _Thing()]
+        if _valid.dtype == torch.bool:
+            _bads.append(_valid.double())  # a mask of 0/1 numbers is no mask
+        for _value in _bads:
+            case(  # an AttributeError or a TypeError from deep in torch before
+                f"{_fn}.{_arg}",
+                _value,
+                lambda c, f=_fn, a=_arg, v=_value: getattr(backups, f)(**{**BACKUPS[f], a: v}),
+                f"{_fn}: {_arg}",
+            )
+        if _fn == "segment_discount":
+            continue  # any shape is its shape
+        case(  # a wrong shape: refused naming the function (and the argument it disagrees with)
+            f"{_fn}.{_arg}.shape",
+            "[5, 5, 5, 5]",
+            lambda c, f=_fn, a=_arg: getattr(backups, f)(
+                **{**BACKUPS[f], a: torch.zeros(5, 5, 5, 5, dtype=BACKUPS[f][a].dtype)}
+            ),
+            f"{_fn}: ",
+        )
+for _fn, _args in BACKUP_NUMBERS.items():
+    for _arg in _args:
+        for _value in [None, "0.5", True, [0.5], _Thing()]:
+            if _value is None and _fn in ("mentor_override", "trusted_augmented_backup"):
+                continue  # None is its documented "off"
+            case(
+                f"{_fn}.{_arg}",
+                _value,
+                lambda c, f=_fn, a=_arg, v=_value: getattr(backups, f)(**{**BACKUPS[f], a: v}),
+                f"{_fn}: {_arg}",
+            )
+for _value in [None, (2,), (1, 2, 3), "x", (1.5, 2), (True, 2)]:
+    case(
+        "mentor_backup_edges.shape",
+        _value,
+        lambda c, v=_value: backups.mentor_backup_edges(**{**BACKUPS["mentor_backup_edges"],
+                                                           "shape": v}),
+        "mentor_backup_edges: shape",
+    )  # fmt: skip
+
+
+@good("backups")
+def _(c):
+    """Every backup takes its valid arguments (a tensor out, of the batch shape), NumPy-typed
+    numbers included; no options at all (J = 0) is "no option available": −inf, as documented."""
+    for name, kwargs in BACKUPS.items():
+        out = getattr(backups, name)(**kwargs)
+        first = out[0] if isinstance(out, tuple) else out
+        assert isinstance(first, torch.Tensor) and first.shape[0] in (1, 2), name
+    assert backups.faded_mentor_term(**{**BACKUPS["faded_mentor_term"], "fade": np.float32(2)})[
+        0
+    ] == pytest.approx(float(backups.faded_mentor_term(**BACKUPS["faded_mentor_term"])[0]))
+    none = torch.zeros(2, 0, dtype=torch.float64)
+    no = torch.zeros(2, 0, dtype=torch.bool)
+    assert backups.options_only_backup(none, no).tolist() == [-math.inf, -math.inf]
+    value, won = backups.trusted_augmented_backup(none, no, _t(2), _mask(2))
+    assert value.tolist() == [-0.2, -math.inf] and won.tolist() == [True, False]
+
+
+# ============================================================================ first_part
+for _value in [None, [torch.tensor([0, 1, 5])], "demos.npz", 5, _Thing(), torch.tensor([0, 1])]:
+    case(  # an AttributeError before
+        "first_part.demonstrations",
+        _value,
+        lambda c, v=_value: first_part(v, 0.5),
+        "first_part: demonstrations",
+        TypeError,
+    )
+for _value in [0, -0.5, 1.5, math.nan, "0.5", True, None]:
+    case(
+        "first_part.coverage",
+        _value,
+        lambda c, v=_value: first_part(c.demos, v),
+        "first_part: coverage",
+    )
+
+
+@good("first_part")
+def _(c):
+    assert first_part(c.demos, 0.5).episodes[0].tolist() == [0, 1]
+    assert first_part(c.demos, 1).episodes[0].tolist() == [0, 1, 5, 6]
+
+
+# =================================================================================== tests
+@pytest.fixture(scope="module")
+def context() -> Context:
+    return Context()
+
+
+@pytest.fixture(autouse=True)
+def _memory_limit(monkeypatch):
+    """A fixed limit, so the size checks refuse the same cases on every machine."""
+    monkeypatch.setenv("HIMIT_MEMORY_LIMIT", "8GiB")
+
+
+def test_the_cases_are_over_three_hundred():
+    assert len(CASES) >= 300, len(CASES)
+
+
+@pytest.mark.parametrize("bad", CASES)
+def test_bad_input_raises_the_documented_error_naming_the_field(context, bad):
+    bad.check(context)
+
+
+@pytest.mark.parametrize("check", GOOD)
+def test_the_valid_neighbour_is_accepted(context, check):
+    check(context)
+
+
+def test_every_backup_has_cases():
+    """Each public backup of the module is among the generated cases (a new one joins them)."""
+    public = {n for n in backups.__all__ if inspect.isfunction(getattr(backups, n))}
+    assert public == set(BACKUPS), public ^ set(BACKUPS)
