@@ -16,8 +16,11 @@ The cases are generated (``len(CASES)`` is asserted below); the worlds are 4×4 
 from __future__ import annotations
 
 import inspect
+import io
 import math
+import zipfile
 from functools import cached_property
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -53,7 +56,9 @@ def good(name: str):
 
 
 class Context:
-    """What the cases build on, made on first use."""
+    """What the cases build on, made on first use (``folder``: a scratch folder)."""
+
+    folder: Path
 
     @cached_property
     def grid(self) -> MultiRooms:
@@ -401,10 +406,83 @@ def _(c):
     assert first_part(c.demos, 1).episodes[0].tolist() == [0, 1, 5, 6]
 
 
+# ===================================================================== demonstration files
+def _npy_header(shape, descr: str = "<i8") -> bytes:
+    """A version 1.0 ``.npy`` header announcing ``shape`` of ``descr`` (no data follows)."""
+    out = io.BytesIO()
+    np.lib.format.write_array_header_1_0(
+        out, {"descr": descr, "fortran_order": False, "shape": tuple(shape)}
+    )
+    return out.getvalue()
+
+
+def _file_with(c, name: str, members: dict) -> Path:
+    """A saved demonstrations file whose members ``members`` (name → bytes; ``None``: left
+    out) replace or join the saved ones."""
+    good_file = c.demos.save(c.folder / "good.npz")
+    path = c.folder / name
+    with zipfile.ZipFile(good_file) as src, zipfile.ZipFile(path, "w") as dst:
+        for info in src.infolist():
+            if info.filename not in members:
+                dst.writestr(info.filename, src.read(info))
+        for member, data in members.items():
+            if data is not None:
+                dst.writestr(member, data)
+    return path
+
+
+_BIG = 2**33
+DAMAGED_FILES = {
+    # raw bytes where an array belongs: np.load hands them back as bytes (an AttributeError)
+    "raw-states": ({"states.npy": None, "states": b"\x00" * 16}, "'states' is not a NumPy"),
+    "raw-world": ({"world.npy": None, "world": b'{"kind": "MultiRooms"}'}, "'world' is not"),
+    "raw-extra": ({"notes.txt": b"hello"}, "'notes.txt' is not a NumPy"),
+    # a few bytes announcing 2^33 elements: a MemoryError before
+    "2^33-int64": ({"states.npy": _npy_header((_BIG,))}, "announces shape (8589934592,)"),
+    "2^33-uint8": ({"states.npy": _npy_header((_BIG,), "|u1")}, "announces shape"),
+    "2^33-starts": ({"episode_starts.npy": _npy_header((_BIG,))}, "'episode_starts.npy' announces"),
+    "2^20x2^20": ({"states.npy": _npy_header((2**20, 2**20), "<f8")}, "announces shape"),
+    "2^28-world": ({"world.npy": _npy_header((), "<U268435456")}, "'world.npy' announces"),
+    "short-data": ({"states.npy": _npy_header((10,)) + b"\x00" * 8}, "holds 8 bytes"),
+    "objects": (
+        {"states.npy": _npy_header((1,), "|O") + b"\x00" * 8},
+        "Object arrays cannot be loaded",
+    ),
+    "not-npy": ({"states.npy": b"PK not an array at all"}, "not a readable .npz"),
+    "npy-v9": ({"states.npy": b"\x93NUMPY\x09\x00" + b"\x00" * 8}, "has .npy version (9, 0)"),
+}
+for _name, (_members, _says) in DAMAGED_FILES.items():
+    case(
+        "Demonstrations.load",
+        _name,
+        lambda c, n=_name, m=_members: Demonstrations.load(_file_with(c, f"{n}.npz", m)),
+        _says,
+    )
+    case(  # the same file with the world given: refused before the world is compared
+        "Demonstrations.load.world",
+        _name,
+        lambda c, n=_name, m=_members: Demonstrations.load(
+            _file_with(c, f"{n}-w.npz", m), world=c.grid
+        ),
+        _says,
+    )
+
+
+@good("Demonstrations.load")
+def _(c):
+    """The file save writes, and one rewritten member by member as it was, read back."""
+    same = _file_with(c, "same.npz", {})
+    for path in (c.demos.save(c.folder / "saved.npz"), same):
+        back = Demonstrations.load(path, world=c.grid)
+        assert [e.tolist() for e in back.episodes] == [[0, 1, 5, 6]]
+
+
 # =================================================================================== tests
 @pytest.fixture(scope="module")
-def context() -> Context:
-    return Context()
+def context(tmp_path_factory) -> Context:
+    c = Context()
+    c.folder = tmp_path_factory.mktemp("bad-files")
+    return c
 
 
 @pytest.fixture(autouse=True)
