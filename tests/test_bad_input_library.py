@@ -31,8 +31,21 @@ from himit_torch.learner.config import LearnerConfig
 from himit_torch.learner.learner import Learner
 from himit_torch.mentor.demonstrations import Demonstrations
 from himit_torch.mentor.observation import CoarseDemonstrations, first_part
+from himit_torch.mentor.puzzle_box import map_states, organisation_mentor
 from himit_torch.options.builders import primitive_options
+from himit_torch.options.puzzle_box import (
+    go_to_skewer_options,
+    intended_rollout,
+    puzzle_box_options,
+    step_options,
+)
 from himit_torch.worlds.multirooms import MultiRooms
+from himit_torch.worlds.puzzle_box import (
+    PuzzleBox,
+    next_step,
+    organisation_of,
+    organisation_scores,
+)
 from tests.bad_inputs import Cases
 
 
@@ -76,6 +89,19 @@ class Context:
             config=LearnerConfig(mentors=2, mentor_segments=True),
             engine="torch",
         )
+
+    @cached_property
+    def box(self) -> PuzzleBox:
+        return PuzzleBox(2)
+
+    @cached_property
+    def box_options(self):
+        return puzzle_box_options(self.box, "mentor")
+
+    @cached_property
+    def box_policy(self) -> torch.Tensor:
+        """The skewer-by-skewer mentor's option at each state (−1 at the end)."""
+        return organisation_mentor(self.box, "skewer").option
 
     @cached_property
     def demos(self) -> Demonstrations:
@@ -475,6 +501,220 @@ def _(c):
     for path in (c.demos.save(c.folder / "saved.npz"), same):
         back = Demonstrations.load(path, world=c.grid)
         assert [e.tolist() for e in back.episodes] == [[0, 1, 5, 6]]
+
+
+# ======================================================================== the puzzle box
+_S = 175  # PuzzleBox(2): (4 + 1)² levels × 7 hand states
+NOT_BOX_STATES = [
+    torch.tensor([2.5]),
+    [0.5],
+    np.array([1.5]),
+    [-1],
+    [_S],
+    torch.tensor([_S + 10]),
+    torch.tensor([True]),
+    [False],
+    [math.nan],
+    torch.tensor([1j]),
+    None,
+    "0",
+    {"s": 0},
+]
+for _method in ("progress", "hand", "step_events", "subgoals", "grasps_used"):
+    for _value in NOT_BOX_STATES + (
+        [torch.tensor([[0, 1]])] if _method not in ("progress", "hand") else []
+    ):
+        case(  # a fractional state was truncated, a negative or too large one decoded as another
+            f"PuzzleBox.{_method}",
+            _value,
+            lambda c, m=_method, v=_value: getattr(c.box, m)(v),
+            f"PuzzleBox.{_method}: states",
+        )
+for _value in [2.5, -1, _S, 10**20, True, "3", None, math.nan, [0], torch.tensor([1, 2])]:
+    case(
+        "PuzzleBox.decode",
+        _value,
+        lambda c, v=_value: c.box.decode(v),
+        "PuzzleBox.decode: state",
+    )
+    case(
+        "PuzzleBox.render_ansi",
+        _value,
+        lambda c, v=_value: c.box.render_ansi(v),
+        "PuzzleBox.decode: state",
+    )
+for _value in [0, 5, -1, 2.5, True, "1", None, math.nan]:
+    case(
+        "PuzzleBox.action_motion",
+        _value,
+        lambda c, v=_value: c.box.action_motion(v),
+        "PuzzleBox.action_motion: step",
+    )
+for _value in [[0.5, 1], [-1, 0], [5, 0], [], None, "01", [True, 0], [math.nan, 0], 3]:
+    case(
+        "next_step.progress",
+        _value,
+        lambda c, v=_value: next_step(v, "skewer"),
+        "next_step: progress",
+    )
+for _value in [1, 2.5, None, True, "4"]:
+    case("next_step.steps", _value, lambda c, v=_value: next_step([0, 1], "step", v), "steps")
+for _value in [None, "skewers", 5]:
+    case(
+        "next_step.organisation",
+        _value,
+        lambda c, v=_value: next_step([0, 1], v),
+        "organisation",
+    )
+_ADVANCES = [None, 5, "ab", [(0, 1.5)], [(0,)], [(True, 1)], [(None, 1)], [(0, "1")], [3]]
+for _fn in (organisation_of, organisation_scores):
+    for _value in _ADVANCES:
+        case(  # a TypeError, or a step 1.5 read as 1, before
+            f"{_fn.__name__}.advances",
+            _value,
+            lambda c, f=_fn, v=_value: f(v, 1, 2),
+            f"{_fn.__name__}: advances",
+        )
+for _field, _values in {"skewers": [0, 2.5, None, True, -1], "steps": [0, 2.5, None, "2"]}.items():
+    for _value in _values:
+        case(
+            f"organisation_of.{_field}",
+            _value,
+            lambda c, f=_field, v=_value: organisation_of([(0, 1)], **{"skewers": 1, "steps": 1,
+                                                                       f: v}),
+            f"organisation_of: {_field}",
+        )  # fmt: skip
+for _fn in (go_to_skewer_options, step_options, puzzle_box_options):
+    for _value in [None, "grid", 5, "box"]:
+        case(  # an AttributeError before; the grid's "options" were built from a world of rooms
+            f"{_fn.__name__}.box",
+            _value,
+            lambda c, f=_fn, v=_value: f(c.grid if v == "grid" else v),
+            f"{_fn.__name__}: box",
+            TypeError,
+        )
+for _value in [None, 1, "yes", 0, np.bool_(True)]:
+    case(
+        "puzzle_box_options.pinch",
+        _value,
+        lambda c, v=_value: puzzle_box_options(c.box, pinch=v),
+        "puzzle_box_options: pinch",
+    )
+for _value in [None, "LEARNER", 5, ["mentor"]]:
+    for _fn in (step_options, puzzle_box_options):
+        case(
+            f"{_fn.__name__}.style",
+            _value,
+            lambda c, f=_fn, v=_value: f(c.box, v),
+            "style=",
+        )
+for _value in [None, "grid", 5, "box"]:
+    case(
+        "organisation_mentor.box",
+        _value,
+        lambda c, v=_value: organisation_mentor(c.grid if v == "grid" else v, "skewer"),
+        "organisation_mentor: box",
+        TypeError,
+    )
+for _value in [None, 5, "Skewer", ["skewer"]]:
+    case(
+        "organisation_mentor.organisation",
+        _value,
+        lambda c, v=_value: organisation_mentor(c.box, v),
+        "organisation=",
+    )
+_OTHER_OPTIONS = {
+    "grid-options": (lambda c: primitive_options(c.grid), ValueError, "another world's"),
+    "bigger-box": (lambda c: puzzle_box_options(PuzzleBox(3)), ValueError, "another world's"),
+    "no-layout": (lambda c: primitive_options(c.box), ValueError, "skills hold"),
+    "list": (lambda c: [c.box_options], TypeError, "Options bundle"),
+    "number": (lambda c: 5, TypeError, "Options bundle"),
+    "string": (lambda c: "mentor", TypeError, "Options bundle"),
+}
+for _name, (_make, _error, _says) in _OTHER_OPTIONS.items():
+    case(  # another world's options: an IndexError, or a policy over the wrong states, before
+        "organisation_mentor.options",
+        _name,
+        lambda c, m=_make: organisation_mentor(c.box, "step", m(c)),
+        "organisation_mentor: options",
+        _error,
+    )
+    if _name != "no-layout":
+        case(
+            "intended_rollout.options",
+            _name,
+            lambda c, m=_make: intended_rollout(c.box, m(c), torch.zeros(_S, dtype=torch.int64)),
+            "intended_rollout: options",
+            _error,
+        )
+for _value in [
+    torch.full((_S,), 0.5),
+    torch.zeros(_S, dtype=torch.bool),
+    torch.zeros(_S - 1, dtype=torch.int64),
+    torch.full((_S,), -2),
+    torch.full((_S,), 99),
+    None,
+    "0",
+    torch.zeros(1, _S, dtype=torch.int64),
+]:
+    case(
+        "intended_rollout.policy",
+        _value,
+        lambda c, v=_value: intended_rollout(c.box, c.box_options, v),
+        "policy",
+    )
+for _value in [2.5, -1, "5", True, math.inf]:
+    case(
+        "intended_rollout.max_steps",
+        _value,
+        lambda c, v=_value: intended_rollout(c.box, c.box_options, c.box_policy, v),
+        "intended_rollout: max_steps",
+    )
+for _value in [[0.5], [-1], [_S], None, torch.tensor([True]), torch.tensor([[0]])]:
+    case(
+        "map_states.states",
+        _value,
+        lambda c, v=_value: map_states(c.box, PuzzleBox(3), v, (0, 2), 0),
+        "map_states: states",
+    )
+for _value in [None, [0.5, 1], "02", [True, 1], 5]:
+    case(
+        "map_states.skewers",
+        _value,
+        lambda c, v=_value: map_states(c.box, PuzzleBox(3), [0], v, 0),
+        "map_states: skewers",
+    )
+for _value in [2.5, -1, 5, None, True, "0"]:
+    case(
+        "map_states.level",
+        _value,
+        lambda c, v=_value: map_states(c.box, PuzzleBox(3), [0], (0, 2), v),
+        "map_states: level",
+    )
+
+
+@good("puzzle box")
+def _(c):
+    """Whole floats, NumPy and list states, a rollout and a mentor with its own options."""
+    box = c.box
+    state = box.encode([1, 2], skewer=1, grasp="pinch")
+    assert box.decode(float(state)) == box.decode(np.int64(state)) == ((1, 2), 1, "pinch")
+    assert box.progress([state, 0.0]).tolist() == [[1, 2], [0, 0]]
+    assert box.hand(np.array([state])).tolist() == [1 + 3 * 1 + 2]
+    assert box.action_motion(2.0) == box.action_motion(2) == 2 + 2 + 2
+    one = box.encode([0, 0], 0, "power")
+    after = box.encode([1, 0])
+    assert box.step_events([one, after]) == [(0, 1, 1)] == [(*a, 1) for a in box.subgoals(
+        torch.tensor([one, after]))]  # fmt: skip
+    assert box.grasps_used([one, after]) == ["power"]
+    assert next_step(np.array([4, 1]), "skewer", 4.0) == (1, 2)
+    assert organisation_of([(0, 1), (0, 2)], 1.0, 2) == "skewer"
+    plan, opened = intended_rollout(box, c.box_options, c.box_policy, 1000.0)
+    assert opened and int(plan[-1]) in torch.nonzero(box.terminal_mask).flatten().tolist()
+    mentor = organisation_mentor(box, "skewer", puzzle_box_options(box, "mentor"))
+    assert torch.equal(mentor.option, organisation_mentor(box, "skewer").option)
+    mapped = map_states(box, PuzzleBox(3), np.array([state]), [0.0, 2], 4.0)
+    assert PuzzleBox(3).decode(int(mapped[0])) == ((1, 4, 2), 2, "pinch")
 
 
 # =================================================================================== tests
