@@ -26,13 +26,23 @@ import numpy as np
 import pytest
 import torch
 
+from himit_torch.exact.greedy_evaluation import (
+    OptionPolicy,
+    PolicyEvaluator,
+    evaluate_option_choice,
+    optimal_policy_evaluation,
+    optimal_value,
+)
 from himit_torch.learner import backups
 from himit_torch.learner.config import LearnerConfig
 from himit_torch.learner.learner import Learner
+from himit_torch.mentor.cloning import clone_policy, inverse_model, relabel
 from himit_torch.mentor.demonstrations import Demonstrations
 from himit_torch.mentor.observation import CoarseDemonstrations, first_part
+from himit_torch.mentor.policy import mentor_detour, mentor_policy, record_demonstrations
+from himit_torch.mentor.potential import mentor_chain_value, shaping_potential
 from himit_torch.mentor.puzzle_box import map_states, organisation_mentor
-from himit_torch.options.builders import primitive_options
+from himit_torch.options.builders import mentor_options, primitive_options
 from himit_torch.options.puzzle_box import (
     go_to_skewer_options,
     intended_rollout,
@@ -102,6 +112,27 @@ class Context:
     def box_policy(self) -> torch.Tensor:
         """The skewer-by-skewer mentor's option at each state (−1 at the end)."""
         return organisation_mentor(self.box, "skewer").option
+
+    @cached_property
+    def mentor(self):
+        return mentor_policy(self.grid, mentor_options(self.grid))
+
+    @cached_property
+    def inverse(self):
+        """The inverse model of one own move, 0 --0--> 1."""
+        return inverse_model(_ONE, _ONE, torch.tensor([1]), torch.tensor([1.0]))
+
+    @cached_property
+    def grid_options(self):
+        return primitive_options(self.grid)
+
+    @cached_property
+    def evaluator(self) -> PolicyEvaluator:
+        return PolicyEvaluator(self.grid, self.grid_options, 5)
+
+    @cached_property
+    def optimum(self):
+        return optimal_policy_evaluation(self.grid, 5)
 
     @cached_property
     def demos(self) -> Demonstrations:
@@ -715,6 +746,330 @@ def _(c):
     assert torch.equal(mentor.option, organisation_mentor(box, "skewer").option)
     mapped = map_states(box, PuzzleBox(3), np.array([state]), [0.0, 2], 4.0)
     assert PuzzleBox(3).decode(int(mapped[0])) == ((1, 4, 2), 2, "pinch")
+
+
+# ============================================================== stress and baseline helpers
+for _value in ["detour", 5, {"waypoint": 3}, _Thing()]:
+    case(  # an AttributeError before
+        "record_demonstrations.detour",
+        _value,
+        lambda c, v=_value: record_demonstrations(c.grid, c.mentor, 1, detour=v),
+        "record_demonstrations: detour",
+        TypeError,
+    )
+_ONE = torch.tensor([0])
+_CHAIN = dict(
+    sources=torch.tensor([0, 1]),
+    successors=torch.tensor([1, 2]),
+    counts=torch.tensor([1.0, 1.0]),
+    rewards=torch.tensor([-0.01, 1.0]),
+    gamma=0.9,
+    terminal=torch.tensor([False, False, True, False]),
+)
+_TRANSITION = dict(states=_ONE, actions=_ONE, successors=torch.tensor([1]))
+for _column in ("states", "actions", "successors"):
+    for _value in [[0], None, "0", np.array([0]), 0]:
+        case(  # an AttributeError before
+            f"inverse_model.{_column}",
+            _value,
+            lambda c, col=_column, v=_value: inverse_model(
+                **{**_TRANSITION, col: v}, counts=torch.tensor([1.0])
+            ),
+            f"inverse_model: {_column}",
+            TypeError,
+        )
+    for _value in [torch.tensor([0.5]), torch.tensor([1.0]), torch.tensor([True]),
+                   torch.tensor([-1]), torch.tensor([[0]])]:  # fmt: skip
+        case(
+            f"inverse_model.{_column}",
+            _value,
+            lambda c, col=_column, v=_value: inverse_model(
+                **{**_TRANSITION, col: v}, counts=torch.tensor([1.0])
+            ),
+            "inverse_model: ",
+        )
+for _value in ["1", None, [math.nan], torch.tensor([True]), torch.tensor([1j]), [-1.0], [1, 1]]:
+    case(
+        "inverse_model.counts",
+        _value,
+        lambda c, v=_value: inverse_model(**_TRANSITION, counts=v),
+        "inverse_model: counts",
+    )
+for _value in [None, "model", {"states": _ONE}, _Thing()]:
+    case(
+        "relabel.model",
+        _value,
+        lambda c, v=_value: relabel(v, _ONE, _ONE),
+        "relabel: model",
+        TypeError,
+    )
+for _column in ("states", "successors"):
+    for _value in [[0], None, "0", np.array([0])]:
+        case(
+            f"relabel.{_column}",
+            _value,
+            lambda c, col=_column, v=_value: relabel(
+                c.inverse, **{"states": _ONE, "successors": _ONE, col: v}
+            ),
+            f"relabel: {_column}",
+            TypeError,
+        )
+    for _value in [torch.tensor([0.5]), torch.tensor([True]), torch.tensor([-1])]:
+        case(
+            f"relabel.{_column}",
+            _value,
+            lambda c, col=_column, v=_value: relabel(
+                c.inverse, **{"states": _ONE, "successors": _ONE, col: v}
+            ),
+            f"relabel: {_column}",
+        )
+for _column in ("states", "labels"):
+    for _value in [torch.tensor([1.0]), torch.tensor([0.5]), torch.tensor([True]),
+                   torch.tensor([[0]]), torch.tensor([0, 1])]:  # fmt: skip
+        case(  # float labels: an IndexError, or labels truncated, before
+            f"clone_policy.{_column}",
+            _value,
+            lambda c, col=_column, v=_value: clone_policy(
+                **{"states": _ONE, "labels": _ONE, col: v},
+                weights=torch.tensor([1.0]),
+                num_states=2,
+                num_actions=2,
+            ),
+            "clone_policy: ",
+        )
+    for _value in [[0], None, np.array([0])]:
+        case(
+            f"clone_policy.{_column}",
+            _value,
+            lambda c, col=_column, v=_value: clone_policy(
+                **{"states": _ONE, "labels": _ONE, col: v},
+                weights=torch.tensor([1.0]),
+                num_states=2,
+                num_actions=2,
+            ),
+            f"clone_policy: {_column}",
+            TypeError,
+        )
+for _value in [[math.nan], torch.tensor([math.inf]), "1", torch.tensor([True]), None]:
+    case(
+        "clone_policy.weights",
+        _value,
+        lambda c, v=_value: clone_policy(_ONE, _ONE, v, 2, 2),
+        "clone_policy: weights",
+    )
+for _value in [math.nan, math.inf, -math.inf, None, "-1", True, [1.0], torch.tensor(1.0)]:
+    case(  # a NaN potential everywhere before
+        "shaping_potential.initial_value",
+        _value,
+        lambda c, v=_value: shaping_potential(**_CHAIN, initial_value=v),
+        "shaping_potential: initial_value",
+    )
+    case(
+        "mentor_chain_value.outside_value",
+        _value,
+        lambda c, v=_value: mentor_chain_value(**_CHAIN, outside_value=v),
+        "mentor_chain_value: outside_value",
+    )
+for _value in [math.nan, 0.0, 1.5, None, "0.9", True]:
+    case(
+        "mentor_chain_value.gamma",
+        _value,
+        lambda c, v=_value: mentor_chain_value(**{**_CHAIN, "gamma": v}, outside_value=-1.0),
+        "mentor_chain_value: gamma",
+    )
+for _column in ("counts", "rewards", "terminal"):
+    for _value in [None, [1.0, 1.0], np.ones(2)]:
+        case(  # an AttributeError before
+            f"mentor_chain_value.{_column}",
+            _value,
+            lambda c, col=_column, v=_value: shaping_potential(
+                **{**_CHAIN, col: v}, initial_value=-1.0
+            ),
+            f"mentor_chain_value: {_column}",
+            TypeError,
+        )
+
+
+@good("stress and baseline helpers")
+def _(c):
+    """A detour of this world, an inverse model relabelling its own move, a cloned policy and
+    the hand-solved chain's potential (module docstrings)."""
+    detour = mentor_detour(c.grid)
+    demos = record_demonstrations(c.grid, c.mentor, 2, detour=detour, seed=0)
+    assert len(demos) == 2 and int(demos.episodes[0][0]) == c.grid.start_state
+    assert relabel(c.inverse, torch.tensor([0]), torch.tensor([1])).tolist() == [0]
+    assert clone_policy(_ONE, torch.tensor([1]), [2.0], 2, 2).tolist() == [1, -1]
+    phi = shaping_potential(**{**_CHAIN, "gamma": np.float64(0.9)}, initial_value=np.float32(-1))
+    assert [round(float(x), 4) for x in phi] == [1.89, 2.0, 0.0, 0.0]
+
+
+# ============================================================================ exact greedy
+_ROWS = torch.tensor([[0], [1]])
+for _name, _value in {
+    "numpy-option": np.array([[0], [1]]),
+    "list-option": [[0], [1]],
+    "none-option": None,
+}.items():
+    case(  # an AttributeError before
+        "OptionPolicy.option",
+        _name,
+        lambda c, v=_value: OptionPolicy(v, torch.ones(1, 2, 1, dtype=torch.float64)),
+        "OptionPolicy.option",
+        TypeError,
+    )
+for _name, _value in {
+    "numpy-probability": np.ones((1, 2, 1)),
+    "list-probability": [[[1.0], [1.0]]],
+    "none-probability": None,
+}.items():
+    case(
+        "OptionPolicy.probability",
+        _name,
+        lambda c, v=_value: OptionPolicy(_ROWS, v),
+        "OptionPolicy.probability",
+        TypeError,
+    )
+for _value in [
+    torch.ones(1, 2, 1, dtype=torch.complex128),  # a RuntimeError before
+    torch.ones(1, 2, 1, dtype=torch.bool),
+    torch.ones(1, 2, 1, dtype=torch.int64),
+    torch.full((1, 2, 1), math.nan, dtype=torch.float64),
+    torch.full((1, 2, 1), -1.0, dtype=torch.float64),
+    torch.full((1, 2, 1), 0.5, dtype=torch.float64),
+]:
+    case(
+        "OptionPolicy.probability",
+        _value,
+        lambda c, v=_value: OptionPolicy(_ROWS, v),
+        "OptionPolicy.probability",
+    )
+for _value in [torch.tensor([[-2], [0]]), torch.tensor([[0], [-7]])]:
+    case(  # read as "no option" before
+        "OptionPolicy.option",
+        _value,
+        lambda c, v=_value: OptionPolicy(v, torch.zeros(1, 2, 1, dtype=torch.float64)),
+        "OptionPolicy.option holds",
+    )
+for _value in [
+    [0.5, 1],
+    [math.nan, 0],
+    torch.tensor([math.nan, 1.0]),
+    np.array([-2, 0]),
+    [-5, 0],
+    [True, 0],
+    torch.tensor([1j, 0]),
+    None,
+    "01",
+]:
+    case(  # NaN read as an option, −5 as none, before
+        "OptionPolicy.deterministic",
+        _value,
+        lambda c, v=_value: OptionPolicy.deterministic(v),
+        "OptionPolicy.deterministic: option",
+    )
+for _fn, _call in {
+    "evaluate_option_choice": lambda w, c: evaluate_option_choice(
+        w, c.grid_options, torch.zeros(16, dtype=torch.int64), 5
+    ),
+    "optimal_policy_evaluation": lambda w, c: optimal_policy_evaluation(w, 5),
+    "optimal_value": lambda w, c: optimal_value(w),
+}.items():
+    for _value in [None, "MultiRooms", 5, _Thing(), "grid.json"]:
+        case(  # an AttributeError before
+            f"{_fn}.world",
+            _value,
+            lambda c, f=_call, v=_value: f(v, c),
+            f"{_fn}: world",
+            TypeError,
+        )
+for _value in [None, "options", 5, [1]]:
+    case(
+        "evaluate_option_choice.options",
+        _value,
+        lambda c, v=_value: evaluate_option_choice(
+            c.grid, v, torch.zeros(16, dtype=torch.int64), 5
+        ),
+        "evaluate_option_choice: options",
+        TypeError,
+    )
+for _value in [
+    torch.full((16,), 0.5),
+    torch.full((16,), math.nan),
+    torch.full((16,), -3),
+    torch.zeros(16, dtype=torch.bool),
+    torch.zeros(16, dtype=torch.complex64),
+    torch.zeros(1, 16, dtype=torch.int64),
+    None,
+    "0",
+]:
+    case(
+        "evaluate_option_choice.option",
+        _value,
+        lambda c, v=_value: evaluate_option_choice(c.grid, c.grid_options, v, 5),
+        "evaluate_option_choice: option",
+    )
+for _value in [2.5, 0, None, "5", True]:
+    case(
+        "optimal_policy_evaluation.window",
+        _value,
+        lambda c, v=_value: optimal_policy_evaluation(c.grid, v),
+        "optimal_policy_evaluation: window",
+    )
+for _value in [None, "plan", 5, (1, 2)]:
+    if _value is None:
+        continue  # None: compute it
+    case(
+        "optimal_policy_evaluation.plan",
+        _value,
+        lambda c, v=_value: optimal_policy_evaluation(c.grid, 5, plan=v),
+        "optimal_policy_evaluation: plan",
+        TypeError,
+    )
+for _value in ["models", 5, (1, 2)]:
+    case(  # an AttributeError deep in value iteration before
+        "optimal_policy_evaluation.models",
+        _value,
+        lambda c, v=_value: optimal_policy_evaluation(c.grid, 5, models=v),
+        "models must be the (discounted, durations) pair",
+        TypeError,
+    )
+for _value in [None, "0", math.nan, math.inf, True, [1.0]]:
+    case(
+        "PolicyEvaluation.value_gap",
+        _value,
+        lambda c, v=_value: c.optimum.value_gap(v),
+        "PolicyEvaluation.value_gap: optimal_value",
+    )
+for _value in [None, "3", math.nan, -1.0, True, torch.tensor([1j]), torch.tensor([True])]:
+    case(
+        "PolicyEvaluation.percent_of",
+        _value,
+        lambda c, v=_value: c.optimum.percent_of(v),
+        "PolicyEvaluation.percent_of: goals_per_window",
+    )
+for _value in [np.zeros((16, 1), dtype=np.int64) - 2, torch.full((16, 1), 0.5), None, [[0]] * 16]:
+    case(
+        "PolicyEvaluator.model_rows",
+        _value,
+        lambda c, v=_value: c.evaluator.model_rows(v),
+        "PolicyEvaluator.model_rows: option",
+    )
+
+
+@good("exact greedy")
+def _(c):
+    """The optimum's own evaluation, its value gap 0 and 100 % of itself; a NumPy choice and
+    whole floats as options; model rows of a NumPy table."""
+    optimum = c.optimum
+    assert float(optimum.value_gap(optimal_value(c.grid))[0]) == 0.0
+    assert float(optimum.percent_of(float(optimum.goals_per_window[0]))[0]) == pytest.approx(100)
+    choice = OptionPolicy.deterministic(np.array([1.0] * 16))
+    assert choice.option.dtype == torch.int64 and choice.batch == 1
+    south = torch.where(c.grid_options.initiation[1], 1, -1)
+    direct = evaluate_option_choice(c.grid, c.grid_options, south.numpy(), 5)
+    assert direct.goals_per_window.shape == (1,)
+    rows = c.evaluator.model_rows(np.zeros((16, 1), dtype=np.int64))
+    assert (rows >= 0).sum() == int(c.grid_options.initiation[0].sum())
 
 
 # =================================================================================== tests
