@@ -111,6 +111,11 @@ class OptionPolicy:
             shared by the runs (e.g. a learner's rows at each state).
         probability: ``[B, S, J]`` float64, ``π_b(option[s, j] | s)``; each state's row sums to
             1, or to 0 where the run has no option (it would stay there forever).
+
+    Raises:
+        TypeError: ``option`` or ``probability`` is no tensor (a NumPy array, a list).
+        ValueError: shapes or dtypes other than these (complex, integer or bool
+            probabilities), an option below −1, or rows that are not probabilities.
     """
 
     option: torch.Tensor
@@ -493,7 +498,14 @@ def evaluate_option_choice(
     ``options`` (−1 where it has none), e.g. the mentor's :attr:`MentorPolicy.option
     <himit_torch.MentorPolicy.option>`. Only the options it chooses somewhere are modelled (the
     mentor of the 80×80 world with corner options: 501 of its 1164; with the slip it reaches
-    every one of them from its start)."""
+    every one of them from its start).
+
+    Raises:
+        TypeError: ``world`` is no world with a true model (``None``, a string), or ``options``
+            no :class:`~himit_torch.Options`.
+        ValueError: ``option`` not ``[S]`` whole numbers in ``−1 … J − 1`` (``NaN``, ``0.5`` and
+            bools are refused, never cast), or a bad ``window``.
+    """
     _check_world("evaluate_option_choice", world)
     _check_options("evaluate_option_choice", options)
     option = as_index_tensor("evaluate_option_choice: option", option, -1, dim=1).cpu()
@@ -525,7 +537,14 @@ def optimal_policy_evaluation(
     value iteration on the primitive options' exact models, tolerance 1e-10,
     :func:`~himit_torch.exact.planning.smdp_value_iteration`; ties to the lowest action): the
     reference of "% of optimum". ``models``: the primitive options' ``(discounted, durations)``
-    models, ``plan``: that value iteration's result, if already computed."""
+    models, ``plan``: that value iteration's result, if already computed.
+
+    Raises:
+        TypeError: ``world`` is no world with a true model, ``plan`` no
+            :class:`~himit_torch.exact.planning.PlanResult`, ``models`` not the primitives'
+            ``(discounted, durations)`` pair.
+        ValueError: ``window`` not a whole number in ``1 … COUNT_MAX``.
+    """
     _check_world("optimal_policy_evaluation", world)
     window = as_int("optimal_policy_evaluation: window", window, 1, COUNT_MAX)
     if plan is not None and not isinstance(plan, PlanResult):

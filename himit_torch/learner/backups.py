@@ -16,9 +16,10 @@ Each function first checks the kinds, ranks and shapes of its arguments (as rlax
 an argument that is no tensor (a list, ``None``, a NumPy array), a mask that is not a bool
 tensor, or an argument of another shape is a ``ValueError`` naming the function, the argument,
 its shape and the shape expected, never a silent broadcast or an ``AttributeError``. The checks
-compare types, dtypes and shapes only (no tensor op), so they cost the torch engine's ticks
-nothing measurable (``benchmarks/bench_arg_checks.py``: about a microsecond a call, where
-declaring the same shapes with jaxtyping and beartype costs tens).
+compare types, dtypes and shapes only (no tensor op): a few microseconds a call
+(``benchmarks/bench_arg_checks.py``: ≈ 5 µs for :func:`augmented_backup`'s, where declaring
+the same kinds, dtypes and shapes with jaxtyping annotations checked by beartype costs
+≈ 170 µs, and refuses a list with a ``TypeCheckError`` of several lines).
 """
 
 from __future__ import annotations
@@ -88,6 +89,8 @@ def _masks(function: str, **named: Any) -> None:
 
 def _number(function: str, name: str, x: Any) -> None:
     """Refuse ``x`` unless it is a real number (not a bool, not a tensor)."""
+    if type(x) is float or type(x) is int:  # the common case, without the ABC's check
+        return
     if isinstance(x, (bool, np.bool_)) or not isinstance(x, numbers.Real):
         raise ValueError(f"{function}: {name}={x!r} ({type(x).__name__}); expected a real number")
 
@@ -418,11 +421,11 @@ def segment_mentor_backup(
 
 
 def options_only_backup(option_q: torch.Tensor, available: torch.Tensor) -> torch.Tensor:
-    """SMDP Bellman optimality (paper Sec. II): ``V(s) = max_{o ∈ O(s)} Q(s, o)``.
+    """SMDP Bellman optimality (paper Sec. II): ``V(s) = max_{o ∈ O(s)} Q(s, o)``. States with
+    no available option get ``-inf``: every state, where there are no options at all (``J = 0``).
 
     Args:
-        option_q: ``[..., J]``; available: ``[..., J]`` bool. States with no available option get
-        ``-inf`` (every state, when there are no options at all: ``J = 0``).
+        option_q: ``[..., J]``; available: ``[..., J]`` bool.
     """
     _rank("options_only_backup", "option_q", option_q, 1, "[..., J]")
     _same("options_only_backup", "[..., J] as option_q", option_q.shape, available=available)

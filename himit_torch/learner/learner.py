@@ -425,6 +425,13 @@ class Learner(LearnerViews):
         has ``durations() -> [T]`` (:class:`~himit_torch.mentor.observation.CoarseDemonstrations`),
         each transition took that many primitive steps (else one), which the segment term reads
         (``LearnerConfig.mentor_segments``).
+
+        Raises:
+            TypeError: ``demonstrations`` has no ``transitions()``, or it returns no pair.
+            ValueError: ``from`` and ``to`` not two 1-D columns of one length of whole state
+                indices of this world (``9.5``, a bool or ``NaN`` is refused, never cast), a
+                ``mentor`` outside ``0 … mentors − 1``, ``counts`` not ``[T]`` finite positive
+                weights, or ``durations()`` not ``[T]`` whole numbers ≥ 1.
         """
         if not callable(getattr(demonstrations, "transitions", None)):
             raise TypeError(

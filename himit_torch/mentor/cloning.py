@@ -129,6 +129,7 @@ def inverse_model(
         :class:`InverseModel`, one entry per distinct ``(s, a, s')`` of positive count.
 
     Raises:
+        TypeError: a column that is no tensor (a list, a string).
         ValueError: mismatched or non-int64 columns, a negative state or action, a state ``≥
             num_states``, counts that are not finite and ≥ 0, or states and actions so large that
             the ``(s, s', a)`` keys would not fit in int64 (``S² · A > 2⁶³``; the model is
@@ -231,8 +232,10 @@ def clone_policy(
         num_states, num_actions: ``S`` and ``A``, whole numbers ≥ 1.
 
     Raises:
+        TypeError: ``states`` or ``labels`` is no tensor (a list, a NumPy array).
         ValueError: ``num_states`` or ``num_actions`` not a whole number ≥ 1, mismatched shapes,
-            weights that are not positive, or states or labels out of range.
+            ``states`` or ``labels`` not int64 (float labels are refused, never truncated),
+            weights that are not finite and positive, or states or labels out of range.
     """
     num_states = as_int("clone_policy: num_states", num_states, 1)
     num_actions = as_int("clone_policy: num_actions", num_actions, 1)

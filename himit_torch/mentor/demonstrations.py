@@ -217,7 +217,10 @@ class Demonstrations:
         Raises:
             FileNotFoundError: no such file.
             ValueError: the file is not a valid demonstrations file; the message names the file,
-                and the episode and index where a state is at fault.
+                and the episode and index where a state is at fault. Each member's ``.npy``
+                header is read first: a member that is no ``.npy`` array (raw bytes), holds
+                objects, or announces more data than it holds (a few bytes announcing 2³³
+                elements) is refused before anything is allocated.
             TypeError: ``world`` is neither a world nor a description dict (e.g. a number).
         """
         path = Path(path)
