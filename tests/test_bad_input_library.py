@@ -41,7 +41,7 @@ from himit_torch.mentor.demonstrations import Demonstrations
 from himit_torch.mentor.observation import CoarseDemonstrations, first_part
 from himit_torch.mentor.policy import mentor_detour, mentor_policy, record_demonstrations
 from himit_torch.mentor.potential import mentor_chain_value, shaping_potential
-from himit_torch.mentor.puzzle_box import map_states, organisation_mentor
+from himit_torch.mentor.puzzle_box import map_demonstrations, map_states, organisation_mentor
 from himit_torch.options.builders import mentor_options, primitive_options
 from himit_torch.options.puzzle_box import (
     go_to_skewer_options,
@@ -133,6 +133,12 @@ class Context:
     @cached_property
     def optimum(self):
         return optimal_policy_evaluation(self.grid, 5)
+
+    @cached_property
+    def box_demos(self) -> Demonstrations:
+        """The first moves of the box: the hand to skewer 1, then home again."""
+        box = self.box
+        return Demonstrations([torch.tensor([0, box.encode([0, 0], 0), 0])], box)
 
     @cached_property
     def demos(self) -> Demonstrations:
@@ -723,6 +729,22 @@ for _value in [2.5, -1, 5, None, True, "0"]:
         "map_states: level",
     )
 
+for _value in [None, [torch.tensor([0, 1])], "demos.npz", 5]:
+    case(  # an AttributeError before
+        "map_demonstrations.demonstrations",
+        _value,
+        lambda c, v=_value: map_demonstrations(v, c.box, PuzzleBox(3)),
+        "map_demonstrations: demonstrations",
+        TypeError,
+    )
+for _value in [None, ["plain"], 5, "PLAIN"]:
+    case(
+        "map_demonstrations.mapping",
+        _value,
+        lambda c, v=_value: map_demonstrations(c.box_demos, c.box, PuzzleBox(3), v),
+        "mapping=",
+    )
+
 
 @good("puzzle box")
 def _(c):
@@ -746,6 +768,8 @@ def _(c):
     assert torch.equal(mentor.option, organisation_mentor(box, "skewer").option)
     mapped = map_states(box, PuzzleBox(3), np.array([state]), [0.0, 2], 4.0)
     assert PuzzleBox(3).decode(int(mapped[0])) == ((1, 4, 2), 2, "pinch")
+    bigger = map_demonstrations(c.box_demos, box, PuzzleBox(3), "any")
+    assert len(bigger) == 3 * 5  # C(3, 2) choices of skewers × 5 levels of the third
 
 
 # ============================================================== stress and baseline helpers

@@ -173,8 +173,13 @@ def map_demonstrations(
     :class:`~himit_torch.Demonstrations`). Raises ``ValueError`` for an unknown mapping or boxes
     that differ in anything but their number of skewers (``k_target ≥ k_source``).
     """
-    if mapping not in MAPPINGS:
+    if not isinstance(mapping, str) or mapping not in MAPPINGS:
         raise ValueError(f"mapping={mapping!r}: use one of {MAPPINGS}")
+    if not isinstance(demonstrations, Demonstrations):
+        raise TypeError(
+            "map_demonstrations: demonstrations must be Demonstrations of the source box, got "
+            f"{type(demonstrations).__name__}"
+        )
     _check_pair(source, target)
     demonstrations.check_world(source)
     if mapping == "plain":
