@@ -66,6 +66,7 @@ __all__ = [
     "as_choice",
     "as_int_array",
     "as_float_array",
+    "as_index_tensor",
     "bool_vector",
     "as_device",
     "DEVICE_TYPES",
@@ -243,6 +244,79 @@ def as_float_array(where: str, value: Any) -> np.ndarray:
             f"{where} must be a list of numbers, got {value!r} ({type(value).__name__})"
         )
     return np.array([as_float(f"{where}[{i}]", v) for i, v in enumerate(value)], dtype=np.float64)
+
+
+def as_index_tensor(
+    where: str,
+    value: Any,
+    minimum: int | None = None,
+    maximum: int | None = None,
+    dim: int | None = None,
+) -> torch.Tensor:
+    """Whole numbers (state indices, option numbers, step counts) as an int64 tensor, by
+    :func:`as_int`'s rule item by item: a tensor or NumPy array of any shape (``dim``: of
+    exactly that many axes) keeps its shape (and a tensor its device); a whole number becomes a
+    0-d tensor and a list, tuple or range a 1-D one (:func:`as_int_array`). A float item must be
+    a finite whole number (``9.0`` is 9; ``9.5`` and ``NaN`` are refused, never truncated);
+    bools, complex numbers and strings are refused, and so is anything that holds no numbers
+    (``None``, a dict, a path). A refusal is a ``ValueError`` naming ``where``, the first item
+    at fault (its index) and what would be right.
+
+    One pass over the values (their lowest and highest), never a Python loop over a tensor.
+
+    >>> as_index_tensor("states", [0, 3.0, 7]).tolist()
+    [0, 3, 7]
+    >>> as_index_tensor("states", [0, 9.5])
+    Traceback (most recent call last):
+    ...
+    ValueError: states[1]=9.5 is not a whole number (it is never rounded or truncated); give an integer
+    """
+    if isinstance(value, np.ndarray) and value.dtype.kind in "iuf":
+        value = torch.from_numpy(value)
+    if isinstance(value, torch.Tensor):
+        if value.dtype == torch.bool or value.dtype.is_complex:
+            raise ValueError(
+                f"{where} must hold whole numbers, got a {value.dtype} tensor (bools are masks "
+                "and complex numbers never indices); give an integer tensor"
+            )
+        if value.dtype.is_floating_point:
+            finite = torch.isfinite(value)
+            whole = finite & (value == torch.round(value))
+            if not bool(whole.all()):
+                index = [int(i) for i in (~whole).nonzero()[0]]
+                item = value[tuple(index)].item()
+                shown = f"{where}[{', '.join(map(str, index))}]"
+                as_int(shown, item)  # the scalar rule's own refusal
+            if value.numel() and float(value.abs().max()) >= 2**63:
+                raise ValueError(f"{where} holds numbers beyond int64")
+        out = value.detach().to(torch.int64)
+    elif isinstance(value, np.ndarray):
+        raise ValueError(
+            f"{where} must hold whole numbers, got an array of dtype {value.dtype} (bools are "
+            "masks; strings and objects are never numbers)"
+        )
+    elif isinstance(value, (numbers.Number, str, bytes, np.generic)) or value is None:
+        out = torch.tensor(as_int(where, value), dtype=torch.int64)
+    else:
+        out = torch.from_numpy(as_int_array(where, value))
+    if dim is not None and out.dim() != dim:
+        axes = "a single number" if dim == 0 else f"{dim}-D"
+        raise ValueError(f"{where} must be {axes}, got shape {list(out.shape)}")
+    if out.numel() and (minimum is not None or maximum is not None):
+        low, high = torch.aminmax(out)
+        for bound, bad, sign in (
+            (minimum, minimum is not None and int(low) < minimum, "≥"),
+            (maximum, maximum is not None and int(high) > maximum, "≤"),
+        ):
+            if bad:
+                outside = out < bound if sign == "≥" else out > bound  # type: ignore[operator]
+                index = [int(i) for i in outside.nonzero()[0]] if out.dim() else []
+                shown = f"{where}[{', '.join(map(str, index))}]" if index else where
+                raise ValueError(
+                    f"{shown}={int(out[tuple(index)])} must be {sign} {bound}"
+                    + ("" if minimum is None or maximum is None else f" ({minimum} … {maximum})")
+                )
+    return out
 
 
 def bool_vector(value: Any) -> torch.Tensor | None:

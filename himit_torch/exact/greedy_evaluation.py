@@ -76,7 +76,7 @@ from himit_torch.exact.option_models import OptionModels, option_models_and_dura
 from himit_torch.exact.planning import PlanResult, reachable, smdp_value_iteration
 from himit_torch.options.builders import primitive_options
 from himit_torch.options.bundle import Options
-from himit_torch.validation import COUNT_MAX, as_int
+from himit_torch.validation import COUNT_MAX, as_float, as_index_tensor, as_int
 
 __all__ = [
     "GAP_ROUND_OFF",
@@ -111,12 +111,24 @@ class OptionPolicy:
             shared by the runs (e.g. a learner's rows at each state).
         probability: ``[B, S, J]`` float64, ``π_b(option[s, j] | s)``; each state's row sums to
             1, or to 0 where the run has no option (it would stay there forever).
+
+    Raises:
+        TypeError: ``option`` or ``probability`` is no tensor (a NumPy array, a list).
+        ValueError: shapes or dtypes other than these (complex, integer or bool
+            probabilities), an option below −1, or rows that are not probabilities.
     """
 
     option: torch.Tensor
     probability: torch.Tensor
 
     def __post_init__(self):
+        for name in ("option", "probability"):
+            value = getattr(self, name)
+            if not isinstance(value, torch.Tensor):
+                raise TypeError(
+                    f"OptionPolicy.{name} must be a tensor, got {type(value).__name__} (give "
+                    "torch.as_tensor(...), or OptionPolicy.deterministic(choice))"
+                )
         if self.option.dim() != 2 or self.option.dtype != torch.int64:
             raise ValueError(
                 f"OptionPolicy.option must be [S, J] int64, got {tuple(self.option.shape)} "
@@ -128,6 +140,15 @@ class OptionPolicy:
                 f"{self.option.shape[1]}], got {tuple(self.probability.shape)}"
             )
         p = self.probability
+        if not p.dtype.is_floating_point:
+            raise ValueError(
+                f"OptionPolicy.probability must be real (float64) probabilities, got {p.dtype}"
+            )
+        if self.option.numel() and int(self.option.min()) < -1:
+            raise ValueError(
+                f"OptionPolicy.option holds {int(self.option.min())}: options are 0 … J − 1, "
+                "and −1 marks an unused slot"
+            )
         sums = p.sum(-1)
         if (
             not bool(torch.isfinite(p).all())
@@ -144,7 +165,7 @@ class OptionPolicy:
     def deterministic(cls, option: torch.Tensor) -> OptionPolicy:
         """The policy that takes ``option [S]`` (one run) or ``[B, S]`` at each state (−1: no
         option there)."""
-        option = torch.as_tensor(option, dtype=torch.int64).cpu()
+        option = as_index_tensor("OptionPolicy.deterministic: option", option, -1).cpu()
         if option.dim() == 1:
             option = option[None]
         if option.dim() != 2:
@@ -197,6 +218,15 @@ class PolicyEvaluation:
     def percent_of(self, goals_per_window: float | torch.Tensor) -> torch.Tensor:
         """``[B]`` goals per window as a percentage of a reference rate (the optimum's, the
         mentor's); NaN where the reference is 0."""
+        if isinstance(goals_per_window, torch.Tensor):
+            if not goals_per_window.dtype.is_floating_point:
+                raise ValueError(
+                    "PolicyEvaluation.percent_of: goals_per_window must be real, got a "
+                    f"{goals_per_window.dtype} tensor"
+                )
+        else:
+            goals_per_window = as_float("PolicyEvaluation.percent_of: goals_per_window",
+                                        goals_per_window, 0.0)  # fmt: skip
         ref = torch.as_tensor(goals_per_window, dtype=torch.float64)
         return torch.where(
             ref > 0, 100.0 * self.goals_per_window / ref, torch.full_like(ref, float("nan"))
@@ -206,7 +236,9 @@ class PolicyEvaluation:
         """``[B]`` ``V*(μ) − V^π(μ)`` (``optimal_value``: ``V*(μ)``, :func:`optimal_value`); 0 =
         optimal, and a gap within :data:`GAP_ROUND_OFF` of 0 is 0. NaN where the value was not
         solved (``evaluate(values=False)``)."""
-        gap = float(optimal_value) - self.value_start
+        gap = (
+            as_float("PolicyEvaluation.value_gap: optimal_value", optimal_value) - self.value_start
+        )
         return torch.where(gap.abs() < GAP_ROUND_OFF, torch.zeros_like(gap), gap)
 
     def __len__(self) -> int:
@@ -222,6 +254,25 @@ def check_untried_rule(untried: str) -> str:
     if untried not in UNTRIED_RULES:
         raise ValueError(f"untried={untried!r}: use one of {UNTRIED_RULES}")
     return untried
+
+
+def _check_world(where: str, world) -> None:
+    """A ``TypeError`` naming ``where`` unless ``world`` is a world with a true model (``None``,
+    a string, a path are no world)."""
+    missing = [m for m in ("num_states", "terminal_mask", "gamma") if not hasattr(world, m)]
+    if missing:
+        raise TypeError(
+            f"{where}: world must be a world with a true model (num_states, "
+            f"terminal_mask, gamma, …), got {type(world).__name__} (lacks {missing})"
+        )
+
+
+def _check_options(where: str, options) -> None:
+    if not isinstance(options, Options):
+        raise TypeError(
+            f"{where}: options must be an Options bundle (e.g. "
+            f"primitive_options(world)), got {type(options).__name__}"
+        )
 
 
 def _scipy_csr(t: torch.Tensor) -> sp.csr_matrix:
@@ -301,17 +352,8 @@ class PolicyEvaluator:
         goal_mask: torch.Tensor | None = None,
         models: tuple[OptionModels, OptionModels] | None = None,
     ):
-        missing = [m for m in ("num_states", "terminal_mask", "gamma") if not hasattr(world, m)]
-        if missing:
-            raise TypeError(
-                f"PolicyEvaluator: world must be a world with a true model (num_states, "
-                f"terminal_mask, gamma, …), got {type(world).__name__} (lacks {missing})"
-            )
-        if not isinstance(options, Options):
-            raise TypeError(
-                f"PolicyEvaluator: options must be an Options bundle (e.g. "
-                f"primitive_options(world)), got {type(options).__name__}"
-            )
+        _check_world("PolicyEvaluator", world)
+        _check_options("PolicyEvaluator", options)
         window = as_int("PolicyEvaluator: window", window, 1, COUNT_MAX)
         S = int(world.num_states)
         if options.num_states != S:
@@ -349,7 +391,8 @@ class PolicyEvaluator:
 
     def model_rows(self, option: torch.Tensor) -> np.ndarray:
         """``[S, J]`` the model row of ``(s, option[s, j])`` (−1: unused slot or unavailable)."""
-        table = option.cpu().numpy()
+        checked = as_index_tensor("PolicyEvaluator.model_rows: option", option, -1, dim=2)
+        table = checked.cpu().numpy()
         S, J = table.shape
         key = np.arange(S)[:, None] * self.options.num_options + np.maximum(table, 0)
         pos = np.searchsorted(self._keys, key).clip(max=max(self._keys.size - 1, 0))
@@ -455,8 +498,17 @@ def evaluate_option_choice(
     ``options`` (−1 where it has none), e.g. the mentor's :attr:`MentorPolicy.option
     <himit_torch.MentorPolicy.option>`. Only the options it chooses somewhere are modelled (the
     mentor of the 80×80 world with corner options: 501 of its 1164; with the slip it reaches
-    every one of them from its start)."""
-    option = torch.as_tensor(option, dtype=torch.int64).cpu()
+    every one of them from its start).
+
+    Raises:
+        TypeError: ``world`` is no world with a true model (``None``, a string), or ``options``
+            no :class:`~himit_torch.Options`.
+        ValueError: ``option`` not ``[S]`` whole numbers in ``−1 … J − 1`` (``NaN``, ``0.5`` and
+            bools are refused, never cast), or a bad ``window``.
+    """
+    _check_world("evaluate_option_choice", world)
+    _check_options("evaluate_option_choice", options)
+    option = as_index_tensor("evaluate_option_choice: option", option, -1, dim=1).cpu()
     if option.shape != (int(world.num_states),):
         raise ValueError(f"option must be [S] = [{world.num_states}], got {tuple(option.shape)}")
     if int(option.max()) >= options.num_options:
@@ -485,9 +537,25 @@ def optimal_policy_evaluation(
     value iteration on the primitive options' exact models, tolerance 1e-10,
     :func:`~himit_torch.exact.planning.smdp_value_iteration`; ties to the lowest action): the
     reference of "% of optimum". ``models``: the primitive options' ``(discounted, durations)``
-    models, ``plan``: that value iteration's result, if already computed."""
+    models, ``plan``: that value iteration's result, if already computed.
+
+    Raises:
+        TypeError: ``world`` is no world with a true model, ``plan`` no
+            :class:`~himit_torch.exact.planning.PlanResult`, ``models`` not the primitives'
+            ``(discounted, durations)`` pair.
+        ValueError: ``window`` not a whole number in ``1 … COUNT_MAX``.
+    """
+    _check_world("optimal_policy_evaluation", world)
+    window = as_int("optimal_policy_evaluation: window", window, 1, COUNT_MAX)
+    if plan is not None and not isinstance(plan, PlanResult):
+        raise TypeError(
+            "optimal_policy_evaluation: plan must be the PlanResult of smdp_value_iteration, "
+            f"got {type(plan).__name__}"
+        )
     prims = primitive_options(world)
-    discounted, durations = option_models_and_durations(world, prims) if models is None else models
+    discounted, durations = (
+        option_models_and_durations(world, prims) if models is None else _models_of(prims, models)
+    )
     if plan is None:
         plan = smdp_value_iteration(discounted)
     evaluator = PolicyEvaluator(world, prims, window, goal_mask, (discounted, durations))
@@ -504,5 +572,6 @@ def optimal_value(
     policy that value iteration finds (:func:`optimal_policy_evaluation`, which takes the same
     ``models`` and ``plan``), so that the optimal policy's own
     :meth:`~PolicyEvaluation.value_gap` is 0 to round-off."""
+    _check_world("optimal_value", world)
     evaluation = optimal_policy_evaluation(world, 1, models=models, plan=plan)
     return float(evaluation.value_start[0])

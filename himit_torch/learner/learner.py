@@ -65,6 +65,8 @@ from himit_torch.validation import (
     as_choice,
     as_device,
     as_float,
+    as_float_array,
+    as_index_tensor,
     as_int,
     as_int_array,
     check_memory,
@@ -423,6 +425,13 @@ class Learner(LearnerViews):
         has ``durations() -> [T]`` (:class:`~himit_torch.mentor.observation.CoarseDemonstrations`),
         each transition took that many primitive steps (else one), which the segment term reads
         (``LearnerConfig.mentor_segments``).
+
+        Raises:
+            TypeError: ``demonstrations`` has no ``transitions()``, or it returns no pair.
+            ValueError: ``from`` and ``to`` not two 1-D columns of one length of whole state
+                indices of this world (``9.5``, a bool or ``NaN`` is refused, never cast), a
+                ``mentor`` outside ``0 … mentors − 1``, ``counts`` not ``[T]`` finite positive
+                weights, or ``durations()`` not ``[T]`` whole numbers ≥ 1.
         """
         if not callable(getattr(demonstrations, "transitions", None)):
             raise TypeError(
@@ -442,35 +451,28 @@ class Learner(LearnerViews):
             )
         if hasattr(demonstrations, "check_world"):
             demonstrations.check_world(self.world)
-        src, dst = demonstrations.transitions()
-        src = torch.as_tensor(src, dtype=torch.int64, device=self.device)
-        dst = torch.as_tensor(dst, dtype=torch.int64, device=self.device)
-        if src.numel() and (
-            int(src.min()) < 0 or int(max(src.max(), dst.max())) >= self.num_states
-        ):
-            raise ValueError(
-                f"demonstrations hold states outside 0…{self.num_states - 1}: they come "
-                "from another world"
-            )
+        src, dst = self._demonstrated_moves(demonstrations)
         counts = getattr(demonstrations, "counts", None)
         if counts is not None:
-            counts = torch.as_tensor(counts, dtype=torch.float64, device=self.device)
-            if (
-                counts.shape != src.shape
-                or not bool((counts > 0).all())
-                or not bool(torch.isfinite(counts).all())
-            ):
+            try:
+                counts = as_float_array("demonstrations.counts", counts)
+            except ValueError as err:
+                raise ValueError(f"{err}; give [T={src.numel()}] finite positive weights") from None
+            counts = torch.from_numpy(counts).to(self.device)
+            if counts.shape != src.shape or not bool((counts > 0).all()):
                 raise ValueError(
                     f"demonstrations.counts must be [T={src.numel()}] finite positive "
                     "weights, one per transition"
                 )
         delays = None
         if callable(getattr(demonstrations, "durations", None)):
-            steps = torch.as_tensor(demonstrations.durations(), device=self.device)
-            if steps.shape != src.shape or steps.is_floating_point() or bool((steps < 1).any()):
+            steps = as_index_tensor(
+                "demonstrations.durations()", demonstrations.durations(), 1, COUNT_MAX, dim=1
+            ).to(self.device)
+            if steps.shape != src.shape:
                 raise ValueError(
                     f"demonstrations.durations() must be [T={src.numel()}] whole numbers ≥ 1, "
-                    "the primitive steps of each transition"
+                    f"the primitive steps of each transition; got shape {list(steps.shape)}"
                 )
             delays = self.gamma ** (steps.to(torch.float64) - 1)  # γ^(k−1)
         # Episodes end at a terminal state: a "transition" out of one is not the mentor's move.
@@ -490,6 +492,35 @@ class Learner(LearnerViews):
         self.mentor.observe(rows, dst, run_idx, counts, delays)
         self.refresh_mentor_reward(run_idx)
         self.refit_cloned_policy(run_idx)
+
+    def _demonstrated_moves(self, demonstrations) -> tuple[torch.Tensor, torch.Tensor]:
+        """``demonstrations.transitions()`` checked: two 1-D sequences of one length of whole
+        state indices of this world (never cast: ``9.5`` or a bool is refused)."""
+        pair = demonstrations.transitions()
+        if not isinstance(pair, (tuple, list)) or len(pair) != 2:
+            raise TypeError(
+                "demonstrations.transitions() must return the pair (from [T], to [T]), got "
+                f"{type(pair).__name__}"
+            )
+        where = "demonstrations.transitions()"
+        src, dst = (
+            as_index_tensor(f"{where} {end}", column, dim=1).to(self.device)
+            for end, column in zip(("from", "to"), pair)
+        )
+        if src.shape != dst.shape:
+            raise ValueError(
+                f"{where}: from {list(src.shape)} and to {list(dst.shape)} must be of one "
+                "length T, a state pair per transition"
+            )
+        if src.numel() and (
+            int(torch.minimum(src.min(), dst.min())) < 0
+            or int(torch.maximum(src.max(), dst.max())) >= self.num_states
+        ):
+            raise ValueError(
+                f"demonstrations hold states outside 0…{self.num_states - 1}: they come "
+                "from another world"
+            )
+        return src, dst
 
     def refit_cloned_policy(self, runs: torch.Tensor | None = None) -> None:
         """Relabel the demonstrations with the inverse model of each ``bco`` run among ``runs``

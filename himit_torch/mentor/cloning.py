@@ -39,11 +39,11 @@ experience rarely explains them, so few transitions get labels.
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import torch
 
-from himit_torch.validation import as_int
+from himit_torch.validation import as_float_array, as_int
 
 __all__ = ["INVERSE_MODELS", "TIE", "InverseModel", "inverse_model", "relabel", "clone_policy"]
 
@@ -65,17 +65,43 @@ class InverseModel(NamedTuple):
     probability: torch.Tensor
 
 
-def _check_transitions(name: str, *columns: torch.Tensor) -> None:
-    shape = columns[0].shape
-    if any(c.shape != shape or c.dim() != 1 for c in columns):
+def _check_transitions(name: str, lowest: int = 0, **columns: Any) -> None:
+    """Each of ``columns`` is a 1-D int64 tensor of one length, every entry ``≥ lowest``
+    (``TypeError`` for no tensor — a list, a string —, ``ValueError`` otherwise; a float or a bool
+    tensor is refused, never cast)."""
+    for column, c in columns.items():
+        if not isinstance(c, torch.Tensor):
+            raise TypeError(
+                f"{name}: {column} must be a 1-D int64 tensor, got {type(c).__name__}; give "
+                "torch.tensor(...)"
+            )
+    shapes = [tuple(c.shape) for c in columns.values()]
+    if any(len(shape) != 1 or shape != shapes[0] for shape in shapes):
         raise ValueError(
-            f"{name}: give 1-D tensors of one length, got {[tuple(c.shape) for c in columns]}"
+            f"{name}: give 1-D tensors of one length ({', '.join(columns)}), got {shapes}"
         )
-    for c in columns:
+    for column, c in columns.items():
         if c.dtype != torch.int64:
-            raise ValueError(f"{name}: states and actions must be int64, got {c.dtype}")
-        if c.numel() and int(c.min()) < 0:
-            raise ValueError(f"{name}: states and actions must be ≥ 0")
+            raise ValueError(
+                f"{name}: {column} must be int64 (states and actions are whole numbers), got "
+                f"{c.dtype}"
+            )
+        if c.numel() and int(c.min()) < lowest:
+            raise ValueError(f"{name}: {column} must be ≥ {lowest}, got {int(c.min())}")
+
+
+def _real_column(where: str, value: Any, device: torch.device) -> torch.Tensor:
+    """``value`` as a float64 tensor of finite real numbers on ``device``: a real tensor as it is
+    (no round trip through the host), anything else by :func:`as_float_array`'s rule (a bool
+    or complex tensor, a string, NaN are refused)."""
+    if isinstance(value, torch.Tensor):
+        if value.dtype == torch.bool or value.dtype.is_complex:
+            raise ValueError(f"{where} must hold real numbers, got a {value.dtype} tensor")
+        value = value.to(device=device, dtype=torch.float64)
+        if not bool(torch.isfinite(value).all()):
+            raise ValueError(f"{where} must be finite (one weight per transition)")
+        return value
+    return torch.from_numpy(as_float_array(where, value)).to(device)
 
 
 def inverse_model(
@@ -103,6 +129,7 @@ def inverse_model(
         :class:`InverseModel`, one entry per distinct ``(s, a, s')`` of positive count.
 
     Raises:
+        TypeError: a column that is no tensor (a list, a string).
         ValueError: mismatched or non-int64 columns, a negative state or action, a state ``≥
             num_states``, counts that are not finite and ≥ 0, or states and actions so large that
             the ``(s, s', a)`` keys would not fit in int64 (``S² · A > 2⁶³``; the model is
@@ -110,7 +137,7 @@ def inverse_model(
     """
     if kind not in INVERSE_MODELS:
         raise ValueError(f"inverse model kind={kind!r}: use one of {INVERSE_MODELS}")
-    _check_transitions("inverse_model", states, actions, successors)
+    _check_transitions("inverse_model", states=states, actions=actions, successors=successors)
     if num_states is not None:
         num_states = as_int("inverse_model: num_states", num_states, 1)
         for name, column in (("states", states), ("successors", successors)):
@@ -127,12 +154,8 @@ def inverse_model(
                 "make (s, s', a) keys beyond int64; states must be below the world's number of "
                 "states (at most about 2³¹ with few actions)"
             )
-    counts = torch.as_tensor(counts, dtype=torch.float64, device=states.device)
-    if (
-        counts.shape != states.shape
-        or not bool(torch.isfinite(counts).all())
-        or bool((counts < 0).any())
-    ):
+    counts = _real_column("inverse_model: counts", counts, states.device)
+    if counts.shape != states.shape or bool((counts < 0).any()):
         raise ValueError("inverse_model: counts must be [N] finite and ≥ 0, one per transition")
     keep = counts > 0
     s, a, s2, n = states[keep], actions[keep], successors[keep], counts[keep]
@@ -163,7 +186,12 @@ def relabel(model: InverseModel, states: torch.Tensor, successors: torch.Tensor)
     ``(states[t], successors[t])`` (step 2 of the module docstring; Torabi et al. 2018, Alg. 1,
     "use M_θ to infer the demonstrator's actions"): ties within ``TIE`` to the lowest
     action, ``−1`` where ``(s, s')`` is not in ``model`` (own experience never explained it)."""
-    _check_transitions("relabel", states, successors)
+    if not isinstance(model, InverseModel):
+        raise TypeError(
+            f"relabel: model must be an InverseModel (inverse_model(...)), got "
+            f"{type(model).__name__}"
+        )
+    _check_transitions("relabel", states=states, successors=successors)
     out = torch.full(states.shape, -1, dtype=torch.int64, device=states.device)
     if model.states.numel() == 0 or states.numel() == 0:
         return out
@@ -204,8 +232,10 @@ def clone_policy(
         num_states, num_actions: ``S`` and ``A``, whole numbers ≥ 1.
 
     Raises:
+        TypeError: ``states`` or ``labels`` is no tensor (a list, a NumPy array).
         ValueError: ``num_states`` or ``num_actions`` not a whole number ≥ 1, mismatched shapes,
-            weights that are not positive, or states or labels out of range.
+            ``states`` or ``labels`` not int64 (float labels are refused, never truncated),
+            weights that are not finite and positive, or states or labels out of range.
     """
     num_states = as_int("clone_policy: num_states", num_states, 1)
     num_actions = as_int("clone_policy: num_actions", num_actions, 1)
@@ -213,9 +243,8 @@ def clone_policy(
         raise ValueError(
             f"clone_policy: num_states · num_actions = {num_states * num_actions} is beyond int64"
         )
-    if states.shape != labels.shape or states.dim() != 1:
-        raise ValueError("clone_policy: states and labels must be [T] each")
-    weights = torch.as_tensor(weights, dtype=torch.float64, device=states.device)
+    _check_transitions("clone_policy", -1, states=states, labels=labels)
+    weights = _real_column("clone_policy: weights", weights, states.device)
     if weights.shape != states.shape or not bool((weights > 0).all()):
         raise ValueError("clone_policy: weights must be [T] positive")
     if states.numel() and (int(states.min()) < 0 or int(states.max()) >= num_states):

@@ -217,7 +217,10 @@ class Demonstrations:
         Raises:
             FileNotFoundError: no such file.
             ValueError: the file is not a valid demonstrations file; the message names the file,
-                and the episode and index where a state is at fault.
+                and the episode and index where a state is at fault. Each member's ``.npy``
+                header is read first: a member that is no ``.npy`` array (raw bytes), holds
+                objects, or announces more data than it holds (a few bytes announcing 2³³
+                elements) is refused before anything is allocated.
             TypeError: ``world`` is neither a world nor a description dict (e.g. a number).
         """
         path = Path(path)
@@ -227,9 +230,12 @@ class Demonstrations:
         if not path.exists():
             raise FileNotFoundError(f"{src}: no such demonstrations file")
         try:
+            _check_members(path, src)
             with np.load(path, allow_pickle=False) as npz:
                 arrays = {k: npz[k] for k in npz.files}
         except (zipfile.BadZipFile, OSError, ValueError, EOFError) as err:
+            if str(err).startswith(f"{src}: "):  # _check_members' own refusal
+                raise
             raise ValueError(f"{src}: not a readable .npz demonstrations file ({err})") from None
         missing = [k for k in _NPZ_KEYS if k not in arrays]
         if missing:
@@ -307,6 +313,44 @@ class Demonstrations:
 
 
 # ------------------------------------------------------------------------------------ checks
+def _check_members(path: Path, source: str) -> None:
+    """Every member of the ``.npz`` file is a ``.npy`` array (not raw bytes, which ``np.load``
+    would hand back as they are) of a plain dtype whose header announces no more data than the
+    member holds — read from the headers alone, before ``np.load`` allocates what a header
+    announces (2³³ elements of a few bytes' file would be a ``MemoryError``)."""
+    with zipfile.ZipFile(path) as archive:
+        for info in archive.infolist():
+            name = info.filename
+            if not name.endswith(".npy"):
+                raise ValueError(
+                    f"{source}: member {name!r} is not a NumPy array (.npy); a demonstrations "
+                    f"file holds exactly the arrays {list(_NPZ_KEYS)}"
+                )
+            with archive.open(info) as member:
+                version = np.lib.format.read_magic(member)
+                if version not in ((1, 0), (2, 0)):
+                    raise ValueError(f"{source}: member {name!r} has .npy version {version}")
+                header = (
+                    np.lib.format.read_array_header_1_0
+                    if version == (1, 0)
+                    else np.lib.format.read_array_header_2_0
+                )
+                shape, _, dtype = header(member)
+                held = info.file_size - member.tell()
+            if dtype.hasobject:
+                raise ValueError(
+                    f"{source}: not a readable .npz demonstrations file (member {name!r} holds "
+                    "Python objects: Object arrays cannot be loaded; it holds plain arrays only)"
+                )
+            announced = int(np.prod(shape, dtype=object)) * dtype.itemsize
+            if announced > held:
+                raise ValueError(
+                    f"{source}: member {name!r} announces shape {tuple(shape)} ({announced} "
+                    f"bytes) but holds {held} bytes: the file is damaged or not one "
+                    "Demonstrations.save wrote"
+                )
+
+
 def _check_world_argument(world, source: str) -> None:
     """``TypeError`` unless ``world`` is a description dict or a world object (``num_states``,
     ``terminal_mask``): a number or a string here is not a world of any kind."""

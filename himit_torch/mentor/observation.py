@@ -226,6 +226,8 @@ def first_part(demonstrations: Demonstrations, coverage: float) -> Demonstration
     """Demonstrations that cover only part of the way: each episode's first
     ``⌈coverage · T⌉`` states (``T`` its states; at least two, one move), as
     :class:`~himit_torch.Demonstrations` of the same world. ``coverage = 1`` keeps everything.
+    Anything but :class:`~himit_torch.Demonstrations` (a list, ``None``, a path) is a
+    ``TypeError``; a coverage outside ``(0, 1]`` a ``ValueError``.
 
     >>> import torch
     >>> from himit_torch import Demonstrations, MultiRooms
@@ -233,6 +235,11 @@ def first_part(demonstrations: Demonstrations, coverage: float) -> Demonstration
     >>> first_part(demos, 0.5).episodes[0].tolist()
     [0, 1, 9]
     """
+    if not isinstance(demonstrations, Demonstrations):
+        raise TypeError(
+            f"first_part: demonstrations must be Demonstrations, got "
+            f"{type(demonstrations).__name__}; read a file with Demonstrations.load(path)"
+        )
     coverage = as_float("first_part: coverage", coverage, 0.0, 1.0, low_open=True)
     episodes = [
         e[: max(2, math.ceil(coverage * e.numel()))] if e.numel() > 2 else e

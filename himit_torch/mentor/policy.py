@@ -571,6 +571,11 @@ def record_demonstrations(
             noise=noise,
         )
         return Demonstrations(list(rollout.states), world)
+    if not isinstance(detour, MentorDetour):
+        raise TypeError(
+            f"record_demonstrations: detour must be a MentorDetour (mentor_detour(world)) or "
+            f"None, got {type(detour).__name__}"
+        )
     if not isinstance(world, MultiRooms) or detour.second_leg.describe() != {
         **world.describe(),
         "start": detour.waypoint,

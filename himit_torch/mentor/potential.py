@@ -45,6 +45,8 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 import torch
 
+from himit_torch.validation import as_float
+
 __all__ = ["mentor_chain_value", "shaping_potential"]
 
 
@@ -105,6 +107,13 @@ def mentor_chain_value(
     ([0.89, 1.0, 0.0, -1.0], [True, True, False, False])
     """
     _check_state_columns("mentor_chain_value", sources, successors)
+    for name, column in (("counts", counts), ("rewards", rewards), ("terminal", terminal)):
+        if not isinstance(column, torch.Tensor):
+            raise TypeError(
+                f"mentor_chain_value: {name} must be a tensor, got {type(column).__name__}"
+            )
+    gamma = as_float("mentor_chain_value: gamma", gamma, 0.0, 1.0, low_open=True)
+    outside_value = as_float("mentor_chain_value: outside_value", outside_value)
     E = sources.shape[0]
     if not (sources.shape == successors.shape == counts.shape == rewards.shape == (E,)):
         raise ValueError(
@@ -196,6 +205,7 @@ def shaping_potential(
     [1.89, 2.0, 0.0, 0.0]
     """
     _check_state_columns("shaping_potential", sources, successors)
+    initial_value = as_float("shaping_potential: initial_value", initial_value)
     W, seen = mentor_chain_value(
         sources, successors, counts, rewards, gamma, terminal, initial_value
     )

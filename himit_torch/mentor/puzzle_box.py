@@ -55,8 +55,9 @@ from himit_torch.exact.planning import smdp_value_iteration
 from himit_torch.mentor.demonstrations import Demonstrations
 from himit_torch.mentor.policy import MentorPolicy
 from himit_torch.options.bundle import Options
-from himit_torch.options.puzzle_box import puzzle_box_options
-from himit_torch.worlds.puzzle_box import ORGANISATIONS, PuzzleBox, next_step
+from himit_torch.options.puzzle_box import check_box_options, puzzle_box_options
+from himit_torch.validation import as_index_tensor, as_int, as_int_array
+from himit_torch.worlds.puzzle_box import ORGANISATIONS, PuzzleBox, check_puzzle_box, next_step
 
 __all__ = ["MAPPINGS", "organisation_mentor", "map_states", "map_demonstrations"]
 
@@ -86,9 +87,20 @@ def organisation_mentor(
         A :class:`~himit_torch.MentorPolicy` whose ``values`` are the optimal values of the
         mentor's option SMDP (the organisation's policy attains them: see the tests).
     """
-    if organisation not in ORGANISATIONS:
+    check_puzzle_box("organisation_mentor: box", box)
+    if not isinstance(organisation, str) or organisation not in ORGANISATIONS:
         raise ValueError(f"organisation={organisation!r}: use one of {ORGANISATIONS}")
-    options = puzzle_box_options(box, "mentor") if options is None else options
+    if options is None:
+        options = puzzle_box_options(box, "mentor")
+    else:
+        check_box_options("organisation_mentor", box, options)
+        layout = box.num_actions + box.skewers + box.steps
+        if options.num_options != layout:
+            raise ValueError(
+                f"organisation_mentor: options hold {options.num_options} options; the box's "
+                f"skills hold {layout} (its {box.num_actions} primitives, {box.skewers} go-to "
+                f"and {box.steps} step options: puzzle_box_options(box, ...))"
+            )
     A, k = box.num_actions, box.skewers
     go_to = A  # option index of "go to skewer 1"
     step = A + k  # option index of "do step 1 on the skewer at hand"
@@ -123,6 +135,7 @@ def map_states(
             distinct target skewers; ``level`` outside ``0 … n``.
     """
     _check_pair(source, target)
+    skewers = tuple(as_int_array("map_states: skewers", skewers).tolist())
     if len(skewers) != source.skewers or len(set(skewers)) != len(skewers):
         raise ValueError(
             f"skewers={skewers}: give {source.skewers} distinct target skewers, one per "
@@ -130,9 +143,9 @@ def map_states(
         )
     if not all(0 <= c < target.skewers for c in skewers):
         raise ValueError(f"skewers={skewers}: target skewers are 0 … {target.skewers - 1}")
-    if not 0 <= int(level) <= target.steps:
-        raise ValueError(f"level={level}: a skewer's level is 0 … {target.steps}")
-    states = torch.as_tensor(states, dtype=torch.int64)
+    level = as_int(f"map_states: level (a skewer's level is 0 … {target.steps})", level, 0,
+                   target.steps)  # fmt: skip
+    states = as_index_tensor("map_states: states", states, 0, source.num_states - 1, 1)
     src_levels = source.progress(states)  # [T, k_s]
     levels = torch.full((states.numel(), target.skewers), int(level), dtype=torch.int64)
     index = torch.tensor(skewers, dtype=torch.int64)
@@ -160,8 +173,13 @@ def map_demonstrations(
     :class:`~himit_torch.Demonstrations`). Raises ``ValueError`` for an unknown mapping or boxes
     that differ in anything but their number of skewers (``k_target ≥ k_source``).
     """
-    if mapping not in MAPPINGS:
+    if not isinstance(mapping, str) or mapping not in MAPPINGS:
         raise ValueError(f"mapping={mapping!r}: use one of {MAPPINGS}")
+    if not isinstance(demonstrations, Demonstrations):
+        raise TypeError(
+            "map_demonstrations: demonstrations must be Demonstrations of the source box, got "
+            f"{type(demonstrations).__name__}"
+        )
     _check_pair(source, target)
     demonstrations.check_world(source)
     if mapping == "plain":

@@ -13,7 +13,8 @@ import torch
 
 from himit_torch.options.builders import primitive_options, subgoal_options
 from himit_torch.options.bundle import Options
-from himit_torch.worlds.puzzle_box import PuzzleBox
+from himit_torch.validation import COUNT_MAX, as_index_tensor, as_int
+from himit_torch.worlds.puzzle_box import PuzzleBox, check_puzzle_box
 
 __all__ = [
     "STYLES",
@@ -21,6 +22,7 @@ __all__ = [
     "step_options",
     "puzzle_box_options",
     "intended_rollout",
+    "check_box_options",
 ]
 
 #: The grip each style's step skills use: the learner's ``"power"``, the mentor's ``"pinch"``.
@@ -32,6 +34,7 @@ def go_to_skewer_options(box: PuzzleBox) -> Options:
     (again after a fumble) and stop with the hand open there. Built with
     :func:`~himit_torch.subgoal_options` (target: the hand open at skewer ``i``; action: ``reach
     i``), so usable exactly where that reaches it: every state with the hand home."""
+    check_puzzle_box("go_to_skewer_options: box", box)
     targets = {}
     for i in range(box.skewers):
         hand_at = box.hand(torch.arange(box.num_states)) == 1 + 3 * i
@@ -55,7 +58,8 @@ def step_options(box: PuzzleBox, style: str = "learner") -> Options:
     Raises:
         ValueError: ``style`` is not one of :data:`STYLES`.
     """
-    if style not in STYLES:
+    check_puzzle_box("step_options: box", box)
+    if not isinstance(style, str) or style not in STYLES:
         raise ValueError(f"style={style!r}: use one of {sorted(STYLES)}")
     grip = STYLES[style]
     states = torch.arange(box.num_states)
@@ -92,6 +96,11 @@ def puzzle_box_options(box: PuzzleBox, style: str = "learner", pinch: bool = Tru
     ``pinch=False`` leaves the ``pinch grip`` primitive out (a learner that cannot make the
     mentor's grip, so cannot pass through the mentor's states between subgoals: its imitation
     can only be of subgoals); the layout is then the mentor's minus that one option."""
+    check_puzzle_box("puzzle_box_options: box", box)
+    if not isinstance(pinch, bool):
+        raise ValueError(f"puzzle_box_options: pinch={pinch!r} must be True or False")
+    if not isinstance(style, str) or style not in STYLES:
+        raise ValueError(f"puzzle_box_options: style={style!r}: use one of {sorted(STYLES)}")
     primitives = primitive_options(box)
     if not pinch:
         if style == "mentor":
@@ -99,6 +108,23 @@ def puzzle_box_options(box: PuzzleBox, style: str = "learner", pinch: bool = Tru
         keep = [a for a in range(box.num_actions) if a != box.action_pinch]
         primitives = primitives.select(keep)
     return Options.concat([primitives, go_to_skewer_options(box), step_options(box, style)])
+
+
+def check_box_options(where: str, box: PuzzleBox, options: Options) -> Options:
+    """``options`` if they are an :class:`~himit_torch.Options` bundle over ``box``'s states
+    (another world's options, ``None`` or a list are refused: ``TypeError`` for no bundle,
+    ``ValueError`` for a bundle of another world)."""
+    if not isinstance(options, Options):
+        raise TypeError(
+            f"{where}: options must be an Options bundle of the box (e.g. "
+            f"puzzle_box_options(box)), got {type(options).__name__}"
+        )
+    if options.num_states != box.num_states:
+        raise ValueError(
+            f"{where}: options are over {options.num_states} states but the box has "
+            f"{box.num_states}: they are another world's; give puzzle_box_options(box)"
+        )
+    return options
 
 
 def intended_rollout(
@@ -114,11 +140,18 @@ def intended_rollout(
         usable there, at a repeated (state, option) pair (a loop) or after ``max_steps`` (default
         ``4·|S|``).
     """
+    check_puzzle_box("intended_rollout: box", box)
+    check_box_options("intended_rollout", box, options)
+    policy = as_index_tensor("intended_rollout: policy", policy, -1, options.num_options - 1, 1)
     if policy.shape != (box.num_states,):
         raise ValueError(f"policy must be [S] = [{box.num_states}], got {tuple(policy.shape)}")
     intended = box.dynamics_table().successors[:, :, -1]
     terminal = box.terminal_mask
-    limit = 4 * box.num_states if max_steps is None else int(max_steps)
+    limit = (
+        4 * box.num_states
+        if max_steps is None
+        else as_int("intended_rollout: max_steps", max_steps, 0, COUNT_MAX)
+    )
     s, option = int(box.start_state), -1
     states, seen = [s], set()
     for _ in range(limit):

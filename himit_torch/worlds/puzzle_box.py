@@ -83,12 +83,20 @@ States
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
+from typing import Any
 
 import numpy as np
 import torch
 
-from himit_torch.validation import COUNT_MAX, as_float, as_int, as_int_array, check_memory
+from himit_torch.validation import (
+    COUNT_MAX,
+    as_float,
+    as_index_tensor,
+    as_int,
+    as_int_array,
+    check_memory,
+)
 from himit_torch.worlds.table_world import TableWorld
 from himit_torch.worlds.tabular import DynamicsTable
 
@@ -97,6 +105,7 @@ __all__ = [
     "ORGANISATIONS",
     "PuzzleBox",
     "SKEWERS_MAX",
+    "check_puzzle_box",
     "next_step",
     "organisation_of",
     "organisation_scores",
@@ -130,17 +139,44 @@ def puzzle_box_size(skewers: int, steps: int = 4) -> int:
     return (steps + 1) ** skewers * (1 + 3 * skewers)
 
 
+def check_puzzle_box(where: str, box: Any) -> PuzzleBox:
+    """``box`` if it is a :class:`PuzzleBox`; else a ``TypeError`` naming ``where`` (the puzzle
+    box's helpers are for the box alone: another world, ``None`` or a number is no box)."""
+    if not isinstance(box, PuzzleBox):
+        raise TypeError(f"{where} must be a PuzzleBox, got {type(box).__name__}")
+    return box
+
+
+def _advances(where: str, advances: Any) -> list[tuple[int, int]]:
+    """``advances`` as ``(skewer, step)`` pairs of whole numbers (``1.5`` is no step)."""
+    if isinstance(advances, (str, bytes, dict)) or not isinstance(advances, Iterable):
+        raise ValueError(
+            f"{where} must be a list of (skewer, step) pairs, got {type(advances).__name__}"
+        )
+    out = []
+    for n, pair in enumerate(advances):
+        if not isinstance(pair, (tuple, list)) or len(pair) != 2:
+            raise ValueError(f"{where}[{n}]={pair!r} must be a (skewer, step) pair")
+        out.append((as_int(f"{where}[{n}] skewer", pair[0]), as_int(f"{where}[{n}] step", pair[1])))
+    return out
+
+
 def next_step(progress: Sequence[int], organisation: str, steps: int = 4) -> tuple[int, int]:
     """``(skewer, step)`` an ``organisation`` (:data:`ORGANISATIONS`) does next at ``progress``
     (levels ``p_i``): skewer by skewer, the first skewer not out; step by step, the least advanced
     skewer (the first of ties). ``step`` is 1-based: the level the skewer reaches.
 
     Raises:
-        ValueError: unknown organisation, or every skewer is already out.
+        ValueError: unknown organisation, ``steps`` not a whole number ≥ 2, ``progress`` not a
+            non-empty list of whole-number levels in ``0 … steps`` (``1.5`` is no level), or
+            every skewer already out.
     """
     if organisation not in ORGANISATIONS:
         raise ValueError(f"organisation={organisation!r}: use one of {ORGANISATIONS}")
-    levels = [int(p) for p in progress]
+    steps = as_int("next_step: steps", steps, 2, COUNT_MAX)
+    levels = as_int_array("next_step: progress", progress, 0, steps).tolist()
+    if not levels:
+        raise ValueError("next_step: progress is empty; give one level per skewer")
     if all(p >= steps for p in levels):
         raise ValueError(f"progress {levels}: every skewer is out, there is no next step")
     if organisation == "skewer":
@@ -163,7 +199,9 @@ def organisation_of(advances: Sequence[tuple[int, int]], skewers: int, steps: in
         step done once, in another order), or ``"incomplete"`` (not every step done exactly once:
         the box was not opened, or a step was undone and redone).
     """
-    done = [(int(i), int(j)) for i, j in advances]
+    skewers = as_int("organisation_of: skewers", skewers, 1, SKEWERS_MAX)
+    steps = as_int("organisation_of: steps", steps, 1, COUNT_MAX)
+    done = _advances("organisation_of: advances", advances)
     if len(done) != skewers * steps or sorted(done) != [
         (i, j) for i in range(skewers) for j in range(1, steps + 1)
     ]:
@@ -202,7 +240,7 @@ def organisation_scores(
     steps = as_int("organisation_scores: steps", steps, 2, COUNT_MAX)
     if focus is not None:
         focus = as_int("organisation_scores: focus", focus, 0, skewers - 1)
-    done = [(int(i), int(j)) for i, j in advances]
+    done = _advances("organisation_scores: advances", advances)
     if len(done) != skewers * steps or sorted(done) != [
         (i, j) for i in range(skewers) for j in range(1, steps + 1)
     ]:
@@ -333,9 +371,9 @@ class PuzzleBox(TableWorld):
 
     def action_motion(self, step: int) -> int:
         """Index of ``motion step`` (``step`` 1-based)."""
-        if not 1 <= int(step) <= self.steps:
-            raise ValueError(f"step={step}: a motion is for steps 1 … {self.steps}")
-        return self.skewers + 2 + int(step)
+        step = as_int("PuzzleBox.action_motion: step (a motion is for steps 1 … steps)", step,
+                      1, self.steps)  # fmt: skip
+        return self.skewers + 2 + step
 
     def encode(
         self, progress: Sequence[int], skewer: int | None = None, grasp: str = "open"
@@ -359,9 +397,7 @@ class PuzzleBox(TableWorld):
     def decode(self, state: int) -> tuple[tuple[int, ...], int | None, str | None]:
         """``(progress, skewer, grasp)`` of ``state``: the levels, and the hand's skewer (0-based)
         and grasp, or ``(None, None)`` when the hand is home."""
-        s = int(state)
-        if not 0 <= s < self.num_states:
-            raise ValueError(f"state {s} is not in 0 … {self.num_states - 1}")
+        s = as_int("PuzzleBox.decode: state", state, 0, self.num_states - 1)
         code, hand = divmod(s, self.hand_states)
         progress = tuple(int(code // r % (self.steps + 1)) for r in self._radix)
         if hand == 0:
@@ -371,13 +407,18 @@ class PuzzleBox(TableWorld):
 
     def progress(self, states: torch.Tensor) -> torch.Tensor:
         """``[..., k]`` int64 skewer levels of ``states [...]``."""
-        code = torch.as_tensor(states, dtype=torch.int64) // self.hand_states
+        code = self._states("PuzzleBox.progress: states", states) // self.hand_states
         radix = torch.from_numpy(self._radix).to(code.device)
         return code[..., None] // radix % (self.steps + 1)
 
     def hand(self, states: torch.Tensor) -> torch.Tensor:
         """``[...]`` int64 hand index of ``states``: 0 home, ``1 + 3i + g`` at skewer ``i``."""
-        return torch.as_tensor(states, dtype=torch.int64) % self.hand_states
+        return self._states("PuzzleBox.hand: states", states) % self.hand_states
+
+    def _states(self, where: str, states: Any, dim: int | None = None) -> torch.Tensor:
+        """``states`` as an int64 tensor of states of this box (whole numbers in ``0 … S − 1``;
+        ``9.5``, a bool or a state of a bigger box is refused, never cast)."""
+        return as_index_tensor(where, states, 0, self.num_states - 1, dim)
 
     @property
     def home_mask(self) -> torch.Tensor:
@@ -444,7 +485,7 @@ class PuzzleBox(TableWorld):
         """The steps done and undone along a sequence of states: ``(skewer, step, +1)`` where a
         skewer went from level ``step − 1`` to ``step``, ``(skewer, step, −1)`` where step ``step``
         was undone (skewer 0-based, step 1-based)."""
-        p = self.progress(torch.as_tensor(states, dtype=torch.int64))
+        p = self.progress(self._states("PuzzleBox.step_events: states", states, 1))
         diff = (p[1:] - p[:-1]).tolist()
         before = p[:-1].tolist()
         events = []
@@ -460,6 +501,7 @@ class PuzzleBox(TableWorld):
         """The ``(skewer, step)`` advances along ``states`` when no step was undone; a sequence
         with an undo yields its net advances in order (what :func:`organisation_of` reads)."""
         done: list[tuple[int, int]] = []
+        states = self._states("PuzzleBox.subgoals: states", states, 1)
         for i, j, sign in self.step_events(states):
             if sign > 0:
                 done.append((i, j))
@@ -470,7 +512,7 @@ class PuzzleBox(TableWorld):
     def grasps_used(self, states: Sequence[int] | torch.Tensor) -> list[str]:
         """The grasp the hand held just before each step was done along ``states`` (``power`` —
         the learner's skills — or ``pinch`` — the mentor's), in order."""
-        seq = [int(s) for s in torch.as_tensor(states).tolist()]
+        seq = self._states("PuzzleBox.grasps_used: states", states, 1).tolist()
         out = []
         for a, b in zip(seq, seq[1:]):
             events = self.step_events([a, b])
