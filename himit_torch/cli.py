@@ -421,7 +421,8 @@ def _info_minigrid(args: argparse.Namespace, t0: float) -> int:
 
     if args.env is not None or args.puzzle_box is not None or args.env_kwargs is not None:
         raise ValueError("give --minigrid alone, without --env, --env-kwargs or --puzzle-box")
-    world = from_minigrid(args.minigrid, gamma=args.gamma)
+    # (Any: optimal_trip is annotated for MultiRooms but evaluates any world with a model)
+    world: Any = from_minigrid(args.minigrid, gamma=args.gamma)
     terminal = int(world.terminal_mask.sum())
     print(
         f"world      {world.name}, reset seed {world.seed}, {world.width}×{world.height} cells, "
