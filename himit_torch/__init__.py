@@ -45,6 +45,7 @@ from himit_torch.learner.presets import PRESETS, Preset, apply_preset, preset_di
 from himit_torch.learner.prioritized_sweeping import BlockPriorityQueue
 from himit_torch.mentor.cloning import InverseModel, clone_policy, inverse_model, relabel
 from himit_torch.mentor.demonstrations import DEMONSTRATIONS_FORMAT_VERSION, Demonstrations
+from himit_torch.mentor.minari import demonstrations_from_minari, demonstrations_to_minari
 from himit_torch.mentor.minigrid import minigrid_mentor
 from himit_torch.mentor.observation import CoarseDemonstrations, observe_every
 from himit_torch.mentor.policy import (
@@ -192,6 +193,8 @@ __all__ = [
     "organisation_mentor",
     "map_demonstrations",
     "minigrid_mentor",
+    "demonstrations_from_minari",
+    "demonstrations_to_minari",
     # the stresses on the demonstrations (docs/stresses.md)
     "MentorDetour",
     "mentor_detour",
