@@ -53,7 +53,7 @@ __all__ = ["demonstrations_from_minari", "demonstrations_to_minari"]
 _FORMATS = ("hdf5", "arrow", "parquet")
 #: What a dataset's description starts with when this library wrote it (then the world's).
 _WORLD_PREFIX = "himit_torch world: "
-_DATASET_ID = re.compile(r"^([A-Za-z0-9_.]+/)*[A-Za-z0-9_.]+(-v\d+)?$")
+_DATASET_ID = re.compile(r"^([A-Za-z0-9_.-]+/)*[A-Za-z0-9_.-]+$")
 
 
 def _import_minari():

@@ -48,6 +48,7 @@ from __future__ import annotations
 
 import json
 import os
+from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any
 
@@ -353,6 +354,21 @@ class MiniGridWorld(TableWorld):
         raw, layout = self._layout_of(env)
         state = as_int(f"{self.name}: state", state, 0, self.num_states - 1)
         layout.write(raw, self._keys[state])
+
+    def render(self, state: int, tile_size: int = 32) -> np.ndarray:
+        """``[H, W, 3]`` uint8: the whole grid in state ``state`` as MiniGrid draws it (its own
+        renderer, the agent's view not highlighted)."""
+        state = as_int(f"{self.name}: state", state, 0, self.num_states - 1)
+        self._layout.write(self.env, self._keys[state])
+        return self.env.get_frame(highlight=False, tile_size=int(tile_size))
+
+    def cell_center(self, states: torch.Tensor | Iterable[int], tile_size: int = 32) -> np.ndarray:
+        """``[T, 2]`` pixel coordinates (x, y) of the agent's cell in each state, on a
+        :meth:`render` image of that tile size: to draw paths over the grid."""
+        xy = self.agent(
+            torch.as_tensor(list(states) if not isinstance(states, torch.Tensor) else states)
+        )[:, :2]
+        return (xy.numpy() + 0.5) * tile_size
 
     def describe_state(self, state: int) -> str:
         """One line: the agent's cell and direction, what it carries, each door's state."""

@@ -138,6 +138,16 @@ def test_encoder_and_decoder_round_trip(doorkey5):
     assert "carrying yellow key" in doorkey5.describe_state(s)
 
 
+def test_render_draws_the_state_as_minigrid_does(doorkey5):
+    env = doorkey5.make_env(render_mode="rgb_array")
+    s = int(doorkey5.dynamics_table().successors[0, 2, 0])  # one step forward (or a bump)
+    doorkey5.set_state(env, s)
+    assert np.array_equal(doorkey5.render(s), env.unwrapped.get_frame(highlight=False))
+    assert not np.array_equal(doorkey5.render(0), doorkey5.render(1))  # the agent turned
+    x, y, _ = doorkey5.state_key(s)[:3]
+    assert doorkey5.cell_center([s]).tolist() == [[32 * x + 16, 32 * y + 16]]
+
+
 def test_encoder_needs_the_worlds_reset(doorkey5):
     env = gymnasium.make("MiniGrid-DoorKey-5x5-v0")
     env.reset(seed=0)
