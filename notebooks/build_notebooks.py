@@ -1334,33 +1334,47 @@ print({a: float(curve[-1, i::len(agents)].mean()) for i, a in enumerate(agents)}
 Each imitation run's greedy option policy, stepped in a fresh MiniGrid environment
 (`world.make_env`), each state read back with `world.state_of`, each frame from MiniGrid's own
 `render()`. A greedy policy may still loop somewhere (two turns that undo each other, where its
-values tie): the replay stops at a repeated (state, option) and says so. The frames are of the
-first run that reached the goal."""),
+values tie): the replay stops at a repeated (state, option) and says so. The first run that
+reached the goal is drawn: its path beside the mentor's over MiniGrid's drawing of the grid,
+then frames of its episode."""),
     new_code_cell("""\
 def replay(run):
+    \"\"\"The run's greedy policy stepped in MiniGrid: its states, frames and how it ended.\"\"\"
     greedy = learner.greedy_options([run])[0]
     env = world.make_env(render_mode="rgb_array")
-    s, option, frames, seen = world.start_state, -1, [env.render()], set()
+    s, option, states, frames, seen = world.start_state, -1, [world.start_state], [env.render()], set()
     while True:
         if option < 0:
             option = int(greedy[s])
             if option < 0:
-                return frames, "no option chosen yet"
+                return states, frames, "no option chosen yet"
         if (s, option) in seen:
-            return frames, "a loop"
+            return states, frames, "a loop"
         seen.add((s, option))
         _, reward, terminated, _, _ = env.step(int(options.policy[option, s]))
         frames.append(env.render())
-        if terminated:
-            return frames, "reached the goal" if reward > 0 else "ended"
         s = world.state_of(env)
+        states.append(s)
+        if terminated:
+            return states, frames, "reached the goal" if reward > 0 else "ended"
         if float(options.termination[option, s]) >= 1.0:
             option = -1
 
 replays = {run: replay(run) for run in range(0, len(agents) * SEEDS, len(agents))}
-for run, (frames, end) in replays.items():
+for run, (states, frames, end) in replays.items():
     print(f"imitation run {run // len(agents)}: {len(frames) - 1} steps, {end}")
-frames = next((f for f, end in replays.values() if end == "reached the goal"), replays[0][0])
+states, frames, _ = next((r for r in replays.values() if r[2] == "reached the goal"), replays[0])
+
+fig, ax = plt.subplots(figsize=(4, 4))              # both paths over MiniGrid's drawing
+ax.imshow(world.render(world.start_state))
+for path, color, label, shift in [(demos.episodes[0], "tab:orange", "mentor", -4),
+                                  (states, "tab:blue", "learner (greedy)", 4)]:
+    xy = world.cell_center(path) + shift           # side by side where the paths share cells
+    ax.plot(xy[:, 0], xy[:, 1], "o-", color=color, ms=3, label=label)
+ax.set_axis_off()
+ax.legend(loc="lower left", fontsize=8)
+plt.show()
+
 shown = frames[:: max(len(frames) // 6, 1)][:6]
 fig, axes = plt.subplots(1, len(shown), figsize=(2 * len(shown), 2), squeeze=False)
 for ax, frame in zip(axes[0], shown):
