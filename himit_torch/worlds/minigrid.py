@@ -357,7 +357,8 @@ class MiniGridWorld(TableWorld):
 
     def render(self, state: int, tile_size: int = 32) -> np.ndarray:
         """``[H, W, 3]`` uint8: the whole grid in state ``state`` as MiniGrid draws it (its own
-        renderer, the agent's view not highlighted)."""
+        renderer, the agent's view not highlighted), drawn in :attr:`env`, which is left in
+        that state."""
         state = as_int(f"{self.name}: state", state, 0, self.num_states - 1)
         self._layout.write(self.env, self._keys[state])
         return self.env.get_frame(highlight=False, tile_size=int(tile_size))
