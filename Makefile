@@ -29,7 +29,7 @@ DOCS_STAMP := $(VENV)/.himit-docs-installed
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -c "import torch" 2>/dev/null || $(BIN)/python -m pip install --quiet "$(TORCH_SPEC)"
-	$(BIN)/python -m pip install --quiet -e ".[dev,sweep,analysis]"
+	$(BIN)/python -m pip install --quiet -e ".[dev,sweep,analysis,minigrid]"
 	$(BIN)/python -m himit_torch.runs.kernels
 	touch $(STAMP)
 
@@ -37,7 +37,7 @@ install: $(STAMP)
 
 # the [docs] extra on top of the development install (make docs, make wheel-check)
 $(DOCS_STAMP): $(STAMP)
-	$(BIN)/python -m pip install --quiet -e ".[dev,sweep,analysis,docs]"
+	$(BIN)/python -m pip install --quiet -e ".[dev,sweep,analysis,minigrid,docs]"
 	touch $(DOCS_STAMP)
 
 demo: $(STAMP)

@@ -45,6 +45,8 @@ from himit_torch.learner.presets import PRESETS, Preset, apply_preset, preset_di
 from himit_torch.learner.prioritized_sweeping import BlockPriorityQueue
 from himit_torch.mentor.cloning import InverseModel, clone_policy, inverse_model, relabel
 from himit_torch.mentor.demonstrations import DEMONSTRATIONS_FORMAT_VERSION, Demonstrations
+from himit_torch.mentor.minari import demonstrations_from_minari, demonstrations_to_minari
+from himit_torch.mentor.minigrid import minigrid_mentor
 from himit_torch.mentor.observation import (
     CoarseDemonstrations,
     observe_at_option_ends,
@@ -87,11 +89,13 @@ from himit_torch.options.discovery import (
     learned_subgoal_options,
     one_step_counts,
 )
+from himit_torch.options.minigrid import minigrid_options, minigrid_subgoals
 from himit_torch.options.puzzle_box import puzzle_box_options
 from himit_torch.options.taxi import taxi_navigation_options
 from himit_torch.viz.tensorboard import TensorBoardLogger
 from himit_torch.worlds.gym_env import ENV_ID, MultiRoomsEnv, register_envs
 from himit_torch.worlds.gymnasium import from_gymnasium
+from himit_torch.worlds.minigrid import MINIGRID_TASKS, MiniGridWorld, from_minigrid
 from himit_torch.worlds.multirooms import (
     STIMULUS_FEATURES,
     MultiRooms,
@@ -126,6 +130,9 @@ __all__ = [
     "PuzzleBox",
     "ORGANISATIONS",
     "from_gymnasium",
+    "from_minigrid",
+    "MiniGridWorld",
+    "MINIGRID_TASKS",
     "world_model",
     "transition_support",
     "describe_world",
@@ -140,6 +147,8 @@ __all__ = [
     "subgoal_options",
     "taxi_navigation_options",
     "puzzle_box_options",
+    "minigrid_options",
+    "minigrid_subgoals",
     "OptionModels",
     "option_models",
     "option_durations",
@@ -187,6 +196,9 @@ __all__ = [
     "DEMONSTRATIONS_FORMAT_VERSION",
     "organisation_mentor",
     "map_demonstrations",
+    "minigrid_mentor",
+    "demonstrations_from_minari",
+    "demonstrations_to_minari",
     # the stresses on the demonstrations (docs/stresses.md)
     "MentorDetour",
     "mentor_detour",

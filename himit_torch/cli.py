@@ -289,6 +289,8 @@ def cmd_info(args: argparse.Namespace) -> int:
             "--pinch-slip is the puzzle box's: give --puzzle-box K too (e.g. --puzzle-box 4 "
             "--pinch-slip 0.2), or leave it out"
         )
+    if args.minigrid is not None:
+        return _info_minigrid(args, t0)
     if args.env is not None:
         return _info_gymnasium(args, t0)
     if args.puzzle_box is not None:
@@ -410,6 +412,56 @@ def _info_gymnasium(args: argparse.Namespace, t0: float) -> int:
     return 0
 
 
+def _info_minigrid(args: argparse.Namespace, t0: float) -> int:
+    """``himit info --minigrid ID``: a MiniGrid task (seed 0, MiniGrid's determinism) as a world,
+    its options and mentor, solved exactly."""
+    from himit_torch.mentor.minigrid import minigrid_mentor
+    from himit_torch.options.minigrid import minigrid_options
+    from himit_torch.worlds.minigrid import from_minigrid
+
+    if args.env is not None or args.puzzle_box is not None or args.env_kwargs is not None:
+        raise ValueError("give --minigrid alone, without --env, --env-kwargs or --puzzle-box")
+    # (Any: optimal_trip is annotated for MultiRooms but evaluates any world with a model)
+    world: Any = from_minigrid(args.minigrid, gamma=args.gamma)
+    terminal = int(world.terminal_mask.sum())
+    print(
+        f"world      {world.name}, reset seed {world.seed}, {world.width}×{world.height} cells, "
+        f"no slip (MiniGrid's own step), gamma {world.gamma}, reward −0.01 a step and +1 at "
+        "success"
+    )
+    print(
+        f"states     {world.num_states:,} reachable ({terminal} entered at success); objects: "
+        f"{', '.join(world.object_names) or 'none'}"
+    )
+    print(f"actions    {world.num_actions}: {', '.join(world.action_names)}")
+    learner, mentor_opts = minigrid_options(world), minigrid_options(world, "mentor")
+    skills = [n for n, k in zip(learner.names, learner.kinds) if k != "primitive"]
+    print(
+        f"learner    {learner.num_options} options ({_kind_counts(learner)}: {', '.join(skills)})"
+    )
+    print(
+        f"mentor     {mentor_opts.num_options} options ({_kind_counts(mentor_opts)}; no left turn, "
+        "right-handed skills)"
+    )
+    mentor = minigrid_mentor(world, mentor_opts)
+    rows = [
+        ("primitives only", optimal_trip(world, primitive_options(world))),
+        ("learner's options", optimal_trip(world, learner)),
+        (
+            f"mentor (prefers its options within {mentor.tolerance:g})",
+            optimal_trip(world, mentor_opts, mentor.option),
+        ),
+    ]
+    width = max(len(name) for name, _ in rows) + 2
+    print(
+        f"\n{'optimal policy':<{width}}{'steps start→goal':>18}{f'goals / {GOALS_WINDOW} steps':>22}"
+    )
+    for name, trip in rows:
+        print(f"{name:<{width}}{trip.steps:>18.1f}{trip.goals_per_window:>22.1f}")
+    print(f"\n({time.perf_counter() - t0:.1f} s)")
+    return 0
+
+
 def _info_puzzle_box(args: argparse.Namespace, t0: float) -> int:
     """``himit info --puzzle-box K``: the box's size, and the optimal cost of each hierarchical
     organisation by exact planning."""
@@ -463,6 +515,12 @@ def _add_info(sub: argparse.ArgumentParser) -> None:
     sub.add_argument(
         "--env-kwargs",
         help='JSON keyword arguments of gymnasium.make, e.g. \'{"map_name": "8x8"}\'',
+    )
+    sub.add_argument(
+        "--minigrid",
+        metavar="ID",
+        help="a MiniGrid task, e.g. MiniGrid-DoorKey-8x8-v0 (reset seed 0): its states, the "
+        "learner's and the mentor's options, the optimum's steps and the mentor's goal rate",
     )
     sub.add_argument(
         "--puzzle-box",

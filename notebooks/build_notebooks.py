@@ -1,5 +1,5 @@
 """Write ``quickstart.ipynb``, ``intrinsic_reward.ipynb``, ``your_own_world.ipynb``,
-``option_discovery.ipynb`` and ``puzzle_box.ipynb`` from the cells below, and (with
+``option_discovery.ipynb``, ``puzzle_box.ipynb`` and ``minigrid.ipynb`` from the cells below, and (with
 ``--execute``) run them top to bottom in place so that they are committed with their outputs.
 
     .venv/bin/python notebooks/build_notebooks.py --execute     # about a minute on a laptop CPU
@@ -1244,10 +1244,149 @@ Details, intervals and tests: `experiments/results/puzzlebox/results.md`; the de
 and the mappings: `docs/puzzle_box.md`."""),
 ]
 
+# ============================================================================== MiniGrid
+MINIGRID = [
+    new_markdown_cell("""\
+# MiniGrid: get the key, open the door, reach the goal
+
+Farama's MiniGrid DoorKey-6x6 as a tabular world: `ht.from_minigrid` enumerates every full state
+reachable from one reset seed (the agent's cell and direction, where the key is, the door's
+state) through MiniGrid's own `step`. The learner's options walk to and face the key, the door
+or the goal; between them it must use the primitives `pickup`, `toggle` and `forward` — the
+kind of task where a flat learner rarely tries the one primitive that matters. The mentor
+never turns left (three right turns instead) and has right-handed skills of its own: the
+learner can copy where it goes, not how it moves.
+
+The budget is `STEPS` primitive steps per run (`HIMIT_NOTEBOOK_STEPS` overrides it; the tests
+run this notebook with a tiny one). Needs the `[minigrid]` extra."""),
+    new_code_cell("""\
+import os
+
+import matplotlib.pyplot as plt
+import torch
+
+import himit_torch as ht
+
+STEPS = int(os.environ.get("HIMIT_NOTEBOOK_STEPS", 30_000))   # primitive steps per run
+SEEDS = int(os.environ.get("HIMIT_NOTEBOOK_SEEDS", 2))
+WINDOW = 1000 if STEPS >= 4000 else max(STEPS // 4, 1)
+torch.set_num_threads(1)
+plt.rcParams["figure.dpi"] = 100
+
+world = ht.from_minigrid("MiniGrid-DoorKey-6x6-v0")   # reset seed 0: one layout
+print(world)
+print("objects:", world.object_names)
+print("start:", world.describe_state(world.start_state))"""),
+    new_markdown_cell("""\
+## Options, the mentor and its demonstrations
+
+Exact planning on the table gives the optimum with primitives and with the learner's options;
+the mentor is optimal for its own (no left turn), a little slower. Its path is drawn over the
+grid as MiniGrid draws it."""),
+    new_code_cell("""\
+options = ht.minigrid_options(world)            # 6 primitives + "go to the key / door / goal"
+mentor = ht.minigrid_mentor(world)              # no left turn, right-handed skills
+print(options)
+print(mentor.options)
+for name, opts, policy in [
+    ("primitives", ht.primitive_options(world), None),
+    ("learner's options", options, None),
+    ("mentor", mentor.options, mentor.option),
+]:
+    models = ht.option_models(world, opts)
+    policy = ht.smdp_value_iteration(models).policy if policy is None else policy
+    steps = ht.expected_steps(ht.option_durations(world, opts), policy, 0, world.terminal_mask)
+    print(f"{name:>18}: {steps:.0f} steps start → goal")
+
+demos = ht.record_demonstrations(world, mentor, episodes=10, seed=0)
+path = world.cell_center(demos.episodes[0])
+fig, ax = plt.subplots(figsize=(4, 4))
+ax.imshow(world.render(world.start_state))
+ax.plot(path[:, 0], path[:, 1], "o-", color="tab:orange", ms=4, label="mentor")
+ax.set_axis_off()
+ax.legend(loc="lower left")
+plt.show()"""),
+    new_markdown_cell("""\
+## Learning
+
+Three agents, `SEEDS` runs each, in one batch: imitation (eq. 2, the mentor's states), options
+only and primitives only."""),
+    new_code_cell("""\
+agents = ["imitation", "options", "primitives"]
+learner = ht.Learner(
+    world, options, agents * SEEDS, [s for s in range(SEEDS) for _ in agents],
+    demonstrations=demos, reward=ht.KnownReward(world),
+    config=ht.LearnerConfig(window=WINDOW),
+)
+learner.run(STEPS)
+curve = learner.metrics.curve().double()        # goals per window, [windows, B]
+fig, ax = plt.subplots(figsize=(6, 3))
+for i, agent in enumerate(agents):
+    ax.plot(curve[:, i::len(agents)].mean(1), label=agent)
+ax.set_xlabel(f"window of {WINDOW} steps")
+ax.set_ylabel("goals per window")
+ax.legend()
+plt.show()
+print({a: float(curve[-1, i::len(agents)].mean()) for i, a in enumerate(agents)})"""),
+    new_markdown_cell("""\
+## The greedy policies, replayed in MiniGrid itself
+
+Each imitation run's greedy option policy, stepped in a fresh MiniGrid environment
+(`world.make_env`), each state read back with `world.state_of`, each frame from MiniGrid's own
+`render()`. A greedy policy may still loop somewhere (two turns that undo each other, where its
+values tie): the replay stops at a repeated (state, option) and says so. The first run that
+reached the goal is drawn: its path beside the mentor's over MiniGrid's drawing of the grid,
+then frames of its episode."""),
+    new_code_cell("""\
+def replay(run):
+    \"\"\"The run's greedy policy stepped in MiniGrid: its states, frames and how it ended.\"\"\"
+    greedy = learner.greedy_options([run])[0]
+    env = world.make_env(render_mode="rgb_array")
+    s, option, states, frames, seen = world.start_state, -1, [world.start_state], [env.render()], set()
+    while True:
+        if option < 0:
+            option = int(greedy[s])
+            if option < 0:
+                return states, frames, "no option chosen yet"
+        if (s, option) in seen:
+            return states, frames, "a loop"
+        seen.add((s, option))
+        _, reward, terminated, _, _ = env.step(int(options.policy[option, s]))
+        frames.append(env.render())
+        s = world.state_of(env)
+        states.append(s)
+        if terminated:
+            return states, frames, "reached the goal" if reward > 0 else "ended"
+        if float(options.termination[option, s]) >= 1.0:
+            option = -1
+
+replays = {run: replay(run) for run in range(0, len(agents) * SEEDS, len(agents))}
+for run, (states, frames, end) in replays.items():
+    print(f"imitation run {run // len(agents)}: {len(frames) - 1} steps, {end}")
+states, frames, _ = next((r for r in replays.values() if r[2] == "reached the goal"), replays[0])
+
+fig, ax = plt.subplots(figsize=(4, 4))              # both paths over MiniGrid's drawing
+ax.imshow(world.render(world.start_state))
+for path, color, label, shift in [(demos.episodes[0], "tab:orange", "mentor", -4),
+                                  (states, "tab:blue", "learner (greedy)", 4)]:
+    xy = world.cell_center(path) + shift           # side by side where the paths share cells
+    ax.plot(xy[:, 0], xy[:, 1], "o-", color=color, ms=3, label=label)
+ax.set_axis_off()
+ax.legend(loc="lower left", fontsize=8)
+plt.show()
+
+shown = frames[:: max(len(frames) // 6, 1)][:6]
+fig, axes = plt.subplots(1, len(shown), figsize=(2 * len(shown), 2), squeeze=False)
+for ax, frame in zip(axes[0], shown):
+    ax.imshow(frame)
+    ax.set_axis_off()
+plt.show()"""),
+]
+
 
 NOTEBOOKS = (("quickstart", QUICKSTART), ("intrinsic_reward", INTRINSIC),
              ("your_own_world", YOUR_OWN_WORLD), ("option_discovery", OPTION_DISCOVERY),
-             ("puzzle_box", PUZZLE_BOX))
+             ("puzzle_box", PUZZLE_BOX), ("minigrid", MINIGRID))
 
 
 def build() -> dict[str, nbformat.NotebookNode]:

@@ -57,6 +57,7 @@ def tiny_budget(monkeypatch, tmp_path):
         pytest.param("your_own_world", marks=pytest.mark.slow),
         pytest.param("option_discovery", marks=pytest.mark.slow),
         pytest.param("puzzle_box", marks=pytest.mark.slow),
+        pytest.param("minigrid", marks=pytest.mark.slow),
     ],
 )
 def test_notebook_runs_with_a_tiny_budget(name, tiny_budget):
@@ -102,6 +103,11 @@ def test_notebook_runs_with_a_tiny_budget(name, tiny_budget):
         assert "Taxi-v4(S=500, A=6, start states=300" in text and "drive to B" in text
         assert "V* from the start distribution: 6.327" in text
         assert "first goal at step" in text and "deliveries per run" in text  # both batches ran
+    elif name == "minigrid":
+        assert "MiniGrid-DoorKey-6x6-v0(S=1294, A=6" in text
+        assert text.count("14 steps start → goal") == 2  # exact: primitives, learner's options
+        assert "mentor: 18 steps start → goal" in text
+        assert "imitation run 0:" in text  # its greedy policy replayed in MiniGrid
     else:
         assert "8 runs × 400 steps" in text  # 8 variants × 1 seed, the tiny budget
         assert len(list((tiny_budget / "runs/intrinsic_reward/tb").glob("world40__*"))) == 8
