@@ -235,12 +235,10 @@ def test_a_flagged_run_resumes_only_with_the_configuration_it_started_with(capsy
 def test_each_learner_flag_reaches_the_learner_of_the_other_studies(study, field):
     """``himit run gymnasium`` and ``himit run puzzlebox`` take every learner setting as a flag
     (each study's own learner defaults otherwise)."""
-    from himit_torch.cli import _gym_config, _puzzle_box_config, build_parser
+    from himit_torch.cli import build_parser, study_configs
 
     text, expected = LEARNER_FLAGS[field]
     extra = ["--backups", "12"] if field == "sweep_rounds" else []
     argv = ["run", study, _flag(field), *([] if text is None else [text]), *extra]
-    config = (_gym_config if study == "gymnasium" else _puzzle_box_config)(
-        build_parser().parse_args(argv)
-    )
+    (config,) = study_configs(build_parser().parse_args(argv))
     assert getattr(config.learner, field) == expected

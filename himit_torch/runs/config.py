@@ -18,12 +18,9 @@ from himit_torch.learner.agents import AGENTS
 from himit_torch.learner.config import LearnerConfig
 from himit_torch.learner.learner import Learner
 from himit_torch.mentor.reward import MENTOR_REWARDS
-from himit_torch.runs.study import RunConfig
+from himit_torch.runs.study import RunConfig, read_config_file
 from himit_torch.validation import (
     check_memory,
-    parse_document,
-    read_text,
-    refuse_unknown_fields,
     setting,
 )
 from himit_torch.worlds.multirooms import MultiRooms, maze_doorways, primitives_only_goal
@@ -405,30 +402,15 @@ EXPERIMENTS: dict[str, ExperimentConfig] = {
 
 
 def load_config(path: str | os.PathLike) -> ExperimentConfig:
-    """An :class:`ExperimentConfig` from a JSON file (as saved in a run directory).
+    """An :class:`ExperimentConfig` from a JSON file (as saved in a run directory):
+    :func:`~himit_torch.runs.study.read_config_file`, the one reader of every study's.
 
     Raises:
         ValueError: the file is missing, a directory, not UTF-8 JSON, nested too deep, or holds
             unknown fields or values the configurations refuse; the message names the file.
             Other ``OSError`` exceptions (permissions, a failing disk) propagate.
     """
-    path = Path(path)
-    where = f"config file {path}"
-    data = parse_document(where, read_text(where, path), "json")
-    if not isinstance(data, dict):
-        raise ValueError(f"config file {path} must hold a JSON object")
-    refuse_unknown_fields(data, ExperimentConfig, f"config file {path}")
-    learner = data.get("learner", {})
-    if not isinstance(learner, dict):
-        raise ValueError(f"config file {path}: 'learner' must be an object")
-    refuse_unknown_fields(learner, LearnerConfig, f"config file {path}: learner")
-    try:
-        data["learner"] = LearnerConfig(**learner)
-        return ExperimentConfig(**data)
-    except ValueError as err:
-        raise ValueError(f"config file {path}: {err}") from None
-    except TypeError as err:
-        raise ValueError(f"config file {path}: {err}") from None
+    return read_config_file(ExperimentConfig, path)
 
 
 def setting_flag(name: str, value: Any) -> list[str]:
@@ -529,7 +511,7 @@ def run_command(config: ExperimentConfig, run_dir: str | os.PathLike | None = No
             and getattr(config.learner, f.name) != getattr(base.learner, f.name)
         }
         checkpoint_every = base.checkpoint_every
-        if "steps" in changes:  # as himit run moves it (cli._experiment_config)
+        if "steps" in changes:  # as himit run moves it (experiment._moved_checkpoints)
             window = changes.get("window", base.window)
             checkpoint_every = max(
                 window, min(base.checkpoint_every, changes["steps"] // window * window)
