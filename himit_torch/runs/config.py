@@ -9,10 +9,7 @@ choices, doc), as :class:`~himit_torch.learner.config.LearnerConfig`'s are: vali
 from __future__ import annotations
 
 import os
-import shlex
-from dataclasses import asdict, dataclass, fields, replace
-from pathlib import Path
-from typing import Any
+from dataclasses import dataclass, replace
 
 from himit_torch.learner.agents import AGENTS
 from himit_torch.learner.config import LearnerConfig
@@ -32,7 +29,6 @@ __all__ = [
     "LAYOUTS",
     "STRESS_SETTINGS",
     "load_config",
-    "run_command",
 ]
 
 #: ``ExperimentConfig.mentor_model``: counts of the demonstrations, or the mentor's exact model.
@@ -411,123 +407,3 @@ def load_config(path: str | os.PathLike) -> ExperimentConfig:
             Other ``OSError`` exceptions (permissions, a failing disk) propagate.
     """
     return read_config_file(ExperimentConfig, path)
-
-
-def setting_flag(name: str, value: Any) -> list[str]:
-    """``himit run``'s flag for setting ``name`` at ``value`` (the cli's ``_add_setting_flags``):
-    ``--name value``, ``--name a b`` for a tuple, ``none`` for None, ``--name`` / ``--no-name``
-    for a switch."""
-    flag = "--" + name.replace("_", "-")
-    if isinstance(value, bool):
-        return [flag if value else "--no-" + name.replace("_", "-")]
-    if value is None:
-        return [flag, "none"]
-    if isinstance(value, tuple):
-        return [flag, *(shlex.quote(str(v)) for v in value)]
-    if isinstance(value, float):
-        return [flag, repr(value)]
-    return [flag, shlex.quote(str(value))]
-
-
-def logdir_flag(run_dir: str | os.PathLike | None, name: str) -> list[str] | None:
-    """``himit run``'s ``--logdir`` that writes run ``name`` into ``run_dir``
-    (``<logdir>/<name>``): none for the default ``runs`` (or no ``run_dir``), None where
-    ``run_dir`` is not named ``name`` (no ``himit run`` writes there)."""
-    if run_dir is None:
-        return []
-    run_dir = Path(run_dir)
-    if run_dir.name != name:
-        return None
-    return [] if run_dir.parent == Path("runs") else ["--logdir", shlex.quote(str(run_dir.parent))]
-
-
-def quick_run_command(
-    subcommand: str, config: Any, run_dir: str | os.PathLike | None, names: tuple[str, ...]
-) -> str | None:
-    """The ``himit run <subcommand>`` command that rebuilds ``config`` exactly from its flags
-    ``--quick`` and ``names`` (e.g. ``seeds``, ``steps``, ``engine``), or None where none can.
-    Those flags that differ from the defaults (``type(config)()``, or its ``.quick()``) are
-    applied as the command applies them, and the configuration they build is compared with
-    ``config`` field by field; ``run_dir`` (``<logdir>/<name>``) adds ``--logdir`` unless it
-    is the default ``runs``. The runners whose only flags are these (discovery, the puzzle
-    box) share it."""
-    logdir = logdir_flag(run_dir, config.name)
-    if logdir is None:
-        return None
-    for quick in (False, True):
-        base = type(config)().quick() if quick else type(config)()
-        changes = {
-            name: getattr(config, name)
-            for name in names
-            if getattr(config, name) != getattr(base, name)
-        }
-        try:
-            rebuilt = replace(base, **changes)
-        except ValueError:
-            continue
-        if asdict(rebuilt) == asdict(config):
-            flags = ["--quick"] if quick else []
-            for name, value in changes.items():
-                flags += setting_flag(name, value)
-            return " ".join(["himit", "run", subcommand, *flags, *logdir])
-    return None
-
-
-def run_command(config: ExperimentConfig, run_dir: str | os.PathLike | None = None) -> str | None:
-    """The ``himit run`` command that rebuilds ``config`` exactly, or None where none can.
-
-    The flags are those that differ from the experiment's own (:data:`EXPERIMENTS`, after its
-    ``--preset``), applied as ``himit run`` applies them (the preset first, then the settings;
-    a changed ``--steps`` moves ``checkpoint_every`` unless that is given too); the
-    configuration they build is compared with ``config``, field by field, and where it differs
-    the command is ``himit run <name> --config <run_dir>/config.json``. ``run_dir`` (the run
-    directory, ``<logdir>/<name>``) adds ``--logdir`` unless it is the default ``runs``. None:
-    ``config.name`` is not one of :data:`EXPERIMENTS` (a sweep's trial, the demo), which
-    ``himit run`` does not run by that name, or ``run_dir`` is not named ``config.name`` (no
-    ``himit run`` writes there)."""
-    base = EXPERIMENTS.get(config.name)
-    logdir = logdir_flag(run_dir, config.name)
-    if base is None or logdir is None:
-        return None
-    flags: list[str] = []
-    try:
-        if config.preset != base.preset:
-            flags += setting_flag("preset", config.preset)
-            base = (
-                replace(base, preset=None)
-                if config.preset is None
-                else base.with_preset(config.preset)
-            )
-        owned = {"name", "learner", "preset", "checkpoint_every"}
-        changes = {
-            f.name: getattr(config, f.name)
-            for f in fields(ExperimentConfig)
-            if f.name not in owned and getattr(config, f.name) != getattr(base, f.name)
-        }
-        learner_changes = {
-            f.name: getattr(config.learner, f.name)
-            for f in fields(LearnerConfig)
-            if f.name != "window"  # the experiment's window (--window)
-            and getattr(config.learner, f.name) != getattr(base.learner, f.name)
-        }
-        checkpoint_every = base.checkpoint_every
-        if "steps" in changes:  # as himit run moves it (experiment._moved_checkpoints)
-            window = changes.get("window", base.window)
-            checkpoint_every = max(
-                window, min(base.checkpoint_every, changes["steps"] // window * window)
-            )
-        if config.checkpoint_every != checkpoint_every:
-            changes["checkpoint_every"] = config.checkpoint_every
-        rebuilt = replace(
-            base,
-            **{"checkpoint_every": checkpoint_every, **changes},
-            learner=replace(base.learner, **learner_changes),
-        )
-    except (ValueError, TypeError):
-        rebuilt = None
-    if rebuilt is None or asdict(rebuilt) != asdict(config):
-        where = Path(run_dir) / "config.json" if run_dir is not None else Path("config.json")
-        return " ".join(["himit", "run", config.name, "--config", shlex.quote(str(where)), *logdir])
-    for name, value in {**changes, **learner_changes}.items():
-        flags += setting_flag(name, value)
-    return " ".join(["himit", "run", config.name, *flags, *logdir])

@@ -519,9 +519,10 @@ def discovery_run_command(
     ``himit run discovery`` (``--quick``, ``--seeds``, ``--steps``, ``--engine``) that differ
     from the defaults, applied as it applies them; the configuration they build is compared
     with ``config`` field by field. ``run_dir`` (``<logdir>/<name>``) adds ``--logdir``."""
-    from himit_torch.runs.config import quick_run_command
+    from himit_torch.runs.rerun import rerun_command
 
-    return quick_run_command("discovery", config, run_dir, ("seeds", "steps", "engine"))
+    names = ("seeds", "steps", "engine")
+    return rerun_command("discovery", DiscoveryConfig(), config, run_dir, names, quick=True)
 
 
 def _fmt(values, digits: int = 1) -> str:

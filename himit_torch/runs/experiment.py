@@ -55,15 +55,17 @@ from himit_torch.mentor.reward import mentor_reward_module
 from himit_torch.options.builders import learner_options, mentor_options
 from himit_torch.options.bundle import Options
 from himit_torch.runs.checkpoints import BatchShape
-from himit_torch.runs.config import EXPERIMENTS, ExperimentConfig, load_config, run_command
+from himit_torch.runs.config import EXPERIMENTS, ExperimentConfig, load_config
 from himit_torch.runs.greedy import CURVE_COLUMNS, GreedyReference, GreedyTracker
 from himit_torch.runs.pool import run_pool, workers_for
+from himit_torch.runs.rerun import rerun_command
 from himit_torch.runs.runner import (
     Checkpoints,
     Maps,
     WindowHook,
     batch_runs,
     check_run_dir,
+    merge_csv,
     run_names,
     run_windows,
     source_commit,
@@ -91,6 +93,7 @@ __all__ = [
     "check_curves",
     "WorldResult",
     "rewrite_report",
+    "run_command",
     "optimal_reference",
     "PAPER",
 ]
@@ -1070,19 +1073,8 @@ def check_curves(path: Path) -> None:
 
 
 def _merge_curves(run_dir: Path, config: ExperimentConfig) -> None:
-    rows: list[list[str]] = []
-    header: list[str] = []
-    for size in config.sizes:
-        with (run_dir / "worlds" / f"curves{size}.csv").open() as f:
-            reader = csv.reader(f)
-            header = next(reader)
-            rows.extend(reader)
-    tmp = run_dir / "curves.csv.tmp"
-    with tmp.open("w", newline="") as f:
-        out = csv.writer(f)
-        out.writerow(header)
-        out.writerows(rows)
-    os.replace(tmp, run_dir / "curves.csv")
+    parts = [run_dir / "worlds" / f"curves{size}.csv" for size in config.sizes]
+    merge_csv(parts, run_dir / "curves.csv")
 
 
 # ================================================================ the command line's entries
@@ -1091,6 +1083,20 @@ PAPER_EXPERIMENTS = ("exp1", "exp2", "exp3")
 
 #: Window over which the paper counts goals (its Figs. 3 and 4).
 GOALS_WINDOW = 5000
+
+
+def run_command(config: ExperimentConfig, run_dir: str | os.PathLike | None = None) -> str | None:
+    """The ``himit run`` command that rebuilds ``config`` exactly
+    (:func:`~himit_torch.runs.rerun.rerun_command` from the experiment's own,
+    :data:`~himit_torch.runs.config.EXPERIMENTS`; where no flags do,
+    ``himit run <name> --config <run_dir>/config.json``), or None where ``config.name`` is not
+    one of them (a sweep's trial, the demo) or ``run_dir`` is not named ``config.name``."""
+    base = EXPERIMENTS.get(config.name)
+    if base is None:
+        return None
+    return rerun_command(
+        config.name, base, config, run_dir, adjust=_moved_checkpoints, config_file=True
+    )
 
 
 def _moved_checkpoints(config: ExperimentConfig, given: frozenset[str]) -> ExperimentConfig:

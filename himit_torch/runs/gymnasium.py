@@ -67,8 +67,10 @@ from himit_torch.options.bundle import Options
 from himit_torch.options.taxi import taxi_navigation_options
 from himit_torch.options.toy_text import cliff_options, frozen_lake_options
 from himit_torch.runs.greedy import CURVE_COLUMNS, GreedyReference, GreedyTracker
+from himit_torch.runs.rerun import rerun_command
 from himit_torch.runs.runner import (
     batch_runs,
+    merge_csv,
     run_names,
     run_windows,
     source_commit,
@@ -237,40 +239,14 @@ def gym_run_command(
     ``--tie-break``) that differ from the comparison's defaults, applied as it applies them;
     the configuration they build is compared with ``config`` field by field. ``run_dir``
     (``<logdir>/<name>``) adds ``--logdir`` unless it is the default ``runs``."""
-    from himit_torch.runs.config import logdir_flag, setting_flag
-
-    logdir = logdir_flag(run_dir, config.name)
-    if logdir is None:
-        return None
-    for quick in (False, True):
-        base = GymExperimentConfig().quick() if quick else GymExperimentConfig()
-        flags = ["--quick"] if quick else []
-        try:
-            if config.preset != base.preset:
-                flags += setting_flag("preset", config.preset)
-                base = (
-                    replace(base, preset=None)
-                    if config.preset is None
-                    else base.with_preset(config.preset)
-                )
-            changes = {
-                name: getattr(config, name)
-                for name in ("seeds", "first_seed", "steps", "device")
-                if getattr(config, name) != getattr(base, name)
-            }
-            tie_break = config.learner.tie_break
-            learner = replace(base.learner, tie_break=tie_break)
-            rebuilt = replace(base, **changes, learner=learner)
-        except (ValueError, TypeError):
-            continue
-        if asdict(rebuilt) != asdict(config):
-            continue
-        for name, value in changes.items():
-            flags += setting_flag(name, value)
-        if tie_break != base.learner.tie_break:
-            flags += setting_flag("tie_break", tie_break)
-        return " ".join(["himit", "run", "gymnasium", *flags, *logdir])
-    return None
+    return rerun_command(
+        "gymnasium",
+        GymExperimentConfig(),
+        config,
+        run_dir,
+        names=("preset", "seeds", "first_seed", "steps", "device", "tie_break"),
+        quick=True,
+    )
 
 
 # ================================================================================ evaluation
@@ -562,11 +538,8 @@ class GymnasiumStudy:
     ) -> list[dict]:
         """Every task's batch, then ``curves.csv``; the tasks' summaries."""
         summaries = [run_task(config, t, run_dir, progress) for t in config.tasks]
-        with (run_dir / "curves.csv").open("w", newline="") as out:
-            out.write(",".join(_COLUMNS) + "\n")
-            for t in config.tasks:
-                lines = (run_dir / "tasks" / f"{t}.csv").read_text().splitlines()[1:]
-                out.write("".join(line + "\n" for line in lines))
+        parts = [run_dir / "tasks" / f"{t}.csv" for t in config.tasks]
+        merge_csv(parts, run_dir / "curves.csv", newline="\n")
         return summaries
 
     def report(self, config: GymExperimentConfig, run_dir: Path, summaries: list[dict]) -> None:

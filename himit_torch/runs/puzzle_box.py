@@ -61,6 +61,7 @@ from himit_torch.options.puzzle_box import intended_rollout, puzzle_box_options
 from himit_torch.runs.checkpoints import BatchShape
 from himit_torch.runs.runner import (
     Checkpoints,
+    merge_csv,
     run_names,
     run_windows,
     source_commit,
@@ -251,9 +252,10 @@ def puzzle_box_run_command(
     (``--quick``, ``--seeds``, ``--steps``, ``--engine``) that differ from the defaults, applied
     as it applies them; the configuration they build is compared with ``config`` field by
     field. ``run_dir`` (``<logdir>/<name>``) adds ``--logdir`` unless it is ``runs``."""
-    from himit_torch.runs.config import quick_run_command
+    from himit_torch.runs.rerun import rerun_command
 
-    return quick_run_command("puzzlebox", config, run_dir, ("seeds", "steps", "engine"))
+    names = ("seeds", "steps", "engine")
+    return rerun_command("puzzlebox", PuzzleBoxConfig(), config, run_dir, names, quick=True)
 
 
 def recorded_run_command(run_dir: str | os.PathLike) -> str | None:
@@ -779,11 +781,8 @@ def _write_summary(
     config: PuzzleBoxConfig, run_dir: Path, small: PuzzleBox, plans: dict, batches: list[dict]
 ) -> dict[str, Any]:
     """``curves.csv`` (every batch's rows) and ``summary.json``; the summary."""
-    with (run_dir / "curves.csv").open("w", newline="") as out:
-        out.write(",".join(_COLUMNS) + "\n")
-        for b in batches:
-            lines = (run_dir / "batches" / f"{b['batch']}.csv").read_text().splitlines()[1:]
-            out.write("".join(line + "\n" for line in lines))
+    parts = [run_dir / "batches" / f"{b['batch']}.csv" for b in batches]
+    merge_csv(parts, run_dir / "curves.csv", newline="\n")
     summary = {
         "config": {**asdict(config), "box_steps": small.steps},
         "commit": source_commit(),

@@ -526,7 +526,7 @@ def test_run_command_rebuilds_the_configuration(config, tmp_path):
     import shlex
 
     from himit_torch.cli import build_parser, study_configs
-    from himit_torch.runs.config import run_command
+    from himit_torch.runs.experiment import run_command
 
     command = run_command(config, tmp_path / "logs" / config.name)
     assert command is not None and "--config" not in command
@@ -554,7 +554,7 @@ def test_run_command_where_no_flags_rebuild_it(tmp_path):
 
 
 def run_command_of(config, run_dir=None):
-    from himit_torch.runs.config import run_command
+    from himit_torch.runs.experiment import run_command
 
     return run_command(config, run_dir)
 
