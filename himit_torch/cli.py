@@ -405,15 +405,16 @@ def _add_study(sub: argparse.ArgumentParser, study: StudyEntry) -> None:
         defaults=defaults,
     )
     if any(f.name == "learner" for f in dataclasses.fields(config_class)):
+        derived = getattr(config_class, "derived_learner", ())
         _add_setting_flags(
             sub.add_argument_group(
                 "learner settings",
-                "Fields of LearnerConfig, this study's defaults shown. Its window is the "
-                "study's --window.",
+                "Fields of LearnerConfig, this study's defaults shown. Those it derives from "
+                f"its own settings ({', '.join(derived)}) are not flags.",
             ),
             LearnerConfig,
             "learner",
-            skip=("window",),
+            skip=derived,
             defaults=defaults.learner,
         )
 

@@ -31,7 +31,8 @@ def _expected_flags(name: str) -> set[str]:
         if s.name not in study.skip and not dataclasses.is_dataclass(s.kind)
     }
     if any(f.name == "learner" for f in dataclasses.fields(config_class)):
-        names |= {s.name for s in settings_of(LearnerConfig) if s.name != "window"}
+        derived = config_class.derived_learner
+        names |= {s.name for s in settings_of(LearnerConfig) if s.name not in derived}
     return {"--" + n.replace("_", "-") for n in names}
 
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass, replace
+from typing import Any, ClassVar
 
 from himit_torch.learner.agents import AGENTS
 from himit_torch.learner.config import LearnerConfig
@@ -177,7 +178,7 @@ class ExperimentConfig(RunConfig):
         ``second_mentor_noise`` (as ``mentor_noise`` does); ``detour``: a second mentor taking
         the needless detour of ``mentor_detour``. The second mentor's ``mentor_episodes``
         episodes come from a generator of its own, and go to the learner's second mentor model
-        (set ``learner.mentors = 2``). The first mentor is the one ``mentor_noise`` and
+        (``learner.mentors`` is derived from it: 2 with a second mentor, else 1). The first mentor is the one ``mentor_noise`` and
         ``mentor_detour`` describe; the "% of mentor" reference stays the undisturbed mentor's
         policy.""",
     )
@@ -243,6 +244,16 @@ class ExperimentConfig(RunConfig):
     learner: LearnerConfig = RunConfig.shared("learner", default_factory=LearnerConfig)
     preset: str | None = RunConfig.shared("preset", None)
 
+    #: The learner settings derived from the experiment's own: its window, and its mentors
+    #: (2 with a ``second_mentor``, else 1).
+    derived_learner: ClassVar[tuple[str, ...]] = ("window", "mentors")
+
+    def derived_learner_settings(self) -> dict[str, Any]:
+        """:meth:`RunConfig.derived_learner_settings`, and ``mentors``: the demonstration sets
+        the experiment shows (2 with a ``second_mentor``, else 1)."""
+        derived = super().derived_learner_settings()
+        return {**derived, "mentors": 1 + (self.second_mentor != "none")}
+
     def __post_init__(self):
         self.check_run_settings()
         # Cross-field rules (each field on its own is checked above).
@@ -265,14 +276,7 @@ class ExperimentConfig(RunConfig):
             )
             if getattr(self, name) != neutral
         ]
-        watched = 1 + (self.second_mentor != "none")
-        if self.learner.mentors != watched:
-            raise ValueError(
-                f"ExperimentConfig.learner.mentors={self.learner.mentors}: this experiment "
-                f"shows {watched} demonstration set(s) (second_mentor={self.second_mentor!r}); "
-                f"set learner.mentors={watched} (--mentors {watched}), or "
-                f"second_mentor={'noisy' if watched == 1 else 'none'!r}"
-            )
+        watched = self.learner.mentors
         if watched > 1:
             stressed.append(f"second_mentor={self.second_mentor!r}")
         for name, neutral in (("mentor_coverage", 1.0), ("mentor_goal", "same")):

@@ -103,7 +103,7 @@ def _flags_rebuilding(base: Any, config: Any, names, adjust) -> list[str] | None
         if hasattr(config, "learner"):
             for f in fields(config.learner):
                 value = getattr(config.learner, f.name)
-                if f.name != "window" and _wanted(f.name, names):
+                if f.name not in config.derived_learner and _wanted(f.name, names):
                     learner.update(
                         {f.name: value} if value != getattr(base.learner, f.name) else {}
                     )

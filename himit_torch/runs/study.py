@@ -162,7 +162,8 @@ class RunConfig:
     def check_run_settings(self) -> None:
         """Check every declared field (:func:`~himit_torch.validation.check_settings`), then
         the rules of the shared settings a study has: its learner follows its preset, its
-        device is written well, and the learner's window is the study's."""
+        device is written well, and the learner settings it derives
+        (:meth:`derived_learner_settings`) are set."""
         check_settings(self)
         config: Any = self  # a study's dataclass: the shared fields it has
         kind = type(self).__name__
@@ -172,9 +173,22 @@ class RunConfig:
             # Written down, not run: a config naming cuda is valid on a machine without
             # (plotting a GPU run's directory); the learner refuses it where it would run.
             as_device(f"{kind}.device", config.device, available=False)
-        if hasattr(config, "learner") and hasattr(config, "window"):
-            if config.learner.window != config.window:
-                config.learner = replace(config.learner, window=config.window)
+        if hasattr(config, "learner"):
+            derived = self.derived_learner_settings()
+            if any(getattr(config.learner, k) != v for k, v in derived.items()):
+                config.learner = replace(config.learner, **derived)
+
+    #: The learner settings a study derives from its own (``derived_learner_settings``).
+    derived_learner: ClassVar[tuple[str, ...]] = ("window",)
+
+    def derived_learner_settings(self) -> dict[str, Any]:
+        """The learner settings that follow from this study's own, by name: one policy for
+        every such setting — **derived and recorded**. The study sets them on its learner
+        (whatever the learner's own value was), ``config.json`` records them, and they are no
+        flags of ``himit run`` (the study's own setting is). Here: the learner's ``window`` is
+        the study's ``window``; a study adds its own (:attr:`derived_learner` names them)."""
+        window = getattr(self, "window", None)
+        return {} if window is None else {"window": window}
 
     def with_preset(self: Config, name: str) -> Config:
         """This configuration with preset ``name``'s learner settings, and the preset
