@@ -31,46 +31,20 @@ import re
 import sys
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, NoReturn
 
 import torch
 
 from himit_torch import __version__
-from himit_torch.exact.greedy_evaluation import (
-    OptionPolicy,
-    PolicyEvaluator,
-    evaluate_option_choice,
-)
-from himit_torch.exact.option_models import (
-    option_durations,
-    option_models,
-    option_models_and_durations,
-)
-from himit_torch.exact.planning import expected_steps, smdp_value_iteration
 from himit_torch.learner.config import LearnerConfig
 from himit_torch.learner.engines import ENGINES
-from himit_torch.mentor.demonstrations import Demonstrations
-from himit_torch.mentor.policy import mentor_policy, run_mentor
-from himit_torch.options.builders import learner_options, mentor_options, primitive_options
-from himit_torch.options.bundle import Options
-from himit_torch.runs.config import ExperimentConfig
 from himit_torch.runs.runner import freeze_at_exit
+from himit_torch.runs.studies import STUDIES, info_topics, study_of_run_dir
+from himit_torch.runs.study import RunFlags, StudyEntry, read_config_file
 from himit_torch.validation import COUNT_MAX, as_device, settings_of
-from himit_torch.viz.tensorboard import tensorboard_command
-from himit_torch.worlds.multirooms import MultiRooms
 
-__all__ = ["main", "build_parser", "COMMANDS"]
-
-#: Window over which the paper counts goals (its Figs. 3 and 4).
-GOALS_WINDOW = 5000
-
-#: The paper's optimal-policy numbers, by (size, rooms, slip): (experiment, steps, goals / 5000).
-PAPER_OPTIMUM = {
-    (80, 10, 0.1): ("experiment 1", 190.0, 26.3),
-    (40, 10, 0.1): ("experiment 2", 5000 / 53.2, 53.2),
-}
+__all__ = ["main", "build_parser", "COMMANDS", "study_configs"]
 
 
 class _Parser(argparse.ArgumentParser):
@@ -240,390 +214,45 @@ def _flag(field: str) -> str:
 
 
 # ------------------------------------------------------------------------------------- info
-@dataclass(frozen=True)
-class OptimalTrip:
-    """Expected primitive steps from start to goal of a policy, and its goals per window (the
-    long-run rate of episode after episode: :mod:`himit_torch.exact.greedy_evaluation`)."""
-
-    steps: float
-    goals_per_window: float
-
-
-def optimal_trip(
-    world: MultiRooms, options: Options, policy: torch.Tensor | None = None
-) -> OptimalTrip:
-    """Steps start → goal of the optimal policy for ``options`` (or of the given ``policy [S]``,
-    e.g. the mentor's), evaluated exactly like every greedy policy of a run
-    (:class:`~himit_torch.exact.greedy_evaluation.PolicyEvaluator`): exact option models →
-    SMDP value iteration → the policy's expected steps and goal rate."""
-    if policy is None:
-        models = option_models_and_durations(world, options)
-        policy = smdp_value_iteration(models[0]).policy
-        evaluation = PolicyEvaluator(world, options, GOALS_WINDOW, models=models).evaluate(
-            OptionPolicy.deterministic(policy), values=False
-        )
-    else:
-        evaluation = evaluate_option_choice(world, options, policy, GOALS_WINDOW)
-    return OptimalTrip(
-        float(evaluation.steps_per_episode[0]), float(evaluation.goals_per_window[0])
-    )
-
-
-def _kind_counts(options: Options) -> str:
-    counts: dict[str, int] = {}
-    for k in options.kinds:
-        counts[k] = counts.get(k, 0) + 1
-    return ", ".join(f"{n} {k}" for k, n in counts.items())
-
-
 def cmd_info(args: argparse.Namespace) -> int:
+    """``himit info``: what the study that owns the chosen world says of it (the paper's
+    MultiRooms world unless a study's flag, e.g. ``--env`` or ``--puzzle-box``, chooses
+    another)."""
     t0 = time.perf_counter()
-    if args.env is not None and args.puzzle_box is not None:
-        raise ValueError("give --env or --puzzle-box, not both")
-    if args.puzzle_box is not None and args.env_kwargs is not None:
-        raise ValueError(
-            "--env-kwargs is for a Gymnasium environment (--env), not --puzzle-box: leave it out"
-        )
-    if args.puzzle_box is None and args.pinch_slip is not None:
-        raise ValueError(
-            "--pinch-slip is the puzzle box's: give --puzzle-box K too (e.g. --puzzle-box 4 "
-            "--pinch-slip 0.2), or leave it out"
-        )
-    if args.minigrid is not None:
-        return _info_minigrid(args, t0)
-    if args.env is not None:
-        return _info_gymnasium(args, t0)
-    if args.puzzle_box is not None:
-        return _info_puzzle_box(args, t0)
-    if args.env_kwargs is not None:
-        raise ValueError(
-            "--env-kwargs is for a Gymnasium environment: give --env too (e.g. --env "
-            'FrozenLake-v1 --env-kwargs \'{"map_name": "8x8"}\'), or leave it out'
-        )
-    world = MultiRooms(size=args.size, rooms=args.rooms, slip=args.slip)
-    learner = learner_options(
-        world, doorways=not args.no_doorway_options, corners=args.corner_options
-    )
-    mentor_opts = mentor_options(world, corners=args.corner_options)
-    free = int(world.free_mask.sum())
-    print(
-        f"world      {world.size}×{world.size} cells, {world.rooms}×{world.rooms} rooms "
-        f"{world.room_size} cells apart (one-cell walls between), slip {world.slip}, gamma "
-        f"{world.gamma}, reward {world.step_reward} a step and {world.goal_reward} at the goal"
-    )
-    print(
-        f"states     {world.num_states} (free cells {free}, doorways {len(world.doorway_rooms)}, "
-        f"rooms {world.num_rooms})"
-    )
-    print(f"start/goal {world.coords(world.start_state)} → {world.coords(world.goal_state)}")
-    print(
-        f"learner    {learner.num_options} options ({_kind_counts(learner)}; doorway/corner "
-        "options head directly to their target)"
-    )
-    print(
-        f"mentor     {mentor_opts.num_options} options ({_kind_counts(mentor_opts)}; doorway/corner "
-        "options travel along the room's walls)"
-    )
-    rows = [
-        ("primitives only", optimal_trip(world, primitive_options(world))),
-        ("learner's options", optimal_trip(world, learner)),
-    ]
-    mentor = mentor_policy(world, mentor_opts)
-    rows.append(
-        (
-            f"mentor (prefers its options within {mentor.tolerance:g})",
-            optimal_trip(world, mentor_opts, mentor.option),
-        )
-    )
-    width = max(len(name) for name, _ in rows) + 2
-    print(
-        f"\n{'optimal policy':<{width}}{'steps start→goal':>18}{f'goals / {GOALS_WINDOW} steps':>22}"
-    )
-    for name, trip in rows:
-        print(f"{name:<{width}}{trip.steps:>18.1f}{trip.goals_per_window:>22.1f}")
-    paper = PAPER_OPTIMUM.get((world.size, world.rooms, world.slip))
-    if paper is not None:
-        experiment, steps, goals = paper
-        print(f"{'paper, ' + experiment:<{width}}{'≈' + format(steps, '.0f'):>18}{goals:>22.1f}")
-    print(f"\n({time.perf_counter() - t0:.1f} s)")
-    return 0
-
-
-def _info_gymnasium(args: argparse.Namespace, t0: float) -> int:
-    """``himit info --env``: a Gymnasium world through the adapter, exactly solved."""
-    import json
-
-    from himit_torch.exact.planning import value_iteration
-    from himit_torch.mentor.reward import KnownReward
-    from himit_torch.runs.gymnasium import TASKS, episode_statistics
-    from himit_torch.worlds.gymnasium import from_gymnasium
-    from himit_torch.worlds.table_world import world_model
-
-    try:
-        kwargs = json.loads(args.env_kwargs) if args.env_kwargs else {}
-    except json.JSONDecodeError as err:
-        raise ValueError(f"--env-kwargs is not valid JSON: {err}") from None
-    if not isinstance(kwargs, dict):
-        raise ValueError('--env-kwargs must be a JSON object, e.g. \'{"map_name": "8x8"}\'')
-    task = TASKS.get(args.env)
-    if task is not None:
-        if kwargs:
-            raise ValueError(
-                f"--env {args.env} is a task with its own kwargs ({task.kwargs}); give "
-                f"--env {task.env_id} to choose them"
-            )
-        world = task.world(args.gamma)
-        options = task.options(world)
-    else:
-        world = from_gymnasium(args.env, gamma=args.gamma, **kwargs)
-        options = primitive_options(world)
-    P, R = world_model(world)
-    plan = value_iteration(P, R, world.gamma)
-    mu = world.start_distribution
-    rewards = world.dynamics_table().rewards
-    known = KnownReward(world)
-    print(
-        f"world      {world.name} {world.describe().get('kwargs', {})} through from_gymnasium, "
-        f"gamma {world.gamma}"
-    )
-    print(
-        f"states     {world.num_states} (start states {int((mu > 0).sum())}, terminal "
-        f"{int(world.terminal_mask.sum())}, goal {int(world.goal_mask.sum())})"
-    )
-    print(f"actions    {world.num_actions}: {', '.join(world.action_names)}")
-    print(
-        f"rewards    {float(rewards.min()):g} … {float(rewards.max()):g} per transition; "
-        f"mentor reward: {known.note}"
-    )
-    extended = [n for n, k in zip(options.names, options.kinds) if k != "primitive"]
-    print(
-        f"learner    {options.num_options} options ({_kind_counts(options)}"
-        + (f": {', '.join(extended)})" if extended else ")")
-    )
-    p_goal, length = episode_statistics(world, plan.policy)
-    models = smdp_value_iteration(option_models(world, options))
-    print("\noptimal (value iteration on the true model, primitives)")
-    print(f"  V*(start distribution)      {float(plan.values @ mu):.3f}")
-    print(f"  with the learner's options  {float(models.values @ mu):.3f}")
-    print(f"  P(goal) per episode         {p_goal:.3f}")
-    print(f"  steps per episode           {length:.1f}")
-    print(f"  {f'goals per {GOALS_WINDOW} steps':<28}{GOALS_WINDOW * p_goal / length:.1f}")
-    print(f"\n({time.perf_counter() - t0:.1f} s)")
-    return 0
-
-
-def _info_minigrid(args: argparse.Namespace, t0: float) -> int:
-    """``himit info --minigrid ID``: a MiniGrid task (seed 0, MiniGrid's determinism) as a world,
-    its options and mentor, solved exactly."""
-    from himit_torch.mentor.minigrid import minigrid_mentor
-    from himit_torch.options.minigrid import minigrid_options
-    from himit_torch.worlds.minigrid import from_minigrid
-
-    if args.env is not None or args.puzzle_box is not None or args.env_kwargs is not None:
-        raise ValueError("give --minigrid alone, without --env, --env-kwargs or --puzzle-box")
-    # (Any: optimal_trip is annotated for MultiRooms but evaluates any world with a model)
-    world: Any = from_minigrid(args.minigrid, gamma=args.gamma)
-    terminal = int(world.terminal_mask.sum())
-    print(
-        f"world      {world.name}, reset seed {world.seed}, {world.width}×{world.height} cells, "
-        f"no slip (MiniGrid's own step), gamma {world.gamma}, reward −0.01 a step and +1 at "
-        "success"
-    )
-    print(
-        f"states     {world.num_states:,} reachable ({terminal} entered at success); objects: "
-        f"{', '.join(world.object_names) or 'none'}"
-    )
-    print(f"actions    {world.num_actions}: {', '.join(world.action_names)}")
-    learner, mentor_opts = minigrid_options(world), minigrid_options(world, "mentor")
-    skills = [n for n, k in zip(learner.names, learner.kinds) if k != "primitive"]
-    print(
-        f"learner    {learner.num_options} options ({_kind_counts(learner)}: {', '.join(skills)})"
-    )
-    print(
-        f"mentor     {mentor_opts.num_options} options ({_kind_counts(mentor_opts)}; no left turn, "
-        "right-handed skills)"
-    )
-    mentor = minigrid_mentor(world, mentor_opts)
-    rows = [
-        ("primitives only", optimal_trip(world, primitive_options(world))),
-        ("learner's options", optimal_trip(world, learner)),
-        (
-            f"mentor (prefers its options within {mentor.tolerance:g})",
-            optimal_trip(world, mentor_opts, mentor.option),
-        ),
-    ]
-    width = max(len(name) for name, _ in rows) + 2
-    print(
-        f"\n{'optimal policy':<{width}}{'steps start→goal':>18}{f'goals / {GOALS_WINDOW} steps':>22}"
-    )
-    for name, trip in rows:
-        print(f"{name:<{width}}{trip.steps:>18.1f}{trip.goals_per_window:>22.1f}")
-    print(f"\n({time.perf_counter() - t0:.1f} s)")
-    return 0
-
-
-def _info_puzzle_box(args: argparse.Namespace, t0: float) -> int:
-    """``himit info --puzzle-box K``: the box's size, and the optimal cost of each hierarchical
-    organisation by exact planning."""
-    from himit_torch.exact.planning import optimal_baseline
-    from himit_torch.mentor.puzzle_box import organisation_mentor
-    from himit_torch.options.puzzle_box import puzzle_box_options
-    from himit_torch.worlds.puzzle_box import ORGANISATIONS, PuzzleBox, puzzle_box_size
-
-    k = args.puzzle_box
-    if k < 1 or k > 5:
-        raise ValueError(f"--puzzle-box {k}: give 1 … 5 skewers (6: 357,000 states)")
-    box = PuzzleBox(k, slip=args.slip, pinch_slip=args.pinch_slip)
-    sizes = ", ".join(f"k={j}: {puzzle_box_size(j):,}" for j in range(2, 6))
-    print(
-        f"world      {box.name}, slip {box.slip} (pinch {box.pinch_slip}), gamma {box.gamma}, "
-        f"reward {box.step_reward} a movement and {box.goal_reward} when the box opens"
-    )
-    print(f"states     {box.num_states:,} ((n+1)^k · (1+3k); {sizes})")
-    print(f"actions    {box.num_actions}: {', '.join(box.action_names)}")
-    from himit_torch.exact.greedy_evaluation import evaluate_option_choice
-
-    best = optimal_baseline(box)
-    rows = [("optimal policy (value iteration)", best.steps_to_goal, best.value_start)]
-    for style in ("learner", "mentor"):
-        options = puzzle_box_options(box, style)
-        if style == "learner":
-            print(f"learner    {options.num_options} options ({_kind_counts(options)})")
-        durations = option_durations(box, options)
-        for org in ORGANISATIONS:
-            policy = organisation_mentor(box, org, options=options).option
-            steps = expected_steps(durations, policy, box.start_state, box.terminal_mask)
-            value = float(evaluate_option_choice(box, options, policy, 1).value_start[0])
-            grip = "power" if style == "learner" else "pinch"
-            rows.append((f"{org:>6} by {org}, {style}'s skills ({grip})", steps, value))
-    print("\nexact planning; organisations: skewer by skewer / step by step across skewers")
-    width = max(len(name) for name, _, _ in rows) + 2
-    print(f"{'':<{width}}{'steps to open':>15}{'V(start)':>12}")
-    for name, steps, value in rows:
-        print(f"{name:<{width}}{steps:>15.3f}{value:>12.6f}")
+    topics = info_topics()
+    chosen = [t for t in topics if t.flag is not None and getattr(args, t.flag) is not None]
+    if len(chosen) > 1:
+        raise ValueError(f"give {' or '.join(_flag(t.flag) for t in chosen if t.flag)}, not both")
+    topic = chosen[0] if chosen else next(t for t in topics if t.flag is None)
+    for other in topics:
+        for dest in other.requires if other is not topic else ():
+            if getattr(args, dest) is not None:
+                raise ValueError(
+                    f"{_flag(dest)} is for {_flag(other.flag or '')}: give "
+                    f"{_flag(other.flag or '')} too, or leave it out"
+                )
+    for line in topic.show(args):
+        print(line)
     print(f"\n({time.perf_counter() - t0:.1f} s)")
     return 0
 
 
 def _add_info(sub: argparse.ArgumentParser) -> None:
     sub.add_argument(
-        "--env",
-        help="a Gymnasium tabular environment instead of MultiRooms: an id "
-        "(e.g. Taxi-v4, FrozenLake-v1) or a task of himit run gymnasium "
-        "(taxi, cliffwalking, frozenlake8x8)",
-    )
-    sub.add_argument(
-        "--env-kwargs",
-        help='JSON keyword arguments of gymnasium.make, e.g. \'{"map_name": "8x8"}\'',
-    )
-    sub.add_argument(
-        "--minigrid",
-        metavar="ID",
-        help="a MiniGrid task, e.g. MiniGrid-DoorKey-8x8-v0 (reset seed 0): its states, the "
-        "learner's and the mentor's options, the optimum's steps and the mentor's goal rate",
-    )
-    sub.add_argument(
-        "--puzzle-box",
-        type=int,
-        metavar="K",
-        help="the puzzle box with K skewers of 4 steps (Whiten et al.'s keyway-fruit box): its "
-        "size and the optimal cost of each hierarchical organisation",
-    )
-    sub.add_argument(
-        "--pinch-slip",
-        type=float,
-        help="--puzzle-box: failure probability of the mentor's pinch grip (default: --slip)",
-    )
-    sub.add_argument("--gamma", type=float, default=0.99, help="discount of a --env world (0.99)")
-    sub.add_argument("--size", type=int, default=40, help="cells per side, N (default 40)")
-    sub.add_argument("--rooms", type=int, default=10, help="rooms per side, R (default 10)")
-    sub.add_argument(
         "--slip", type=float, default=0.1, help="probability that an action fails (default 0.1)"
     )
-    sub.add_argument(
-        "--corner-options",
-        action="store_true",
-        help="give the learner (and the mentor) 8 corner options per room (experiment 1)",
-    )
-    sub.add_argument(
-        "--no-doorway-options",
-        action="store_true",
-        help="the learner gets primitives only (plus corners if asked)",
-    )
+    for topic in info_topics():
+        topic.add_flags(sub)
 
 
 # ------------------------------------------------------------------------------------- demo
 def cmd_demo(args: argparse.Namespace) -> int:
-    """The README's main job: experiment 2's world, the mentor's demonstrations and a short
-    batched learning run with TensorBoard logs and figures (about a minute on a laptop CPU)."""
-    from dataclasses import replace
+    """The README's main job (:mod:`himit_torch.runs.demo`)."""
+    from himit_torch.runs.demo import demo
 
-    from himit_torch.runs.config import EXPERIMENTS
-    from himit_torch.runs.experiment import run_experiment
-    from himit_torch.viz.plotting import (
-        save_world_figure,  # matplotlib only when a picture is wanted
-    )
-
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    world = MultiRooms(size=40, rooms=10)
-    options = mentor_options(world)
-    print(f"world     {world!r} (experiment 2)")
-    mentor = mentor_policy(world, options)
-    rollout = run_mentor(world, mentor, args.episodes, seed=args.seed)
-    demos = Demonstrations(list(rollout.states), world.describe())
-    lengths = demos.episode_lengths.double()
-    counts = rollout.decision_counts()
-    print(
-        f"mentor    {options.num_options} options; {args.episodes} episodes, "
-        f"{lengths.mean():.1f} steps on average (min {int(lengths.min())}, max "
-        f"{int(lengths.max())}); decisions: "
-        + ", ".join(f"{n} {k}" for k, n in sorted(counts.items()))
-    )
-    npz = demos.save(out / "demonstrations.npz")
-    png = save_world_figure(
-        out / "world_mentor.png",
-        world,
-        demos,
-        title=f"Mentor demonstrations ({args.episodes} episodes), 40×40, 10×10 rooms",
-    )
-    print(
-        f"saved     {npz}  (states only: {demos.num_transitions} transitions, "
-        f"{len(demos.visited_states())} distinct states)"
-    )
-    print(f"saved     {png}")
-    if args.steps == 0:
-        return 0
-    config = replace(
-        EXPERIMENTS["exp2"],
-        name="demo",
-        agents=("imitation", "options", "primitives"),
-        seeds=args.seeds,
-        first_seed=args.seed,
-        steps=args.steps,
-        mentor_episodes=args.episodes,
-        window=min(5000, args.steps),
-        checkpoint_every=min(5000, args.steps),
-    )
-    print(
-        f"learning  {len(config.agents)} agents × {config.seeds} seeds = "
-        f"{len(config.agents) * config.seeds} runs in one batch, {config.steps:,} steps each"
-    )
-    t0 = time.perf_counter()
-    results = run_experiment(config, out / "learning", force=True, progress=not args.quiet)
-    r = results[0]
-    for agent in config.agents:
-        idx = [b for b, a in enumerate(r.agents) if a == agent]
-        print(
-            f"  {agent:<12} goals in the last {config.window} steps: "
-            + ", ".join(str(r.final_window_goals[b]) for b in idx)
-            + f"   (optimal ≈ {r.optimal_goals_per_window:.1f})"
-        )
-    print(
-        f"saved     {out / 'learning'}/results.md, figures/, curves.csv  "
-        f"({time.perf_counter() - t0:.0f} s)"
-    )
-    print(f"watch     {tensorboard_command(out / 'learning' / 'tb')}")
+    lines = demo(Path(args.out), args.episodes, args.seed, args.seeds, args.steps, not args.quiet)
+    for line in lines:
+        print(line)
     return 0
 
 
@@ -649,241 +278,63 @@ def _add_demo(sub: argparse.ArgumentParser) -> None:
 
 
 # -------------------------------------------------------------------------------------- run
-@dataclass(frozen=True)
-class StudyCommand:
-    """One ``himit run STUDY``: its configuration class, its help, which of the run's own
-    flags it takes (``config``: a saved ``config.json`` in place of its defaults; ``resume``;
-    ``workers``: worlds in parallel) and its runner (``cmd_run`` dispatches by name). Its
-    setting flags are built from the configuration class: every declared field (the learner's
-    too, where it has one, but its ``window``, which is the study's ``--window``), so a new
-    setting is a flag of every study that has it, and a flag of another study's is refused in
-    one line."""
-
-    config_class: Callable[[], type]
-    help: str
-    run_flags: tuple[str, ...] = ()
-    skip: tuple[str, ...] = ()
-
-
-def _experiment_class() -> type:
-    return ExperimentConfig
-
-
-def _gym_class() -> type:
-    from himit_torch.runs.gymnasium import GymExperimentConfig
-
-    return GymExperimentConfig
-
-
-def _discovery_class() -> type:
-    from himit_torch.runs.discovery import DiscoveryConfig
-
-    return DiscoveryConfig
-
-
-def _puzzle_box_class() -> type:
-    from himit_torch.runs.puzzle_box import PuzzleBoxConfig
-
-    return PuzzleBoxConfig
-
-
-#: ``himit run paper``: the paper's three experiments, their worlds in one pool.
-PAPER_EXPERIMENTS = ("exp1", "exp2", "exp3")
-
-#: The studies of ``himit run``, by name.
-STUDIES: dict[str, StudyCommand] = {
-    **{
-        name: StudyCommand(
-            _experiment_class,
-            f"the paper's experiment {name[-1]} (himit_torch.runs.experiment)",
-            ("config", "resume", "workers"),
-        )
-        for name in PAPER_EXPERIMENTS
-    },
-    "paper": StudyCommand(
-        _experiment_class,
-        "the paper's experiments 1, 2 and 3, their worlds shared out over the cores together "
-        "(each keeps its own name and configuration)",
-        ("resume", "workers"),
-        skip=("name",),
-    ),
-    "gymnasium": StudyCommand(
-        _gym_class,
-        "imitation against options and primitives on Gymnasium's Taxi, CliffWalking and "
-        "FrozenLake 8×8 (himit_torch.runs.gymnasium; each task is one batch, rerun with --force)",
-    ),
-    "discovery": StudyCommand(
-        _discovery_class,
-        "options discovered from the mentor's states against hand-built doorway options "
-        "(himit_torch.runs.discovery; one process on the CPU, rerun with --force)",
-    ),
-    "puzzlebox": StudyCommand(
-        _puzzle_box_class,
-        "Whiten et al.'s keyway-fruit box: speed, copying the organisation, a new skewer "
-        "(himit_torch.runs.puzzle_box; its batches run one after the other)",
-        ("resume",),
-    ),
-}
-
-
-def _study_defaults(name: str) -> Any:
-    """The configuration ``himit run name`` starts from (its flags' defaults)."""
-    if name in PAPER_EXPERIMENTS or name == "paper":
-        from himit_torch.runs.config import EXPERIMENTS
-
-        return EXPERIMENTS.get(name, ExperimentConfig())
-    return STUDIES[name].config_class()()
-
-
 def cmd_run(args: argparse.Namespace) -> int:
-    from himit_torch.runs.experiment import run_experiments
-
-    if args.experiment == "gymnasium":
-        return _run_gymnasium(args)
-    if args.experiment == "discovery":
-        return _run_discovery(args)
-    if args.experiment == "puzzlebox":
-        return _run_puzzle_box(args)
-    names = PAPER_EXPERIMENTS if args.experiment == "paper" else (args.experiment,)
+    """``himit run STUDY``: the study's configurations with the flags given, run into
+    ``<logdir>/<name>`` by its registry entry."""
+    study = STUDIES[args.experiment]
     plans = []
-    for name in names:
-        config = _experiment_config(name, args)
+    for config in study_configs(args):
         run_dir = Path(args.logdir) / config.name
-        print(
-            f"{config.name}: worlds {list(config.sizes)}, agents {list(config.agents)}, "
-            f"{config.seeds} seeds, {config.steps:,} steps → {run_dir}"
-        )
+        print(study.describe(config, run_dir))
         plans.append((config, run_dir))
     t0 = time.perf_counter()
-    run_experiments(
-        plans,
-        resume=args.resume,
-        force=args.force,
-        progress=not args.quiet,
-        workers=args.workers,
-    )
+    flags = RunFlags(args.resume, args.force, not args.quiet, args.workers)
+    study.run(plans, flags)
     written = ", ".join(str(run_dir / "results.md") for _, run_dir in plans)
     print(f"done in {time.perf_counter() - t0:.0f} s: {written}")
     return 0
 
 
-def _study_config(config: Any, args: argparse.Namespace) -> Any:
-    """``config`` with the command line's changes: ``--quick``, then the preset, then the
-    settings given (the learner's into its ``learner``)."""
-    if args.quick:
-        config = config.quick()
-    changes = _given_settings(args, "study")
-    if "preset" in changes:
-        config = _with_preset(config, changes.pop("preset"))
-    learner_changes = _given_settings(args, "learner")
-    if learner_changes:
-        changes["learner"] = dataclasses.replace(config.learner, **learner_changes)
-    return dataclasses.replace(config, **changes)
-
-
-def _experiment_config(name: str, args: argparse.Namespace) -> ExperimentConfig:
-    """The configuration of experiment ``name`` with the command line's changes. Precedence,
-    lowest first: the library's defaults, the experiment's own (:data:`EXPERIMENTS`), a
-    ``--config`` file (a whole configuration, in their place), ``--quick``, the flags given.
+def study_configs(args: argparse.Namespace) -> list[Any]:
+    """The configurations ``himit run STUDY`` runs (``args``: its parsed command line). Precedence, lowest first: the
+    study's own (:attr:`~himit_torch.runs.study.StudyEntry.configs`), a ``--config`` file (a
+    whole configuration, in their place), ``--quick``, the preset, the flags given (the
+    learner's into its ``learner``), then the study's own adjustment.
 
     A resumed run must be given the configuration it started with (the same flags, or
-    ``--config`` of its saved ``config.json``): :func:`~himit_torch.runs.experiment.run_experiments`
-    refuses any other."""
-    from himit_torch.runs.config import EXPERIMENTS, load_config
-
+    ``--config`` of its saved ``config.json``): the study refuses any other."""
+    study = STUDIES[args.experiment]
+    starts = study.configs()
     if getattr(args, "config", None):
-        config = load_config(args.config)
-        if name != config.name:
-            raise ValueError(f"--config {args.config} is for {config.name!r}, not {name!r}")
-    else:
-        config = EXPERIMENTS[name]
-    changes = _given_settings(args, "study")
-    config = _study_config(config, args)
-    if "steps" in changes and "checkpoint_every" not in changes:
-        # A shorter run still saves at least once before its end (at a window boundary).
-        window = config.window
-        checkpoint_every = max(
-            window, min(config.checkpoint_every, config.steps // window * window)
-        )
-        config = dataclasses.replace(config, checkpoint_every=checkpoint_every)
-    as_device("--device", config.device)  # here, before any run starts
-    return config
-
-
-def _with_preset(config: Any, name: str | None) -> Any:
-    """``config`` with preset ``name`` applied (``--preset none``: the recorded preset dropped,
-    the settings kept)."""
-    return dataclasses.replace(config, preset=None) if name is None else config.with_preset(name)
-
-
-def _run_gymnasium(args: argparse.Namespace) -> int:
-    """``himit run gymnasium``: Taxi, CliffWalking, FrozenLake 8×8 (:mod:`himit_torch.runs.gymnasium`)."""
-    from himit_torch.runs.gymnasium import run_gym_experiment
-
-    config = _gym_config(args)
-    run_dir = Path(args.logdir) / config.name
-    print(
-        f"{config.name}: tasks {list(config.tasks)}, agents {list(config.agents)}, "
-        f"{config.seeds} seeds → {run_dir}"
-    )
-    t0 = time.perf_counter()
-    run_gym_experiment(config, run_dir, force=args.force, progress=not args.quiet)
-    print(f"done in {time.perf_counter() - t0:.0f} s: {run_dir / 'results.md'}")
-    return 0
-
-
-def _gym_config(args: argparse.Namespace) -> Any:
-    """The Gymnasium comparison's configuration with ``himit run gymnasium``'s flags."""
-    from himit_torch.runs.gymnasium import GymExperimentConfig
-
-    config = _study_config(GymExperimentConfig(), args)
-    as_device("--device", config.device)
-    return config
-
-
-def _discovery_config(args: argparse.Namespace) -> Any:
-    """The discovery experiment's configuration with ``himit run discovery``'s flags."""
-    from himit_torch.runs.discovery import DiscoveryConfig
-
-    return _study_config(DiscoveryConfig(), args)
-
-
-def _run_discovery(args: argparse.Namespace) -> int:
-    """``himit run discovery``: options discovered from the mentor's states
-    (:mod:`himit_torch.runs.discovery`) on experiment 1's and 2's worlds."""
-    from himit_torch.runs.discovery import run_discovery
-
-    config = _discovery_config(args)
-    run_dir = Path(args.logdir) / config.name
-    print(f"{config.name}: worlds {list(config.worlds)}, {config.seeds} seeds → {run_dir}")
-    t0 = time.perf_counter()
-    run_discovery(config, run_dir, force=args.force, progress=not args.quiet)
-    print(f"done in {time.perf_counter() - t0:.0f} s: {run_dir / 'results.md'}")
-    return 0
-
-
-def _run_puzzle_box(args: argparse.Namespace) -> int:
-    """``himit run puzzlebox``: Whiten et al.'s three findings on the puzzle box
-    (:mod:`himit_torch.runs.puzzle_box`)."""
-    from himit_torch.runs.puzzle_box import run_puzzle_box
-
-    config = _puzzle_box_config(args)
-    run_dir = Path(args.logdir) / config.name
-    print(
-        f"{config.name}: {config.skewers}- and {config.transfer_skewers}-skewer boxes, "
-        f"{config.seeds} seeds per condition → {run_dir}"
-    )
-    t0 = time.perf_counter()
-    run_puzzle_box(config, run_dir, resume=args.resume, force=args.force, progress=not args.quiet)
-    print(f"done in {time.perf_counter() - t0:.0f} s: {run_dir / 'results.md'}")
-    return 0
-
-
-def _puzzle_box_config(args: argparse.Namespace) -> Any:
-    """The puzzle box's configuration with ``himit run puzzlebox``'s flags."""
-    from himit_torch.runs.puzzle_box import PuzzleBoxConfig
-
-    return _study_config(PuzzleBoxConfig(), args)
+        config: Any = read_config_file(study.config_class, args.config)
+        if config.name != starts[0].name:
+            raise ValueError(
+                f"--config {args.config} is for {config.name!r}, not {starts[0].name!r}"
+            )
+        starts = (config,)
+    given = _given_settings(args, "study")
+    learner_changes = _given_settings(args, "learner")
+    configs = []
+    for config in starts:
+        changes = dict(given)
+        if args.quick:
+            config = config.quick()
+        if "preset" in changes:
+            preset = changes.pop("preset")
+            config = (
+                dataclasses.replace(config, preset=None)
+                if preset is None
+                else config.with_preset(preset)
+            )
+        if learner_changes:
+            changes["learner"] = dataclasses.replace(config.learner, **learner_changes)
+        config = dataclasses.replace(config, **changes)
+        if study.adjust is not None:
+            config = study.adjust(config, frozenset(given))
+        if hasattr(config, "device"):
+            as_device("--device", config.device)  # here, before any run starts
+        configs.append(config)
+    return configs
 
 
 class _StudyParser(_Parser):
@@ -906,7 +357,7 @@ class _StudyParser(_Parser):
         super().error(message)
 
 
-def _add_study(sub: argparse.ArgumentParser, name: str, study: StudyCommand) -> None:
+def _add_study(sub: argparse.ArgumentParser, study: StudyEntry) -> None:
     """The flags of ``himit run name``: the run's own, then one per setting of its
     configuration class and, where it has a learner, of the learner's."""
     sub.set_defaults(config=None, resume=False, workers=None)
@@ -939,8 +390,8 @@ def _add_study(sub: argparse.ArgumentParser, name: str, study: StudyCommand) -> 
             "at most one per world — with paper, the worlds of all three experiments; "
             "the results do not depend on it)",
         )
-    config_class = study.config_class()
-    defaults = _study_defaults(name)
+    config_class = study.config_class
+    defaults = study.defaults()
     _add_setting_flags(
         sub.add_argument_group(
             "settings",
@@ -953,15 +404,16 @@ def _add_study(sub: argparse.ArgumentParser, name: str, study: StudyCommand) -> 
         defaults=defaults,
     )
     if any(f.name == "learner" for f in dataclasses.fields(config_class)):
+        derived = getattr(config_class, "derived_learner", ())
         _add_setting_flags(
             sub.add_argument_group(
                 "learner settings",
-                "Fields of LearnerConfig, this study's defaults shown. Its window is the "
-                "study's --window.",
+                "Fields of LearnerConfig, this study's defaults shown. Those it derives from "
+                f"its own settings ({', '.join(derived)}) are not flags.",
             ),
             LearnerConfig,
             "learner",
-            skip=("window",),
+            skip=derived,
             defaults=defaults.learner,
         )
 
@@ -975,63 +427,24 @@ def _add_run(sub: argparse.ArgumentParser) -> None:
         help="which study (himit run STUDY --help: its flags)",
     )
     for name, study in STUDIES.items():
-        _add_study(studies.add_parser(name, help=study.help, description=study.help), name, study)
+        _add_study(studies.add_parser(name, help=study.help, description=study.help), study)
 
 
 # ------------------------------------------------------------------------------------- plot
-def _saved_fields(run_dir: Path) -> set[str] | None:
-    """The field names of ``run_dir/config.json`` (``None``: no such file, or not a dict)."""
-    from himit_torch.validation import parse_document, read_text
-
-    path = run_dir / "config.json"
-    if not path.is_file():
-        return None
-    where = f"himit plot: {path}"
-    data = parse_document(where, read_text(where, path), "json")
-    return set(data) if isinstance(data, dict) else None
-
-
 def cmd_plot(args: argparse.Namespace) -> int:
+    """``himit plot``: a sweep's tables, or a run directory's page redrawn by the study its
+    ``config.json`` names (:func:`~himit_torch.runs.studies.study_of_run_dir`)."""
     run_dir = Path(args.run_dir)
-    if (run_dir / "summary.json").exists():
-        if not (run_dir / "batches").is_dir():
-            raise ValueError(
-                f"{run_dir} is a puzzle-box run directory without its batches/ records: its page "
-                "is redrawn from them (summary.json holds only the aggregates); put the batches/ "
-                "folder back, or run it again with himit run puzzlebox"
-            )
-        from himit_torch.runs.puzzle_box import recorded_run_command
-        from himit_torch.runs.puzzle_box_report import rewrite_puzzle_box_report
-
-        # a himit run puzzlebox directory
-        rewrite_puzzle_box_report(run_dir, recorded_run_command(run_dir))
-        print(f"wrote {run_dir / 'figures'} and {run_dir / 'results.md'}")
-        return 0
-    if (run_dir / "tasks").is_dir() and not (run_dir / "worlds").is_dir():
-        from himit_torch.runs.gymnasium import rewrite_gym_report
-
-        rewrite_gym_report(run_dir)  # a himit run gymnasium directory
-        print(f"wrote {run_dir / 'figures'} and {run_dir / 'results.md'}")
-        return 0
     if (run_dir / "sweep.json").exists() and (run_dir / "runs.csv").exists():
         from himit_torch.runs.sweep import rewrite_summary
 
         rewrite_summary(run_dir)  # a himit sweep folder: its tables from runs.csv
         print(f"wrote {run_dir / 'summary.csv'} and {run_dir / 'summary.md'}")
         return 0
-    from himit_torch.runs.discovery import DiscoveryConfig
-    from himit_torch.runs.experiment import rewrite_report
-    from himit_torch.validation import settings_of
-
-    saved = _saved_fields(run_dir)
-    discovery = {s.name for s in settings_of(DiscoveryConfig)}
-    experiment = {s.name for s in settings_of(ExperimentConfig)}
-    if saved is not None and saved <= discovery and not saved <= experiment:
-        raise ValueError(
-            f"{run_dir} is a himit run discovery directory: its results.md and figures are "
-            "written at the end of the run, and himit plot does not redraw them"
-        )
-    rewrite_report(run_dir)
+    study = study_of_run_dir(run_dir)
+    if study.redraw is None:
+        raise ValueError(f"{run_dir} is a himit run {study.name} directory: {study.no_redraw}")
+    study.redraw(run_dir)
     print(f"wrote {run_dir / 'figures'} and {run_dir / 'results.md'}")
     return 0
 
@@ -1182,8 +595,8 @@ COMMANDS: dict[
     "run": (
         cmd_run,
         _add_run,
-        "reproduce one of the paper's experiments (exp1, exp2, exp3), or "
-        "the Gymnasium comparison (gymnasium), or the puzzle box (puzzlebox)",
+        "run a study into a run directory: the paper's experiments, or another "
+        "(himit run --help lists them)",
     ),
     "sweep": (
         cmd_sweep,

@@ -246,5 +246,5 @@ def test_a_command_leaves_its_objects_out_of_the_exit_collections():
     assert _freeze_count_at_exit("main(['info', '--size', '20', '--rooms', '2'])") > 10_000
     assert _freeze_count_at_exit("pass") == 0  # (no command, no freeze)
     # each world process of `himit run paper`'s pool too (the run waits for them to end)
-    pool_process = "from himit_torch.runs.experiment import _world_process; _world_process(1)"
+    pool_process = "from himit_torch.runs.pool import _pool_process; _pool_process(1)"
     assert _freeze_count_at_exit(pool_process) > 10_000

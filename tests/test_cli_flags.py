@@ -67,7 +67,7 @@ EXPERIMENT_FLAGS = {
     "mentor_detour": ([], True),  # given as --mentor-detour
     "mentor_coverage": (["0.5"], 0.5),
     "mentor_goal": (["top-right"], "top-right"),
-    "second_mentor": (["noisy"], "noisy"),  # (with --mentors 2)
+    "second_mentor": (["noisy"], "noisy"),  # (learner.mentors derived: 2)
     "second_mentor_noise": (["0.3"], 0.3),
     "observation_stride": (["5"], 5),
     "layout": (["maze"], "maze"),
@@ -91,11 +91,22 @@ def test_every_setting_has_a_value_here():
     assert set(EXPERIMENT_FLAGS) == {s.name for s in settings_of(ExperimentConfig)} - {"learner"}
 
 
+def test_the_experiment_s_derived_learner_settings_are_no_flags(planned, capsys):
+    """The learner's mentors follow --second-mentor (derived and recorded, as its window
+    follows --window): --mentors is no flag of the paper's experiments."""
+    (config,) = planned(["exp1", "--second-mentor", "noisy"])
+    assert config.learner.mentors == 2
+    with pytest.raises(SystemExit):
+        planned(["exp1", "--mentors", "2"])
+    assert "takes no --mentors" in capsys.readouterr().err
+
+
 def test_help_lists_every_setting_with_its_doc():
     run = build_parser()._subparsers._group_actions[0].choices["run"]  # type: ignore[union-attr]
     exp1 = run._subparsers._group_actions[0].choices["exp1"]  # type: ignore[union-attr]
     text = " ".join(exp1.format_help().split())
-    for cls, skip in ((LearnerConfig, {"window"}), (ExperimentConfig, {"learner"})):
+    derived = set(ExperimentConfig.derived_learner)  # (the study's own flags set them)
+    for cls, skip in ((LearnerConfig, derived), (ExperimentConfig, {"learner"})):
         for s in settings_of(cls):
             if s.name in skip:
                 continue
@@ -104,11 +115,10 @@ def test_help_lists_every_setting_with_its_doc():
             assert " ".join(plain_text(s.info.doc).split()[:6]) in text, s.name
 
 
-@pytest.mark.parametrize("field", sorted(LEARNER_FLAGS))
+@pytest.mark.parametrize("field", sorted(set(LEARNER_FLAGS) - {"mentors"}))
 def test_each_learner_flag_reaches_the_config_of_the_run(planned, field):
     text, expected = LEARNER_FLAGS[field]
-    extra = {"sweep_rounds": ["--backups", "12"], "mentors": ["--second-mentor", "noisy"]}
-    extra = extra.get(field, [])
+    extra = {"sweep_rounds": ["--backups", "12"]}.get(field, [])
     (config,) = planned(["exp1", _flag(field), *([] if text is None else [text]), *extra])
     assert getattr(config.learner, field) == expected
     untouched = {k: v for k, v in dataclasses.asdict(config.learner).items() if k != field}
@@ -124,7 +134,6 @@ def test_each_experiment_flag_reaches_the_config_of_the_run(planned, field):
     extra = {
         "window": ["--checkpoint-every", "4000"],
         "room_size": ["--sizes", "16"],
-        "second_mentor": ["--mentors", "2"],
     }
     (config,) = planned(["exp1", flag, *values, *extra.get(field, [])])
     assert getattr(config, field) == expected
@@ -235,12 +244,10 @@ def test_a_flagged_run_resumes_only_with_the_configuration_it_started_with(capsy
 def test_each_learner_flag_reaches_the_learner_of_the_other_studies(study, field):
     """``himit run gymnasium`` and ``himit run puzzlebox`` take every learner setting as a flag
     (each study's own learner defaults otherwise)."""
-    from himit_torch.cli import _gym_config, _puzzle_box_config, build_parser
+    from himit_torch.cli import build_parser, study_configs
 
     text, expected = LEARNER_FLAGS[field]
     extra = ["--backups", "12"] if field == "sweep_rounds" else []
     argv = ["run", study, _flag(field), *([] if text is None else [text]), *extra]
-    config = (_gym_config if study == "gymnasium" else _puzzle_box_config)(
-        build_parser().parse_args(argv)
-    )
+    (config,) = study_configs(build_parser().parse_args(argv))
     assert getattr(config.learner, field) == expected

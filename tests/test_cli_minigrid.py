@@ -33,7 +33,9 @@ def test_info_minigrid(capsys):
     [
         (["--minigrid", "MiniGrid-Nope-v0"], "gymnasium.make failed"),
         (["--minigrid", "MiniGrid-Dynamic-Obstacles-5x5-v0"], "stochastic"),
-        (["--minigrid", "MiniGrid-DoorKey-5x5-v0", "--env", "Taxi-v4"], "--minigrid alone"),
+        (["--minigrid", "MiniGrid-DoorKey-5x5-v0", "--env", "Taxi-v4"], "not both"),
+        (["--minigrid", "MiniGrid-DoorKey-5x5-v0", "--puzzle-box", "2"], "not both"),
+        (["--minigrid", "MiniGrid-DoorKey-5x5-v0", "--env-kwargs", "{}"], "is for --env"),
     ],
 )
 def test_info_minigrid_refused(capsys, argv, words):

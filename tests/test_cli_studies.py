@@ -7,8 +7,9 @@ import dataclasses
 
 import pytest
 
-from himit_torch.cli import STUDIES, _gym_config, _puzzle_box_config, build_parser, main
+from himit_torch.cli import build_parser, main, study_configs
 from himit_torch.learner.config import LearnerConfig
+from himit_torch.runs.studies import STUDIES
 from himit_torch.validation import settings_of
 
 
@@ -23,14 +24,15 @@ def _study_parser(name: str) -> argparse.ArgumentParser:
 
 def _expected_flags(name: str) -> set[str]:
     study = STUDIES[name]
-    config_class = study.config_class()
+    config_class = study.config_class
     names = {
         s.name
         for s in settings_of(config_class)
         if s.name not in study.skip and not dataclasses.is_dataclass(s.kind)
     }
     if any(f.name == "learner" for f in dataclasses.fields(config_class)):
-        names |= {s.name for s in settings_of(LearnerConfig) if s.name != "window"}
+        derived = config_class.derived_learner
+        names |= {s.name for s in settings_of(LearnerConfig) if s.name not in derived}
     return {"--" + n.replace("_", "-") for n in names}
 
 
@@ -59,20 +61,20 @@ def test_gymnasium_help_is_the_gymnasium_study_s():
 
 def test_gymnasium_takes_a_learner_setting():
     args = build_parser().parse_args(["run", "gymnasium", "--mentor-fade", "20"])
-    config = _gym_config(args)
+    config = study_configs(args)[0]
     assert config.learner.mentor_fade == 20.0 and config.learner.window == config.window
 
 
 def test_puzzlebox_takes_a_preset():
     args = build_parser().parse_args(["run", "puzzlebox", "--preset", "recommended"])
-    config = _puzzle_box_config(args)
+    config = study_configs(args)[0]
     assert config.preset == "recommended"
     assert config == type(config)().with_preset("recommended")
 
 
 def test_puzzlebox_takes_its_own_settings():
     argv = ["run", "puzzlebox", "--skewers", "3", "--variants", "no_pinch", "--window", "1000"]
-    config = _puzzle_box_config(build_parser().parse_args(argv))
+    (config,) = study_configs(build_parser().parse_args(argv))
     assert (config.skewers, config.variants, config.learner.window) == (3, ("no_pinch",), 1000)
 
 

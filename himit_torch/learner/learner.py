@@ -104,6 +104,62 @@ class _NoMentorReward:
 _NO_MENTOR_REWARD = _NoMentorReward()
 
 
+def _checked_runs(agents: Sequence[str], seeds: Sequence[int]) -> tuple[list[str], list[int]]:
+    """The batch's agents and seeds, one per run, checked."""
+    for name, what in (("agents", agents), ("seeds", seeds)):
+        if isinstance(what, (str, bytes)) or not isinstance(what, Iterable):
+            raise ValueError(f"{name} must be a list (one per run), got {what!r}")
+    runs = list(agents)
+    keys: list[int] = as_int_array("seeds", seeds, minimum=0).tolist()  # int64 stream keys
+    B = len(runs)
+    if B == 0:
+        raise ValueError("a batch of 0 runs: give at least one agent (e.g. agents=['imitation'])")
+    if len(keys) != B:
+        raise ValueError(f"{B} agents but {len(keys)} seeds: give one seed per run")
+    unknown = sorted({repr(a) for a in runs if not isinstance(a, str) or a not in AGENTS})
+    if unknown:
+        raise ValueError(f"unknown agent variant(s) {unknown}; use one of {sorted(AGENTS)}")
+    return runs, keys
+
+
+def _checked_world(world: TabularWorld, options: Options, config: LearnerConfig) -> int:
+    """Check that ``world`` follows the protocol and ``options`` fit it; its action count."""
+    missing = [
+        m
+        for m in ("num_states", "num_actions", "start_state", "gamma", "terminal_mask")
+        if not hasattr(world, m)
+    ]
+    if missing:
+        raise ValueError(
+            f"world {type(world).__name__} lacks {missing}: a world must follow the "
+            "TabularWorld protocol (himit_torch.TabularWorld)"
+        )
+    S = world.num_states
+    if options.num_states != S:
+        raise ValueError(f"options are over {options.num_states} states but the world has {S}")
+    gamma = as_float("world.gamma", world.gamma)
+    if not 0 < gamma <= 1:
+        raise ValueError(f"world.gamma={world.gamma} must lie in (0, 1]")
+    if config.mentor_segments and gamma == 1:
+        raise ValueError(
+            "LearnerConfig.mentor_segments needs a discounted world (γ < 1; this world's "
+            "is 1): a mentor move of unseen steps cannot be summed undiscounted; set "
+            "mentor_segments=False"
+        )
+    A = as_int("world.num_actions", world.num_actions, minimum=1)
+    if options.stochastic and options.policy.shape[2] != A:
+        raise ValueError(
+            f"options' policy probabilities are over {options.policy.shape[2]} "
+            f"actions but the world has {A}"
+        )
+    if not options.stochastic and int(options.policy[options.initiation].max()) >= A:
+        raise ValueError(
+            f"options' policy uses action {int(options.policy[options.initiation].max())}"
+            f" but the world has actions 0…{A - 1}"
+        )
+    return A
+
+
 class Learner(LearnerViews):
     """``B`` runs of the hierarchical imitation learner (or its baselines) in one batch.
 
@@ -162,70 +218,40 @@ class Learner(LearnerViews):
         self.world, self.options = world, options
         self.device = dev = as_device("device", device)
         as_choice("engine", engine, ("auto", "numba", "torch"))
-        for name, what in (("agents", agents), ("seeds", seeds)):
-            if isinstance(what, (str, bytes)) or not isinstance(what, Iterable):
-                raise ValueError(f"{name} must be a list (one per run), got {what!r}")
-        agents = list(agents)
-        seeds = as_int_array("seeds", seeds, minimum=0).tolist()  # int64 stream keys
-        B = len(agents)
-        if B == 0:
-            raise ValueError(
-                "a batch of 0 runs: give at least one agent (e.g. agents=['imitation'])"
-            )
-        if len(seeds) != B:
-            raise ValueError(f"{B} agents but {len(seeds)} seeds: give one seed per run")
-        unknown = sorted({repr(a) for a in agents if not isinstance(a, str) or a not in AGENTS})
-        if unknown:
-            raise ValueError(f"unknown agent variant(s) {unknown}; use one of {sorted(AGENTS)}")
-        missing = [
-            m
-            for m in ("num_states", "num_actions", "start_state", "gamma", "terminal_mask")
-            if not hasattr(world, m)
-        ]
-        if missing:
-            raise ValueError(
-                f"world {type(world).__name__} lacks {missing}: a world must follow the "
-                "TabularWorld protocol (himit_torch.TabularWorld)"
-            )
-        S, O = world.num_states, options.num_options
-        if options.num_states != S:
-            raise ValueError(f"options are over {options.num_states} states but the world has {S}")
-        gamma = as_float("world.gamma", world.gamma)
-        if not 0 < gamma <= 1:
-            raise ValueError(f"world.gamma={world.gamma} must lie in (0, 1]")
-        if config.mentor_segments and gamma == 1:
-            raise ValueError(
-                "LearnerConfig.mentor_segments needs a discounted world (γ < 1; this world's "
-                "is 1): a mentor move of unseen steps cannot be summed undiscounted; set "
-                "mentor_segments=False"
-            )
-        A = as_int("world.num_actions", world.num_actions, minimum=1)
-        if options.stochastic and options.policy.shape[2] != A:
-            raise ValueError(
-                f"options' policy probabilities are over {options.policy.shape[2]} "
-                f"actions but the world has {A}"
-            )
-        if not options.stochastic and int(options.policy[options.initiation].max()) >= A:
-            raise ValueError(
-                f"options' policy uses action {int(options.policy[options.initiation].max())}"
-                f" but the world has actions 0…{A - 1}"
-            )
+        agents, seeds = _checked_runs(agents, seeds)
+        A = _checked_world(world, options, config)
+        B, S, O = len(agents), world.num_states, options.num_options
+        self._check_memory(B, S, options)
+        self.batch, self.num_states, self.num_options = B, S, O
+        self.agents, self.seeds = agents, seeds
+        self._build_state(world, options, dev)
+        first = uniforms(self.keys, -1, self.LANES)  # draw −1: the first start and option
+        runs = torch.arange(B, device=dev)
+        self._start_runs(first, runs, A, dev)
+        self._add_rewards_and_demonstrations(world, reward, demonstrations)
+        self.resample(self.sampling_runs())  # the sampling runs' first model
+        self._choose_first_rows(first, runs)
+        self.engine = make_engine(engine, self.state)
+
+    # ---------------------------------------------------------------- __init__'s steps
+    def _check_memory(self, B: int, S: int, options: Options) -> None:
+        """Refuse a batch too large for the memory, before it is built."""
         M = int(options.initiation.sum())
         check_memory(
             f"a batch of {B} runs over {S:,} states and {M:,} (state, option) rows",
             B * (S * self.BYTES_PER_RUN_STATE + M * self.BYTES_PER_RUN_ROW),
             "run fewer runs at once (a smaller batch), or fewer options",
         )
-        self.batch, self.num_states, self.num_options = B, S, O
-        self.agents, self.seeds = agents, seeds
-        # ---- the world and the options, as tables both engines read ---------------------
+
+    def _build_state(self, world: TabularWorld, options: Options, dev: torch.device) -> None:
+        """The world and options as tables both engines read, and the state, one owner per
+        piece: rows, models, random streams, posterior sample, value cache, sweeper."""
+        config, B, S = self.config, self.batch, self.num_states
         self.tables = tables = WorldTables.build(world, options, dev)
         self.gamma = tables.gamma
         self.terminal = tables.terminal
         self.start_state = tables.start_state
-
-        # ---- the state, one owner per piece ------------------------------------------------
-        self.rows = RowTable(options, world.num_actions, agents, dev)
+        self.rows = RowTable(options, world.num_actions, self.agents, dev)
         if bool(self.rows.use_shaping.any()) and (
             config.concentration > 0 or config.untried_value is not None
         ):
@@ -240,7 +266,7 @@ class Learner(LearnerViews):
         self.mentor = DirichletMentorModel(
             S, B, dev, config.mentor_concentration, mentors=config.mentors
         )
-        self.keys = seed_streams(torch.tensor(seeds, dtype=torch.int64, device=dev))
+        self.keys = seed_streams(torch.tensor(self.seeds, dtype=torch.int64, device=dev))
         self.sample = PosteriorSample(self.rows, self.model, self.mentor, self.keys, config)
         self.cache = ValueCache(
             config, self.rows, self.model, self.mentor, self.terminal, self.gamma, self.sample
@@ -254,14 +280,19 @@ class Learner(LearnerViews):
             config.plan_every,
             config.priority_threshold,
         )
-        first = uniforms(self.keys, -1, self.LANES)  # draw −1: the first start and option
-        runs = torch.arange(B, device=dev)
+
+    def _start_runs(
+        self, first: torch.Tensor, runs: torch.Tensor, A: int, dev: torch.device
+    ) -> None:
+        """Each run's first start, its cloned policy, metrics and the batch state the engines
+        read."""
+        config, B, S, M = self.config, self.batch, self.num_states, self.num_rows
         self.run_state = RunState(B, S, self.start_states(runs, first), M, config.eps_start, dev)
         self.cloning = ClonedPolicy(self.rows, A, config.bco_inverse_model, dev)
         self.metrics = RunMetrics()
         self.state = BatchState(
             config,
-            tables,
+            self.tables,
             self.rows,
             self.model,
             self.mentor,
@@ -273,6 +304,10 @@ class Learner(LearnerViews):
             self.cloning,
         )
 
+    def _add_rewards_and_demonstrations(self, world, reward, demonstrations) -> None:
+        """Exact option models where asked, the mentor reward modules, and the demonstrations
+        (one set per mentor)."""
+        config, B = self.config, self.batch
         if config.option_models == "exact":
             self._load_exact_option_models()
         self.rewards = self._reward_modules(reward, world, B)
@@ -288,7 +323,10 @@ class Learner(LearnerViews):
                 self.add_demonstrations(demos, mentor=k)
         elif demonstrations is not None:
             self.add_demonstrations(demonstrations)
-        self.resample(self.sampling_runs())  # the sampling runs' first model
+
+    def _choose_first_rows(self, first: torch.Tensor, runs: torch.Tensor) -> None:
+        """Every run's first option at its start state."""
+        config = self.config
         from himit_torch.learner.choice import choose_rows
 
         self.run_state.row = choose_rows(
@@ -301,7 +339,6 @@ class Learner(LearnerViews):
             config.tie_break,
             self.cloning.at(runs, self.run_state.position) if self.cloning.any else None,
         )
-        self.engine = make_engine(engine, self.state)
 
     # ============================================================================ engines
     def use_engine(self, engine: str) -> None:

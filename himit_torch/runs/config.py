@@ -9,21 +9,16 @@ choices, doc), as :class:`~himit_torch.learner.config.LearnerConfig`'s are: vali
 from __future__ import annotations
 
 import os
-import shlex
-from dataclasses import asdict, dataclass, fields, replace
-from pathlib import Path
-from typing import Any
+from dataclasses import dataclass, replace
+from typing import Any, ClassVar
 
 from himit_torch.learner.agents import AGENTS
 from himit_torch.learner.config import LearnerConfig
 from himit_torch.learner.learner import Learner
 from himit_torch.mentor.reward import MENTOR_REWARDS
-from himit_torch.runs.study import RunConfig
+from himit_torch.runs.study import RunConfig, read_config_file
 from himit_torch.validation import (
     check_memory,
-    parse_document,
-    read_text,
-    refuse_unknown_fields,
     setting,
 )
 from himit_torch.worlds.multirooms import MultiRooms, maze_doorways, primitives_only_goal
@@ -35,7 +30,6 @@ __all__ = [
     "LAYOUTS",
     "STRESS_SETTINGS",
     "load_config",
-    "run_command",
 ]
 
 #: ``ExperimentConfig.mentor_model``: counts of the demonstrations, or the mentor's exact model.
@@ -184,7 +178,7 @@ class ExperimentConfig(RunConfig):
         ``second_mentor_noise`` (as ``mentor_noise`` does); ``detour``: a second mentor taking
         the needless detour of ``mentor_detour``. The second mentor's ``mentor_episodes``
         episodes come from a generator of its own, and go to the learner's second mentor model
-        (set ``learner.mentors = 2``). The first mentor is the one ``mentor_noise`` and
+        (``learner.mentors`` is derived from it: 2 with a second mentor, else 1). The first mentor is the one ``mentor_noise`` and
         ``mentor_detour`` describe; the "% of mentor" reference stays the undisturbed mentor's
         policy.""",
     )
@@ -250,6 +244,16 @@ class ExperimentConfig(RunConfig):
     learner: LearnerConfig = RunConfig.shared("learner", default_factory=LearnerConfig)
     preset: str | None = RunConfig.shared("preset", None)
 
+    #: The learner settings derived from the experiment's own: its window, and its mentors
+    #: (2 with a ``second_mentor``, else 1).
+    derived_learner: ClassVar[tuple[str, ...]] = ("window", "mentors")
+
+    def derived_learner_settings(self) -> dict[str, Any]:
+        """:meth:`RunConfig.derived_learner_settings`, and ``mentors``: the demonstration sets
+        the experiment shows (2 with a ``second_mentor``, else 1)."""
+        derived = super().derived_learner_settings()
+        return {**derived, "mentors": 1 + (self.second_mentor != "none")}
+
     def __post_init__(self):
         self.check_run_settings()
         # Cross-field rules (each field on its own is checked above).
@@ -272,14 +276,7 @@ class ExperimentConfig(RunConfig):
             )
             if getattr(self, name) != neutral
         ]
-        watched = 1 + (self.second_mentor != "none")
-        if self.learner.mentors != watched:
-            raise ValueError(
-                f"ExperimentConfig.learner.mentors={self.learner.mentors}: this experiment "
-                f"shows {watched} demonstration set(s) (second_mentor={self.second_mentor!r}); "
-                f"set learner.mentors={watched} (--mentors {watched}), or "
-                f"second_mentor={'noisy' if watched == 1 else 'none'!r}"
-            )
+        watched = self.learner.mentors
         if watched > 1:
             stressed.append(f"second_mentor={self.second_mentor!r}")
         for name, neutral in (("mentor_coverage", 1.0), ("mentor_goal", "same")):
@@ -405,147 +402,12 @@ EXPERIMENTS: dict[str, ExperimentConfig] = {
 
 
 def load_config(path: str | os.PathLike) -> ExperimentConfig:
-    """An :class:`ExperimentConfig` from a JSON file (as saved in a run directory).
+    """An :class:`ExperimentConfig` from a JSON file (as saved in a run directory):
+    :func:`~himit_torch.runs.study.read_config_file`, the one reader of every study's.
 
     Raises:
         ValueError: the file is missing, a directory, not UTF-8 JSON, nested too deep, or holds
             unknown fields or values the configurations refuse; the message names the file.
             Other ``OSError`` exceptions (permissions, a failing disk) propagate.
     """
-    path = Path(path)
-    where = f"config file {path}"
-    data = parse_document(where, read_text(where, path), "json")
-    if not isinstance(data, dict):
-        raise ValueError(f"config file {path} must hold a JSON object")
-    refuse_unknown_fields(data, ExperimentConfig, f"config file {path}")
-    learner = data.get("learner", {})
-    if not isinstance(learner, dict):
-        raise ValueError(f"config file {path}: 'learner' must be an object")
-    refuse_unknown_fields(learner, LearnerConfig, f"config file {path}: learner")
-    try:
-        data["learner"] = LearnerConfig(**learner)
-        return ExperimentConfig(**data)
-    except ValueError as err:
-        raise ValueError(f"config file {path}: {err}") from None
-    except TypeError as err:
-        raise ValueError(f"config file {path}: {err}") from None
-
-
-def setting_flag(name: str, value: Any) -> list[str]:
-    """``himit run``'s flag for setting ``name`` at ``value`` (the cli's ``_add_setting_flags``):
-    ``--name value``, ``--name a b`` for a tuple, ``none`` for None, ``--name`` / ``--no-name``
-    for a switch."""
-    flag = "--" + name.replace("_", "-")
-    if isinstance(value, bool):
-        return [flag if value else "--no-" + name.replace("_", "-")]
-    if value is None:
-        return [flag, "none"]
-    if isinstance(value, tuple):
-        return [flag, *(shlex.quote(str(v)) for v in value)]
-    if isinstance(value, float):
-        return [flag, repr(value)]
-    return [flag, shlex.quote(str(value))]
-
-
-def logdir_flag(run_dir: str | os.PathLike | None, name: str) -> list[str] | None:
-    """``himit run``'s ``--logdir`` that writes run ``name`` into ``run_dir``
-    (``<logdir>/<name>``): none for the default ``runs`` (or no ``run_dir``), None where
-    ``run_dir`` is not named ``name`` (no ``himit run`` writes there)."""
-    if run_dir is None:
-        return []
-    run_dir = Path(run_dir)
-    if run_dir.name != name:
-        return None
-    return [] if run_dir.parent == Path("runs") else ["--logdir", shlex.quote(str(run_dir.parent))]
-
-
-def quick_run_command(
-    subcommand: str, config: Any, run_dir: str | os.PathLike | None, names: tuple[str, ...]
-) -> str | None:
-    """The ``himit run <subcommand>`` command that rebuilds ``config`` exactly from its flags
-    ``--quick`` and ``names`` (e.g. ``seeds``, ``steps``, ``engine``), or None where none can.
-    Those flags that differ from the defaults (``type(config)()``, or its ``.quick()``) are
-    applied as the command applies them, and the configuration they build is compared with
-    ``config`` field by field; ``run_dir`` (``<logdir>/<name>``) adds ``--logdir`` unless it
-    is the default ``runs``. The runners whose only flags are these (discovery, the puzzle
-    box) share it."""
-    logdir = logdir_flag(run_dir, config.name)
-    if logdir is None:
-        return None
-    for quick in (False, True):
-        base = type(config)().quick() if quick else type(config)()
-        changes = {
-            name: getattr(config, name)
-            for name in names
-            if getattr(config, name) != getattr(base, name)
-        }
-        try:
-            rebuilt = replace(base, **changes)
-        except ValueError:
-            continue
-        if asdict(rebuilt) == asdict(config):
-            flags = ["--quick"] if quick else []
-            for name, value in changes.items():
-                flags += setting_flag(name, value)
-            return " ".join(["himit", "run", subcommand, *flags, *logdir])
-    return None
-
-
-def run_command(config: ExperimentConfig, run_dir: str | os.PathLike | None = None) -> str | None:
-    """The ``himit run`` command that rebuilds ``config`` exactly, or None where none can.
-
-    The flags are those that differ from the experiment's own (:data:`EXPERIMENTS`, after its
-    ``--preset``), applied as ``himit run`` applies them (the preset first, then the settings;
-    a changed ``--steps`` moves ``checkpoint_every`` unless that is given too); the
-    configuration they build is compared with ``config``, field by field, and where it differs
-    the command is ``himit run <name> --config <run_dir>/config.json``. ``run_dir`` (the run
-    directory, ``<logdir>/<name>``) adds ``--logdir`` unless it is the default ``runs``. None:
-    ``config.name`` is not one of :data:`EXPERIMENTS` (a sweep's trial, the demo), which
-    ``himit run`` does not run by that name, or ``run_dir`` is not named ``config.name`` (no
-    ``himit run`` writes there)."""
-    base = EXPERIMENTS.get(config.name)
-    logdir = logdir_flag(run_dir, config.name)
-    if base is None or logdir is None:
-        return None
-    flags: list[str] = []
-    try:
-        if config.preset != base.preset:
-            flags += setting_flag("preset", config.preset)
-            base = (
-                replace(base, preset=None)
-                if config.preset is None
-                else base.with_preset(config.preset)
-            )
-        owned = {"name", "learner", "preset", "checkpoint_every"}
-        changes = {
-            f.name: getattr(config, f.name)
-            for f in fields(ExperimentConfig)
-            if f.name not in owned and getattr(config, f.name) != getattr(base, f.name)
-        }
-        learner_changes = {
-            f.name: getattr(config.learner, f.name)
-            for f in fields(LearnerConfig)
-            if f.name != "window"  # the experiment's window (--window)
-            and getattr(config.learner, f.name) != getattr(base.learner, f.name)
-        }
-        checkpoint_every = base.checkpoint_every
-        if "steps" in changes:  # as himit run moves it (cli._experiment_config)
-            window = changes.get("window", base.window)
-            checkpoint_every = max(
-                window, min(base.checkpoint_every, changes["steps"] // window * window)
-            )
-        if config.checkpoint_every != checkpoint_every:
-            changes["checkpoint_every"] = config.checkpoint_every
-        rebuilt = replace(
-            base,
-            **{"checkpoint_every": checkpoint_every, **changes},
-            learner=replace(base.learner, **learner_changes),
-        )
-    except (ValueError, TypeError):
-        rebuilt = None
-    if rebuilt is None or asdict(rebuilt) != asdict(config):
-        where = Path(run_dir) / "config.json" if run_dir is not None else Path("config.json")
-        return " ".join(["himit", "run", config.name, "--config", shlex.quote(str(where)), *logdir])
-    for name, value in {**changes, **learner_changes}.items():
-        flags += setting_flag(name, value)
-    return " ".join(["himit", "run", config.name, *flags, *logdir])
+    return read_config_file(ExperimentConfig, path)

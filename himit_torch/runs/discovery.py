@@ -53,7 +53,7 @@ from himit_torch.options.discovery import (
 )
 from himit_torch.runs.config import EXPERIMENTS
 from himit_torch.runs.runner import run_windows, source_commit, watch_demonstrations
-from himit_torch.runs.study import RunConfig, run_study
+from himit_torch.runs.study import RunConfig, StudyEntry, run_each, run_study
 from himit_torch.statistics import mean_half_width, paired_t_p
 from himit_torch.validation import setting
 from himit_torch.viz.results_page import provenance_line, write_results_page
@@ -519,9 +519,10 @@ def discovery_run_command(
     ``himit run discovery`` (``--quick``, ``--seeds``, ``--steps``, ``--engine``) that differ
     from the defaults, applied as it applies them; the configuration they build is compared
     with ``config`` field by field. ``run_dir`` (``<logdir>/<name>``) adds ``--logdir``."""
-    from himit_torch.runs.config import quick_run_command
+    from himit_torch.runs.rerun import rerun_command
 
-    return quick_run_command("discovery", config, run_dir, ("seeds", "steps", "engine"))
+    names = ("seeds", "steps", "engine")
+    return rerun_command("discovery", DiscoveryConfig(), config, run_dir, names, quick=True)
 
 
 def _fmt(values, digits: int = 1) -> str:
@@ -664,3 +665,19 @@ def _learning_section(r: dict) -> list[str]:
         "Wall time: " + ", ".join(f"{k} {v:.0f} s" for k, v in r["wall"].items()),
         "",
     ]
+
+
+#: The registry entry of ``himit run discovery``.
+ENTRY = StudyEntry(
+    "discovery",
+    "options discovered from the mentor's states against hand-built doorway options "
+    "(himit_torch.runs.discovery; one process on the CPU, rerun with --force)",
+    DiscoveryConfig,
+    configs=lambda: (DiscoveryConfig(),),
+    run=run_each(run_discovery),
+    describe=lambda config, run_dir: (
+        f"{config.name}: worlds {list(config.worlds)}, {config.seeds} seeds → {run_dir}"
+    ),
+    no_redraw="its results.md and figures are written at the end of the run, and himit plot "
+    "does not redraw them",
+)

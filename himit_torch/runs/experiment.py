@@ -27,10 +27,9 @@ import os
 import re
 import sys
 from collections.abc import Callable, Iterator, Sequence
-from contextlib import contextmanager
-from dataclasses import MISSING, asdict, dataclass, field, fields
+from dataclasses import MISSING, asdict, dataclass, field, fields, replace
 from pathlib import Path
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import torch
 
@@ -38,10 +37,8 @@ from himit_torch.exact.greedy_evaluation import (
     PolicyEvaluation,
     PolicyEvaluator,
     evaluate_option_choice,
-    optimal_policy_evaluation,
 )
-from himit_torch.exact.option_models import option_models_and_durations
-from himit_torch.exact.planning import expected_steps, smdp_value_iteration
+from himit_torch.exact.optimum import option_optimum, primitive_optimum
 from himit_torch.learner.agents import AGENTS
 from himit_torch.learner.config import LearnerConfig
 from himit_torch.learner.learner import Learner
@@ -55,26 +52,34 @@ from himit_torch.mentor.policy import (
     record_demonstrations,
 )
 from himit_torch.mentor.reward import mentor_reward_module
-from himit_torch.options.builders import learner_options, mentor_options, primitive_options
+from himit_torch.options.builders import learner_options, mentor_options
 from himit_torch.options.bundle import Options
 from himit_torch.runs.checkpoints import BatchShape
-from himit_torch.runs.config import ExperimentConfig, load_config, run_command
+from himit_torch.runs.config import EXPERIMENTS, ExperimentConfig, load_config
 from himit_torch.runs.greedy import CURVE_COLUMNS, GreedyReference, GreedyTracker
+from himit_torch.runs.pool import run_pool, workers_for
+from himit_torch.runs.rerun import rerun_command
 from himit_torch.runs.runner import (
     Checkpoints,
     Maps,
     WindowHook,
     batch_runs,
     check_run_dir,
-    freeze_at_exit,
+    merge_csv,
     run_names,
     run_windows,
-    share_cores,
     source_commit,
     watch_demonstrations,
     write_atomically,
 )
-from himit_torch.runs.study import prepare_run_dir, run_study
+from himit_torch.runs.study import (
+    InfoTopic,
+    RunFlags,
+    StudyEntry,
+    option_kinds_text,
+    prepare_run_dir,
+    run_study,
+)
 from himit_torch.validation import parse_document, read_text, refuse_unknown_fields
 from himit_torch.viz.tensorboard import TensorBoardLogger
 from himit_torch.worlds.multirooms import MultiRooms
@@ -88,14 +93,24 @@ __all__ = [
     "check_curves",
     "WorldResult",
     "rewrite_report",
+    "run_command",
     "optimal_reference",
     "PAPER",
 ]
 
 #: What the paper reports (Section III, Figs. 3–5).
-PAPER = {
-    "exp1": {"optimal_goals_per_5000": 26.3, "optimal_steps": 190},
+PAPER: dict[str, dict[str, Any]] = {
+    "exp1": {
+        "experiment": 1,
+        "world": (80, 10),
+        "slip": 0.1,
+        "optimal_goals_per_5000": 26.3,
+        "optimal_steps": 190,
+    },
     "exp2": {
+        "experiment": 2,
+        "world": (40, 10),
+        "slip": 0.1,
         "optimal_goals_per_5000": 53.2,
         "optimal_steps": 94,
         "non_imitator_failures": "4 of 5 runs never found the goal",
@@ -149,16 +164,13 @@ class WorldResult:
 
 
 def optimal_reference(world: MultiRooms, window: int) -> tuple[float, float, PolicyEvaluation]:
-    """The optimum a world's runs are measured against: the expected steps of the optimal
+    """The optimum a world's runs are measured against
+    (:func:`~himit_torch.exact.optimum.primitive_optimum`): the expected steps of the optimal
     (primitive) policy from start to goal, ``V*(start)``, and that policy's exact evaluation
     over windows of ``window`` steps (the reference of the greedy policies' "% of optimum", and
     the ``optimal_*`` numbers of :class:`WorldResult`)."""
-    prims = primitive_options(world)
-    models = option_models_and_durations(world, prims)
-    plan = smdp_value_iteration(models[0])
-    steps = expected_steps(models[1], plan.policy, world.start_state, world.terminal_mask)
-    evaluation = optimal_policy_evaluation(world, window, models=models, plan=plan)
-    return steps, float(plan.values[world.start_state]), evaluation
+    best = primitive_optimum(world, window)
+    return best.steps_to_goal, best.value_start, best.evaluation
 
 
 def _hparams(config: ExperimentConfig, size: int, agent: str) -> dict:
@@ -844,9 +856,7 @@ def _run_worlds(
     # worlds of equal cost keep the order of its sizes, largest first as before
     todo.sort(key=lambda job: _world_cost(plans[job[0]][0], job[1]), reverse=True)
     results: list[list[WorldResult] | None] = [None] * len(plans)
-    cores = os.cpu_count() or 1
-    workers = study.workers
-    workers_used = min(len(todo), cores) if workers is None else min(int(workers), len(todo))
+    workers_used = workers_for(len(todo), study.workers)
 
     def plan_done(i: int) -> None:
         config, run_dir = plans[i]
@@ -854,11 +864,16 @@ def _run_worlds(
         if report:
             study.report(config, run_dir, done)
 
-    def announce(i: int, size: int) -> None:
+    def announce(job: Any) -> None:
         if progress and workers_used > 1:
-            print(f"{plans[i][0].name}: world {size}×{size} done", file=sys.stderr, flush=True)
+            print(
+                f"{plans[job[0]][0].name}: world {job[1]}×{job[1]} done",
+                file=sys.stderr,
+                flush=True,
+            )
 
-    def world_done(i: int, size: int, result: WorldResult) -> None:
+    def world_done(job: Any, result: WorldResult) -> None:
+        i, size = job
         finished[i][size] = result
         if all(s in finished[i] for s in plans[i][0].sizes):
             plan_done(i)
@@ -867,134 +882,15 @@ def _run_worlds(
         if all(s in finished[i] for s in config.sizes):
             plan_done(i)
     if workers_used > 1:
-        _run_in_pool(study, plans, todo, resume, workers_used, cores, world_done, announce)
+        jobs = [((i, size), (plans[i][0], size, plans[i][1], resume, False)) for i, size in todo]
+        prepared = _kernels_prepared_here([plans[i][0] for i, _ in todo])
+        run_pool(run_world, jobs, workers_used, world_done, announce, prepared)
     else:
         for i, size in todo:
             config, run_dir = plans[i]
-            world_done(i, size, run_world(config, size, run_dir, resume, progress))
+            world_done((i, size), run_world(config, size, run_dir, resume, progress))
     assert all(r is not None for r in results)  # every world of every plan ran or was resumed
     return [r for r in results if r is not None]
-
-
-def _run_in_pool(
-    study: ExperimentStudy,
-    plans: Sequence[tuple[ExperimentConfig, Path]],
-    todo: Sequence[tuple[int, int]],
-    resume: bool,
-    workers: int,
-    cores: int,
-    world_done: Callable[[int, int, WorldResult], None],
-    announce: Callable[[int, int], None],
-) -> None:
-    """Run the worlds ``todo`` (``(plan, size)``, in this order) in ``workers`` lanes, the cores
-    shared out between them: this process and ``workers − 1`` others. Each lane takes the next
-    world when it ends its last. ``announce(plan, size)`` as each ends (from any thread);
-    ``world_done(plan, size, result)`` in this thread: after each world of its own, and for the
-    other lanes' worlds between its own and at the end.
-
-    This process is a lane: it has its modules loaded and starts its first world at once,
-    where a new process first spends ≈ 2.5 s importing them (one import fewer in all, and that
-    lane's head start). A world's results do not depend on the process it runs in. A failed
-    world stops the lanes from taking more; the worlds already running end first."""
-    import multiprocessing
-    import queue
-    import threading
-    from collections import deque
-    from concurrent.futures import ProcessPoolExecutor
-
-    jobs = deque(todo)
-    taking = threading.Lock()
-    ended: queue.Queue = queue.Queue()  # the other lanes' (plan, size, result), or their error
-    failed = threading.Event()
-
-    def take() -> tuple[int, int] | None:
-        with taking:
-            return jobs.popleft() if jobs and not failed.is_set() else None
-
-    # "spawn": a forked child of a process whose OpenMP threads already ran can hang.
-    pool = ProcessPoolExecutor(
-        workers - 1,
-        mp_context=multiprocessing.get_context("spawn"),
-        initializer=_world_process,
-        initargs=(max(1, cores // workers),),
-    )
-
-    def lane() -> None:
-        """One other lane: its worlds, one at a time, each in the pool. It takes its first
-        once its process has started (imported this package): it takes the most expensive
-        world left then, not while its process still starts."""
-        try:
-            pool.submit(os.getpid).result()
-            while (job := take()) is not None:
-                i, size = job
-                future = pool.submit(run_world, plans[i][0], size, plans[i][1], resume, False)
-                result = future.result()
-                announce(i, size)
-                ended.put((i, size, result))
-        except BaseException as err:  # (handed to this thread, which raises it)
-            failed.set()
-            ended.put((None, None, err))
-
-    def collect(wait: bool) -> None:
-        """``world_done`` of what the other lanes ended (``wait``: until they all stop)."""
-        while True:
-            try:
-                i, size, result = ended.get(timeout=0.1) if wait else ended.get_nowait()
-            except queue.Empty:
-                if wait and any(t.is_alive() for t in lanes):
-                    continue
-                return
-            if isinstance(result, BaseException):
-                raise result
-            world_done(i, size, result)
-
-    lanes = [threading.Thread(target=lane, daemon=True) for _ in range(workers - 1)]
-    try:
-        # A cold Numba cache is compiled once, here, while the other lanes' processes start;
-        # they wait for it at their first tick instead of each compiling it too.
-        with _kernels_prepared_here([plans[i][0] for i, _ in todo]):
-            for t in lanes:
-                t.start()
-        with _cores_shared(max(1, cores // workers)):
-            while (job := take()) is not None:
-                i, size = job
-                result = run_world(plans[i][0], size, plans[i][1], resume, False)
-                announce(i, size)
-                world_done(i, size, result)
-                collect(wait=False)
-        collect(wait=True)
-    finally:  # a failed world stops the rest instead of letting them run to the end
-        failed.set()
-        pool.shutdown(wait=True, cancel_futures=True)
-
-
-def _world_process(threads: int) -> None:
-    """Set up one of the pool's processes: its share of the cores
-    (:func:`~himit_torch.runs.runner.share_cores`), and an exit that skips the last garbage
-    collections (:func:`~himit_torch.runs.runner.freeze_at_exit`): the run waits for its
-    processes to end, ≈ 1.2 s each without it, ≈ 0.25 s with it."""
-    share_cores(threads)
-    freeze_at_exit()
-
-
-@contextmanager
-def _cores_shared(threads: int) -> Iterator[None]:
-    """A block in which this process runs as one world among others
-    (:func:`~himit_torch.runs.runner.share_cores`); its thread counts are restored after."""
-    try:
-        from numba import get_num_threads, set_num_threads
-    except ImportError:  # (no compiled engine: torch's threads only)
-        numba_threads = None
-    else:
-        numba_threads = get_num_threads()
-    torch_threads = torch.get_num_threads()
-    share_cores(threads)
-    try:
-        yield
-    finally:
-        if numba_threads is not None:
-            set_num_threads(numba_threads)
-        torch.set_num_threads(torch_threads)
 
 
 def _kernels_prepared_here(configs: Sequence[ExperimentConfig]):
@@ -1176,16 +1072,156 @@ def check_curves(path: Path) -> None:
 
 
 def _merge_curves(run_dir: Path, config: ExperimentConfig) -> None:
-    rows: list[list[str]] = []
-    header: list[str] = []
-    for size in config.sizes:
-        with (run_dir / "worlds" / f"curves{size}.csv").open() as f:
-            reader = csv.reader(f)
-            header = next(reader)
-            rows.extend(reader)
-    tmp = run_dir / "curves.csv.tmp"
-    with tmp.open("w", newline="") as f:
-        out = csv.writer(f)
-        out.writerow(header)
-        out.writerows(rows)
-    os.replace(tmp, run_dir / "curves.csv")
+    parts = [run_dir / "worlds" / f"curves{size}.csv" for size in config.sizes]
+    merge_csv(parts, run_dir / "curves.csv")
+
+
+# ================================================================ the command line's entries
+#: ``himit run paper``: the paper's three experiments, their worlds in one pool.
+PAPER_EXPERIMENTS = ("exp1", "exp2", "exp3")
+
+#: Window over which the paper counts goals (its Figs. 3 and 4).
+GOALS_WINDOW = 5000
+
+
+def run_command(config: ExperimentConfig, run_dir: str | os.PathLike | None = None) -> str | None:
+    """The ``himit run`` command that rebuilds ``config`` exactly
+    (:func:`~himit_torch.runs.rerun.rerun_command` from the experiment's own,
+    :data:`~himit_torch.runs.config.EXPERIMENTS`; where no flags do,
+    ``himit run <name> --config <run_dir>/config.json``), or None where ``config.name`` is not
+    one of them (a sweep's trial, the demo) or ``run_dir`` is not named ``config.name``."""
+    base = EXPERIMENTS.get(config.name)
+    if base is None:
+        return None
+    return rerun_command(
+        config.name, base, config, run_dir, adjust=_moved_checkpoints, config_file=True
+    )
+
+
+def _moved_checkpoints(config: ExperimentConfig, given: frozenset[str]) -> ExperimentConfig:
+    """A shorter ``--steps`` still saves at least once before its end (at a window boundary),
+    unless ``--checkpoint-every`` is given too."""
+    if "steps" not in given or "checkpoint_every" in given:
+        return config
+    window = config.window
+    every = max(window, min(config.checkpoint_every, config.steps // window * window))
+    return replace(config, checkpoint_every=every)
+
+
+def _describe(config: ExperimentConfig, run_dir: Path) -> str:
+    return (
+        f"{config.name}: worlds {list(config.sizes)}, agents {list(config.agents)}, "
+        f"{config.seeds} seeds, {config.steps:,} steps → {run_dir}"
+    )
+
+
+def _run_plans(plans: Sequence[tuple[ExperimentConfig, Path]], flags: RunFlags) -> None:
+    run_experiments(
+        plans,
+        resume=flags.resume,
+        force=flags.force,
+        progress=flags.progress,
+        workers=flags.workers,
+    )
+
+
+def _info_flags(parser) -> None:
+    parser.add_argument("--size", type=int, default=40, help="cells per side, N (default 40)")
+    parser.add_argument("--rooms", type=int, default=10, help="rooms per side, R (default 10)")
+    parser.add_argument(
+        "--corner-options",
+        action="store_true",
+        help="give the learner (and the mentor) 8 corner options per room (experiment 1)",
+    )
+    parser.add_argument(
+        "--no-doorway-options",
+        action="store_true",
+        help="the learner gets primitives only (plus corners if asked)",
+    )
+
+
+def _info(args) -> Iterator[str]:
+    """``himit info``: a MultiRooms world's size, options, and the optimal trip of primitives,
+    the learner's options and the mentor, beside the paper's numbers where it is one of its
+    worlds."""
+    world = MultiRooms(size=args.size, rooms=args.rooms, slip=args.slip)
+    learner = learner_options(
+        world, doorways=not args.no_doorway_options, corners=args.corner_options
+    )
+    mentor_opts = mentor_options(world, corners=args.corner_options)
+    yield (
+        f"world      {world.size}×{world.size} cells, {world.rooms}×{world.rooms} rooms "
+        f"{world.room_size} cells apart (one-cell walls between), slip {world.slip}, gamma "
+        f"{world.gamma}, reward {world.step_reward} a step and {world.goal_reward} at the goal"
+    )
+    yield (
+        f"states     {world.num_states} (free cells {int(world.free_mask.sum())}, doorways "
+        f"{len(world.doorway_rooms)}, rooms {world.num_rooms})"
+    )
+    yield f"start/goal {world.coords(world.start_state)} → {world.coords(world.goal_state)}"
+    yield (
+        f"learner    {learner.num_options} options ({option_kinds_text(learner)}; "
+        "doorway/corner options head directly to their target)"
+    )
+    yield (
+        f"mentor     {mentor_opts.num_options} options ({option_kinds_text(mentor_opts)}; "
+        "doorway/corner options travel along the room's walls)"
+    )
+    mentor = mentor_policy(world, mentor_opts)
+    rows = [
+        ("primitives only", primitive_optimum(world, GOALS_WINDOW).evaluation),
+        ("learner's options", option_optimum(world, learner, GOALS_WINDOW)),
+        (
+            f"mentor (prefers its options within {mentor.tolerance:g})",
+            evaluate_option_choice(world, mentor_opts, mentor.option, GOALS_WINDOW),
+        ),
+    ]
+    width = max(len(name) for name, _ in rows) + 2
+    yield ""
+    yield f"{'optimal policy':<{width}}{'steps start→goal':>18}{f'goals / {GOALS_WINDOW} steps':>22}"
+    for name, trip in rows:
+        steps, goals = float(trip.steps_per_episode[0]), float(trip.goals_per_window[0])
+        yield f"{name:<{width}}{steps:>18.1f}{goals:>22.1f}"
+    for paper in PAPER.values():
+        if (paper.get("world"), paper.get("slip")) == ((world.size, world.rooms), world.slip):
+            label = f"paper, experiment {paper['experiment']}"
+            approx = "≈" + format(paper["optimal_steps"], ".0f")
+            yield f"{label:<{width}}{approx:>18}{paper['optimal_goals_per_5000']:>22.1f}"
+
+
+_INFO = InfoTopic(None, _info_flags, _info)
+
+
+def _entry(name: str) -> StudyEntry:
+    return StudyEntry(
+        name,
+        f"the paper's experiment {name[-1]} (himit_torch.runs.experiment)",
+        ExperimentConfig,
+        configs=lambda: (EXPERIMENTS[name],),
+        run=_run_plans,
+        describe=_describe,
+        redraw=rewrite_report,
+        adjust=_moved_checkpoints,
+        run_flags=("config", "resume", "workers"),
+        info=_INFO if name == "exp1" else None,
+    )
+
+
+#: The registry entries of ``himit run exp1``, ``exp2``, ``exp3`` and ``paper``.
+ENTRIES = (
+    *(_entry(name) for name in PAPER_EXPERIMENTS),
+    StudyEntry(
+        "paper",
+        "the paper's experiments 1, 2 and 3, their worlds shared out over the cores together "
+        "(each keeps its own name and configuration)",
+        ExperimentConfig,
+        configs=lambda: tuple(EXPERIMENTS[name] for name in PAPER_EXPERIMENTS),
+        run=_run_plans,
+        describe=_describe,
+        redraw=rewrite_report,
+        flag_defaults=ExperimentConfig,
+        adjust=_moved_checkpoints,
+        run_flags=("resume", "workers"),
+        skip=("name",),
+    ),
+)

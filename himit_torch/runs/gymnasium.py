@@ -43,7 +43,7 @@ import csv
 import json
 import math
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any, ClassVar
@@ -67,14 +67,24 @@ from himit_torch.options.bundle import Options
 from himit_torch.options.taxi import taxi_navigation_options
 from himit_torch.options.toy_text import cliff_options, frozen_lake_options
 from himit_torch.runs.greedy import CURVE_COLUMNS, GreedyReference, GreedyTracker
+from himit_torch.runs.rerun import rerun_command
 from himit_torch.runs.runner import (
     batch_runs,
+    merge_csv,
     run_names,
     run_windows,
     source_commit,
     watch_demonstrations,
 )
-from himit_torch.runs.study import RunConfig, run_study
+from himit_torch.runs.study import (
+    InfoTopic,
+    RunConfig,
+    StudyEntry,
+    option_kinds_text,
+    read_config_file,
+    run_each,
+    run_study,
+)
 from himit_torch.statistics import bca_interval, mean_half_width
 from himit_torch.validation import setting
 from himit_torch.viz.results_page import plot_command, provenance_line, write_results_page
@@ -229,40 +239,14 @@ def gym_run_command(
     ``--tie-break``) that differ from the comparison's defaults, applied as it applies them;
     the configuration they build is compared with ``config`` field by field. ``run_dir``
     (``<logdir>/<name>``) adds ``--logdir`` unless it is the default ``runs``."""
-    from himit_torch.runs.config import logdir_flag, setting_flag
-
-    logdir = logdir_flag(run_dir, config.name)
-    if logdir is None:
-        return None
-    for quick in (False, True):
-        base = GymExperimentConfig().quick() if quick else GymExperimentConfig()
-        flags = ["--quick"] if quick else []
-        try:
-            if config.preset != base.preset:
-                flags += setting_flag("preset", config.preset)
-                base = (
-                    replace(base, preset=None)
-                    if config.preset is None
-                    else base.with_preset(config.preset)
-                )
-            changes = {
-                name: getattr(config, name)
-                for name in ("seeds", "first_seed", "steps", "device")
-                if getattr(config, name) != getattr(base, name)
-            }
-            tie_break = config.learner.tie_break
-            learner = replace(base.learner, tie_break=tie_break)
-            rebuilt = replace(base, **changes, learner=learner)
-        except (ValueError, TypeError):
-            continue
-        if asdict(rebuilt) != asdict(config):
-            continue
-        for name, value in changes.items():
-            flags += setting_flag(name, value)
-        if tie_break != base.learner.tie_break:
-            flags += setting_flag("tie_break", tie_break)
-        return " ".join(["himit", "run", "gymnasium", *flags, *logdir])
-    return None
+    return rerun_command(
+        "gymnasium",
+        GymExperimentConfig(),
+        config,
+        run_dir,
+        names=("preset", "seeds", "first_seed", "steps", "device", "tie_break"),
+        quick=True,
+    )
 
 
 # ================================================================================ evaluation
@@ -554,11 +538,8 @@ class GymnasiumStudy:
     ) -> list[dict]:
         """Every task's batch, then ``curves.csv``; the tasks' summaries."""
         summaries = [run_task(config, t, run_dir, progress) for t in config.tasks]
-        with (run_dir / "curves.csv").open("w", newline="") as out:
-            out.write(",".join(_COLUMNS) + "\n")
-            for t in config.tasks:
-                lines = (run_dir / "tasks" / f"{t}.csv").read_text().splitlines()[1:]
-                out.write("".join(line + "\n" for line in lines))
+        parts = [run_dir / "tasks" / f"{t}.csv" for t in config.tasks]
+        merge_csv(parts, run_dir / "curves.csv", newline="\n")
         return summaries
 
     def report(self, config: GymExperimentConfig, run_dir: Path, summaries: list[dict]) -> None:
@@ -585,18 +566,10 @@ def run_gym_experiment(
 def rewrite_gym_report(run_dir: str | os.PathLike) -> None:
     """Redraw the figures and ``results.md`` of a finished ``himit run gymnasium`` directory
     from its ``config.json``, ``curves.csv`` and ``tasks/*.json`` (``himit plot``)."""
-    from himit_torch.learner.config import LearnerConfig
     from himit_torch.validation import parse_document, read_text
 
     run_dir = Path(run_dir)
-    where = f"config file {run_dir / 'config.json'}"
-    data = parse_document(where, read_text(where, run_dir / "config.json"), "json")
-    if not isinstance(data, dict) or not isinstance(data.get("learner"), dict):
-        raise ValueError(f"{where} is not a Gymnasium comparison's configuration")
-    try:
-        config = GymExperimentConfig(**dict(data, learner=LearnerConfig(**data["learner"])))
-    except TypeError as err:
-        raise ValueError(f"{where}: {err}") from None
+    config = read_config_file(GymExperimentConfig, run_dir / "config.json")
     summaries = []
     for task in config.tasks:
         path = run_dir / "tasks" / f"{task}.json"
@@ -836,3 +809,98 @@ def _task_section(config: GymExperimentConfig, s: dict) -> list[str]:
         f"{s['wall_seconds']:.0f} s. Figure: `figures/curves_{s['task']}.png`.",
         "",
     ]
+
+
+# ================================================================ the command line's entry
+def _info_flags(parser) -> None:
+    parser.add_argument(
+        "--env",
+        help="a Gymnasium tabular environment instead of MultiRooms: an id "
+        "(e.g. Taxi-v4, FrozenLake-v1) or a task of himit run gymnasium "
+        "(taxi, cliffwalking, frozenlake8x8)",
+    )
+    parser.add_argument(
+        "--env-kwargs",
+        help='JSON keyword arguments of gymnasium.make, e.g. \'{"map_name": "8x8"}\'',
+    )
+    parser.add_argument(
+        "--gamma", type=float, default=0.99, help="discount of a --env or --minigrid world (0.99)"
+    )
+
+
+def _info_world(args) -> tuple[TableWorld, Options]:
+    """The world and learner options ``himit info --env`` describes."""
+    try:
+        kwargs = json.loads(args.env_kwargs) if args.env_kwargs else {}
+    except json.JSONDecodeError as err:
+        raise ValueError(f"--env-kwargs is not valid JSON: {err}") from None
+    if not isinstance(kwargs, dict):
+        raise ValueError('--env-kwargs must be a JSON object, e.g. \'{"map_name": "8x8"}\'')
+    task = TASKS.get(args.env)
+    if task is None:
+        world = from_gymnasium(args.env, gamma=args.gamma, **kwargs)
+        return world, primitive_options(world)
+    if kwargs:
+        raise ValueError(
+            f"--env {args.env} is a task with its own kwargs ({task.kwargs}); give "
+            f"--env {task.env_id} to choose them"
+        )
+    world = task.world(args.gamma)
+    return world, task.options(world)
+
+
+def _info(args) -> Iterator[str]:
+    """``himit info --env``: a Gymnasium world through the adapter, exactly solved."""
+    from himit_torch.exact.option_models import option_models
+    from himit_torch.exact.planning import smdp_value_iteration, value_iteration
+    from himit_torch.worlds.table_world import world_model
+
+    world, options = _info_world(args)
+    plan = value_iteration(*world_model(world), world.gamma)
+    mu = world.start_distribution
+    rewards = world.dynamics_table().rewards
+    yield (
+        f"world      {world.name} {world.describe().get('kwargs', {})} through from_gymnasium, "
+        f"gamma {world.gamma}"
+    )
+    yield (
+        f"states     {world.num_states} (start states {int((mu > 0).sum())}, terminal "
+        f"{int(world.terminal_mask.sum())}, goal {int(world.goal_mask.sum())})"
+    )
+    yield f"actions    {world.num_actions}: {', '.join(world.action_names)}"
+    yield (
+        f"rewards    {float(rewards.min()):g} … {float(rewards.max()):g} per transition; "
+        f"mentor reward: {KnownReward(world).note}"
+    )
+    extended = [n for n, k in zip(options.names, options.kinds) if k != "primitive"]
+    yield (
+        f"learner    {options.num_options} options ({option_kinds_text(options)}"
+        + (f": {', '.join(extended)})" if extended else ")")
+    )
+    p_goal, length = episode_statistics(world, plan.policy)
+    models = smdp_value_iteration(option_models(world, options))
+    window = 5000  # the paper's goals window
+    yield ""
+    yield "optimal (value iteration on the true model, primitives)"
+    yield f"  V*(start distribution)      {float(plan.values @ mu):.3f}"
+    yield f"  with the learner's options  {float(models.values @ mu):.3f}"
+    yield f"  P(goal) per episode         {p_goal:.3f}"
+    yield f"  steps per episode           {length:.1f}"
+    yield f"  {f'goals per {window} steps':<28}{window * p_goal / length:.1f}"
+
+
+#: The registry entry of ``himit run gymnasium`` (and ``himit info --env``).
+ENTRY = StudyEntry(
+    "gymnasium",
+    "imitation against options and primitives on Gymnasium's Taxi, CliffWalking and "
+    "FrozenLake 8×8 (himit_torch.runs.gymnasium; each task is one batch, rerun with --force)",
+    GymExperimentConfig,
+    configs=lambda: (GymExperimentConfig(),),
+    run=run_each(run_gym_experiment),
+    describe=lambda config, run_dir: (
+        f"{config.name}: tasks {list(config.tasks)}, agents {list(config.agents)}, "
+        f"{config.seeds} seeds → {run_dir}"
+    ),
+    redraw=rewrite_gym_report,
+    info=InfoTopic("env", _info_flags, _info, requires=("env_kwargs",)),
+)

@@ -40,38 +40,46 @@ import csv
 import json
 import math
 import os
+from collections.abc import Iterator
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any, ClassVar
 
 import torch
 
-from himit_torch.exact.greedy_evaluation import PolicyEvaluator, optimal_value
-from himit_torch.exact.option_models import option_models_and_durations
-from himit_torch.exact.planning import expected_steps, smdp_value_iteration
+from himit_torch.exact.greedy_evaluation import PolicyEvaluator, evaluate_option_choice
+from himit_torch.exact.optimum import primitive_optimum
+from himit_torch.exact.option_models import option_durations
+from himit_torch.exact.planning import expected_steps, optimal_baseline
 from himit_torch.learner.config import LearnerConfig
 from himit_torch.learner.learner import Learner
 from himit_torch.mentor.demonstrations import Demonstrations
 from himit_torch.mentor.policy import record_demonstrations
 from himit_torch.mentor.puzzle_box import map_demonstrations, organisation_mentor
-from himit_torch.options.builders import primitive_options
 from himit_torch.options.bundle import Options
 from himit_torch.options.puzzle_box import intended_rollout, puzzle_box_options
 from himit_torch.runs.checkpoints import BatchShape
 from himit_torch.runs.runner import (
     Checkpoints,
+    merge_csv,
     run_names,
     run_windows,
     source_commit,
     watch_demonstrations,
     write_atomically,
 )
-from himit_torch.runs.study import RunConfig, run_study
+from himit_torch.runs.study import (
+    InfoTopic,
+    RunConfig,
+    StudyEntry,
+    option_kinds_text,
+    run_each,
+    run_study,
+)
 from himit_torch.validation import (
     check_memory,
     parse_document,
     read_text,
-    refuse_unknown_fields,
     setting,
 )
 from himit_torch.viz.tensorboard import TensorBoardLogger
@@ -244,9 +252,10 @@ def puzzle_box_run_command(
     (``--quick``, ``--seeds``, ``--steps``, ``--engine``) that differ from the defaults, applied
     as it applies them; the configuration they build is compared with ``config`` field by
     field. ``run_dir`` (``<logdir>/<name>``) adds ``--logdir`` unless it is ``runs``."""
-    from himit_torch.runs.config import quick_run_command
+    from himit_torch.runs.rerun import rerun_command
 
-    return quick_run_command("puzzlebox", config, run_dir, ("seeds", "steps", "engine"))
+    names = ("seeds", "steps", "engine")
+    return rerun_command("puzzlebox", PuzzleBoxConfig(), config, run_dir, names, quick=True)
 
 
 def recorded_run_command(run_dir: str | os.PathLike) -> str | None:
@@ -350,12 +359,12 @@ class PreparedBox:
         options = puzzle_box_options(world, "learner", pinch=pinch)
         # The optimum over primitives: its models once, for its steps and V*(start) (the exact
         # value of its policy, so that an optimal greedy policy's gap is 0 to round-off).
-        models = option_models_and_durations(world, primitive_options(world))
-        plan = smdp_value_iteration(models[0])
-        steps = expected_steps(models[1], plan.policy, world.start_state, world.terminal_mask)
+        best = primitive_optimum(world, window=1)
         # The box's values only: the evaluator's window (goal rates) is unused.
         evaluator = PolicyEvaluator(world, options, window=1)
-        return cls(world, options, evaluator, optimal_value(world, models, plan), float(steps))
+        return cls(
+            world, options, evaluator, float(best.evaluation.value_start[0]), best.steps_to_goal
+        )
 
 
 def run_box_batch(
@@ -659,18 +668,6 @@ def read_batch(path: Path, tag: str) -> dict[str, Any]:
 
 
 # ================================================================================ the runner
-def _saved_config(path: Path) -> PuzzleBoxConfig:
-    """A run's saved ``config.json``, read through :class:`PuzzleBoxConfig`: a setting it does not
-    name (saved before the setting existed) takes its declared default; a damaged one is a
-    ``ValueError`` naming the file."""
-    where = f"--resume: {path}"
-    saved = parse_document(where, path.read_text(), "json")
-    if not isinstance(saved, dict):
-        raise ValueError(f"{where} holds a {type(saved).__name__}, not a configuration")
-    refuse_unknown_fields(saved, PuzzleBoxConfig, where)
-    return PuzzleBoxConfig(**saved)
-
-
 @dataclass
 class _Batches:
     """Runs the batches of one run directory in order (a finished one, on ``resume``, is read
@@ -784,11 +781,8 @@ def _write_summary(
     config: PuzzleBoxConfig, run_dir: Path, small: PuzzleBox, plans: dict, batches: list[dict]
 ) -> dict[str, Any]:
     """``curves.csv`` (every batch's rows) and ``summary.json``; the summary."""
-    with (run_dir / "curves.csv").open("w", newline="") as out:
-        out.write(",".join(_COLUMNS) + "\n")
-        for b in batches:
-            lines = (run_dir / "batches" / f"{b['batch']}.csv").read_text().splitlines()[1:]
-            out.write("".join(line + "\n" for line in lines))
+    parts = [run_dir / "batches" / f"{b['batch']}.csv" for b in batches]
+    merge_csv(parts, run_dir / "curves.csv", newline="\n")
     summary = {
         "config": {**asdict(config), "box_steps": small.steps},
         "commit": source_commit(),
@@ -819,10 +813,90 @@ def run_puzzle_box(
         force=force,
         progress=progress,
         check=config.check_size,
-        load=_saved_config,
     )
 
 
 def mentors_subgoals(box: PuzzleBox, states: list[int]) -> list[str]:
     """The ``"i.j"`` steps along a mentor's states."""
     return [f"{i + 1}.{j}" for i, j in box.subgoals(states)]
+
+
+# ================================================================ the command line's entry
+def redraw(run_dir: Path) -> None:
+    """``himit plot``: the figures and ``results.md`` of a finished run, from its records."""
+    from himit_torch.runs.puzzle_box_report import rewrite_puzzle_box_report
+
+    if not (run_dir / "batches").is_dir():
+        raise ValueError(
+            f"{run_dir} is a puzzle-box run directory without its batches/ records: its page "
+            "is redrawn from them (summary.json holds only the aggregates); put the batches/ "
+            "folder back, or run it again with himit run puzzlebox"
+        )
+    rewrite_puzzle_box_report(run_dir, recorded_run_command(run_dir))
+
+
+def _info_flags(parser) -> None:
+    parser.add_argument(
+        "--puzzle-box",
+        type=int,
+        metavar="K",
+        help="the puzzle box with K skewers of 4 steps (Whiten et al.'s keyway-fruit box): its "
+        "size and the optimal cost of each hierarchical organisation",
+    )
+    parser.add_argument(
+        "--pinch-slip",
+        type=float,
+        help="--puzzle-box: failure probability of the mentor's pinch grip (default: --slip)",
+    )
+
+
+def _info(args) -> Iterator[str]:
+    """``himit info --puzzle-box K``: the box's size, and the optimal cost of each hierarchical
+    organisation by exact planning."""
+    k = args.puzzle_box
+    if k < 1 or k > 5:
+        raise ValueError(f"--puzzle-box {k}: give 1 … 5 skewers (6: 357,000 states)")
+    box = PuzzleBox(k, slip=args.slip, pinch_slip=args.pinch_slip)
+    sizes = ", ".join(f"k={j}: {puzzle_box_size(j):,}" for j in range(2, 6))
+    yield (
+        f"world      {box.name}, slip {box.slip} (pinch {box.pinch_slip}), gamma {box.gamma}, "
+        f"reward {box.step_reward} a movement and {box.goal_reward} when the box opens"
+    )
+    yield f"states     {box.num_states:,} ((n+1)^k · (1+3k); {sizes})"
+    yield f"actions    {box.num_actions}: {', '.join(box.action_names)}"
+    best = optimal_baseline(box)
+    rows = [("optimal policy (value iteration)", best.steps_to_goal, best.value_start)]
+    for style, grip in (("learner", "power"), ("mentor", "pinch")):
+        options = puzzle_box_options(box, style)
+        if style == "learner":
+            yield f"learner    {options.num_options} options ({option_kinds_text(options)})"
+        durations = option_durations(box, options)
+        for org in ORGANISATIONS:
+            policy = organisation_mentor(box, org, options=options).option
+            steps = expected_steps(durations, policy, box.start_state, box.terminal_mask)
+            value = float(evaluate_option_choice(box, options, policy, 1).value_start[0])
+            rows.append((f"{org:>6} by {org}, {style}'s skills ({grip})", steps, value))
+    yield ""
+    yield "exact planning; organisations: skewer by skewer / step by step across skewers"
+    width = max(len(name) for name, _, _ in rows) + 2
+    yield f"{'':<{width}}{'steps to open':>15}{'V(start)':>12}"
+    for name, steps, value in rows:
+        yield f"{name:<{width}}{steps:>15.3f}{value:>12.6f}"
+
+
+#: The registry entry of ``himit run puzzlebox`` (and ``himit info --puzzle-box``).
+ENTRY = StudyEntry(
+    "puzzlebox",
+    "Whiten et al.'s keyway-fruit box: speed, copying the organisation, a new skewer "
+    "(himit_torch.runs.puzzle_box; its batches run one after the other)",
+    PuzzleBoxConfig,
+    configs=lambda: (PuzzleBoxConfig(),),
+    run=run_each(run_puzzle_box, resume=True),
+    describe=lambda config, run_dir: (
+        f"{config.name}: {config.skewers}- and {config.transfer_skewers}-skewer boxes, "
+        f"{config.seeds} seeds per condition → {run_dir}"
+    ),
+    redraw=redraw,
+    run_flags=("resume",),
+    info=InfoTopic("puzzle_box", _info_flags, _info, requires=("pinch_slip",)),
+)

@@ -323,6 +323,19 @@ def source_commit() -> str:
     return commit + ("+dirty" if dirty else "")
 
 
+def merge_csv(parts: Sequence[Path], out: Path, newline: str = "\r\n") -> None:
+    """``out`` (e.g. a run's ``curves.csv``): the header of the first of ``parts``, then every
+    part's rows, in order, each line ending with ``newline`` (``csv``'s own ``\\r\\n``, or
+    ``\\n``), written atomically."""
+    header: list[str] = []
+    rows: list[str] = []
+    for part in parts:
+        lines = part.read_text().splitlines()
+        header = header or lines[:1]
+        rows.extend(lines[1:])
+    write_atomically(out, "".join(line + newline for line in header + rows))
+
+
 def write_atomically(path: Path, text: str) -> None:
     """Write ``text`` to ``path`` through a temporary file beside it and a rename, so that a
     reader (or a run killed mid-write) never sees a half-written file."""

@@ -15,6 +15,12 @@ directory holds, and how it reads a finished run back; :func:`run_study` prepare
 directory (refusing a finished run without ``force``, clearing it with ``force``), saves the
 configuration — on ``resume`` only after checking it is the saved one — runs the study's
 batches and writes its report.
+
+**A study's registry entry** (:class:`StudyEntry`) is what the command line knows of it: its
+name and help, its configuration class (the flags of ``himit run NAME`` come from it), the
+configurations it starts from, how it runs, how ``himit plot`` redraws its run directory and
+what ``himit info`` says of its worlds. The entries are listed once, in
+:mod:`himit_torch.runs.studies`.
 """
 
 from __future__ import annotations
@@ -22,7 +28,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any, ClassVar, Protocol, TypeVar
@@ -40,7 +46,21 @@ from himit_torch.validation import (
     setting,
 )
 
-__all__ = ["RunSettings", "RunConfig", "Study", "run_study", "prepare_run_dir", "read_config"]
+__all__ = [
+    "RunSettings",
+    "RunConfig",
+    "Study",
+    "StudyEntry",
+    "RunFlags",
+    "InfoTopic",
+    "run_study",
+    "prepare_run_dir",
+    "read_config",
+    "read_config_file",
+    "read_config_fields",
+    "run_each",
+    "option_kinds_text",
+]
 
 
 @dataclass
@@ -142,7 +162,8 @@ class RunConfig:
     def check_run_settings(self) -> None:
         """Check every declared field (:func:`~himit_torch.validation.check_settings`), then
         the rules of the shared settings a study has: its learner follows its preset, its
-        device is written well, and the learner's window is the study's."""
+        device is written well, and the learner settings it derives
+        (:meth:`derived_learner_settings`) are set."""
         check_settings(self)
         config: Any = self  # a study's dataclass: the shared fields it has
         kind = type(self).__name__
@@ -152,9 +173,22 @@ class RunConfig:
             # Written down, not run: a config naming cuda is valid on a machine without
             # (plotting a GPU run's directory); the learner refuses it where it would run.
             as_device(f"{kind}.device", config.device, available=False)
-        if hasattr(config, "learner") and hasattr(config, "window"):
-            if config.learner.window != config.window:
-                config.learner = replace(config.learner, window=config.window)
+        if hasattr(config, "learner"):
+            derived = self.derived_learner_settings()
+            if any(getattr(config.learner, k) != v for k, v in derived.items()):
+                config.learner = replace(config.learner, **derived)
+
+    #: The learner settings a study derives from its own (``derived_learner_settings``).
+    derived_learner: ClassVar[tuple[str, ...]] = ("window",)
+
+    def derived_learner_settings(self) -> dict[str, Any]:
+        """The learner settings that follow from this study's own, by name: one policy for
+        every such setting — **derived and recorded**. The study sets them on its learner
+        (whatever the learner's own value was), ``config.json`` records them, and they are no
+        flags of ``himit run`` (the study's own setting is). Here: the learner's ``window`` is
+        the study's ``window``; a study adds its own (:attr:`derived_learner` names them)."""
+        window = getattr(self, "window", None)
+        return {} if window is None else {"window": window}
 
     def with_preset(self: Config, name: str) -> Config:
         """This configuration with preset ``name``'s learner settings, and the preset
@@ -172,6 +206,11 @@ class RunConfig:
         """The configuration as ``config.json`` holds it."""
         return json.dumps(asdict(self), indent=2)  # type: ignore[call-overload]
 
+    def quick(self: Config) -> Config:
+        """A tiny budget of the same study (``himit run … --quick``, smoke tests); a study
+        without a smaller budget runs as it is."""
+        return self
+
 
 def read_config(cls: type[Config], data: Any, where: str) -> Config:
     """A ``cls`` from ``data`` (a parsed ``config.json``): unknown fields and values the
@@ -184,6 +223,114 @@ def read_config(cls: type[Config], data: Any, where: str) -> Config:
         return cls(**data)
     except (ValueError, TypeError) as err:
         raise ValueError(f"{where}: {err}") from None
+
+
+def read_config_file(
+    cls: type[Config], path: str | os.PathLike, where: str | None = None
+) -> Config:
+    """A ``cls`` from the JSON file ``path`` (a run directory's ``config.json``, or
+    ``--config``): :func:`read_config` of its parsed content. A missing file, a directory, text
+    that is not UTF-8 JSON, unknown fields or refused values are a ``ValueError`` naming
+    ``where`` (default: ``config file <path>``)."""
+    where = where or f"config file {path}"
+    return read_config(cls, parse_document(where, read_text(where, Path(path)), "json"), where)
+
+
+def read_config_fields(path: str | os.PathLike, where: str) -> set[str]:
+    """The field names of the JSON object in ``path`` (a run directory's ``config.json``);
+    a file that holds no object is a ``ValueError`` naming ``where``."""
+    data = parse_document(where, read_text(where, Path(path)), "json")
+    if not isinstance(data, dict):
+        raise ValueError(f"{where} holds a {type(data).__name__}, not a configuration")
+    return set(data)
+
+
+def option_kinds_text(options: Any) -> str:
+    """How many options of each kind ``options`` holds, e.g. ``4 primitive, 180 doorway``
+    (``himit info``)."""
+    counts: dict[str, int] = {}
+    for kind in options.kinds:
+        counts[kind] = counts.get(kind, 0) + 1
+    return ", ".join(f"{n} {kind}" for kind, n in counts.items())
+
+
+# ============================================================================ the registry entry
+@dataclass(frozen=True)
+class RunFlags:
+    """The run flags of ``himit run`` a study's runner reads."""
+
+    resume: bool = False
+    force: bool = False
+    progress: bool = True
+    workers: int | None = None
+
+
+@dataclass(frozen=True)
+class InfoTopic:
+    """What ``himit info`` says of a study's worlds: ``flag`` chooses it (``None``: the
+    default topic, when no other is chosen), ``add_flags`` adds its own flags to the parser,
+    ``requires`` names the flags (their ``dest``) that mean nothing without ``flag``, and
+    ``show`` yields the lines it prints (slow exact computations in between)."""
+
+    flag: str | None
+    add_flags: Callable[[Any], None]
+    show: Callable[[Any], Iterator[str]]
+    requires: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class StudyEntry:
+    """One study as the command line knows it (``himit run NAME``, ``himit plot``,
+    ``himit info``); the entries are listed in :mod:`himit_torch.runs.studies`."""
+
+    name: str
+    """``himit run NAME``."""
+    help: str
+    """Its one-line help."""
+    config_class: type
+    """Its configuration (a :class:`RunConfig` dataclass): one flag per declared setting (the
+    learner's too, where it has one)."""
+    configs: Callable[[], tuple[Any, ...]]
+    """The configurations ``himit run NAME`` starts from (one, or several run as one pool:
+    ``himit run paper``)."""
+    run: Callable[[Sequence[tuple[Any, Path]], RunFlags], Any]
+    """Runs the ``(config, run_dir)`` plans with the :class:`RunFlags`."""
+    describe: Callable[[Any, Path], str]
+    """The line printed before a plan runs."""
+    redraw: Callable[[Path], None] | None = None
+    """``himit plot``'s redraw of a finished run directory (``None``: not redrawn)."""
+    no_redraw: str = ""
+    """Why ``himit plot`` does not redraw its run directories (``redraw`` is ``None``)."""
+    flag_defaults: Callable[[], Any] | None = None
+    """The configuration whose values the flags show (default: the first of ``configs``)."""
+    adjust: Callable[[Any, frozenset[str]], Any] | None = None
+    """A change of the configuration built from the flags, given the names of the settings
+    given (the paper's: a shorter ``--steps`` moves ``checkpoint_every``)."""
+    run_flags: tuple[str, ...] = ()
+    """Which of ``config`` (a saved ``config.json`` in place of the defaults), ``resume`` and
+    ``workers`` it takes."""
+    skip: tuple[str, ...] = ()
+    """Settings that are not flags."""
+    info: InfoTopic | None = None
+    """What ``himit info`` says of its worlds."""
+
+    def defaults(self) -> Any:
+        """The configuration whose values the flags show."""
+        return self.flag_defaults() if self.flag_defaults else self.configs()[0]
+
+
+def run_each(
+    runner: Callable[..., Any], resume: bool = False
+) -> Callable[[Sequence[tuple[Any, Path]], RunFlags], None]:
+    """A :attr:`StudyEntry.run` that calls ``runner(config, run_dir, force=…, progress=…)``
+    (and ``resume=…`` where ``resume``) for each plan in turn."""
+
+    def run(plans: Sequence[tuple[Any, Path]], flags: RunFlags) -> None:
+        extra = {"resume": flags.resume} if resume else {}
+        for config, run_dir in plans:
+            runner(config, run_dir, force=flags.force, progress=flags.progress, **extra)
+
+    return run
 
 
 # ================================================================================ the protocol
@@ -279,10 +426,7 @@ def prepare_run_dir(
     cfg_path = run_dir / "config.json"
     if resume and cfg_path.exists():
         if load is None:
-            where = f"--resume: {cfg_path}"
-            saved = read_config(
-                type(config), parse_document(where, read_text(where, cfg_path), "json"), where
-            )
+            saved = read_config_file(type(config), cfg_path, f"--resume: {cfg_path}")
         else:
             saved = load(cfg_path)
         if asdict(saved) != asdict(config):

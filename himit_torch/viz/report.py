@@ -236,7 +236,7 @@ def _stress_lines(config) -> list[str]:
 def provenance_line(run_dir: Path, results, run_command: str | None) -> str:
     """The page's provenance: the commit(s) its runs recorded (each world's record), the
     command that redraws the page from its records, and the one that reruns the runs
-    (``run_command``, from :func:`himit_torch.runs.config.run_command`; None: no ``himit run``
+    (``run_command``, from :func:`himit_torch.runs.experiment.run_command`; None: no ``himit run``
     command writes these settings into this directory — a sweep's trial, the demo)."""
     commits = list(dict.fromkeys(r.commit for r in results))
     runs = (
@@ -258,7 +258,7 @@ def write_results(
 ) -> None:
     """``results.md``: per world and agent, our numbers beside the paper's."""
     # agent_settings: what each agent ran with (learner.presets.agent_settings_text), and
-    # run_command: the himit run command of config (runs.config.run_command), given by the
+    # run_command: the himit run command of config (runs.experiment.run_command), given by the
     # caller: viz does not import the learner or the runs (the layers of pyproject.toml)
     curves = read_curves(run_dir)
     lines = [

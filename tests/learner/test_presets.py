@@ -113,10 +113,13 @@ def test_a_flag_contradicting_the_preset_is_one_line_exit_2(capsys):
 
 
 def test_gymnasium_takes_preset_and_tie_rule(monkeypatch):
-    import himit_torch.runs.gymnasium as gym
+    from dataclasses import replace
+
+    from himit_torch.runs.studies import STUDIES
 
     seen = []
-    monkeypatch.setattr(gym, "run_gym_experiment", lambda config, *a, **k: seen.append(config))
+    entry = replace(STUDIES["gymnasium"], run=lambda plans, flags: seen.extend(c for c, _ in plans))
+    monkeypatch.setitem(STUDIES, "gymnasium", entry)
     argv = ["run", "gymnasium", "--preset", "recommended", "--tie-break", "first", "--seeds", "3"]
     assert main(argv) == 0
     (config,) = seen

@@ -525,8 +525,8 @@ def test_run_command_rebuilds_the_configuration(config, tmp_path):
     builds exactly the configuration the runs had."""
     import shlex
 
-    from himit_torch.cli import _experiment_config, build_parser
-    from himit_torch.runs.config import run_command
+    from himit_torch.cli import build_parser, study_configs
+    from himit_torch.runs.experiment import run_command
 
     command = run_command(config, tmp_path / "logs" / config.name)
     assert command is not None and "--config" not in command
@@ -534,7 +534,7 @@ def test_run_command_rebuilds_the_configuration(config, tmp_path):
     assert argv[:3] == ["himit", "run", config.name]
     args = build_parser().parse_args(argv[1:])
     assert args.logdir == str(tmp_path / "logs")
-    assert _experiment_config(config.name, args) == config
+    assert study_configs(args) == [config]
     assert run_command(config, Path("runs") / config.name) == command.replace(
         f" --logdir {tmp_path / 'logs'}", ""
     )
@@ -554,7 +554,7 @@ def test_run_command_where_no_flags_rebuild_it(tmp_path):
 
 
 def run_command_of(config, run_dir=None):
-    from himit_torch.runs.config import run_command
+    from himit_torch.runs.experiment import run_command
 
     return run_command(config, run_dir)
 

@@ -98,7 +98,7 @@ def test_the_run_command_rebuilds_the_configuration(changes, tmp_path):
     import shlex
     from dataclasses import replace
 
-    from himit_torch.cli import _gym_config, build_parser
+    from himit_torch.cli import build_parser, study_configs
     from himit_torch.runs.gymnasium import gym_run_command
 
     config = GymExperimentConfig()
@@ -115,7 +115,7 @@ def test_the_run_command_rebuilds_the_configuration(changes, tmp_path):
     assert command is not None
     args = build_parser().parse_args(shlex.split(command)[1:])
     assert args.logdir == str(tmp_path)
-    assert _gym_config(args) == config
+    assert study_configs(args)[0] == config
     assert gym_run_command(replace(config, window=500)) is None
     assert gym_run_command(replace(config, tasks=("taxi",))) is None
     assert gym_run_command(config, tmp_path / "elsewhere") is None

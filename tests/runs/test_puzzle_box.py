@@ -153,7 +153,7 @@ def test_the_run_command_rebuilds_the_configuration(changes, tmp_path):
     import shlex
     from dataclasses import replace
 
-    from himit_torch.cli import _puzzle_box_config, build_parser
+    from himit_torch.cli import build_parser, study_configs
     from himit_torch.runs.puzzle_box import puzzle_box_run_command
 
     config = PuzzleBoxConfig().quick() if changes.get("quick") else PuzzleBoxConfig()
@@ -162,7 +162,7 @@ def test_the_run_command_rebuilds_the_configuration(changes, tmp_path):
     assert command is not None
     args = build_parser().parse_args(shlex.split(command)[1:])
     assert args.logdir == str(tmp_path)
-    assert _puzzle_box_config(args) == config
+    assert study_configs(args)[0] == config
     assert puzzle_box_run_command(replace(config, mentor_episodes=7)) is None
     assert puzzle_box_run_command(config, tmp_path / "elsewhere") is None
 
@@ -196,10 +196,10 @@ def test_the_command_and_the_script(capsys, tmp_path):
 
 
 def test_himit_run_puzzlebox_takes_a_preset_and_refuses_a_contradiction():
-    from himit_torch.cli import _puzzle_box_config, build_parser
+    from himit_torch.cli import build_parser, study_configs
 
     args = build_parser().parse_args(["run", "puzzlebox", "--preset", "recommended"])
-    config = _puzzle_box_config(args)
+    config = study_configs(args)[0]
     assert config.preset == "recommended"
     assert config.learner.mentor_fade == 20.0 and config.learner.eps_schedule == "goals"
     assert config.learner.plan_every == PuzzleBoxConfig().learner.plan_every  # (its own)
@@ -207,7 +207,7 @@ def test_himit_run_puzzlebox_takes_a_preset_and_refuses_a_contradiction():
         ["run", "puzzlebox", "--preset", "recommended", "--mentor-fade", "3"]
     )
     with pytest.raises(ValueError, match="preset='recommended' but learner.mentor_fade=3.0"):
-        _puzzle_box_config(args)
+        study_configs(args)[0]
     with pytest.raises(ValueError, match="PuzzleBoxConfig.preset"):
         PuzzleBoxConfig(preset="best")
 

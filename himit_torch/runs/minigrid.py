@@ -1,0 +1,77 @@
+"""MiniGrid's key-and-door tasks on the command line: ``himit info --minigrid ID`` (a task's
+states, both option sets, the optimum's steps and the mentor's goal rate). The MiniGrid study
+will live here, and its registry entry will carry this topic; until then the topic is listed
+on its own (:data:`himit_torch.runs.studies.INFO_TOPICS`)."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from typing import Any
+
+from himit_torch.exact.greedy_evaluation import evaluate_option_choice
+from himit_torch.exact.optimum import option_optimum, primitive_optimum
+from himit_torch.runs.study import InfoTopic, option_kinds_text
+
+__all__ = ["INFO"]
+
+#: ``himit info`` reports goals per this many steps, for every world.
+GOALS_WINDOW = 5000
+
+
+def _info_flags(parser) -> None:
+    parser.add_argument(
+        "--minigrid",
+        metavar="ID",
+        help="a MiniGrid task, e.g. MiniGrid-DoorKey-8x8-v0 (reset seed 0): its states, the "
+        "learner's and the mentor's options, the optimum's steps and the mentor's goal rate",
+    )
+
+
+def _info(args: Any) -> Iterator[str]:
+    """``himit info --minigrid ID``: a MiniGrid task (seed 0, MiniGrid's determinism) as a world,
+    its options and mentor, solved exactly."""
+    from himit_torch.mentor.minigrid import minigrid_mentor
+    from himit_torch.options.minigrid import minigrid_options
+    from himit_torch.worlds.minigrid import from_minigrid
+
+    world = from_minigrid(args.minigrid, gamma=args.gamma)
+    terminal = int(world.terminal_mask.sum())
+    yield (
+        f"world      {world.name}, reset seed {world.seed}, {world.width}×{world.height} cells, "
+        f"no slip (MiniGrid's own step), gamma {world.gamma}, reward −0.01 a step and +1 at "
+        "success"
+    )
+    yield (
+        f"states     {world.num_states:,} reachable ({terminal} entered at success); objects: "
+        f"{', '.join(world.object_names) or 'none'}"
+    )
+    yield f"actions    {world.num_actions}: {', '.join(world.action_names)}"
+    learner, mentor_opts = minigrid_options(world), minigrid_options(world, "mentor")
+    skills = [n for n, k in zip(learner.names, learner.kinds) if k != "primitive"]
+    yield (
+        f"learner    {learner.num_options} options ({option_kinds_text(learner)}: "
+        f"{', '.join(skills)})"
+    )
+    yield (
+        f"mentor     {mentor_opts.num_options} options ({option_kinds_text(mentor_opts)}; no "
+        "left turn, right-handed skills)"
+    )
+    mentor = minigrid_mentor(world, mentor_opts)
+    rows = [
+        ("primitives only", primitive_optimum(world, GOALS_WINDOW).evaluation),
+        ("learner's options", option_optimum(world, learner, GOALS_WINDOW)),
+        (
+            f"mentor (prefers its options within {mentor.tolerance:g})",
+            evaluate_option_choice(world, mentor_opts, mentor.option, GOALS_WINDOW),
+        ),
+    ]
+    width = max(len(name) for name, _ in rows) + 2
+    yield ""
+    yield f"{'optimal policy':<{width}}{'steps start→goal':>18}{f'goals / {GOALS_WINDOW} steps':>22}"
+    for name, trip in rows:
+        steps, goals = float(trip.steps_per_episode[0]), float(trip.goals_per_window[0])
+        yield f"{name:<{width}}{steps:>18.1f}{goals:>22.1f}"
+
+
+#: ``himit info --minigrid ID`` (``--gamma`` is the Gymnasium topic's flag, shared).
+INFO = InfoTopic("minigrid", _info_flags, _info)
