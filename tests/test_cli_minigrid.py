@@ -44,3 +44,29 @@ def test_info_minigrid_refused(capsys, argv, words):
     assert exc.value.code == 2
     err = capsys.readouterr().err
     assert err.startswith("himit: error:") and words in err and err.count("\n") == 1
+
+
+def test_run_minigrid_runs_doorkey_6x6_and_plot_redraws_it(tmp_path, capsys):
+    """``himit run minigrid`` (the Gymnasium comparison on MiniGrid's tasks, DoorKey-6x6 by
+    default) runs its batch with the MiniGrid mentor and writes the task's records; ``himit plot``
+    finds its study from config.json and writes the same page again."""
+    import json
+
+    assert main(["run", "minigrid", "--quick", "--quiet", "--logdir", str(tmp_path)]) == 0
+    run_dir = tmp_path / "minigrid"
+    summary = json.loads((run_dir / "tasks" / "doorkey6x6.json").read_text())
+    assert summary["env_id"] == "MiniGrid-DoorKey-6x6-v0"
+    assert "go to the yellow key" in summary["options"]
+    assert sorted(set(summary["agents"])) == ["imitation", "options", "primitives"]
+    page = (run_dir / "results.md").read_text()
+    assert "The mentor is optimal for its own options" in page
+    assert main(["plot", str(run_dir)]) == 0
+    assert (run_dir / "results.md").read_text() == page
+
+
+def test_run_minigrid_help_lists_the_minigrid_tasks(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["run", "minigrid", "--help"])
+    assert exc.value.code == 0
+    out = capsys.readouterr().out
+    assert "doorkey6x6" in out and "(default: doorkey6x6)" in out

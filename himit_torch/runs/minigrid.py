@@ -1,7 +1,6 @@
-"""MiniGrid's key-and-door tasks on the command line: ``himit info --minigrid ID`` (a task's
-states, both option sets, the optimum's steps and the mentor's goal rate). The MiniGrid study
-will live here, and its registry entry will carry this topic; until then the topic is listed
-on its own (:data:`himit_torch.runs.studies.INFO_TOPICS`)."""
+"""``himit info --minigrid ID``: a MiniGrid task's states, both option sets, the optimum's steps
+and the mentor's goal rate. ``himit run minigrid`` (the Gymnasium comparison on MiniGrid's
+tasks, :data:`himit_torch.runs.gymnasium.MINIGRID_TASKS`) carries this topic."""
 
 from __future__ import annotations
 

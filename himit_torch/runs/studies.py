@@ -14,10 +14,10 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
-from himit_torch.runs import discovery, experiment, gymnasium, minigrid, puzzle_box
+from himit_torch.runs import discovery, experiment, gymnasium, puzzle_box
 from himit_torch.runs.study import InfoTopic, StudyEntry, read_config_fields
 
-__all__ = ["INFO_TOPICS", "STUDIES", "info_topics", "register", "study_of_run_dir"]
+__all__ = ["STUDIES", "info_topics", "register", "study_of_run_dir"]
 
 #: The studies, by name, in the order ``himit run --help`` lists them.
 STUDIES: dict[str, StudyEntry] = {}
@@ -31,17 +31,19 @@ def register(entry: StudyEntry) -> StudyEntry:
     return entry
 
 
-for _entry in (*experiment.ENTRIES, gymnasium.ENTRY, discovery.ENTRY, puzzle_box.ENTRY):
+for _entry in (
+    *experiment.ENTRIES,
+    gymnasium.ENTRY,
+    gymnasium.MINIGRID_ENTRY,
+    discovery.ENTRY,
+    puzzle_box.ENTRY,
+):
     register(_entry)
-
-#: ``himit info`` topics of worlds that have no study yet (MiniGrid's tasks: their study's entry
-#: will carry the topic).
-INFO_TOPICS: list[InfoTopic] = [minigrid.INFO]
 
 
 def info_topics() -> list[InfoTopic]:
-    """Every ``himit info`` topic: each study's, then :data:`INFO_TOPICS`."""
-    return [e.info for e in STUDIES.values() if e.info is not None] + INFO_TOPICS
+    """Every study's ``himit info`` topic, in the order the studies are listed."""
+    return [e.info for e in STUDIES.values() if e.info is not None]
 
 
 def study_of_run_dir(run_dir: Path) -> StudyEntry:
