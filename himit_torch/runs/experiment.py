@@ -38,7 +38,7 @@ from himit_torch.exact.greedy_evaluation import (
     PolicyEvaluator,
     evaluate_option_choice,
 )
-from himit_torch.exact.optimum import option_optimum, primitive_optimum
+from himit_torch.exact.optimum import primitive_optimum
 from himit_torch.learner.agents import AGENTS
 from himit_torch.learner.config import LearnerConfig
 from himit_torch.learner.learner import Learner
@@ -76,6 +76,7 @@ from himit_torch.runs.study import (
     InfoTopic,
     RunFlags,
     StudyEntry,
+    optimum_lines,
     option_kinds_text,
     prepare_run_dir,
     run_study,
@@ -1167,21 +1168,8 @@ def _info(args) -> Iterator[str]:
         f"mentor     {mentor_opts.num_options} options ({option_kinds_text(mentor_opts)}; "
         "doorway/corner options travel along the room's walls)"
     )
-    mentor = mentor_policy(world, mentor_opts)
-    rows = [
-        ("primitives only", primitive_optimum(world, GOALS_WINDOW).evaluation),
-        ("learner's options", option_optimum(world, learner, GOALS_WINDOW)),
-        (
-            f"mentor (prefers its options within {mentor.tolerance:g})",
-            evaluate_option_choice(world, mentor_opts, mentor.option, GOALS_WINDOW),
-        ),
-    ]
-    width = max(len(name) for name, _ in rows) + 2
-    yield ""
-    yield f"{'optimal policy':<{width}}{'steps start→goal':>18}{f'goals / {GOALS_WINDOW} steps':>22}"
-    for name, trip in rows:
-        steps, goals = float(trip.steps_per_episode[0]), float(trip.goals_per_window[0])
-        yield f"{name:<{width}}{steps:>18.1f}{goals:>22.1f}"
+    lines, width = optimum_lines(world, learner, mentor_policy(world, mentor_opts), GOALS_WINDOW)
+    yield from lines
     for paper in PAPER.values():
         if (paper.get("world"), paper.get("slip")) == ((world.size, world.rooms), world.slip):
             label = f"paper, experiment {paper['experiment']}"

@@ -7,9 +7,7 @@ from __future__ import annotations
 from collections.abc import Iterator
 from typing import Any
 
-from himit_torch.exact.greedy_evaluation import evaluate_option_choice
-from himit_torch.exact.optimum import option_optimum, primitive_optimum
-from himit_torch.runs.study import InfoTopic, option_kinds_text
+from himit_torch.runs.study import InfoTopic, optimum_lines, option_kinds_text
 
 __all__ = ["INFO"]
 
@@ -55,21 +53,7 @@ def _info(args: Any) -> Iterator[str]:
         f"mentor     {mentor_opts.num_options} options ({option_kinds_text(mentor_opts)}; no "
         "left turn, right-handed skills)"
     )
-    mentor = minigrid_mentor(world, mentor_opts)
-    rows = [
-        ("primitives only", primitive_optimum(world, GOALS_WINDOW).evaluation),
-        ("learner's options", option_optimum(world, learner, GOALS_WINDOW)),
-        (
-            f"mentor (prefers its options within {mentor.tolerance:g})",
-            evaluate_option_choice(world, mentor_opts, mentor.option, GOALS_WINDOW),
-        ),
-    ]
-    width = max(len(name) for name, _ in rows) + 2
-    yield ""
-    yield f"{'optimal policy':<{width}}{'steps start→goal':>18}{f'goals / {GOALS_WINDOW} steps':>22}"
-    for name, trip in rows:
-        steps, goals = float(trip.steps_per_episode[0]), float(trip.goals_per_window[0])
-        yield f"{name:<{width}}{steps:>18.1f}{goals:>22.1f}"
+    yield from optimum_lines(world, learner, minigrid_mentor(world, mentor_opts), GOALS_WINDOW)[0]
 
 
 #: ``himit info --minigrid ID`` (``--gamma`` is the Gymnasium topic's flag, shared).

@@ -245,6 +245,33 @@ def read_config_fields(path: str | os.PathLike, where: str) -> set[str]:
     return set(data)
 
 
+def optimum_lines(world: Any, learner: Any, mentor: Any, window: int) -> tuple[list[str], int]:
+    """``himit info``'s table of optimal trips: the optimum over primitives, over the learner's
+    options and the mentor's own policy (its options, :class:`~himit_torch.MentorPolicy`),
+    each evaluated exactly (steps start → goal, goals per ``window`` steps); and the width of
+    its first column, for rows a study adds."""
+    from himit_torch.exact.greedy_evaluation import evaluate_option_choice
+    from himit_torch.exact.optimum import option_optimum, primitive_optimum
+
+    rows = [
+        ("primitives only", primitive_optimum(world, window).evaluation),
+        ("learner's options", option_optimum(world, learner, window)),
+        (
+            f"mentor (prefers its options within {mentor.tolerance:g})",
+            evaluate_option_choice(world, mentor.options, mentor.option, window),
+        ),
+    ]
+    width = max(len(name) for name, _ in rows) + 2
+    lines = [
+        "",
+        f"{'optimal policy':<{width}}{'steps start→goal':>18}{f'goals / {window} steps':>22}",
+    ]
+    for name, trip in rows:
+        steps, goals = float(trip.steps_per_episode[0]), float(trip.goals_per_window[0])
+        lines.append(f"{name:<{width}}{steps:>18.1f}{goals:>22.1f}")
+    return lines, width
+
+
 def option_kinds_text(options: Any) -> str:
     """How many options of each kind ``options`` holds, e.g. ``4 primitive, 180 doorway``
     (``himit info``)."""
