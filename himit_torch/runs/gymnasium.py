@@ -786,20 +786,26 @@ def write_gym_results(run_dir: Path, config: GymExperimentConfig, summaries: lis
 def _provenance(run_dir: Path, config: GymExperimentConfig, summaries: list[dict]) -> str:
     """Which commits and engines ran the tasks, how the page is redrawn and the runs rerun."""
     commits = list(dict.fromkeys(s.get("commit", "unknown") for s in summaries))
-    command = gym_run_command(config, run_dir)
     engines = ", ".join(sorted({f"`{s.get('engine', 'unknown')}`" for s in summaries}))
-    return provenance_line(
-        commits,
-        f" (from `tasks/*.json`), engine {engines}",
-        plot_command(run_dir),
-        (
+    if any(task in MINIGRID_TASKS for task in config.tasks):
+        # (the rerun builder compares with the Gymnasium study's defaults: no command here)
+        how = (
+            "the settings in `config.json` (flags of `himit run minigrid`). Produced by `himit "
+            "run minigrid`; settings: `himit_torch/runs/gymnasium.py`."
+        )
+    else:
+        command = gym_run_command(config, run_dir)
+        how = (
             f"`{command}`"
             if command
             else "the settings in `config.json` (those of `python "
             "experiments/gymnasium_worlds.py`, not all of them flags of `himit run gymnasium`)"
+        ) + (
+            ". Produced by `himit run gymnasium` (the same as `python "
+            "experiments/gymnasium_worlds.py`); settings: `himit_torch/runs/gymnasium.py`."
         )
-        + ". Produced by `himit run gymnasium` (the same as `python "
-        "experiments/gymnasium_worlds.py`); settings: `himit_torch/runs/gymnasium.py`.",
+    return provenance_line(
+        commits, f" (from `tasks/*.json`), engine {engines}", plot_command(run_dir), how
     )
 
 
