@@ -12,6 +12,7 @@ from himit_torch.exact.option_models import (
     option_models,
     option_models_and_durations,
 )
+from tests.exact.helpers import counting_option_models
 
 
 @pytest.fixture(autouse=True)
@@ -20,18 +21,6 @@ def _nothing_shared_by_content():
     reference_cache._BY_CONTENT.clear()
     yield
     reference_cache._BY_CONTENT.clear()
-
-
-def _counting(monkeypatch) -> list[int]:
-    calls: list[int] = []
-    compute = om._option_models
-
-    def counted(world, options, variants):
-        calls.append(len(variants))
-        return compute(world, options, variants)
-
-    monkeypatch.setattr(om, "_option_models", counted)
-    return calls
 
 
 def _same(a, b) -> None:
@@ -43,7 +32,7 @@ def test_a_second_call_reuses_the_models_and_they_equal_a_fresh_computation(monk
     world = MultiRooms(12, 2)
     options = learner_options(world)
     fresh = om._option_models(world, options, [(None, None), (1.0, torch.ones(144, 4))])
-    calls = _counting(monkeypatch)
+    calls = counting_option_models(monkeypatch)
     first = option_models(world, options)
     both = option_models_and_durations(world, options)
     durations = option_durations(world, options)
@@ -60,7 +49,7 @@ def test_other_options_worlds_rewards_and_options_written_in_place_are_computed_
     bundle or world of another object shares the models by content (exact.reference_cache)."""
     world = MultiRooms(12, 2)
     options = learner_options(world)
-    calls = _counting(monkeypatch)
+    calls = counting_option_models(monkeypatch)
     first = option_models(world, options)
     assert option_models(world, learner_options(world)) is first  # an equal bundle: by content
     assert option_models(MultiRooms(12, 2), options) is first  # an equal world: by content

@@ -10,6 +10,7 @@ import himit_torch.exact.option_models as om
 from himit_torch import MultiRooms, learner_options
 from himit_torch.exact import reference_cache
 from himit_torch.exact.option_models import option_models_and_durations
+from tests.exact.helpers import counting_option_models
 
 
 @pytest.fixture
@@ -20,18 +21,6 @@ def cache(tmp_path, monkeypatch):
     reference_cache._BY_CONTENT.clear()
     yield folder
     reference_cache._BY_CONTENT.clear()
-
-
-def _counting(monkeypatch) -> list[int]:
-    calls: list[int] = []
-    compute = om._option_models
-
-    def counted(world, options, variants):
-        calls.append(len(variants))
-        return compute(world, options, variants)
-
-    monkeypatch.setattr(om, "_option_models", counted)
-    return calls
 
 
 def _same(a, b) -> None:
@@ -53,7 +42,7 @@ def test_a_hit_equals_a_recomputation_to_the_bit(cache, monkeypatch):
     expected = om._option_models(
         world, learner_options(world), [(None, None), (1.0, torch.ones(256, 4))]
     )
-    calls = _counting(monkeypatch)
+    calls = counting_option_models(monkeypatch)
     option_models_and_durations(world, learner_options(world))
     assert calls == [2] and len(list(cache.glob("*.npz"))) == 2  # computed, stored
     _fresh_process()
@@ -98,7 +87,7 @@ def test_a_damaged_entry_is_computed_again_never_used(cache, monkeypatch, how):
     for path in entries:
         _damage(path, how)
     _fresh_process()
-    calls = _counting(monkeypatch)
+    calls = counting_option_models(monkeypatch)
     models, _ = option_models_and_durations(world, learner_options(world))
     assert calls == [2]  # both computed again
     _same(models, expected)
@@ -115,7 +104,7 @@ def test_another_worlds_options_or_settings_entry_is_never_used(cache, monkeypat
     world = MultiRooms(12, 2)
     options = learner_options(world)
     compute = om._option_models  # (the computation itself, not counted)
-    calls = _counting(monkeypatch)
+    calls = counting_option_models(monkeypatch)
     mine, _ = option_models_and_durations(world, options)
     others = [
         MultiRooms(12, 2, slip=0.2),

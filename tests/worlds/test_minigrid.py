@@ -294,3 +294,16 @@ def test_kwargs_need_an_id():
         from_minigrid(env, max_steps=10)
     world = from_minigrid(env)  # an object: its spec's id is kept
     assert world.env_id == "MiniGrid-DoorKey-5x5-v0"
+
+
+def test_door_state_follows_the_door(doorkey5):
+    """DoorKey's door starts locked (2) and is unlocked — open (0), or closed again behind the
+    agent (1) — in every state entered at success (the goal lies behind it); an unknown door is
+    refused."""
+    [door] = [n for n in doorkey5.object_names if "door" in n]
+    state = doorkey5.door_state(door)
+    assert int(state[doorkey5.start_state]) == 2
+    assert (state[doorkey5.terminal_mask] != 2).all()
+    assert set(state.tolist()) == {0, 1, 2}
+    with pytest.raises(ValueError, match="no door"):
+        doorkey5.door_state("the red door")
