@@ -61,6 +61,7 @@ def test_run_minigrid_runs_doorkey_6x6_and_plot_redraws_it(tmp_path, capsys):
     page = (run_dir / "results.md").read_text()
     assert "The mentor is optimal for its own options" in page
     assert "Produced by `himit run minigrid`" in page and "himit run gymnasium" not in page
+    assert f"`himit run minigrid --quick --logdir {tmp_path}`" in page  # (its rerun command)
     assert main(["plot", str(run_dir)]) == 0
     assert (run_dir / "results.md").read_text() == page
 

@@ -304,15 +304,25 @@ def gym_run_command(
     (``--quick``, ``--seeds``, ``--first-seed``, ``--steps``, ``--device``, ``--preset``,
     ``--tie-break``) that differ from the comparison's defaults, applied as it applies them;
     the configuration they build is compared with ``config`` field by field. ``run_dir``
-    (``<logdir>/<name>``) adds ``--logdir`` unless it is the default ``runs``."""
+    (``<logdir>/<name>``) adds ``--logdir`` unless it is the default ``runs``. A configuration
+    of MiniGrid's tasks is rebuilt the same way by ``himit run minigrid``, from its defaults."""
+    study, base = _command_of(config)
     return rerun_command(
-        "gymnasium",
-        GymExperimentConfig(),
+        study,
+        base,
         config,
         run_dir,
         names=("preset", "seeds", "first_seed", "steps", "device", "tie_break"),
         quick=True,
     )
+
+
+def _command_of(config: GymExperimentConfig) -> tuple[str, GymExperimentConfig]:
+    """The ``himit run`` study whose defaults ``config`` starts from: ``minigrid`` where its
+    tasks are MiniGrid's, else ``gymnasium``."""
+    if any(task in MINIGRID_TASKS for task in config.tasks):
+        return "minigrid", MiniGridExperimentConfig()
+    return "gymnasium", GymExperimentConfig()
 
 
 # ================================================================================ evaluation
@@ -786,26 +796,24 @@ def write_gym_results(run_dir: Path, config: GymExperimentConfig, summaries: lis
 def _provenance(run_dir: Path, config: GymExperimentConfig, summaries: list[dict]) -> str:
     """Which commits and engines ran the tasks, how the page is redrawn and the runs rerun."""
     commits = list(dict.fromkeys(s.get("commit", "unknown") for s in summaries))
+    command = gym_run_command(config, run_dir)
     engines = ", ".join(sorted({f"`{s.get('engine', 'unknown')}`" for s in summaries}))
-    if any(task in MINIGRID_TASKS for task in config.tasks):
-        # (the rerun builder compares with the Gymnasium study's defaults: no command here)
-        how = (
-            "the settings in `config.json` (flags of `himit run minigrid`). Produced by `himit "
-            "run minigrid`; settings: `himit_torch/runs/gymnasium.py`."
-        )
-    else:
-        command = gym_run_command(config, run_dir)
-        how = (
-            f"`{command}`"
-            if command
-            else "the settings in `config.json` (those of `python "
-            "experiments/gymnasium_worlds.py`, not all of them flags of `himit run gymnasium`)"
-        ) + (
-            ". Produced by `himit run gymnasium` (the same as `python "
-            "experiments/gymnasium_worlds.py`); settings: `himit_torch/runs/gymnasium.py`."
-        )
+    study = _command_of(config)[0]
+    # (the Gymnasium comparison's committed runs came from the script, with settings no flag has)
+    script = " (the same as `python experiments/gymnasium_worlds.py`)" * (study == "gymnasium")
+    fallback = (
+        "those of `python experiments/gymnasium_worlds.py`, not all of them flags of "
+        "`himit run gymnasium`"
+        if study == "gymnasium"
+        else "not all of them flags of `himit run minigrid`"
+    )
     return provenance_line(
-        commits, f" (from `tasks/*.json`), engine {engines}", plot_command(run_dir), how
+        commits,
+        f" (from `tasks/*.json`), engine {engines}",
+        plot_command(run_dir),
+        (f"`{command}`" if command else f"the settings in `config.json` ({fallback})")
+        + f". Produced by `himit run {study}`{script}; settings: "
+        "`himit_torch/runs/gymnasium.py`.",
     )
 
 
