@@ -118,3 +118,36 @@ def test_a_short_run_reproduces_the_committed_claims_curves(tmp_path, run, steps
     theirs = rows(RESULTS / run / "curves.csv")
     assert len(theirs) == len(config.agents) * len(seeds) * (steps // config.window)
     assert rows(curves) == theirs
+
+
+def test_a_short_run_reproduces_the_committed_bco_curves(tmp_path):
+    """The benchmark's factorial (experiments/results/benchmark/paper/, random ties): the bco
+    agent alone, seeds 4 and 5, its first windows, equal the committed curves (a run does not
+    depend on the other runs of its batch). BCO's refit is compiled on the CPU; this is the
+    committed records' side of its test against the torch functions."""
+    from himit_torch.runs.config import load_config
+
+    seeds, steps = (4, 5), 20_000
+    committed = load_config(RESULTS / "benchmark" / "paper" / "exp2" / "config.json")
+    config = replace(
+        committed,
+        agents=("bco",),
+        seeds=len(seeds),
+        first_seed=seeds[0],
+        steps=steps,
+        checkpoint_every=steps,
+    )
+    run_experiment(config, tmp_path / "run", progress=False, workers=1)
+    [curves] = (tmp_path / "run").rglob("curves.csv")
+
+    def rows(path: Path) -> dict:
+        with path.open() as f:
+            return {
+                (r["agent"], int(r["seed"]), int(r["step"])): tuple(r[k] for k in COLUMNS)
+                for r in csv.DictReader(f)
+                if r["agent"] == "bco" and int(r["seed"]) in seeds and int(r["step"]) <= steps
+            }
+
+    theirs = rows(RESULTS / "benchmark" / "paper" / "exp2" / "curves.csv")
+    assert len(theirs) == len(seeds) * (steps // config.window)
+    assert rows(curves) == theirs

@@ -3,7 +3,8 @@
 :class:`ClonedPolicy` owns ``action [B, S + 1]``: each run's cloned action ``π_bc(s)`` (``−1``:
 none, and always for runs that do not clone). :meth:`ClonedPolicy.refit` recomputes it for some
 runs from their own option model and their mentor model with the pure functions of
-:mod:`himit_torch.mentor.cloning` (inverse model, relabelling, cloning); the learner calls it
+:mod:`himit_torch.mentor.cloning` (inverse model, relabelling, cloning; on the CPU compiled into
+one pass, :mod:`himit_torch.learner.cloned_refit`, the same actions to the bit); the learner calls it
 every ``LearnerConfig.bco_every`` ticks and when demonstrations are added, outside the engines'
 tick loop. Both engines read it when a run chooses (:func:`~himit_torch.learner.choice.greedy_rows`
 and the compiled ``choose``): a cloning run's greedy choice at ``s`` is the primitive
@@ -18,6 +19,7 @@ from __future__ import annotations
 
 import torch
 
+from himit_torch.learner.cloned_refit import refit_actions
 from himit_torch.learner.models import DirichletMentorModel, DirichletSMDPModel
 from himit_torch.learner.rows import RowTable
 from himit_torch.mentor.cloning import clone_policy, inverse_model, relabel
@@ -61,11 +63,35 @@ class ClonedPolicy:
         self, runs: torch.Tensor, model: DirichletSMDPModel, mentor: DirichletMentorModel
     ) -> None:
         """Relabel the mentor's transitions with each run's inverse model and clone its policy
-        anew (the cloning runs among ``runs``; others keep ``−1``)."""
+        anew (the cloning runs among ``runs``; others keep ``−1``). On the CPU compiled
+        (:func:`~himit_torch.learner.cloned_refit.refit_actions`), elsewhere
+        :meth:`actions_in_torch`: the same actions to the bit."""
         runs = torch.as_tensor(runs, dtype=torch.int64, device=self.action.device).reshape(-1)
         runs = runs[self.rows.use_cloning.index_select(0, runs)]
         if runs.numel() == 0:
             return
+        S = self.rows.num_states
+        if self.action.device.type == "cpu":
+            self.action[runs, :S] = refit_actions(
+                runs,
+                (model.edge_row, model.edge_successor, model.edge_count, model.num_edges),
+                (mentor.edge_row, mentor.edge_successor, mentor.edge_count, mentor.num_edges),
+                self.rows.row_state,
+                self.row_action,
+                S,
+                self.num_actions,
+                self.inverse == "likelihood",
+            )
+        else:
+            self.action[runs, :S] = self.actions_in_torch(runs, model, mentor)
+
+    def actions_in_torch(
+        self, runs: torch.Tensor, model: DirichletSMDPModel, mentor: DirichletMentorModel
+    ) -> torch.Tensor:
+        """``[R, S]`` the cloned actions of the cloning ``runs`` by the pure functions of
+        :mod:`himit_torch.mentor.cloning` (inverse model, relabelling, cloning), in torch on the
+        learner's device: :meth:`refit`'s way off the CPU, and the reference its compiled way is
+        tested against."""
         # All runs in one call of each function: run i's states become i·(S + 1) + s (S + 1
         # leaves room for a padding state), so no (s, s') or (s, a) of two runs ever meet, and
         # every group sums the same entries in the same order as run by run.
@@ -90,7 +116,7 @@ class ClonedPolicy:
         cloned = clone_policy(
             sources, labels, mentor.edge_count[runs][seen], R * stride, self.num_actions
         )
-        self.action[runs, :S] = cloned.view(R, stride)[:, :S]
+        return cloned.view(R, stride)[:, :S]
 
     def state_dict(self, copy: bool = True) -> dict:
         """The cloned actions; ``copy=False``: the live tensor, not a copy (see
