@@ -18,7 +18,14 @@ grouped as the study's costs:
 - **checkpoints**: the saves and the start; **I/O**: the curves and the record.
 
     python benchmarks/bench_world_phases.py exp3 120 [--preset paper] [--agents A ...]
-        [--seeds 5] [--tie-break random] [--logdir DIR]
+        [--seeds 5] [--tie-break random] [--logdir DIR] [--threads 1] [--bco-refit torch]
+
+The process is set up as each world process of ``himit run paper`` is (``share_cores``): torch
+on one thread, the compiled engine on ``--threads`` (default 1: two world processes on two
+cores). (Before it was, torch ran on every core: small torch ops then wait on a busy machine —
+BCO's refit in torch ran ≈ 25× slower under a load of 8, which the split of 2026-11-28 took
+for the study's cost.) ``--bco-refit torch``: BCO's refit by the torch functions, as before it
+was compiled (the same actions), for a side-by-side run.
 
 Run it once per world, each in a fresh process, for the whole reproduction's share of each
 part. The benchmark's factorial (``experiments/benchmark/run_benchmark.py``) runs ``himit run
@@ -47,7 +54,11 @@ parser.add_argument("--agents", nargs="+", help="the agents (default: the experi
 parser.add_argument("--seeds", type=int, help="seeds per agent (default: the experiment's)")
 parser.add_argument("--tie-break", help="the learner's tie_break (the factorial's: random)")
 parser.add_argument("--logdir", help="the run directory (default: a temporary one, removed)")
+parser.add_argument("--threads", type=int, default=1, help="the compiled engine's threads")
+parser.add_argument("--bco-refit", choices=["compiled", "torch"], default="compiled")
 args = parser.parse_args()
+
+import torch  # noqa: E402
 
 import himit_torch  # noqa: E402, F401
 import himit_torch.learner.engines.numba_engine as numba_engine  # noqa: E402
@@ -58,8 +69,10 @@ from himit_torch.learner.learner import Learner  # noqa: E402
 from himit_torch.runs import experiment, greedy  # noqa: E402
 from himit_torch.runs.config import EXPERIMENTS  # noqa: E402
 from himit_torch.runs.kernels import prepare_kernels  # noqa: E402
+from himit_torch.runs.runner import share_cores  # noqa: E402
 
 imports = time.perf_counter() - began
+share_cores(args.threads)
 kernels = prepare_kernels()
 seconds: dict[str, float] = defaultdict(float)
 #: the timed calls under way: [label, start, seconds of the timed calls inside it]
@@ -156,6 +169,18 @@ def _run_all_timed(stops, call_args, per_run):
 
 numba_engine._run_all = _run_all_timed
 
+if args.bco_refit == "torch":
+    from himit_torch.learner.cloned_policy import ClonedPolicy
+
+    def _refit_in_torch(self, runs, model, mentor):
+        runs = torch.as_tensor(runs, dtype=torch.int64).reshape(-1)
+        runs = runs[self.rows.use_cloning.index_select(0, runs)]
+        if runs.numel():
+            S = self.rows.num_states
+            self.action[runs, :S] = self.actions_in_torch(runs, model, mentor)
+
+    ClonedPolicy.refit = _refit_in_torch  # type: ignore[method-assign]
+
 run_dir = Path(args.logdir or tempfile.mkdtemp(prefix="himit-phases-")) / args.experiment
 try:
     experiment.ExperimentStudy().prepare(config, run_dir, resume=False, force=True)
@@ -172,7 +197,8 @@ kernel_threads = sum(kernel.values())
 agents = ", ".join(config.agents)
 print(
     f"{args.experiment} {args.size}×{args.size}, preset {config.preset or 'none'}, "
-    f"{config.seeds} seeds of {agents}: imports {imports:.2f} s, kernels {kernels:.2f} s"
+    f"{config.seeds} seeds of {agents}: imports {imports:.2f} s, kernels {kernels:.2f} s, "
+    f"BCO's refit {args.bco_refit}, torch threads {torch.get_num_threads()}"
 )
 print(f"run_world {total:.2f} s")
 groups: dict[str, float] = defaultdict(float)
