@@ -33,7 +33,8 @@ _guard = threading.Lock()
 
 def _run_tiny_learner() -> None:
     """Call every kernel once, with the argument types every learner passes: a few hundred ticks
-    of an imitator and a posterior-sampling imitator on an 8×8 world, to a window's end."""
+    of an imitator, a posterior-sampling imitator and a ``bco`` run (whose refit at the start
+    compiles :mod:`~himit_torch.learner.cloned_refit`) on an 8×8 world, to a window's end."""
     world = MultiRooms(8, 2)
     demonstrations = record_demonstrations(
         world, mentor_policy(world, mentor_options(world)), 1, seed=0
@@ -41,8 +42,8 @@ def _run_tiny_learner() -> None:
     learner = Learner(
         world,
         learner_options(world),
-        ["imitation", "imitation_psrl"],
-        [0, 0],
+        ["imitation", "imitation_psrl", "bco"],
+        [0, 0, 0],
         LearnerConfig(window=200),
         demonstrations=demonstrations,
         engine="numba",

@@ -38,6 +38,7 @@ def test_a_process_waits_for_the_one_preparing_the_kernels():
 def test_the_warm_up_compiles_the_signatures_real_learners_use(world12):
     """After :func:`prepare_kernels`, an experiment-like batch (corner options, every agent kind,
     demonstrations) calls no kernel with new argument types, so it compiles nothing."""
+    from himit_torch.learner import cloned_refit
     from himit_torch.learner.config import LearnerConfig
     from himit_torch.learner.engines.numba_engine import KERNELS
     from himit_torch.learner.learner import Learner
@@ -47,13 +48,13 @@ def test_the_warm_up_compiles_the_signatures_real_learners_use(world12):
 
     prepare_kernels()
     # (the loop's callees, e.g. ``resample``, are compiled into it: not called from Python)
-    kernels = KERNELS
+    kernels = [*KERNELS, cloned_refit._refit]
     before = [list(k.signatures) for k in kernels]
     assert all(len(s) >= 1 for s in before)
     demos = record_demonstrations(
         world12, mentor_policy(world12, mentor_options(world12)), 2, seed=1
     )
-    agents = ["imitation", "imitation_confident", "options", "primitives", "options_psrl"]
+    agents = ["imitation", "imitation_confident", "options", "primitives", "options_psrl", "bco"]
     learner = Learner(
         world12,
         learner_options(world12, corners=True),
