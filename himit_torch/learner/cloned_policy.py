@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import torch
 
-from himit_torch.learner.cloned_refit import refit_actions
 from himit_torch.learner.models import DirichletMentorModel, DirichletSMDPModel
 from himit_torch.learner.rows import RowTable
 from himit_torch.mentor.cloning import clone_policy, inverse_model, relabel
@@ -72,6 +71,9 @@ class ClonedPolicy:
             return
         S = self.rows.num_states
         if self.action.device.type == "cpu":
+            # (imported here: Numba loads at the first compiled call, not with the package)
+            from himit_torch.learner.cloned_refit import refit_actions
+
             self.action[runs, :S] = refit_actions(
                 runs,
                 (model.edge_row, model.edge_successor, model.edge_count, model.num_edges),
