@@ -4,7 +4,7 @@ beside Whiten et al.'s (2006) three findings.
 Statistics (every interval says what it is):
 
 * means over runs: mean ± half-width of the 95 % Student-t confidence interval (n runs);
-* shares: k/n with the 95 % Wilson score interval;
+* shares: k/n with the 95 % Clopper–Pearson (exact) interval;
 * first openings: runs that never opened the box count as opening one step after the end, so
   the median and the paired tests use every run (ranks only); means are given over the runs
   that opened it;
@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from himit_torch.runs.runner import source_commit
-from himit_torch.statistics import holm, mean_half_width, paired_difference, wilson_interval
+from himit_torch.statistics import holm, paired_comparison, share_interval, t_interval
 from himit_torch.viz.results_page import plot_command, provenance_line, write_results_page
 
 __all__ = [
@@ -36,7 +36,7 @@ __all__ = [
 _ORDER = ("skewer", "step", "mixed", "incomplete")
 #: The header of the speed tables of (a) and (c).
 _SPEED_HEADER = (
-    "| condition | n | opened the box [95 % Wilson] | first opening, median | first opening, "
+    "| condition | n | opened the box [95 % Clopper–Pearson] | first opening, median | first opening, "
     "mean ± 95 % t (runs that opened) | openings, last window | greedy V^π(start) |",
     "|---|---|---|---|---|---|---|",
 )
@@ -58,19 +58,26 @@ def _firsts(runs: list[dict], steps: int) -> np.ndarray:
 
 
 def _cell(values, digits: int = 1) -> str:
-    mean, half, n = mean_half_width(values)
-    if n == 0:
-        return "–"
-    return (
-        f"{mean:.{digits}f}"
-        if not math.isfinite(half)
-        else f"{mean:.{digits}f} ± {half:.{digits}f}"
-    )
+    """Mean ± 95 % t over the finite ``values`` (the mean alone for one, "–" for none)."""
+    measured = [x for x in values if x is not None and math.isfinite(x)]
+    return t_interval(measured).plus_minus(digits) if measured else "–"
 
 
 def _share(k: int, n: int) -> str:
-    share, low, high = wilson_interval(k, n)
-    return "–" if n == 0 else f"{k}/{n} = {share:.0%} [{low:.0%}, {high:.0%}]"
+    if n == 0:
+        return "–"
+    ci = share_interval(k, n)
+    return f"{k}/{n} = {ci.estimate:.0%} [{ci.low:.0%}, {ci.high:.0%}]"
+
+
+def _paired(a, b) -> tuple[float, float, float] | None:
+    """``(mean of a − b, its 95 % t half-width, Wilcoxon p)`` over the pairs where both are
+    finite (:func:`~himit_torch.statistics.paired_comparison`); None for fewer than 2 pairs."""
+    pairs = [(x, y) for x, y in zip(a, b) if math.isfinite(x) and math.isfinite(y)]
+    if len(pairs) < 2:
+        return None
+    c = paired_comparison([x for x, _ in pairs], [y for _, y in pairs], interval="t")
+    return c.difference.estimate, c.difference.half_width, c.wilcoxon_p
 
 
 def _batch(summary: dict, tag: str) -> dict:
@@ -171,7 +178,12 @@ def write_puzzle_box_figures(run_dir: Path, summary: dict) -> None:
     from matplotlib.figure import Figure
     from matplotlib.ticker import FuncFormatter
 
-    from himit_torch.viz.plotting import fit_titles, plot_first_goals, plot_goal_curves
+    from himit_torch.viz.plotting import (
+        fit_titles,
+        plot_first_goals,
+        plot_goal_curves,
+        plot_mean_band,
+    )
     from himit_torch.viz.report import AGENT_COLORS
 
     cfg = summary["config"]
@@ -215,11 +227,7 @@ def write_puzzle_box_figures(run_dir: Path, summary: dict) -> None:
         ax_first.set_xlabel("step of the first opening (log; dots: seeds)")
         for c, tag in tags.items():
             at, values = _evals(run_dir, tag, "value")
-            stats = [mean_half_width(values[:, i]) for i in range(values.shape[1])]
-            mean = np.array([s[0] for s in stats])
-            half = np.nan_to_num(np.array([s[1] for s in stats]))
-            ax_value.plot(at, mean, color=colors[c], lw=2, label=f"{c} (n={values.shape[0]})")
-            ax_value.fill_between(at, mean - half, mean + half, color=colors[c], alpha=0.18, lw=0)
+            plot_mean_band(ax_value, at, values, color=colors[c], label=f"{c} (n={len(values)})")
         ax_value.axhline(first["value_star"], color="0.3", ls=":", label="V*(start), exact")
         ax_value.set_xlabel("primitive steps")
         ax_value.xaxis.set_major_formatter(FuncFormatter(_thousands_label))
@@ -252,7 +260,8 @@ def _organisation_figure(run_dir: Path, fig_dir: Path, summary: dict) -> None:
             continue
         steps, follows = _follows_over_time(run_dir, summary, tag)
         n = follows.shape[0]
-        share = np.array([wilson_interval(int(f.sum()), n) for f in follows.T])
+        cis = [share_interval(int(f.sum()), n) for f in follows.T]
+        share = np.array([(ci.estimate, ci.low, ci.high) for ci in cis])
         ax_time.plot(steps, share[:, 0], color=color, ls=ls, lw=2, label=f"{label} (n={n})")
         ax_time.fill_between(steps, share[:, 1], share[:, 2], color=color, alpha=0.12, lw=0)
     ax_time.set_ylim(0, 1)
@@ -260,7 +269,7 @@ def _organisation_figure(run_dir: Path, fig_dir: Path, summary: dict) -> None:
     ax_time.xaxis.set_major_formatter(FuncFormatter(_thousands_label))
     ax_time.set_ylabel("share following the organisation watched")
     ax_time.grid(alpha=0.3)
-    ax_time.legend(fontsize="small", title="band: 95 % Wilson", title_fontsize="small")
+    ax_time.legend(fontsize="small", title="band: 95 % Clopper–Pearson", title_fontsize="small")
     ax_time.set_title("over learning (non-imitators: their seed's imitator's)", fontsize="medium")
     colors = {"skewer": "#1f77b4", "step": "#ff7f0e", "mixed": "#7f7f7f", "incomplete": "#d9d9d9"}
     names = list(groups)
@@ -376,8 +385,8 @@ def _settings_section(cfg: dict, speed: dict[str, dict], transfer: dict[str, dic
         + ".",
         "",
         "Intervals: means ± half-width of the 95 % Student-t interval over runs; shares k/n with "
-        "the 95 % Wilson interval; paired differences (conditions share seeds, hence random "
-        "streams) as mean ± 95 % t half-width with the two-sided Wilcoxon signed-rank p, "
+        "the 95 % Clopper–Pearson interval; paired differences (conditions share seeds, hence "
+        "random streams) as mean ± 95 % t half-width with the two-sided Wilcoxon signed-rank p, "
         "Holm-corrected within each experiment. A run that never opened the box counts as "
         "opening one step after its end in medians and paired tests.",
         "",
@@ -427,8 +436,8 @@ def _speed_rows(batches: dict[str, dict], reference: str) -> tuple[list[str], di
             ("openings, last window", lambda rs, st: [r["final_window_openings"] for r in rs]),
             ("greedy value", lambda rs, st: [r["greedy_value"] or math.nan for r in rs]),
         ):
-            mean, half, p = paired_difference(get(ref["runs"], ref["steps"]), get(runs, steps))
-            tests.append((f"{reference} − {c}: {what}", mean, half, p))
+            diff = _paired(get(ref["runs"], ref["steps"]), get(runs, steps))
+            tests.append((f"{reference} − {c}: {what}", *(diff or (math.nan,) * 3)))
     adjusted = holm([t[3] for t in tests])
     return rows, {name: (mean, half, p, q) for (name, mean, half, p), q in zip(tests, adjusted)}
 
@@ -497,7 +506,7 @@ def _organisation_section(summary: dict, speed: dict[str, dict]) -> tuple[list[s
         "learner without the pinch. Figure: `figures/organisation.png` (final plans, and the "
         "share following over learning).",
         "",
-        "| design | imitators following the watched organisation [95 % Wilson] | non-imitators "
+        "| design | imitators following the watched organisation [95 % Clopper–Pearson] | non-imitators "
         "(paired) | Fisher p | watched-organisation score: imitators | non-imitators | paired "
         "difference, Wilcoxon p | Holm p |",
         "|---|---|---|---|---|---|---|---|",
@@ -529,7 +538,7 @@ def _organisation_rows(summary: dict) -> tuple[list[str], dict[str, Any]]:
         mine = [_score(r, r["paired_organisation"]) for r in imit]
         theirs = [_score(r, r["paired_organisation"]) for r in others]
         both = [(x, y) for x, y in zip(mine, theirs) if math.isfinite(x) and math.isfinite(y)]
-        diff = paired_difference([x for x, _ in both], [y for _, y in both]) if both else None
+        diff = _paired(mine, theirs)
         tests.append(diff[2] if diff else 1.0)
         rows.append((about, a, len(imit), b, len(others), fisher, mine, theirs, diff, len(both)))
         facts[prefix] = {"follows": (a, len(imit)), "others": (b, len(others)), "fisher": fisher}
@@ -623,7 +632,7 @@ def _design_firsts_table(summary: dict, facts: dict[str, Any]) -> list[str]:
         opts = _batch(summary, f"{prefix}_options")
         a_first = _firsts(imit["runs"], imit["steps"])
         o_first = _firsts(opts["runs"], opts["steps"])
-        mean, half, p = paired_difference(a_first, o_first)
+        mean, half, p = _paired(a_first, o_first) or (math.nan,) * 3
         facts[prefix]["first"] = (float(np.median(a_first)), float(np.median(o_first)), p)
         lines.append(
             f"| {about} | {np.median(a_first):,.0f} | {np.median(o_first):,.0f} | "
@@ -687,8 +696,8 @@ def _transfer_section(cfg: dict, transfer: dict[str, dict]) -> tuple[list[str], 
         "runs: the same scores for the organisation their seed's imitators watched.",
         "",
         "| mapping | watched | n | plans: skewer / step / mixed / incomplete | strict [95 % "
-        f"Wilson] | score, all skewers | score, skewer {K} | options' score, skewer {K} (paired) "
-        "| paired difference, Wilcoxon p |",
+        f"Clopper–Pearson] | score, all skewers | score, skewer {K} | options' score, skewer "
+        f"{K} (paired) | paired difference, Wilcoxon p |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
     facts: dict[Any, Any] = {}
@@ -702,9 +711,7 @@ def _transfer_section(cfg: dict, transfer: dict[str, dict]) -> tuple[list[str], 
             new = [_score(runs[i], org, "focus_scores") for i in idx]
             base = [_score(others[i], org, "focus_scores") for i in idx]
             pairs = [(x, y) for x, y in zip(new, base) if math.isfinite(x) and math.isfinite(y)]
-            diff = (
-                paired_difference([x for x, _ in pairs], [y for _, y in pairs]) if pairs else None
-            )
+            diff = _paired(new, base)
             facts[(mapping, org)] = {"strict": (follows, len(idx)), "new": new, "diff": diff}
             d = (
                 "–"
