@@ -174,20 +174,8 @@ def _follows_over_time(run_dir: Path, summary: dict, tag: str) -> tuple[np.ndarr
 
 def write_puzzle_box_figures(run_dir: Path, summary: dict) -> None:
     """``figures/speed.png``, ``figures/organisation.png``, ``figures/transfer.png``."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-    from matplotlib.ticker import FuncFormatter
-
-    from himit_torch.viz.plotting import (
-        fit_titles,
-        plot_first_goals,
-        plot_goal_curves,
-        plot_mean_band,
-    )
     from himit_torch.viz.report import AGENT_COLORS
 
-    cfg = summary["config"]
-    window = cfg["window"]
     fig_dir = run_dir / "figures"
     fig_dir.mkdir(parents=True, exist_ok=True)
     colors = {
@@ -201,50 +189,64 @@ def write_puzzle_box_figures(run_dir: Path, summary: dict) -> None:
         ("speed", ("imitation", "options", "primitives")),
         ("transfer", ("any", "plain", "options")),
     ):
-        tags = {c: f"{experiment}_{c}" for c in conditions}
-        first = _batch(summary, tags[conditions[0]])
-        fig = Figure(figsize=(15, 4.2), layout="constrained")
-        ax_curves, ax_first, ax_value = fig.subplots(1, 3, width_ratios=(1.3, 1, 1))
-        goals, firsts = {}, {}
-        steps = None
-        for c, tag in tags.items():
-            steps, runs = _curves(run_dir, tag)
-            goals[c] = runs
-            firsts[c] = [r["first_opening"] for r in _batch(summary, tag)["runs"]]
-        plot_goal_curves(
-            ax_curves,
-            steps,
-            goals,
-            colors=colors,
-            optimum=window / first["optimal_steps"],
-            window=window,
-            legend=False,
-        )
-        ax_curves.legend(fontsize="x-small", loc="lower right", title="band: seeds' range",
-                         title_fontsize="x-small")  # fmt: skip
-        ax_curves.set_ylabel(f"openings per {window:,} steps")
-        plot_first_goals(ax_first, firsts, int(first["steps"]), colors=colors)
-        ax_first.set_xlabel("step of the first opening (log; dots: seeds)")
-        for c, tag in tags.items():
-            at, values = _evals(run_dir, tag, "value")
-            plot_mean_band(ax_value, at, values, color=colors[c], label=f"{c} (n={len(values)})")
-        ax_value.axhline(first["value_star"], color="0.3", ls=":", label="V*(start), exact")
-        ax_value.set_xlabel("primitive steps")
-        ax_value.xaxis.set_major_formatter(FuncFormatter(_thousands_label))
-        ax_value.set_ylabel("V^π(start) of the greedy policy, exact")
-        ax_value.grid(alpha=0.3)
-        ax_value.legend(fontsize="small", title="mean, 95 % t CI", title_fontsize="small")
-        what = (
-            f"(a) speed, {cfg['skewers']}-skewer box"
-            if experiment == "speed"
-            else f"(c) a new element: {cfg['skewers']}-skewer demonstrations, "
-            f"{cfg['transfer_skewers']}-skewer box"
-        )
-        fig.suptitle(f"{what} — {len(first['runs'])} seeds per condition")
-        FigureCanvasAgg(fig)
-        fit_titles(fig)
-        fig.savefig(fig_dir / f"{experiment}.png", dpi=100)
+        _experiment_figure(run_dir, summary, experiment, conditions, colors)
     _organisation_figure(run_dir, fig_dir, summary)
+
+
+def _experiment_figure(
+    run_dir: Path, summary: dict, experiment: str, conditions: tuple[str, ...], colors: dict
+) -> None:
+    """``figures/<experiment>.png``: the conditions' openings per window, first openings and
+    greedy values."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    from matplotlib.ticker import FuncFormatter
+
+    from himit_torch.viz.plotting import (
+        fit_titles,
+        plot_first_goals,
+        plot_goal_curves,
+        plot_mean_band,
+    )
+
+    cfg = summary["config"]
+    window = cfg["window"]
+    tags = {c: f"{experiment}_{c}" for c in conditions}
+    first = _batch(summary, tags[conditions[0]])
+    fig = Figure(figsize=(15, 4.2), layout="constrained")
+    ax_curves, ax_first, ax_value = fig.subplots(1, 3, width_ratios=(1.3, 1, 1))
+    goals, firsts = {}, {}
+    steps = None
+    for c, tag in tags.items():
+        steps, goals[c] = _curves(run_dir, tag)
+        firsts[c] = [r["first_opening"] for r in _batch(summary, tag)["runs"]]
+    optimum = window / first["optimal_steps"]
+    plot_goal_curves(ax_curves, steps, goals, colors=colors, optimum=optimum, window=window,
+                     legend=False)  # fmt: skip
+    ax_curves.legend(fontsize="x-small", loc="lower right", title="band: seeds' range",
+                     title_fontsize="x-small")  # fmt: skip
+    ax_curves.set_ylabel(f"openings per {window:,} steps")
+    plot_first_goals(ax_first, firsts, int(first["steps"]), colors=colors)
+    ax_first.set_xlabel("step of the first opening (log; dots: seeds)")
+    for c, tag in tags.items():
+        at, values = _evals(run_dir, tag, "value")
+        plot_mean_band(ax_value, at, values, color=colors[c], label=f"{c} (n={len(values)})")
+    ax_value.axhline(first["value_star"], color="0.3", ls=":", label="V*(start), exact")
+    ax_value.set_xlabel("primitive steps")
+    ax_value.xaxis.set_major_formatter(FuncFormatter(_thousands_label))
+    ax_value.set_ylabel("V^π(start) of the greedy policy, exact")
+    ax_value.grid(alpha=0.3)
+    ax_value.legend(fontsize="small", title="mean, 95 % t CI", title_fontsize="small")
+    what = (
+        f"(a) speed, {cfg['skewers']}-skewer box"
+        if experiment == "speed"
+        else f"(c) a new element: {cfg['skewers']}-skewer demonstrations, "
+        f"{cfg['transfer_skewers']}-skewer box"
+    )
+    fig.suptitle(f"{what} — {len(first['runs'])} seeds per condition")
+    FigureCanvasAgg(fig)
+    fit_titles(fig)
+    fig.savefig(run_dir / "figures" / f"{experiment}.png", dpi=100)
 
 
 def _organisation_figure(run_dir: Path, fig_dir: Path, summary: dict) -> None:
@@ -700,7 +702,21 @@ def _transfer_section(cfg: dict, transfer: dict[str, dict]) -> tuple[list[str], 
         f"{K} (paired) | paired difference, Wilcoxon p |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
-    facts: dict[Any, Any] = {}
+    rows, facts = _assimilation_rows(transfer)
+    lines += [*rows, "", "Greedy plans of the first seeds (`i.j` = skewer i, step j):", ""]
+    for m in ("plain", "any"):
+        for org in ("skewer", "step"):
+            shown = [r for r in transfer[m]["runs"] if r["watched"] == org and r["opens"]][:2]
+            for r in shown:
+                lines.append(f"* {m}, watched {org}, seed {r['seed']}: `{' '.join(r['subgoals'])}`")
+    lines.append("")
+    facts["tests"] = tests
+    return lines, facts
+
+
+def _assimilation_rows(transfer: dict[str, dict]) -> tuple[list[str], dict[Any, Any]]:
+    """(c)'s assimilation table, a row per mapping and organisation watched, and its facts."""
+    lines, facts = [], {}
     others = transfer["options"]["runs"]
     for mapping in ("plain", "any"):
         runs = transfer[mapping]["runs"]
@@ -710,29 +726,19 @@ def _transfer_section(cfg: dict, transfer: dict[str, dict]) -> tuple[list[str], 
             overall = [_score(runs[i], org) for i in idx]
             new = [_score(runs[i], org, "focus_scores") for i in idx]
             base = [_score(others[i], org, "focus_scores") for i in idx]
-            pairs = [(x, y) for x, y in zip(new, base) if math.isfinite(x) and math.isfinite(y)]
+            pairs = sum(math.isfinite(x) and math.isfinite(y) for x, y in zip(new, base))
             diff = _paired(new, base)
             facts[(mapping, org)] = {"strict": (follows, len(idx)), "new": new, "diff": diff}
             d = (
                 "–"
                 if diff is None
-                else f"{diff[0]:+.2f} ± {diff[1]:.2f} (n={len(pairs)}), p = {diff[2]:.2g}"
+                else f"{diff[0]:+.2f} ± {diff[1]:.2f} (n={pairs}), p = {diff[2]:.2g}"
             )
             counts = " / ".join(str(sum(runs[i]["organisation"] == o for i in idx)) for o in _ORDER)
             lines.append(
                 f"| {mapping} | {org} | {len(idx)} | {counts} | {_share(follows, len(idx))} | "
-                f"{_cell([x for x in overall if math.isfinite(x)], 2)} | "
-                f"{_cell([x for x in new if math.isfinite(x)], 2)} | "
-                f"{_cell([y for y in base if math.isfinite(y)], 2)} | {d} |"
+                f"{_cell(overall, 2)} | {_cell(new, 2)} | {_cell(base, 2)} | {d} |"
             )
-    lines += ["", "Greedy plans of the first seeds (`i.j` = skewer i, step j):", ""]
-    for m in ("plain", "any"):
-        for org in ("skewer", "step"):
-            shown = [r for r in transfer[m]["runs"] if r["watched"] == org and r["opens"]][:2]
-            for r in shown:
-                lines.append(f"* {m}, watched {org}, seed {r['seed']}: `{' '.join(r['subgoals'])}`")
-    lines.append("")
-    facts["tests"] = tests
     return lines, facts
 
 
