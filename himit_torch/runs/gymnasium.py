@@ -90,7 +90,12 @@ from himit_torch.runs.study import (
 )
 from himit_torch.statistics import bca_interval
 from himit_torch.validation import setting
-from himit_torch.viz.results_page import plot_command, provenance_line, write_results_page
+from himit_torch.viz.results_page import (
+    learner_settings_line,
+    plot_command,
+    provenance_line,
+    write_results_page,
+)
 from himit_torch.viz.tensorboard import TensorBoardLogger, tensorboard_command
 from himit_torch.worlds.gymnasium import from_gymnasium
 from himit_torch.worlds.minigrid import from_minigrid
@@ -833,14 +838,7 @@ def _settings_section(config: GymExperimentConfig) -> list[str]:
         + "; the imitator's mentor reward is `KnownReward` (the least "
         "reward of the actions consistent with each observed move).",
         "",
-        (
-            f"Preset `{config.preset}` (`himit_torch.learner.presets`), greedy ties "
-            f"`{config.learner.tie_break}`. "
-            if getattr(config, "preset", None)
-            else f"No preset; greedy ties `{config.learner.tie_break}`. "
-        )
-        + "Learner settings: "
-        + ", ".join(f"`{k}={v}`" for k, v in asdict(config.learner).items()),
+        learner_settings_line(config),
         "",
         agent_settings_text(config.agents, config.learner),
         "",
