@@ -55,23 +55,19 @@ for _user, _call in _LEVEL_USERS.items():
         )
 
 # ================================================================== a sample of a mean
+_NOT_FINITE = [[], [math.nan], [1.0, math.nan], [1.0, math.inf], [-math.inf], [[1.0, 2.0]]]
 for _name, _fn in (("t_interval", t_interval), ("bca_interval", bca_interval)):
-    for _values in [[], [math.nan], [1.0, math.nan], [1.0, math.inf], [-math.inf], [[1.0, 2.0]]]:
+    for _values, _words in [(v, ()) for v in _NOT_FINITE] + [
+        (["a", "b"], ("number",)),
+        ([None, 1.0], ("number",)),
+    ]:
         case(
             f"{_name}-values={_values!r}",
             lambda fn=_fn, v=_values: fn(v),
             lambda fn=_fn: fn([1.0, 2.0]),
             _name,
             "values",
-        )
-    for _values in [["a", "b"], [None, 1.0]]:
-        case(
-            f"{_name}-values={_values!r}",
-            lambda fn=_fn, v=_values: fn(v),
-            lambda fn=_fn: fn([1.0, 2.0]),
-            _name,
-            "values",
-            "number",
+            *_words,
         )
 
 # ===================================================================== the counts of a share
