@@ -539,10 +539,10 @@ def _organisation_rows(summary: dict) -> tuple[list[str], dict[str, Any]]:
         fisher = float(stats.fisher_exact([[a, len(imit) - a], [b, len(others) - b]]).pvalue)
         mine = [_score(r, r["paired_organisation"]) for r in imit]
         theirs = [_score(r, r["paired_organisation"]) for r in others]
-        both = [(x, y) for x, y in zip(mine, theirs) if math.isfinite(x) and math.isfinite(y)]
+        both = sum(math.isfinite(x) and math.isfinite(y) for x, y in zip(mine, theirs))
         diff = _paired(mine, theirs)
         tests.append(diff[2] if diff else 1.0)
-        rows.append((about, a, len(imit), b, len(others), fisher, mine, theirs, diff, len(both)))
+        rows.append((about, a, len(imit), b, len(others), fisher, mine, theirs, diff, both))
         facts[prefix] = {"follows": (a, len(imit)), "others": (b, len(others)), "fisher": fisher}
     adjusted = holm(tests) if tests else []
     lines = []
@@ -554,8 +554,7 @@ def _organisation_rows(summary: dict) -> tuple[list[str], dict[str, Any]]:
         )
         lines.append(
             f"| {about} | {_share(a, n)} | {_share(b, m)} | {fisher:.2g} | "
-            f"{_cell([x for x in mine if math.isfinite(x)], 2)} | "
-            f"{_cell([x for x in theirs if math.isfinite(x)], 2)} | {d} | {q:.2g} |"
+            f"{_cell(mine, 2)} | {_cell(theirs, 2)} | {d} | {q:.2g} |"
         )
     for prefix, q in zip([p for p, _ in _DESIGNS if p in facts], adjusted):
         facts[prefix]["holm"] = q
