@@ -63,6 +63,9 @@ __all__ = [
     "Interval",
     "PairedComparison",
     "Survival",
+    "PAIRED_T",
+    "WILCOXON",
+    "SIGN",
     "t_interval",
     "bca_interval",
     "share_interval",
@@ -76,8 +79,12 @@ __all__ = [
 #: Bootstrap resamples of :func:`bca_interval` and :func:`paired_comparison`.
 RESAMPLES = 9999
 
-#: The names of :func:`paired_comparison`'s tests, the keys of :attr:`PairedComparison.tests`.
-PAIRED_T, WILCOXON, SIGN = "paired t-test", "Wilcoxon signed-rank test", "sign test"
+#: The paired t-test's name in :attr:`PairedComparison.tests`.
+PAIRED_T = "paired t-test"
+#: The Wilcoxon signed-rank test's name in :attr:`PairedComparison.tests`.
+WILCOXON = "Wilcoxon signed-rank test"
+#: The sign test's name in :attr:`PairedComparison.tests`.
+SIGN = "sign test"
 
 
 def _sample(
