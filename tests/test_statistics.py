@@ -9,19 +9,19 @@ import numpy as np
 import pytest
 from scipy import stats
 
+from himit_torch import statistics
 from himit_torch.statistics import (
+    PAIRED_T,
+    SIGN,
+    WILCOXON,
     average_ranks,
     bca_interval,
     first_goal_sign_test,
     first_goal_survival,
     holm,
-    mean_half_width,
     paired_comparison,
-    paired_difference,
-    paired_t_p,
     share_interval,
     t_interval,
-    wilson_interval,
 )
 
 
@@ -32,7 +32,22 @@ def test_t_interval_hand_solved():
     assert ci.low == pytest.approx(2 - 2.4841, abs=1e-4)
     assert ci.high == pytest.approx(2 + 2.4841, abs=1e-4)
     assert "t-interval" in ci.what
+    assert ci.half_width == pytest.approx(2.4841, abs=1e-4)
+    assert ci.plus_minus(2) == "2.00 ± 2.48"
     assert t_interval([5.0, 5.0]).low == 5.0  # no spread: the mean itself
+    assert t_interval([5.0, 5.0]).plus_minus() == "5.0 ± 0.0"
+    one = t_interval([5.0])  # one value: no spread to measure, so no bounds
+    assert one.estimate == 5.0 and math.isnan(one.low) and math.isnan(one.high)
+    assert one.plus_minus() == "5.0" and "one value" in one.what
+
+
+def test_t_interval_is_scipys_t_interval():
+    """mean ± t·s/√n equals scipy.stats.t.interval around the mean with the standard error."""
+    x = np.random.default_rng(4).normal(3.0, 2.0, 12)
+    low, high = stats.t.interval(0.9, 11, loc=x.mean(), scale=stats.sem(x))
+    ci = t_interval(x, level=0.9)
+    assert (ci.low, ci.high) == pytest.approx((low, high), rel=1e-12)
+    assert "90%" in ci.what
 
 
 def test_bca_interval_brackets_the_mean_and_is_reproducible():
@@ -48,18 +63,31 @@ def test_paired_comparison_counts_and_tests():
     b = [4, 6, 5, 9, 6, 7]  # differences 1, 0, 2, −1, 3, 3
     c = paired_comparison(a, b)
     assert (c.wins, c.losses, c.ties) == (4, 1, 1)
-    assert c.sign_p == pytest.approx(stats.binomtest(4, 5).pvalue)  # = 0.375
+    assert set(c.tests) == {PAIRED_T, WILCOXON, SIGN}  # each p under its test's name
+    assert c.sign_p == c.tests[SIGN] == pytest.approx(stats.binomtest(4, 5).pvalue)  # = 0.375
     assert c.sign_p == pytest.approx(0.375)
+    assert c.t_p == c.tests[PAIRED_T]
     assert c.t_p == pytest.approx(stats.ttest_1samp([1, 0, 2, -1, 3, 3], 0).pvalue)
-    assert c.difference.estimate == pytest.approx(8 / 6)
+    assert c.wilcoxon_p == pytest.approx(stats.wilcoxon([1, 0, 2, -1, 3, 3]).pvalue)
+    assert c.difference.estimate == pytest.approx(8 / 6) and "BCa" in c.difference.what
     with pytest.raises(ValueError, match="equally long"):
         paired_comparison([1, 2], [1, 2, 3])
+
+
+def test_paired_comparison_with_a_t_interval():
+    """interval="t": the difference's interval is t_interval of the differences, by hand."""
+    c = paired_comparison([3.0, 5.0, 4.0, 9.0], [1.0, 1.0, 2.0, 2.0], interval="t")
+    assert c.difference.estimate == pytest.approx(3.75) and "t-interval" in c.difference.what
+    assert c.difference.half_width == pytest.approx(stats.t.ppf(0.975, 3) * stats.sem([2, 4, 2, 7]))
+    assert c.wilcoxon_p == pytest.approx(stats.wilcoxon([2, 4, 2, 7]).pvalue)
+    assert paired_comparison([1, 2], [1, 2], interval="t").wilcoxon_p == 1.0  # all 0
 
 
 def test_paired_comparison_without_spread():
     c = paired_comparison([3, 4, 5], [1, 2, 3])
     assert c.difference.estimate == 2.0 and c.difference.low == 2.0 and c.t_p == 0.0
     assert c.sign_p == pytest.approx(0.25)  # 3 of 3: 2 · 0.5³
+    assert paired_comparison([3, 4], [3, 4]).t_p == 1.0  # every difference 0
 
 
 def test_kaplan_meier_hand_solved():
@@ -96,12 +124,17 @@ def test_first_goal_sign_test():
     b = [15, 10, 30, -1, -1]  # a first, b first, b first, a first, tie (neither)
     c = first_goal_sign_test(a, b)
     assert (c.wins, c.losses, c.ties) == (2, 2, 1) and c.sign_p == pytest.approx(1.0)
+    assert list(c.tests) == [SIGN] and math.isnan(c.t_p)  # the one test it makes
 
 
 def test_share_interval_hand_solved():
     ci = share_interval(0, 20)
     assert ci.estimate == 0 and ci.low == 0
     assert ci.high == pytest.approx(1 - 0.025 ** (1 / 20), abs=1e-6)  # 0.1684
+    # 8 of 10: the Clopper–Pearson bounds are the beta quantiles, by definition
+    ci = share_interval(8, 10)
+    assert ci.low == pytest.approx(stats.beta.ppf(0.025, 8, 3))
+    assert ci.high == pytest.approx(stats.beta.ppf(0.975, 9, 2))
 
 
 def test_holm_hand_solved():
@@ -125,37 +158,28 @@ def test_holm_is_statsmodels_bit_for_bit():
     assert [x for x in holm(p) if not math.isnan(x)] == made
 
 
-def test_mean_half_width_by_hand():
-    mean, half, n = mean_half_width([1.0, 2.0, 3.0])  # t(0.975, 2) = 4.302653, sd = 1
-    assert (mean, n) == (2.0, 3) and half == pytest.approx(4.302653 / np.sqrt(3), rel=1e-6)
-    assert mean_half_width([5.0])[:1] == (5.0,) and np.isnan(mean_half_width([5.0])[1])
-    assert mean_half_width([])[2] == 0 and np.isnan(mean_half_width([])[0])
-    # None, NaN and inf are left out; values all equal: no spread
-    assert mean_half_width([1.0, None, math.nan, math.inf, 3.0])[::2] == (2.0, 2)
-    assert mean_half_width([4.0, 4.0, 4.0])[:2] == (4.0, 0.0)
-    # the same interval as t_interval's, up to round-off
-    ci = t_interval([1.0, 2.0, 4.0, 8.0])
-    assert mean_half_width([1.0, 2.0, 4.0, 8.0])[1] == pytest.approx(ci.high - ci.estimate)
-
-
-def test_wilson_interval_and_paired_difference_by_hand():
-    share, low, high = wilson_interval(8, 10)
-    assert share == 0.8 and low == pytest.approx(0.4902, abs=1e-4)
-    assert high == pytest.approx(0.9433, abs=1e-4)
-    assert all(math.isnan(x) for x in wilson_interval(0, 0))
-    mean, half, p = paired_difference([3.0, 5.0, 4.0, 9.0], [1.0, 1.0, 2.0, 2.0])
-    assert mean == pytest.approx(3.75)
-    assert half == pytest.approx(stats.t.ppf(0.975, 3) * stats.sem([2, 4, 2, 7]))
-    assert p == pytest.approx(stats.wilcoxon([2, 4, 2, 7]).pvalue)
-    assert paired_difference([1, 2], [1, 2])[2] == 1.0
-
-
-def test_paired_t_p_by_hand():
-    d = np.array([1.0, 3.0, -0.5, 2.0])
-    assert paired_t_p(d) == pytest.approx(stats.ttest_1samp(d, 0.0).pvalue)
-    assert paired_t_p(d) == pytest.approx(stats.ttest_rel(d, np.zeros(4)).pvalue)
-    assert paired_t_p([0.0, 0.0, 0.0]) == 1.0 and paired_t_p([2.0]) == 1.0
-    assert paired_t_p([2.0, 2.0]) == 0.0  # no spread: the difference is exact
+@pytest.mark.parametrize(
+    "old, call, new",
+    [
+        ("mean_half_width", lambda f: f([1.0, None, 3.0]), lambda: t_interval([1.0, 3.0])),
+        ("paired_difference", lambda f: f([3, 5, 4], [1, 1, 2]), None),
+        ("paired_t_p", lambda f: f([2.0, 4.0, 2.0]), None),
+        ("wilson_interval", lambda f: f(8, 10), None),
+    ],
+)
+def test_the_deprecated_aliases_warn_and_answer_as_before(old, call, new):
+    with pytest.warns(DeprecationWarning, match=old):
+        answer = call(getattr(statistics, old))
+    assert old not in statistics.__all__
+    if old == "mean_half_width":
+        assert answer == (2.0, new().half_width, 2)
+    elif old == "paired_difference":
+        c = paired_comparison([3, 5, 4], [1, 1, 2], interval="t")
+        assert answer == (c.difference.estimate, c.difference.half_width, c.wilcoxon_p)
+    elif old == "paired_t_p":
+        assert answer == pytest.approx(stats.ttest_1samp([2.0, 4.0, 2.0], 0.0).pvalue)
+    else:
+        assert answer[0] == 0.8 and answer[1] == pytest.approx(0.4902, abs=1e-4)
 
 
 def test_round_off_is_no_spread():

@@ -29,7 +29,7 @@ from himit_torch.statistics import paired_comparison, t_interval
 def _ci_mean(x):
     """The mean and the half-width of its 95 % Student-t interval."""
     ci = t_interval(np.asarray(x, float))
-    return ci.estimate, ci.high - ci.estimate
+    return ci.estimate, ci.half_width
 
 
 def _ratio_ci(a, b, rng, n=10_000):

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 from scipy import stats
 
-from himit_torch.statistics import holm
+from himit_torch.statistics import holm, paired_comparison, share_interval, t_interval
 
 HERE = Path(__file__).resolve().parent
 parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -72,12 +72,9 @@ def pick(rows, cell, agent, world=None):
 
 
 def tci(x):
-    x = np.asarray(x, float)
-    m = float(x.mean())
-    if len(x) < 2 or x.std() == 0:
-        return m, m, m
-    lo, hi = stats.t.interval(0.95, len(x) - 1, loc=m, scale=stats.sem(x))
-    return m, float(lo), float(hi)
+    """The mean and its 95 % t-interval (``himit_torch.statistics.t_interval``)."""
+    ci = t_interval(np.asarray(x, float))
+    return ci.estimate, ci.low, ci.high
 
 
 def fmt_ci(x, f="{:.1f}"):
@@ -86,19 +83,18 @@ def fmt_ci(x, f="{:.1f}"):
 
 
 def paired(a: dict, b: dict, key, f="{:.1f}"):
-    """a − b seed by seed: mean [95 % t-CI], paired t p, Wilcoxon p, a>b / a<b counts."""
+    """a − b seed by seed: mean [95 % t-CI], paired t p, Wilcoxon p, a>b / a<b counts
+    (``himit_torch.statistics.paired_comparison``)."""
     seeds = sorted(set(a) & set(b))
-    d = np.array([float(a[s][key]) - float(b[s][key]) for s in seeds])
-    p_t = (
-        stats.ttest_rel([float(a[s][key]) for s in seeds], [float(b[s][key]) for s in seeds]).pvalue
-        if d.std() > 0
-        else float("nan")
+    c = paired_comparison(
+        [float(a[s][key]) for s in seeds], [float(b[s][key]) for s in seeds], interval="t"
     )
-    p_w = stats.wilcoxon(d).pvalue if np.any(d != 0) else float("nan")
-    PAIRED_P.append((p_t, p_w))
+    PAIRED_P.append((c.t_p, c.wilcoxon_p))
+    d = c.difference
     return (
-        f"{fmt_ci(d, f)}; t p={p_t:.2g}; W p={p_w:.2g} (⟨holm:{len(PAIRED_P) - 1}⟩); "
-        f"{int((d > 0).sum())}+/{int((d < 0).sum())}− of {len(d)}"
+        f"{f.format(d.estimate)} [{f.format(d.low)}, {f.format(d.high)}]; t p={c.t_p:.2g}; "
+        f"W p={c.wilcoxon_p:.2g} (⟨holm:{len(PAIRED_P) - 1}⟩); "
+        f"{c.wins}+/{c.losses}− of {len(seeds)}"
     )
 
 
@@ -110,7 +106,7 @@ def slope_ci(x, y):
 
 
 def cp(k, n):
-    ci = stats.binomtest(k, n).proportion_ci(method="exact")
+    ci = share_interval(k, n)
     return f"{k}/{n} = {k / n:.2f} [{ci.low:.2f}, {ci.high:.2f}]"
 
 
@@ -481,7 +477,7 @@ if e3:
             opt = 130_000 / 5000 * float(next(iter(rs))["optimal_goals_per_window"])
             pct.append([100 * float(r["total_goals"]) / opt for r in rs])
         m = [np.mean(p) for p in pct]
-        half = [stats.t.ppf(0.975, len(p) - 1) * np.std(p, ddof=1) / np.sqrt(len(p)) for p in pct]
+        half = [t_interval(p).half_width for p in pct]
         x = np.arange(len(sizes)) + (k - 1) * 0.27
         ax.bar(x, m, 0.27, yerr=half, capsize=3, label=f"{agent} (n={len(pct[0])})")
     ax.set_xticks(np.arange(len(sizes)), [f"{s}×{s}" for s in sizes])
@@ -654,7 +650,7 @@ def curve_figure(series, optimal, title, path):
         steps = [s for s, _, _ in next(iter(table.values()))]
         goals = np.array([[g for _, g, _ in w] for w in table.values()], float)
         m = goals.mean(0)
-        half = stats.t.ppf(0.975, len(goals) - 1) * goals.std(0, ddof=1) / np.sqrt(len(goals))
+        half = np.array([t_interval(column).half_width for column in goals.T])
         (line,) = ax.plot(steps, m, label=f"{label} (n={len(goals)})")
         ax.fill_between(steps, m - half, m + half, color=line.get_color(), alpha=0.2, lw=0)
     if optimal:

@@ -54,6 +54,54 @@ class BenchResult:
         )
 
 
+def _learner(
+    size: int,
+    rooms: int,
+    corner_options: bool,
+    batch: int,
+    agent: str,
+    device: str,
+    plan_every: int,
+    engine: str,
+) -> Learner:
+    """The benchmark's learner: ``batch`` runs of ``agent`` (or the mix) on the world, with the
+    mentor's 20 episodes."""
+    world = MultiRooms(size=size, rooms=rooms)
+    # the mentor's tables are freed before the learner's are built (as in the experiments)
+    demos = record_demonstrations(
+        world, mentor_policy(world, mentor_options(world, corner_options)), 20, seed=0
+    )
+    options = learner_options(world, corners=corner_options)
+    mix = ["imitation", "options", "primitives"]
+    agents = [mix[b % 3] if agent == "mix" else agent for b in range(batch)]
+    return Learner(
+        world,
+        options,
+        agents,
+        list(range(batch)),
+        demonstrations=demos,
+        config=LearnerConfig(plan_every=plan_every, sweep_rounds=1),
+        device=device,
+        engine=engine,
+    )
+
+
+def _timed_run(learner: Learner, steps: int, device: str) -> tuple[float, float]:
+    """``(seconds, peak memory in MiB)`` of ``steps`` ticks of ``learner``."""
+    cuda = device.startswith("cuda")
+    if cuda:
+        torch.cuda.synchronize()
+        torch.cuda.reset_peak_memory_stats()
+    start = time.perf_counter()
+    learner.run(steps)
+    if cuda:
+        torch.cuda.synchronize()
+    seconds = time.perf_counter() - start
+    if cuda:
+        return seconds, torch.cuda.max_memory_allocated() / 2**20
+    return seconds, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
 def benchmark(
     size: int = 40,
     rooms: int = 10,
@@ -80,41 +128,13 @@ def benchmark(
     device = str(as_device("device", device))  # refused here, before the mentor is built
     if threads is not None:
         torch.set_num_threads(threads)
-    world = MultiRooms(size=size, rooms=rooms)
-    # the mentor's tables are freed before the learner's are built (as in the experiments)
-    demos = record_demonstrations(
-        world, mentor_policy(world, mentor_options(world, corner_options)), 20, seed=0
-    )
-    options = learner_options(world, corners=corner_options)
-    mix = ["imitation", "options", "primitives"]
-    agents = [mix[b % 3] if agent == "mix" else agent for b in range(batch)]
-    learner = Learner(
-        world,
-        options,
-        agents,
-        list(range(batch)),
-        demonstrations=demos,
-        config=LearnerConfig(plan_every=plan_every, sweep_rounds=1),
-        device=device,
-        engine=engine,
-    )
+    learner = _learner(size, rooms, corner_options, batch, agent, device, plan_every, engine)
     first = time.perf_counter()
     learner.run(1)
     first = time.perf_counter() - first
     learner.run(max(0, warmup - 1))
     decisions0 = int(learner.decisions.sum())
-    if device.startswith("cuda"):
-        torch.cuda.synchronize()
-        torch.cuda.reset_peak_memory_stats()
-    start = time.perf_counter()
-    learner.run(steps)
-    if device.startswith("cuda"):
-        torch.cuda.synchronize()
-    seconds = time.perf_counter() - start
-    if device.startswith("cuda"):
-        peak = torch.cuda.max_memory_allocated() / 2**20
-    else:
-        peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    seconds, peak = _timed_run(learner, steps, device)
     return BenchResult(
         size,
         rooms,

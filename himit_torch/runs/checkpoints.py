@@ -419,22 +419,9 @@ def _payload_error(err: Exception) -> str:
     return f"{type(err).__name__}: {lines[0] if lines else ''}"
 
 
-def decode(
-    data: bytes,
-    path: str | os.PathLike = "<bytes>",
-    map_location=None,
-    expect_batch: BatchShape | None = None,
-    expect_layout: int | None = None,
-) -> Checkpoint:
-    """Verify and read checkpoint bytes; the payload is unpickled only after every check passed,
-    and then with ``weights_only=True``.
-
-    Raises:
-        DamagedCheckpoint: not a checkpoint, cut short, checksum mismatch, or a payload that
-            would need code to load.
-        IncompatibleCheckpoint: another file format, state layout or batch (both named).
-    """
-    path = Path(path)
+def _verified_body(data: bytes, path: Path) -> tuple[CheckpointHeader, bytes]:
+    """The header of checkpoint bytes and the payload it announces, its length and checksum
+    checked (:class:`DamagedCheckpoint` otherwise)."""
     header, offset = _parse_header(data, path)
     body = data[offset:]
     if len(body) < header.payload_bytes:
@@ -453,6 +440,26 @@ def decode(
         raise DamagedCheckpoint(
             path, "checksum mismatch: its content was altered after it was written", header.step
         )
+    return header, body
+
+
+def decode(
+    data: bytes,
+    path: str | os.PathLike = "<bytes>",
+    map_location=None,
+    expect_batch: BatchShape | None = None,
+    expect_layout: int | None = None,
+) -> Checkpoint:
+    """Verify and read checkpoint bytes; the payload is unpickled only after every check passed,
+    and then with ``weights_only=True``.
+
+    Raises:
+        DamagedCheckpoint: not a checkpoint, cut short, checksum mismatch, or a payload that
+            would need code to load.
+        IncompatibleCheckpoint: another file format, state layout or batch (both named).
+    """
+    path = Path(path)
+    header, body = _verified_body(data, path)
     if expect_layout is not None and header.state_layout_version != expect_layout:
         raise IncompatibleCheckpoint(
             f"{path} holds learner state layout version {header.state_layout_version}, but this "

@@ -29,7 +29,6 @@ Goals are counted over the whole run. Results: ``config.json``, ``curves.csv``, 
 from __future__ import annotations
 
 import csv
-import math
 import os
 import time
 from collections.abc import Callable
@@ -54,7 +53,7 @@ from himit_torch.options.discovery import (
 from himit_torch.runs.config import EXPERIMENTS
 from himit_torch.runs.runner import run_windows, source_commit, watch_demonstrations
 from himit_torch.runs.study import RunConfig, StudyEntry, run_each, run_study
-from himit_torch.statistics import mean_half_width, paired_t_p
+from himit_torch.statistics import paired_comparison, t_interval
 from himit_torch.validation import setting
 from himit_torch.viz.results_page import provenance_line, write_results_page
 
@@ -166,19 +165,6 @@ class DiscoveryConfig(RunConfig):
             worlds=self.worlds[:1],
             demonstrations_needed=(2, 5),
         )
-
-
-def _mean_ci(values) -> tuple[float, float]:
-    """Mean and half-width of its 95 % t interval (:func:`~himit_torch.statistics.mean_half_width`)
-    as this page has always shown them: a NaN or infinite value makes both NaN (it is not left
-    out), and one value (or none) has half-width 0."""
-    x = np.asarray(values, dtype=np.float64)
-    if x.size < 2:
-        return float(x.mean()), 0.0
-    if not np.isfinite(x).all():
-        return float(x.mean()), math.nan
-    mean, half, _ = mean_half_width(x)
-    return mean, half
 
 
 def _window_goals(learner: Learner) -> np.ndarray:
@@ -526,8 +512,11 @@ def discovery_run_command(
 
 
 def _fmt(values, digits: int = 1) -> str:
-    m, h = _mean_ci(values)
-    return f"{m:.{digits}f} ± {h:.{digits}f}"
+    """Mean ± 95 % t over the seeds (the mean alone for one seed); "nan ± nan" where a seed has
+    no value (the precision of no subgoals found): the mean over seeds is then undefined."""
+    if not np.isfinite(values).all():
+        return "nan ± nan"
+    return t_interval(values).plus_minus(digits)
 
 
 def _write_results(out: Path, config: DiscoveryConfig, results: list[dict], total: float) -> None:
@@ -645,22 +634,27 @@ def _learning_section(r: dict) -> list[str]:
         np.mean(tot["imitation_primitives"]),
     )
     ratio = disc / hand if hand else float("nan")
-    # Paired over seeds: a seed's two runs share its mentor episodes and, here, its warm-up.
-    diff = np.asarray(tot["discovered_imitation"], float) - np.asarray(
-        tot["imitation_primitives"], float
-    )
-    d_mean, d_half = _mean_ci(diff)
-    p_value = paired_t_p(diff)
-    beats = d_mean - d_half > 0
     r["ratio"] = ratio
-    return lines + [
+    lines += [
         "",
         f"Discovered-options imitator / hand-built imitator (total goals): "
         f"**{100 * ratio:.0f} %** (target ≥ 80 % on exp2's world); vs primitives-only "
-        f"imitation: {disc:.0f} vs {prim:.0f}, paired difference {d_mean:+.1f} ± "
-        f"{d_half:.1f} goals (paired t-test p = {p_value:.3g}; "
-        f"{'beats it' if beats else 'does not beat it'}: the interval "
-        f"{'lies above' if beats else 'does not lie above'} 0).",
+        f"imitation: {disc:.0f} vs {prim:.0f}",
+    ]
+    if len(tot["discovered_imitation"]) < 2:
+        lines[-1] += " (one seed: no paired comparison)."
+    else:
+        # Paired over seeds: a seed's two runs share its mentor episodes and, here, its warm-up.
+        c = paired_comparison(
+            tot["discovered_imitation"], tot["imitation_primitives"], interval="t"
+        )
+        beats = c.difference.low > 0
+        lines[-1] += (
+            f", paired difference {c.difference.plus_minus(1, '+')} goals (paired t-test p = "
+            f"{c.t_p:.3g}; {'beats it' if beats else 'does not beat it'}: the interval "
+            f"{'lies above' if beats else 'does not lie above'} 0)."
+        )
+    return lines + [
         "",
         "Wall time: " + ", ".join(f"{k} {v:.0f} s" for k, v in r["wall"].items()),
         "",

@@ -88,9 +88,14 @@ from himit_torch.runs.study import (
     run_each,
     run_study,
 )
-from himit_torch.statistics import bca_interval, mean_half_width
+from himit_torch.statistics import bca_interval
 from himit_torch.validation import setting
-from himit_torch.viz.results_page import plot_command, provenance_line, write_results_page
+from himit_torch.viz.results_page import (
+    learner_settings_line,
+    plot_command,
+    provenance_line,
+    write_results_page,
+)
 from himit_torch.viz.tensorboard import TensorBoardLogger, tensorboard_command
 from himit_torch.worlds.gymnasium import from_gymnasium
 from himit_torch.worlds.minigrid import from_minigrid
@@ -723,7 +728,7 @@ def write_gym_figures(run_dir: Path, config: GymExperimentConfig, summaries: lis
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    from himit_torch.viz.plotting import fit_titles
+    from himit_torch.viz.plotting import fit_titles, plot_mean_band
     from himit_torch.viz.report import AGENT_COLORS
 
     curves = read_gym_curves(run_dir)
@@ -738,11 +743,8 @@ def write_gym_figures(run_dir: Path, config: GymExperimentConfig, summaries: lis
         for agent, (steps, goals, gaps) in curves[task].items():
             color = AGENT_COLORS.get(agent)
             for ax, data in ((ax_goals, goals), (ax_gap, gaps)):
-                stats = [mean_half_width(data[:, i]) for i in range(data.shape[1])]
-                mean = np.array([s[0] for s in stats])
-                half = np.nan_to_num(np.array([s[1] for s in stats]))
-                ax.plot(steps, mean, color=color, lw=2, label=f"{agent} (n={data.shape[0]})")
-                ax.fill_between(steps, mean - half, mean + half, color=color, alpha=0.18, lw=0)
+                label = f"{agent} (n={data.shape[0]})"
+                plot_mean_band(ax, steps, data, color=color, label=label)
         ax_goals.axhline(
             summary["optimal_goals_per_window"],
             color="0.3",
@@ -836,14 +838,7 @@ def _settings_section(config: GymExperimentConfig) -> list[str]:
         + "; the imitator's mentor reward is `KnownReward` (the least "
         "reward of the actions consistent with each observed move).",
         "",
-        (
-            f"Preset `{config.preset}` (`himit_torch.learner.presets`), greedy ties "
-            f"`{config.learner.tie_break}`. "
-            if getattr(config, "preset", None)
-            else f"No preset; greedy ties `{config.learner.tie_break}`. "
-        )
-        + "Learner settings: "
-        + ", ".join(f"`{k}={v}`" for k, v in asdict(config.learner).items()),
+        learner_settings_line(config),
         "",
         agent_settings_text(config.agents, config.learner),
         "",

@@ -382,10 +382,9 @@ def run_box_batch(
     mentor_plans: dict[str, list[int]],
     focus: int | None = None,
 ) -> dict[str, Any]:
-    """One condition's runs on one box: a learner batch of ``agent`` over ``config``'s seeds
-    (its learner settings, engine and checkpoint interval), run for ``steps`` steps, every seed
-    watching its own ``demos`` (``None``: no demonstrations). Returns the batch's summary, also
-    written to ``run_dir/batches/<tag>.json`` with its window rows in ``batches/<tag>.csv``.
+    """One condition's runs on one box: ``agent`` on ``config``'s seeds (its learner, engine and
+    checkpoints) for ``steps`` steps, every seed watching its own ``demos`` (``None``: none).
+    Returns the batch's summary, also in ``run_dir/batches/<tag>.json`` (rows: ``<tag>.csv``).
 
     Args:
         tag: the batch's name (its files, checkpoint and TensorBoard runs).
@@ -399,26 +398,14 @@ def run_box_batch(
             (c)'s new skewer), as :func:`greedy_plan`.
     """
     world, seeds = box.world, config.seed_list
-    agents = [agent] * len(seeds)
-    learner = Learner(
-        world, box.options, agents, seeds, config=config.learner, engine=config.engine
-    )
-    if demos is not None:
-        watch_demonstrations(learner, demos)
-    checkpoints = Checkpoints(
-        run_dir / "checkpoints" / f"{tag}.pt",
-        BatchShape(tuple(agents), tuple(seeds), world.num_states),
-        config.checkpoint_every,
-    )
-    elapsed = checkpoints.start(learner, resume)
+    learner, checkpoints, elapsed = _batch_learner(config, box, agent, demos, run_dir, tag, resume)
     evals_path = run_dir / "batches" / f"{tag}.evals.json"
     evals = _saved_evaluations(evals_path, len(seeds), learner.t) if resume else {}
     paired = [watched_organisation(s, config.first_seed) for s in seeds]
+    names = run_names(tag, [condition] * len(seeds), seeds)
+    resume_step = learner.t if resume else None
     logger = TensorBoardLogger(
-        run_dir / "tb",
-        run_names(tag, [condition] * len(seeds), seeds),
-        true_value_start=box.value_star,
-        resume_step=learner.t if resume else None,
+        run_dir / "tb", names, true_value_start=box.value_star, resume_step=resume_step
     )
     evaluate = _Evaluations(box, evals, evals_path, paired, logger, eval_every, steps, focus)
     evals_path.parent.mkdir(parents=True, exist_ok=True)
@@ -440,6 +427,36 @@ def run_box_batch(
     _write_rows(run_dir / "batches" / f"{tag}.csv", rows)
     write_atomically(run_dir / "batches" / f"{tag}.json", json.dumps(summary, indent=1))
     return summary
+
+
+def _batch_learner(
+    config: PuzzleBoxConfig,
+    box: PreparedBox,
+    agent: str,
+    demos: dict[int, Demonstrations] | None,
+    run_dir: Path,
+    tag: str,
+    resume: bool,
+) -> tuple[Learner, Checkpoints, float]:
+    """A batch's learner (``agent`` on every seed, each watching its ``demos``), its
+    checkpoints, and the wall time its runs already took (resumed: from the checkpoint)."""
+    seeds = config.seed_list
+    learner = Learner(
+        box.world,
+        box.options,
+        [agent] * len(seeds),
+        seeds,
+        config=config.learner,
+        engine=config.engine,
+    )
+    if demos is not None:
+        watch_demonstrations(learner, demos)
+    checkpoints = Checkpoints(
+        run_dir / "checkpoints" / f"{tag}.pt",
+        BatchShape((agent,) * len(seeds), tuple(seeds), box.world.num_states),
+        config.checkpoint_every,
+    )
+    return learner, checkpoints, checkpoints.start(learner, resume)
 
 
 def _close_logger(logger: TensorBoardLogger, condition, skewers, runs, t: int) -> None:

@@ -4,7 +4,7 @@ beside Whiten et al.'s (2006) three findings.
 Statistics (every interval says what it is):
 
 * means over runs: mean ± half-width of the 95 % Student-t confidence interval (n runs);
-* shares: k/n with the 95 % Wilson score interval;
+* shares: k/n with the 95 % Clopper–Pearson (exact) interval;
 * first openings: runs that never opened the box count as opening one step after the end, so
   the median and the paired tests use every run (ranks only); means are given over the runs
   that opened it;
@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from himit_torch.runs.runner import source_commit
-from himit_torch.statistics import holm, mean_half_width, paired_difference, wilson_interval
+from himit_torch.statistics import holm, paired_comparison, share_interval, t_interval
 from himit_torch.viz.results_page import plot_command, provenance_line, write_results_page
 
 __all__ = [
@@ -36,7 +36,7 @@ __all__ = [
 _ORDER = ("skewer", "step", "mixed", "incomplete")
 #: The header of the speed tables of (a) and (c).
 _SPEED_HEADER = (
-    "| condition | n | opened the box [95 % Wilson] | first opening, median | first opening, "
+    "| condition | n | opened the box [95 % Clopper–Pearson] | first opening, median | first opening, "
     "mean ± 95 % t (runs that opened) | openings, last window | greedy V^π(start) |",
     "|---|---|---|---|---|---|---|",
 )
@@ -58,19 +58,26 @@ def _firsts(runs: list[dict], steps: int) -> np.ndarray:
 
 
 def _cell(values, digits: int = 1) -> str:
-    mean, half, n = mean_half_width(values)
-    if n == 0:
-        return "–"
-    return (
-        f"{mean:.{digits}f}"
-        if not math.isfinite(half)
-        else f"{mean:.{digits}f} ± {half:.{digits}f}"
-    )
+    """Mean ± 95 % t over the finite ``values`` (the mean alone for one, "–" for none)."""
+    measured = [x for x in values if x is not None and math.isfinite(x)]
+    return t_interval(measured).plus_minus(digits) if measured else "–"
 
 
 def _share(k: int, n: int) -> str:
-    share, low, high = wilson_interval(k, n)
-    return "–" if n == 0 else f"{k}/{n} = {share:.0%} [{low:.0%}, {high:.0%}]"
+    if n == 0:
+        return "–"
+    ci = share_interval(k, n)
+    return f"{k}/{n} = {ci.estimate:.0%} [{ci.low:.0%}, {ci.high:.0%}]"
+
+
+def _paired(a, b) -> tuple[float, float, float] | None:
+    """``(mean of a − b, its 95 % t half-width, Wilcoxon p)`` over the pairs where both are
+    finite (:func:`~himit_torch.statistics.paired_comparison`); None for fewer than 2 pairs."""
+    pairs = [(x, y) for x, y in zip(a, b) if math.isfinite(x) and math.isfinite(y)]
+    if len(pairs) < 2:
+        return None
+    c = paired_comparison([x for x, _ in pairs], [y for _, y in pairs], interval="t")
+    return c.difference.estimate, c.difference.half_width, c.wilcoxon_p
 
 
 def _batch(summary: dict, tag: str) -> dict:
@@ -167,15 +174,8 @@ def _follows_over_time(run_dir: Path, summary: dict, tag: str) -> tuple[np.ndarr
 
 def write_puzzle_box_figures(run_dir: Path, summary: dict) -> None:
     """``figures/speed.png``, ``figures/organisation.png``, ``figures/transfer.png``."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-    from matplotlib.ticker import FuncFormatter
-
-    from himit_torch.viz.plotting import fit_titles, plot_first_goals, plot_goal_curves
     from himit_torch.viz.report import AGENT_COLORS
 
-    cfg = summary["config"]
-    window = cfg["window"]
     fig_dir = run_dir / "figures"
     fig_dir.mkdir(parents=True, exist_ok=True)
     colors = {
@@ -189,54 +189,64 @@ def write_puzzle_box_figures(run_dir: Path, summary: dict) -> None:
         ("speed", ("imitation", "options", "primitives")),
         ("transfer", ("any", "plain", "options")),
     ):
-        tags = {c: f"{experiment}_{c}" for c in conditions}
-        first = _batch(summary, tags[conditions[0]])
-        fig = Figure(figsize=(15, 4.2), layout="constrained")
-        ax_curves, ax_first, ax_value = fig.subplots(1, 3, width_ratios=(1.3, 1, 1))
-        goals, firsts = {}, {}
-        steps = None
-        for c, tag in tags.items():
-            steps, runs = _curves(run_dir, tag)
-            goals[c] = runs
-            firsts[c] = [r["first_opening"] for r in _batch(summary, tag)["runs"]]
-        plot_goal_curves(
-            ax_curves,
-            steps,
-            goals,
-            colors=colors,
-            optimum=window / first["optimal_steps"],
-            window=window,
-            legend=False,
-        )
-        ax_curves.legend(fontsize="x-small", loc="lower right", title="band: seeds' range",
-                         title_fontsize="x-small")  # fmt: skip
-        ax_curves.set_ylabel(f"openings per {window:,} steps")
-        plot_first_goals(ax_first, firsts, int(first["steps"]), colors=colors)
-        ax_first.set_xlabel("step of the first opening (log; dots: seeds)")
-        for c, tag in tags.items():
-            at, values = _evals(run_dir, tag, "value")
-            stats = [mean_half_width(values[:, i]) for i in range(values.shape[1])]
-            mean = np.array([s[0] for s in stats])
-            half = np.nan_to_num(np.array([s[1] for s in stats]))
-            ax_value.plot(at, mean, color=colors[c], lw=2, label=f"{c} (n={values.shape[0]})")
-            ax_value.fill_between(at, mean - half, mean + half, color=colors[c], alpha=0.18, lw=0)
-        ax_value.axhline(first["value_star"], color="0.3", ls=":", label="V*(start), exact")
-        ax_value.set_xlabel("primitive steps")
-        ax_value.xaxis.set_major_formatter(FuncFormatter(_thousands_label))
-        ax_value.set_ylabel("V^π(start) of the greedy policy, exact")
-        ax_value.grid(alpha=0.3)
-        ax_value.legend(fontsize="small", title="mean, 95 % t CI", title_fontsize="small")
-        what = (
-            f"(a) speed, {cfg['skewers']}-skewer box"
-            if experiment == "speed"
-            else f"(c) a new element: {cfg['skewers']}-skewer demonstrations, "
-            f"{cfg['transfer_skewers']}-skewer box"
-        )
-        fig.suptitle(f"{what} — {len(first['runs'])} seeds per condition")
-        FigureCanvasAgg(fig)
-        fit_titles(fig)
-        fig.savefig(fig_dir / f"{experiment}.png", dpi=100)
+        _experiment_figure(run_dir, summary, experiment, conditions, colors)
     _organisation_figure(run_dir, fig_dir, summary)
+
+
+def _experiment_figure(
+    run_dir: Path, summary: dict, experiment: str, conditions: tuple[str, ...], colors: dict
+) -> None:
+    """``figures/<experiment>.png``: the conditions' openings per window, first openings and
+    greedy values."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    from matplotlib.ticker import FuncFormatter
+
+    from himit_torch.viz.plotting import (
+        fit_titles,
+        plot_first_goals,
+        plot_goal_curves,
+        plot_mean_band,
+    )
+
+    cfg = summary["config"]
+    window = cfg["window"]
+    tags = {c: f"{experiment}_{c}" for c in conditions}
+    first = _batch(summary, tags[conditions[0]])
+    fig = Figure(figsize=(15, 4.2), layout="constrained")
+    ax_curves, ax_first, ax_value = fig.subplots(1, 3, width_ratios=(1.3, 1, 1))
+    goals, firsts = {}, {}
+    steps = None
+    for c, tag in tags.items():
+        steps, goals[c] = _curves(run_dir, tag)
+        firsts[c] = [r["first_opening"] for r in _batch(summary, tag)["runs"]]
+    optimum = window / first["optimal_steps"]
+    plot_goal_curves(ax_curves, steps, goals, colors=colors, optimum=optimum, window=window,
+                     legend=False)  # fmt: skip
+    ax_curves.legend(fontsize="x-small", loc="lower right", title="band: seeds' range",
+                     title_fontsize="x-small")  # fmt: skip
+    ax_curves.set_ylabel(f"openings per {window:,} steps")
+    plot_first_goals(ax_first, firsts, int(first["steps"]), colors=colors)
+    ax_first.set_xlabel("step of the first opening (log; dots: seeds)")
+    for c, tag in tags.items():
+        at, values = _evals(run_dir, tag, "value")
+        plot_mean_band(ax_value, at, values, color=colors[c], label=f"{c} (n={len(values)})")
+    ax_value.axhline(first["value_star"], color="0.3", ls=":", label="V*(start), exact")
+    ax_value.set_xlabel("primitive steps")
+    ax_value.xaxis.set_major_formatter(FuncFormatter(_thousands_label))
+    ax_value.set_ylabel("V^π(start) of the greedy policy, exact")
+    ax_value.grid(alpha=0.3)
+    ax_value.legend(fontsize="small", title="mean, 95 % t CI", title_fontsize="small")
+    what = (
+        f"(a) speed, {cfg['skewers']}-skewer box"
+        if experiment == "speed"
+        else f"(c) a new element: {cfg['skewers']}-skewer demonstrations, "
+        f"{cfg['transfer_skewers']}-skewer box"
+    )
+    fig.suptitle(f"{what} — {len(first['runs'])} seeds per condition")
+    FigureCanvasAgg(fig)
+    fit_titles(fig)
+    fig.savefig(run_dir / "figures" / f"{experiment}.png", dpi=100)
 
 
 def _organisation_figure(run_dir: Path, fig_dir: Path, summary: dict) -> None:
@@ -252,7 +262,8 @@ def _organisation_figure(run_dir: Path, fig_dir: Path, summary: dict) -> None:
             continue
         steps, follows = _follows_over_time(run_dir, summary, tag)
         n = follows.shape[0]
-        share = np.array([wilson_interval(int(f.sum()), n) for f in follows.T])
+        cis = [share_interval(int(f.sum()), n) for f in follows.T]
+        share = np.array([(ci.estimate, ci.low, ci.high) for ci in cis])
         ax_time.plot(steps, share[:, 0], color=color, ls=ls, lw=2, label=f"{label} (n={n})")
         ax_time.fill_between(steps, share[:, 1], share[:, 2], color=color, alpha=0.12, lw=0)
     ax_time.set_ylim(0, 1)
@@ -260,7 +271,7 @@ def _organisation_figure(run_dir: Path, fig_dir: Path, summary: dict) -> None:
     ax_time.xaxis.set_major_formatter(FuncFormatter(_thousands_label))
     ax_time.set_ylabel("share following the organisation watched")
     ax_time.grid(alpha=0.3)
-    ax_time.legend(fontsize="small", title="band: 95 % Wilson", title_fontsize="small")
+    ax_time.legend(fontsize="small", title="band: 95 % Clopper–Pearson", title_fontsize="small")
     ax_time.set_title("over learning (non-imitators: their seed's imitator's)", fontsize="medium")
     colors = {"skewer": "#1f77b4", "step": "#ff7f0e", "mixed": "#7f7f7f", "incomplete": "#d9d9d9"}
     names = list(groups)
@@ -376,8 +387,8 @@ def _settings_section(cfg: dict, speed: dict[str, dict], transfer: dict[str, dic
         + ".",
         "",
         "Intervals: means ± half-width of the 95 % Student-t interval over runs; shares k/n with "
-        "the 95 % Wilson interval; paired differences (conditions share seeds, hence random "
-        "streams) as mean ± 95 % t half-width with the two-sided Wilcoxon signed-rank p, "
+        "the 95 % Clopper–Pearson interval; paired differences (conditions share seeds, hence "
+        "random streams) as mean ± 95 % t half-width with the two-sided Wilcoxon signed-rank p, "
         "Holm-corrected within each experiment. A run that never opened the box counts as "
         "opening one step after its end in medians and paired tests.",
         "",
@@ -427,8 +438,8 @@ def _speed_rows(batches: dict[str, dict], reference: str) -> tuple[list[str], di
             ("openings, last window", lambda rs, st: [r["final_window_openings"] for r in rs]),
             ("greedy value", lambda rs, st: [r["greedy_value"] or math.nan for r in rs]),
         ):
-            mean, half, p = paired_difference(get(ref["runs"], ref["steps"]), get(runs, steps))
-            tests.append((f"{reference} − {c}: {what}", mean, half, p))
+            diff = _paired(get(ref["runs"], ref["steps"]), get(runs, steps))
+            tests.append((f"{reference} − {c}: {what}", *(diff or (math.nan,) * 3)))
     adjusted = holm([t[3] for t in tests])
     return rows, {name: (mean, half, p, q) for (name, mean, half, p), q in zip(tests, adjusted)}
 
@@ -497,7 +508,7 @@ def _organisation_section(summary: dict, speed: dict[str, dict]) -> tuple[list[s
         "learner without the pinch. Figure: `figures/organisation.png` (final plans, and the "
         "share following over learning).",
         "",
-        "| design | imitators following the watched organisation [95 % Wilson] | non-imitators "
+        "| design | imitators following the watched organisation [95 % Clopper–Pearson] | non-imitators "
         "(paired) | Fisher p | watched-organisation score: imitators | non-imitators | paired "
         "difference, Wilcoxon p | Holm p |",
         "|---|---|---|---|---|---|---|---|",
@@ -528,10 +539,10 @@ def _organisation_rows(summary: dict) -> tuple[list[str], dict[str, Any]]:
         fisher = float(stats.fisher_exact([[a, len(imit) - a], [b, len(others) - b]]).pvalue)
         mine = [_score(r, r["paired_organisation"]) for r in imit]
         theirs = [_score(r, r["paired_organisation"]) for r in others]
-        both = [(x, y) for x, y in zip(mine, theirs) if math.isfinite(x) and math.isfinite(y)]
-        diff = paired_difference([x for x, _ in both], [y for _, y in both]) if both else None
+        both = sum(math.isfinite(x) and math.isfinite(y) for x, y in zip(mine, theirs))
+        diff = _paired(mine, theirs)
         tests.append(diff[2] if diff else 1.0)
-        rows.append((about, a, len(imit), b, len(others), fisher, mine, theirs, diff, len(both)))
+        rows.append((about, a, len(imit), b, len(others), fisher, mine, theirs, diff, both))
         facts[prefix] = {"follows": (a, len(imit)), "others": (b, len(others)), "fisher": fisher}
     adjusted = holm(tests) if tests else []
     lines = []
@@ -543,8 +554,7 @@ def _organisation_rows(summary: dict) -> tuple[list[str], dict[str, Any]]:
         )
         lines.append(
             f"| {about} | {_share(a, n)} | {_share(b, m)} | {fisher:.2g} | "
-            f"{_cell([x for x in mine if math.isfinite(x)], 2)} | "
-            f"{_cell([x for x in theirs if math.isfinite(x)], 2)} | {d} | {q:.2g} |"
+            f"{_cell(mine, 2)} | {_cell(theirs, 2)} | {d} | {q:.2g} |"
         )
     for prefix, q in zip([p for p, _ in _DESIGNS if p in facts], adjusted):
         facts[prefix]["holm"] = q
@@ -623,7 +633,7 @@ def _design_firsts_table(summary: dict, facts: dict[str, Any]) -> list[str]:
         opts = _batch(summary, f"{prefix}_options")
         a_first = _firsts(imit["runs"], imit["steps"])
         o_first = _firsts(opts["runs"], opts["steps"])
-        mean, half, p = paired_difference(a_first, o_first)
+        mean, half, p = _paired(a_first, o_first) or (math.nan,) * 3
         facts[prefix]["first"] = (float(np.median(a_first)), float(np.median(o_first)), p)
         lines.append(
             f"| {about} | {np.median(a_first):,.0f} | {np.median(o_first):,.0f} | "
@@ -687,11 +697,25 @@ def _transfer_section(cfg: dict, transfer: dict[str, dict]) -> tuple[list[str], 
         "runs: the same scores for the organisation their seed's imitators watched.",
         "",
         "| mapping | watched | n | plans: skewer / step / mixed / incomplete | strict [95 % "
-        f"Wilson] | score, all skewers | score, skewer {K} | options' score, skewer {K} (paired) "
-        "| paired difference, Wilcoxon p |",
+        f"Clopper–Pearson] | score, all skewers | score, skewer {K} | options' score, skewer "
+        f"{K} (paired) | paired difference, Wilcoxon p |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
-    facts: dict[Any, Any] = {}
+    rows, facts = _assimilation_rows(transfer)
+    lines += [*rows, "", "Greedy plans of the first seeds (`i.j` = skewer i, step j):", ""]
+    for m in ("plain", "any"):
+        for org in ("skewer", "step"):
+            shown = [r for r in transfer[m]["runs"] if r["watched"] == org and r["opens"]][:2]
+            for r in shown:
+                lines.append(f"* {m}, watched {org}, seed {r['seed']}: `{' '.join(r['subgoals'])}`")
+    lines.append("")
+    facts["tests"] = tests
+    return lines, facts
+
+
+def _assimilation_rows(transfer: dict[str, dict]) -> tuple[list[str], dict[Any, Any]]:
+    """(c)'s assimilation table, a row per mapping and organisation watched, and its facts."""
+    lines, facts = [], {}
     others = transfer["options"]["runs"]
     for mapping in ("plain", "any"):
         runs = transfer[mapping]["runs"]
@@ -701,31 +725,19 @@ def _transfer_section(cfg: dict, transfer: dict[str, dict]) -> tuple[list[str], 
             overall = [_score(runs[i], org) for i in idx]
             new = [_score(runs[i], org, "focus_scores") for i in idx]
             base = [_score(others[i], org, "focus_scores") for i in idx]
-            pairs = [(x, y) for x, y in zip(new, base) if math.isfinite(x) and math.isfinite(y)]
-            diff = (
-                paired_difference([x for x, _ in pairs], [y for _, y in pairs]) if pairs else None
-            )
+            pairs = sum(math.isfinite(x) and math.isfinite(y) for x, y in zip(new, base))
+            diff = _paired(new, base)
             facts[(mapping, org)] = {"strict": (follows, len(idx)), "new": new, "diff": diff}
             d = (
                 "–"
                 if diff is None
-                else f"{diff[0]:+.2f} ± {diff[1]:.2f} (n={len(pairs)}), p = {diff[2]:.2g}"
+                else f"{diff[0]:+.2f} ± {diff[1]:.2f} (n={pairs}), p = {diff[2]:.2g}"
             )
             counts = " / ".join(str(sum(runs[i]["organisation"] == o for i in idx)) for o in _ORDER)
             lines.append(
                 f"| {mapping} | {org} | {len(idx)} | {counts} | {_share(follows, len(idx))} | "
-                f"{_cell([x for x in overall if math.isfinite(x)], 2)} | "
-                f"{_cell([x for x in new if math.isfinite(x)], 2)} | "
-                f"{_cell([y for y in base if math.isfinite(y)], 2)} | {d} |"
+                f"{_cell(overall, 2)} | {_cell(new, 2)} | {_cell(base, 2)} | {d} |"
             )
-    lines += ["", "Greedy plans of the first seeds (`i.j` = skewer i, step j):", ""]
-    for m in ("plain", "any"):
-        for org in ("skewer", "step"):
-            shown = [r for r in transfer[m]["runs"] if r["watched"] == org and r["opens"]][:2]
-            for r in shown:
-                lines.append(f"* {m}, watched {org}, seed {r['seed']}: `{' '.join(r['subgoals'])}`")
-    lines.append("")
-    facts["tests"] = tests
     return lines, facts
 
 

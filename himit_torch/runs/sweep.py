@@ -626,37 +626,7 @@ def summarize(spec: SweepSpec, out: Path) -> dict:
         world = json.loads((trial.run_dir / "worlds" / f"world{trial.size}.json").read_text())
         engines.add(world.get("engine", "unknown"))
         commits.add(world.get("commit", "unknown"))
-        window = trial.config.window
-        late_windows = max(1, LATE_STEPS // window)
-        per_run: dict = {}
-        for row in curves:
-            per_run.setdefault((row["agent"], int(row["seed"])), []).append(
-                int(row["goals_in_window"])
-            )
-        for b, (agent, seed) in enumerate(zip(world["agents"], world["seeds"])):
-            goals = per_run[(agent, seed)]
-            runs.append(
-                {
-                    **settings,
-                    "world": trial.size,
-                    "agent": agent,
-                    "seed": seed,
-                    "total_goals": world["goals"][b],
-                    "final_window_goals": world["final_window_goals"][b],
-                    "late_goals": sum(goals[-late_windows:]),
-                    "first_goal_step": world["first_goal_step"][b],
-                    "value_start": f"{world['value_start'][b]:.6f}",
-                    "true_value_start": f"{world['true_value_start']:.6f}",
-                    "mentor_term_wins": f"{world['mentor_term_wins'][b]:.4f}",
-                    "optimal_goals_per_window": f"{world['optimal_goals_per_window']:.3f}",
-                    **{m: f"{world[m][b]:.6g}" if world.get(m) else "" for m in _GREEDY_MEASURES},
-                    "mentor_goals_per_window": (
-                        f"{world['mentor_goals_per_window']:.3f}"
-                        if world.get("greedy_goals_per_window")
-                        else ""
-                    ),
-                }
-            )
+        runs.extend(_run_rows(trial, settings, world, curves))
     order = {c.slug: c.index for c in spec.cells}
     agent_order = {a: i for i, a in enumerate(spec.cells[0].config.agents)}
     results.sort(
@@ -681,6 +651,40 @@ def summarize(spec: SweepSpec, out: Path) -> dict:
     provenance = {"commit": sorted(commits), "engine": sorted(engines)}
     _write_summary_md(_about(spec), out, summary, provenance)
     return provenance
+
+
+def _run_rows(trial: Trial, settings: dict, world: dict, curves: list[dict]) -> list[dict]:
+    """``runs.csv``'s rows of one trial: each run's measures, from its world record and
+    curves."""
+    late_windows = max(1, LATE_STEPS // trial.config.window)
+    per_run: dict = {}
+    for row in curves:
+        per_run.setdefault((row["agent"], int(row["seed"])), []).append(int(row["goals_in_window"]))
+    rows = []
+    for b, (agent, seed) in enumerate(zip(world["agents"], world["seeds"])):
+        rows.append(
+            {
+                **settings,
+                "world": trial.size,
+                "agent": agent,
+                "seed": seed,
+                "total_goals": world["goals"][b],
+                "final_window_goals": world["final_window_goals"][b],
+                "late_goals": sum(per_run[(agent, seed)][-late_windows:]),
+                "first_goal_step": world["first_goal_step"][b],
+                "value_start": f"{world['value_start'][b]:.6f}",
+                "true_value_start": f"{world['true_value_start']:.6f}",
+                "mentor_term_wins": f"{world['mentor_term_wins'][b]:.4f}",
+                "optimal_goals_per_window": f"{world['optimal_goals_per_window']:.3f}",
+                **{m: f"{world[m][b]:.6g}" if world.get(m) else "" for m in _GREEDY_MEASURES},
+                "mentor_goals_per_window": (
+                    f"{world['mentor_goals_per_window']:.3f}"
+                    if world.get("greedy_goals_per_window")
+                    else ""
+                ),
+            }
+        )
+    return rows
 
 
 def _summary_rows(
@@ -881,8 +885,14 @@ def run_sweep(
     )
     out.mkdir(parents=True, exist_ok=True)
     _execute(todo, address, use_ray, workers, log, spec.worker_niceness)
-    provenance = summarize(spec, out)
-    record = {
+    record = _sweep_record(spec, summarize(spec, out))
+    (out / "sweep.json").write_text(json.dumps(record, indent=1) + "\n")
+    return record
+
+
+def _sweep_record(spec: SweepSpec, provenance: dict) -> dict:
+    """What ``sweep.json`` holds: the sweep, its cells' configurations and ``provenance``."""
+    return {
         **_about(spec),
         "worker_niceness": spec.worker_niceness,
         "factors": {k: [_show(v) for v in vs] for k, vs in spec.factors.items()},
@@ -897,5 +907,3 @@ def run_sweep(
         **provenance,
         "sweep_commit": source_commit(),
     }
-    (out / "sweep.json").write_text(json.dumps(record, indent=1) + "\n")
-    return record

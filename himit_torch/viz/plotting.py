@@ -35,6 +35,7 @@ from matplotlib.text import Text
 from matplotlib.ticker import FuncFormatter
 
 from himit_torch.mentor.demonstrations import Demonstrations
+from himit_torch.statistics import t_interval
 from himit_torch.worlds.multirooms import MultiRooms
 
 __all__ = [
@@ -45,6 +46,7 @@ __all__ = [
     "map_legend",
     "plot_goal_curves",
     "plot_first_goals",
+    "plot_mean_band",
     "runs_split",
     "MapRenderer",
     "value_image",
@@ -555,6 +557,22 @@ def plot_goal_curves(
             title="band: seeds' range",
             title_fontsize="small",
         )
+
+
+def plot_mean_band(ax: Axes, x, values, *, color, label: str, alpha: float = 0.18) -> None:
+    """The mean of ``values`` (``[runs, len(x)]``) at each ``x`` as a line, and its 95 %
+    Student-t interval (:func:`~himit_torch.statistics.t_interval`) as a band. A run without a
+    value at a point (NaN, ±inf) is left out there; a point with one value has no band, one with
+    none no line."""
+    values = np.asarray(values, dtype=np.float64)
+    mean, half = np.full(values.shape[1], np.nan), np.zeros(values.shape[1])
+    for i, column in enumerate(values.T):
+        measured = column[np.isfinite(column)]
+        if measured.size:
+            ci = t_interval(measured)
+            mean[i], half[i] = ci.estimate, np.nan_to_num(ci.half_width)
+    ax.plot(x, mean, color=color, lw=2, label=label)
+    ax.fill_between(x, mean - half, mean + half, color=color, alpha=alpha, lw=0)
 
 
 def plot_first_goals(

@@ -7,7 +7,6 @@ import math
 import shlex
 import statistics
 from collections import defaultdict
-from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +14,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from himit_torch.viz.plotting import CURVE_COLORS, fit_titles, plot_first_goals, plot_goal_curves
+from himit_torch.viz.results_page import learner_settings_line
 from himit_torch.viz.tensorboard import tensorboard_command
 
 __all__ = [
@@ -278,14 +278,7 @@ def write_results(
         + ".",
         "",
         *_stress_lines(config),
-        (
-            f"Preset `{config.preset}` (`himit_torch.learner.presets`), greedy ties "
-            f"`{config.learner.tie_break}`. "
-            if getattr(config, "preset", None)
-            else f"No preset; greedy ties `{config.learner.tie_break}`. "
-        )
-        + "Learner settings: "
-        + ", ".join(f"`{k}={v}`" for k, v in asdict(config.learner).items()),
+        learner_settings_line(config),
         "",
         *([agent_settings, ""] if agent_settings else []),
     ]

@@ -20,9 +20,16 @@ from __future__ import annotations
 import os
 import shlex
 from collections.abc import Iterable, Sequence
+from dataclasses import asdict
 from pathlib import Path
 
-__all__ = ["results_page", "write_results_page", "provenance_line", "plot_command"]
+__all__ = [
+    "results_page",
+    "write_results_page",
+    "provenance_line",
+    "plot_command",
+    "learner_settings_line",
+]
 
 
 def plot_command(run_dir: str | os.PathLike) -> str:
@@ -77,3 +84,19 @@ def write_results_page(
     path = Path(run_dir) / "results.md"
     path.write_text(results_page(title, provenance, sections))
     return path
+
+
+def learner_settings_line(config) -> str:
+    """A results page's line on ``config``'s learner: the study's preset (if it has one), the
+    greedy policy's ties and every learner setting."""
+    ties = f"greedy ties `{config.learner.tie_break}`. "
+    preset = getattr(config, "preset", None)
+    return (
+        (
+            f"Preset `{preset}` (`himit_torch.learner.presets`), {ties}"
+            if preset
+            else f"No preset; {ties}"
+        )
+        + "Learner settings: "
+        + ", ".join(f"`{k}={v}`" for k, v in asdict(config.learner).items())
+    )

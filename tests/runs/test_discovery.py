@@ -1,8 +1,6 @@
 """The discovery experiment (himit_torch.runs.discovery) with a tiny budget: its command, its
 outputs and its option refreshes. Discovery itself: tests/options/test_discovery.py."""
 
-import math
-
 import pytest
 
 
@@ -10,7 +8,7 @@ def test_himit_run_discovery_quick(tmp_path, capsys):
     import csv
 
     from himit_torch.cli import main
-    from himit_torch.runs.discovery import DISCOVERY_AGENTS, DiscoveryConfig, _mean_ci
+    from himit_torch.runs.discovery import DISCOVERY_AGENTS, DiscoveryConfig, _fmt
 
     assert (
         main(
@@ -50,12 +48,12 @@ def test_himit_run_discovery_quick(tmp_path, capsys):
         DiscoveryConfig(steps=20_000, warmup=20_000)
     with pytest.raises(ValueError, match="refresh_every"):
         DiscoveryConfig(refresh_every=3000)  # not a multiple of the window (5000)
-    m, h = _mean_ci([1.0, 2.0, 3.0])  # t(0.975, 2) = 4.303, sd = 1
-    assert m == 2.0 and h == pytest.approx(4.302653 / 3**0.5, rel=1e-5)
-    # the page's own conventions around statistics.mean_half_width: ± 0 for one value, and a
-    # NaN (a seed whose discovery found nothing: precision 0/0) shown, not left out
-    assert _mean_ci([5.0]) == (5.0, 0.0)
-    assert all(math.isnan(x) for x in _mean_ci([0.5, float("nan")]))
+    # t(0.975, 2) = 4.303, sd = 1: half-width 4.302653 / √3 = 2.484
+    assert _fmt([1.0, 2.0, 3.0], 3) == "2.000 ± 2.484"
+    # the page's own conventions around statistics.t_interval: the mean alone for one value,
+    # and a NaN (a seed whose discovery found nothing: precision 0/0) shown, not left out
+    assert _fmt([5.0]) == "5.0"
+    assert _fmt([0.5, float("nan")]) == "nan ± nan"
 
 
 def test_discovered_runs_continue_the_primitives_runs_and_refresh(tmp_path):

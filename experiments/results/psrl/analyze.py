@@ -15,20 +15,18 @@ from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
-import scipy.stats
+
+from himit_torch.statistics import share_interval, t_interval
 
 
 def t_ci(x):
-    x = np.asarray(x, dtype=float)
-    m = x.mean()
-    if len(x) < 2 or x.std() == 0:
-        return m, m, m
-    h = scipy.stats.t.ppf(0.975, len(x) - 1) * x.std(ddof=1) / np.sqrt(len(x))
-    return m, m - h, m + h
+    """The mean and its 95 % t-interval (``himit_torch.statistics.t_interval``)."""
+    ci = t_interval(np.asarray(x, dtype=float))
+    return ci.estimate, ci.low, ci.high
 
 
 def cp(k, n):
-    ci = scipy.stats.binomtest(k, n).proportion_ci(0.95, method="exact")
+    ci = share_interval(k, n)
     return ci.low, ci.high
 
 
@@ -71,7 +69,9 @@ def main(paths):
                     diff = paired(d)
                     totals.append((cell, agent, runs, twin))
             print(
-                f"| {cell} | {agent} | {len(seeds)} | {f_m:,.0f} [{f_lo:,.0f}, {f_hi:,.0f}]"
+                f"| {cell} | {agent} | {len(seeds)} | {f_m:,.0f}"
+                # one run that found the goal: its step, no interval (one value has none)
+                f"{f' [{f_lo:,.0f}, {f_hi:,.0f}]' if len(fm) > 1 else ''}"
                 f"{f' ({never} never)' if never else ''} | {l_m:.0f} [{l_lo:.0f}, {l_hi:.0f}] | "
                 f"{fail}/{len(seeds)} [{lo:.2f}, {hi:.2f}] | {diff} |"
             )
