@@ -787,7 +787,7 @@ def run_experiment(
         resume=bool(resume),
         force=force,
         progress=progress,
-        check=config.check_size,
+        check=lambda: config.check_size(),
         resume_hint=study.resume_hint(run_dir),
         load=load_config,
     )

@@ -55,6 +55,7 @@ __all__ = [
     "InfoTopic",
     "run_study",
     "prepare_run_dir",
+    "config_differences",
     "read_config",
     "read_config_file",
     "read_config_fields",
@@ -177,6 +178,11 @@ class RunConfig:
             derived = self.derived_learner_settings()
             if any(getattr(config.learner, k) != v for k, v in derived.items()):
                 config.learner = replace(config.learner, **derived)
+            if "mentors" not in derived and config.learner.mentors != 1:
+                raise ValueError(
+                    f"{kind}.learner.mentors={config.learner.mentors!r}: this study shows its "
+                    "learners one demonstration set (one mentor); mentors must be 1"
+                )
 
     #: The learner settings a study derives from its own (``derived_learner_settings``).
     derived_learner: ClassVar[tuple[str, ...]] = ("window",)
@@ -192,8 +198,22 @@ class RunConfig:
 
     def with_preset(self: Config, name: str) -> Config:
         """This configuration with preset ``name``'s learner settings, and the preset
-        recorded."""
+        recorded.
+
+        Raises:
+            ValueError: ``name`` is no preset's, or the study has no learner settings (e.g.
+                :class:`~himit_torch.runs.discovery.DiscoveryConfig`)."""
         config: Any = self
+        kind = type(self).__name__
+        if not hasattr(config, "learner"):
+            raise ValueError(
+                f"{kind}.with_preset({name!r}): {kind} has no learner settings for a preset to "
+                "set (its learners' settings are its worlds' experiments')"
+            )
+        if not isinstance(name, str) or name not in PRESETS:
+            raise ValueError(
+                f"{kind}.with_preset: unknown preset {name!r}; presets: {', '.join(PRESETS)}"
+            )
         return replace(config, preset=name, learner=apply_preset(config.learner, name))
 
     @property
@@ -414,7 +434,7 @@ def run_study(
     Returns:
         What the study's :meth:`Study.run` returned.
     """
-    run_dir = Path(run_dir)
+    run_dir = _check_run_arguments(study, config, run_dir, resume, force, progress)
     if check is not None:
         check()
     check_run_dir(run_dir, force=force, resume=resume)
@@ -431,6 +451,47 @@ def run_study(
     results = study.run(config, run_dir, bool(resume), progress)
     study.report(config, run_dir, results)
     return results
+
+
+def config_differences(saved: Any, given: Any) -> list[str]:
+    """The settings where configuration ``given`` departs from ``saved`` (dataclasses of one
+    kind), each as ``name: saved …, given …`` (the learner's as ``learner.<field>``), in the
+    order of the fields; empty when they are equal. What a refused resume names."""
+    return _dict_differences(asdict(saved), asdict(given), "")
+
+
+def _dict_differences(saved: dict, given: dict, prefix: str) -> list[str]:
+    differences = []
+    for key in [*given, *(k for k in saved if k not in given)]:
+        mine, theirs = saved.get(key, "(none)"), given.get(key, "(none)")
+        if isinstance(mine, dict) and isinstance(theirs, dict):
+            differences += _dict_differences(mine, theirs, f"{prefix}{key}.")
+        elif mine != theirs:
+            differences.append(f"{prefix}{key}: saved {mine!r:.60}, given {theirs!r:.60}")
+    return differences
+
+
+def _check_run_arguments(
+    study: Study, config: Any, run_dir: Any, resume: Any, force: Any, progress: Any
+) -> Path:
+    """:func:`run_study`'s arguments checked before anything is touched: ``config`` of the
+    study's configuration class, ``run_dir`` a path, the flags bools (``resume`` also
+    ``None``). Returns ``run_dir`` as a :class:`~pathlib.Path`."""
+    kind = getattr(study, "config_class", None)
+    if isinstance(kind, type) and not isinstance(config, kind):
+        raise TypeError(
+            f"run_study: config={config!r:.60} must be of type {kind.__name__} (the study's "
+            "configuration)"
+        )
+    if not isinstance(run_dir, (str, os.PathLike)):
+        raise TypeError(f"run_study: run_dir={run_dir!r:.60} must be a path (str or Path)")
+    for name, value in (("resume", resume), ("force", force), ("progress", progress)):
+        if not isinstance(value, bool) and not (name == "resume" and value is None):
+            raise TypeError(
+                f"run_study: {name}={value!r:.60} must be True or False"
+                + (" (or None)" if name == "resume" else "")
+            )
+    return Path(run_dir)
 
 
 def prepare_run_dir(
@@ -456,9 +517,10 @@ def prepare_run_dir(
             saved = read_config_file(type(config), cfg_path, f"--resume: {cfg_path}")
         else:
             saved = load(cfg_path)
-        if asdict(saved) != asdict(config):
+        differences = config_differences(saved, config)
+        if differences:
             raise ValueError(
-                f"--resume: {cfg_path} holds a different configuration than the one given; "
-                f"{resume_hint} or start over with --force"
+                f"--resume: {cfg_path} holds a different configuration than the one given "
+                f"({'; '.join(differences)}); {resume_hint} or start over with --force"
             )
     write_atomically(cfg_path, config.to_json())
