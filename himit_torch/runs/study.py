@@ -25,9 +25,13 @@ what ``himit info`` says of its worlds. The entries are listed once, in
 
 from __future__ import annotations
 
+import csv
 import dataclasses
+import io
 import json
+import math
 import os
+import re
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
@@ -55,7 +59,10 @@ __all__ = [
     "InfoTopic",
     "run_study",
     "prepare_run_dir",
+    "check_resumed_config",
     "config_differences",
+    "read_table",
+    "series_of",
     "read_config",
     "read_config_file",
     "read_config_fields",
@@ -265,6 +272,92 @@ def read_config_fields(path: str | os.PathLike, where: str) -> set[str]:
     return set(data)
 
 
+_WHOLE = re.compile(r"-?[0-9]+")
+
+
+def read_table(
+    path: Path,
+    where: str,
+    whole: Sequence[str],
+    numbers: Sequence[str] = (),
+    text: Sequence[str] = (),
+    fix: str = "",
+) -> list[dict[str, str]]:
+    """The rows of a run's CSV record at ``path`` (a ``curves.csv``), refused unless a page
+    can be drawn from them: UTF-8 CSV within the csv module's field limit, the columns
+    ``whole`` (whole numbers), ``numbers`` (finite numbers, or empty) and ``text`` present in
+    its header, every row as long as the header, and at least one row.
+
+    Raises:
+        ValueError: naming ``where`` and, where one is at fault, the line and column; ``fix``
+            (what to do about it) is appended.
+    """
+    reader = csv.reader(io.StringIO(read_text(where, path), newline=""))
+    try:
+        header = next(reader, [])
+        missing = [key for key in (*text, *whole, *numbers) if key not in header]
+        if missing:
+            raise ValueError(f"{where}: columns {missing} are missing{fix}")
+        rows = []
+        for row in reader:
+            if len(row) != len(header):
+                raise ValueError(
+                    f"{where}, line {reader.line_num}: {len(row)} cells, not {len(header)}{fix}"
+                )
+            cells = dict(zip(header, row))
+            for key in whole:
+                if not _WHOLE.fullmatch(cells[key]):
+                    raise ValueError(
+                        f"{where}, line {reader.line_num}: {key}={cells[key]!r:.60} is not a "
+                        f"whole number{fix}"
+                    )
+            for key in numbers:
+                if cells[key] and not _is_finite(cells[key]):
+                    raise ValueError(
+                        f"{where}, line {reader.line_num}: {key}={cells[key]!r:.60} is not a "
+                        f"finite number{fix}"
+                    )
+            rows.append(cells)
+    except csv.Error as err:
+        raise ValueError(
+            f"{where}, line {reader.line_num}: not CSV a run writes ({err}){fix}"
+        ) from None
+    if not rows:
+        raise ValueError(f"{where} holds no rows{fix}")
+    return rows
+
+
+def _is_finite(text: str) -> bool:
+    try:
+        return math.isfinite(float(text))
+    except ValueError:
+        return False
+
+
+def series_of(
+    rows: Sequence[dict[str, str]], value: str, where: str, fix: str = ""
+) -> tuple[list[int], list[list[float]]]:
+    """``(steps, per seed its values at those steps)`` from a run's rows of one batch (each
+    with ``seed``, ``step`` and ``value``, as :func:`read_table` checked them), the seeds in
+    order. Seeds recorded at different steps (a row lost or repeated) are a ``ValueError``
+    naming ``where``: no rectangle of curves can be drawn from them."""
+    by_seed: dict[int, list[tuple[int, float]]] = {}
+    for r in rows:
+        by_seed.setdefault(int(r["seed"]), []).append((int(r["step"]), float(r[value] or "nan")))
+    series = [sorted(v) for _, v in sorted(by_seed.items())]
+    steps = [step for step, _ in series[0]]
+    for seed, points in zip(sorted(by_seed), series):
+        at = [step for step, _ in points]
+        if len(set(at)) != len(at):
+            raise ValueError(f"{where}: seed {seed} has a row twice at one step{fix}")
+        if at != steps:
+            raise ValueError(
+                f"{where}: seed {seed}'s rows are at other steps than seed {min(by_seed)}'s "
+                f"({len(at)} rows, not {len(steps)}){fix}"
+            )
+    return steps, [[v for _, v in points] for points in series]
+
+
 def optimum_lines(world: Any, learner: Any, mentor: Any, window: int) -> tuple[list[str], int]:
     """``himit info``'s table of optimal trips: the optimum over primitives, over the learner's
     options and the mentor's own policy (its options, :class:`~himit_torch.MentorPolicy`),
@@ -467,7 +560,7 @@ def _dict_differences(saved: dict, given: dict, prefix: str) -> list[str]:
         if isinstance(mine, dict) and isinstance(theirs, dict):
             differences += _dict_differences(mine, theirs, f"{prefix}{key}.")
         elif mine != theirs:
-            differences.append(f"{prefix}{key}: saved {mine!r:.60}, given {theirs!r:.60}")
+            differences.append(f"{prefix}{key}: saved {mine!r:.100}, given {theirs!r:.100}")
     return differences
 
 
@@ -508,19 +601,35 @@ def prepare_run_dir(
     ``config.json`` is ``config``) ``run_dir``, and save ``config`` in it. The saved file is
     read by ``load`` (default: through ``config``'s class, :func:`read_config`); a resumed run
     whose configuration differs is refused with ``resume_hint``."""
+    if resume and not force:  # (--force starts over: nothing of the old run is kept)
+        check_resumed_config(run_dir, config, resume_hint, load)
     if force:
         clear_run_dir(run_dir, tuple(folders), tuple(files))
     run_dir.mkdir(parents=True, exist_ok=True)
-    cfg_path = run_dir / "config.json"
-    if resume and cfg_path.exists():
-        if load is None:
-            saved = read_config_file(type(config), cfg_path, f"--resume: {cfg_path}")
-        else:
-            saved = load(cfg_path)
-        differences = config_differences(saved, config)
-        if differences:
-            raise ValueError(
-                f"--resume: {cfg_path} holds a different configuration than the one given "
-                f"({'; '.join(differences)}); {resume_hint} or start over with --force"
-            )
-    write_atomically(cfg_path, config.to_json())
+    write_atomically(run_dir / "config.json", config.to_json())
+
+
+def check_resumed_config(
+    run_dir: Path,
+    config: Any,
+    resume_hint: str = "resume with the same flags",
+    load: Callable[[Path], Any] | None = None,
+) -> None:
+    """Refuse to resume ``run_dir`` with ``config`` when its saved ``config.json`` (read by
+    ``load``, default: through ``config``'s class) holds another configuration: a
+    ``ValueError`` naming each differing setting (:func:`config_differences`) and
+    ``resume_hint``. Nothing saved yet: nothing to check. Reads only (a command checks every
+    run directory before it writes to any)."""
+    cfg_path = Path(run_dir) / "config.json"
+    if not cfg_path.exists():
+        return
+    if load is None:
+        saved = read_config_file(type(config), cfg_path, f"--resume: {cfg_path}")
+    else:
+        saved = load(cfg_path)
+    differences = config_differences(saved, config)
+    if differences:
+        raise ValueError(
+            f"--resume: {cfg_path} holds a different configuration than the one given "
+            f"({'; '.join(differences)}); {resume_hint} or start over with --force"
+        )
