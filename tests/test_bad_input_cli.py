@@ -14,6 +14,7 @@ and the CLI is called in-process, so the lot runs in seconds.
 
 from __future__ import annotations
 
+import argparse
 import csv
 import dataclasses
 import io
@@ -24,7 +25,7 @@ from pathlib import Path
 
 import pytest
 
-from himit_torch.cli import build_parser, main, study_configs
+from himit_torch.cli import build_parser, cmd_plot, main, study_configs
 from himit_torch.learner.config import LearnerConfig
 from himit_torch.learner.presets import PRESETS
 from himit_torch.runs.config import ExperimentConfig
@@ -491,7 +492,9 @@ PLOT_DAMAGE = {
 
 
 class _Plot:
-    """``himit plot`` of a copy of a committed run directory damaged by ``damage``."""
+    """``himit plot`` (its command, without building the parser each time: main turns its
+    ``ValueError`` into one line and exit 2, tested below) of a copy of a committed run
+    directory damaged by ``damage``; nothing may be drawn before the refusal."""
 
     def __init__(self, study: str, damage):
         self.study, self.damage = study, damage
@@ -501,12 +504,9 @@ class _Plot:
         self.damage(run_dir)
         before = snapshot(run_dir)
         try:
-            main(["plot", str(run_dir)])
-        except SystemExit as exit_:
-            assert exit_.code == 2 and snapshot(run_dir) == before  # (nothing drawn)
-            err = c.capsys.readouterr().err
-            assert err.count("\n") == 1 and err.startswith("himit: error: "), err
-            raise ValueError(err) from None
+            cmd_plot(argparse.Namespace(run_dir=str(run_dir)))
+        finally:
+            assert snapshot(run_dir) == before
 
 
 for _study, _damages in PLOT_DAMAGE.items():
@@ -713,6 +713,13 @@ def test_a_refused_demo_or_plot_changes_nothing_on_disk(tmp_path, capsys):
     assert "has not finished" in _refused(capsys, ["plot", str(tmp_path / "run")])
     assert "a part of the path is a file" in _refused(capsys, ["plot", str(plain)])
     assert snapshot(tmp_path) == before
+    if RECORDS["exp2"].is_dir():  # a damaged record of a finished run
+        run_dir = tmp_path / "exp2"
+        shutil.copytree(RECORDS["exp2"], run_dir)
+        _json(_WORLD, lambda r: {**r, "optimal_steps": 0})(run_dir)
+        before = snapshot(tmp_path)
+        assert "optimal_steps=0 is not a number > 0" in _refused(capsys, ["plot", str(run_dir)])
+        assert snapshot(tmp_path) == before
 
 
 def test_mentors_on_a_one_mentor_study_exit_2(tmp_path, capsys):
