@@ -72,6 +72,7 @@ __all__ = [
     "DEVICE_TYPES",
     "usable_devices",
     "as_folder_name",
+    "check_folder_path",
     "read_text",
     "parse_document",
     "nesting_depth",
@@ -398,6 +399,18 @@ def as_folder_name(where: str, value: Any) -> str:
             "starting with a letter or digit (no '/', not '.' or '..')"
         )
     return value
+
+
+def check_folder_path(where: str, path: str | os.PathLike) -> Path:
+    """``path``, where a folder is to be (a run directory, a sweep's, a demo's output): refused
+    with a ``ValueError`` naming ``where`` when it, or a folder above it, is a file (the user's
+    mistake, said before anything is written). It need not exist yet."""
+    path = Path(path)
+    for part in (path, *path.parents):
+        if part.exists() and not part.is_dir():
+            what = "is a file" if part == path else f"is under {part}, which is a file"
+            raise ValueError(f"{where} {path} {what}, not a folder; choose another path")
+    return path
 
 
 def read_text(where: str, path: str | os.PathLike) -> str:

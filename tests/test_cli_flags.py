@@ -243,11 +243,17 @@ def test_a_flagged_run_resumes_only_with_the_configuration_it_started_with(capsy
 @pytest.mark.parametrize("field", sorted(LEARNER_FLAGS))
 def test_each_learner_flag_reaches_the_learner_of_the_other_studies(study, field):
     """``himit run gymnasium`` and ``himit run puzzlebox`` take every learner setting as a flag
-    (each study's own learner defaults otherwise)."""
+    (each study's own learner defaults otherwise); ``--mentors`` other than 1 is refused, as
+    they show their learners one demonstration set."""
     from himit_torch.cli import build_parser, study_configs
 
     text, expected = LEARNER_FLAGS[field]
     extra = ["--backups", "12"] if field == "sweep_rounds" else []
     argv = ["run", study, _flag(field), *([] if text is None else [text]), *extra]
+    if field == "mentors":
+        with pytest.raises(ValueError, match="learner.mentors=2: .*mentors must be 1"):
+            study_configs(build_parser().parse_args(argv))
+        argv[3] = "1"
+        expected = 1
     (config,) = study_configs(build_parser().parse_args(argv))
     assert getattr(config.learner, field) == expected

@@ -14,6 +14,7 @@ from himit_torch.mentor.policy import mentor_policy, run_mentor
 from himit_torch.options.builders import mentor_options
 from himit_torch.runs.config import EXPERIMENTS
 from himit_torch.runs.experiment import run_experiment
+from himit_torch.validation import check_folder_path
 from himit_torch.viz.tensorboard import tensorboard_command
 from himit_torch.worlds.multirooms import MultiRooms
 
@@ -26,7 +27,8 @@ def demo(
     """Record ``episodes`` of the mentor's demonstrations on experiment 2's world into ``out``
     (``demonstrations.npz``, ``world_mentor.png``), then (``steps`` > 0) a batch of
     imitation, options and primitives, ``seeds`` runs each, into ``out/learning``; yields the
-    lines ``himit demo`` prints."""
+    lines ``himit demo`` prints. A file where ``out`` belongs is a ``ValueError``."""
+    check_folder_path("himit demo: --out", out)
     out.mkdir(parents=True, exist_ok=True)
     yield from _demonstrations(out, episodes, seed)
     if steps > 0:

@@ -21,10 +21,9 @@ worlds out over one pool with the same pieces. A run directory holds::
 from __future__ import annotations
 
 import csv
-import io
 import json
+import math
 import os
-import re
 import sys
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import MISSING, asdict, dataclass, field, fields, replace
@@ -76,10 +75,13 @@ from himit_torch.runs.study import (
     InfoTopic,
     RunFlags,
     StudyEntry,
+    check_resumed_config,
     optimum_lines,
     option_kinds_text,
     prepare_run_dir,
+    read_table,
     run_study,
+    series_of,
 )
 from himit_torch.validation import parse_document, read_text, refuse_unknown_fields
 from himit_torch.viz.tensorboard import TensorBoardLogger
@@ -787,8 +789,8 @@ def run_experiment(
         resume=bool(resume),
         force=force,
         progress=progress,
-        check=config.check_size,
-        resume_hint=study.resume_hint(run_dir),
+        check=lambda: config.check_size(),
+        resume_hint=study.resume_hint(run_dir) if isinstance(run_dir, (str, os.PathLike)) else "",
         load=load_config,
     )
 
@@ -817,10 +819,12 @@ def run_experiments(
     dirs = [Path(run_dir) for _, run_dir in plans]
     if len(set(map(os.path.abspath, dirs))) != len(dirs):
         raise ValueError(f"run_experiments: two plans share a run directory ({dirs})")
-    for (config, _), run_dir in zip(plans, dirs, strict=True):
+    study = ExperimentStudy(workers)
+    for (config, _), run_dir in zip(plans, dirs, strict=True):  # all checked before any changes
         config.check_size()
         check_run_dir(run_dir, force=force, resume=bool(resume))
-    study = ExperimentStudy(workers)
+        if resume and not force:
+            check_resumed_config(run_dir, config, study.resume_hint(run_dir), load_config)
     finished = []
     for (config, _), run_dir in zip(plans, dirs, strict=True):
         study.prepare(config, run_dir, resume, force)
@@ -984,7 +988,8 @@ def read_world_result(path: Path, size: int) -> WorldResult:
 
     Raises:
         ValueError: the file is not UTF-8 JSON, or not a record of world ``size``: not an
-            object, a field missing or unknown, a number or list of another type, or a per-run
+            object, a field missing or unknown, a number or list of another type, an optimum
+            that is not > 0 (what the percentages divide by), no runs, or a per-run
             list whose length is not the number of runs; the message names the file and the
             field (rerun the world: ``himit run … --resume`` after deleting the file).
     """
@@ -1014,9 +1019,15 @@ def read_world_result(path: Path, size: int) -> WorldResult:
             raise refuse(name, "is not a string")
     if data["size"] != size:
         raise refuse("size", f"is not this file's world ({size})")
+    for name in ("rooms", "steps"):
+        if data[name] != int(data[name]) or data[name] < 1:
+            raise refuse(name, "is not a whole number ≥ 1")
+    for name in ("optimal_steps", "optimal_goals_per_window"):  # (what percentages divide by)
+        if not 0 < data[name] < math.inf:
+            raise refuse(name, "is not a number > 0: no world's optimum is")
     runs = data["agents"]
-    if not isinstance(runs, list) or not all(isinstance(a, str) for a in runs):
-        raise refuse("agents", "is not a list of agent names")
+    if not isinstance(runs, list) or not runs or not all(isinstance(a, str) for a in runs):
+        raise refuse("agents", "is not a list of agent names, one per run")
     for name in _PER_RUN[1:] + _PER_RUN_NUMBERS + _GREEDY_PER_RUN:
         value = data.get(name, [])
         whole = name in _PER_RUN
@@ -1033,43 +1044,25 @@ def read_world_result(path: Path, size: int) -> WorldResult:
     return WorldResult(**data)
 
 
-#: The columns of ``curves.csv`` the report reads.
-_CURVE_KEYS = ("world", "agent", "seed", "step", "goals_in_window")
-_WHOLE = re.compile(r"-?[0-9]+")
-
-
 def check_curves(path: Path) -> None:
     """Refuse a ``curves.csv`` the report could not read: not UTF-8 CSV (or a field over the
-    csv module's limit), a column it reads missing, or a number that is not one.
+    csv module's limit), a column it reads missing, a number that is not one, no rows
+    (:func:`~himit_torch.runs.study.read_table`), or an agent's seeds in a world recorded at
+    different steps (:func:`~himit_torch.runs.study.series_of`).
 
     Raises:
         ValueError: naming the file, and the line and column where one is at fault.
     """
     where = f"curves file {path}"
-    text = read_text(where, path)
     fix = "; rerun the experiment (himit run … --force) to write it again"
-    reader = csv.reader(io.StringIO(text, newline=""))
-    try:
-        header = next(reader, [])
-        missing = [key for key in _CURVE_KEYS if key not in header]
-        if missing:
-            raise ValueError(f"{where}: columns {missing} are missing{fix}")
-        index = {key: header.index(key) for key in _CURVE_KEYS}
-        for row in reader:
-            if len(row) != len(header):
-                raise ValueError(
-                    f"{where}, line {reader.line_num}: {len(row)} cells, not {len(header)}{fix}"
-                )
-            for key in ("world", "seed", "step", "goals_in_window"):
-                if not _WHOLE.fullmatch(row[index[key]]):
-                    raise ValueError(
-                        f"{where}, line {reader.line_num}: {key}={row[index[key]]!r:.60} is not "
-                        f"a whole number{fix}"
-                    )
-    except csv.Error as err:
-        raise ValueError(
-            f"{where}, line {reader.line_num}: not CSV a run writes ({err}){fix}"
-        ) from None
+    rows = read_table(
+        path, where, whole=("world", "seed", "step", "goals_in_window"), text=("agent",), fix=fix
+    )
+    curves: dict[tuple[str, str], list[dict[str, str]]] = {}
+    for row in rows:
+        curves.setdefault((row["world"], row["agent"]), []).append(row)
+    for (world, agent), rows_of in curves.items():  # each a rectangle: seeds × the same steps
+        series_of(rows_of, "goals_in_window", f"{where} (world {world}, {agent})", fix)
 
 
 def _merge_curves(run_dir: Path, config: ExperimentConfig) -> None:

@@ -114,14 +114,16 @@ class GreedyTracker:
     def __call__(self, learner: Learner, index: int) -> None:
         """The window hook: evaluate if window ``index`` ends now on the schedule."""
         step = int(learner.metrics.steps[index])
-        window = learner.config.window
-        # the window that reaches a multiple of ``every`` (every's own multiples when it is one
-        # of the window)
-        due = (self.every > 0 and step // self.every > (step - window) // self.every) or (
+        if step == learner.t and self.due(step, learner.config.window):
+            self.evaluate(learner)
+
+    def due(self, step: int, window: int) -> bool:
+        """Whether the schedule evaluates at ``step``, the end of a window of ``window``
+        steps: the window that reaches a multiple of ``every`` (every's own multiples when it
+        is one of the window), and the run's end."""
+        return (self.every > 0 and step // self.every > (step - window) // self.every) or (
             step == self.steps
         )
-        if step == learner.t and due:
-            self.evaluate(learner)
 
     def finish(self, learner: Learner) -> PolicyEvaluation:
         """The evaluation at the run's end (done now unless a window hook already did); also
@@ -196,7 +198,9 @@ class GreedyTracker:
 
         - ``steps``: distinct step numbers in increasing order, each in ``1 … steps`` (the run's
           length) and, given the ``learner`` just restored from the same checkpoint, at most
-          its step ``learner.t`` (an evaluation the run never reached is refused);
+          its step ``learner.t`` (an evaluation the run never reached is refused); each on the
+          schedule (:meth:`due`: a window's end, in the evaluator's window, that the schedule
+          evaluates at), so an evaluation this tracker would never have made is refused;
         - per field, one float64 ``[B]`` tensor per step, ``B`` the same throughout and, given
           ``learner``, its batch;
         - each value in its range: probabilities and reach shares in
@@ -217,8 +221,15 @@ class GreedyTracker:
                 f"is not a list of distinct step numbers in increasing order, each in 1…{last} "
                 f"(the run's length{reached})",
             )
-        batch = None if learner is None else int(learner.batch)
         window = int(self.evaluator.window)
+        off = [s for s in steps if s != self.steps and (s % window or not self.due(s, window))]
+        if off:
+            raise DamagedState(
+                "greedy.steps",
+                f"holds {off[:5]}, off this tracker's schedule (every={self.every} in windows of "
+                f"{window} steps, and the end, {self.steps})",
+            )
+        batch = None if learner is None else int(learner.batch)
         for f in _FIELDS:
             values = state[f]
             if type(values) is not list or len(values) != len(steps):

@@ -85,8 +85,10 @@ from himit_torch.runs.study import (
     StudyEntry,
     option_kinds_text,
     read_config_file,
+    read_table,
     run_each,
     run_study,
+    series_of,
 )
 from himit_torch.statistics import bca_interval
 from himit_torch.validation import setting
@@ -662,8 +664,9 @@ def rewrite_gym_report(run_dir: str | os.PathLike) -> None:
         summary = parse_document(where, read_text(where, path), "json")
         if not isinstance(summary, dict):
             raise ValueError(f"{where} must hold a JSON object")
-        _check_task_record(where, summary)
+        _check_task_record(where, summary, task)
         summaries.append(summary)
+    read_gym_curves(run_dir)  # (checked before anything is drawn)
     write_gym_figures(run_dir, config, summaries)
     write_gym_results(run_dir, config, summaries)
 
@@ -690,36 +693,61 @@ _TASK_RECORD_KEYS: dict[str, type | tuple[type, ...]] = {
 }
 
 
-def _check_task_record(where: str, summary: dict) -> None:
-    """Refuse a task record that lacks a field the page reads, or holds it as another type."""
+def _check_task_record(where: str, summary: dict, task: str | None = None) -> None:
+    """Refuse a task record that lacks a field the page reads, or holds it as another type;
+    whose per-run lists (each list but ``options``) are not one number (or ``None``) per run
+    of ``agents`` (at least one run); whose optimal goal rate is not > 0; or (``task``) that
+    is another task's."""
+    fix = "; the record is damaged (run the task again, or restore the file)"
     for key, kind in _TASK_RECORD_KEYS.items():
         value = summary.get(key)
         if not isinstance(value, kind) or isinstance(value, bool):
             names = kind.__name__ if isinstance(kind, type) else "number"
+            raise ValueError(f"{where}: field {key!r} must be a {names}, got {value!r:.60}{fix}")
+    runs = len(summary["agents"])
+    if not runs or not all(isinstance(a, str) for a in summary["agents"]):
+        raise ValueError(f"{where}: field 'agents' must name one agent per run{fix}")
+    for key, value in summary.items():
+        if key in ("agents", "options") or not isinstance(value, list):
+            continue
+        if len(value) != runs or not all(
+            v is None or (isinstance(v, (int, float)) and not isinstance(v, bool)) for v in value
+        ):
             raise ValueError(
-                f"{where}: field {key!r} must be a {names}, got {value!r:.60}; the record is "
-                "damaged (run the task again, or restore the file)"
+                f"{where}: field {key!r} must hold one number per run ({runs}), got "
+                f"{value!r:.60}{fix}"
             )
+    if not 0 < summary["optimal_goals_per_window"] < math.inf:
+        raise ValueError(
+            f"{where}: field 'optimal_goals_per_window' must be a number > 0, got "
+            f"{summary['optimal_goals_per_window']!r}{fix}"
+        )
+    if task is not None and summary["task"] != task:
+        raise ValueError(f"{where}: field 'task' is {summary['task']!r:.60}, not {task!r}{fix}")
 
 
 def read_gym_curves(run_dir: str | os.PathLike) -> dict:
-    """``{task: {agent: (steps [W], goals [n, W], gaps [n, W])}}`` from ``curves.csv``."""
+    """``{task: {agent: (steps [W], goals [n, W], gaps [n, W])}}`` from ``curves.csv``.
+
+    Raises:
+        ValueError: the file is missing or damaged (:func:`~himit_torch.runs.study.read_table`:
+            a column missing, a number that is not one, no rows), or one agent's seeds were
+            recorded at different steps; the message names the file."""
+    path = Path(run_dir) / "curves.csv"
+    where = f"curves file {path}"
+    fix = "; the record is damaged (run the study again, or restore the file)"
+    rows = read_table(path, where, ("seed", "step"), ("goals", "value_gap"), ("task", "agent"), fix)
     acc: dict = {}
-    with (Path(run_dir) / "curves.csv").open() as f:
-        for r in csv.DictReader(f):
-            d = acc.setdefault(r["task"], {}).setdefault(r["agent"], {})
-            d.setdefault(int(r["seed"]), []).append(
-                (int(r["step"]), float(r["goals"]), float(r["value_gap"]))
-            )
+    for r in rows:
+        acc.setdefault(r["task"], {}).setdefault(r["agent"], []).append(r)
     out: dict = {}
     for task, agents in acc.items():
         out[task] = {}
-        for agent, seeds in agents.items():
-            series = [sorted(v) for _, v in sorted(seeds.items())]
-            steps = np.array([x[0] for x in series[0]])
-            goals = np.array([[x[1] for x in s] for s in series])
-            gaps = np.array([[x[2] for x in s] for s in series])
-            out[task][agent] = (steps, goals, gaps)
+        for agent, agent_rows in agents.items():
+            at = f"{where} ({task}, {agent})"
+            steps, goals = series_of(agent_rows, "goals", at, fix)
+            _, gaps = series_of(agent_rows, "value_gap", at, fix)
+            out[task][agent] = (np.array(steps), np.array(goals), np.array(gaps))
     return out
 
 

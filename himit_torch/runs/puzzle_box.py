@@ -73,8 +73,10 @@ from himit_torch.runs.study import (
     RunConfig,
     StudyEntry,
     option_kinds_text,
+    read_table,
     run_each,
     run_study,
+    series_of,
 )
 from himit_torch.validation import (
     check_memory,
@@ -632,31 +634,44 @@ _BATCH_KEYS = {
 }
 
 
-def _record(path: Path) -> Any:
-    """A run directory's JSON record at ``path``, parsed; damaged: a ``ValueError`` naming it."""
-    where = f"--resume: {path}"
+def _record(path: Path, command: str = "--resume") -> Any:
+    """A run directory's JSON record at ``path``, parsed; damaged: a ``ValueError`` naming it
+    (and ``command``, what read it)."""
+    where = f"{command}: {path}"
     return parse_document(where, read_text(where, path), "json")
 
 
-def read_evaluations(path: Path, runs: int) -> dict[int, dict[str, list]]:
+def _is_number(value: Any) -> bool:
+    return value is None or (isinstance(value, (int, float)) and not isinstance(value, bool))
+
+
+def read_evaluations(
+    path: Path, runs: int, command: str = "--resume"
+) -> dict[int, dict[str, list]]:
     """A batch's saved greedy evaluations (``batches/<tag>.evals.json``: step → one list per
-    measure, one entry per run), read for ``--resume``; a damaged file is a ``ValueError``
-    naming it, not a traceback later."""
-    data = _record(path)
-    if not isinstance(data, dict):
-        raise ValueError(f"--resume: {path} holds a {type(data).__name__}, not evaluations")
+    measure, one entry per run: numbers or ``None``, the organisation a name), read for
+    ``command`` (``--resume``, or ``himit plot``, which also wants at least one); a damaged
+    file is a ``ValueError`` naming it, not a traceback later."""
+    data = _record(path, command)
+    if not isinstance(data, dict) or (command != "--resume" and not data):
+        raise ValueError(f"{command}: {path} holds a {type(data).__name__}, not evaluations")
     out: dict[int, dict[str, list]] = {}
     for key, entry in data.items():
         if not (isinstance(key, str) and key.isdigit() and len(key) <= 12):
-            raise ValueError(f"--resume: {path}: {key!r} is not a step; delete the file")
+            raise ValueError(f"{command}: {path}: {key!r} is not a step; delete the file")
         if not (
             isinstance(entry, dict)
             and all(
-                isinstance(entry.get(k), list) and len(entry[k]) == runs for k in _EVALUATION_KEYS
+                isinstance(entry.get(k), list)
+                and len(entry[k]) == runs
+                and all(
+                    isinstance(v, str) if k == "organisation" else _is_number(v) for v in entry[k]
+                )
+                for k in _EVALUATION_KEYS
             )
         ):
             raise ValueError(
-                f"--resume: {path}: step {key} does not hold {', '.join(_EVALUATION_KEYS)} "
+                f"{command}: {path}: step {key} does not hold {', '.join(_EVALUATION_KEYS)} "
                 f"for each of the batch's {runs} runs; delete the file (the batch resumes "
                 "without its earlier evaluations) or start over with --force"
             )
@@ -829,7 +844,7 @@ def run_puzzle_box(
         resume=resume,
         force=force,
         progress=progress,
-        check=config.check_size,
+        check=lambda: config.check_size(),
     )
 
 
@@ -841,7 +856,7 @@ def mentors_subgoals(box: PuzzleBox, states: list[int]) -> list[str]:
 # ================================================================ the command line's entry
 def redraw(run_dir: Path) -> None:
     """``himit plot``: the figures and ``results.md`` of a finished run, from its records."""
-    from himit_torch.runs.puzzle_box_report import rewrite_puzzle_box_report
+    from himit_torch.runs.puzzle_box_report import read_summary, rewrite_puzzle_box_report
 
     if not (run_dir / "batches").is_dir():
         raise ValueError(
@@ -849,7 +864,24 @@ def redraw(run_dir: Path) -> None:
             "is redrawn from them (summary.json holds only the aggregates); put the batches/ "
             "folder back, or run it again with himit run puzzlebox"
         )
+    _check_batch_records(run_dir, read_summary(run_dir))
     rewrite_puzzle_box_report(run_dir, recorded_run_command(run_dir))
+
+
+def _check_batch_records(run_dir: Path, summary: dict) -> None:
+    """Before ``himit plot`` draws anything: each batch of ``summary`` has its curves
+    (``batches/<tag>.csv``: one series per run, at the same steps) and its evaluations
+    (:func:`read_evaluations`), else a ``ValueError`` naming the file."""
+    fix = "; the record is damaged (run the study again, or restore the file)"
+    for batch in summary["batches"]:
+        tag, runs = batch["batch"], len(batch["runs"])
+        path = run_dir / "batches" / f"{tag}.csv"
+        where = f"himit plot: {path}"
+        rows = read_table(path, where, ("seed", "step"), ("openings",), fix=fix)
+        _, series = series_of(rows, "openings", where, fix)
+        if len(series) != runs:
+            raise ValueError(f"{where} holds {len(series)} runs' curves, not {runs}{fix}")
+        read_evaluations(run_dir / "batches" / f"{tag}.evals.json", runs, "himit plot")
 
 
 def _info_flags(parser) -> None:

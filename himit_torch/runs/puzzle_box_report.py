@@ -120,10 +120,60 @@ def read_summary(run_dir: str | Path) -> dict:
             raise ValueError(f"{where}: field 'config.{key}' is missing; {fix}")
     for i, batch in enumerate(data["batches"]):
         missing = [k for k in _SUMMARY_BATCH_KEYS if not isinstance(batch, dict) or k not in batch]
-        if missing or not isinstance(batch["runs"], list):
-            field = f"batches[{i}].{missing[0] if missing else 'runs'}"
+        fault = missing[0] if missing else _batch_fault(batch)
+        if fault is not None:
+            field = f"batches[{i}].{fault}"
             raise ValueError(f"{where}: field {field!r} is missing or damaged; {fix}")
+    tags = {batch["batch"] for batch in data["batches"]}
+    needed = [f"{e}_{c}" for e, cs in _NEEDED_BATCHES.items() for c in cs]
+    if not set(needed) <= tags:
+        raise ValueError(
+            f"{where}: field 'batches' lacks {sorted(set(needed) - tags)} (the page's "
+            f"experiments (a) and (c)); {fix}"
+        )
     return data
+
+
+#: The batches every page draws: (a)'s and (c)'s conditions.
+_NEEDED_BATCHES = {
+    "speed": ("imitation", "options", "primitives"),
+    "transfer": ("any", "plain", "options"),
+}
+#: What each run of a batch holds for the page.
+_SUMMARY_RUN_KEYS = (
+    "seed", "watched", "paired_organisation", "first_opening", "openings",
+    "final_window_openings", "greedy_value", "organisation", "opens", "pinch_steps",
+    "power_steps", "same_low_level_as_mentor", "stuck_at",
+)  # fmt: skip
+
+
+def _number(value: Any, low: float = -math.inf, whole: bool = False) -> bool:
+    return (
+        isinstance(value, int if whole else (int, float))
+        and not isinstance(value, bool)
+        and low < value < math.inf
+    )
+
+
+def _batch_fault(batch: dict) -> str | None:
+    """The field of a ``summary.json`` batch the page could not read, or ``None``: a name,
+    steps and states ≥ 1, an optimum > 0 (what its rates divide by), numbers where the page
+    prints them, and at least one run, each an object with every key the page reads."""
+    checks = {
+        "batch": isinstance(batch["batch"], str),
+        "steps": _number(batch["steps"], 0, whole=True),
+        "num_states": _number(batch["num_states"], 0, whole=True),
+        "optimal_steps": _number(batch["optimal_steps"], 0),
+        "value_star": _number(batch["value_star"]),
+        "wall_seconds": _number(batch["wall_seconds"], -1e-9),
+        "engine": isinstance(batch["engine"], str),
+        "runs": isinstance(batch["runs"], list)
+        and len(batch["runs"]) > 0
+        and all(
+            isinstance(r, dict) and all(k in r for k in _SUMMARY_RUN_KEYS) for r in batch["runs"]
+        ),
+    }
+    return next((name for name, ok in checks.items() if not ok), None)
 
 
 def rewrite_puzzle_box_report(run_dir: str | Path, run_command: str | None = None) -> None:
@@ -139,14 +189,14 @@ def rewrite_puzzle_box_report(run_dir: str | Path, run_command: str | None = Non
 # ================================================================================ figures
 def _curves(run_dir: Path, tag: str) -> tuple[np.ndarray, np.ndarray]:
     """``(steps [W], openings [n, W])`` of batch ``tag`` from ``batches/<tag>.csv``."""
-    import csv
+    from himit_torch.runs.study import read_table, series_of
 
-    by_seed: dict[int, list[tuple[int, float]]] = {}
-    with (run_dir / "batches" / f"{tag}.csv").open() as f:
-        for r in csv.DictReader(f):
-            by_seed.setdefault(int(r["seed"]), []).append((int(r["step"]), float(r["openings"])))
-    series = [sorted(v) for _, v in sorted(by_seed.items())]
-    return np.array([s for s, _ in series[0]]), np.array([[g for _, g in s] for s in series])
+    path = run_dir / "batches" / f"{tag}.csv"
+    where = f"curves file {path}"
+    steps, series = series_of(
+        read_table(path, where, ("seed", "step"), ("openings",)), "openings", where
+    )
+    return np.array(steps), np.array(series)
 
 
 def _thousands_label(x, _pos=None) -> str:

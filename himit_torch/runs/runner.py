@@ -42,6 +42,7 @@ from himit_torch.runs.checkpoints import (
     NoGoodCheckpoint,
 )
 from himit_torch.state_checks import DamagedState, section
+from himit_torch.validation import check_folder_path
 from himit_torch.viz.tensorboard import TensorBoardLogger
 
 __all__ = [
@@ -190,58 +191,62 @@ class Checkpoints:
             ValueError: no generation is good, or the checkpoint is for another state layout or
                 batch, or it does not fit this learner; the message names the file.
         """
-        generations, layout = self.generations, self.layout
         elapsed: list[float] = []
-
-        def restore(found: Checkpoint) -> None:
-            """Restore ``learner`` from a verified file: its learner state checked in full first
-            (a check that fails makes this generation skipped, the learner untouched)."""
-            payload = section(
-                found.payload, "payload", ("learner",), optional=("elapsed", *self.companions)
-            )
-            seconds = payload.get("elapsed", 0.0)
-            if type(seconds) not in (int, float) or not 0 <= seconds < float("inf"):
-                raise DamagedState("elapsed", f"{seconds!r} is not a number of seconds")
-            try:
-                learner.load_state_dict(payload["learner"])
-            except DamagedState:
-                raise
-            except ValueError as err:  # another batch, configuration or state layout
-                raise ValueError(f"{found.path}: {err}; start over with --force") from None
-            except (KeyError, TypeError, IndexError, AttributeError, RuntimeError) as err:
-                raise ValueError(
-                    f"{found.path} (step {found.header.step}) could not be restored into this "
-                    f"learner ({type(err).__name__}: {err}) although it passed every check of "
-                    f"state layout version {layout}: please report it; start over with --force"
-                ) from None
-            for name, companion in self.companions.items():  # (each checks what it reads)
-                if name in payload:
-                    companion.load_state_dict(payload[name], learner)
-            elapsed.append(float(seconds))
-
         try:
-            resumed = generations.load(
+            resumed = self.generations.load(
                 map_location=self.device,
                 expect_batch=self.batch,
-                expect_layout=layout,
-                restore=restore,
+                expect_layout=self.layout,
+                restore=lambda found: elapsed.append(self._restore(learner, found)),
             )
         except NoGoodCheckpoint as err:
             raise ValueError(f"--resume: {err}; start over with --force") from None
         if resumed is None:
             return 0.0
-        found = resumed.checkpoint
-        for skipped in resumed.skipped:
-            if skipped.step is not None and skipped.step > found.header.step:
-                redo = f"{skipped.step - found.header.step} steps will be redone"
+        self._warn_skipped(resumed.checkpoint, resumed.skipped)
+        return elapsed[-1]
+
+    def _restore(self, learner: Learner, found: Checkpoint) -> float:
+        """Restore ``learner`` and the companions from a verified file, its learner state checked
+        in full first (a check that fails makes this generation skipped, the learner
+        untouched); returns the wall seconds it records."""
+        payload = section(
+            found.payload, "payload", ("learner",), optional=("elapsed", *self.companions)
+        )
+        seconds = payload.get("elapsed", 0.0)
+        if type(seconds) not in (int, float) or not 0 <= seconds < float("inf"):
+            raise DamagedState("elapsed", f"{seconds!r} is not a number of seconds")
+        try:
+            learner.load_state_dict(payload["learner"])
+        except DamagedState:
+            raise
+        except ValueError as err:  # another batch, configuration or state layout
+            raise ValueError(f"{found.path}: {err}; start over with --force") from None
+        except (KeyError, TypeError, IndexError, AttributeError, RuntimeError) as err:
+            raise ValueError(
+                f"{found.path} (step {found.header.step}) could not be restored into this "
+                f"learner ({type(err).__name__}: {err}) although it passed every check of "
+                f"state layout version {self.layout}: please report it; start over with --force"
+            ) from None
+        for name, companion in self.companions.items():  # (each checks what it reads)
+            if name in payload:
+                companion.load_state_dict(payload[name], learner)
+        return float(seconds)
+
+    def _warn_skipped(self, found: Checkpoint, skipped: Sequence[Any]) -> None:
+        """One line on stderr per newer generation skipped as damaged, saying which steps the
+        run will redo from ``found``."""
+        for damaged in skipped:
+            if damaged.step is not None and damaged.step > found.header.step:
+                redo = f"{damaged.step - found.header.step} steps will be redone"
             else:
                 redo = f"the steps after it (up to checkpoint_every={self.every}) will be redone"
             print(
-                f"himit: warning: {skipped.path}: {skipped.reason}; resuming from "
-                f"{(found.path or generations.newest).name} at step {found.header.step}: {redo}",
+                f"himit: warning: {damaged.path}: {damaged.reason}; resuming from "
+                f"{(found.path or self.generations.newest).name} at step {found.header.step}: "
+                f"{redo}",
                 file=sys.stderr,
             )
-        return elapsed[-1]
 
 
 # ============================================================================= the batch
@@ -277,7 +282,10 @@ def watch_demonstrations(learner: Learner, demos: Mapping[int, Any], mentor: int
 def check_run_dir(run_dir: Path, *, force: bool, resume: bool | None = None) -> None:
     """Refuse to overwrite a finished run (one with ``results.md``) unless ``force``; with
     ``resume=False``, also an unfinished one (``config.json`` without ``results.md``: resume it
-    or start over). ``resume=None``: the runner cannot resume, an unfinished run starts over."""
+    or start over). ``resume=None``: the runner cannot resume, an unfinished run starts over.
+    A file where the run directory (or a folder above it) belongs is refused whatever the
+    flags (:func:`~himit_torch.validation.check_folder_path`)."""
+    check_folder_path("the run directory", run_dir)
     if force:
         return
     finished = (run_dir / "results.md").exists()

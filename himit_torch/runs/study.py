@@ -25,9 +25,13 @@ what ``himit info`` says of its worlds. The entries are listed once, in
 
 from __future__ import annotations
 
+import csv
 import dataclasses
+import io
 import json
+import math
 import os
+import re
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
@@ -55,6 +59,10 @@ __all__ = [
     "InfoTopic",
     "run_study",
     "prepare_run_dir",
+    "check_resumed_config",
+    "config_differences",
+    "read_table",
+    "series_of",
     "read_config",
     "read_config_file",
     "read_config_fields",
@@ -177,6 +185,11 @@ class RunConfig:
             derived = self.derived_learner_settings()
             if any(getattr(config.learner, k) != v for k, v in derived.items()):
                 config.learner = replace(config.learner, **derived)
+            if "mentors" not in derived and config.learner.mentors != 1:
+                raise ValueError(
+                    f"{kind}.learner.mentors={config.learner.mentors!r}: this study shows its "
+                    "learners one demonstration set (one mentor); mentors must be 1"
+                )
 
     #: The learner settings a study derives from its own (``derived_learner_settings``).
     derived_learner: ClassVar[tuple[str, ...]] = ("window",)
@@ -192,8 +205,22 @@ class RunConfig:
 
     def with_preset(self: Config, name: str) -> Config:
         """This configuration with preset ``name``'s learner settings, and the preset
-        recorded."""
+        recorded.
+
+        Raises:
+            ValueError: ``name`` is no preset's, or the study has no learner settings (e.g.
+                :class:`~himit_torch.runs.discovery.DiscoveryConfig`)."""
         config: Any = self
+        kind = type(self).__name__
+        if not hasattr(config, "learner"):
+            raise ValueError(
+                f"{kind}.with_preset({name!r}): {kind} has no learner settings for a preset to "
+                "set (its learners' settings are its worlds' experiments')"
+            )
+        if not isinstance(name, str) or name not in PRESETS:
+            raise ValueError(
+                f"{kind}.with_preset: unknown preset {name!r}; presets: {', '.join(PRESETS)}"
+            )
         return replace(config, preset=name, learner=apply_preset(config.learner, name))
 
     @property
@@ -243,6 +270,92 @@ def read_config_fields(path: str | os.PathLike, where: str) -> set[str]:
     if not isinstance(data, dict):
         raise ValueError(f"{where} holds a {type(data).__name__}, not a configuration")
     return set(data)
+
+
+_WHOLE = re.compile(r"-?[0-9]+")
+
+
+def read_table(
+    path: Path,
+    where: str,
+    whole: Sequence[str],
+    numbers: Sequence[str] = (),
+    text: Sequence[str] = (),
+    fix: str = "",
+) -> list[dict[str, str]]:
+    """The rows of a run's CSV record at ``path`` (a ``curves.csv``), refused unless a page
+    can be drawn from them: UTF-8 CSV within the csv module's field limit, the columns
+    ``whole`` (whole numbers), ``numbers`` (finite numbers, or empty) and ``text`` present in
+    its header, every row as long as the header, and at least one row.
+
+    Raises:
+        ValueError: naming ``where`` and, where one is at fault, the line and column; ``fix``
+            (what to do about it) is appended.
+    """
+    reader = csv.reader(io.StringIO(read_text(where, path), newline=""))
+    try:
+        header = next(reader, [])
+        missing = [key for key in (*text, *whole, *numbers) if key not in header]
+        if missing:
+            raise ValueError(f"{where}: columns {missing} are missing{fix}")
+        rows = []
+        for row in reader:
+            if len(row) != len(header):
+                raise ValueError(
+                    f"{where}, line {reader.line_num}: {len(row)} cells, not {len(header)}{fix}"
+                )
+            cells = dict(zip(header, row))
+            for key in whole:
+                if not _WHOLE.fullmatch(cells[key]):
+                    raise ValueError(
+                        f"{where}, line {reader.line_num}: {key}={cells[key]!r:.60} is not a "
+                        f"whole number{fix}"
+                    )
+            for key in numbers:
+                if cells[key] and not _is_finite(cells[key]):
+                    raise ValueError(
+                        f"{where}, line {reader.line_num}: {key}={cells[key]!r:.60} is not a "
+                        f"finite number{fix}"
+                    )
+            rows.append(cells)
+    except csv.Error as err:
+        raise ValueError(
+            f"{where}, line {reader.line_num}: not CSV a run writes ({err}){fix}"
+        ) from None
+    if not rows:
+        raise ValueError(f"{where} holds no rows{fix}")
+    return rows
+
+
+def _is_finite(text: str) -> bool:
+    try:
+        return math.isfinite(float(text))
+    except ValueError:
+        return False
+
+
+def series_of(
+    rows: Sequence[dict[str, str]], value: str, where: str, fix: str = ""
+) -> tuple[list[int], list[list[float]]]:
+    """``(steps, per seed its values at those steps)`` from a run's rows of one batch (each
+    with ``seed``, ``step`` and ``value``, as :func:`read_table` checked them), the seeds in
+    order. Seeds recorded at different steps (a row lost or repeated) are a ``ValueError``
+    naming ``where``: no rectangle of curves can be drawn from them."""
+    by_seed: dict[int, list[tuple[int, float]]] = {}
+    for r in rows:
+        by_seed.setdefault(int(r["seed"]), []).append((int(r["step"]), float(r[value] or "nan")))
+    series = [sorted(v) for _, v in sorted(by_seed.items())]
+    steps = [step for step, _ in series[0]]
+    for seed, points in zip(sorted(by_seed), series):
+        at = [step for step, _ in points]
+        if len(set(at)) != len(at):
+            raise ValueError(f"{where}: seed {seed} has a row twice at one step{fix}")
+        if at != steps:
+            raise ValueError(
+                f"{where}: seed {seed}'s rows are at other steps than seed {min(by_seed)}'s "
+                f"({len(at)} rows, not {len(steps)}){fix}"
+            )
+    return steps, [[v for _, v in points] for points in series]
 
 
 def optimum_lines(world: Any, learner: Any, mentor: Any, window: int) -> tuple[list[str], int]:
@@ -414,7 +527,7 @@ def run_study(
     Returns:
         What the study's :meth:`Study.run` returned.
     """
-    run_dir = Path(run_dir)
+    run_dir = _check_run_arguments(study, config, run_dir, resume, force, progress)
     if check is not None:
         check()
     check_run_dir(run_dir, force=force, resume=resume)
@@ -433,6 +546,47 @@ def run_study(
     return results
 
 
+def config_differences(saved: Any, given: Any) -> list[str]:
+    """The settings where configuration ``given`` departs from ``saved`` (dataclasses of one
+    kind), each as ``name: saved …, given …`` (the learner's as ``learner.<field>``), in the
+    order of the fields; empty when they are equal. What a refused resume names."""
+    return _dict_differences(asdict(saved), asdict(given), "")
+
+
+def _dict_differences(saved: dict, given: dict, prefix: str) -> list[str]:
+    differences = []
+    for key in [*given, *(k for k in saved if k not in given)]:
+        mine, theirs = saved.get(key, "(none)"), given.get(key, "(none)")
+        if isinstance(mine, dict) and isinstance(theirs, dict):
+            differences += _dict_differences(mine, theirs, f"{prefix}{key}.")
+        elif mine != theirs:
+            differences.append(f"{prefix}{key}: saved {mine!r:.100}, given {theirs!r:.100}")
+    return differences
+
+
+def _check_run_arguments(
+    study: Study, config: Any, run_dir: Any, resume: Any, force: Any, progress: Any
+) -> Path:
+    """:func:`run_study`'s arguments checked before anything is touched: ``config`` of the
+    study's configuration class, ``run_dir`` a path, the flags bools (``resume`` also
+    ``None``). Returns ``run_dir`` as a :class:`~pathlib.Path`."""
+    kind = getattr(study, "config_class", None)
+    if isinstance(kind, type) and not isinstance(config, kind):
+        raise TypeError(
+            f"run_study: config={config!r:.60} must be of type {kind.__name__} (the study's "
+            "configuration)"
+        )
+    if not isinstance(run_dir, (str, os.PathLike)):
+        raise TypeError(f"run_study: run_dir={run_dir!r:.60} must be a path (str or Path)")
+    for name, value in (("resume", resume), ("force", force), ("progress", progress)):
+        if not isinstance(value, bool) and not (name == "resume" and value is None):
+            raise TypeError(
+                f"run_study: {name}={value!r:.60} must be True or False"
+                + (" (or None)" if name == "resume" else "")
+            )
+    return Path(run_dir)
+
+
 def prepare_run_dir(
     run_dir: Path,
     config: Any,
@@ -447,18 +601,35 @@ def prepare_run_dir(
     ``config.json`` is ``config``) ``run_dir``, and save ``config`` in it. The saved file is
     read by ``load`` (default: through ``config``'s class, :func:`read_config`); a resumed run
     whose configuration differs is refused with ``resume_hint``."""
+    if resume and not force:  # (--force starts over: nothing of the old run is kept)
+        check_resumed_config(run_dir, config, resume_hint, load)
     if force:
         clear_run_dir(run_dir, tuple(folders), tuple(files))
     run_dir.mkdir(parents=True, exist_ok=True)
-    cfg_path = run_dir / "config.json"
-    if resume and cfg_path.exists():
-        if load is None:
-            saved = read_config_file(type(config), cfg_path, f"--resume: {cfg_path}")
-        else:
-            saved = load(cfg_path)
-        if asdict(saved) != asdict(config):
-            raise ValueError(
-                f"--resume: {cfg_path} holds a different configuration than the one given; "
-                f"{resume_hint} or start over with --force"
-            )
-    write_atomically(cfg_path, config.to_json())
+    write_atomically(run_dir / "config.json", config.to_json())
+
+
+def check_resumed_config(
+    run_dir: Path,
+    config: Any,
+    resume_hint: str = "resume with the same flags",
+    load: Callable[[Path], Any] | None = None,
+) -> None:
+    """Refuse to resume ``run_dir`` with ``config`` when its saved ``config.json`` (read by
+    ``load``, default: through ``config``'s class) holds another configuration: a
+    ``ValueError`` naming each differing setting (:func:`config_differences`) and
+    ``resume_hint``. Nothing saved yet: nothing to check. Reads only (a command checks every
+    run directory before it writes to any)."""
+    cfg_path = Path(run_dir) / "config.json"
+    if not cfg_path.exists():
+        return
+    if load is None:
+        saved = read_config_file(type(config), cfg_path, f"--resume: {cfg_path}")
+    else:
+        saved = load(cfg_path)
+    differences = config_differences(saved, config)
+    if differences:
+        raise ValueError(
+            f"--resume: {cfg_path} holds a different configuration than the one given "
+            f"({'; '.join(differences)}); {resume_hint} or start over with --force"
+        )

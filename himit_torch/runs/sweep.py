@@ -87,7 +87,7 @@ import shlex
 import sys
 import time
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass, fields, replace
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -95,12 +95,14 @@ from himit_torch.learner.config import LearnerConfig
 from himit_torch.learner.presets import apply_preset
 from himit_torch.runs.config import EXPERIMENTS, ExperimentConfig, load_config
 from himit_torch.runs.runner import share_cores, source_commit
+from himit_torch.runs.study import config_differences
 from himit_torch.statistics import bca_interval, share_interval, t_interval
 from himit_torch.validation import (
     COUNT_MAX,
     as_folder_name,
     as_int,
     as_int_array,
+    check_folder_path,
     parse_document,
     read_text,
 )
@@ -260,7 +262,16 @@ def _apply(config: ExperimentConfig, settings: dict) -> ExperimentConfig:
     if top.get("preset") is not None:  # the preset first, then the settings beside it
         base_learner = apply_preset(base_learner, top["preset"])
     new_learner = replace(base_learner, **learner) if learner else base_learner
-    return replace(config, **top, learner=new_learner)
+    built = replace(config, **top, learner=new_learner)
+    for key in set(learner) & set(built.derived_learner):
+        # derived and recorded: a value the experiment's own settings do not give is refused,
+        # not silently replaced
+        if learner[key] != getattr(built.learner, key):
+            raise ValueError(
+                f"learner.{key}={learner[key]!r}: the experiment derives it from its own "
+                f"settings (here {getattr(built.learner, key)!r}); leave learner.{key} out"
+            )
+    return built
 
 
 def _slug(levels: dict) -> str:
@@ -278,9 +289,19 @@ def _slug(levels: dict) -> str:
     return re.sub(r"[^A-Za-z0-9_.,=+-]", "_", "__".join(parts))
 
 
-def _level(value: Any) -> Any:
-    """TOML has no null: the string "none" stands for ``None`` (e.g. ``untried_value``)."""
-    return None if isinstance(value, str) and value.lower() == "none" else value
+def _level(name: str, value: Any) -> Any:
+    """TOML has no null: the string "none" stands for ``None`` where setting ``name`` may be
+    ``None`` (e.g. ``learner.untried_value``); elsewhere it stays the string (a choice such
+    as ``second_mentor = "none"``)."""
+    if not (isinstance(value, str) and value.lower() == "none"):
+        return value
+    cls, field = (
+        (LearnerConfig, name[len("learner.") :])
+        if name.startswith("learner.")
+        else (ExperimentConfig, name)
+    )
+    annotation = str(next(f.type for f in fields(cls) if f.name == field))
+    return None if "None" in annotation else value
 
 
 def load_spec(path: str | os.PathLike) -> SweepSpec:
@@ -366,17 +387,18 @@ def _spec_settings(data: dict, where: str) -> tuple[dict, dict]:
     for key in ("set", "grid"):
         if not isinstance(data.get(key, {}), dict):
             raise ValueError(f"{where}: [{key}] must be a table of settings")
-    fixed = {k: _level(v) for k, v in _flatten(data.get("set", {}), f"{where} [set]").items()}
+    fixed = _flatten(data.get("set", {}), f"{where} [set]")
     grid = _flatten(data.get("grid", {}), f"{where} [grid]")
     for name in list(fixed) + list(grid):
         _check_setting(name, where)
+    fixed = {k: _level(k, v) for k, v in fixed.items()}
     factors = {}
     for name, levels in grid.items():
         if not isinstance(levels, list) or not levels:
             raise ValueError(
                 f"{where}: [grid] {name} must be a non-empty list of levels, got {levels!r}"
             )
-        factors[name] = [_level(v) for v in levels]
+        factors[name] = [_level(name, v) for v in levels]
     overlap = sorted(set(fixed) & set(factors))
     if overlap:
         raise ValueError(f"{where}: {overlap} both in [set] and in [grid]")
@@ -396,10 +418,6 @@ def _cells(
         combos = [baseline] + [
             {**baseline, n: v} for n, levels in factors.items() for v in levels[1:]
         ]
-    try:
-        _apply(base, fixed)  # what [set] alone is refused for is named as the [set]'s
-    except (ValueError, TypeError) as err:
-        raise ValueError(f"{where} [set]: {err}") from None
     cells, slugs = [], set()
     for i, levels in enumerate(combos):
         shown = (
@@ -410,7 +428,7 @@ def _cells(
         try:
             config = _apply(base, {**fixed, **levels, **owned})
         except (ValueError, TypeError) as err:
-            raise ValueError(f"{where}: cell {_slug(levels)}: {err}") from None
+            raise _refused_cell(where, base, fixed, combos, owned, levels, err) from None
         slug = _slug(shown)
         if slug in slugs:
             raise ValueError(f"{where}: two cells are the same ({slug}); a factor repeats a level")
@@ -419,18 +437,50 @@ def _cells(
     return cells
 
 
+def _refused_cell(
+    where: str,
+    base: ExperimentConfig,
+    fixed: dict,
+    combos: list[dict],
+    owned: dict,
+    levels: dict,
+    err: Exception,
+) -> ValueError:
+    """The refusal of the cell of ``levels`` (``err``): named as the ``[set]``'s when the
+    ``[set]`` settings are refused whatever the levels (every cell fails, and ``[set]`` alone
+    does), else as the cell's. (``[set]`` alone may fail where every cell is valid: a
+    ``checkpoint_every`` that only the grid's ``window`` levels divide.)"""
+
+    def refused(settings: dict) -> Exception | None:
+        try:
+            _apply(base, settings)
+        except (ValueError, TypeError) as error:
+            return error
+        return None
+
+    alone = refused({**fixed, **owned})
+    if alone is not None and all(refused({**fixed, **c, **owned}) for c in combos):
+        return ValueError(f"{where} [set]: {alone}")
+    return ValueError(f"{where}: cell {_slug(levels)}: {err}")
+
+
 # ============================================================================= the trials
 def _trial_state(trial: Trial) -> str:
-    """``done``, ``started`` (resume it) or ``new``."""
-    if (trial.run_dir / "results.md").exists():
-        saved = load_config(trial.run_dir / "config.json")
-        if asdict(saved) != asdict(trial.config):
-            raise ValueError(
-                f"{trial.run_dir} holds a finished trial of another configuration: the "
-                "spec changed since it ran; use another --out (or delete the folder)"
-            )
-        return "done"
-    return "started" if (trial.run_dir / "config.json").exists() else "new"
+    """``done``, ``started`` (resume it) or ``new``; a trial's folder that holds another
+    configuration's run (finished or not), or is a file, is refused before any trial runs."""
+    check_folder_path("a trial's run directory", trial.run_dir)
+    finished = (trial.run_dir / "results.md").exists()
+    if not finished and not (trial.run_dir / "config.json").exists():
+        return "new"
+    saved = load_config(trial.run_dir / "config.json")
+    differences = config_differences(saved, trial.config)
+    if differences:
+        raise ValueError(
+            f"{trial.run_dir} holds {'a finished' if finished else 'an unfinished'} trial of "
+            f"another configuration ({'; '.join(differences)}): the spec changed since it "
+            "ran; use another --out (or delete the folder)"
+        )
+    return "done" if finished else "started"
 
 
 def run_trial(config_json: str, run_dir: str, resume: bool, threads: int | None = None) -> dict:
@@ -874,7 +924,7 @@ def run_sweep(
 
     if worker_niceness is not None:
         spec = replace(spec, worker_niceness=as_int("worker_niceness", worker_niceness, 0, 19))
-    out = Path(out)
+    out = check_folder_path("the sweep's folder", out)
     trials = spec.trials(out)
     states = [(t, _trial_state(t)) for t in trials]
     todo = [(t, s) for t, s in states if s != "done"]

@@ -11,9 +11,9 @@ from himit_torch.runs.greedy import _FIELDS, GreedyTracker
 from himit_torch.state_checks import DamagedState
 
 
-def _tracker() -> GreedyTracker:
+def _tracker(every: int = 5000, window: int = 5000) -> GreedyTracker:
     # (only the evaluator's window is read when restoring)
-    return GreedyTracker(SimpleNamespace(window=5000), None, every=0, steps=10_000)  # type: ignore[arg-type]
+    return GreedyTracker(SimpleNamespace(window=window), None, every=every, steps=10_000)  # type: ignore[arg-type]
 
 
 def _state(batch: int = 3) -> dict:
@@ -142,3 +142,47 @@ def test_what_evaluations_do_write_is_accepted():
     tracker.load_state_dict(state, _learner(batch=3, t=10_000))
     assert sorted(tracker.evaluations) == [5000, 10_000]
     assert math.isnan(tracker.evaluations[5000].value_start[0])
+
+
+#: (every, window, steps saved): evaluations a tracker of that schedule never makes — not a
+#: window's end, a window's end the schedule skips, any step but the end with every = 0.
+_OFF_SCHEDULE = [
+    (5000, 5000, [2500, 10_000]),
+    (10_000, 5000, [5000, 10_000]),
+    (0, 5000, [5000, 10_000]),
+    (5000, 2000, [5000, 10_000]),
+    (4000, 2000, [2000, 4000, 10_000]),
+]
+#: Their valid neighbours: the same trackers' own schedules.
+_ON_SCHEDULE = [
+    (5000, 5000, [5000, 10_000]),
+    (10_000, 5000, [10_000]),
+    (0, 5000, [10_000]),
+    (5000, 2000, [6000, 10_000]),
+    (4000, 2000, [4000, 8000, 10_000]),
+]
+
+
+@pytest.mark.parametrize("every, window, steps", _OFF_SCHEDULE)
+def test_a_step_off_the_trackers_schedule_is_refused_naming_it(every, window, steps):
+    state = _state()
+    state = {"steps": steps, **{f: [state[f][0]] * len(steps) for f in _FIELDS}}
+    tracker = _tracker(every, window)
+    with pytest.raises(DamagedState, match=r"greedy.steps.*off this tracker's schedule") as err:
+        tracker.load_state_dict(state)
+    off = [s for s in steps if s != 10_000 and s not in dict.fromkeys(_own_schedule(every, window))]
+    assert str(off[:1])[1:-1] in str(err.value) and f"every={every}" in str(err.value)
+    assert tracker.evaluations == {}
+
+
+def _own_schedule(every: int, window: int) -> list[int]:
+    return next(s for e, w, s in _ON_SCHEDULE if (e, w) == (every, window))
+
+
+@pytest.mark.parametrize("every, window, steps", _ON_SCHEDULE)
+def test_the_trackers_own_schedule_is_restored(every, window, steps):
+    state = _state()
+    state = {"steps": steps, **{f: [state[f][0]] * len(steps) for f in _FIELDS}}
+    tracker = _tracker(every, window)
+    tracker.load_state_dict(state)
+    assert sorted(tracker.evaluations) == steps
