@@ -245,8 +245,9 @@ def agent_settings(agent: str, learner: LearnerConfig) -> dict[str, Any]:
         ),
     }
     pinned = {k for preset in PRESETS.values() for k in preset.settings}
-    defaults = {s.name: s.default for s in settings_of(type(learner))}
-    for name in mentor_term_settings(type(learner)):
+    config_class: type = type(learner)
+    defaults = {s.name: s.default for s in settings_of(config_class)}
+    for name in mentor_term_settings(config_class):
         value = getattr(learner, name)
         if name in pinned or value != defaults[name]:
             out[name] = value if has_mentor else None

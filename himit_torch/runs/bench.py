@@ -102,7 +102,7 @@ def benchmark(
     learner.run(1)
     first = time.perf_counter() - first
     learner.run(max(0, warmup - 1))
-    decisions0 = int(learner.decisions.sum())
+    decisions0 = int(learner.views.decisions.sum())
     if device.startswith("cuda"):
         torch.cuda.synchronize()
         torch.cuda.reset_peak_memory_stats()
@@ -124,7 +124,7 @@ def benchmark(
         agent,
         device,
         seconds,
-        int(learner.decisions.sum()) - decisions0,
+        int(learner.views.decisions.sum()) - decisions0,
         peak,
         learner.engine.name,
         first,
