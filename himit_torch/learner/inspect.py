@@ -86,7 +86,10 @@ class LearnerViews:
     (``learner.views.greedy_policy()``). Each reads the state the learner owns and changes
     nothing; the learner's facade keeps what changes or runs it (``run``, ``state_dict``, …)."""
 
-    def __init__(self, learner: _ViewedState):
+    _learner: _ViewedState
+
+    def __init__(self, learner: Any):
+        """``learner``: the :class:`~himit_torch.Learner` whose state the views read."""
         self._learner = learner
 
     # ========================================================================= run state views

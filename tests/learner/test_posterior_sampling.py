@@ -218,7 +218,7 @@ def test_with_counts_to_infinity_sampling_is_the_mean_agent(world12, engine):
         L.plan()
         for mean, sampled in ((0, 1), (2, 3)):
             torch.testing.assert_close(
-                L.state_values()[sampled], L.state_values()[mean], atol=1e-9, rtol=0
+                L.views.state_values()[sampled], L.views.state_values()[mean], atol=1e-9, rtol=0
             )
         if phase == 0:
             L.run(1500)
