@@ -1,4 +1,4 @@
-"""The greedy path of a world figure (``Learner.greedy_trajectory``): its steps in Python numbers
+"""The greedy path of a world figure (``learner.views.greedy_trajectory``): its steps in Python numbers
 against the same steps as ``option_step`` on the world's own ``step`` (the path a world without a
 dynamics table takes, and every path took before), on the paper's largest world.
 
@@ -53,7 +53,7 @@ for run in range(learner.batch):
         for tables in (in_numbers, by_tensors):
             learner.tables = tables
             began = time.perf_counter()
-            paths.append(learner.greedy_trajectory(run, max_steps, seed))
+            paths.append(learner.views.greedy_trajectory(run, max_steps, seed))
             seconds.append(time.perf_counter() - began)
         learner.tables = in_numbers
         if not torch.equal(*paths):

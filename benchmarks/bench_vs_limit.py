@@ -146,9 +146,9 @@ def ours(steps: int) -> dict:
     began = time.perf_counter()
     learner.run(steps)
     seconds = time.perf_counter() - began
-    decisions = int(learner.decisions.sum())
+    decisions = int(learner.views.decisions.sum())
     return dict(rate=steps / seconds, seconds=seconds, kernel=kernel_seconds[0],
-                decisions=decisions, backups=int(learner.backups_done.sum()),
+                decisions=decisions, backups=int(learner.views.backups_done.sum()),
                 goals=int(learner.run_state.goals.sum()))  # fmt: skip
 
 

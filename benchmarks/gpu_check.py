@@ -52,14 +52,14 @@ for device, engine in (("cpu", "numba"), ("cuda", "torch")):
     runs[device] = learner
 cpu, gpu = runs["cpu"], runs["cuda"]
 same_rows = torch.equal(cpu.run_state.row, gpu.run_state.row.cpu())
-same_goals = torch.equal(cpu.goals, gpu.goals.cpu())
+same_goals = torch.equal(cpu.views.goals, gpu.views.goals.cpu())
 same_curves = torch.equal(cpu.metrics.curve(), gpu.metrics.curve())
-drift = (cpu.state_values() - gpu.state_values().cpu()).abs().max().item()
+drift = (cpu.views.state_values() - gpu.views.state_values().cpu()).abs().max().item()
 print(
     f"parity 12x12, 5 agents, 5000 ticks: same decisions {same_rows}, same goals {same_goals}, "
     f"same curves {same_curves}, max |V_cpu - V_cuda| = {drift:.3g}"
 )
-print("goals cpu", cpu.goals.tolist(), "cuda", gpu.goals.cpu().tolist())
+print("goals cpu", cpu.views.goals.tolist(), "cuda", gpu.views.goals.cpu().tolist())
 
 world = MultiRooms(40, 10)
 demos = record_demonstrations(world, mentor_policy(world, mentor_options(world)), 20, seed=0)

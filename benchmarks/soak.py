@@ -160,16 +160,16 @@ def main() -> int:
         flush=True,
     )
     start = time.perf_counter()
-    while learner.t < total_ticks:
+    while learner.views.t < total_ticks:
         learner.run(ticks_per_ckpt)
         generations.save(
             {"learner": learner.state_dict()},
-            step=learner.t,
+            step=learner.views.t,
             batch=batch,
             state_layout_version=layout,
         )
         row = {
-            "steps": learner.t * B,
+            "steps": learner.views.t * B,
             "rss_mib": rss_mib(),
             "peak_rss_mib": peak_rss_mib(),
             "edges": int(learner.model.num_edges.max()),
@@ -222,7 +222,7 @@ def main() -> int:
 
         ckpt = read_checkpoint(generations.previous, expect_batch=batch, expect_layout=layout)
         resumed_learner.load_state_dict(ckpt.payload["learner"])
-        from_step = resumed_learner.t
+        from_step = resumed_learner.views.t
         resumed_learner.run(total_ticks - from_step)
         differ = same_state(final, resumed_learner.state_dict())
         # and the newest checkpoint itself loads into a fresh learner and runs on
@@ -235,7 +235,7 @@ def main() -> int:
             "to_step": total_ticks * B,
             "identical": not differ,
             "differences": differ[:10],
-            "final_checkpoint_loads_and_runs": fresh.t == total_ticks + window,
+            "final_checkpoint_loads_and_runs": fresh.views.t == total_ticks + window,
         }
         print(
             f"resume: from the checkpoint at {from_step * B:,} steps to {total_ticks * B:,}: "

@@ -1,15 +1,23 @@
 """Fingerprints of the learner's state after fixed runs: a check that a change kept behaviour.
 
-A refactoring that must leave every curve bit-identical is checked by hashing the whole
-``Learner.state_dict()`` (models, values, queue, run state, metrics, posterior draws) after a few
-fixed runs that between them exercise every code path of both engines: both engines, options and
-primitives, the mentor term and its variants (confidence test, fading, matching, override),
-posterior sampling, the ε schedules, exact option models, stochastic start states. Run it before
-and after the change (with the same Python and library versions) and compare the lines:
+A refactoring that must leave every curve bit-identical is checked by hashing what the learner
+learned — its ``Learner.state_dict()`` (models, values, queue, run state, posterior draws) and,
+apart, its curves (the metrics) — after a few fixed runs that between them exercise every code
+path of both engines: both engines, options and primitives, the mentor term and its variants
+(confidence test, fading, matching, override), posterior sampling, the ε schedules, exact option
+models, stochastic start states. Run it before and after the change (with the same Python and
+library versions) and compare the lines:
 
     python benchmarks/state_fingerprint.py [--only NAME ...] > before.txt
     ... change ...
     python benchmarks/state_fingerprint.py > after.txt && diff before.txt after.txt
+
+**A new setting** (docs/extending.md) must change nothing at its default: the runs use every
+setting they do not name at its default, and the record of the configuration (the state's
+``identity.config`` and ``config_schema``, which gain the new field and perhaps a schema version)
+is left out of the hashes, so the lines stay the same unless the default changed what is learned.
+A change that adds a piece of state (a new array in a model) changes ``state=`` but must leave
+``curves=`` as it was.
 
 Only the public API is used, so the script runs on any layout of the package.
 """
@@ -46,9 +54,18 @@ def _feed(h, value) -> None:
 
 
 def fingerprint(learner) -> str:
-    h = hashlib.sha256()
-    _feed(h, learner.state_dict())
-    return h.hexdigest()[:16]
+    """``state=<hash> curves=<hash>``: the learner's state but the record of its configuration,
+    and its curves (the metrics)."""
+    state = learner.state_dict()
+    state.pop("config_schema", None)  # (a new setting may bump the schema version)
+    state["identity"] = {k: v for k, v in state["identity"].items() if k != "config"}
+    curves = state.pop("metrics")
+    out = []
+    for name, part in (("state", state), ("curves", curves)):
+        h = hashlib.sha256()
+        _feed(h, part)
+        out.append(f"{name}={h.hexdigest()[:16]}")
+    return " ".join(out)
 
 
 def _setup(size, rooms, corners, agents, steps, engine="numba", demos=20, **config):

@@ -33,6 +33,7 @@ from himit_torch.exact.planning import (
 from himit_torch.learner import backups
 from himit_torch.learner.agents import AGENTS, AgentVariant
 from himit_torch.learner.config import LearnerConfig
+from himit_torch.learner.inspect import LearnerViews
 from himit_torch.learner.learner import Learner
 from himit_torch.learner.models import (
     DirichletMentorModel,
@@ -171,6 +172,7 @@ __all__ = [
     "UNTRIED_RULES",
     # the learner
     "Learner",
+    "LearnerViews",
     "LearnerConfig",
     "AGENTS",
     "AgentVariant",

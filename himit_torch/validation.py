@@ -535,7 +535,9 @@ class Setting:
     means). ``kernel``: the compiled engine reads the field, encoded as a number — a choice as
     its index in ``choices``, ``None`` as ``kernel_none``. ``folder``: a ``str`` field that
     names a folder (:func:`as_folder_name`). ``empty``: a tuple field may hold no item (by
-    default it needs at least one).
+    default it needs at least one). ``mentor_term``: a setting of eq. 2's mentor term, read
+    only by the agents that have one (a run's records name it for those agents alone:
+    :func:`~himit_torch.learner.presets.agent_settings`).
     """
 
     doc: str
@@ -549,6 +551,7 @@ class Setting:
     kernel_none: int | float | None = None
     folder: bool = False
     empty: bool = False
+    mentor_term: bool = False
 
 
 def setting(

@@ -87,8 +87,8 @@ seeds = [0, 1, 2] * 2
 learner = ht.Learner(world, options, agents, seeds, demonstrations=demos,
                      config=ht.LearnerConfig(window=WINDOW))
 learner.run(STEPS)
-for agent, seed, first, goals in zip(agents, seeds, learner.first_goal_step.tolist(),
-                                     learner.goals.tolist()):
+for agent, seed, first, goals in zip(agents, seeds, learner.views.first_goal_step.tolist(),
+                                     learner.views.goals.tolist()):
     print(f"{agent:>9} seed {seed}: first goal at step {first:>6} (−1: never), {goals} goals")"""),
     new_code_cell("""\
 curve = learner.metrics.curve().double()          # [windows, runs] goals per window
@@ -121,7 +121,7 @@ thousand steps."""),
     new_code_cell("""\
 # Room of each state: (room id + 1) / rooms² in the features' "room" column, 0 off rooms.
 room = (world.stimulus_features()[:, 0] * world.rooms ** 2).round().long()   # room id + 1, or 0
-visits = learner.visit_counts().double()
+visits = learner.views.visit_counts().double()
 goal_room = int(room[world.goal_state])
 goal_row, goal_col = world.coords(world.goal_state)
 for b, (agent, seed) in enumerate(zip(agents, seeds)):
@@ -131,20 +131,20 @@ for b, (agent, seed) in enumerate(zip(agents, seeds)):
     print(f"{agent:>9} seed {seed}: entered {int((per_room > 0).sum()):>3} of {world.rooms ** 2} rooms, "
           f"{int(per_room[goal_room - 1]):>5} steps in the goal's room (average room "
           f"{float(per_room.mean()):.0f}), came within {closest} cells of the goal, "
-          f"ε now {float(learner.epsilon[b]):.2f}")"""),
+          f"ε now {float(learner.views.epsilon[b]):.2f}")"""),
     new_markdown_cell("""\
 ## What the imitator believes: its value map and greedy path
 
-`learner.state_values()` is `[runs, S]`. Grey cells hold exactly V = −1: no route from them to
+`learner.views.state_values()` is `[runs, S]`. Grey cells hold exactly V = −1: no route from them to
 the goal is known yet (see above; most were never visited). The orange line is one episode that
 follows run 0's greedy options from the start."""),
     new_code_cell("""\
-values = learner.state_values()[0]
-path = learner.greedy_trajectory(0, max_steps=2000, seed=0)
+values = learner.views.state_values()[0]
+path = learner.views.greedy_trajectory(0, max_steps=2000, seed=0)
 fig, ax = plt.subplots(figsize=(6.2, 5.6), layout="constrained")
 plot_state_map(ax, world, values, label="V(s), the learner's value",
                no_data=torch.isclose(values, torch.tensor(-1.0, dtype=values.dtype)),
-               title=f"V of run 0 ({agents[0]}, seed {seeds[0]}) after {learner.t:,} steps")
+               title=f"V of run 0 ({agents[0]}, seed {seeds[0]}) after {learner.views.t:,} steps")
 ax.plot(path % world.size, path // world.size, color="#e8590c", linewidth=1.2)
 map_legend(ax, "V = −1: no route to the goal known yet",
            extra=[Line2D([], [], color="#e8590c", label="greedy episode")])
@@ -419,22 +419,22 @@ map_runs = [b for b, s in enumerate(seeds) if s < 2]
 mentor_visits = {b: torch.bincount(dst_of, minlength=world.num_states)
                  for b in map_runs for dst_of in [demos[seeds[b]].transitions()[1]]}
 map_every = max(STEPS // 4, 1)
-while learner.t < STEPS:
-    learner.run(min(WINDOW - learner.t % WINDOW, STEPS - learner.t))
-    if learner.metrics.steps and learner.metrics.steps[-1] == learner.t:
+while learner.views.t < STEPS:
+    learner.run(min(WINDOW - learner.views.t % WINDOW, STEPS - learner.views.t))
+    if learner.metrics.steps and learner.metrics.steps[-1] == learner.views.t:
         logger.window(learner, len(learner.metrics.steps) - 1)
-    if learner.t % map_every == 0 or learner.t == STEPS:
-        logger.maps(learner, map_runs, learner.t, mentor_visits)
+    if learner.views.t % map_every == 0 or learner.views.t == STEPS:
+        logger.maps(learner, map_runs, learner.views.t, mentor_visits)
 final_curve = learner.metrics.curve()
 logger.hparams([settings(n, m) for n, m in zip(names, modules)],
-               [{"hparam/total_goals": float(learner.goals[b]),
+               [{"hparam/total_goals": float(learner.views.goals[b]),
                  "hparam/final_window_goals": float(final_curve[-1, b]) if len(final_curve) else 0.0,
-                 "hparam/first_goal_step": float(learner.first_goal_step[b]) if learner.first_goal_step[b] >= 0
-                 else float(learner.t + 1),
-                 "hparam/value_start": float(learner.state_values()[b, world.start_state])}
-                for b in range(learner.batch)], learner.t)
+                 "hparam/first_goal_step": float(learner.views.first_goal_step[b]) if learner.views.first_goal_step[b] >= 0
+                 else float(learner.views.t + 1),
+                 "hparam/value_start": float(learner.views.state_values()[b, world.start_state])}
+                for b in range(learner.batch)], learner.views.t)
 logger.close()
-print(f"{learner.batch} runs × {learner.t} steps; TensorBoard logs in {LOGDIR / 'tb'}")"""),
+print(f"{learner.batch} runs × {learner.views.t} steps; TensorBoard logs in {LOGDIR / 'tb'}")"""),
     new_markdown_cell("""\
 ## Learning curves, one panel per variant
 
@@ -449,7 +449,7 @@ for ax, name in zip(axes.flat, VARIANTS):
     runs = runs_of[name]
     plot_goal_curves(ax, steps, {name: curve[:, runs].T.numpy()}, colors=COLORS, window=WINDOW,
                      optimum=OPTIMUM, paper_optimum=PAPER_OPTIMUM, seed_lines=True, legend=False)
-    found = int((learner.first_goal_step[runs] >= 0).sum())
+    found = int((learner.views.first_goal_step[runs] >= 0).sum())
     ax.set_title(f"{name}: n={len(runs)}, {found}/{len(runs)} found the goal", fontsize="medium")
     ax.label_outer()
 fig.legend(handles=[Line2D([], [], color="0.3", lw=2, label="mean over seeds"),
@@ -468,7 +468,7 @@ plt.show()"""),
 5000-step windows cannot show which variant finds the goal first: each run's first-goal step,
 one dot per seed (log scale; "never" on the right), the median as a bar."""),
     new_code_cell("""\
-firsts = {name: learner.first_goal_step[runs].tolist() for name, runs in runs_of.items()}
+firsts = {name: learner.views.first_goal_step[runs].tolist() for name, runs in runs_of.items()}
 fig, ax = plt.subplots(figsize=(11, 4.6), layout="constrained")
 plot_first_goals(ax, firsts, STEPS, colors=COLORS,
                  title=f"Step of each run's first goal (n={SEEDS} seeds per variant)")
@@ -482,14 +482,14 @@ where the mentor term wins eq. 2's max. Then per variant: mean, range over seeds
 and a 95 % confidence interval of the mean (Student t, n − 1 degrees of freedom; with n = 5 it
 is wide)."""),
     new_code_cell("""\
-v_start = learner.state_values()[:, world.start_state]
-wins = learner.mentor_win_share()
+v_start = learner.views.state_values()[:, world.start_state]
+wins = learner.views.mentor_win_share()
 last = curve[-4:].mean(0) if len(curve) >= 4 else curve.mean(0)
-first = learner.first_goal_step
+first = learner.views.first_goal_step
 print(f"{'variant':<18}{'seed':>5}{'first goal':>12}{'goals':>8}{'last 4 windows':>16}"
       f"{'V(start)':>10}{'mentor wins':>13}")
 for b in range(learner.batch):
-    print(f"{names[b]:<18}{seeds[b]:>5}{int(first[b]):>12}{int(learner.goals[b]):>8}"
+    print(f"{names[b]:<18}{seeds[b]:>5}{int(first[b]):>12}{int(learner.views.goals[b]):>8}"
           f"{float(last[b]):>16.1f}{float(v_start[b]):>10.3f}{float(wins[b]):>13.2f}")
 
 
@@ -513,7 +513,7 @@ for name, runs in runs_of.items():
     med = f"{np.median(first[runs][found].numpy()):.0f}" if bool(found.any()) else "—"
     print(f"{name:<18} found the goal in {int(found.sum())}/{len(runs)} runs; their first goal: "
           f"median {med}, mean {spread(first[runs][found].tolist())}\\n"
-          f"{'':<18} total goals: mean {spread(learner.goals[runs].tolist())}\\n"
+          f"{'':<18} total goals: mean {spread(learner.views.goals[runs].tolist())}\\n"
           f"{'':<18} last 4 windows: mean {spread(last[runs].tolist(), 1)}\\n"
           f"{'':<18} V(start): mean {spread(v_start[runs].tolist(), 3)}\\n"
           f"{'':<18} mentor wins: mean {spread(wins[runs].tolist(), 2)}")"""),
@@ -545,7 +545,7 @@ def fmt(result, digits=0):
             f"ahead in {result['ahead']}/{result['n']} seeds")
 
 
-goals_total = learner.goals.double().numpy()
+goals_total = learner.views.goals.double().numpy()
 last_np, first_np = last.numpy(), first.double().numpy()
 first_np[first_np < 0] = np.nan                              # never found: left out of the pair
 PAIRS = [("intrinsic", "known"), ("intrinsic", "flat_0.02"), ("flat_0.02", "flat_0.01"),
@@ -568,7 +568,7 @@ steps). If salient steps pay, the learner's values rise far above anything real 
 `r / (1 − γ²)` to it, while it pays the real step cost every time."""),
     new_code_cell("""\
 shown = ("known", "intrinsic", "intrinsic_free", "intrinsic_paying")
-visits = learner.visit_counts().double()
+visits = learner.views.visit_counts().double()
 top = float(visits[[runs_of[n][0] for n in shown]].max())
 fig, axes = plt.subplots(1, 4, figsize=(16, 4.8), layout="constrained")
 greedy_facts = {}
@@ -577,7 +577,7 @@ for ax, name in zip(axes, shown):
     image = plot_state_map(ax, world, visits[b], label="", log=True, vmin=1, vmax=max(top, 10),
                            no_data=visits[b] == 0, colorbar=False,
                            title=f"{name}, seed {seeds[b]}")
-    path = learner.greedy_trajectory(b, max_steps=2000, seed=0)
+    path = learner.views.greedy_trajectory(b, max_steps=2000, seed=0)
     ax.plot(path % world.size, path // world.size, color="#e8590c", linewidth=1.2)
     counts = torch.bincount(path, minlength=world.num_states).topk(2)
     greedy_facts[name] = {"steps": len(path) - 1, "goal": bool(world.terminal_mask[path[-1]]),
@@ -587,7 +587,7 @@ for ax, name in zip(axes, shown):
     print(f"{name:<18} greedy episode: {f['steps']:>4} steps, "
           f"{'reaches the goal' if f['goal'] else 'no goal'}, {len(torch.unique(path))} distinct "
           f"states; most visited {f['top2']} ({f['top2_steps']} of its steps)")
-fig.colorbar(image, ax=axes, shrink=0.8, label=f"visits in {learner.t:,} steps (log scale)")
+fig.colorbar(image, ax=axes, shrink=0.8, label=f"visits in {learner.views.t:,} steps (log scale)")
 map_legend(fig, "never visited",
            extra=[Line2D([], [], color="#e8590c", label="greedy episode from the start")])
 plt.show()"""),
@@ -866,8 +866,8 @@ for s in range(SEEDS):          # each seed watches its own mentor episodes
 learner.run(STEPS)
 for agent in AGENTS:
     runs = [b for b, a in enumerate(agents) if a == agent]
-    print(f"{agent:>10}: goals per run {learner.goals[runs].tolist()}, first goal at step "
-          f"{learner.first_goal_step[runs].tolist()}")
+    print(f"{agent:>10}: goals per run {learner.views.goals[runs].tolist()}, first goal at step "
+          f"{learner.views.first_goal_step[runs].tolist()}")
 plot_goals(learner, "four rooms (104 states)")"""),
     new_markdown_cell("""\
 In this small, slippery world every agent finds the goal within a few thousand steps, and
@@ -910,7 +910,7 @@ for s in range(SEEDS):
     taxi_learner.add_demonstrations(taxi_demos[s], runs=[b for b, x in enumerate(seeds) if x == s])
 taxi_learner.run(STEPS)
 for agent in AGENTS:
-    goals = [int(taxi_learner.goals[b]) for b, a in enumerate(agents) if a == agent]
+    goals = [int(taxi_learner.views.goals[b]) for b, a in enumerate(agents) if a == agent]
     print(f"{agent:>10}: deliveries per run {goals}")
 plot_goals(taxi_learner, "Taxi-v4 through ht.from_gymnasium")"""),
     new_markdown_cell("""\
@@ -1157,7 +1157,7 @@ for b, (agent, seed, org) in enumerate(zip(agents, seeds, watched)):
     if org is not None:
         learner.add_demonstrations(demos[org, seed], runs=[b])
 learner.run(STEPS)
-greedy = learner.greedy_options()
+greedy = learner.views.greedy_options()
 plans = [greedy_plan(box, options, greedy[b]) for b in range(learner.batch)]
 fig, axes = plt.subplots(len(conditions), SEEDS, figsize=(4.2 * SEEDS, 3.1 * len(conditions)),
                          layout="constrained", squeeze=False)
@@ -1170,7 +1170,7 @@ for b, plan in enumerate(plans):
 plt.show()
 for b, plan in enumerate(plans):
     print(f"{agents[b]:>9} watched {str(watched[b]):>6} seed {seeds[b]}: first opening at step "
-          f"{int(learner.first_goal_step[b]):>6} (−1: never), plan {plan['organisation']:>10}, "
+          f"{int(learner.views.first_goal_step[b]):>6} (−1: never), plan {plan['organisation']:>10}, "
           f"{plan['pinch_steps']} of {plan['pinch_steps'] + plan['power_steps']} steps in the "
           "mentor's pinch")"""),
     new_markdown_cell("""\
@@ -1196,7 +1196,7 @@ transfer = ht.Learner(five, five_options, ["imitation", "imitation", "options"],
 transfer.add_demonstrations(mapped["plain"], runs=[0])
 transfer.add_demonstrations(mapped["any"], runs=[1])
 transfer.run(2 * STEPS)
-greedy = transfer.greedy_options()
+greedy = transfer.views.greedy_options()
 fig, axes = plt.subplots(1, 3, figsize=(14, 3.4), layout="constrained")
 for b, label in enumerate(["plain mapping", "'any' mapping", "no demonstrations"]):
     plan = greedy_plan(five, five_options, greedy[b], focus=4)
@@ -1204,7 +1204,7 @@ for b, label in enumerate(["plain mapping", "'any' mapping", "no demonstrations"
     plot_step_order(axes[b], plan["subgoals"], 5,
                     grips=five.grasps_used(torch.tensor(plan["states"])),
                     title=f"{label}: {plan['organisation']}\\nfirst opening at step "
-                          f"{int(transfer.first_goal_step[b])}; skewer 5's step-by-step score "
+                          f"{int(transfer.views.first_goal_step[b])}; skewer 5's step-by-step score "
                           + ("–" if score is None else f"{score:.2f}"))
 plt.show()"""),
     new_markdown_cell("""\
@@ -1340,7 +1340,7 @@ then frames of its episode."""),
     new_code_cell("""\
 def replay(run):
     \"\"\"The run's greedy policy stepped in MiniGrid: its states, frames and how it ended.\"\"\"
-    greedy = learner.greedy_options([run])[0]
+    greedy = learner.views.greedy_options([run])[0]
     env = world.make_env(render_mode="rgb_array")
     s, option, states, frames, seen = world.start_state, -1, [world.start_state], [env.render()], set()
     while True:

@@ -400,7 +400,7 @@ def test_random_valid_configurations_build_step_and_keep_the_model_invariants(
         engine=engine,
     )
     learner.run(steps)
-    assert learner.t == steps
+    assert learner.views.t == steps
     # counts are non-negative, in both models
     for model in (learner.model, learner.mentor):
         assert bool((model.edge_count >= 0).all()) and bool((model.row_count >= 0).all())
@@ -421,8 +421,8 @@ def test_random_valid_configurations_build_step_and_keep_the_model_invariants(
     msums = mentor_post.mean.sum(-1)[mentor_post.total > 0]
     assert torch.allclose(msums, torch.ones_like(msums))
     # V of the terminal state is 0
-    assert bool((learner.state_values()[:, w.terminal_mask] == 0).all())
-    assert bool(torch.isfinite(learner.state_values()).all())
+    assert bool((learner.views.state_values()[:, w.terminal_mask] == 0).all())
+    assert bool(torch.isfinite(learner.views.state_values()).all())
 
 
 _NONFINITE = st.sampled_from([math.nan, math.inf, -math.inf])

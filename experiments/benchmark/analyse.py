@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import argparse
 import csv
-import importlib.util
 import json
 import math
 import sys
@@ -27,23 +26,21 @@ from pathlib import Path
 
 import numpy as np
 
-from himit_torch.statistics import average_ranks, bca_interval, first_goal_survival
+# Run as a script, the repository's root goes on the path (as the benchmarks' scripts do), so the
+# claims' loader and tests are imported from their module like any other name
+# (experiments/claims/analyse.py; experiments/ is a namespace package).
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-# The claims' loader and tests, one place (loaded by path: both scripts are called analyse.py;
-# only its public names are used).
-_spec = importlib.util.spec_from_file_location(
-    "claims_analyse", Path(__file__).resolve().parents[1] / "claims" / "analyse.py"
+from experiments.claims import analyse as claims  # noqa: E402
+from experiments.claims.analyse import (  # noqa: E402
+    Test,
+    World,
+    adjust,
+    compare,
+    km_text,
+    load_dir,
 )
-claims = importlib.util.module_from_spec(_spec)  # type: ignore[arg-type]
-sys.modules["claims_analyse"] = claims  # (its dataclasses look their module up)
-_spec.loader.exec_module(claims)  # type: ignore[union-attr]
-Test, World = claims.Test, claims.World
-km_text, adjust, compare, load_dir = (
-    claims.km_text,
-    claims.adjust,
-    claims.compare,
-    claims.load_dir,
-)
+from himit_torch.statistics import average_ranks, bca_interval, first_goal_survival  # noqa: E402
 
 #: The nine worlds of the runs, then the puzzle box (ranked, but not in the mean rank; left
 #: out, and said so, while its records are absent).

@@ -8,7 +8,7 @@ Endpoints as PROTOCOL.md's, with one change the box imposes: its exact evaluator
 gap ``V*(start) − V^π(start)`` (0 = optimal). Each seed watches the mentor of the organisation
 ``himit run puzzlebox`` gives it (skewer by skewer for even seeds, step by step for odd ones).
 The greedy policy is the one every world uses
-(``Learner.greedy_policy``: ties random, untried states uniform over the available options).
+(``learner.views.greedy_policy``: ties random, untried states uniform over the available options).
 The paired tests are made by ``analyse.py`` with the other worlds; this script runs the cells
 and writes a descriptive table.
 

@@ -100,11 +100,11 @@ def main() -> None:
             "commit": commit,
             "dirty_tree": dirty,
             "wall_seconds": wall,
-            "goals": learner.goals.tolist(),
-            "first_goal_step": learner.first_goal_step.tolist(),
+            "goals": learner.views.goals.tolist(),
+            "first_goal_step": learner.views.first_goal_step.tolist(),
             "curve": learner.metrics.curve().T.tolist(),
             "mentor_term_wins": [w.tolist() for w in learner.metrics.mentor_term_wins],
-            "value_start": learner.state_values()[:, world.start_state].tolist(),
+            "value_start": learner.views.state_values()[:, world.start_state].tolist(),
             "diagnostics": mentor_margin_summary(learner),
         }
         path = out / f"{args.exp}_{args.variant}_{size}.json"

@@ -5,7 +5,7 @@ against what its own greedy policy is really worth (V^π, exact) and the optimum
 
 For every finished trial folder under the given folder (``world<N>_seeds<a>-<b>``), the learner is
 rebuilt from its config and restored from its last checkpoint; for each run, π(s) is its greedy
-own option (:meth:`Learner.greedy_options`; a state where it tried nothing: the uniform mix of its
+own option (:meth:`learner.views.greedy_options`; a state where it tried nothing: the uniform mix of its
 usable options), V^π is solved exactly with the learner options' exact models ((I − P_π) V = r_π,
 sparse), and on the states its seed's mentor visited (``record_demonstrations`` with the seed, as
 in the run) it reports the means of V̂ − V^π (over-estimation of its own policy), V* − V^π (what
@@ -62,7 +62,7 @@ for trial in sorted(Path(args.cell_dir).glob("world*_seeds*")):
         config.checkpoint_every,
         config.device,
     ).resume(learner)
-    assert learner.t == config.steps, f"{trial}: checkpoint at {learner.t}, not the end"
+    assert learner.views.t == config.steps, f"{trial}: checkpoint at {learner.views.t}, not the end"
     models = option_models(world, options)
     S = world.num_states
     T = models.transition.to_sparse_coo().coalesce()
@@ -71,8 +71,8 @@ for trial in sorted(Path(args.cell_dir).glob("world*_seeds*")):
     r = models.reward.numpy()
     row_state, row_option = models.row_state.numpy(), models.row_option.numpy()
     v_star = smdp_value_iteration(models).values.numpy()
-    greedy = learner.greedy_options().cpu().numpy()
-    v_hat = learner.state_values().double().cpu().numpy()
+    greedy = learner.views.greedy_options().cpu().numpy()
+    v_hat = learner.views.state_values().double().cpu().numpy()
     enabled = learner.rows.row_enabled.cpu().numpy()
     learner_row_option = learner.rows.row_option.cpu().numpy()
     for b in range(learner.batch):

@@ -34,7 +34,7 @@ expected durations, ``K_π = Σ_o π(o|·) Pr^o`` and ``d_π = Σ_o π(o|·) D(�
   (FrozenLake's holes) has share 0 for every policy: read the goal probability there.
 
 **A state the run has not tried.** A learner's frozen greedy policy
-(:meth:`Learner.greedy_policy <himit_torch.Learner.greedy_policy>`) needs a rule for a
+(:meth:`learner.views.greedy_policy <himit_torch.LearnerViews.greedy_policy>`) needs a rule for a
 non-terminal state where the run has tried none of its options (no usable, i.e. tried and
 enabled, option; a ``bco`` run's cloned action, where it has one there, counts as a choice). The
 rule is a setting, ``untried`` (:data:`UNTRIED_RULES`):
@@ -413,7 +413,7 @@ class PolicyEvaluator:
         if not isinstance(policy, OptionPolicy):
             raise TypeError(
                 f"PolicyEvaluator.evaluate: policy must be an OptionPolicy (e.g. "
-                f"learner.greedy_policy() or OptionPolicy.deterministic(choice)), got "
+                f"learner.views.greedy_policy() or OptionPolicy.deterministic(choice)), got "
                 f"{type(policy).__name__}"
             )
         if policy.num_states != self.num_states:

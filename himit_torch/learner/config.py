@@ -136,6 +136,7 @@ class LearnerConfig:
     )
     confidence_z: float = setting(
         1.0,
+        mentor_term=True,
         ge=0.0,
         kernel=True,
         doc="""
@@ -145,6 +146,7 @@ class LearnerConfig:
     )
     mentor_override_after: int | None = setting(
         None,
+        mentor_term=True,
         ge=0,
         kernel_none=-1,
         kernel=True,
@@ -154,6 +156,7 @@ class LearnerConfig:
     )
     mentor_fade: float | None = setting(
         None,
+        mentor_term=True,
         gt=0.0,
         kernel_none=0.0,
         hint="the mentor's weight in own executions; None: no fading",
@@ -169,6 +172,7 @@ class LearnerConfig:
     )
     mentor_segments: bool = setting(
         False,
+        mentor_term=True,
         doc="""
         Score each observed mentor move as the segment it is (SMDP form, as an own option is
         scored): a move of ``k`` primitive steps gets the discount ``γ^k`` and the discounted
@@ -181,6 +185,7 @@ class LearnerConfig:
     )
     mentor_feasibility: int | None = setting(
         None,
+        mentor_term=True,
         ge=1,
         kernel_none=0,
         kernel=True,
@@ -289,6 +294,7 @@ class LearnerConfig:
     )
     mentor_choice: str = setting(
         "greedy",
+        mentor_term=True,
         choices=MENTOR_CHOICES,
         kernel=True,
         doc="""
@@ -301,6 +307,7 @@ class LearnerConfig:
     )
     mentor_trial: bool = setting(
         False,
+        mentor_term=True,
         kernel=True,
         doc="""
         Trial of untried own options where the mentor leads (the option-level analogue of Price

@@ -21,9 +21,9 @@ The state has one owner per piece, each with its own ``state_dict``:
 * :class:`~himit_torch.learner.run_state.RunState` — the executing options, exploration and counters;
   :class:`~himit_torch.learner.run_state.RunMetrics` — the per-window records.
 
-What only reads that state — the counters, diagnostics and greedy policies (``learner.goals``,
-``learner.greedy_policy()``) — is in :mod:`himit_torch.learner.inspect`, which ``Learner``
-inherits.
+What only reads that state — the counters, diagnostics and greedy policies
+(``learner.views.goals``, ``learner.views.greedy_policy()``) — is one object,
+:class:`~himit_torch.learner.inspect.LearnerViews` (``learner.views``).
 
 An engine carries out the ticks on that state (:mod:`himit_torch.learner.engines`): ``"numba"``, a
 compiled per-run loop (the default on a CPU), or ``"torch"``, batched tensor ops (any device;
@@ -160,7 +160,44 @@ def _checked_world(world: TabularWorld, options: Options, config: LearnerConfig)
     return A
 
 
-class Learner(LearnerViews):
+#: The views' names on the learner itself, deprecated aliases of ``learner.views.NAME`` (they
+#: warn; removed in the next version).
+DEPRECATED_VIEW_NAMES = (
+    "t",
+    "goals",
+    "episodes",
+    "first_goal_step",
+    "decisions",
+    "backups_done",
+    "epsilon",
+    "found_goal",
+    "sampling_runs",
+    "mentor_win_share",
+    "greedy_options",
+    "greedy_policy",
+    "visit_counts",
+    "model_coverage",
+    "greedy_trajectory",
+    "state_values",
+    "summary",
+)
+
+
+def _view_alias(name: str) -> property:
+    """``learner.NAME``: ``learner.views.NAME`` with a ``DeprecationWarning``."""
+
+    def read(self: Learner) -> Any:
+        warnings.warn(
+            f"Learner.{name} is deprecated and goes in the next version: use learner.views.{name}",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        return getattr(self.views, name)
+
+    return property(read, doc=f"Deprecated alias of ``learner.views.{name}``.")
+
+
+class Learner:
     """``B`` runs of the hierarchical imitation learner (or its baselines) in one batch.
 
     Args:
@@ -185,6 +222,11 @@ class Learner(LearnerViews):
         engine: ``"auto"`` (the compiled ``"numba"`` engine on a CPU when it can run the world,
             else ``"torch"``), ``"numba"`` or ``"torch"``. Both give the same decisions; switch
             with :meth:`use_engine`.
+
+    What it has learned is read through ``learner.views`` (:class:`~himit_torch.LearnerViews`:
+    ``learner.views.goals``, ``learner.views.greedy_policy()``, …). The same names on the learner
+    itself (``learner.goals``, …) are deprecated aliases of those: they warn
+    (``DeprecationWarning``) and go in the next version.
     """
 
     #: Version of the layout of :meth:`state_dict` (1: batch-shared edge index, before engines).
@@ -213,6 +255,8 @@ class Learner(LearnerViews):
         if config is not None and not isinstance(config, LearnerConfig):
             raise ValueError(f"config must be a LearnerConfig, got {type(config).__name__}")
         self.config = config = config or LearnerConfig()
+        #: The read-only views: :class:`~himit_torch.LearnerViews`.
+        self.views = LearnerViews(self)
         if not isinstance(options, Options):
             raise ValueError(f"options must be an Options bundle, got {type(options).__name__}")
         self.world, self.options = world, options
@@ -229,7 +273,7 @@ class Learner(LearnerViews):
         runs = torch.arange(B, device=dev)
         self._start_runs(first, runs, A, dev)
         self._add_rewards_and_demonstrations(world, reward, demonstrations)
-        self.resample(self.sampling_runs())  # the sampling runs' first model
+        self.resample(self.views.sampling_runs())  # the sampling runs' first model
         self._choose_first_rows(first, runs)
         self.engine = make_engine(engine, self.state)
 
@@ -266,7 +310,9 @@ class Learner(LearnerViews):
         self.mentor = DirichletMentorModel(
             S, B, dev, config.mentor_concentration, mentors=config.mentors
         )
-        self.keys = seed_streams(torch.tensor(self.seeds, dtype=torch.int64, device=dev))
+        self.keys: torch.Tensor = seed_streams(
+            torch.tensor(self.seeds, dtype=torch.int64, device=dev)
+        )
         self.sample = PosteriorSample(self.rows, self.model, self.mentor, self.keys, config)
         self.cache = ValueCache(
             config, self.rows, self.model, self.mentor, self.terminal, self.gamma, self.sample
@@ -290,7 +336,7 @@ class Learner(LearnerViews):
         self.run_state = RunState(B, S, self.start_states(runs, first), M, config.eps_start, dev)
         self.cloning = ClonedPolicy(self.rows, A, config.bco_inverse_model, dev)
         self.metrics = RunMetrics()
-        self.state = BatchState(
+        self.state: BatchState = BatchState(
             config,
             self.tables,
             self.rows,
@@ -697,19 +743,19 @@ class Learner(LearnerViews):
         per_window = not self.engine.closes_windows or bar is not None
         left = steps
         while left > 0:
-            ticks = min(left, window - self.t % window) if per_window else left
+            ticks = min(left, window - self.run_state.t % window) if per_window else left
             if every is not None:
-                ticks = min(ticks, every - self.t % every)
+                ticks = min(ticks, every - self.run_state.t % every)
             closed = self.engine.advance(ticks)
             left -= ticks
             if bar is not None:
                 bar.update(ticks)
-            if every is not None and self.t % every == 0:
+            if every is not None and self.run_state.t % every == 0:
                 self.refit_cloned_policy()
             if closed is not None:
                 self._record_closed(*closed)
-            elif self.t % window == 0:
-                self.metrics.record(self.t, self.run_state, self.mentor_win_share())
+            elif self.run_state.t % window == 0:
+                self.metrics.record(self.run_state.t, self.run_state, self.views.mentor_win_share())
         if bar is not None:
             bar.close()
         return self.metrics
@@ -903,3 +949,7 @@ class Learner(LearnerViews):
         shaping = self.rows.use_shaping.nonzero()[:, 0]
         if shaping.numel():
             self.cache.set_potential(shaping, self.shaping_potential(shaping), shift=False)
+
+
+for _name in DEPRECATED_VIEW_NAMES:
+    setattr(Learner, _name, _view_alias(_name))

@@ -335,7 +335,7 @@ def with_options(
     new.run_state.load_state_dict(run)
     if bool(cut.any()):
         cr = cut.nonzero()[:, 0]
-        u = uniforms(new.keys, -(learner.t + 2), new.LANES)[cr]
+        u = uniforms(new.keys, -(learner.views.t + 2), new.LANES)[cr]
         new.run_state.row[cr] = choose_rows(
             new.cache,
             cr,

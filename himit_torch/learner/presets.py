@@ -31,6 +31,7 @@ from typing import Any
 
 from himit_torch.learner.agents import AGENTS
 from himit_torch.learner.config import LearnerConfig
+from himit_torch.validation import settings_of
 
 __all__ = [
     "Preset",
@@ -39,6 +40,7 @@ __all__ = [
     "agent_settings_text",
     "apply_preset",
     "check_preset",
+    "mentor_term_settings",
     "preset_differences",
 ]
 
@@ -210,14 +212,26 @@ def check_preset(where: str, learner: LearnerConfig, name: str | None) -> None:
         )
 
 
-#: The settings of the mentor term: read only by agents with one (``AgentVariant.mentor``).
-MENTOR_TERM_SETTINGS = ("mentor_fade", "mentor_override_after", "mentor_choice")
+def mentor_term_settings(config_class: type = LearnerConfig) -> tuple[str, ...]:
+    """The settings of the mentor term, as the schema declares them (``setting(…,
+    mentor_term=True)``): read only by agents with one (``AgentVariant.mentor``). Those a preset
+    sets come first, in the presets' order (a record has always named them); then the others,
+    in the schema's order."""
+    declared = [s.name for s in settings_of(config_class) if s.info.mentor_term]
+    pinned = [k for preset in PRESETS.values() for k in preset.settings if k in declared]
+    return (*dict.fromkeys(pinned), *(k for k in declared if k not in pinned))
+
+
+#: The settings of the mentor term (:func:`mentor_term_settings` of ``LearnerConfig``).
+MENTOR_TERM_SETTINGS = mentor_term_settings()
 
 
 def agent_settings(agent: str, learner: LearnerConfig) -> dict[str, Any]:
     """What agent ``agent`` of a run with settings ``learner`` actually ran with, of the
     settings the presets differ in: the exploration schedule (every agent) and the mentor
-    term's settings (``None``: the agent has no mentor term and does not read them).
+    term's settings (``None``: the agent has no mentor term and does not read them). A mentor
+    term's setting that no preset sets is named only where it is not at its default (so that
+    records from before it existed read as they did).
 
     A preset applies to every agent of a run; this is how a record says which of its settings
     each agent used (``results.md`` of every run)."""
@@ -230,10 +244,13 @@ def agent_settings(agent: str, learner: LearnerConfig) -> dict[str, Any]:
             learner.eps_decay if learner.eps_schedule == "decision" else learner.eps_goals
         ),
     }
-    for name in MENTOR_TERM_SETTINGS:
-        out[name] = getattr(learner, name) if has_mentor else None
-    if learner.mentor_segments:  # (named only where set: older records stay as they were)
-        out["mentor_segments"] = True if has_mentor else None
+    pinned = {k for preset in PRESETS.values() for k in preset.settings}
+    config_class: type = type(learner)
+    defaults = {s.name: s.default for s in settings_of(config_class)}
+    for name in mentor_term_settings(config_class):
+        value = getattr(learner, name)
+        if name in pinned or value != defaults[name]:
+            out[name] = value if has_mentor else None
     return out
 
 
@@ -244,7 +261,9 @@ def agent_settings_text(agents: Sequence[str], learner: LearnerConfig) -> str:
         settings = agent_settings(agent, learner)
         mentor = AGENTS[agent].mentor
         used = ", ".join(
-            f"`{k}={v}`" for k, v in settings.items() if mentor or k not in MENTOR_TERM_SETTINGS
+            f"`{k}={v}`"
+            for k, v in settings.items()
+            if mentor or k not in mentor_term_settings(type(learner))
         )
         if not mentor:
             used += " (no mentor term: the mentor settings are not read)"

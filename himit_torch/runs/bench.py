@@ -133,7 +133,7 @@ def benchmark(
     learner.run(1)
     first = time.perf_counter() - first
     learner.run(max(0, warmup - 1))
-    decisions0 = int(learner.decisions.sum())
+    decisions0 = int(learner.views.decisions.sum())
     seconds, peak = _timed_run(learner, steps, device)
     return BenchResult(
         size,
@@ -144,7 +144,7 @@ def benchmark(
         agent,
         device,
         seconds,
-        int(learner.decisions.sum()) - decisions0,
+        int(learner.views.decisions.sum()) - decisions0,
         peak,
         learner.engine.name,
         first,

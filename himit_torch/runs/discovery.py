@@ -209,7 +209,7 @@ class _World:
         g = _window_goals(learner)
         for b, (a, s) in enumerate(zip(names, run_seeds)):
             self.goals[a][s] = g[b]
-            self.first_goal[a][s] = int(learner.first_goal_step[b])
+            self.first_goal[a][s] = int(learner.views.first_goal_step[b])
 
 
 def _find_subgoals(config: DiscoveryConfig, w: _World) -> tuple[list[dict], list[dict]]:
@@ -298,17 +298,17 @@ def _run_discovered(config: DiscoveryConfig, w: _World, phase1: Learner, out: Pa
                 )
             learner = with_options(phase1, opts, runs=[run], agents=[agent])
             n_swaps = 0
-            while learner.t < steps:
+            while learner.views.t < steps:
                 stop = steps
                 if config.refresh_every is not None:
-                    stop = min(stop, learner.t + config.refresh_every)
+                    stop = min(stop, learner.views.t + config.refresh_every)
                 run_windows(learner, stop)
-                if learner.t < steps:
+                if learner.views.t < steps:
                     learner = with_options(learner, _discovered(config, w, learner, 0, s))
                     n_swaps += 1
             w.refreshes.append(n_swaps)
             w.goals[variant][s] = _window_goals(learner)[0]
-            w.first_goal[variant][s] = int(learner.first_goal_step[0])
+            w.first_goal[variant][s] = int(learner.views.first_goal_step[0])
 
 
 def _run_learners(config: DiscoveryConfig, w: _World, out: Path) -> str:

@@ -416,9 +416,9 @@ def _logger(
         options=options,
         true_value_start=true_v,
         initial_value=config.learner.initial_value,
-        resume_step=learner.t if resume else None,
+        resume_step=learner.views.t if resume else None,
     )
-    if not resume or learner.t == 0:
+    if not resume or learner.views.t == 0:
         for b in range(learner.batch):
             logger.text(b, "settings", f"seed {batch.run_seeds[b]}\n\n```\n{config.to_json()}\n```")
     return logger
@@ -480,16 +480,16 @@ def _world_result(
         seeds=batch.run_seeds,
         optimal_steps=optimal_steps,
         optimal_goals_per_window=batch.config.window / optimal_steps,
-        goals=learner.goals.tolist(),
-        first_goal_step=learner.first_goal_step.tolist(),
+        goals=learner.views.goals.tolist(),
+        first_goal_step=learner.views.first_goal_step.tolist(),
         final_window_goals=(
             m.goals_in_window[-1].tolist() if m.goals_in_window else [0] * len(batch.agents)
         ),
-        value_start=learner.state_values()[:, world.start_state].tolist(),
+        value_start=learner.views.state_values()[:, world.start_state].tolist(),
         true_value_start=true_v,
-        mentor_term_wins=learner.mentor_win_share().tolist(),
+        mentor_term_wins=learner.views.mentor_win_share().tolist(),
         wall_seconds=wall,
-        steps=learner.t,
+        steps=learner.views.t,
         engine=learner.engine.name,
         commit=source_commit(),
     )
@@ -518,7 +518,7 @@ def _log_hparams(
 ) -> None:
     """Each run's settings and final measures in TensorBoard's HParams dashboard."""
     # A run that never found the goal counts as finding it just after its end.
-    firsts = [f if f >= 0 else learner.t + 1 for f in result.first_goal_step]
+    firsts = [f if f >= 0 else learner.views.t + 1 for f in result.first_goal_step]
     logger.hparams(
         [_hparams(batch.config, batch.size, a) for a in batch.agents],
         [
@@ -535,7 +535,7 @@ def _log_hparams(
             }
             for b in range(learner.batch)
         ],
-        learner.t,
+        learner.views.t,
     )
 
 
@@ -680,7 +680,7 @@ def _world_figure(run_dir, config, world, demos, learner, agents, run_seeds, see
     )
     learned = None
     if imitator is not None:
-        learned = learner.greedy_trajectory(
+        learned = learner.views.greedy_trajectory(
             imitator, max_steps=20 * size * size // config.room_size, seed=seed
         )
     save_world_figure(

@@ -2,7 +2,7 @@
 
 A :class:`GreedyTracker` is a window hook of :func:`~himit_torch.runs.runner.run_windows`: every
 ``every`` steps (and at the run's end, :meth:`GreedyTracker.finish`) it freezes each run's greedy
-policy (:meth:`Learner.greedy_policy <himit_torch.Learner.greedy_policy>`: ε = 0 over its own
+policy (:meth:`learner.views.greedy_policy <himit_torch.LearnerViews.greedy_policy>`: ε = 0 over its own
 options, ties as configured) and evaluates it on the world's true model
 (:class:`~himit_torch.exact.greedy_evaluation.PolicyEvaluator`: goals per window, the share of
 start states from which it is sure to reach the goal, and at the end ``V^π(start)``), as a
@@ -114,7 +114,7 @@ class GreedyTracker:
     def __call__(self, learner: Learner, index: int) -> None:
         """The window hook: evaluate if window ``index`` ends now on the schedule."""
         step = int(learner.metrics.steps[index])
-        if step == learner.t and self.due(step, learner.config.window):
+        if step == learner.views.t and self.due(step, learner.config.window):
             self.evaluate(learner)
 
     def due(self, step: int, window: int) -> bool:
@@ -128,19 +128,21 @@ class GreedyTracker:
     def finish(self, learner: Learner) -> PolicyEvaluation:
         """The evaluation at the run's end (done now unless a window hook already did); also
         the final policy's under the ``"stuck"`` rule, into :attr:`stuck`."""
-        if learner.t not in self.evaluations:
+        if learner.views.t not in self.evaluations:
             self.evaluate(learner)
         # Computed from the learner's final state and not checkpointed: a resumed run ends in the
         # same state as an uninterrupted one, so it gets the same answer. Its goal rates are what
         # the summaries report (its values are not solved: V = 0 where a run is stuck).
-        self.stuck = self.evaluator.evaluate(learner.greedy_policy(untried="stuck"), values=False)
-        return self.evaluations[learner.t]
+        self.stuck = self.evaluator.evaluate(
+            learner.views.greedy_policy(untried="stuck"), values=False
+        )
+        return self.evaluations[learner.views.t]
 
     def evaluate(self, learner: Learner) -> PolicyEvaluation:
         """Evaluate every run's greedy policy now (``"uniform"`` rule), record and log it."""
-        step = learner.t
+        step = learner.views.t
         result = self.evaluator.evaluate(
-            learner.greedy_policy(), values=self.values or step >= self.steps
+            learner.views.greedy_policy(), values=self.values or step >= self.steps
         )
         self.evaluations[step] = result
         if self.logger is not None:
@@ -198,7 +200,7 @@ class GreedyTracker:
 
         - ``steps``: distinct step numbers in increasing order, each in ``1 … steps`` (the run's
           length) and, given the ``learner`` just restored from the same checkpoint, at most
-          its step ``learner.t`` (an evaluation the run never reached is refused); each on the
+          its step ``learner.views.t`` (an evaluation the run never reached is refused); each on the
           schedule (:meth:`due`: a window's end, in the evaluator's window, that the schedule
           evaluates at), so an evaluation this tracker would never have made is refused;
         - per field, one float64 ``[B]`` tensor per step, ``B`` the same throughout and, given
@@ -209,7 +211,7 @@ class GreedyTracker:
         """
         state = section(state, "greedy", ("steps", *_FIELDS))
         steps = state["steps"]
-        last = self.steps if learner is None else min(self.steps, int(learner.t))
+        last = self.steps if learner is None else min(self.steps, int(learner.views.t))
         if (
             type(steps) is not list
             or any(type(s) is not int or not 1 <= s <= last for s in steps)

@@ -442,27 +442,27 @@ class _WindowLog:
 
     def __call__(self, learner: Learner, index: int) -> None:
         run, greedy = self.run, self.run.greedy
-        reached = learner.visit_counts()[:, self.goal].sum(1).cpu()
+        reached = learner.views.visit_counts()[:, self.goal].sum(1).cpu()
         goals, self.reached = reached - self.reached, reached
         m = learner.metrics
         greedy(learner, index)  # every window is on its schedule (every = window)
-        evaluation = greedy.evaluations.get(learner.t)
+        evaluation = greedy.evaluations.get(learner.views.t)
         if evaluation is None:
             evaluation = greedy.evaluate(learner)
         gap = evaluation.value_gap(run.optimal_value).tolist()
-        coverage = learner.model_coverage().cpu()
+        coverage = learner.views.model_coverage().cpu()
         for b in range(learner.batch):
             row: dict[str, Any] = {
                 "task": run.name,
                 "agent": run.agents[b],
                 "seed": run.run_seeds[b],
-                "step": learner.t,
+                "step": learner.views.t,
                 "goals": int(goals[b]),
                 "episodes": int(m.goals_in_window[index][b]),
                 "epsilon": float(m.epsilon[index][b]),
                 "value_gap": gap[b],
                 "mentor_term_wins": float(m.mentor_term_wins[index][b]),
-                **dict(zip(CURVE_COLUMNS, greedy.curve_cells(learner.t, b))),
+                **dict(zip(CURVE_COLUMNS, greedy.curve_cells(learner.views.t, b))),
             }
             self.rows.append(row)
             scalars = {
@@ -475,7 +475,7 @@ class _WindowLog:
             }
             if math.isfinite(row["mentor_term_wins"]):
                 scalars["mentor/term_wins"] = row["mentor_term_wins"]
-            self.logger.scalars(b, scalars, learner.t)
+            self.logger.scalars(b, scalars, learner.views.t)
 
 
 def _task_summary(
@@ -483,7 +483,7 @@ def _task_summary(
 ) -> dict:
     """The task's record (``tasks/<task>.json``) from its finished batch and window rows."""
     learner, world, greedy, rows = run.learner, run.world, run.greedy, log.rows
-    last = [r for r in rows if r["step"] == learner.t] if rows else []
+    last = [r for r in rows if r["step"] == learner.views.t] if rows else []
     final = greedy.finish(learner)
     stuck = greedy.stuck
     assert stuck is not None  # finish evaluated it
@@ -516,7 +516,7 @@ def _task_summary(
         # are not (FrozenLake's holes), the end of the first window with a goal — an upper
         # bound, to the window ("first_goal_resolution" says which).
         "first_goal_step": (
-            learner.first_goal_step.tolist() if every_end_a_goal else first_goal_windows
+            learner.views.first_goal_step.tolist() if every_end_a_goal else first_goal_windows
         ),
         "first_goal_resolution": 1 if every_end_a_goal else config.window,
         "final_goals": [r["goals"] for r in last],
@@ -531,7 +531,7 @@ def _task_summary(
         "greedy_value_start": final.value_start.tolist(),
         "greedy_goal_probability": final.goal_probability.tolist(),
         "wall_seconds": wall,
-        "steps": learner.t,
+        "steps": learner.views.t,
         "initial_value": run.learner_config.initial_value,
         "ambiguous_reward_pairs": run.known.ambiguous_pairs,
         "known_reward": run.known.note,
@@ -546,7 +546,7 @@ def _write_task_records(
     # Settings without the seed, so that a task's seeds of one agent form one HParams group; the
     # metrics at step 0, where SummaryWriter.add_hparams put them.
     hp = {k: v for k, v in asdict(run.learner_config).items() if v is not None}
-    last = [r for r in log.rows if r["step"] == run.learner.t] if log.rows else []
+    last = [r for r in log.rows if r["step"] == run.learner.views.t] if log.rows else []
     logger.hparams(
         [dict(hp, task=run.name, agent=a) for a in run.agents],
         [

@@ -284,7 +284,7 @@ def watched_organisation(seed: int, first_seed: int = 0) -> str:
 # ================================================================================ evaluation
 def greedy_values(evaluator: PolicyEvaluator, learner: Learner) -> list[float]:
     """``V^π(start)`` of every run's frozen greedy policy
-    (:meth:`Learner.greedy_policy <himit_torch.Learner.greedy_policy>`), exact on the true model
+    (:meth:`learner.views.greedy_policy <himit_torch.LearnerViews.greedy_policy>`), exact on the true model
     (:class:`~himit_torch.exact.greedy_evaluation.PolicyEvaluator` over the learner's options).
 
     The same frozen policy as every other study's greedy endpoint: ties as the learner's
@@ -293,7 +293,7 @@ def greedy_values(evaluator: PolicyEvaluator, learner: Learner) -> list[float]:
     :mod:`himit_torch.exact.greedy_evaluation`). Runs before this definition froze ties to the
     lowest option and took a uniformly random primitive at untried states: their values are not
     comparable with these."""
-    return evaluator.evaluate(learner.greedy_policy(), values=True).value_start.tolist()
+    return evaluator.evaluate(learner.views.greedy_policy(), values=True).value_start.tolist()
 
 
 def greedy_plan(
@@ -402,10 +402,10 @@ def run_box_batch(
     world, seeds = box.world, config.seed_list
     learner, checkpoints, elapsed = _batch_learner(config, box, agent, demos, run_dir, tag, resume)
     evals_path = run_dir / "batches" / f"{tag}.evals.json"
-    evals = _saved_evaluations(evals_path, len(seeds), learner.t) if resume else {}
+    evals = _saved_evaluations(evals_path, len(seeds), learner.views.t) if resume else {}
     paired = [watched_organisation(s, config.first_seed) for s in seeds]
     names = run_names(tag, [condition] * len(seeds), seeds)
-    resume_step = learner.t if resume else None
+    resume_step = learner.views.t if resume else None
     logger = TensorBoardLogger(
         run_dir / "tb", names, true_value_start=box.value_star, resume_step=resume_step
     )
@@ -422,7 +422,7 @@ def run_box_batch(
     )
     runs = _final_runs(config, box, learner, evals, demos, mentor_plans, focus)
     summary = _batch_summary(box, tag, condition, agent, learner, wall, runs)
-    _close_logger(logger, condition, world.skewers, runs, learner.t)
+    _close_logger(logger, condition, world.skewers, runs, learner.views.t)
     for r in runs:  # the states were for the comparison; the subgoals say what a reader needs
         del r["states"]
     rows = _window_rows(config, tag, condition, learner, evals, demos is not None)
@@ -487,7 +487,7 @@ def _batch_summary(box, tag, condition, agent, learner, wall, runs) -> dict[str,
         "num_states": box.world.num_states,
         "condition": condition,
         "agent": agent,
-        "steps": learner.t,
+        "steps": learner.views.t,
         "value_star": box.value_star,
         "optimal_steps": box.steps_star,
         "engine": learner.engine.name,
@@ -515,9 +515,9 @@ class _Evaluations:
     def __call__(self, learner: Learner, index: int) -> None:
         box, paired = self.box, self.paired
         step = learner.metrics.steps[index]
-        if step != learner.t or (step % self.eval_every and step != self.steps):
+        if step != learner.views.t or (step % self.eval_every and step != self.steps):
             return
-        greedy = learner.greedy_options()  # the plans: ties to the lowest option
+        greedy = learner.views.greedy_options()  # the plans: ties to the lowest option
         values = greedy_values(box.evaluator, learner)
         plans = [
             greedy_plan(box.world, box.options, greedy[b], self.focus) for b in range(learner.batch)
@@ -543,7 +543,7 @@ class _Evaluations:
 
 def _final_runs(config, box, learner, evals, demos, mentor_plans, focus) -> list[dict]:
     """Each run's record at the end: its first opening, openings, final greedy value and plan."""
-    greedy = learner.greedy_options()
+    greedy = learner.views.greedy_options()
     runs = []
     for b, seed in enumerate(config.seed_list):
         plan = greedy_plan(box.world, box.options, greedy[b], focus)
@@ -554,11 +554,11 @@ def _final_runs(config, box, learner, evals, demos, mentor_plans, focus) -> list
                 "seed": seed,
                 "watched": watched if demos is not None else None,
                 "paired_organisation": watched,
-                "first_opening": int(learner.first_goal_step[b]),
-                "openings": int(learner.goals[b]),
+                "first_opening": int(learner.views.first_goal_step[b]),
+                "openings": int(learner.views.goals[b]),
                 "final_window_openings": int(learner.metrics.goals_in_window[-1][b]),
                 "greedy_value": evals[max(evals)]["value"][b] if evals else None,
-                "mentor_term_wins": _finite(float(learner.mentor_win_share()[b])),
+                "mentor_term_wins": _finite(float(learner.views.mentor_win_share()[b])),
                 "same_low_level_as_mentor": reference is not None and plan["states"] == reference,
                 **plan,
             }

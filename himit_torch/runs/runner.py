@@ -4,7 +4,7 @@
 the Gymnasium comparison (:func:`~himit_torch.runs.gymnasium.run_task`) and the discovery
 experiment (:mod:`himit_torch.runs.discovery`) share, read top to bottom::
 
-    while learner.t < steps:
+    while learner.views.t < steps:
         advance to the end of the window (or of the run)
         log every window that ended              (on_window hooks: TensorBoard, rows, …)
         draw maps                                 (maps, into the TensorBoard logger)
@@ -107,10 +107,12 @@ def run_windows(
     if progress is not None:
         from tqdm.auto import tqdm
 
-        bar = tqdm(total=steps, initial=learner.t, unit="step", mininterval=1.0, desc=progress)
+        bar = tqdm(
+            total=steps, initial=learner.views.t, unit="step", mininterval=1.0, desc=progress
+        )
     start = time.perf_counter()
-    while learner.t < steps:
-        chunk = min(window - learner.t % window, steps - learner.t)
+    while learner.views.t < steps:
+        chunk = min(window - learner.views.t % window, steps - learner.views.t)
         learner.run(chunk)
         if bar is not None:
             bar.update(chunk)
@@ -118,10 +120,10 @@ def run_windows(
             for hook in on_window:
                 hook(learner, logged)
             logged += 1
-        end = learner.t == steps
-        if maps is not None and logger is not None and (learner.t % maps.every == 0 or end):
-            logger.maps(learner, maps.runs, learner.t, maps.mentor_visits)
-        if checkpoints is not None and (learner.t % checkpoints.every == 0 or end):
+        end = learner.views.t == steps
+        if maps is not None and logger is not None and (learner.views.t % maps.every == 0 or end):
+            logger.maps(learner, maps.runs, learner.views.t, maps.mentor_visits)
+        if checkpoints is not None and (learner.views.t % checkpoints.every == 0 or end):
             if logger is not None:
                 logger.flush()
             checkpoints.save(learner, elapsed + time.perf_counter() - start)
@@ -176,7 +178,7 @@ class Checkpoints:
         companions = {name: c.state_dict() for name, c in self.companions.items()}
         self.generations.save(
             {"learner": learner.state_dict(copy=False), "elapsed": elapsed, **companions},
-            step=learner.t,
+            step=learner.views.t,
             batch=self.batch,
             state_layout_version=self.layout,
         )

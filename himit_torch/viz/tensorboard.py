@@ -238,15 +238,15 @@ class TensorBoardLogger:
     def window(self, learner, index: int) -> None:
         """Scalars of window ``index`` of ``learner.metrics`` (``charts/``, ``planner/``,
         ``mentor/``), the first goal of runs that found it by then, and — when the window ends
-        now (``learner.t``) — the model's state (``model/``)."""
+        now (``learner.views.t``) — the model's state (``model/``)."""
         m = learner.metrics
         step = int(m.steps[index])
         total = torch.stack(m.goals_in_window[: index + 1]).sum(0).tolist()
-        first = learner.first_goal_step.tolist()
-        now = step == learner.t
+        first = learner.views.first_goal_step.tolist()
+        now = step == learner.views.t
         if now:
-            coverage = learner.model_coverage().tolist()
-            value_start = learner.state_values()[:, learner.start_state].tolist()
+            coverage = learner.views.model_coverage().tolist()
+            value_start = learner.views.state_values()[:, learner.start_state].tolist()
         # (each window's [B] records as Python numbers once, not one tensor index per run)
         goals, epsilon, episodes, episode_steps, backups, decisions, term_wins = (
             x[index].tolist()
@@ -303,8 +303,8 @@ class TensorBoardLogger:
         if self._renderer is None:
             raise ValueError("TensorBoardLogger.maps needs the world (TensorBoardLogger(world=…))")
         runs = list(runs)
-        values, visits = learner.state_values(), learner.visit_counts()
-        greedy = dict(zip(runs, learner.greedy_options(runs)))  # (the runs drawn only)
+        values, visits = learner.views.state_values(), learner.views.visit_counts()
+        greedy = dict(zip(runs, learner.views.greedy_options(runs)))  # (the runs drawn only)
         for b in runs:
             name, at = self.names[b], f"after {step:,} steps"
             mentor = mentor_visits.get(b) if isinstance(mentor_visits, Mapping) else mentor_visits

@@ -101,7 +101,7 @@ def test_without_demonstrations_bco_is_the_primitives_run(world12):
     assert bool((learner.cloning.action == -1).all())
     assert torch.equal(learner.cache.values[0], learner.cache.values[1])
     assert torch.equal(learner.run_state.visits[0], learner.run_state.visits[1])
-    assert int(learner.goals[0]) == int(learner.goals[1]) > 0
+    assert int(learner.views.goals[0]) == int(learner.views.goals[1]) > 0
 
 
 def test_greedy_choice_is_the_cloned_action(world12, mentor_demos12):
@@ -113,8 +113,8 @@ def test_greedy_choice_is_the_cloned_action(world12, mentor_demos12):
     cloned = learner.cloning.action[0, :S]
     defined = (cloned >= 0).nonzero()[:, 0]
     assert defined.numel() > 10
-    policy = learner.greedy_policy()
-    options = learner.greedy_options()[0]
+    policy = learner.views.greedy_policy()
+    options = learner.views.greedy_options()[0]
     for s in defined.tolist():
         row = int(learner.rows.primitive_rows[s, cloned[s]])
         option = int(learner.rows.row_option[row])
@@ -148,7 +148,7 @@ def test_with_an_exact_inverse_model_and_no_exploration_bco_walks_the_mentors_pa
     learner.run(200)
     mentor_steps = len(still_demos[0]) - 1  # (every episode alike: no slip, one best path)
     assert all(len(episode) - 1 == mentor_steps for episode in still_demos)
-    assert int(learner.first_goal_step[0]) == mentor_steps
+    assert int(learner.views.first_goal_step[0]) == mentor_steps
     visited = set((learner.run_state.visits[0, :-1] > 0).nonzero()[:, 0].tolist())
     assert visited <= on_path
 

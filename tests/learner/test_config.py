@@ -64,7 +64,7 @@ def _run(
 def test_goals_schedule_explores_until_n_goals_then_drops_to_the_floor(world8, engine):
     config = LearnerConfig(window=500, eps_schedule="goals", eps_goals=4, eps_min=0.05)
     learner = _run(world8, config, 3000, engine)
-    goals, eps = learner.goals, learner.epsilon
+    goals, eps = learner.views.goals, learner.views.epsilon
     assert bool((goals >= 4).any())
     expected = torch.where(
         goals >= 4, torch.tensor(0.05, dtype=torch.float64), torch.tensor(0.75, dtype=torch.float64)
@@ -76,27 +76,27 @@ def test_goals_schedule_explores_until_n_goals_then_drops_to_the_floor(world8, e
 def test_paper_schedule_decays_once_per_goal(world8, engine):
     config = LearnerConfig(window=500, eps_schedule="paper", eps_decay=0.9, eps_min=0.01)
     learner = _run(world8, config, 2000, engine)
-    for g, e in zip(learner.goals.tolist(), learner.epsilon.tolist()):
+    for g, e in zip(learner.views.goals.tolist(), learner.views.epsilon.tolist()):
         assert e == pytest.approx(max(0.75 * 0.9**g, 0.01), rel=1e-12)
-    assert int(learner.goals.max()) > 0
+    assert int(learner.views.goals.max()) > 0
 
 
 @pytest.mark.parametrize("engine", ["numba"])  # the torch engine: parity, engines/test_parity.py
 def test_step_schedule_decays_once_per_step_from_the_first_goal(world8, engine):
     config = LearnerConfig(window=500, eps_schedule="step", eps_decay=0.999, eps_min=0.001)
     learner = _run(world8, config, 2000, engine)
-    for first, e in zip(learner.first_goal_step.tolist(), learner.epsilon.tolist()):
+    for first, e in zip(learner.views.first_goal_step.tolist(), learner.views.epsilon.tolist()):
         # decayed at the first goal's step and every step after it
-        steps = 0 if first < 0 else learner.t - first + 1
+        steps = 0 if first < 0 else learner.views.t - first + 1
         assert e == pytest.approx(max(0.75 * 0.999**steps, 0.001), rel=1e-9)
-    assert int((learner.first_goal_step >= 0).sum()) > 0
+    assert int((learner.views.first_goal_step >= 0).sum()) > 0
 
 
 def test_decision_schedule_is_todays_default(world8):
     """The default is the per-decision rule: ε = 0.75 · 0.999^(decisions after the first goal)."""
     learner = _run(world8, LearnerConfig(window=500), 1500, agents=("primitives",))
     assert learner.config.eps_schedule == "decision"
-    assert float(learner.epsilon[0]) < 0.75 * 0.999**10 and int(learner.goals[0]) > 0
+    assert float(learner.views.epsilon[0]) < 0.75 * 0.999**10 and int(learner.views.goals[0]) > 0
 
 
 def test_exact_mentor_model_matches_many_demonstrations(world8):
@@ -197,7 +197,9 @@ def test_exact_option_models_plan_to_the_optimum(world8):
     learner.plan()
     optimum = smdp_value_iteration(option_models(world8, options)).values
     start = world8.start_state
-    assert float(learner.state_values()[0, start]) == pytest.approx(float(optimum[start]), abs=1e-4)
+    assert float(learner.views.state_values()[0, start]) == pytest.approx(
+        float(optimum[start]), abs=1e-4
+    )
     assert not math.isclose(float(optimum[start]), -1.0)
 
 

@@ -1,4 +1,4 @@
-"""``Learner.greedy_policy``: the frozen greedy policy is what ``choose_rows`` picks at ε = 0
+"""``learner.views.greedy_policy``: the frozen greedy policy is what ``choose_rows`` picks at ε = 0
 (every tied option, each equally often, or the first one), its rules for untried states
 (``"uniform"``, ``"stuck"``), and its exact evaluation equals rolled-out episodes of it."""
 
@@ -36,7 +36,7 @@ def test_the_frozen_policy_is_what_choose_rows_picks_at_epsilon_zero(
     world12, tie_break, mentor_choice
 ):
     learner = trained(world12, tie_break, mentor_choice)
-    policy = learner.greedy_policy()
+    policy = learner.views.greedy_policy()
     S, J = policy.option.shape
     live = (~learner.terminal[:S]).nonzero()[:, 0]
     states = live[learner.rows.state_rows[live, 0] < learner.num_rows]  # states with options
@@ -77,7 +77,7 @@ def test_a_trained_learners_greedy_policies_equal_their_rollouts(world12):
     options-only run has not learned the way yet: ≈ 10⁵ steps an episode): exact steps per
     episode, V^π(start) and P(goal) within the 99.9 % t-intervals of 3000 episodes."""
     learner = trained(world12, "random", steps=10_000)
-    policy = learner.greedy_policy()
+    policy = learner.views.greedy_policy()
     result = PolicyEvaluator(world12, learner.options, 1000).evaluate(policy)
     short = (result.steps_per_episode < 500).nonzero()[:, 0]
     assert 0 in short.tolist()  # the imitator
@@ -130,9 +130,11 @@ def test_the_untried_rules_by_hand(world8, tie_break):
     cloned = torch.zeros_like(untried)
     cloned[bco, k] = True
 
-    uniform = learner.greedy_policy()
-    assert torch.equal(learner.greedy_policy(untried="uniform").probability, uniform.probability)
-    stuck = learner.greedy_policy(untried="stuck")
+    uniform = learner.views.greedy_policy()
+    assert torch.equal(
+        learner.views.greedy_policy(untried="uniform").probability, uniform.probability
+    )
+    stuck = learner.views.greedy_policy(untried="stuck")
     assert torch.equal(stuck.option, uniform.option)
     p_uniform, p_stuck = uniform.probability[:, live], stuck.probability[:, live]
     no_choice = untried & ~cloned
@@ -149,7 +151,7 @@ def test_the_untried_rules_by_hand(world8, tie_break):
     j = uniform.option[live[k]].tolist().index(clone_option)
     assert float(p_stuck[bco, k, j]) == float(p_uniform[bco, k, j]) == 1.0
     with pytest.raises(ValueError, match=r"untried='never'.*\('uniform', 'stuck'\)"):
-        learner.greedy_policy(untried="never")
+        learner.views.greedy_policy(untried="never")
 
 
 def test_both_untried_rules_equal_rollouts_of_the_same_frozen_policy(world8):
@@ -166,7 +168,7 @@ def test_both_untried_rules_equal_rollouts_of_the_same_frozen_policy(world8):
     evaluator = PolicyEvaluator(world8, learner.options, 100)
     results = {}
     for rule in ("uniform", "stuck"):
-        policy = learner.greedy_policy(runs, untried=rule)
+        policy = learner.views.greedy_policy(runs, untried=rule)
         result = evaluator.evaluate(policy)
         results[rule] = result
         assert_matches_rollouts(world8, learner.options, policy, result, n=3000, seed=5)

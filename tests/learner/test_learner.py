@@ -210,7 +210,7 @@ def test_planner_with_true_model_equals_value_iteration(size):
     )
     rounds = learner.plan()
     assert 0 < rounds < 1_000_000
-    values = learner.state_values()
+    values = learner.views.state_values()
     free = world.free_mask & ~world.terminal_mask
 
     star = smdp_value_iteration(exact).values
@@ -240,7 +240,7 @@ def test_planner_with_true_model_equals_value_iteration(size):
     torch.testing.assert_close(learner.cache.mentor_numerator[2:, :S], m[2:, :S], atol=1e-9, rtol=0)
 
     # The greedy option of every state is optimal under the exact model.
-    greedy = learner.greedy_options()[0]
+    greedy = learner.views.greedy_options()[0]
     row_of = exact_rows(learner)
     q_star = exact.q_values(star)
     for s in free.nonzero()[:, 0].tolist():
@@ -265,24 +265,24 @@ def test_same_seeds_give_identical_runs(world8, demos8):
     for learner in (a, b, c):
         learner.run(2000)
     assert torch.equal(a.metrics.curve(), b.metrics.curve())
-    assert torch.equal(a.state_values(), b.state_values())
-    assert torch.equal(a.greedy_options(), b.greedy_options())
-    assert a.summary() == b.summary()
-    assert a.decisions.min() > 100 and a.goals.max() > 0  # they did something
+    assert torch.equal(a.views.state_values(), b.views.state_values())
+    assert torch.equal(a.views.greedy_options(), b.views.greedy_options())
+    assert a.views.summary() == b.views.summary()
+    assert a.views.decisions.min() > 100 and a.views.goals.max() > 0  # they did something
     # Another seed for run 1 changes run 1 only.
-    assert torch.equal(c.state_values()[0], a.state_values()[0])
-    assert not torch.equal(c.state_values()[1], a.state_values()[1])
+    assert torch.equal(c.views.state_values()[0], a.views.state_values()[0])
+    assert not torch.equal(c.views.state_values()[1], a.views.state_values()[1])
 
 
 def _per_tick_state(learner: Learner, b: int) -> dict[str, torch.Tensor]:
     return {
         "position": learner.run_state.position[b],
         "row": learner.run_state.row[b],
-        "decisions": learner.decisions[b],
-        "goals": learner.goals[b],
-        "epsilon": learner.epsilon[b],
-        "backups_done": learner.backups_done[b],
-        "values": learner.state_values()[b],
+        "decisions": learner.views.decisions[b],
+        "goals": learner.views.goals[b],
+        "epsilon": learner.views.epsilon[b],
+        "backups_done": learner.views.backups_done[b],
+        "values": learner.views.state_values()[b],
         "q_numerator": learner.cache.q_numerator[b],
         "mentor_numerator": learner.cache.mentor_numerator[b],
     }
@@ -338,9 +338,9 @@ def test_run_in_a_batch_equals_run_alone(world12, demos12, agents, config):
                     )
     for b, single in enumerate(alone):
         assert torch.equal(batch.metrics.curve()[:, b], single.metrics.curve()[:, 0])
-        assert torch.equal(batch.greedy_options()[b], single.greedy_options()[0])
-        assert batch.first_goal_step[b] == single.first_goal_step[0]
-    assert batch.decisions.min() > 100
+        assert torch.equal(batch.views.greedy_options()[b], single.views.greedy_options()[0])
+        assert batch.views.first_goal_step[b] == single.views.first_goal_step[0]
+    assert batch.views.decisions.min() > 100
 
 
 # ============================================================================ per-run streams
@@ -482,22 +482,22 @@ def learned8(world8, demos8):
     )
     for _ in range(20):
         learner.run(1000)
-        if bool(learner.found_goal.all()):
+        if bool(learner.views.found_goal.all()):
             break
     return learner
 
 
 def test_every_agent_finds_the_goal(learned8):
     assert set(AGENT_ORDER) <= set(AGENTS)
-    first = learned8.first_goal_step.view(len(AGENT_ORDER), len(SEEDS))
+    first = learned8.views.first_goal_step.view(len(AGENT_ORDER), len(SEEDS))
     assert (first > 0).all(), f"first-goal steps per agent {AGENT_ORDER}:\n{first}"
-    assert (learned8.goals > 0).all()
+    assert (learned8.views.goals > 0).all()
     # After its first goal a run's ε decays below the start value.
-    assert (learned8.epsilon < learned8.config.eps_start).all()
+    assert (learned8.views.epsilon < learned8.config.eps_start).all()
 
 
 def test_imitation_finds_the_goal_sooner_than_options_only(learned8):
-    first = learned8.first_goal_step.view(len(AGENT_ORDER), len(SEEDS)).double()
+    first = learned8.views.first_goal_step.view(len(AGENT_ORDER), len(SEEDS)).double()
     imitation, options = first[0].mean().item(), first[1].mean().item()
     assert imitation <= options, f"mean first-goal step: imitation {imitation}, options {options}"
 
@@ -541,13 +541,13 @@ def test_model_coverage_and_greedy_options_equal_slow_computation(learned8):
     for b in range(learned8.batch):
         usable = [m for m in range(M) if enabled[b][m]]
         expected.append(sum(count[b][m] > 0 for m in usable) / max(len(usable), 1))
-    coverage = learned8.model_coverage()
+    coverage = learned8.views.model_coverage()
     assert coverage.dtype == torch.float64 and coverage.tolist() == expected
     # primitives-only runs use fewer rows: the denominators differ, the check can fail
     assert len(set(expected)) > 1 and 0 < min(expected) and max(expected) < 1
-    everything = learned8.greedy_options()
+    everything = learned8.views.greedy_options()
     for runs in ([3], [0, 5, 2], list(range(learned8.batch))):
-        assert torch.equal(learned8.greedy_options(runs), everything[runs])
+        assert torch.equal(learned8.views.greedy_options(runs), everything[runs])
 
 
 def test_tried_share_equals_torch_counts_on_any_layout():
@@ -579,7 +579,7 @@ def test_planning_to_convergence_reaches_the_learned_models_fixed_point(learned8
     learner.plan()
     for b in (0, len(SEEDS), 2 * len(SEEDS), 3 * len(SEEDS)):  # one run of each agent
         ref = learned_model_value_iteration(learner, b)
-        got = learner.state_values()[b].numpy()
+        got = learner.views.state_values()[b].numpy()
         err = np.abs(got - ref).max()
         assert err < 1e-4, f"run {b} ({learner.agents[b]}): max |V − V_fixed point| = {err:.3g}"
 
@@ -688,7 +688,7 @@ def test_confidence_cache_and_test_equal_slow_computation(world8, demos8):
         low.append(sure / observed)
         high.append((sure + maybe) / observed)
         assert maybe <= observed // 4, f"run {b}: {maybe} of {observed} states are ties"
-    share = learner.mentor_win_share().tolist()
+    share = learner.views.mentor_win_share().tolist()
     for b in range(len(agents)):
         assert low[b] - 1e-12 <= share[b] <= high[b] + 1e-12, (
             b,
@@ -716,9 +716,9 @@ def test_confidence_test_reduces_mentor_use_and_optimism(world8, demos8):
         config=LearnerConfig(confidence_z=1.0),
     )
     learner.run(2000)
-    share = learner.mentor_win_share()
+    share = learner.views.mentor_win_share()
     start = world8.start_state
-    v = learner.state_values()[:, start]
+    v = learner.views.state_values()[:, start]
     v_star = (
         smdp_value_iteration(option_models(world8, learner_options(world8))).values[start].item()
     )
@@ -751,7 +751,7 @@ def test_imitation_finds_the_goal_sooner_on_the_paper_40x40_world():
         learner.add_demonstrations(record_demonstrations(world, mentor, 20, seed=s), runs=[s])
     budget = 8000
     learner.run(budget)
-    first = learner.first_goal_step.double()
+    first = learner.views.first_goal_step.double()
     first[first < 0] = budget
     imitation, options_only = first[:3], first[3:]
     assert bool((imitation < budget).all()), imitation
@@ -801,7 +801,7 @@ def test_match_mentor_choice_picks_an_option_reproducing_the_mentors_move(world8
                 runs,
                 torch.tensor([s]),
                 u,
-                learner.epsilon[runs],
+                learner.views.epsilon[runs],
                 mentor_choice="match",
             )[0]
         )
@@ -845,17 +845,17 @@ def test_learner_runs_on_any_tabular_world():
         world, chain_options(), ["options", "primitives"], [0, 1], config=LearnerConfig(window=100)
     )
     learner.run(2000)
-    assert bool((learner.goals > 50).all())
+    assert bool((learner.views.goals > 50).all())
     # the greedy option everywhere is "right" (option 1), and the values are the chain's:
     # V(3) = 1, V(2) = −0.1 + 0.9·1, …
-    assert learner.greedy_options()[:, :4].eq(1).all()
+    assert learner.views.greedy_options()[:, :4].eq(1).all()
     expected = torch.tensor(
         [-0.1 + 0.9 * (-0.1 + 0.9 * (-0.1 + 0.9)), -0.1 + 0.9 * (-0.1 + 0.9), -0.1 + 0.9, 1.0],
         dtype=torch.float64,
     )
     learner.plan()
-    assert torch.allclose(learner.state_values()[:, :4], expected.expand(2, -1), atol=0.05)
-    assert len(learner.greedy_trajectory(0, max_steps=50)) == 5
+    assert torch.allclose(learner.views.state_values()[:, :4], expected.expand(2, -1), atol=0.05)
+    assert len(learner.views.greedy_trajectory(0, max_steps=50)) == 5
     # an imitating run on this world needs a reward module (it has no state_reward)
     with pytest.raises(ValueError, match="neither a state_reward"):
         Learner(world, chain_options(), ["imitation"], [0])
@@ -875,8 +875,8 @@ def test_terminal_states_keep_value_zero_even_with_demonstrations_through_the_go
     learner = Learner(world8, learner_options(world8), ["imitation"], [0], demonstrations=Stream())
     learner.run(1000)
     learner.plan()
-    assert float(learner.state_values()[0, world8.goal_state]) == 0.0
-    assert float(learner.state_values()[0].max()) <= 1.0
+    assert float(learner.views.state_values()[0, world8.goal_state]) == 0.0
+    assert float(learner.views.state_values()[0].max()) <= 1.0
 
 
 @pytest.mark.parametrize("trained_steps", [0, 300, 4000])
@@ -900,9 +900,9 @@ def test_greedy_trajectory_in_numbers_equals_option_step(world12, mentor_demos12
     for run in range(3):
         for seed in range(3):
             learner.tables = in_numbers
-            fast = learner.greedy_trajectory(run, max_steps=150, seed=seed)
+            fast = learner.views.greedy_trajectory(run, max_steps=150, seed=seed)
             learner.tables = by_tensors
-            slow = learner.greedy_trajectory(run, max_steps=150, seed=seed)
+            slow = learner.views.greedy_trajectory(run, max_steps=150, seed=seed)
             assert torch.equal(fast, slow), (run, seed)
             lengths.add(len(fast))
     learner.tables = in_numbers
@@ -937,8 +937,8 @@ def test_stochastic_policy_options_run_match_and_draw(world8, demos8):
     )
     assert bool((learner.rows.primitive_rows[world8.start_state] < learner.num_rows).all())
     learner.run(3000)
-    assert bool((learner.goals > 0).all())
-    path = learner.greedy_trajectory(0, max_steps=200)
+    assert bool((learner.views.goals > 0).all())
+    path = learner.views.greedy_trajectory(0, max_steps=200)
     assert int(path[0]) == world8.start_state and len(path) > 1
 
 
@@ -953,7 +953,7 @@ def test_an_option_that_never_terminates_is_stopped(world8):
     )
     learner = Learner(world8, north, ["options"], [0], config=LearnerConfig(max_option_steps=50))
     learner.run(1000)
-    assert int(learner.decisions[0]) == 1000 // 50
+    assert int(learner.views.decisions[0]) == 1000 // 50
 
 
 def test_state_dict_round_trip_in_process(world8, demos8):
@@ -986,7 +986,7 @@ def test_state_dict_round_trip_in_process(world8, demos8):
     )
     c.load_state_dict(b.state_dict())
     c.run(1050)
-    assert torch.equal(a.state_values(), c.state_values())
+    assert torch.equal(a.views.state_values(), c.views.state_values())
     assert torch.equal(a.metrics.curve(), c.metrics.curve())
     with pytest.raises(ValueError, match="does not match"):
         Learner(

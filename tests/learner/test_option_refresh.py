@@ -48,7 +48,7 @@ def _state(learner: Learner) -> dict[str, torch.Tensor]:
 def assert_same(a: Learner, b: Learner) -> None:
     """Bit for bit: every counter, model entry, cache and queue entry. Rows are compared by their
     ``(state, option)`` where ``b``'s option set extends ``a``'s (its other rows must be empty)."""
-    assert a.t == b.t
+    assert a.views.t == b.views.t
     sa, sb = _state(a), _state(b)
     if b.num_rows != a.num_rows:
         A = a.world.num_actions
@@ -91,8 +91,10 @@ def test_swapping_to_the_same_options_continues_the_run_exactly(world12, mentor_
     swapped.run(1500)
     assert_same(straight, swapped)
     # the old learner is left as it was
-    assert first.t == 1500 and all(torch.equal(before[k], v) for k, v in _state(first).items())
-    assert int(straight.goals.sum()) > 0
+    assert first.views.t == 1500 and all(
+        torch.equal(before[k], v) for k, v in _state(first).items()
+    )
+    assert int(straight.views.goals.sum()) > 0
 
 
 @pytest.mark.parametrize("engine", EACH_ENGINE)
@@ -162,7 +164,7 @@ def test_changed_options_start_empty_and_an_option_in_flight_ends(world12, mento
     # the rest of the run state is carried
     for name in ("goals", "episodes", "epsilon", "decisions", "visits", "first_goal_step"):
         assert torch.equal(getattr(run, name), getattr(first.run_state, name)), name
-    assert torch.equal(swapped.state_values(), first.state_values())
+    assert torch.equal(swapped.views.state_values(), first.views.state_values())
     # carried Q numerators are what a recomputation from the models gives (up to rounding)
     q = swapped.cache.q_numerator.clone()
     swapped.cache.rebuild_options()
@@ -194,7 +196,7 @@ def test_a_swap_moves_runs_between_engines_and_variants(world12, mentor_demos12)
         for engine in ENGINES
     }
     assert out["numba"].agents == ["options", "imitation"] and out["numba"].seeds == [2, 1]
-    assert torch.equal(out["numba"].state_values(), first.state_values()[[2, 1]])
+    assert torch.equal(out["numba"].views.state_values(), first.views.state_values()[[2, 1]])
     for learner in out.values():
         learner.run(1500)
     assert_same(out["numba"], out["torch"])

@@ -218,7 +218,7 @@ def test_with_counts_to_infinity_sampling_is_the_mean_agent(world12, engine):
         L.plan()
         for mean, sampled in ((0, 1), (2, 3)):
             torch.testing.assert_close(
-                L.state_values()[sampled], L.state_values()[mean], atol=1e-9, rtol=0
+                L.views.state_values()[sampled], L.views.state_values()[mean], atol=1e-9, rtol=0
             )
         if phase == 0:
             L.run(1500)
@@ -233,7 +233,7 @@ def test_sampling_is_deterministic_per_seed_and_differs_between_seeds(world12):
     for L in (a, b, c):
         L.run(2000)
     assert torch.equal(a.sample.option_w, b.sample.option_w)
-    assert torch.equal(a.state_values(), b.state_values())
+    assert torch.equal(a.views.state_values(), b.views.state_values())
     assert torch.equal(a.run_state.visits, b.run_state.visits)
     assert not torch.equal(a.run_state.visits, c.run_state.visits)
 
@@ -274,7 +274,7 @@ def test_checkpoint_resume_continues_the_same_sampling_run(world12, engine):
         x, y = getattr(straight.sample, name), getattr(second.sample, name)
         k = min(x.shape[-1], y.shape[-1]) if x.dim() > 1 else None
         assert torch.equal(x[:, :k] if k else x, y[:, :k] if k else y), name
-    assert torch.equal(straight.state_values(), second.state_values())
+    assert torch.equal(straight.views.state_values(), second.views.state_values())
     assert torch.equal(straight.run_state.visits, second.run_state.visits)
 
 
@@ -309,7 +309,7 @@ def test_a_sampling_run_does_not_depend_on_other_runs_demonstrations(world12):
     alone.run(300)
     pair.run(300)
     assert not torch.all(
-        alone.state_values()[0] == alone.state_values()[0, 0]
+        alone.views.state_values()[0] == alone.views.state_values()[0, 0]
     )  # V is no longer flat
     pair.add_demonstrations(d1, runs=[1])  # later evidence for run 1 only
     assert torch.equal(alone.cache.mentor_numerator[0], pair.cache.mentor_numerator[0])
@@ -317,7 +317,7 @@ def test_a_sampling_run_does_not_depend_on_other_runs_demonstrations(world12):
     assert torch.equal(alone.sweeper.queue.priority[0], pair.sweeper.queue.priority[0])
     alone.run(2000)
     pair.run(2000)
-    assert int(alone.decisions[0]) > 100  # it ran
-    assert torch.equal(alone.state_values()[0], pair.state_values()[0])
-    assert int(alone.decisions[0]) == int(pair.decisions[0])
+    assert int(alone.views.decisions[0]) > 100  # it ran
+    assert torch.equal(alone.views.state_values()[0], pair.views.state_values()[0])
+    assert int(alone.views.decisions[0]) == int(pair.views.decisions[0])
     assert int(alone.sample.resamples[0]) == int(pair.sample.resamples[0])

@@ -17,12 +17,13 @@ from himit_torch.learner.presets import (
     agent_settings_text,
     apply_preset,
     check_preset,
+    mentor_term_settings,
     preset_differences,
 )
 from himit_torch.runs.config import EXPERIMENTS, ExperimentConfig, load_config
 from himit_torch.runs.gymnasium import GymExperimentConfig
 from himit_torch.runs.sweep import _apply
-from himit_torch.validation import settings_of
+from himit_torch.validation import setting, settings_of
 
 LEARNER_FIELDS = {s.name for s in settings_of(LearnerConfig)}
 
@@ -162,3 +163,30 @@ def test_agent_settings_say_who_reads_the_mentor_term():
     assert "`eps_decay=0.999`" in agent_settings_text(["primitives"], paper)
     with pytest.raises(ValueError, match="unknown agent 'robot'"):
         agent_settings("robot", learner)
+
+
+def test_the_mentor_term_settings_come_from_their_declarations():
+    """No hand list: a setting declared ``mentor_term=True`` (docs/extending.md's recipe) is a
+    setting of the mentor term — named in a run's records for the agents with a mentor term,
+    ``None`` for the others, and left out where a preset does not set it and it is at its
+    default (older records read as they did)."""
+    # the ones the presets set lead, in the presets' order (the committed pages' order)
+    assert mentor_term_settings()[:3] == ("mentor_fade", "mentor_override_after", "mentor_choice")
+    assert {"mentor_segments", "mentor_trial", "mentor_feasibility"} <= set(mentor_term_settings())
+    assert "eps_schedule" not in mentor_term_settings()
+
+    @dataclasses.dataclass
+    class ToyConfig(LearnerConfig):  # a new setting, declared the recipe's way
+        mentor_toy: float | None = setting(
+            None, gt=0.0, mentor_term=True, doc="A toy weight of the mentor term."
+        )
+
+    assert mentor_term_settings(ToyConfig)[-1] == "mentor_toy"
+    assert "mentor_toy" not in mentor_term_settings()  # (LearnerConfig itself unchanged)
+    toy = ToyConfig(mentor_toy=3.0)
+    assert agent_settings("imitation", toy)["mentor_toy"] == 3.0
+    assert agent_settings("options", toy)["mentor_toy"] is None
+    assert "mentor_toy" not in agent_settings("imitation", ToyConfig())
+    text = agent_settings_text(["imitation", "options"], toy)
+    assert "`imitation`: " in text and "`mentor_toy=3.0`" in text
+    assert text.count("mentor_toy") == 1  # not said of options, which does not read it

@@ -196,7 +196,7 @@ def test_one_step_segments_are_the_papers_term_bit_for_bit(world12, mentor_demos
     assert torch.equal(off.metrics.curve(), on.metrics.curve())
     assert torch.equal(off.cache.values, on.cache.values)
     assert torch.equal(off.cache.mentor_numerator, on.cache.mentor_numerator)
-    assert int(off.goals.sum()) > 0
+    assert int(off.views.goals.sum()) > 0
 
 
 def test_segments_off_ignore_the_durations(world12, mentor_demos12):
@@ -272,7 +272,7 @@ def test_engines_agree_with_segments(world12, mentor_demos12, config):
     torch.testing.assert_close(
         numba.cache.mentor_numerator, torch_run.cache.mentor_numerator, atol=1e-9, rtol=0
     )
-    assert int(numba.decisions.min()) > 100
+    assert int(numba.views.decisions.min()) > 100
 
 
 def test_segments_change_the_coarse_mentor_term(world12, mentor_demos12):

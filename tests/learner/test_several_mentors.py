@@ -150,8 +150,8 @@ def test_engines_agree_with_several_mentors(world12, mentor_demos12, poor_demos1
     assert torch.equal(numba.metrics.curve(), torch_run.metrics.curve())
     assert torch.equal(numba.model.row_count, torch_run.model.row_count)
     torch.testing.assert_close(numba.cache.values, torch_run.cache.values, atol=1e-9, rtol=0)
-    torch.testing.assert_close(numba.mentor_win_share(), torch_run.mentor_win_share())
-    assert int(numba.decisions.min()) > 100
+    torch.testing.assert_close(numba.views.mentor_win_share(), torch_run.views.mentor_win_share())
+    assert int(numba.views.decisions.min()) > 100
 
 
 def test_a_second_mentor_changes_the_run(world12, mentor_demos12, poor_demos12):
@@ -210,7 +210,7 @@ def test_a_poor_second_mentor_does_not_drag_the_learner_below_the_good_one_alone
                 poor = record_demonstrations(world12, mentor, 5, seed=s + 1000, noise=0.5)
                 learner.add_demonstrations(poor, runs, mentor=1)
         learner.run(15_000)
-        goals[two] = learner.goals.double().numpy()
+        goals[two] = learner.views.goals.double().numpy()
     assert goals[False].min() > 0  # both learners reach the goal: the comparison means something
     for part in (slice(0, 20), slice(20, 40)):
         p = ttest_rel(goals[True][part], goals[False][part], alternative="less").pvalue

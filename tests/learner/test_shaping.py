@@ -31,9 +31,9 @@ def test_without_demonstrations_shaping_is_the_unshaped_run(world12):
     for a, b in ((0, 1), (2, 3)):
         assert torch.equal(learner.cache.values[a], learner.cache.values[b])
         assert torch.equal(learner.cache.q_numerator[a], learner.cache.q_numerator[b])
-        assert int(learner.decisions[a]) == int(learner.decisions[b])
-        assert int(learner.goals[a]) == int(learner.goals[b])
-    assert int(learner.goals[2]) > 0
+        assert int(learner.views.decisions[a]) == int(learner.views.decisions[b])
+        assert int(learner.views.goals[a]) == int(learner.views.goals[b])
+    assert int(learner.views.goals[2]) > 0
 
 
 def test_shaped_runs_start_at_v0_plus_the_demonstrations_potential(world12, mentor_demos12):

@@ -112,14 +112,14 @@ def test_engines_agree_with_trial(world12, mentor_demos12, config):
     assert torch.equal(numba.metrics.curve(), torch_run.metrics.curve())
     assert torch.equal(numba.model.row_count, torch_run.model.row_count)
     torch.testing.assert_close(numba.cache.values, torch_run.cache.values, atol=1e-9, rtol=0)
-    assert int(numba.decisions.min()) > 100
+    assert int(numba.views.decisions.min()) > 100
 
 
 def test_the_frozen_greedy_policy_follows_the_trial_rule(world12, mentor_demos12):
     """The greedy policy is the run's choice at ε = 0, the trial included."""
     learner = _learner(world12, mentor_demos12, True, agents=["imitation"])
     learner.run(300)
-    policy = learner.greedy_policy()
+    policy = learner.views.greedy_policy()
     S = world12.num_states
     states = torch.arange(S)
     _, greedy, _ = greedy_rows(learner.cache, torch.zeros_like(states), states)

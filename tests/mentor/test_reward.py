@@ -326,9 +326,9 @@ def test_known_intrinsic_and_no_mentor_reward_in_one_batch(world8, demos8):
         world8, learner_options(world8), ["imitation"], [3], demonstrations=demos8, reward=intrinsic
     )
     alone.run(3000)
-    assert torch.equal(batch.state_values()[1], alone.state_values()[0])
-    assert batch.goals[1] == alone.goals[0] and int(batch.goals[1]) > 0
-    assert int(batch.goals[0]) > 0
+    assert torch.equal(batch.views.state_values()[1], alone.views.state_values()[0])
+    assert batch.views.goals[1] == alone.views.goals[0] and int(batch.views.goals[1]) > 0
+    assert int(batch.views.goals[0]) > 0
 
 
 def test_intrinsic_reward_alone_reaches_the_goal(world8, demos8):
@@ -351,13 +351,13 @@ def test_intrinsic_reward_alone_reaches_the_goal(world8, demos8):
         reward=[safe] * 4 + [paying] * 4,
     )
     learner.run(6000)
-    first = learner.first_goal_step[:4]
+    first = learner.views.first_goal_step[:4]
     assert ((first > 0) & (first <= 1500)).all(), f"first goals: {first.tolist()}"
     last = learner.metrics.curve()[-2:].sum(0)
     assert (last[:4] >= 80).all(), f"goals in the last 2000 steps per seed: {last[:4].tolist()}"
     assert (last[4:] < 20).all(), f"farmed runs still reach the goal: {last[4:].tolist()}"
     # Its values are far above anything real (V* ≤ 1 everywhere), the cycle-safe ones are not.
-    values = learner.state_values()
+    values = learner.views.state_values()
     assert (values[4:].max(1).values > 2).all() and (values[:4].max() <= 1.0)
 
 
@@ -411,5 +411,5 @@ def test_zero_reward_and_modules_by_name(world8, demos8):
         )
         learner.add_demonstrations(demos8)
         learner.plan()
-        values[name] = learner.state_values()[0, world8.start_state]
+        values[name] = learner.views.state_values()[0, world8.start_state]
     assert values["known"] > 0.5 and values["none"] <= 0.0

@@ -307,7 +307,7 @@ def test_own_primitives_run_the_primitives_agent_on_any_world():
     )
     learner = Learner(world, own, ["primitives"], [0], config=LearnerConfig(window=200))
     learner.run(600)
-    assert int(learner.goals[0]) > 20
+    assert int(learner.views.goals[0]) > 20
     custom = Options.from_policy(usable, torch.ones(5, dtype=torch.int64))
     with pytest.raises(ValueError, match="no usable option"):
         Learner(world, custom, ["primitives"], [0])

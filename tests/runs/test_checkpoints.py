@@ -119,12 +119,12 @@ def test_a_learners_whole_state_loads_weights_only_and_continues_exactly(world8)
 
     a = make()
     a.run(300)
-    data = encode({"learner": a.state_dict()}, step=a.t, batch=BATCH, state_layout_version=1)
+    data = encode({"learner": a.state_dict()}, step=a.views.t, batch=BATCH, state_layout_version=1)
     b = make()
     b.load_state_dict(decode(data).payload["learner"])
     a.run(200)
     b.run(200)
-    assert torch.equal(a.state_values(), b.state_values())
+    assert torch.equal(a.views.state_values(), b.views.state_values())
     assert torch.equal(a.metrics.curve(), b.metrics.curve())
 
 
@@ -157,7 +157,7 @@ def test_a_learners_live_state_is_written_as_its_copies_byte_for_byte(world8):
         & live_storages
     )
     assert any(not t.is_contiguous() for t in _tensors(live))  # (views: the slots in use)
-    kwargs = dict(step=learner.t, batch=BATCH, state_layout_version=1)
+    kwargs = dict(step=learner.views.t, batch=BATCH, state_layout_version=1)
     assert encode({"learner": live}, **kwargs) == encode({"learner": copied}, **kwargs)
 
 

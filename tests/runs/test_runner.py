@@ -53,14 +53,14 @@ def test_hooks_see_every_window_once_in_order_and_the_run_stops_at_its_step(worl
         learner,
         90,
         on_window=[
-            lambda lr, i: seen.append(("first", i, lr.t)),
-            lambda lr, i: seen.append(("second", i, lr.t)),
+            lambda lr, i: seen.append(("first", i, lr.views.t)),
+            lambda lr, i: seen.append(("second", i, lr.views.t)),
         ],
     )
-    assert learner.t == 90
+    assert learner.views.t == 90
     assert seen == [(h, i, 25 * (i + 1)) for i in range(3) for h in ("first", "second")]
     # going on from where it stopped: the window it was in, then the next ones
-    run_windows(learner, 125, on_window=[lambda lr, i: seen.append(("later", i, lr.t))])
+    run_windows(learner, 125, on_window=[lambda lr, i: seen.append(("later", i, lr.views.t))])
     assert seen[6:] == [("later", 3, 100), ("later", 4, 125)]
 
 
@@ -70,9 +70,9 @@ def test_a_run_advanced_in_pieces_is_the_run_advanced_at_once(world8):
     for stop in (25, 75, 100):
         run_windows(pieces, stop)
     assert whole.metrics.steps == pieces.metrics.steps
-    assert torch.equal(whole.goals, pieces.goals)
-    assert torch.equal(whole.state_values(), pieces.state_values())
-    assert torch.equal(whole.visit_counts(), pieces.visit_counts())
+    assert torch.equal(whole.views.goals, pieces.views.goals)
+    assert torch.equal(whole.views.state_values(), pieces.views.state_values())
+    assert torch.equal(whole.views.visit_counts(), pieces.views.visit_counts())
 
 
 def test_checkpoints_on_their_schedule_and_a_resumed_run_goes_on_as_if_never_stopped(
@@ -83,18 +83,18 @@ def test_checkpoints_on_their_schedule_and_a_resumed_run_goes_on_as_if_never_sto
     saved = []
     checkpoints = Checkpoints(tmp_path / "world8.pt", shape, every=50)
     save = checkpoints.save
-    checkpoints.save = lambda lr, elapsed: (saved.append(lr.t), save(lr, elapsed))  # type: ignore[method-assign]
+    checkpoints.save = lambda lr, elapsed: (saved.append(lr.views.t), save(lr, elapsed))  # type: ignore[method-assign]
     assert checkpoints.start(learner, resume=False) == 0.0
     run_windows(learner, 125, checkpoints=checkpoints)
     assert saved == [50, 100, 125]
 
     resumed = batch(world8)
     elapsed = Checkpoints(tmp_path / "world8.pt", shape, every=50).start(resumed, resume=True)
-    assert resumed.t == 125 and elapsed > 0
+    assert resumed.views.t == 125 and elapsed > 0
     run_windows(learner, 175)
     assert run_windows(resumed, 175, elapsed=elapsed) >= elapsed
-    assert torch.equal(learner.state_values(), resumed.state_values())
-    assert torch.equal(learner.goals, resumed.goals)
+    assert torch.equal(learner.views.state_values(), resumed.views.state_values())
+    assert torch.equal(learner.views.goals, resumed.views.goals)
 
 
 def test_a_fresh_start_clears_the_generations_of_an_earlier_run(world8, tmp_path):
@@ -105,7 +105,7 @@ def test_a_fresh_start_clears_the_generations_of_an_earlier_run(world8, tmp_path
     fresh = batch(world8)
     Checkpoints(tmp_path / "world8.pt", shape, every=25).start(fresh, resume=False)
     assert Checkpoints(tmp_path / "world8.pt", shape, every=25).start(fresh, resume=True) == 0.0
-    assert fresh.t == 0
+    assert fresh.views.t == 0
 
 
 def test_maps_need_a_logger(world8):

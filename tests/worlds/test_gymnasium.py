@@ -331,7 +331,7 @@ def test_transition_rewards_in_the_mentor_term_by_hand():
         world, options, ["imitation"], [0], demonstrations=demos, reward=ht.KnownReward(world)
     )
     learner.plan()
-    v = learner.state_values()[0]
+    v = learner.views.state_values()[0]
     assert v[[1, 0, 3]].tolist() == pytest.approx([10.0, 4.0, 3.6])
     assert float(v[2]) == 0.0
 

@@ -217,7 +217,7 @@ def test_learners_greedy_policy_replays_in_minigrid(doorkey5):
         reward=ht.KnownReward(doorkey5),
     )
     learner.run(3000)
-    choice = learner.greedy_options()[0]
+    choice = learner.views.greedy_options()[0]
     env = doorkey5.make_env()
     s, option, reached = doorkey5.start_state, -1, False
     for _ in range(200):

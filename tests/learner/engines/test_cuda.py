@@ -84,7 +84,7 @@ def _state(learner: Learner) -> dict[str, torch.Tensor]:
 
 def assert_same_run(cpu: Learner, other: Learner) -> None:
     """Same decisions, goals, counts, edges and curves exactly; float64 state to VALUES_ATOL."""
-    assert cpu.t == other.t
+    assert cpu.views.t == other.views.t
     a, b = _state(cpu), _state(other)
     for name in a:
         if a[name].dtype == torch.float64 and name not in EXACT_FLOATS:
@@ -93,11 +93,11 @@ def assert_same_run(cpu: Learner, other: Learner) -> None:
                 a[name],
                 atol=VALUES_ATOL,
                 rtol=0,
-                msg=lambda m, name=name: f"t={cpu.t} {name}: {m}",
+                msg=lambda m, name=name: f"t={cpu.views.t} {name}: {m}",
             )
         else:
-            assert torch.equal(a[name], b[name]), f"t={cpu.t} {name}"
-    assert torch.equal(cpu.metrics.curve(), other.metrics.curve()), f"t={cpu.t} curve"
+            assert torch.equal(a[name], b[name]), f"t={cpu.views.t} {name}"
+    assert torch.equal(cpu.metrics.curve(), other.metrics.curve()), f"t={cpu.views.t} curve"
 
 
 def _all_tensors(x):
@@ -116,13 +116,13 @@ def test_cuda_torch_engine_matches_cpu_numba(world12, mentor_demos12, name):
     """Every agent variant, one window of 1000 ticks: the CUDA run is the CPU run."""
     cpu = _make(world12, mentor_demos12, CONFIGS[name], "cpu", "numba")
     gpu = _make(world12, mentor_demos12, CONFIGS[name], "cuda", "torch")
-    assert gpu.state_values().is_cuda and gpu.engine.name == "torch"
+    assert gpu.views.state_values().is_cuda and gpu.engine.name == "torch"
     cpu.run(TICKS)
     gpu.run(TICKS)
     assert_same_run(cpu, gpu)
-    assert int(cpu.decisions.min()) > 300 and int(cpu.goals.sum()) > 0
+    assert int(cpu.views.decisions.min()) > 300 and int(cpu.views.goals.sum()) > 0
     # torch's counts on the GPU, numpy's on the CPU: the same shares
-    assert torch.equal(gpu.model_coverage().cpu(), cpu.model_coverage())
+    assert torch.equal(gpu.views.model_coverage().cpu(), cpu.views.model_coverage())
 
 
 @pytest.mark.parametrize("name", list(CONFIGS))
@@ -132,13 +132,13 @@ def test_cuda_ticks_from_late_cpu_states(world12, mentor_demos12, name):
     cpu = _make(world12, mentor_demos12, CONFIGS[name], "cpu", "numba")
     gpu = _make(world12, mentor_demos12, CONFIGS[name], "cuda", "torch")
     for until in (1500, 3000):
-        cpu.run(until - cpu.t)
+        cpu.run(until - cpu.views.t)
         gpu.load_state_dict(cpu.state_dict())
-        assert gpu.state_values().is_cuda and gpu.model.edge_row.is_cuda
+        assert gpu.views.state_values().is_cuda and gpu.model.edge_row.is_cuda
         cpu.run(40)
         gpu.run(40)
         assert_same_run(cpu, gpu)
-    assert int(cpu.goals.sum()) > 0
+    assert int(cpu.views.goals.sum()) > 0
 
 
 @pytest.mark.parametrize("name", list(CONFIGS))

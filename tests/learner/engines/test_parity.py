@@ -139,7 +139,7 @@ def _state(learner: Learner) -> dict[str, torch.Tensor]:
 
 def assert_same_run(a: Learner, b: Learner, values_atol: float = 1e-9) -> None:
     """Same decisions and goals exactly; values and caches to ``values_atol``."""
-    assert a.t == b.t
+    assert a.views.t == b.views.t
     sa, sb = _state(a), _state(b)
     for name in sa:
         if sa[name].dtype == torch.float64 and name != "epsilon":
@@ -193,13 +193,13 @@ def test_engines_agree_on_the_small_world(world12, mentor_demos12, name, ticks):
     )
     runs = {"numba": numba, "torch": torch_run}
     assert_same_run(runs["numba"], runs["torch"])
-    assert int(runs["numba"].decisions.min()) > 300
+    assert int(runs["numba"].views.decisions.min()) > 300
     # The edge lists outgrew their first capacity on the way (the compiled engine stops, grows
     # them and goes on); the 40×40 run checks the same at the paper's size (-m slow).
     assert runs["numba"].model.capacity > 256
     # (priors_override_first's first goal comes after 2000 ticks)
     if length(ticks) >= LONG or name != "priors_override_first":
-        assert int(runs["numba"].goals.sum()) > 0
+        assert int(runs["numba"].views.goals.sum()) > 0
 
 
 #: Mean-model and posterior-sampling runs in one batch (issue 9, part 2).
@@ -246,7 +246,7 @@ def test_engines_agree_with_posterior_sampling(world12, mentor_demos12, name, ti
     )
     assert_same_run(*runs)
     assert int(runs[0].sample.resamples[1:].max()) > length(ticks) // 250
-    assert int(runs[0].goals[1:].sum()) > 0
+    assert int(runs[0].views.goals[1:].sum()) > 0
     for name in ("option_w", "mentor_w"):
         assert torch.equal(_state(runs[0])[name], _state(runs[1])[name]), name
 
@@ -274,9 +274,9 @@ def test_engines_agree_with_shaping(world12, mentor_demos12, name, ticks):
     assert_same_run(*runs)
     assert torch.equal(runs[0].cache.potential, runs[1].cache.potential)
     assert int((runs[0].cache.potential[:2] > 0).sum()) > 10  # the potential is there
-    assert int(runs[0].decisions[:2].min()) > 300
+    assert int(runs[0].views.decisions[:2].min()) > 300
     if length(ticks) >= 3000:
-        assert int(runs[0].goals[:2].sum()) > 0
+        assert int(runs[0].views.goals[:2].sum()) > 0
 
 
 #: Behavioural cloning from observation (issue 26) beside the agents it is compared with.
@@ -311,7 +311,7 @@ def test_engines_agree_with_behavioural_cloning(world12, mentor_demos12, name, t
     cloned = (runs[0].cloning.action >= 0).sum(1)
     assert int(cloned[0]) > 10 and int(cloned[3]) > 10  # the cloned policy is there
     assert int(cloned[[1, 2, 4]].sum()) == 0
-    assert int(runs[0].decisions[[0, 3]].min()) == length(ticks)  # (one primitive per tick)
+    assert int(runs[0].views.decisions[[0, 3]].min()) == length(ticks)  # (one primitive per tick)
 
 
 @pytest.mark.parametrize("ticks", fast_and_long(3000))
@@ -507,7 +507,7 @@ def test_engine_curves_agree_statistically_over_20_seeds():
             engine=engine,
         )
         learner.run(30_000)
-        totals[engine] = learner.goals.numpy()
+        totals[engine] = learner.views.goals.numpy()
     for k in range(3):
         a, b = totals["numba"][k::3], totals["torch"][k::3]
         assert scipy.stats.ks_2samp(a, b).pvalue > 0.05
@@ -525,9 +525,9 @@ def test_mentor_win_share_is_the_same_from_either_engine(world12, mentor_demos12
         demonstrations=mentor_demos12,
     )
     learner.run(2000)
-    compiled = learner.mentor_win_share()
+    compiled = learner.views.mentor_win_share()
     learner.use_engine("torch")
-    batched = learner.mentor_win_share()
+    batched = learner.views.mentor_win_share()
     assert torch.equal(compiled.isnan(), ~learner.rows.use_mentor)
     torch.testing.assert_close(compiled, batched, equal_nan=True, rtol=0, atol=0)
     assert float(compiled.nan_to_num(0).max()) > 0
@@ -552,4 +552,4 @@ def test_engines_agree_with_the_exact_mentor_model(world12, ticks):
         ticks,
     )
     assert_same_run(*runs)
-    assert int(runs[0].goals.sum()) > 0
+    assert int(runs[0].views.goals.sum()) > 0

@@ -72,10 +72,10 @@ def test_the_records_are_those_of_the_run_state_at_each_windows_end(world12, men
     learner = _learner(world12, mentor_demos12)
     for w in range(1, 9):
         learner.run(500 if w % 2 else 499)
-        if learner.t % 500:
+        if learner.views.t % 500:
             learner.run(1)
         m, run = learner.metrics, learner.run_state
-        assert m.steps[-1] == 500 * w == learner.t
+        assert m.steps[-1] == 500 * w == learner.views.t
         assert torch.equal(m.episodes[-1], run.episodes)
         assert torch.equal(m.backups[-1], run.backups_done)
         assert torch.equal(m.decisions[-1], run.decisions)

@@ -235,7 +235,7 @@ def propagate_mentor(st, rows, cache, mentor, sweep, sample, b, x, d, v_old, sam
 def run_mentor_wins(st, world, rows, cache, model, mentor, b):
     """``(won, seen)`` for run ``b``: how many of its mentor-observed states the mentor term
     wins eq. 2 in, by the kernel's own backup, and how many states some mentor was seen leaving
-    (the tick loop closes each window with it; :meth:`Learner.mentor_win_share` divides the
+    (the tick loop closes each window with it; :meth:`learner.views.mentor_win_share <himit_torch.LearnerViews.mentor_win_share>` divides the
     two)."""
     S = world.terminal.shape[0] - 1
     mentors = (mentor.row_count.shape[1] - 1) // S
