@@ -60,3 +60,50 @@ def test_hierarchys_effect_is_the_difference_of_the_imitation_effects(analysis):
     # the same first goals for every learner: no speed-up differs, every sign test is a tie
     assert tests[wp.HIERARCHY, "first_goal"].difference == 0.0
     assert tests[wp.HIERARCHY, "first_goal"].p == 1.0
+
+
+def test_the_budget_rule_is_the_least_multiple_of_10k_by_which_half_have_reached_the_goal(
+    analysis,
+):
+    """Hand-solved: of four runs, two must have reached the goal; the 2nd smallest first goal
+    decides (12,001 → 20k; 10,000 → 10k; a run that never did counts as never)."""
+    common, _ = analysis
+    assert common.budget_by_rule([30_000, 12_001, 5, None]) == 20_000
+    assert common.budget_by_rule([10_000, 3, -1, -1]) == 10_000
+    assert common.budget_by_rule([49, 225]) == 10_000  # at least one step of 10k
+    assert common.budget_by_rule([7, None, None]) is None  # 1 of 3 reached: fewer than half
+    assert common.budget_by_rule([25_000, 41_000, None, None], step=20_000) == 60_000
+
+
+def _cell(wp, greedy, first_goal, goals, seeds=(0, 1, 2)):
+    return wp.Cell("taxi", "paper", 1000, "abc", seeds, {wp.EQ2: np.array(greedy, dtype=float)},
+                   {wp.EQ2: np.array(first_goal)}, {wp.EQ2: np.array(goals, dtype=float)},
+                   250)  # fmt: skip
+
+
+def test_feasibility_is_compared_with_trial_alone_paired_by_seed(analysis):
+    """Hand-solved: greedy 40, 50, 60 with feasibility against 30, 50, 70 with trial alone:
+    differences +10, 0, −10 (mean 0, one seed won, one lost); first goals 5, 20, never against
+    10, 20, 30: one sooner, one tie, one later (never loses)."""
+    _, wp = analysis
+    trial = _cell(wp, [30, 50, 70], [10, 20, 30], [1, 2, 3])
+    feasible = _cell(wp, [40, 50, 60], [5, 20, -1], [2, 4, 6])
+    tests = {t.endpoint: t for t in wp.f_tests(trial, feasible, 1)}
+    assert tests["greedy"].name == "N = 1 − trial alone"
+    assert tests["greedy"].difference == pytest.approx(0.0)
+    assert (tests["greedy"].wins, tests["greedy"].losses) == (1, 1)
+    assert (tests["first_goal"].wins, tests["first_goal"].losses) == (1, 1)
+    assert tests["goals_q1"].difference == pytest.approx(2.0)
+    with pytest.raises(ValueError, match="seeds differ"):
+        wp.f_tests(trial, _cell(wp, [1, 2], [1, 2], [1, 2], seeds=(0, 1)), 3)
+
+
+def test_a_run_is_changed_where_any_window_of_its_record_differs(analysis):
+    _, wp = analysis
+    base = {("imitation", 0): (("2000", "5"),), ("imitation", 1): (("2000", "7"),)}
+    same_and_one_window_differs = {("imitation", 0): (("2000", "5"),),
+                                   ("imitation", 1): (("2000", "8"),)}  # fmt: skip
+    assert wp.runs_changed(base, base) == (0, 2)
+    assert wp.runs_changed(base, same_and_one_window_differs) == (1, 2)
+    with pytest.raises(ValueError, match="seeds"):
+        wp.runs_changed(base, {("imitation", 0): (("2000", "5"),)})

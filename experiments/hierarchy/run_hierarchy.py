@@ -173,7 +173,9 @@ def main() -> None:
             for record in RECORDS:
                 shutil.copy(logdir / name / record, target / record)
         if not args.skip_runs:
-            timing[part] = round((time.perf_counter() - started) / 60, 1)
+            some = part in ("q1", "f") and args.tasks != list(Q1_TASKS)
+            key = f"{part} ({' '.join(args.tasks)})" if some else part
+            timing[key] = round((time.perf_counter() - started) / 60, 1)
             timing_path.write_text(json.dumps(timing, indent=2) + "\n")
     run(str(HERE / "analyse.py"))
     run(str(HERE / "where_pays.py"))

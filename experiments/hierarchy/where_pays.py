@@ -45,7 +45,16 @@ from himit_torch.statistics import (
 )
 
 #: Q1's Gymnasium tasks: the task's name in ``himit run gymnasium`` → its label.
-Q1_TASKS = {"taxi": "Taxi"}
+Q1_TASKS = {
+    "taxi": "Taxi",
+    "doorkey5x5": "DoorKey 5×5",
+    "doorkey6x6": "DoorKey 6×6",
+    "unlock": "Unlock",
+}
+#: F's tries (``mentor_feasibility``), each against Q1's eq. 2 cell (trial alone).
+F_TRIES = (1, 3)
+#: The per-window columns that make a run's record (a decision that differs changes them).
+RECORD_COLUMNS = ("step", "goals", "episodes", "epsilon", "value_gap", "mentor_term_wins")
 #: The four learners of every cell: eq. 2, its no-mentor control, eq. 1, its no-mentor control.
 EQ2, OPTIONS, EQ1, PRIMITIVES = "imitation", "options", "imitation_primitives", "primitives"
 AGENT_LABELS = {
@@ -135,6 +144,7 @@ CONTRASTS: dict[str, Contrast] = {
     "eq. 2 − eq. 1": (lambda v: v[EQ2], lambda v: v[EQ1]),
 }
 HIERARCHY = "hierarchy's effect on imitation (eq. 2's − eq. 1's)"
+OWN = "options' own effect (options only − primitives only)"
 DIRECT = "eq. 2 − eq. 1"
 
 
@@ -232,9 +242,9 @@ def agents_table(cells: list[Cell], label: str) -> list[str]:
     return lines + [""]
 
 
-def tests_table(tests: list[Test], label: str) -> list[str]:
+def tests_table(tests: list[Test], title: str) -> list[str]:
     lines = [
-        f"### {label}: the split, paired by seed",
+        f"### {title}",
         "",
         "Each row: a − b paired by seed (mean difference [95 % BCa], seeds a won–lost), the "
         "paired t-test's p (greedy policy, goals) or the sign test's (first goal), Holm's p "
@@ -253,11 +263,131 @@ def tests_table(tests: list[Test], label: str) -> list[str]:
     return lines + [""]
 
 
+def window_records(directory: Path, task: str) -> dict[tuple[str, int], tuple]:
+    """Each run's per-window record (:data:`RECORD_COLUMNS`, as written) by (agent, seed)."""
+    out: dict[tuple[str, int], list] = {}
+    with (directory / "tasks" / f"{task}.csv").open() as f:
+        for row in csv.DictReader(f):
+            key = (row["agent"], int(row["seed"]))
+            out.setdefault(key, []).append(tuple(row[c] for c in RECORD_COLUMNS))
+    return {k: tuple(v) for k, v in out.items()}
+
+
+def runs_changed(a: dict, b: dict, agent: str = EQ2) -> tuple[int, int]:
+    """(the runs of ``agent`` whose per-window record differs between the records ``a`` and
+    ``b``, the runs compared), paired by seed.
+
+    Raises:
+        ValueError: the two records hold ``agent``'s runs for different seeds."""
+    seeds = sorted(s for g, s in a if g == agent)
+    if seeds != sorted(s for g, s in b if g == agent):
+        raise ValueError(f"runs_changed: the records' seeds of {agent!r} differ")
+    return sum(a[agent, s] != b[agent, s] for s in seeds), len(seeds)
+
+
+def f_tests(trial: Cell, feasibility: Cell, tries: int) -> list[Test]:
+    """F's contrasts at one task × schedule: eq. 2 with feasibility at ``tries`` − eq. 2 with
+    trial alone (Q1's cell), paired by seed, × the three endpoints, unadjusted.
+
+    Raises:
+        ValueError: the two cells' seeds differ."""
+    if trial.seeds != feasibility.seeds:
+        raise ValueError("f_tests: the feasibility cell's seeds differ from the trial cell's")
+    out = []
+    for endpoint in ENDPOINTS:
+        a, b = getattr(feasibility, endpoint)[EQ2], getattr(trial, endpoint)[EQ2]
+        if endpoint == "first_goal":
+            r = first_goal_sign_test(a, b)
+            d, lo, hi, p = r.difference.estimate, np.nan, np.nan, r.sign_p
+        else:
+            r = paired_comparison(a, b)
+            d, lo, hi, p = r.difference.estimate, r.difference.low, r.difference.high, r.t_p
+        out.append(
+            Test(
+                "F",
+                f"N = {tries} − trial alone",
+                trial.task,
+                "",
+                trial.schedule,
+                "",
+                "",
+                endpoint,
+                d,
+                lo,
+                hi,
+                p,
+                r.wins,
+                r.losses,
+            )  # fmt: skip
+        )
+    return out
+
+
+def figure(q1: list[Test], f: list[Test], path: Path) -> None:
+    """The greedy endpoint's paired differences with their 95 % BCa intervals: Q1's split per
+    task × schedule, and F's N − trial alone beside it."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    panels = [("Q1: the split (eq. 2 and eq. 1 with trial)", q1, list(CONTRASTS))]
+    if f:
+        panels.append(("F: feasibility − trial alone (eq. 2)", f, sorted({t.name for t in f})))
+    rows = len({(t.world, t.schedule) for t in q1})
+    fig, axes = plt.subplots(
+        1, len(panels), figsize=(6.5 * len(panels), 2.5 + 0.8 * rows), squeeze=False
+    )
+    for ax, (title, tests, names) in zip(axes[0], panels):
+        greedy = [t for t in tests if t.endpoint == "greedy"]
+        conditions = list(dict.fromkeys((t.world, t.schedule) for t in greedy))
+        for k, name in enumerate(names):
+            rows = {(t.world, t.schedule): t for t in greedy if t.name == name}
+            ys = [
+                i + (k - (len(names) - 1) / 2) * 0.16 for i, c in enumerate(conditions) if c in rows
+            ]
+            ts = [rows[c] for c in conditions if c in rows]
+            ax.errorbar(
+                [t.difference for t in ts],
+                ys,
+                xerr=[[t.difference - t.low for t in ts], [t.high - t.difference for t in ts]],
+                fmt="o",
+                ms=4,
+                capsize=2,
+                label=name,
+            )
+        ax.axvline(0, color="grey", lw=0.8)
+        ax.set_yticks(range(len(conditions)))
+        ax.set_yticklabels([f"{Q1_TASKS[w]}, {s}" for w, s in conditions])
+        ax.invert_yaxis()
+        ax.set_xlabel("difference in the greedy policy's % of the optimum (95 % BCa)")
+        ax.set_title(title, fontsize=10)
+        ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.12))
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def budget_line(rule: dict, task: str) -> str:
+    """How the rule picked a MiniGrid task's budget (from ``q1_budget_rule.json``)."""
+    r = rule[task]
+    first = sorted(s for s in r["first_goal_step"] if s is not None)
+    return (
+        f" The budget is the rule's (options only, the paper's schedule, held-out seeds "
+        f"{r['seeds'][0]}–{r['seeds'][-1]}, one run per seed at a cap of {r['cap']:,} steps): "
+        f"{len(first)} of {len(r['seeds'])} reached the goal, the 10th at step {first[9]:,} "
+        f"(first goals {first[0]:,}–{first[-1]:,}), so {r['budget']:,} steps, by which "
+        f"{r['reached_by_budget']} of {len(r['seeds'])} had reached it."
+    )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--results", default=str(HERE.parent / "results" / "hierarchy"))
     args = parser.parse_args()
     results = Path(args.results)
+    rule_path = results / "q1_budget_rule.json"
+    rule = json.loads(rule_path.read_text()) if rule_path.exists() else {}
     cells, missing = [], []
     for task in Q1_TASKS:
         for schedule in SCHEDULES:
@@ -267,6 +397,30 @@ def main() -> None:
             else:
                 missing.append(directory.name)
     q1 = adjust([t for cell in cells for t in cell_tests("Q1", cell)])
+    # F: per Q1 cell, eq. 2 with feasibility at N tries against the cell's eq. 2 (trial alone)
+    f_raw: list[Test] = []
+    f_rows: list[str] = []
+    for cell in cells:
+        q1_dir = results / f"q1_{cell.task}_{cell.schedule}"
+        check = results / f"f_{cell.task}_{cell.schedule}_trial"
+        if not (check / "tasks" / f"{cell.task}.json").exists():
+            missing.append(check.name)
+            continue
+        base = window_records(q1_dir, cell.task)
+        same = 20 - runs_changed(base, window_records(check, cell.task))[0]
+        for tries in F_TRIES:
+            directory = results / f"f_{cell.task}_{cell.schedule}_n{tries}"
+            if not (directory / "tasks" / f"{cell.task}.json").exists():
+                missing.append(directory.name)
+                continue
+            f_cell = load_gymnasium_cell(directory, cell.task, cell.schedule)
+            f_raw += f_tests(cell, f_cell, tries)
+            changed, n = runs_changed(base, window_records(directory, cell.task))
+            f_rows.append(
+                f"| {Q1_TASKS[cell.task]} | {SCHEDULES[cell.schedule]} | N = {tries} | "
+                f"{changed} of {n} | {same} of 20 |"
+            )
+    f = adjust(f_raw)
     verdicts = {(c.task, c.schedule): helps(q1, c.task, c.schedule) for c in cells}
     distinct, repeats = distinct_comparisons([t for t in q1 if t.name == HIERARCHY])
     n_conditions = len({(t.world, t.schedule) for t in distinct})
@@ -280,7 +434,7 @@ def main() -> None:
         "",
         f"*Runs at commit {commits}; this page written at {head} by `python "
         "experiments/hierarchy/where_pays.py` from the committed records, as the protocol's "
-        "amendment of 2026-11-29 declared them before the runs.*",
+        "amendments of 2026-11-29 declared them before the runs.*",
         "",
         "## The answers so far",
         "",
@@ -308,10 +462,44 @@ def main() -> None:
         f"conditions (each pair of runs counted once; {len(repeats)} repeats), and eq. 2 is "
         f"significantly worse than eq. 1 on the greedy policy in {n_worse}. The protocol's goal "
         "needs ≥ 3 with none worse; the round is not finished (below).",
-        "- **Not run yet:** Q1 on MiniGrid and the puzzle box, Q2 (observation at the mentor's "
-        "option ends), Q3 (transfer), Q4 (the fifth skewer) and F (feasibility at N = 1 and "
-        "3): their cells follow in amendments before their runs, as the settings and worlds "
-        "land.",
+    ]
+    hurt = [t for t in q1 if t.name == HIERARCHY and t.p_holm < 0.05 and t.difference < 0]
+    own = {
+        (t.world, t.schedule) for t in q1 if t.name == OWN and t.p_holm < 0.05 and t.difference > 0
+    }
+    lines += [
+        "- **Where hierarchy hurts imitation:** hierarchy's effect on imitation is significantly "
+        "negative (Holm) at "
+        + (
+            "; ".join(
+                f"{Q1_TASKS[t.world]}, {SCHEDULES[t.schedule]}, {ENDPOINTS[t.endpoint]} "
+                f"({t.difference:+.1f})"
+                for t in hurt
+            )  # fmt: skip
+            if hurt
+            else "no condition"
+        )
+        + ".",
+        f"- **The options' own effect** (options only − primitives only, no mentor) is "
+        f"significantly positive (Holm) on some endpoint at {len(own)} of {len(cells)} "
+        "conditions: on these tasks the options pay with or without a mentor.",
+    ]
+    if f:
+        significant = [t for t in f if t.p_holm < 0.05]
+        lines.append(
+            f"- **F, feasibility:** {len(significant)} of {len(f)} contrasts (N − trial alone) "
+            "significant after Holm; what each setting changed is in its section below."
+        )
+    lines += [
+        "- **Not run yet:** "
+        + ("; ".join(sorted(set(missing))) + " (records absent); " if missing else "")
+        + "Q1 on the puzzle box and on MiniGrid's other tasks (DoorKey 8×8, UnlockPickup, "
+        "KeyCorridor, MultiRoom, FourRooms: another branch adds them), Q2 (observation at the "
+        "mentor's option ends), Q3 (transfer), Q4 (the fifth skewer): their cells follow in "
+        "amendments before their runs, as the settings and worlds land. No preset: nothing has "
+        "won at ≥ 3 conditions.",
+        "",
+        "![The greedy endpoint's paired differences](where_pays.png)",
         "",
         "## Q1, subgoal tasks",
         "",
@@ -325,20 +513,40 @@ def main() -> None:
             f"{label}: {len(c0.seeds)} seeds ({c0.seeds[0]}–{c0.seeds[-1]}) per learner and "
             f"schedule, {c0.budget:,} steps a run; trial of untried own options on for both "
             f"imitators; goals in the first quarter counted over the first {c0.quarter_steps:,} "
-            "steps (the whole windows within it). Run: `python "
-            "experiments/hierarchy/run_hierarchy.py --parts q1`.",
+            "steps (the whole windows within it). Both schedules hold ε at its start until a "
+            "run's first goal, so the first-goal rows of the two schedules are the same runs'."
+            + (budget_line(rule, task) if task in rule else "")
+            + f" Run: `python experiments/hierarchy/run_hierarchy.py --parts q1 --tasks {task}`.",
             "",
         ]
         lines += agents_table(task_cells, label)
-        lines += tests_table([t for t in q1 if t.world == task], label)
-    if missing:
-        lines += [f"*Records absent, left out: {', '.join(missing)}.*", ""]
+        lines += tests_table(
+            [t for t in q1 if t.world == task], f"{label}: the split, paired by seed"
+        )
+    if f:
+        lines += [
+            "## F, feasibility at N = 1 and N = 3",
+            "",
+            "Eq. 2 with trial and `mentor_feasibility` N against eq. 2 with trial alone (Q1's "
+            "cell), paired by seed. *Changed*: the runs whose per-window record (goals, "
+            "episodes, ε, value gap, mentor-term wins) differs from trial alone's. *Check*: eq. "
+            "2 with trial alone run by itself in a batch, runs equal to Q1's cell (so that a "
+            "change is the setting's, not the batch's). Run: `python "
+            "experiments/hierarchy/run_hierarchy.py --parts f`.",
+            "",
+            "| task | schedule | feasibility | runs changed | check: trial alone equal |",
+            "|---|---|---|---|---|",
+            *f_rows,
+            "",
+        ]
+        lines += tests_table(f, "F: feasibility − trial alone, paired by seed")
+    figure(q1, f, results / "where_pays.png")
     (results / "where_pays.md").write_text("\n".join(lines))
-    with (results / "where_pays_tests.csv").open("w", newline="") as f:
-        writer = csv.writer(f)
+    with (results / "where_pays_tests.csv").open("w", newline="") as out:
+        writer = csv.writer(out)
         fields = list(Test.__dataclass_fields__)
         writer.writerow(fields)
-        for t in q1:
+        for t in q1 + f:
             writer.writerow([getattr(t, k) for k in fields])
     print(f"wrote {results / 'where_pays.md'}")
 
