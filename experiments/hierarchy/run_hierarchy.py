@@ -2,7 +2,7 @@
 copied into ``experiments/results/hierarchy/``, then ``analyse.py``.
 
     python experiments/hierarchy/run_hierarchy.py
-        [--parts segments trial puzzlebox mentors largest carryover q1]
+        [--parts segments trial puzzlebox mentors largest carryover q1 f q2]
         [--logdir runs/hierarchy] [--skip-runs]
 
 Each part's wall time is written to ``experiments/results/hierarchy/timing.json``. The part
@@ -49,6 +49,14 @@ PARTS = {
     ),
     "q1": (),  # (himit run gymnasium per task and schedule: run_q1)
     "f": (),  # (the same, eq. 2 alone with feasibility: run_f)
+    "q2": (
+        "q2_controls_exp2",
+        "q2_ends_exp2",
+        "q2_stride_exp2",
+        "q2_controls_exp1",
+        "q2_ends_exp1",
+        "q2_stride_exp1",
+    ),
 }
 #: What a sweep's record keeps in the repository: per-run summaries, per-window goals, its spec.
 RECORDS = ("runs.csv", "results.csv", "sweep.json")
@@ -167,7 +175,7 @@ def main() -> None:
         for name in PARTS[part]:
             if not args.skip_runs:
                 run("-m", "himit_torch.cli", "sweep", str(HERE / f"{name}.toml"),
-                    "--out", str(logdir / name))  # fmt: skip
+                    "--out", str(logdir / name), "--worker-niceness", "5")  # fmt: skip
             target = RESULTS / name
             target.mkdir(parents=True, exist_ok=True)
             for record in RECORDS:
