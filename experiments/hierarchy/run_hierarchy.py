@@ -10,7 +10,8 @@ Each part's wall time is written to ``experiments/results/hierarchy/timing.json`
 ``himit run gymnasium`` per task and schedule instead of a sweep, each MiniGrid task at the
 budget its rule picks on held-out seeds (``q1_budget_rule.json``); ``f`` (feasibility at N = 1
 and 3 on Q1's cells) runs eq. 2 alone the same way; ``where_pays.py`` writes their page.
-``--tasks`` restricts ``q1`` and ``f`` to some of their tasks.
+``--tasks`` restricts ``q1`` and ``f`` to some of their tasks, ``--sweeps`` a part to some of
+its sweeps; sweeps run in this process (``--no-ray``: Ray's start times out on a loaded machine).
 """
 
 import argparse
@@ -159,6 +160,7 @@ def main() -> None:
     parser.add_argument("--skip-runs", action="store_true", help="copy and analyse finished runs")
     parser.add_argument("--tasks", nargs="+", choices=Q1_TASKS, default=list(Q1_TASKS),
                         help="q1's and f's tasks")  # fmt: skip
+    parser.add_argument("--sweeps", nargs="+", help="only these of the parts' sweeps")
     args = parser.parse_args()
     logdir = Path(args.logdir)
     RESULTS.mkdir(parents=True, exist_ok=True)
@@ -172,10 +174,10 @@ def main() -> None:
             run_q1(logdir, args.skip_runs, args.tasks)
         if part == "f":
             run_f(logdir, args.skip_runs, args.tasks)
-        for name in PARTS[part]:
+        for name in [n for n in PARTS[part] if args.sweeps is None or n in args.sweeps]:
             if not args.skip_runs:
                 run("-m", "himit_torch.cli", "sweep", str(HERE / f"{name}.toml"),
-                    "--out", str(logdir / name), "--worker-niceness", "5")  # fmt: skip
+                    "--out", str(logdir / name), "--no-ray")  # fmt: skip
             target = RESULTS / name
             target.mkdir(parents=True, exist_ok=True)
             for record in RECORDS:
