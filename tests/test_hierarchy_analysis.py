@@ -107,3 +107,62 @@ def test_a_run_is_changed_where_any_window_of_its_record_differs(analysis):
     assert wp.runs_changed(base, same_and_one_window_differs) == (1, 2)
     with pytest.raises(ValueError, match="seeds"):
         wp.runs_changed(base, {("imitation", 0): (("2000", "5"),)})
+
+
+def _write_sweep(directory, rows, strides=("",)):
+    """A tiny sweep record: runs.csv, results.csv (two windows a run) and sweep.json."""
+    import csv
+    import json
+
+    directory.mkdir(parents=True)
+    fields = ["agent", "seed", "preset", "observation_stride", "greedy_percent_of_optimal",
+              "first_goal_step"]  # fmt: skip
+    with (directory / "runs.csv").open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(fields)
+        for stride in strides:
+            for agent, seed, preset, greedy, first in rows:
+                w.writerow([agent, seed, preset, stride, greedy, first])
+    with (directory / "results.csv").open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["agent", "seed", "preset", "observation_stride", "step", "goals_in_window"])
+        for stride in strides:
+            for agent, seed, preset, greedy, _ in rows:
+                w.writerow([agent, seed, preset, stride, 50_000, int(greedy) // 10])
+                w.writerow([agent, seed, preset, stride, 55_000, 100])  # after the quarter
+    (directory / "sweep.json").write_text(json.dumps({"commit": "abcdef123"}))
+
+
+def test_q2s_controls_serve_every_observation_and_early_goals_stop_at_the_quarter(
+    analysis, tmp_path
+):
+    """Hand-made exp2 records (budget 200k: the quarter ends at 50k): the imitators' sweeps at
+    the option ends and at strides 10 and 20, the controls once; each of the 3 observations × 2
+    schedules is a cell with the same control runs; exp1's sweeps are absent and said so."""
+    _, wp = analysis
+    imitators = [(a, s, p, g, f) for p in ("paper", "explore-goals")
+                 for a, g in (("imitation", 60), ("imitation_primitives", 40))
+                 for s, f in ((0, 300), (1, -1))]  # fmt: skip
+    controls = [(a, s, p, g, 500) for p in ("paper", "explore-goals")
+                for a, g in (("options", 30), ("primitives", 20)) for s in (0, 1)]  # fmt: skip
+    _write_sweep(tmp_path / "q2_ends_exp2", imitators)
+    _write_sweep(tmp_path / "q2_stride_exp2", imitators, strides=("10", "20"))
+    _write_sweep(tmp_path / "q2_controls_exp2", controls)
+    cells, missing = wp.load_q2_cells(tmp_path)
+    assert missing == ["q2_controls_exp1", "q2_ends_exp1", "q2_stride_exp1"]
+    assert [(c.condition, c.schedule) for c in cells] == [
+        (o, p)
+        for o in ("option ends", "stride 10", "stride 20")
+        for p in ("paper", "explore-goals")
+    ]
+    for cell in cells:
+        assert cell.seeds == (0, 1) and cell.budget == 200_000
+        assert cell.greedy["options"].tolist() == [30, 30]
+        assert cell.first_goal["imitation"].tolist() == [300, -1]
+        # only the window ending at 50k counts: greedy // 10
+        assert cell.goals_q1["imitation"].tolist() == [6, 6]
+        assert cell.goals_q1["primitives"].tolist() == [2, 2]
+        tests = {(t.name, t.endpoint): t for t in wp.cell_tests("Q2", cell)}
+        # (60 − 30) − (40 − 20) = 10 on every seed
+        assert tests[wp.HIERARCHY, "greedy"].difference == pytest.approx(10.0)
+        assert tests[wp.HIERARCHY, "greedy"].condition == cell.condition
