@@ -2,7 +2,7 @@
 copied into ``experiments/results/hierarchy/``, then ``analyse.py``.
 
     python experiments/hierarchy/run_hierarchy.py
-        [--parts segments trial puzzlebox mentors largest carryover q1 f q2]
+        [--parts segments trial puzzlebox mentors largest carryover q1 f q2 q2mg]
         [--logdir runs/hierarchy] [--skip-runs]
 
 Each part's wall time is written to ``experiments/results/hierarchy/timing.json``. The part
@@ -50,6 +50,7 @@ PARTS = {
     ),
     "q1": (),  # (himit run gymnasium per task and schedule: run_q1)
     "f": (),  # (the same, eq. 2 alone with feasibility: run_f)
+    "q2mg": (),  # (Q2 on MiniGrid's tasks, himit run gymnasium per cell: run_q2_minigrid)
     "q2": (
         "q2_controls_exp2",
         "q2_ends_exp2",
@@ -188,6 +189,27 @@ def run_f(logdir: Path, skip_runs: bool, tasks=Q1_TASKS) -> None:
                          skip_runs)  # fmt: skip
 
 
+#: Q2 on MiniGrid: observation → its flags (the controls are Q1's cells).
+Q2_OBSERVATIONS = {
+    "ends": ["--observation", "option-ends"],
+    "stride10": ["--observation-stride", "10"],
+    "stride20": ["--observation-stride", "20"],
+}
+
+
+def run_q2_minigrid(logdir: Path, skip_runs: bool, tasks=MINIGRID) -> None:
+    """Q2's MiniGrid cells: eq. 2 and eq. 1, segments and trial on, per task, observation and
+    schedule, at the task's Q1 budget."""
+    for task in [t for t in tasks if t in MINIGRID]:
+        steps = q1_budget(task, logdir, skip_runs)
+        for observation, flags in Q2_OBSERVATIONS.items():
+            for schedule in Q1_SCHEDULES:
+                gym_cell(f"q2_{task}_{observation}_{schedule}", task,
+                         ("imitation", "imitation_primitives"), schedule,
+                         ["--mentor-segments", "--mentor-trial", *flags], steps, logdir,
+                         skip_runs)  # fmt: skip
+
+
 def run(*argv: str) -> None:
     print("$", " ".join(argv), flush=True)
     subprocess.run([sys.executable, *argv], check=True)
@@ -214,6 +236,8 @@ def main() -> None:
             run_q1(logdir, args.skip_runs, args.tasks)
         if part == "f":
             run_f(logdir, args.skip_runs, args.tasks)
+        if part == "q2mg":
+            run_q2_minigrid(logdir, args.skip_runs, args.tasks)
         for name in [n for n in PARTS[part] if args.sweeps is None or n in args.sweeps]:
             if not args.skip_runs:
                 run("-m", "himit_torch.cli", "sweep", str(HERE / f"{name}.toml"),
@@ -223,7 +247,7 @@ def main() -> None:
             for record in RECORDS:
                 shutil.copy(logdir / name / record, target / record)
         if not args.skip_runs:
-            some = part in ("q1", "f") and args.tasks != list(Q1_TASKS)
+            some = part in ("q1", "f", "q2mg") and args.tasks != list(Q1_TASKS)
             key = f"{part} ({' '.join(args.tasks)})" if some else part
             timing[key] = round((time.perf_counter() - started) / 60, 1)
             timing_path.write_text(json.dumps(timing, indent=2) + "\n")
