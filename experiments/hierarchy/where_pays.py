@@ -24,7 +24,7 @@ import csv
 import json
 import subprocess
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -59,6 +59,9 @@ Q2_OBSERVATIONS = {
     "stride 10": ("q2_stride", "10"),
     "stride 20": ("q2_stride", "20"),
 }
+#: Q2 on MiniGrid: Q1's tasks, the cells' observation names → labels (controls: Q1's cells).
+Q2_MINIGRID = ("doorkey5x5", "doorkey6x6", "unlock")
+Q2_MINIGRID_OBSERVATIONS = {"ends": "option ends", "stride10": "stride 10", "stride20": "stride 20"}
 #: F's tries (``mentor_feasibility``), each against Q1's eq. 2 cell (trial alone).
 F_TRIES = (1, 3)
 #: The per-window columns that make a run's record (a decision that differs changes them).
@@ -214,6 +217,33 @@ def load_q2_cells(results: Path) -> tuple[list[Cell], list[str]]:
                         observation,
                         budget,
                         imitators[2],
+                    )
+                )
+    for task in Q2_MINIGRID:
+        for short, observation in Q2_MINIGRID_OBSERVATIONS.items():
+            for schedule in SCHEDULES:
+                name = f"q2_{task}_{short}_{schedule}"
+                directory, controls = results / name, results / f"q1_{task}_{schedule}"
+                if not (directory / "tasks" / f"{task}.json").exists():
+                    missing.append(name)
+                    continue
+                cell = load_gymnasium_cell(directory, task, schedule)
+                base = load_gymnasium_cell(controls, task, schedule)
+                if cell.seeds != base.seeds or cell.budget != base.budget:
+                    raise ValueError(f"{name}: its seeds or budget differ from Q1's controls")
+
+                def merged(field, cell=cell, base=base):
+                    imitators = getattr(cell, field)
+                    return {**{a: getattr(base, field)[a] for a in (OPTIONS, PRIMITIVES)},
+                            **{a: imitators[a] for a in (EQ2, EQ1)}}  # fmt: skip
+
+                cells.append(
+                    replace(
+                        cell,
+                        greedy=merged("greedy"),
+                        first_goal=merged("first_goal"),
+                        goals_q1=merged("goals_q1"),
+                        condition=observation,
                     )
                 )
     return cells, sorted(set(missing))
@@ -622,8 +652,8 @@ def main() -> None:
         "- **Not run yet:** "
         + ("; ".join(sorted(set(missing))) + " (records absent); " if missing else "")
         + "Q1 on the puzzle box and on MiniGrid's other tasks (DoorKey 8×8, UnlockPickup, "
-        "KeyCorridor, MultiRoom, FourRooms: another branch adds them), Q2 on MiniGrid's tasks "
-        "(the setting is not in `himit run minigrid`'s runner yet), Q3 (transfer), Q4 (the "
+        "KeyCorridor, MultiRoom, FourRooms: another branch adds them), F on Q2's conditions "
+        "(where the mentor's observed moves are several steps), Q3 (transfer), Q4 (the "
         "fifth skewer): their cells follow in amendments before their runs, as the settings and "
         "worlds land. No preset: nothing has won at ≥ 3 conditions.",
         "",
@@ -658,22 +688,20 @@ def main() -> None:
             "Eq. 2 and eq. 1 watch the mentor only where its options end (with each episode's "
             "first and last state), or every 10th or 20th state; the segment term and trial on "
             "for both; the no-mentor controls (options only, primitives only) watch nothing, so "
-            "one pair of control cells per world and schedule serves the three observations. 20 "
-            "seeds (0–19), each world's budget; goals in the first quarter: the windows that end "
-            "within it. Run: `python experiments/hierarchy/run_hierarchy.py --parts q2`.",
+            "one pair of control cells per world and schedule serves the three observations (on "
+            "MiniGrid: Q1's cells). 20 seeds (0–19), each world's budget (MiniGrid: Q1's); goals "
+            "in the first quarter: the windows that end within it. Run: `python "
+            "experiments/hierarchy/run_hierarchy.py --parts q2 q2mg`.",
             "",
         ]
-        for world in Q2_WORLDS:
-            for observation in Q2_OBSERVATIONS:
-                group = [c for c in q2_cells if (c.task, c.condition) == (world, observation)]
-                if not group:
-                    continue
-                name = label(world, observation)
-                lines += agents_table(group, name)
-                lines += tests_table(
-                    [t for t in q2 if (t.world, t.condition) == (world, observation)],
-                    f"{name}: the split, paired by seed",
-                )
+        for world, observation in dict.fromkeys((c.task, c.condition) for c in q2_cells):
+            group = [c for c in q2_cells if (c.task, c.condition) == (world, observation)]
+            name = label(world, observation)
+            lines += agents_table(group, name)
+            lines += tests_table(
+                [t for t in q2 if (t.world, t.condition) == (world, observation)],
+                f"{name}: the split, paired by seed",
+            )
     if f:
         lines += [
             "## F, feasibility at N = 1 and N = 3",
