@@ -249,6 +249,8 @@ def main() -> None:
         if not args.skip_runs:
             some = part in ("q1", "f", "q2mg") and args.tasks != list(Q1_TASKS)
             key = f"{part} ({' '.join(args.tasks)})" if some else part
+            if args.sweeps:
+                key = f"{part} ({' '.join(n for n in PARTS[part] if n in args.sweeps)})"
             timing[key] = round((time.perf_counter() - started) / 60, 1)
             timing_path.write_text(json.dumps(timing, indent=2) + "\n")
     run(str(HERE / "analyse.py"))

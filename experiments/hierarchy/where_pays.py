@@ -642,6 +642,28 @@ def main() -> None:
             "imitation losing ground to its own no-mentor control, not eq. 2 gaining over its "
             "own."
         )
+    own_eq2 = [t for t in q2 if t.name == list(CONTRASTS)[1] and t.endpoint == "greedy"]
+    if own_eq2:
+        by_observation: dict[tuple[str, str], list[str]] = {}
+        for t in own_eq2:
+            mark = "*" if t.p_holm < 0.05 else ""
+            by_observation.setdefault((t.world, t.schedule), []).append(
+                f"{t.condition} {t.difference:+.1f}{mark}"
+            )
+        ends = [t for t in own_eq2 if t.condition == "option ends"]
+        strides = [t for t in own_eq2 if t.condition != "option ends"]
+        lines.append(
+            "- **Q2, eq. 2's own imitation effect by what it sees** (eq. 2 − options only, "
+            "greedy policy, points; * Holm-significant): "
+            + "; ".join(
+                f"{label(w)}, {SCHEDULES[s]}: " + ", ".join(v)
+                for (w, s), v in by_observation.items()
+            )
+            + f". Below zero at {sum(t.difference < 0 for t in ends)} of {len(ends)} option-ends "
+            f"conditions and at {sum(t.difference < 0 for t in strides)} of {len(strides)} "
+            "stride conditions. Hierarchy's effect is the difference of the two imitation "
+            'effects: where both are negative, a "helps" means eq. 1 lost more than eq. 2.'
+        )
     hurt = [t for t in every if t.name == HIERARCHY and t.p_holm < 0.05 and t.difference < 0]
     own = {
         (t.world, t.schedule)
