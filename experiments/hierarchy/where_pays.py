@@ -190,7 +190,10 @@ def load_q2_cells(results: Path) -> tuple[list[Cell], list[str]]:
             runs = list(csv.DictReader(f))
         with (directory / "results.csv").open() as f:
             windows = list(csv.DictReader(f))
-        commit = str(json.loads((directory / "sweep.json").read_text()).get("commit", "?"))[:7]
+        commit = json.loads((directory / "sweep.json").read_text()).get("commit", "?")
+        # a sweep's record lists its trials' commits: the distinct ones, short
+        commits = commit if isinstance(commit, list) else [commit]
+        commit = ", ".join(sorted({str(c)[:7] for c in commits}))
         return runs, windows, commit
 
     for world, (_, budget) in Q2_WORLDS.items():
@@ -596,7 +599,7 @@ def main() -> None:
     n_worse = sum(w for _, w in verdicts)
     head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
                           text=True, cwd=HERE).stdout.strip()  # fmt: skip
-    commits = ", ".join(sorted({c.commit for c in cells + q2_cells})) or "–"
+    commits = ", ".join(sorted({x for c in cells + q2_cells for x in c.commit.split(", ")})) or "–"
     lines = [
         "# Where does hierarchy pay? Subgoal tasks, subgoal observation, transfer",
         "",
