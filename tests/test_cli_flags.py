@@ -67,6 +67,7 @@ EXPERIMENT_FLAGS = {
     "mentor_detour": ([], True),  # given as --mentor-detour
     "mentor_coverage": (["0.5"], 0.5),
     "mentor_goal": (["top-right"], "top-right"),
+    "observation": (["option-ends"], "option-ends"),
     "second_mentor": (["noisy"], "noisy"),  # (learner.mentors derived: 2)
     "second_mentor_noise": (["0.3"], 0.3),
     "observation_stride": (["5"], 5),

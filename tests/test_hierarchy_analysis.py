@@ -60,3 +60,111 @@ def test_hierarchys_effect_is_the_difference_of_the_imitation_effects(analysis):
     # the same first goals for every learner: no speed-up differs, every sign test is a tie
     assert tests[wp.HIERARCHY, "first_goal"].difference == 0.0
     assert tests[wp.HIERARCHY, "first_goal"].p == 1.0
+
+
+def test_the_budget_rule_is_the_least_multiple_of_10k_by_which_half_have_reached_the_goal(
+    analysis,
+):
+    """Hand-solved: of four runs, two must have reached the goal; the 2nd smallest first goal
+    decides (12,001 → 20k; 10,000 → 10k; a run that never did counts as never)."""
+    common, _ = analysis
+    assert common.budget_by_rule([30_000, 12_001, 5, None]) == 20_000
+    assert common.budget_by_rule([10_000, 3, -1, -1]) == 10_000
+    assert common.budget_by_rule([49, 225]) == 10_000  # at least one step of 10k
+    assert common.budget_by_rule([7, None, None]) is None  # 1 of 3 reached: fewer than half
+    assert common.budget_by_rule([25_000, 41_000, None, None], step=20_000) == 60_000
+
+
+def _cell(wp, greedy, first_goal, goals, seeds=(0, 1, 2)):
+    return wp.Cell("taxi", "paper", 1000, "abc", seeds, {wp.EQ2: np.array(greedy, dtype=float)},
+                   {wp.EQ2: np.array(first_goal)}, {wp.EQ2: np.array(goals, dtype=float)},
+                   250)  # fmt: skip
+
+
+def test_feasibility_is_compared_with_trial_alone_paired_by_seed(analysis):
+    """Hand-solved: greedy 40, 50, 60 with feasibility against 30, 50, 70 with trial alone:
+    differences +10, 0, −10 (mean 0, one seed won, one lost); first goals 5, 20, never against
+    10, 20, 30: one sooner, one tie, one later (never loses)."""
+    _, wp = analysis
+    trial = _cell(wp, [30, 50, 70], [10, 20, 30], [1, 2, 3])
+    feasible = _cell(wp, [40, 50, 60], [5, 20, -1], [2, 4, 6])
+    tests = {t.endpoint: t for t in wp.f_tests(trial, feasible, 1)}
+    assert tests["greedy"].name == "N = 1 − trial alone"
+    assert tests["greedy"].difference == pytest.approx(0.0)
+    assert (tests["greedy"].wins, tests["greedy"].losses) == (1, 1)
+    assert (tests["first_goal"].wins, tests["first_goal"].losses) == (1, 1)
+    assert tests["goals_q1"].difference == pytest.approx(2.0)
+    with pytest.raises(ValueError, match="seeds differ"):
+        wp.f_tests(trial, _cell(wp, [1, 2], [1, 2], [1, 2], seeds=(0, 1)), 3)
+
+
+def test_a_run_is_changed_where_any_window_of_its_record_differs(analysis):
+    _, wp = analysis
+    base = {("imitation", 0): (("2000", "5"),), ("imitation", 1): (("2000", "7"),)}
+    same_and_one_window_differs = {("imitation", 0): (("2000", "5"),),
+                                   ("imitation", 1): (("2000", "8"),)}  # fmt: skip
+    assert wp.runs_changed(base, base) == (0, 2)
+    assert wp.runs_changed(base, same_and_one_window_differs) == (1, 2)
+    with pytest.raises(ValueError, match="seeds"):
+        wp.runs_changed(base, {("imitation", 0): (("2000", "5"),)})
+
+
+def _write_sweep(directory, rows, strides=("",)):
+    """A tiny sweep record: runs.csv, results.csv (two windows a run) and sweep.json."""
+    import csv
+    import json
+
+    directory.mkdir(parents=True)
+    fields = ["agent", "seed", "preset", "observation_stride", "greedy_percent_of_optimal",
+              "first_goal_step"]  # fmt: skip
+    with (directory / "runs.csv").open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(fields)
+        for stride in strides:
+            for agent, seed, preset, greedy, first in rows:
+                w.writerow([agent, seed, preset, stride, greedy, first])
+    with (directory / "results.csv").open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["agent", "seed", "preset", "observation_stride", "step", "goals_in_window"])
+        for stride in strides:
+            for agent, seed, preset, greedy, _ in rows:
+                w.writerow([agent, seed, preset, stride, 50_000, int(greedy) // 10])
+                w.writerow([agent, seed, preset, stride, 55_000, 100])  # after the quarter
+    (directory / "sweep.json").write_text(json.dumps({"commit": "abcdef123"}))
+
+
+def test_q2s_controls_serve_every_observation_and_early_goals_stop_at_the_quarter(
+    analysis, tmp_path
+):
+    """Hand-made exp2 records (budget 200k: the quarter ends at 50k): the imitators' sweeps at
+    the option ends and at strides 10 and 20, the controls once; each of the 3 observations × 2
+    schedules is a cell with the same control runs; exp1's sweeps are absent and said so."""
+    _, wp = analysis
+    imitators = [(a, s, p, g, f) for p in ("paper", "explore-goals")
+                 for a, g in (("imitation", 60), ("imitation_primitives", 40))
+                 for s, f in ((0, 300), (1, -1))]  # fmt: skip
+    controls = [(a, s, p, g, 500) for p in ("paper", "explore-goals")
+                for a, g in (("options", 30), ("primitives", 20)) for s in (0, 1)]  # fmt: skip
+    _write_sweep(tmp_path / "q2_ends_exp2", imitators)
+    _write_sweep(tmp_path / "q2_stride_exp2", imitators, strides=("10", "20"))
+    _write_sweep(tmp_path / "q2_controls_exp2", controls)
+    cells, missing = wp.load_q2_cells(tmp_path)
+    assert [m for m in missing if m.endswith("exp1")] == ["q2_controls_exp1", "q2_ends_exp1",
+                                                   "q2_stride_exp1"]  # fmt: skip
+    assert len(missing) == 3 + 3 * 3 * 2  # and every MiniGrid cell (task × observation × schedule)
+    assert [(c.condition, c.schedule) for c in cells] == [
+        (o, p)
+        for o in ("option ends", "stride 10", "stride 20")
+        for p in ("paper", "explore-goals")
+    ]
+    for cell in cells:
+        assert cell.seeds == (0, 1) and cell.budget == 200_000
+        assert cell.greedy["options"].tolist() == [30, 30]
+        assert cell.first_goal["imitation"].tolist() == [300, -1]
+        # only the window ending at 50k counts: greedy // 10
+        assert cell.goals_q1["imitation"].tolist() == [6, 6]
+        assert cell.goals_q1["primitives"].tolist() == [2, 2]
+        tests = {(t.name, t.endpoint): t for t in wp.cell_tests("Q2", cell)}
+        # (60 − 30) − (40 − 20) = 10 on every seed
+        assert tests[wp.HIERARCHY, "greedy"].difference == pytest.approx(10.0)
+        assert tests[wp.HIERARCHY, "greedy"].condition == cell.condition

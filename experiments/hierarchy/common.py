@@ -180,3 +180,15 @@ def distinct_comparisons(tests: list[Test]) -> tuple[list[Test], list[tuple]]:
         seen.add(identity)
         kept += ts
     return kept, repeats
+
+
+def budget_by_rule(first_goals, step: int = 10_000) -> int | None:
+    """A MiniGrid task's budget by the protocol's rule (amendment "Q1 on MiniGrid, and F"): the
+    least multiple of ``step`` at which at least half of the held-out runs have reached the goal,
+    from each run's first-goal step (``None`` or negative: never). ``None`` where fewer than half
+    reached it at all (the run's cap is then too short)."""
+    reached = sorted(s for s in first_goals if s is not None and s >= 0)
+    needed = math.ceil(len(first_goals) / 2)
+    if needed == 0 or len(reached) < needed:
+        return None
+    return max(step, math.ceil(reached[needed - 1] / step) * step)

@@ -2,12 +2,16 @@
 copied into ``experiments/results/hierarchy/``, then ``analyse.py``.
 
     python experiments/hierarchy/run_hierarchy.py
-        [--parts segments trial puzzlebox mentors largest carryover q1]
+        [--parts segments trial puzzlebox mentors largest carryover q1 f q2 q2mg]
         [--logdir runs/hierarchy] [--skip-runs]
 
 Each part's wall time is written to ``experiments/results/hierarchy/timing.json``. The part
-``q1`` (the amendment of 2026-11-29: Q1 on Gymnasium's Taxi) runs ``himit run gymnasium`` per
-schedule instead of a sweep, and ``where_pays.py`` writes its page.
+``q1`` (the amendments of 2026-11-29: Q1 on Gymnasium's Taxi and on MiniGrid's tasks) runs
+``himit run gymnasium`` per task and schedule instead of a sweep, each MiniGrid task at the
+budget its rule picks on held-out seeds (``q1_budget_rule.json``); ``f`` (feasibility at N = 1
+and 3 on Q1's cells) runs eq. 2 alone the same way; ``where_pays.py`` writes their page.
+``--tasks`` restricts ``q1`` and ``f`` to some of their tasks, ``--sweeps`` a part to some of
+its sweeps; sweeps run in this process (``--no-ray``: Ray's start times out on a loaded machine).
 """
 
 import argparse
@@ -18,8 +22,12 @@ import sys
 import time
 from pathlib import Path
 
+from common import budget_by_rule
+
 HERE = Path(__file__).resolve().parent
 RESULTS = HERE.parent / "results" / "hierarchy"
+#: MiniGrid's task names (their Q1 budget comes from the rule).
+MINIGRID = ("doorkey5x5", "doorkey6x6", "unlock")
 #: Each part's sweep specs (``<name>.toml`` beside this script).
 PARTS = {
     "segments": ("segments_exp2", "segments_exp1"),
@@ -41,32 +49,165 @@ PARTS = {
         "options_only_feasibility_exp1",
     ),
     "q1": (),  # (himit run gymnasium per task and schedule: run_q1)
+    "f": (),  # (the same, eq. 2 alone with feasibility: run_f)
+    "q2mg": (),  # (Q2 on MiniGrid's tasks, himit run gymnasium per cell: run_q2_minigrid)
+    "q2": (
+        "q2_controls_exp2",
+        "q2_ends_exp2",
+        "q2_stride_exp2",
+        "q2_controls_exp1",
+        "q2_ends_exp1",
+        "q2_stride_exp1",
+    ),
 }
 #: What a sweep's record keeps in the repository: per-run summaries, per-window goals, its spec.
 RECORDS = ("runs.csv", "results.csv", "sweep.json")
-#: Q1's Gymnasium runs (PROTOCOL.md, amendment of 2026-11-29): per task and schedule one
+#: Q1's Gymnasium runs (PROTOCOL.md, amendments of 2026-11-29): per task and schedule one
 #: ``himit run gymnasium`` of the four learners, trial on for the imitators, seeds 0–19.
-Q1_TASKS = ("taxi",)
+Q1_TASKS = ("taxi", "doorkey5x5", "doorkey6x6", "unlock")
 Q1_SCHEDULES = ("paper", "explore-goals")
 Q1_AGENTS = ("imitation", "imitation_primitives", "options", "primitives")
+#: The MiniGrid tasks' budget rule: options only, the paper's schedule, the held-out seeds, one
+#: run per task at a cap of ``RULE_CAP`` steps, extended by as much while the rule finds none.
+HELD_OUT_FIRST, HELD_OUT_SEEDS, RULE_CAP = 5000, 20, 20_000
+BUDGET_RULE = RESULTS / "q1_budget_rule.json"
+#: F's settings: ``mentor_feasibility`` N, eq. 2 alone, with trial (its "trial alone" is Q1's cell).
+F_TRIES = (1, 3)
 
 
-def run_q1(logdir: Path, skip_runs: bool) -> None:
-    """Q1's Gymnasium cells: run each (unless ``skip_runs``), then copy its records (the
-    config, the task's summary and per-window curves) into the results."""
-    for task in Q1_TASKS:
+def q1_budget(task: str, logdir: Path, skip_runs: bool) -> int | None:
+    """The task's Q1 budget: ``None`` for a task with its own (Taxi's), else the rule's outcome
+    on the held-out seeds, recorded in ``q1_budget_rule.json`` (read back when ``skip_runs``)."""
+    if task not in MINIGRID:
+        return None
+    record = json.loads(BUDGET_RULE.read_text()) if BUDGET_RULE.exists() else {}
+    if skip_runs or task in record:
+        return int(record[task]["budget"])
+    cap = RULE_CAP
+    while True:
+        name = f"q1_rule_{task}"
+        run("-m", "himit_torch.cli", "run", "gymnasium", "--tasks", task, "--agents", "options",
+            "--seeds", str(HELD_OUT_SEEDS), "--first-seed", str(HELD_OUT_FIRST), "--steps",
+            str(cap), "--preset", "paper", "--name", name, "--logdir", str(logdir), "--quiet",
+            "--force")  # fmt: skip
+        summary = json.loads((logdir / name / "tasks" / f"{task}.json").read_text())
+        first = [None if s is None or s < 0 else int(s) for s in summary["first_goal_step"]]
+        budget = budget_by_rule(first)
+        if budget is not None:
+            break
+        cap += RULE_CAP
+    record[task] = {
+        "rule": "least multiple of 10k steps >= the 10th smallest first goal of options only, "
+        "paper schedule, held-out seeds 5000-5019",
+        "cap": cap,
+        "seeds": summary["seeds"],
+        "first_goal_step": first,
+        "reached_by_budget": sum(s is not None and s <= budget for s in first),
+        "budget": budget,
+        "commit": summary.get("commit"),
+    }
+    BUDGET_RULE.write_text(json.dumps(record, indent=2) + "\n")
+    return budget
+
+
+def gym_cell(name: str, task: str, agents, schedule: str, extra: list[str], steps: int | None,
+             logdir: Path, skip_runs: bool) -> None:  # fmt: skip
+    """One ``himit run gymnasium`` cell of 20 seeds (unless ``skip_runs``), then its records (the
+    config, the task's summary and per-window curves) copied into the results."""
+    if not skip_runs:
+        budget = [] if steps is None else ["--steps", str(steps)]
+        run("-m", "himit_torch.cli", "run", "gymnasium", "--tasks", task, "--agents", *agents,
+            "--seeds", "20", "--preset", schedule, *budget, *extra, "--name", name,
+            "--logdir", str(logdir), "--quiet", "--force")  # fmt: skip
+    target = RESULTS / name / "tasks"
+    target.mkdir(parents=True, exist_ok=True)
+    shutil.copy(logdir / name / "config.json", RESULTS / name / "config.json")
+    for suffix in (".json", ".csv"):
+        shutil.copy(logdir / name / "tasks" / f"{task}{suffix}", target)
+
+
+def run_q1(logdir: Path, skip_runs: bool, tasks=Q1_TASKS) -> None:
+    """Q1's cells: per task and schedule the four learners, trial on."""
+    for task in tasks:
+        steps = q1_budget(task, logdir, skip_runs)
         for schedule in Q1_SCHEDULES:
-            name = f"q1_{task}_{schedule}"
-            if not skip_runs:
-                run("-m", "himit_torch.cli", "run", "gymnasium", "--tasks", task,
-                    "--agents", *Q1_AGENTS, "--seeds", "20", "--preset", schedule,
-                    "--mentor-trial", "--name", name, "--logdir", str(logdir), "--quiet",
-                    "--force")  # fmt: skip
-            target = RESULTS / name / "tasks"
-            target.mkdir(parents=True, exist_ok=True)
-            shutil.copy(logdir / name / "config.json", RESULTS / name / "config.json")
-            for suffix in (".json", ".csv"):
-                shutil.copy(logdir / name / "tasks" / f"{task}{suffix}", target)
+            gym_cell(f"q1_{task}_{schedule}", task, Q1_AGENTS, schedule, ["--mentor-trial"],
+                     steps, logdir, skip_runs)  # fmt: skip
+
+
+MENTOR_MOVES = RESULTS / "f_mentor_moves.json"
+
+
+def record_mentor_moves(tasks=Q1_TASKS) -> None:
+    """Why feasibility may change nothing on Q1's tasks, counted rather than assumed: of the
+    mentor's observed moves ``(s, s')`` (each seed's 20 episodes, as the runs record them), how
+    many one of the learner's primitives can make (``s'`` a successor of ``s`` under some
+    action with positive probability). Such a move is reproduced when that primitive is tried,
+    so the test never drops its mentor term. Written to ``f_mentor_moves.json``."""
+    import torch
+
+    from himit_torch.mentor.policy import mentor_policy, record_demonstrations
+    from himit_torch.options.builders import primitive_options
+    from himit_torch.runs.gymnasium import TASKS
+
+    record = json.loads(MENTOR_MOVES.read_text()) if MENTOR_MOVES.exists() else {}
+    for task in tasks:
+        spec = TASKS[task]
+        world = spec.world(0.99)
+        mentor = (
+            spec.make_mentor(world)
+            if spec.make_mentor is not None
+            else mentor_policy(world, primitive_options(world), prefer_extended_within=0.0)
+        )
+        table = world.dynamics_table()
+        possible = table.cdf.diff(dim=-1, prepend=torch.zeros_like(table.cdf[..., :1])) > 0
+        moves = reproducible = 0
+        for seed in range(20):
+            demos = record_demonstrations(world, mentor, 20, seed=seed)
+            for episode in demos.episodes:
+                for s, t in zip(episode[:-1].tolist(), episode[1:].tolist()):
+                    moves += 1
+                    reproducible += bool(((table.successors[s] == t) & possible[s]).any())
+        record[task] = {"moves": moves, "made_by_a_primitive": reproducible}
+    MENTOR_MOVES.write_text(json.dumps(record, indent=2) + "\n")
+
+
+def run_f(logdir: Path, skip_runs: bool, tasks=Q1_TASKS) -> None:
+    """F's cells: eq. 2 with trial and feasibility at N tries, per task and schedule; first the
+    check that eq. 2 with trial alone, by itself in a batch, is Q1's cell seed by seed; and the
+    count of the mentor's moves a primitive can make (:func:`record_mentor_moves`)."""
+    if not skip_runs:
+        record_mentor_moves(tasks)
+    for task in tasks:
+        steps = q1_budget(task, logdir, skip_runs)
+        for schedule in Q1_SCHEDULES:
+            gym_cell(f"f_{task}_{schedule}_trial", task, ("imitation",), schedule,
+                     ["--mentor-trial"], steps, logdir, skip_runs)  # fmt: skip
+            for tries in F_TRIES:
+                gym_cell(f"f_{task}_{schedule}_n{tries}", task, ("imitation",), schedule,
+                         ["--mentor-trial", "--mentor-feasibility", str(tries)], steps, logdir,
+                         skip_runs)  # fmt: skip
+
+
+#: Q2 on MiniGrid: observation → its flags (the controls are Q1's cells).
+Q2_OBSERVATIONS = {
+    "ends": ["--observation", "option-ends"],
+    "stride10": ["--observation-stride", "10"],
+    "stride20": ["--observation-stride", "20"],
+}
+
+
+def run_q2_minigrid(logdir: Path, skip_runs: bool, tasks=MINIGRID) -> None:
+    """Q2's MiniGrid cells: eq. 2 and eq. 1, segments and trial on, per task, observation and
+    schedule, at the task's Q1 budget."""
+    for task in [t for t in tasks if t in MINIGRID]:
+        steps = q1_budget(task, logdir, skip_runs)
+        for observation, flags in Q2_OBSERVATIONS.items():
+            for schedule in Q1_SCHEDULES:
+                gym_cell(f"q2_{task}_{observation}_{schedule}", task,
+                         ("imitation", "imitation_primitives"), schedule,
+                         ["--mentor-segments", "--mentor-trial", *flags], steps, logdir,
+                         skip_runs)  # fmt: skip
 
 
 def run(*argv: str) -> None:
@@ -79,6 +220,9 @@ def main() -> None:
     parser.add_argument("--parts", nargs="+", choices=list(PARTS), default=list(PARTS))
     parser.add_argument("--logdir", default="runs/hierarchy")
     parser.add_argument("--skip-runs", action="store_true", help="copy and analyse finished runs")
+    parser.add_argument("--tasks", nargs="+", choices=Q1_TASKS, default=list(Q1_TASKS),
+                        help="q1's and f's tasks")  # fmt: skip
+    parser.add_argument("--sweeps", nargs="+", help="only these of the parts' sweeps")
     args = parser.parse_args()
     logdir = Path(args.logdir)
     RESULTS.mkdir(parents=True, exist_ok=True)
@@ -89,17 +233,25 @@ def main() -> None:
         if part == "puzzlebox" and not args.skip_runs:
             run(str(HERE / "puzzle_box_h2.py"), "--logdir", str(logdir))
         if part == "q1":
-            run_q1(logdir, args.skip_runs)
-        for name in PARTS[part]:
+            run_q1(logdir, args.skip_runs, args.tasks)
+        if part == "f":
+            run_f(logdir, args.skip_runs, args.tasks)
+        if part == "q2mg":
+            run_q2_minigrid(logdir, args.skip_runs, args.tasks)
+        for name in [n for n in PARTS[part] if args.sweeps is None or n in args.sweeps]:
             if not args.skip_runs:
                 run("-m", "himit_torch.cli", "sweep", str(HERE / f"{name}.toml"),
-                    "--out", str(logdir / name))  # fmt: skip
+                    "--out", str(logdir / name), "--no-ray")  # fmt: skip
             target = RESULTS / name
             target.mkdir(parents=True, exist_ok=True)
             for record in RECORDS:
                 shutil.copy(logdir / name / record, target / record)
         if not args.skip_runs:
-            timing[part] = round((time.perf_counter() - started) / 60, 1)
+            some = part in ("q1", "f", "q2mg") and args.tasks != list(Q1_TASKS)
+            key = f"{part} ({' '.join(args.tasks)})" if some else part
+            if args.sweeps:
+                key = f"{part} ({' '.join(n for n in PARTS[part] if n in args.sweeps)})"
+            timing[key] = round((time.perf_counter() - started) / 60, 1)
             timing_path.write_text(json.dumps(timing, indent=2) + "\n")
     run(str(HERE / "analyse.py"))
     run(str(HERE / "where_pays.py"))

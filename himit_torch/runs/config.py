@@ -45,6 +45,10 @@ MENTOR_GOALS = ("same", "top-right")
 #: first by a mentor that errs (``noisy``) or takes a needless detour (``detour``).
 SECOND_MENTORS = ("none", "noisy", "detour")
 
+#: ``ExperimentConfig.observation``: every ``observation_stride``-th mentor state, or only the
+#: states where the mentor's options end.
+OBSERVATIONS = ("stride", "option-ends")
+
 #: The settings that stress the learner (docs/stresses.md), each with its neutral default.
 STRESS_SETTINGS = (
     "mentor_episodes",
@@ -199,6 +203,17 @@ class ExperimentConfig(RunConfig):
         to k primitive steps apart; eq. 2 is left as it is and its mentor term treats a k-step
         move as one step (``himit_torch.mentor.observation`` says what that costs).""",
     )
+    observation: str = setting(
+        "stride",
+        choices=OBSERVATIONS,
+        doc="""
+        What the learner sees of the mentor (default ``stride``: every ``observation_stride``-th
+        state). ``option-ends``: only the states where the mentor's options end — a doorway,
+        the goal — with each episode's first and last
+        (:func:`~himit_torch.mentor.observation.observe_at_option_ends`): the subgoals, not the
+        movements. Each observed move is one of the mentor's options; with
+        ``learner.mentor_segments`` it is scored with its duration.""",
+    )
     layout: str = setting(
         "open",
         choices=LAYOUTS,
@@ -279,9 +294,21 @@ class ExperimentConfig(RunConfig):
         watched = self.learner.mentors
         if watched > 1:
             stressed.append(f"second_mentor={self.second_mentor!r}")
-        for name, neutral in (("mentor_coverage", 1.0), ("mentor_goal", "same")):
+        for name, neutral in (
+            ("mentor_coverage", 1.0),
+            ("mentor_goal", "same"),
+            ("observation", "stride"),
+        ):
             if getattr(self, name) != neutral:
                 stressed.append(f"{name}={getattr(self, name)!r}")
+        if self.observation == "option-ends":
+            mixed = [s for s in stressed if not s.startswith("observation=")]
+            if mixed:
+                raise ValueError(
+                    f"ExperimentConfig.observation='option-ends' watches the undisturbed mentor's "
+                    f"option ends; it cannot be combined with {', '.join(mixed)}: leave those at "
+                    "their defaults"
+                )
         if self.mentor_goal != "same" and self.mentor_detour:
             raise ValueError(
                 f"ExperimentConfig.mentor_goal={self.mentor_goal!r}: a mentor demonstrating "

@@ -43,12 +43,18 @@ from himit_torch.learner.config import LearnerConfig
 from himit_torch.learner.learner import Learner
 from himit_torch.learner.presets import agent_settings_text
 from himit_torch.mentor.demonstrations import Demonstrations
-from himit_torch.mentor.observation import first_part, observe_every
+from himit_torch.mentor.observation import (
+    CoarseDemonstrations,
+    first_part,
+    observe_at_option_ends,
+    observe_every,
+)
 from himit_torch.mentor.policy import (
     exact_mentor_transitions,
     mentor_detour,
     mentor_policy,
     record_demonstrations,
+    run_mentor,
 )
 from himit_torch.mentor.reward import mentor_reward_module
 from himit_torch.options.builders import learner_options, mentor_options
@@ -306,8 +312,19 @@ def _mentoring(batch: _WorldBatch) -> _Mentoring:
         break_cycles=config.layout != "open" or config.goal_needs_primitives,
     )
     recorded = _mentor_episodes(config, world, mentor, seeds)
-    # what the learner observes of them (config.observation_stride; stride 1: the same objects)
-    demos = {s: observe_every(d, config.observation_stride) for s, d in recorded.items()}
+    # what the learner observes of them (config.observation_stride; stride 1: the same objects;
+    # or where the mentor's options end: its episodes again, the same as recorded, from the
+    # rollout that says where each option began)
+    demos: dict[int, Demonstrations | CoarseDemonstrations]
+    if config.observation == "option-ends":
+        demos = {
+            s: observe_at_option_ends(
+                run_mentor(world, mentor, config.mentor_episodes, seed=s), world
+            )
+            for s in seeds
+        }
+    else:
+        demos = {s: observe_every(d, config.observation_stride) for s, d in recorded.items()}
     second = {
         s: observe_every(d, config.observation_stride)
         for s, d in _second_mentor(config, world, mentor, seeds).items()

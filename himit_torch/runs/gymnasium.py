@@ -61,7 +61,8 @@ from himit_torch.learner.config import LearnerConfig
 from himit_torch.learner.learner import Learner
 from himit_torch.learner.presets import agent_settings_text
 from himit_torch.mentor.minigrid import minigrid_mentor
-from himit_torch.mentor.policy import mentor_policy, record_demonstrations
+from himit_torch.mentor.observation import observe_at_option_ends, observe_every
+from himit_torch.mentor.policy import mentor_policy, record_demonstrations, run_mentor
 from himit_torch.mentor.reward import KnownReward
 from himit_torch.options.builders import primitive_options
 from himit_torch.options.bundle import Options
@@ -69,6 +70,7 @@ from himit_torch.options.minigrid import minigrid_options
 from himit_torch.options.taxi import taxi_navigation_options
 from himit_torch.options.toy_text import cliff_options, frozen_lake_options
 from himit_torch.runs import minigrid
+from himit_torch.runs.config import OBSERVATIONS
 from himit_torch.runs.greedy import CURVE_COLUMNS, GreedyReference, GreedyTracker
 from himit_torch.runs.rerun import rerun_command
 from himit_torch.runs.runner import (
@@ -265,12 +267,35 @@ class GymExperimentConfig(RunConfig):
         make holes, worth 0, the best place to go). ``False`` keeps ``learner.initial_value``
         for every task.""",
     )
+    observation: str = setting(
+        "stride",
+        choices=OBSERVATIONS,
+        doc="""
+        What the learner sees of the mentor (as ``ExperimentConfig.observation``; default
+        ``stride``: every ``observation_stride``-th state). ``option-ends``: only where the
+        mentor's options end (in MiniGrid its skills and its ``pickup`` / ``toggle`` /
+        ``forward`` steps: the key faced, picked up, the door opened), with each episode's
+        first and last state.""",
+    )
+    observation_stride: int = setting(
+        1,
+        ge=1,
+        doc="""
+        Coarse observation (default 1: every state): the learner sees states 0, k, 2k, … and
+        the last of each mentor episode (``himit_torch.mentor.observation``).""",
+    )
     device: str = RunConfig.shared("device", "cpu")
     learner: LearnerConfig = RunConfig.shared("learner", default_factory=_default_learner)
     preset: str | None = RunConfig.shared("preset", None)
 
     def __post_init__(self):
         self.check_run_settings()
+        if self.observation == "option-ends" and self.observation_stride != 1:
+            raise ValueError(
+                f"{type(self).__name__}.observation='option-ends' watches the mentor's option "
+                f"ends; it cannot be combined with observation_stride={self.observation_stride}: "
+                "leave the stride at 1"
+            )
 
     def quick(self) -> GymExperimentConfig:
         """A tiny budget (smoke tests, ``--quick``)."""
@@ -381,6 +406,17 @@ class _TaskBatch:
     greedy: GreedyTracker
 
 
+def _observed(config: GymExperimentConfig, world: TableWorld, mentor, seed: int):
+    """What a run of ``seed`` sees of its mentor's recorded episodes (``config.observation``):
+    every ``observation_stride``-th state (1: the demonstrations themselves), or the states
+    where the mentor's options end, from the same episodes' rollout."""
+    if config.observation == "option-ends":
+        rollout = run_mentor(world, mentor, config.mentor_episodes, seed=seed)
+        return observe_at_option_ends(rollout, world)
+    recorded = record_demonstrations(world, mentor, config.mentor_episodes, seed=seed)
+    return observe_every(recorded, config.observation_stride)
+
+
 def _build_task_batch(config: GymExperimentConfig, task_name: str) -> _TaskBatch:
     """The task's world, options and optimal mentor; one learner batch of every agent × seed
     watching its seed's mentor episodes; the exact optimum and the greedy tracker."""
@@ -406,10 +442,7 @@ def _build_task_batch(config: GymExperimentConfig, task_name: str) -> _TaskBatch
         reward=[known if AGENTS[a].uses_demonstrations else None for a in agents],
         device=config.device,
     )
-    watch_demonstrations(
-        learner,
-        {s: record_demonstrations(world, mentor, config.mentor_episodes, seed=s) for s in seeds},
-    )
+    watch_demonstrations(learner, {s: _observed(config, world, mentor, s) for s in seeds})
     # The optimum over primitives, exact: its goal rate, and V*(μ) for the value gap.
     optimal = optimal_policy_evaluation(world, config.window)
     # Every window: the greedy policies' goal rates and values (the value gap), one evaluation.
