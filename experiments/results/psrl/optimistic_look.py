@@ -29,13 +29,13 @@ def main(steps: int = 30_000) -> None:
     learner = Learner(world, options, ["imitation", "options"], [0, 0], config=config)
     learner.add_demonstrations(demos, runs=[0])
     learner.run(steps)
-    values = learner.state_values()
-    visited = (learner.visit_counts() > 0).sum(1).tolist()
-    print(f"after {learner.t} steps (imitation, options):")
-    print(f"  goals {learner.goals.tolist()}, V(start) {values[:, world.start_state].tolist()}")
+    values = learner.views.state_values()
+    visited = (learner.views.visit_counts() > 0).sum(1).tolist()
+    print(f"after {learner.views.t} steps (imitation, options):")
+    print(f"  goals {learner.views.goals.tolist()}, V(start) {values[:, world.start_state].tolist()}")
     print(f"  states visited {visited} of {world.num_states}")
     print("  the imitator's most visited states:")
-    visits = learner.visit_counts()[0]
+    visits = learner.views.visit_counts()[0]
     for state in visits.argsort(descending=True)[:6].tolist():
         runs, states = torch.tensor([[0]]), torch.tensor([[state]])
         _, q, usable, _, _, tries = learner.cache.own_values(runs, states)
