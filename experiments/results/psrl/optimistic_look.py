@@ -32,7 +32,9 @@ def main(steps: int = 30_000) -> None:
     values = learner.views.state_values()
     visited = (learner.views.visit_counts() > 0).sum(1).tolist()
     print(f"after {learner.views.t} steps (imitation, options):")
-    print(f"  goals {learner.views.goals.tolist()}, V(start) {values[:, world.start_state].tolist()}")
+    print(
+        f"  goals {learner.views.goals.tolist()}, V(start) {values[:, world.start_state].tolist()}"
+    )
     print(f"  states visited {visited} of {world.num_states}")
     print("  the imitator's most visited states:")
     visits = learner.views.visit_counts()[0]
