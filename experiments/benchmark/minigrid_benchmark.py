@@ -87,12 +87,14 @@ def cells(tasks):
                 yield task, preset, ("bco",), ".bco"
 
 
-def collect(logdir: Path, tasks) -> None:
-    """Copy every finished cell's record into ``OUT`` (``<preset>/<task>[.bco].{json,csv}``)."""
+def collect(logdir: Path, tasks, report: bool = True) -> None:
+    """Copy every finished cell's record into ``OUT`` (``<preset>/<task>[.bco].{json,csv}``);
+    ``report``: name the cells not run yet."""
     for task, preset, _, tag in cells(tasks):
         source = logdir / preset / f"{task}{tag}" / "tasks"
         if not (source / f"{task}.json").exists():
-            print(f"not run yet: {preset} {task}{tag}")
+            if report:
+                print(f"not run yet: {preset} {task}{tag}")
             continue
         (OUT / preset).mkdir(parents=True, exist_ok=True)
         for ext in ("json", "csv"):
@@ -165,7 +167,7 @@ def main() -> None:
                 continue
             config = config_of(task, preset, agents, args.seeds, 0, MINIGRID_BUDGETS[task])
             run_cell(config, task, logdir / preset / f"{task}{tag}")
-            collect(logdir, args.tasks)  # after each cell: a partial run is usable
+            collect(logdir, args.tasks, report=False)  # after each cell: a partial run is usable
     collect(logdir, args.tasks)
 
 
