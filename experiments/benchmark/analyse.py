@@ -630,10 +630,10 @@ def minigrid_page(sections: tuple[list[str], list[str], list[Test]]) -> str:
         "",
         "The MiniGrid sections of `leaderboard.md` and `hierarchy.md` on one page.",
         "",
-        "# The leaderboards",
+        "## The leaderboards",
         "",
         *leaderboard[2:],
-        "# Does the hierarchy help? Eq. 2 − eq. 1 under the same settings",
+        "## Does the hierarchy help? Eq. 2 − eq. 1 under the same settings",
         "",
         *hierarchy[2:],
     ]) + "\n"  # fmt: skip

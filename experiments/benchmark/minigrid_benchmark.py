@@ -8,7 +8,8 @@ eq. 1 also with mentor fading — seeds 0–19, random ties, each task at its bu
 
 A cell is one batch of ``himit run minigrid``'s runner (:func:`~himit_torch.runs.gymnasium.run_task`)
 per task and preset: every agent of the preset but BCO together, BCO alone (the slowest method,
-run after every other cell). A finished cell (its ``tasks/<task>.json``) is kept, so an
+run after the other cells of the five tasks the amendment commits to, then the two others'
+cells, BCO's last). A finished cell (its ``tasks/<task>.json``) is kept, so an
 interrupted run resumes where it stopped. The records are copied into
 ``experiments/results/benchmark/minigrid/<preset>/<task>.json`` (and ``.csv``: per window;
 BCO's ``<task>.bco.json``), which ``analyse.py`` reads. ``--calibrate`` runs options only on
@@ -40,6 +41,8 @@ MINIGRID_BUDGETS = {
     "multiroomn4s5": 100_000,
     "doorkey6x6": 100_000,
 }
+#: The tasks the amendment commits to: the first five (the two others run if time allows).
+COMMITTED = 5
 #: The factorial's cells (run_benchmark.py's CELLS): preset → its agents.
 CELLS = {
     "paper": ("imitation", "imitation_primitives", "pbrs", "pbrs_primitives", "bco", "options",
@@ -77,14 +80,17 @@ def run_cell(config, task: str, cell_dir: Path) -> None:
 
 
 def cells(tasks):
-    """(task, preset, agents, tag) in running order: every task's cells without BCO, then BCO's."""
-    for task in tasks:
-        for preset, agents in CELLS.items():
-            yield task, preset, tuple(a for a in agents if a != "bco"), ""
-    for task in tasks:
-        for preset, agents in CELLS.items():
-            if "bco" in agents:
-                yield task, preset, ("bco",), ".bco"
+    """(task, preset, agents, tag) in running order: the five tasks the amendment commits to,
+    then the two others; within each group every task's cells without BCO, then BCO's."""
+    committed = list(MINIGRID_BUDGETS)[:COMMITTED]
+    for group in ([t for t in tasks if t in committed], [t for t in tasks if t not in committed]):
+        for task in group:
+            for preset, agents in CELLS.items():
+                yield task, preset, tuple(a for a in agents if a != "bco"), ""
+        for task in group:
+            for preset, agents in CELLS.items():
+                if "bco" in agents:
+                    yield task, preset, ("bco",), ".bco"
 
 
 def collect(logdir: Path, tasks, report: bool = True) -> None:
