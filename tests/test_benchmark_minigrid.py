@@ -27,6 +27,19 @@ def runner():
     return _load("minigrid_benchmark", BENCHMARK / "minigrid_benchmark.py")
 
 
+@pytest.mark.slow
+def test_the_minigrid_page_regenerates_from_the_committed_records():
+    analyse = _load("benchmark_analyse", BENCHMARK / "analyse.py")
+    sections = analyse.minigrid_sections(RESULTS)
+    assert sections is not None
+    page = (RESULTS / "benchmark" / "minigrid.md").read_text()
+    assert analyse.minigrid_page(sections) == page
+    board, hierarchy, tests = sections
+    assert "\n".join(board) in (RESULTS / "benchmark" / "leaderboard.md").read_text()
+    assert "\n".join(hierarchy) in (RESULTS / "benchmark" / "hierarchy.md").read_text()
+    assert {t.table for t in tests} == {"minigrid leaderboard", "minigrid hierarchy"}
+
+
 def test_the_budgets_follow_the_amendments_rule_from_the_calibration_records(runner):
     assert runner.budgets(list(runner.MINIGRID_BUDGETS)) == runner.MINIGRID_BUDGETS
 
