@@ -70,5 +70,42 @@ def test_run_minigrid_help_lists_the_minigrid_tasks(capsys):
     with pytest.raises(SystemExit) as exc:
         main(["run", "minigrid", "--help"])
     assert exc.value.code == 0
-    out = capsys.readouterr().out
+    out = " ".join(capsys.readouterr().out.split())  # (argparse wraps the help's lines)
     assert "doorkey6x6" in out and "(default: doorkey6x6)" in out
+
+
+def _task_params():
+    from himit_torch.runs.gymnasium import MINIGRID_TASKS
+
+    large = {"doorkey8x8", "unlockpickup"}  # 9,210 and 17,344 states: seconds to solve
+    return [
+        pytest.param(name, marks=pytest.mark.slow) if name in large else name
+        for name in MINIGRID_TASKS
+    ]
+
+
+def test_every_described_minigrid_task_is_registered_for_himit_run_minigrid():
+    from himit_torch.runs.gymnasium import MINIGRID_TASKS
+
+    assert sorted(t.env_id for t in MINIGRID_TASKS.values()) == sorted(ht.MINIGRID_TASKS)
+
+
+@pytest.mark.parametrize("name", _task_params())
+def test_info_minigrid_answers_for_every_registered_task(capsys, name):
+    """Each task of ``himit run minigrid`` (issue 54's list): ``himit info --minigrid`` prints
+    its states, the learner's skills of the registered task, and a mentor that reaches success
+    (finitely many steps from the start, a positive goal rate)."""
+    from himit_torch.runs.gymnasium import MINIGRID_TASKS
+
+    task = MINIGRID_TASKS[name]
+    assert main(["info", "--minigrid", task.env_id]) == 0
+    out = capsys.readouterr().out
+    world = task.world(0.99)
+    skills = [n for n, k in zip(task.options(world).names, task.options(world).kinds)
+              if k != "primitive"]  # fmt: skip
+    assert f"states     {world.num_states:,} reachable" in out
+    assert f"subgoal: {', '.join(skills)})" in out
+    row = re.search(
+        r"^mentor \(prefers its options within 0.01\)\s+([\d.]+)\s+([\d.]+)$", out, re.M
+    )
+    assert row and 0 < float(row.group(1)) < 100 and float(row.group(2)) > 0

@@ -9,8 +9,10 @@ under both schedules side by side, and one figure per stress axis.
 Reads the factorial's records (``<results>/benchmark/<preset>/{exp1,exp2,exp3,gymnasium}`` for
 the presets ``paper``, ``mentor-fade``, ``explore-goals``, ``recommended``, and
 ``<results>/benchmark/puzzlebox/<agent>_<preset>.{json,csv}``), the claims' runs (for the
-batch-independence check) and the stress sweep (``<results>/benchmark/stress_exp2``); writes
-``<results>/benchmark/leaderboard.md``, ``hierarchy.md``, ``leaderboard.csv``,
+batch-independence check), the stress sweep (``<results>/benchmark/stress_exp2``) and
+MiniGrid's tasks (``<results>/benchmark/minigrid/<preset>/``, amendment of 2026-11-29: their
+own tables, added to both pages and written alone to ``minigrid.md``); writes
+``<results>/benchmark/leaderboard.md``, ``hierarchy.md``, ``minigrid.md``, ``leaderboard.csv``,
 ``hierarchy.png`` and ``stress_<axis>.png``.
 """
 
@@ -155,41 +157,44 @@ def method_world(data: dict, schedule: str, method: str, world: str) -> World:
     return out
 
 
-def merged(data: dict, schedule: str, world: str) -> World:
+def merged(data: dict, schedule: str, world: str, methods=None) -> World:
     out = World(world, data[preset_of(schedule, False)][world].budget)
-    for m in METHODS:
+    for m in methods or METHODS:
         out.runs.update(method_world(data, schedule, m, world).runs)
     return out
 
 
 # -------------------------------------------------------------------------------------- tests
-def leaderboard_tests(data: dict) -> list[Test]:
-    """Every method against implicit imitation under the same schedule (PROTOCOL.md, test 1)."""
+def leaderboard_tests(
+    data: dict, worlds=None, methods=None, family: str = "leaderboard"
+) -> list[Test]:
+    """Every method against implicit imitation under the same schedule (PROTOCOL.md, test 1);
+    ``worlds``, ``methods``: those of the nine worlds' tables unless given (MiniGrid's)."""
     tests = []
     for schedule in SCHEDULES:
-        for world in WORLDS:
-            runs = merged(data, schedule, world)
-            for m in METHODS:
+        for world in worlds or WORLDS:
+            runs = merged(data, schedule, world, methods)
+            for m in methods or METHODS:
                 if m == REFERENCE:
                     continue
                 for e in ENDPOINTS:
                     result = compare(runs, m, REFERENCE, e)
-                    tests.append(Test("leaderboard", schedule, world, f"{m} − {REFERENCE}", e,
+                    tests.append(Test(family, schedule, world, f"{m} − {REFERENCE}", e,
                                       "random", result))  # fmt: skip
     adjust(tests)
     return tests
 
 
-def hierarchy_tests(data: dict) -> list[Test]:
+def hierarchy_tests(data: dict, worlds=None, family: str = "hierarchy") -> list[Test]:
     """Eq. 2 − eq. 1 within each schedule × fading cell (PROTOCOL.md, test 2)."""
     tests = []
     for schedule in SCHEDULES:
         for faded, (a, b) in HIERARCHY.items():
-            for world in WORLDS:
+            for world in worlds or WORLDS:
                 runs = merged(data, schedule, world)
                 for e in ENDPOINTS:
                     cell = f"{schedule}, {'fading' if faded else 'no fading'}"
-                    tests.append(Test("hierarchy", cell, world, f"{a} − {b}", e, "random",
+                    tests.append(Test(family, cell, world, f"{a} − {b}", e, "random",
                                       compare(runs, a, b, e)))  # fmt: skip
     adjust(tests)
     return tests
@@ -221,55 +226,62 @@ def show(world: str, endpoint: str, value: float) -> str:
     return f"{value:.0f}"
 
 
-def ranks_of(data: dict, schedule: str, endpoint: str) -> dict:
+def ranks_of(data: dict, schedule: str, endpoint: str, worlds=None, methods=None) -> dict:
     """world → method → average rank (1 = best; exact ties share the mean of their ranks)."""
     out = {}
-    for world in WORLDS:
-        runs = merged(data, schedule, world)
-        scores = {m: score(runs, m, endpoint) for m in METHODS}
+    for world in worlds or WORLDS:
+        runs = merged(data, schedule, world, methods)
+        scores = {m: score(runs, m, endpoint) for m in methods or METHODS}
         out[world] = average_ranks(scores, higher_is_better=endpoint != "first_goal")
     return out
 
 
-def leaderboard_lines(data: dict, tests: list[Test]) -> tuple[list[str], dict]:
+def leaderboard_lines(
+    data: dict, tests: list[Test], worlds=None, methods=None, label: str = "nine worlds", level=2
+) -> tuple[list[str], dict]:
+    """Each schedule's tables (``level``: its headings' level); the mean rank over ``worlds``
+    (default: over the nine worlds, with the puzzle box ranked but not in the mean)."""
     by = {(t.claim, t.world, t.comparison, t.endpoint): t for t in tests}
     lines, mean_ranks = [], {}
+    shown, ranked, methods = worlds or WORLDS, worlds or NINE, methods or METHODS
     for schedule in SCHEDULES:
-        lines += [f"## Schedule: {SCHEDULE_TITLES[schedule]}", ""]
+        lines += [f"{'#' * level} Schedule: {SCHEDULE_TITLES[schedule]}", ""]
         for endpoint in ENDPOINTS:
-            ranks = ranks_of(data, schedule, endpoint)
+            ranks = ranks_of(data, schedule, endpoint, shown, methods)
             lines += [
-                f"### {ENDPOINT_TITLES[endpoint]}",
+                f"{'#' * (level + 1)} {ENDPOINT_TITLES[endpoint]}",
                 "",
-                "| method | " + " | ".join(WORLDS) + " | mean rank (nine worlds) |",
-                "|---|" + "---|" * (len(WORLDS) + 1),
+                "| method | " + " | ".join(shown) + f" | mean rank ({label}) |",
+                "|---|" + "---|" * (len(shown) + 1),
             ]
-            for m in METHODS:
+            for m in methods:
                 cells = []
-                for world in WORLDS:
-                    text = show(world, endpoint, score(merged(data, schedule, world), m, endpoint))
+                for world in shown:
+                    runs = merged(data, schedule, world, methods)
+                    text = show(world, endpoint, score(runs, m, endpoint))
                     if m != REFERENCE:
                         text += significant(by[schedule, world, f"{m} − {REFERENCE}", endpoint])
                     cells.append(f"{text} ({ranks[world][m]:g})")
-                mean = float(np.mean([ranks[w][m] for w in NINE]))
+                mean = float(np.mean([ranks[w][m] for w in ranked]))
                 mean_ranks[schedule, endpoint, m] = mean
                 lines.append(f"| {m} | " + " | ".join(cells) + f" | {mean:.2f} |")
             lines.append("")
     return lines, mean_ranks
 
 
-def mean_rank_lines(mean_ranks: dict) -> list[str]:
+def mean_rank_lines(mean_ranks: dict, methods=None, label: str = "the nine worlds") -> list[str]:
+    methods = methods or METHODS
     lines = []
     for schedule in SCHEDULES:
         lines += [
-            f"**{SCHEDULE_TITLES[schedule]}** — mean rank of 9 over the nine worlds (1 = best; "
-            "ties share their average rank):",
+            f"**{SCHEDULE_TITLES[schedule]}** — mean rank of {len(methods)} over {label} (1 = "
+            "best; ties share their average rank):",
             "",
             "| method | greedy policy at the end | first goal | goals, first 50k steps | goals, "
             "last 50k steps |",
             "|---|---|---|---|---|",
         ]
-        for m in sorted(METHODS, key=lambda m: mean_ranks[schedule, "greedy", m]):
+        for m in sorted(methods, key=lambda m: mean_ranks[schedule, "greedy", m]):
             lines.append(
                 f"| {m} | "
                 + " | ".join(f"{mean_ranks[schedule, e, m]:.2f}" for e in ENDPOINTS)
@@ -279,7 +291,7 @@ def mean_rank_lines(mean_ranks: dict) -> list[str]:
     return lines
 
 
-def hierarchy_lines(data: dict, tests: list[Test]) -> list[str]:
+def hierarchy_lines(data: dict, tests: list[Test], worlds=None, level: int = 2) -> list[str]:
     by = {(t.claim, t.world, t.endpoint): t for t in tests}
     lines = []
     for endpoint in ENDPOINTS:
@@ -293,12 +305,12 @@ def hierarchy_lines(data: dict, tests: list[Test]) -> list[str]:
         }[endpoint]
         cells = [f"{s}, {'fading' if f else 'no fading'}" for s in SCHEDULES for f in (False, True)]
         lines += [
-            f"## {what}",
+            f"{'#' * level} {what}",
             "",
             "| world | " + " | ".join(cells) + " |",
             "|---|" + "---|" * len(cells),
         ]
-        for world in WORLDS:
+        for world in worlds or WORLDS:
             row = []
             for cell in cells:
                 t = by[cell, world, endpoint]
@@ -324,19 +336,19 @@ def hierarchy_lines(data: dict, tests: list[Test]) -> list[str]:
     return lines
 
 
-def exploration_lines(data: dict) -> list[str]:
+def exploration_lines(data: dict, worlds=None, methods=None, level: int = 3) -> list[str]:
     """Each method under both schedules (descriptive): decision → goals."""
-    lines = []
+    lines, worlds = [], worlds or WORLDS
     for endpoint in ("greedy", "early"):
         lines += [
-            f"### {ENDPOINT_TITLES[endpoint]}: ε per decision → ε goals",
+            f"{'#' * level} {ENDPOINT_TITLES[endpoint]}: ε per decision → ε goals",
             "",
-            "| method | " + " | ".join(WORLDS) + " |",
-            "|---|" + "---|" * len(WORLDS),
+            "| method | " + " | ".join(worlds) + " |",
+            "|---|" + "---|" * len(worlds),
         ]
-        for m in METHODS:
+        for m in methods or METHODS:
             cells = []
-            for world in WORLDS:
+            for world in worlds:
                 before = score(method_world(data, "decision", m, world), m, endpoint)
                 after = score(method_world(data, "goals", m, world), m, endpoint)
                 cells.append(f"{show(world, endpoint, before)} → {show(world, endpoint, after)}")
@@ -500,6 +512,130 @@ def _stress_table(rows: list[dict], steps: int) -> list[str]:
     return lines
 
 
+# ----------------------------------------------------------------------------------- MiniGrid
+#: MiniGrid's tasks (PROTOCOL.md, amendment of 2026-11-29), in their running order
+#: (``minigrid_benchmark.py``); a task enters the tables once its cells are all recorded.
+MINIGRID_TASKS = ("multiroomn2s4", "keycorridors3r1", "doorkey5x5", "unlock", "fourrooms",
+                  "multiroomn4s5", "doorkey6x6")  # fmt: skip
+MINIGRID_PRESETS = tuple(p for pair in SCHEDULES.values() for p in pair)
+
+
+def load_minigrid_task(folder: Path, task: str, meta: dict) -> World | None:
+    """One task's runs of one preset (``<task>.json``/``.csv``, BCO's ``<task>.bco.*``), or
+    None where its main cell is not recorded: first goal (exact: every terminal state is a
+    success), goals in the first and last 50k steps, the greedy policy's % of optimal. The
+    records' commits and wall times are added to ``meta``."""
+    if not (folder / f"{task}.json").exists():
+        return None
+    world = World(task, 0)
+    for stem in (task, f"{task}.bco"):
+        if not (folder / f"{stem}.json").exists():
+            continue
+        record = json.loads((folder / f"{stem}.json").read_text())
+        world.budget = budget = int(record["steps"])
+        meta["commits"].add(record["commit"])
+        meta["seconds"] += float(record["wall_seconds"])
+        goals: dict = defaultdict(list)
+        with open(folder / f"{stem}.csv") as f:
+            for row in csv.DictReader(f):
+                goals[row["agent"], int(row["seed"])].append((int(row["step"]), int(row["goals"])))
+        for b, (agent, seed) in enumerate(zip(record["agents"], record["seeds"])):
+            series = goals[agent, seed]
+            world.runs[agent, seed] = {
+                "first_goal": int(record["first_goal_step"][b]),
+                "early": sum(g for step, g in series if step <= EARLY_STEPS),
+                "late": sum(g for step, g in series if step > budget - LATE_STEPS),
+                "greedy": float(record["greedy_percent_of_optimal"][b]),
+            }
+    return world
+
+
+def load_minigrid(results: Path) -> tuple[dict, tuple[str, ...], dict, dict]:
+    """preset → task → World; the tasks whose every cell but BCO's is recorded; the rows of
+    the tables (BCO's only where its cells are recorded on every one of those tasks); task →
+    the commits its records name and their wall seconds."""
+    root = results / "benchmark" / "minigrid"
+    data: dict = {preset: {} for preset in MINIGRID_PRESETS}
+    meta: dict = {task: {"commits": set(), "seconds": 0.0} for task in MINIGRID_TASKS}
+    for preset in MINIGRID_PRESETS:
+        for task in MINIGRID_TASKS:
+            world = load_minigrid_task(root / preset, task, meta[task])
+            if world is not None:
+                data[preset][task] = world
+    tasks = tuple(t for t in MINIGRID_TASKS if all(t in data[p] for p in MINIGRID_PRESETS))
+    with_bco = all(("bco", 0) in data[p][t].runs for t in tasks for p in ("paper", "explore-goals"))
+    methods = {m: v for m, v in METHODS.items() if with_bco or v[0] != "bco"}
+    return data, tasks, methods, meta
+
+
+def minigrid_sections(results: Path) -> tuple[list[str], list[str], list[Test]] | None:
+    """The MiniGrid tables: the leaderboards' section, "Does the hierarchy help?"'s section and
+    their tests (own Holm families: ``minigrid leaderboard``, ``minigrid hierarchy``); None
+    while no task is complete."""
+    data, tasks, methods, by_task = load_minigrid(results)
+    if not tasks:
+        return None
+    commits = sorted({c for t in tasks for c in by_task[t]["commits"]})
+    minutes = sum(by_task[t]["seconds"] for t in tasks) / 60
+    missing = [t for t in MINIGRID_TASKS if t not in tasks]
+    tests = leaderboard_tests(data, tasks, methods, "minigrid leaderboard")
+    family = hierarchy_tests(data, tasks, "minigrid hierarchy")
+    board, mean_ranks = leaderboard_lines(data, tests, tasks, methods, "MiniGrid tasks", 3)
+    budgets = ", ".join(f"{t} {data['paper'][t].budget // 1000}k" for t in tasks)
+    about = (
+        f"MiniGrid's key-and-door tasks (`experiments/benchmark/PROTOCOL.md`, amendment of "
+        f"2026-11-29): {len(tasks)} tasks ({budgets} steps per run), seeds 0–19, random ties, "
+        'the learner\'s options the primitives and its "go to and face X" skills, the MiniGrid '
+        "mentor (optimal for its own right-handed skills). "
+        + (
+            "Not run yet: " + ", ".join(missing) + " (`python experiments/benchmark/"
+            "run_benchmark.py --parts minigrid` runs what is missing). "
+            if missing
+            else ""
+        )
+        + (
+            ""
+            if len(methods) == len(METHODS)
+            else "BCO's cells are not run yet on every task: its row is left out. "
+        )
+        + f"Runs recorded at commit {', '.join(f'`{c[:12]}`' for c in commits)} (their batches "
+        f"took {minutes:.1f} min in all on the shared 2-core CPU); regenerated from the "
+        "committed records (`experiments/results/benchmark/minigrid/`) by `python "
+        "experiments/benchmark/analyse.py`. Its own Holm families (not mixed with the nine "
+        "worlds'); ▲ / ▼ as above."
+    )
+    leaderboard = [
+        "## MiniGrid's tasks",
+        "",
+        about,
+        "",
+        *mean_rank_lines(mean_ranks, methods, "the MiniGrid tasks"),
+        *board,
+        "### Each method under both schedules (descriptive)",
+        "",
+        *exploration_lines(data, tasks, methods, 4),
+    ]
+    hierarchy = ["## MiniGrid's tasks", "", about, "", *hierarchy_lines(data, family, tasks, 3)]
+    return leaderboard, hierarchy, tests + family
+
+
+def minigrid_page(sections: tuple[list[str], list[str], list[Test]]) -> str:
+    """``minigrid.md``: the two MiniGrid sections alone."""
+    leaderboard, hierarchy, _ = sections
+    return "\n".join([
+        "# The benchmark on MiniGrid's tasks (generated by `experiments/benchmark/analyse.py`)",
+        "",
+        "The MiniGrid sections of `leaderboard.md` and `hierarchy.md` on one page.",
+        "",
+        "## The leaderboards",
+        "",
+        *leaderboard[2:],
+        "## Does the hierarchy help? Eq. 2 − eq. 1 under the same settings",
+        "",
+        *hierarchy[2:],
+    ]) + "\n"  # fmt: skip
+
+
 # --------------------------------------------------------------------------------------- main
 def write_csv(path: Path, tests: list[Test]) -> None:
     with open(path, "w", newline="") as f:
@@ -589,7 +725,6 @@ def main() -> None:
         *stress,
         "",
     ]
-    (out / "leaderboard.md").write_text("\n".join(lines) + "\n")
     hierarchy = [
         "# Does the hierarchy help? Eq. 2 against eq. 1 under the same settings (generated by "
         "`experiments/benchmark/analyse.py`)",
@@ -605,8 +740,14 @@ def main() -> None:
         "",
         *hierarchy_lines(data, family),
     ]
+    minigrid = minigrid_sections(results)
+    if minigrid is not None:  # (MiniGrid's tables after the nine worlds', amendment 2026-11-29)
+        lines += ["", *minigrid[0]]
+        hierarchy += ["", *minigrid[1]]
+        (out / "minigrid.md").write_text(minigrid_page(minigrid))
+    (out / "leaderboard.md").write_text("\n".join(lines) + "\n")
     (out / "hierarchy.md").write_text("\n".join(hierarchy) + "\n")
-    write_csv(out / "leaderboard.csv", tests + family)
+    write_csv(out / "leaderboard.csv", tests + family + (minigrid[2] if minigrid else []))
     print((out / "leaderboard.md").read_text())
     print((out / "hierarchy.md").read_text())
 

@@ -1,15 +1,17 @@
 """The whole benchmark in one command (PROTOCOL.md, the fair factorial of 2026-11-26): every
 method under every exploration schedule, every method with a mentor term with and without
 fading, on the nine worlds and the puzzle box (seeds 0–19, random ties); the recommended
-imitator's pick on fresh held-out seeds; the stresses; then the tables.
+imitator's pick on fresh held-out seeds; the stresses; MiniGrid's tasks (amendment of
+2026-11-29, ``minigrid_benchmark.py``); then the tables.
 
-    python experiments/benchmark/run_benchmark.py [--parts worlds puzzlebox pick stress]
+    python experiments/benchmark/run_benchmark.py [--parts worlds puzzlebox pick stress minigrid]
         [--logdir runs/benchmark] [--seeds 20] [--skip-runs]
 
 Each part's wall time is written to ``experiments/results/benchmark/timing.json`` (and so onto
 the benchmark's page). The records every table is made from are copied into
 ``experiments/results/benchmark/`` (``<preset>/`` per cell group, ``puzzlebox/``,
-``stress_exp2/``) and ``experiments/results/presets/records/`` (the pick's sweeps), then
+``stress_exp2/``, ``minigrid/``) and ``experiments/results/presets/records/`` (the pick's
+sweeps), then
 ``analyse.py`` and ``../presets/analyse_search.py`` run on them.
 """
 
@@ -46,7 +48,7 @@ CELLS = {
 }
 #: The held-out pick's sweeps (../presets/fair_*.toml).
 PICK_SWEEPS = ("fair_plain_exp1", "fair_fade_exp1", "fair_plain_exp2", "fair_fade_exp2")
-PARTS = ("worlds", "puzzlebox", "pick", "stress")
+PARTS = ("worlds", "puzzlebox", "pick", "stress", "minigrid")
 
 
 def run(*argv: str) -> None:
@@ -137,6 +139,15 @@ def main() -> None:
                 logdir / "stress_exp2",
                 RESULTS / "stress_exp2",
                 ("runs.csv", "summary.md", "sweep.json"),
+            )
+        elif part == "minigrid":  # (resumes: a finished cell is kept)
+            run(
+                str(HERE / "minigrid_benchmark.py"),
+                "--seeds",
+                str(args.seeds),
+                "--logdir",
+                str(logdir / "minigrid"),
+                *(["--skip-runs"] if args.skip_runs else []),
             )
         if not args.skip_runs:
             timing[part] = round(time.perf_counter() - started, 1)
