@@ -22,8 +22,8 @@ def _state(batch: int = 3) -> dict:
 
 
 def _learner(batch: int = 3, t: int = 10_000) -> SimpleNamespace:
-    # (only the restored learner's batch and step are read)
-    return SimpleNamespace(batch=batch, t=t)
+    # (only the restored learner's batch and its step, a view, are read)
+    return SimpleNamespace(batch=batch, views=SimpleNamespace(t=t))
 
 
 def test_a_saved_state_is_restored_as_it_was():
