@@ -1266,6 +1266,7 @@ import matplotlib.pyplot as plt
 import torch
 
 import himit_torch as ht
+from himit_torch.viz.minigrid import plot_minigrid_paths
 
 STEPS = int(os.environ.get("HIMIT_NOTEBOOK_STEPS", 30_000))   # primitive steps per run
 SEEDS = int(os.environ.get("HIMIT_NOTEBOOK_SEEDS", 2))
@@ -1299,12 +1300,8 @@ for name, opts, policy in [
     print(f"{name:>18}: {steps:.0f} steps start → goal")
 
 demos = ht.record_demonstrations(world, mentor, episodes=10, seed=0)
-path = world.cell_center(demos.episodes[0])
-fig, ax = plt.subplots(figsize=(4, 4))
-ax.imshow(world.render(world.start_state))
-ax.plot(path[:, 0], path[:, 1], "o-", color="tab:orange", ms=4, label="mentor")
-ax.set_axis_off()
-ax.legend(loc="lower left")
+fig, ax = plt.subplots(figsize=(4, 4.4))
+plot_minigrid_paths(world, [("mentor", demos.episodes[0])], ax=ax, colors=["tab:orange"])
 plt.show()"""),
     new_markdown_cell("""\
 ## Learning
@@ -1365,14 +1362,11 @@ for run, (states, frames, end) in replays.items():
     print(f"imitation run {run // len(agents)}: {len(frames) - 1} steps, {end}")
 states, frames, _ = next((r for r in replays.values() if r[2] == "reached the goal"), replays[0])
 
-fig, ax = plt.subplots(figsize=(4, 4))              # both paths over MiniGrid's drawing
-ax.imshow(world.render(world.start_state))
-for path, color, label, shift in [(demos.episodes[0], "tab:orange", "mentor", -4),
-                                  (states, "tab:blue", "learner (greedy)", 4)]:
-    xy = world.cell_center(path) + shift           # side by side where the paths share cells
-    ax.plot(xy[:, 0], xy[:, 1], "o-", color=color, ms=3, label=label)
-ax.set_axis_off()
-ax.legend(loc="lower left", fontsize=8)
+fig, ax = plt.subplots(figsize=(4, 4.6))            # both paths over MiniGrid's drawing,
+plot_minigrid_paths(                                # side by side where they share cells
+    world, [("mentor", demos.episodes[0]), ("learner (greedy)", states)], ax=ax,
+    colors=["tab:orange", "tab:blue"],
+)
 plt.show()
 
 shown = frames[:: max(len(frames) // 6, 1)][:6]

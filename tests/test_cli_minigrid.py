@@ -62,8 +62,16 @@ def test_run_minigrid_runs_doorkey_6x6_and_plot_redraws_it(tmp_path, capsys):
     assert "The mentor is optimal for its own options" in page
     assert "Produced by `himit run minigrid`" in page and "himit run gymnasium" not in page
     assert f"`himit run minigrid --quick --logdir {tmp_path}`" in page  # (its rerun command)
+    # The paths figure: the mentor's first episode and each agent's greedy trajectory (seed 0),
+    # kept in the task's record so that himit plot draws it again.
+    assert sorted(summary["paths"]) == ["imitation", "mentor", "options", "primitives"]
+    assert all(path[0] == 0 for path in summary["paths"].values())  # (from the start state)
+    assert "`figures/paths_doorkey6x6.png`" in page
+    figure = run_dir / "figures" / "paths_doorkey6x6.png"
+    figure.unlink()
     assert main(["plot", str(run_dir)]) == 0
     assert (run_dir / "results.md").read_text() == page
+    assert figure.stat().st_size > 0
 
 
 def test_run_minigrid_help_lists_the_minigrid_tasks(capsys):

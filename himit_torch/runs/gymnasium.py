@@ -10,7 +10,9 @@ one :class:`~himit_torch.Learner` batch of every agent × seed. A run directory 
                               greedy value gap, mentor term wins
     tasks/<task>.json         per-run summaries and the task's optimum
     tb/<task>__<agent>__seed<k>/   TensorBoard event files (scalars, hparams)
-    figures/*.png             learning curves (mean and 95 % CI over seeds), final-window bars
+    figures/*.png             learning curves (mean and 95 % CI over seeds), final-window bars;
+                              MiniGrid's tasks: paths_<task>.png, the first seed's paths
+                              (the record's ``paths``) over MiniGrid's drawing
     results.md                the table: mean ± 95 % CI (Student t over seeds), n per cell
 
 Metrics (per window of ``window`` steps):
@@ -102,7 +104,7 @@ from himit_torch.viz.results_page import (
 )
 from himit_torch.viz.tensorboard import TensorBoardLogger, tensorboard_command
 from himit_torch.worlds.gymnasium import from_gymnasium
-from himit_torch.worlds.minigrid import from_minigrid
+from himit_torch.worlds.minigrid import MiniGridWorld, from_minigrid
 from himit_torch.worlds.table_world import TableWorld
 
 __all__ = [
@@ -654,8 +656,27 @@ def run_task(
         progress=f"{task_name} B={run.learner.batch}" if progress else None,
     )
     summary = _task_summary(config, run, log, wall)
+    if isinstance(run.world, MiniGridWorld):
+        summary["paths"] = _minigrid_paths(run)
     _write_task_records(run_dir, run, log, logger, summary)
     return summary
+
+
+def _minigrid_paths(run: _TaskBatch) -> dict[str, list[int]]:
+    """A MiniGrid task's paths for its figure (``figures/paths_<task>.png``, kept in the task's
+    record so that ``himit plot`` redraws it): the mentor's first episode for the first seed
+    and, per agent, that seed's run's greedy trajectory
+    (:meth:`~himit_torch.learner.inspect.LearnerViews.greedy_trajectory`, the seed's own draws),
+    at most five times the mentor's steps. Reads the finished learner; changes nothing."""
+    seed = run.run_seeds[0]
+    mentor = record_demonstrations(run.world, run.mentor, 1, seed=seed).episodes[0]
+    max_steps = 5 * max(len(mentor) - 1, 1)
+    paths = {"mentor": [int(s) for s in mentor]}
+    for b, (agent, run_seed) in enumerate(zip(run.agents, run.run_seeds)):
+        if run_seed == seed and agent not in paths:
+            trajectory = run.learner.views.greedy_trajectory(b, max_steps, seed=seed)
+            paths[agent] = [int(s) for s in trajectory]
+    return paths
 
 
 _COLUMNS = (
@@ -792,6 +813,17 @@ def _check_task_record(where: str, summary: dict, task: str | None = None) -> No
             f"{where}: field 'optimal_goals_per_window' must be a number > 0, got "
             f"{summary['optimal_goals_per_window']!r}{fix}"
         )
+    paths = summary.get("paths", {})
+    if not isinstance(paths, dict) or not all(
+        isinstance(v, list)
+        and v
+        and all(isinstance(x, int) and not isinstance(x, bool) and x >= 0 for x in v)
+        for v in paths.values()
+    ):
+        raise ValueError(
+            f"{where}: field 'paths' must map each path's name to its states (whole numbers "
+            f"≥ 0), got {paths!r:.60}{fix}"
+        )
     if task is not None and summary["task"] != task:
         raise ValueError(f"{where}: field 'task' is {summary['task']!r:.60}, not {task!r}{fix}")
 
@@ -861,6 +893,48 @@ def write_gym_figures(run_dir: Path, config: GymExperimentConfig, summaries: lis
         FigureCanvasAgg(fig)
         fit_titles(fig)
         fig.savefig(fig_dir / f"curves_{task}.png", dpi=100)
+        if "paths" in summary:
+            _write_paths_figure(fig_dir / f"paths_{task}.png", config, summary)
+
+
+def _write_paths_figure(path: Path, config: GymExperimentConfig, summary: dict) -> None:
+    """A MiniGrid task's ``figures/paths_<task>.png``: the task's recorded paths (the mentor's
+    first episode, each agent's greedy trajectory for the first seed) over MiniGrid's drawing of
+    the start (:func:`~himit_torch.viz.minigrid.plot_minigrid_paths`)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from himit_torch.viz.minigrid import plot_minigrid_paths
+    from himit_torch.viz.report import AGENT_COLORS
+
+    world = TASKS[summary["task"]].world(config.gamma)
+    if not isinstance(world, MiniGridWorld):
+        raise ValueError(
+            f"task record tasks/{summary['task']}.json holds 'paths', which only MiniGrid's "
+            "tasks draw; the record is damaged (run the task again, or restore the file)"
+        )
+    terminal = world.terminal_mask.tolist()
+    paths, colors = [], []
+    for name, states in summary["paths"].items():
+        if max(states) >= world.num_states:
+            raise ValueError(
+                f"task record tasks/{summary['task']}.json: path {name!r} holds state "
+                f"{max(states)}, outside the task's {world.num_states} states; the record is "
+                "damaged (run the task again, or restore the file)"
+            )
+        steps = f"{len(states) - 1} steps" + (", the goal" if terminal[states[-1]] else ", no goal")
+        label = "mentor, first episode" if name == "mentor" else f"{name}, greedy"
+        paths.append((f"{label} ({steps})", states))
+        # The mentor magenta: no agent's colour, and it shows on MiniGrid's black floor and on
+        # the legend's white.
+        colors.append("magenta" if name == "mentor" else AGENT_COLORS.get(name, "0.6"))
+    fig = plot_minigrid_paths(
+        world,
+        paths,
+        colors=colors,
+        title=f"{summary.get('env_id', summary['task'])}: seed {config.first_seed}'s paths",
+    )
+    FigureCanvasAgg(fig)
+    fig.savefig(path, dpi=100)
 
 
 def _cell(values, digits: int = 1) -> str:
@@ -990,7 +1064,13 @@ def _task_section(config: GymExperimentConfig, s: dict) -> list[str]:
     return lines + [
         "",
         f"Wall time for this task's batch of {len(s['agents'])} runs: "
-        f"{s['wall_seconds']:.0f} s. Figure: `figures/curves_{s['task']}.png`.",
+        f"{s['wall_seconds']:.0f} s. Figure: `figures/curves_{s['task']}.png`."
+        + (
+            f" Paths over MiniGrid's drawing (the mentor's first episode, each agent's greedy "
+            f"trajectory, seed {config.first_seed}): `figures/paths_{s['task']}.png`."
+            if "paths" in s
+            else ""
+        ),
         "",
     ]
 

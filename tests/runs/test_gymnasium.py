@@ -216,3 +216,28 @@ def test_himit_plot_refuses_a_damaged_task_record_naming_the_file_and_field(
     assert str(run_dir / "tasks" / "taxi.json") in err
     if field is not None:
         assert repr(field) in err
+
+
+@pytest.mark.parametrize(
+    ("paths", "words"),
+    [
+        ({"mentor": [0, 1.5]}, "field 'paths' must map each path's name to its states"),
+        ([[0, 1]], "field 'paths' must"),
+        ({"mentor": [0, 1]}, "only MiniGrid's tasks draw"),  # (a Taxi record)
+    ],
+)
+def test_himit_plot_refuses_damaged_paths_in_a_task_record(paths, words, tmp_path, capsys):
+    import shutil
+
+    from himit_torch.cli import main
+
+    run_dir = tmp_path / "gymnasium"
+    shutil.copytree(_RECORDS / "paper-first" / "gymnasium", run_dir)
+    path = run_dir / "tasks" / "taxi.json"
+    path.write_text(json.dumps(dict(json.loads(path.read_text()), paths=paths)))
+    with pytest.raises(SystemExit) as exc:
+        main(["plot", str(run_dir)])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("himit: error: "), err
+    assert "tasks/taxi.json" in err and words in err
