@@ -701,8 +701,8 @@ def main() -> None:
         "- **Not run yet:** "
         + ("; ".join(sorted(set(missing))) + " (records absent); " if missing else "")
         + "Q1 on the puzzle box and on MiniGrid's other tasks (DoorKey 8×8, UnlockPickup, "
-        "KeyCorridor, MultiRoom, FourRooms: another branch adds them), F on Q2's conditions "
-        "(where the mentor's observed moves are several steps), Q3 (transfer), Q4 (the "
+        "KeyCorridor, MultiRoom, FourRooms: registered for himit run minigrid, not yet in an "
+        "amendment), F on Q2's conditions (where the mentor's observed moves are several steps), Q3 (transfer), Q4 (the "
         "fifth skewer): their cells follow in amendments before their runs, as the settings and "
         "worlds land. "
         + (
