@@ -71,10 +71,16 @@ def values(cell: dict, endpoint: str) -> np.ndarray:
 def compare(a: dict, b: dict, endpoint: str) -> tuple[float, float, float, float, int, int]:
     if sorted(a) != sorted(b):
         raise ValueError("the cells' seeds differ: the comparison is paired by seed")
+    return compare_values(values(a, endpoint), values(b, endpoint), endpoint)
+
+
+def compare_values(a, b, endpoint: str) -> tuple[float, float, float, float, int, int]:
+    """``a − b`` paired by position on ``endpoint``: (difference, low, high, p, wins, losses);
+    the first goal by the sign test (no interval), the others by the paired comparison's t."""
     if endpoint == "first_goal":
-        r = first_goal_sign_test(values(a, endpoint), values(b, endpoint))
+        r = first_goal_sign_test(a, b)
         return r.difference.estimate, math.nan, math.nan, r.sign_p, r.wins, r.losses
-    r = paired_comparison(values(a, endpoint), values(b, endpoint))
+    r = paired_comparison(a, b)
     return r.difference.estimate, r.difference.low, r.difference.high, r.t_p, r.wins, r.losses
 
 

@@ -33,13 +33,13 @@ from common import (
     SCHEDULES,
     Test,
     adjust,
+    compare_values,
     distinct_comparisons,
     show_test,
 )
 
 from himit_torch.statistics import (
     bca_interval,
-    first_goal_sign_test,
     first_goal_survival,
     paired_comparison,
 )
@@ -295,13 +295,14 @@ def cell_tests(family: str, cell: Cell) -> list[Test]:
                         r.difference.high,
                         r.sign_p,
                     )
+                    wins, losses = r.wins, r.losses
                 else:
-                    r = first_goal_sign_test(a(cell.first_goal), b(cell.first_goal))
-                    d, lo, hi, p = r.difference.estimate, np.nan, np.nan, r.sign_p
+                    d, lo, hi, p, wins, losses = compare_values(
+                        a(cell.first_goal), b(cell.first_goal), endpoint
+                    )
             else:
                 values = getattr(cell, endpoint)
-                r = paired_comparison(a(values), b(values))
-                d, lo, hi, p = r.difference.estimate, r.difference.low, r.difference.high, r.t_p
+                d, lo, hi, p, wins, losses = compare_values(a(values), b(values), endpoint)
             out.append(
                 Test(
                     family,
@@ -316,8 +317,8 @@ def cell_tests(family: str, cell: Cell) -> list[Test]:
                     lo,
                     hi,
                     p,
-                    r.wins,
-                    r.losses,
+                    wins,
+                    losses,
                 )  # fmt: skip
             )
     return out
@@ -431,12 +432,7 @@ def f_tests(trial: Cell, feasibility: Cell, tries: int) -> list[Test]:
     out = []
     for endpoint in ENDPOINTS:
         a, b = getattr(feasibility, endpoint)[EQ2], getattr(trial, endpoint)[EQ2]
-        if endpoint == "first_goal":
-            r = first_goal_sign_test(a, b)
-            d, lo, hi, p = r.difference.estimate, np.nan, np.nan, r.sign_p
-        else:
-            r = paired_comparison(a, b)
-            d, lo, hi, p = r.difference.estimate, r.difference.low, r.difference.high, r.t_p
+        d, lo, hi, p, wins, losses = compare_values(a, b, endpoint)
         out.append(
             Test(
                 "F",
@@ -451,8 +447,8 @@ def f_tests(trial: Cell, feasibility: Cell, tries: int) -> list[Test]:
                 lo,
                 hi,
                 p,
-                r.wins,
-                r.losses,
+                wins,
+                losses,
             )  # fmt: skip
         )
     return out
