@@ -8,9 +8,8 @@ import torch
 
 from himit_torch import Demonstrations, MultiRooms
 from himit_torch.mentor.observation import first_part
-from himit_torch.runs import experiment as experiment_module
-from himit_torch.runs.config import ExperimentConfig, load_config
-from himit_torch.runs.experiment import run_experiment
+from himit_torch.runs.config import ExperimentConfig
+from tests.runs.watching import watched_run
 
 
 def test_first_part_keeps_the_start_of_each_episode():
@@ -43,26 +42,9 @@ def test_bad_settings_are_refused_by_name(changes, message):
         ExperimentConfig(**changes)
 
 
-def _watched(tmp_path, monkeypatch, **changes):
-    seen = {}
-    real_watch = experiment_module.watch_demonstrations
-
-    def watch(learner, demos, mentor=0):
-        seen.update(demos)
-        real_watch(learner, demos, mentor)
-
-    monkeypatch.setattr(experiment_module, "watch_demonstrations", watch)
-    config = ExperimentConfig(name="part", sizes=(16,), room_size=4, seeds=1, steps=1000,
-                              window=1000, checkpoint_every=1000, mentor_episodes=3,
-                              agents=("imitation",), **changes)  # fmt: skip
-    run_experiment(config, tmp_path / "run", progress=False, workers=1)
-    assert load_config(tmp_path / "run" / "config.json") == config
-    return config, seen[0]
-
-
 def test_coverage_keeps_the_first_part_of_each_route(tmp_path, monkeypatch):
-    _, whole = _watched(tmp_path / "a", monkeypatch)
-    config, half = _watched(tmp_path / "b", monkeypatch, mentor_coverage=0.5)
+    _, whole = watched_run(tmp_path / "a", monkeypatch)
+    config, half = watched_run(tmp_path / "b", monkeypatch, mentor_coverage=0.5)
     goal = config.world(16).goal_state
     for full, part in zip(whole.episodes, half.episodes):
         assert torch.equal(part, full[: math.ceil(0.5 * full.numel())])
@@ -70,7 +52,7 @@ def test_coverage_keeps_the_first_part_of_each_route(tmp_path, monkeypatch):
 
 
 def test_another_goal_is_the_walk_to_the_top_right_corner(tmp_path, monkeypatch):
-    config, demos = _watched(tmp_path, monkeypatch, mentor_goal="top-right")
+    config, demos = watched_run(tmp_path, monkeypatch, mentor_goal="top-right")
     world = config.world(16)
     for episode in demos.episodes:
         assert int(episode[-1]) == 15  # the top-right corner cell (0, 15)

@@ -6,9 +6,8 @@ import pytest
 import torch
 
 from himit_torch import mentor_options, mentor_policy, run_mentor
-from himit_torch.runs import experiment as experiment_module
-from himit_torch.runs.config import ExperimentConfig, load_config
-from himit_torch.runs.experiment import run_experiment
+from himit_torch.runs.config import ExperimentConfig
+from tests.runs.watching import watched_run
 
 
 @pytest.mark.parametrize(
@@ -31,25 +30,12 @@ def test_bad_settings_are_refused_by_name(changes, message):
 def test_the_learner_sees_the_recorded_episodes_where_the_mentors_options_end(
     tmp_path, monkeypatch
 ):
-    seen = {}
-    real_watch = experiment_module.watch_demonstrations
-
-    def watch(learner, demos, mentor=0):
-        seen.update(demos)
-        real_watch(learner, demos, mentor)
-
-    monkeypatch.setattr(experiment_module, "watch_demonstrations", watch)
-    config = ExperimentConfig(name="ends", sizes=(16,), room_size=4, seeds=1, steps=1000,
-                              window=1000, checkpoint_every=1000, mentor_episodes=3,
-                              agents=("imitation",), observation="option-ends")  # fmt: skip
-    run_experiment(config, tmp_path / "run", progress=False, workers=1)
-    assert load_config(tmp_path / "run" / "config.json") == config
+    config, coarse = watched_run(tmp_path, monkeypatch, name="ends", observation="option-ends")
     world = config.world(16)
     # the episodes the run recorded for seed 0, with where each of the mentor's options began
     mentor = mentor_policy(world, mentor_options(world, corners=config.corner_options),
                            config.mentor_preference)  # fmt: skip
     rollout = run_mentor(world, mentor, 3, seed=0)
-    coarse = seen[0]
     assert coarse.num_episodes == 3
     for full, begun, kept in zip(rollout.states, rollout.decision_steps, coarse.episodes):
         ends = sorted({0, len(full) - 1, *begun.tolist()})
