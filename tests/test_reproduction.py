@@ -30,6 +30,19 @@ def committed_config(sweep: str, cell: str) -> ExperimentConfig:
     return ExperimentConfig(**data)
 
 
+def curve_rows(path: Path, seeds, last_step: int, agents=None) -> dict:
+    """A ``curves.csv``'s rows of ``seeds`` up to ``last_step`` (of ``agents``, all if None):
+    ``(agent, seed, step)`` → the compared columns."""
+    with path.open() as f:
+        return {
+            (r["agent"], int(r["seed"]), int(r["step"])): tuple(r[k] for k in COLUMNS)
+            for r in csv.DictReader(f)
+            if int(r["seed"]) in seeds
+            and int(r["step"]) <= last_step
+            and (agents is None or r["agent"] in agents)
+        }
+
+
 def committed_rows(sweep: str, cell: str, seeds, last_step: int) -> dict:
     with (RESULTS / sweep / "results.csv").open() as f:
         return {
@@ -107,17 +120,9 @@ def test_a_short_run_reproduces_the_committed_claims_curves(tmp_path, run, steps
     run_experiment(config, tmp_path / "run", progress=False, workers=1)
     [curves] = (tmp_path / "run").rglob("curves.csv")
 
-    def rows(path: Path) -> dict:
-        with path.open() as f:
-            return {
-                (r["agent"], int(r["seed"]), int(r["step"])): tuple(r[k] for k in COLUMNS)
-                for r in csv.DictReader(f)
-                if int(r["seed"]) in seeds and int(r["step"]) <= steps
-            }
-
-    theirs = rows(RESULTS / run / "curves.csv")
+    theirs = curve_rows(RESULTS / run / "curves.csv", seeds, steps)
     assert len(theirs) == len(config.agents) * len(seeds) * (steps // config.window)
-    assert rows(curves) == theirs
+    assert curve_rows(curves, seeds, steps) == theirs
 
 
 def test_a_short_run_reproduces_the_committed_bco_curves(tmp_path):
@@ -140,14 +145,8 @@ def test_a_short_run_reproduces_the_committed_bco_curves(tmp_path):
     run_experiment(config, tmp_path / "run", progress=False, workers=1)
     [curves] = (tmp_path / "run").rglob("curves.csv")
 
-    def rows(path: Path) -> dict:
-        with path.open() as f:
-            return {
-                (r["agent"], int(r["seed"]), int(r["step"])): tuple(r[k] for k in COLUMNS)
-                for r in csv.DictReader(f)
-                if r["agent"] == "bco" and int(r["seed"]) in seeds and int(r["step"]) <= steps
-            }
-
-    theirs = rows(RESULTS / "benchmark" / "paper" / "exp2" / "curves.csv")
+    theirs = curve_rows(
+        RESULTS / "benchmark" / "paper" / "exp2" / "curves.csv", seeds, steps, {"bco"}
+    )
     assert len(theirs) == len(seeds) * (steps // config.window)
-    assert rows(curves) == theirs
+    assert curve_rows(curves, seeds, steps, {"bco"}) == theirs
