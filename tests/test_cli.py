@@ -198,33 +198,36 @@ def _python_stdout(code: str) -> str:
     ).stdout
 
 
-def _loaded_by_a_fresh_parser(modules: tuple[str, ...]) -> list[str]:
-    """Which of ``modules`` a new interpreter has loaded after ``import himit_torch`` and
-    building the CLI's parser (what every command does first)."""
+@pytest.fixture(scope="module")
+def loaded_by_a_fresh_parser() -> set[str]:
+    """The modules a new interpreter has loaded after ``import himit_torch`` and building the
+    CLI's parser (what every command does first): one interpreter (≈ 4 s) for the tests below."""
     code = (
         "import sys, himit_torch; from himit_torch.cli import build_parser; build_parser(); "
-        f"print(' '.join(m for m in {modules!r} if m in sys.modules))"
+        "print(' '.join(sys.modules))"
     )
-    return _python_stdout(code).split()
+    return set(_python_stdout(code).split())
 
 
-def test_building_the_parser_leaves_scipy_stats_unimported():
+@pytest.mark.xdist_group("fresh_parser")
+def test_building_the_parser_leaves_scipy_stats_unimported(loaded_by_a_fresh_parser):
     """``scipy.stats`` costs ~0.7 s to import; every command builds the parser (which imports the
     sweep's summary statistics), so :mod:`himit_torch.statistics` imports it at first use."""
-    assert _loaded_by_a_fresh_parser(("scipy.stats",)) == []
+    assert "scipy.stats" not in loaded_by_a_fresh_parser
     # ...and the statistics still work once it is needed
     from himit_torch.statistics import t_interval
 
     assert t_interval([1.0, 2.0, 3.0]).low < 2.0 < t_interval([1.0, 2.0, 3.0]).high
 
 
-def test_importing_the_package_leaves_numba_and_networkx_unimported():
+@pytest.mark.xdist_group("fresh_parser")
+def test_importing_the_package_leaves_numba_and_networkx_unimported(loaded_by_a_fresh_parser):
     """Numba (≈ 0.5 s) is imported by what compiles (the engine, the exact option models, the
     option builders' search) and networkx (≈ 0.2 s) by what builds a mentor graph, each at first
     use: ``import himit_torch`` and building the CLI's parser load neither."""
-    assert _loaded_by_a_fresh_parser(("numba", "networkx")) == []
-    # ...and the helper does see a module that is loaded
-    assert _loaded_by_a_fresh_parser(("torch",)) == ["torch"]
+    assert not {"numba", "networkx"} & loaded_by_a_fresh_parser
+    # ...and the fixture does see a module that is loaded
+    assert {"torch", "himit_torch.cli"} <= loaded_by_a_fresh_parser
 
 
 def _freeze_count_at_exit(call: str) -> int:
@@ -239,6 +242,8 @@ def _freeze_count_at_exit(call: str) -> int:
     return int(re.search(r"^frozen (\d+)$", _python_stdout(code), flags=re.M).group(1))
 
 
+# (three fresh interpreters, ≈ 13 s: CI's)
+@pytest.mark.slow
 def test_a_command_leaves_its_objects_out_of_the_exit_collections():
     """The interpreter's last garbage collections walked every object a command left (≈ 1 s
     after a ``himit run``): :func:`main` freezes them at exit, once per process, and so does

@@ -85,11 +85,15 @@ def test_run_minigrid_help_lists_the_minigrid_tasks(capsys):
 def _task_params():
     from himit_torch.runs.gymnasium import MINIGRID_TASKS
 
-    # 9,210 and 17,344 states: 35-50 s each to solve on 2 cores, left to make test-all
+    # 9,210 and 17,344 states: 35-50 s each to solve on 2 cores, left to make test-all; the
+    # larger of the others (2-5 s each) to CI
     large = {"doorkey8x8", "unlockpickup"}
+    medium = {"multiroomn4s5", "doorkey6x6", "unlock"}
     return [
         pytest.param(name, marks=[pytest.mark.slow, pytest.mark.extended])
         if name in large
+        else pytest.param(name, marks=pytest.mark.slow)
+        if name in medium
         else name
         for name in MINIGRID_TASKS
     ]

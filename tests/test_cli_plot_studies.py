@@ -41,6 +41,7 @@ def test_a_discovery_run_is_named_not_read_as_an_experiment(tmp_path):
     _one_line_error(_plot(run), "discovery", "does not redraw")
 
 
+@pytest.mark.slow  # (≈ 3 s: CI's; test_bad_input_cli refuses damaged puzzle-box runs in the fast suite)
 @pytest.mark.skipif(not (RESULTS / "puzzlebox").is_dir(), reason="needs the committed records")
 def test_a_puzzle_box_run_without_its_batches_says_so(tmp_path):
     run = tmp_path / "box"

@@ -48,7 +48,8 @@ def tiny_budget(monkeypatch, tmp_path):
     return tmp_path
 
 
-# The quickstart (a learner end to end) in the fast suite; the other three under -m slow.
+# Each runs in a fresh kernel (≈ 6 s and more): all under -m slow (CI).
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "name",
     [

@@ -148,7 +148,7 @@ def test_holm_is_statsmodels_bit_for_bit():
     """The step-down in NumPy gives statsmodels' numbers exactly, ties and NaNs included."""
     multitest = pytest.importorskip("statsmodels.stats.multitest")
     rng = np.random.default_rng(0)
-    for n in range(1, 40):
+    for n in (1, 2, 3, 5, 8, 12, 21, 39):  # (≈ 80 ms a statsmodels call)
         p = rng.random(n) ** rng.integers(1, 6)
         if n % 3 == 0:
             p = np.round(p, 2)  # ties

@@ -245,6 +245,7 @@ def test_stochastic_option_policies_on_the_corridor_equal_their_rollouts():
     assert_matches_rollouts(world, options, policy, result, n=20_000, seed=1)
 
 
+@pytest.mark.slow  # (20,000 rollouts on the 40×40 world, ≈ 3 s: CI's; the fast suite's are smaller)
 def test_policies_on_the_papers_40x40_world_equal_their_rollouts():
     """On experiment 2's world (slip 0.1): the mentor's policy over its own options, and a
     stochastic mix over the learner's options (½ the optimal option, ½ the optimal primitive at

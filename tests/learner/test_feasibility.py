@@ -11,6 +11,7 @@ import torch
 from himit_torch import LearnerConfig, MultiRooms
 from himit_torch.learner.backups import feasible_mentor
 from tests.learner.helpers import build_learner
+from tests.tiers import first_fast
 
 pytest.importorskip("numba")
 
@@ -90,7 +91,7 @@ def test_a_move_no_option_reproduces_loses_its_mentor_term(world8, engine):
     assert float(runs[2].cache.values[0, start]) < float(runs[None].cache.values[0, start])
 
 
-@pytest.mark.parametrize("engine", ["numba", "torch"])
+@pytest.mark.parametrize("engine", first_fast(["numba", "torch"], ids=["numba", "torch"]))
 def test_the_reach_counts_are_the_brute_force_count(world12, mentor_demos12, engine):
     learner = _learner(
         world12, mentor_demos12, 1, engine, agents=("imitation", "imitation_primitives")
@@ -132,12 +133,14 @@ def test_feasibility_off_or_without_a_mentor_changes_nothing(world12):
 
 @pytest.mark.parametrize(
     "config",
-    [
-        {"mentor_feasibility": 1},
-        {"mentor_feasibility": 2, "mentor_trial": True, "mentor_choice": "match"},
-        {"mentor_feasibility": 3, "mentor_concentration": 1.0, "confidence_z": 0.5},
-    ],
-    ids=["one_try", "trial_match", "priors_confidence"],
+    first_fast(
+        [
+            {"mentor_feasibility": 1},
+            {"mentor_feasibility": 2, "mentor_trial": True, "mentor_choice": "match"},
+            {"mentor_feasibility": 3, "mentor_concentration": 1.0, "confidence_z": 0.5},
+        ],
+        ids=["one_try", "trial_match", "priors_confidence"],
+    ),
 )
 def test_engines_agree_with_feasibility(world12, mentor_demos12, config):
     agents = ("imitation", "imitation_primitives", "imitation_confident", "imitation_psrl")

@@ -294,11 +294,13 @@ def _per_tick_state(learner: Learner, b: int) -> dict[str, torch.Tensor]:
         (["imitation", "options", "imitation_primitives"], LearnerConfig(window=500)),
         # budgets that differ between runs (plan_every > 1), rounds that do not divide the budget,
         # and confidence-tested and plain imitators side by side
-        (
+        # (≈ 7 s each: CI's; the fast suite's batch test in test_parity runs plan_every=3)
+        pytest.param(
             ["imitation_confident", "options", "imitation"],
             LearnerConfig(window=500, plan_every=3, sweep_rounds=3),
+            marks=pytest.mark.slow,
         ),
-        (
+        pytest.param(
             ["imitation", "primitives", "imitation_primitives_confident"],
             LearnerConfig(
                 window=500,
@@ -309,6 +311,7 @@ def _per_tick_state(learner: Learner, b: int) -> dict[str, torch.Tensor]:
                 tie_break="first",
                 confidence_z=0.5,
             ),
+            marks=pytest.mark.slow,
         ),
     ],
     ids=["default", "plan_every3_rounds3_confident", "priors_override"],
@@ -844,7 +847,7 @@ def test_learner_runs_on_any_tabular_world():
     learner = Learner(
         world, chain_options(), ["options", "primitives"], [0, 1], config=LearnerConfig(window=100)
     )
-    learner.run(2000)
+    learner.run(600)  # (on the torch engine, ≈ 4 ms a tick: this world has no dynamics table)
     assert bool((learner.views.goals > 50).all())
     # the greedy option everywhere is "right" (option 1), and the values are the chain's:
     # V(3) = 1, V(2) = −0.1 + 0.9·1, …

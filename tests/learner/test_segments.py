@@ -28,6 +28,7 @@ from himit_torch.learner.models import DirichletMentorModel
 from himit_torch.mentor.reward import KnownReward
 from himit_torch.state_checks import DamagedState
 from tests.learner.helpers import build_learner
+from tests.tiers import first_fast
 
 pytest.importorskip("numba")
 
@@ -254,12 +255,14 @@ def test_the_cached_segment_term_is_the_from_scratch_sum(world12, mentor_demos12
 
 @pytest.mark.parametrize(
     "config",
-    [
-        {},
-        {"mentor_concentration": 1.0, "concentration": 0.5, "confidence_z": 0.5},
-        {"mentor_fade": 3.0, "plan_every": 3, "sweep_rounds": 3, "backups": 7},
-    ],
-    ids=["default", "priors_confidence", "fade_rounds"],
+    first_fast(
+        [
+            {},
+            {"mentor_concentration": 1.0, "concentration": 0.5, "confidence_z": 0.5},
+            {"mentor_fade": 3.0, "plan_every": 3, "sweep_rounds": 3, "backups": 7},
+        ],
+        ids=["default", "priors_confidence", "fade_rounds"],
+    ),
 )
 def test_engines_agree_with_segments(world12, mentor_demos12, config):
     coarse = observe_every(mentor_demos12, 3)

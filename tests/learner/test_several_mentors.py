@@ -14,6 +14,7 @@ from himit_torch.learner.models import DirichletMentorModel
 from himit_torch.mentor.policy import mentor_policy
 from himit_torch.options.builders import mentor_options
 from tests.learner.helpers import build_learner
+from tests.tiers import first_fast
 
 pytest.importorskip("numba")
 
@@ -77,7 +78,7 @@ def _same_run(a, b):
     assert torch.equal(a.cache.values, b.cache.values)
 
 
-@pytest.mark.parametrize("engine", ["numba", "torch"])
+@pytest.mark.parametrize("engine", first_fast(["numba", "torch"], ids=["numba", "torch"]))
 def test_one_mentor_watched_by_a_two_mentor_learner_is_todays_run(world12, mentor_demos12, engine):
     one = _learner(world12, mentor_demos12, engine)
     two = _learner(world12, None, engine, mentors=2)
@@ -132,13 +133,15 @@ def test_the_cache_holds_the_largest_mentor_term(world12, mentor_demos12, poor_d
 
 @pytest.mark.parametrize(
     "config",
-    [
-        {},
-        {"mentor_trial": True, "mentor_choice": "match"},
-        {"mentor_feasibility": 2, "mentor_fade": 3.0},
-        {"mentor_concentration": 1.0, "concentration": 0.5, "mentor_segments": True},
-    ],
-    ids=["default", "trial_match", "feasibility_fade", "priors_segments"],
+    first_fast(
+        [
+            {},
+            {"mentor_trial": True, "mentor_choice": "match"},
+            {"mentor_feasibility": 2, "mentor_fade": 3.0},
+            {"mentor_concentration": 1.0, "concentration": 0.5, "mentor_segments": True},
+        ],
+        ids=["default", "trial_match", "feasibility_fade", "priors_segments"],
+    ),
 )
 def test_engines_agree_with_several_mentors(world12, mentor_demos12, poor_demos12, config):
     good = mentor_demos12

@@ -9,6 +9,7 @@ import torch
 from himit_torch import LearnerConfig, observe_every
 from himit_torch.learner.choice import greedy_rows, trial_candidates
 from tests.learner.helpers import build_learner
+from tests.tiers import first_fast
 
 pytest.importorskip("numba")
 
@@ -95,13 +96,15 @@ def test_trial_changes_an_imitators_run(world12, mentor_demos12):
 
 @pytest.mark.parametrize(
     "config",
-    [
-        {},
-        {"mentor_choice": "match", "untried_value": 0.0, "initial_value": 0.0},
-        {"mentor_concentration": 1.0, "concentration": 0.5, "tie_break": "first"},
-        {"mentor_segments": True, "mentor_fade": 3.0},
-    ],
-    ids=["default", "match_optimistic", "priors_first", "segments_fade"],
+    first_fast(
+        [
+            {},
+            {"mentor_choice": "match", "untried_value": 0.0, "initial_value": 0.0},
+            {"mentor_concentration": 1.0, "concentration": 0.5, "tie_break": "first"},
+            {"mentor_segments": True, "mentor_fade": 3.0},
+        ],
+        ids=["default", "match_optimistic", "priors_first", "segments_fade"],
+    ),
 )
 def test_engines_agree_with_trial(world12, mentor_demos12, config):
     demos = observe_every(mentor_demos12, 2) if config.get("mentor_segments") else mentor_demos12

@@ -121,6 +121,9 @@ def test_the_run_command_rebuilds_the_configuration(changes, tmp_path):
     assert gym_run_command(config, tmp_path / "elsewhere") is None
 
 
+# (a fresh interpreter and a study, ≈ 8 s: CI's; the fast suite runs the same study in process,
+# as `himit run minigrid`, in test_cli_minigrid)
+@pytest.mark.slow
 def test_the_script_runs_and_writes_curves_figures_and_results(tmp_path):
     out = subprocess.run(
         [

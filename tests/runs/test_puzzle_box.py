@@ -69,9 +69,17 @@ TINY = PuzzleBoxConfig(
 )
 
 
-def test_runner_writes_every_result(tmp_path):
-    run_dir = tmp_path / "pb"
-    summary = run_puzzle_box(TINY, run_dir, progress=False)
+@pytest.fixture(scope="module")
+def tiny_run(tmp_path_factory):
+    """A finished tiny puzzle-box run: its directory and the summary the runner returned (tests
+    that damage the directory copy it). One xdist group, so ``make test`` runs it once."""
+    run_dir = tmp_path_factory.mktemp("pb") / "pb"
+    return run_dir, run_puzzle_box(TINY, run_dir, progress=False)
+
+
+@pytest.mark.xdist_group("puzzle_box_tiny")
+def test_runner_writes_every_result(tiny_run):
+    run_dir, summary = tiny_run
     tags = [b["batch"] for b in summary["batches"]]
     assert tags == [
         "speed_imitation",
@@ -213,14 +221,12 @@ def test_himit_run_puzzlebox_takes_a_preset_and_refuses_a_contradiction():
 
 
 @pytest.fixture(scope="module")
-def finished_tiny(tmp_path_factory):
+def finished_tiny(tiny_run):
     """A finished tiny puzzle-box run directory (copied by each test that damages it)."""
-    run_dir = tmp_path_factory.mktemp("pb") / "pb"
-    run_puzzle_box(TINY, run_dir, progress=False)
-    return run_dir
+    return tiny_run[0]
 
 
-DAMAGED = [
+DAMAGED_BATCHES = [
     ("speed_options.json", "{"),
     ("speed_options.json", "[]"),
     ("speed_options.json", '{"batch": "speed_options"}'),
@@ -235,6 +241,8 @@ DAMAGED = [
         '"agent": "options", "steps": 1000, "runs": [1]}',
     ),  # fmt: skip
     ("speed_options.json", "[" * 100 + "]" * 100),
+]
+DAMAGED_EVALUATIONS = [
     ("transfer_any.evals.json", "{"),
     ("transfer_any.evals.json", "[1]"),
     ("transfer_any.evals.json", '{"x": {}}'),
@@ -247,7 +255,19 @@ DAMAGED = [
 ]
 
 
-@pytest.mark.parametrize("name, text", DAMAGED)
+# Each damaged evaluations record costs a resume's evaluations (≈ 2 s): the fast suite checks
+# the first, CI all.
+@pytest.mark.xdist_group("puzzle_box_tiny")
+@pytest.mark.parametrize(
+    "name, text",
+    [
+        *DAMAGED_BATCHES,
+        *(
+            pytest.param(*case, marks=() if i == 0 else pytest.mark.slow)
+            for i, case in enumerate(DAMAGED_EVALUATIONS)
+        ),
+    ],
+)
 def test_resume_over_a_damaged_batch_record_is_refused_naming_the_file(
     finished_tiny, tmp_path, capsys, name, text
 ):

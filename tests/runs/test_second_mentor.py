@@ -59,7 +59,8 @@ def _tiny(**changes) -> ExperimentConfig:
     return ExperimentConfig(**settings)
 
 
-@pytest.mark.parametrize("kind", ["noisy", "detour"])
+# (two tiny experiments each, ≈ 5 s: the fast suite runs the detour, CI both)
+@pytest.mark.parametrize("kind", [pytest.param("noisy", marks=pytest.mark.slow), "detour"])
 def test_the_second_mentor_is_watched_as_mentor_1(tmp_path, monkeypatch, kind):
     watched = {}
     real_watch = experiment_module.watch_demonstrations

@@ -232,6 +232,8 @@ def test_worker_niceness_from_the_spec_or_the_flag_checked_like_the_other_settin
     assert json.loads((tmp_path / "out" / "sweep.json").read_text())["worker_niceness"] == 3
 
 
+# (18 runs and their tables, ≈ 25 s: CI's; the fast suite runs a sweep in the niceness test)
+@pytest.mark.slow
 def test_in_process_sweep_without_ray_says_so_and_writes_the_tables(tmp_path, monkeypatch):
     no_ray(monkeypatch)
     lines = []

@@ -20,6 +20,8 @@ print(time.time(), flush=True)
 """
 
 
+# (two fresh interpreters that load the kernels, ≈ 8 s: CI's)
+@pytest.mark.slow
 def test_a_process_waits_for_the_one_preparing_the_kernels():
     from himit_torch.runs.kernels import kernels_prepared_here, prepare_kernels
 

@@ -82,6 +82,8 @@ def _run_probe(root: Path, cache: Path) -> dict:
     return result
 
 
+# (it compiles a kernel in a copy of the package, ≈ 10 s: CI's)
+@pytest.mark.slow
 def test_an_edit_to_another_kernel_file_recompiles_a_cached_kernel(tmp_path):
     root, cache = tmp_path / "tree", tmp_path / "numba-cache"
     kernel = _package_copy(root)

@@ -3,10 +3,13 @@
 The compiled engine follows the torch engine operation for operation, so equality is checked
 exactly (values to 1e-9 is what is promised; bit-for-bit is what holds on a CPU).
 
-Each parity run is about 1000 ticks in the fast suite. A long run (3000–5000 ticks, and the 40×40
-world) is checked in two ways: under ``-m slow`` (CI) its last 300 ticks on both engines, the
-torch engine starting from the compiled engine's state (:func:`fast_and_long`); under
-``-m extended`` (``make test-all``) all its ticks on both engines from tick 0."""
+Each parity run is about 1000 ticks. The fast suite runs one setting of each family (the first
+of :data:`CONFIGS`, :data:`BCO_CONFIGS`, …); the others' 1000-tick runs are left to
+``make test-all``, and every setting is checked by CI through its long run. A long run
+(3000–5000 ticks, and the 40×40 world) is checked in two ways: under ``-m slow`` (CI) its last
+300 ticks on both engines, the torch engine starting from the compiled engine's state
+(:func:`fast_and_long`); under ``-m extended`` (``make test-all``) all its ticks on both engines
+from tick 0."""
 
 import numpy as np
 import pytest
@@ -32,17 +35,37 @@ pytest.importorskip("numba")
 FAST, LONG, LATE = 1000, 5000, 300
 
 
-def fast_and_long(long: int = LONG) -> list:
-    """Tick counts to parametrize a parity run with: ``FAST``; under ``-m slow`` (CI) the late
-    part of a ``long`` run, ``("late", long)``: the compiled engine runs the first ``long − LATE``
-    ticks, hands its state to the torch engine, and both engines run the last ``LATE`` — the
-    regime of grown edge lists, decayed ε and many goals, at a small part of the torch engine's
-    cost (its late ticks cost ≈ 3× its first ones); and under ``-m extended``
-    (``make test-all``) all ``long`` ticks on both engines from tick 0."""
+#: The marks that put a case in each tier: the fast suite, ``-m slow`` (CI), ``make test-all``.
+TIERS = {
+    "fast": (),
+    "slow": (pytest.mark.slow,),
+    "all": (pytest.mark.slow, pytest.mark.extended),
+}
+
+
+def fast_and_long(long: int = LONG, fast: str = "fast") -> list:
+    """Tick counts to parametrize a parity run with: ``FAST``, in the tier ``fast`` names (a key
+    of :data:`TIERS`); under ``-m slow`` (CI) the late part of a ``long`` run,
+    ``("late", long)``: the compiled engine runs the first ``long − LATE`` ticks, hands its
+    state to the torch engine, and both engines run the last ``LATE`` — the regime of grown
+    edge lists, decayed ε and many goals, at a small part of the torch engine's cost (its late
+    ticks cost ≈ 3× its first ones); and under ``-m extended`` (``make test-all``) all ``long``
+    ticks on both engines from tick 0."""
     return [
-        FAST,
-        pytest.param(("late", long), marks=pytest.mark.slow, id=f"late{long}"),
-        pytest.param(long, marks=[pytest.mark.slow, pytest.mark.extended], id=f"{long}"),
+        pytest.param(FAST, marks=TIERS[fast], id=f"{FAST}"),
+        pytest.param(("late", long), marks=TIERS["slow"], id=f"late{long}"),
+        pytest.param(long, marks=TIERS["all"], id=f"{long}"),
+    ]
+
+
+def settings_and_ticks(names, long: int = LONG) -> list:
+    """``(name, ticks)`` for every setting in ``names`` and every tick count of
+    :func:`fast_and_long`: the first setting's ``FAST`` run in the fast suite, the others' in
+    ``make test-all`` (CI checks each through its late part)."""
+    return [
+        pytest.param(name, ticks.values[0], marks=ticks.marks, id=f"{name}-{ticks.id}")
+        for i, name in enumerate(names)
+        for ticks in fast_and_long(long, fast="fast" if i == 0 else "all")
     ]
 
 
@@ -173,8 +196,7 @@ def assert_same_metrics(a: Learner, b: Learner) -> None:
             )  # fmt: skip
 
 
-@pytest.mark.parametrize("ticks", fast_and_long())
-@pytest.mark.parametrize("name", list(CONFIGS))
+@pytest.mark.parametrize("name, ticks", settings_and_ticks(CONFIGS))
 def test_engines_agree_on_the_small_world(world12, mentor_demos12, name, ticks):
     """Every agent variant under every setting family: identical on both engines."""
     options = learner_options(world12)
@@ -255,8 +277,9 @@ def test_engines_agree_with_posterior_sampling(world12, mentor_demos12, name, ti
 PBRS_MIX = ["pbrs", "pbrs_primitives", "options", "primitives", "imitation"]
 
 
-@pytest.mark.parametrize("ticks", fast_and_long(3000))
-@pytest.mark.parametrize("name", ["default", "plan_every3_rounds3"])
+@pytest.mark.parametrize(
+    "name, ticks", settings_and_ticks(["default", "plan_every3_rounds3"], 3000)
+)
 def test_engines_agree_with_shaping(world12, mentor_demos12, name, ticks):
     """The ``pbrs`` agents (their V starts at v0 + Φ): identical on both engines."""
     runs = both_engines(
@@ -289,8 +312,7 @@ BCO_CONFIGS = {
 }
 
 
-@pytest.mark.parametrize("ticks", fast_and_long(3000))
-@pytest.mark.parametrize("name", list(BCO_CONFIGS))
+@pytest.mark.parametrize("name, ticks", settings_and_ticks(BCO_CONFIGS, 3000))
 def test_engines_agree_with_behavioural_cloning(world12, mentor_demos12, name, ticks):
     """The ``bco`` agent (greedy choice = the cloned action where there is one, refitted every
     ``bco_every`` ticks between the engine's calls): identical on both engines."""
@@ -314,7 +336,9 @@ def test_engines_agree_with_behavioural_cloning(world12, mentor_demos12, name, t
     assert int(runs[0].views.decisions[[0, 3]].min()) == length(ticks)  # (one primitive per tick)
 
 
-@pytest.mark.parametrize("ticks", fast_and_long(3000))
+# (its fast run, ≈ 14 s on the torch engine, is CI's; the fast suite runs the sampling path in
+# test_learner's test_stochastic_policy_options_run_match_and_draw)
+@pytest.mark.parametrize("ticks", fast_and_long(3000, fast="slow"))
 def test_engines_agree_with_stochastic_option_policies(world12, mentor_demos12, ticks):
     """Options with ``[O, S, A]`` policies go through the sampling path of both engines."""
     usable = world12.free_mask & ~world12.terminal_mask
@@ -434,7 +458,7 @@ def test_switching_engines_mid_run_changes_nothing(world12, mentor_demos12, thir
 
 
 @pytest.mark.parametrize(
-    "ticks", [FAST, pytest.param(3000, marks=[pytest.mark.slow, pytest.mark.extended], id="3000")]
+    "ticks", [500, pytest.param(3000, marks=[pytest.mark.slow, pytest.mark.extended], id="3000")]
 )
 def test_state_dict_moves_between_engines(world12, mentor_demos12, ticks):
     """A checkpoint of a numba run resumes on the torch engine to the same run."""
@@ -533,7 +557,8 @@ def test_mentor_win_share_is_the_same_from_either_engine(world12, mentor_demos12
     assert float(compiled.nan_to_num(0).max()) > 0
 
 
-@pytest.mark.parametrize("ticks", fast_and_long(3000))
+# (its fast run, ≈ 20 s on the torch engine, is CI's)
+@pytest.mark.parametrize("ticks", fast_and_long(3000, fast="slow"))
 def test_engines_agree_with_the_exact_mentor_model(world12, ticks):
     """The mentor's exact transition model (fractional counts) on both engines: the same run."""
     from himit_torch import exact_mentor_transitions
