@@ -43,10 +43,9 @@ $(DOCS_STAMP): $(STAMP)
 demo: $(STAMP)
 	$(BIN)/himit demo
 
-# pytest-xdist: PYTEST_WORKERS processes (default 2, the cores CI has; "0" runs in this process);
-# loadgroup: the tests of one xdist_group share a worker, so their module fixture runs once.
+# pytest-xdist: PYTEST_WORKERS processes (default 2, the cores CI has; "0" runs in this process).
 PYTEST_WORKERS ?= 2
-PYTEST := $(BIN)/python -m pytest -q -n $(PYTEST_WORKERS) --dist loadgroup
+PYTEST := $(BIN)/python -m pytest -q -n $(PYTEST_WORKERS)
 
 test: $(STAMP)
 	$(PYTEST)

@@ -209,7 +209,6 @@ def loaded_by_a_fresh_parser() -> set[str]:
     return set(_python_stdout(code).split())
 
 
-@pytest.mark.xdist_group("fresh_parser")
 def test_building_the_parser_leaves_scipy_stats_unimported(loaded_by_a_fresh_parser):
     """``scipy.stats`` costs ~0.7 s to import; every command builds the parser (which imports the
     sweep's summary statistics), so :mod:`himit_torch.statistics` imports it at first use."""
@@ -220,7 +219,6 @@ def test_building_the_parser_leaves_scipy_stats_unimported(loaded_by_a_fresh_par
     assert t_interval([1.0, 2.0, 3.0]).low < 2.0 < t_interval([1.0, 2.0, 3.0]).high
 
 
-@pytest.mark.xdist_group("fresh_parser")
 def test_importing_the_package_leaves_numba_and_networkx_unimported(loaded_by_a_fresh_parser):
     """Numba (≈ 0.5 s) is imported by what compiles (the engine, the exact option models, the
     option builders' search) and networkx (≈ 0.2 s) by what builds a mentor graph, each at first

@@ -144,6 +144,7 @@ def test_holm_hand_solved():
     assert math.isnan(out[1]) and out[0] == pytest.approx(0.02) and out[2] == pytest.approx(0.04)
 
 
+@pytest.mark.slow  # (importing statsmodels, ≈ 3 s: CI's; the hand-solved cases above are fast)
 def test_holm_is_statsmodels_bit_for_bit():
     """The step-down in NumPy gives statsmodels' numbers exactly, ties and NaNs included."""
     multitest = pytest.importorskip("statsmodels.stats.multitest")

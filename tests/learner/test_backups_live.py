@@ -124,7 +124,7 @@ def test_trusted_augmented_backup_hand_cases():
 # ============================================== incremental caches = the sums from scratch
 @pytest.fixture(scope="module")
 def torch_learner(world8):
-    """600 ticks on the torch engine (≈ 6 s), run once: its tests share an xdist group."""
+    """400 ticks on the torch engine (≈ 4 s), shared by the tests below."""
     demos = record_demonstrations(world8, mentor_options(world8), episodes=5, seed=0)
     agents = ["imitation", "imitation_confident", "options", "imitation_primitives_confident"]
     learner = Learner(
@@ -136,11 +136,10 @@ def torch_learner(world8):
         demonstrations=demos,
         engine="torch",
     )
-    learner.run(600)
+    learner.run(400)
     return learner
 
 
-@pytest.mark.xdist_group("torch_learner")
 def test_propagated_option_numerators_equal_the_edge_sums(torch_learner):
     """``q_numerator`` (built by add_outcome and the propagation of every ``δV``) equals
     :func:`option_backup_edges` over the model's edge lists with today's ``V``; the second
@@ -167,7 +166,6 @@ def test_propagated_option_numerators_equal_the_edge_sums(torch_learner):
     assert bool(cache.q_second[~learner.rows.use_confidence].eq(0).all())
 
 
-@pytest.mark.xdist_group("torch_learner")
 def test_propagated_mentor_numerators_equal_the_edge_sums(torch_learner):
     """``mentor_numerator = Σ_e c_e (R_m(e) + γ V(s'_e))`` per observed state of the imitating
     runs, from scratch."""
@@ -189,7 +187,6 @@ def test_propagated_mentor_numerators_equal_the_edge_sums(torch_learner):
     )
 
 
-@pytest.mark.xdist_group("torch_learner")
 def test_state_backup_is_eq2_from_model_means(torch_learner):
     """The cache's backup of every state equals eq. 2 evaluated from the models' posterior
     means (α = 0: ``Q = r̄ + Σ p^o V``, ``M = Σ_s' p_m(s'|s) (R_m + γ V(s'))``) by the pure

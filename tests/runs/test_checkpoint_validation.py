@@ -40,6 +40,7 @@ from tests.runs.test_checkpoints import (
     small_config,
     unfinished_copy,
 )
+from tests.tiers import first_fast
 
 S = SIZE * SIZE
 
@@ -133,7 +134,9 @@ PLANTED: dict[str, tuple[Callable[[Path], None], str]] = {
 
 
 # ------------------------------------------------------------------------- through the CLI
-@pytest.mark.parametrize("kind", list(PLANTED))
+# Each case resumes the run to its end (≈ 1 s): the fast suite falls back from the first kind,
+# CI from every kind; the test below refuses every kind in the fast suite.
+@pytest.mark.parametrize("kind", first_fast(PLANTED, ids=list(PLANTED)))
 def test_a_planted_newest_checkpoint_is_refused_by_name_and_the_run_falls_back(
     reference,  # noqa: F811
     tmp_path,

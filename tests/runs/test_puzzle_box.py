@@ -72,12 +72,11 @@ TINY = PuzzleBoxConfig(
 @pytest.fixture(scope="module")
 def tiny_run(tmp_path_factory):
     """A finished tiny puzzle-box run: its directory and the summary the runner returned (tests
-    that damage the directory copy it). One xdist group, so ``make test`` runs it once."""
+    that damage the directory copy it)."""
     run_dir = tmp_path_factory.mktemp("pb") / "pb"
     return run_dir, run_puzzle_box(TINY, run_dir, progress=False)
 
 
-@pytest.mark.xdist_group("puzzle_box_tiny")
 def test_runner_writes_every_result(tiny_run):
     run_dir, summary = tiny_run
     tags = [b["batch"] for b in summary["batches"]]
@@ -130,6 +129,16 @@ def test_runner_writes_every_result(tiny_run):
     assert settings.startswith(f"{TINY.seeds} seeds per condition")
     assert text.endswith("`tb/` (`tensorboard --logdir <run dir>/tb`).\n")
     assert len(list((run_dir / "tb").iterdir())) == len(tags) * 2
+
+
+# (three more reports of the tiny run, ≈ 11 s: CI's)
+@pytest.mark.slow
+def test_a_finished_run_resumes_to_the_same_runs_and_redraws_the_same_page(tiny_run, tmp_path):
+    import shutil
+
+    run_dir = tmp_path / "pb"
+    shutil.copytree(tiny_run[0], run_dir)
+    summary = tiny_run[1]
     # a finished run is refused without --force; a resumed one reads the finished batches
     with pytest.raises(ValueError, match="finished run"):
         run_puzzle_box(TINY, run_dir, progress=False)
@@ -255,19 +264,7 @@ DAMAGED_EVALUATIONS = [
 ]
 
 
-# Each damaged evaluations record costs a resume's evaluations (≈ 2 s): the fast suite checks
-# the first, CI all.
-@pytest.mark.xdist_group("puzzle_box_tiny")
-@pytest.mark.parametrize(
-    "name, text",
-    [
-        *DAMAGED_BATCHES,
-        *(
-            pytest.param(*case, marks=() if i == 0 else pytest.mark.slow)
-            for i, case in enumerate(DAMAGED_EVALUATIONS)
-        ),
-    ],
-)
+@pytest.mark.parametrize("name, text", DAMAGED_BATCHES + DAMAGED_EVALUATIONS)
 def test_resume_over_a_damaged_batch_record_is_refused_naming_the_file(
     finished_tiny, tmp_path, capsys, name, text
 ):
