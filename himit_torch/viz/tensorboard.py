@@ -121,6 +121,27 @@ def _has_events(folder: Path) -> bool:
     return folder.is_dir() and any(folder.glob("events.out.tfevents.*"))
 
 
+def _wait_past_existing_event_files(folders: Sequence[Path]) -> None:
+    """Wait until the clock's second is past every event file's in ``folders``.
+
+    TensorBoard reads a folder's event files in the order of their names,
+    ``events.out.tfevents.<second>.<host>.<pid>.<counter>``: a file opened in the same second
+    by the same process sorts by its counter as text (``"10"`` before ``"9"``), and a purge in
+    a file read first would be undone by the file it was meant to purge. A resumed run is
+    usually a new process seconds later; this matters when it is not (≤ 1 s)."""
+    import time
+
+    seconds = [
+        int(part)
+        for folder in folders
+        for file in folder.glob("events.out.tfevents.*")
+        for part in file.name.split(".")[3:4]
+        if part.isdigit()
+    ]
+    while seconds and time.time() < max(seconds) + 1:
+        time.sleep(0.02)
+
+
 class TensorBoardLogger:
     """One :class:`~torch.utils.tensorboard.SummaryWriter` per run of a batch.
 
@@ -177,6 +198,8 @@ class TensorBoardLogger:
         # On resume, TensorBoard drops the events of earlier files at steps ≥ purge_step: what
         # the interrupted process logged after its checkpoint, which this one logs again.
         purge = None if resume_step is None else int(resume_step) + 1
+        if used and resume_step is not None:
+            _wait_past_existing_event_files([root / n for n in used])
         self.names = names
         self.resume_step = resume_step
         self._writers = [SummaryWriter(str(root / n), purge_step=purge) for n in names]

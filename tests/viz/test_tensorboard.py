@@ -56,6 +56,24 @@ def test_resume_replaces_what_was_logged_after_the_checkpoint(tmp_path):
     ]
 
 
+def test_a_resumed_runs_event_file_is_read_after_the_files_before_it(tmp_path):
+    """TensorBoard reads a folder's files in name order; a file of this second whose counter
+    sorts after the new one's as text ("99" after "1") would be read last, and its events at
+    the purged steps would come back."""
+    import time
+
+    log_goals(TensorBoardLogger(tmp_path, ["run"]), [1000, 2000, 3000], 1.0)
+    (old,) = (tmp_path / "run").glob("events.out.tfevents.*")
+    parts = old.name.split(".")
+    parts[3], parts[-1] = str(int(time.time())), "99"
+    old.rename(old.with_name(".".join(parts)))
+    log_goals(TensorBoardLogger(tmp_path, ["run"], resume_step=2000), [3000, 4000], 2.0)
+    files = sorted(p.name for p in (tmp_path / "run").glob("events.out.tfevents.*"))
+    assert files[0] == ".".join(parts)
+    events = read(tmp_path / "run").Scalars("charts/goals_in_window")
+    assert [(e.step, e.value) for e in events][-2:] == [(3000, 2.0), (4000, 2.0)]
+
+
 def test_scalars_carry_their_descriptions(tmp_path):
     logger = TensorBoardLogger(tmp_path, ["run"])
     logger.scalar(0, "planner/backups", 10, 1)
