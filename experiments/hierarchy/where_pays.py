@@ -697,9 +697,33 @@ def q3_answer_lines(q3: list[Test], cells: list[Cell]) -> list[str]:
     )
     mechanism = [t for t in q3 if MECHANISM in t.name]
     cost = [t for t in q3 if COST in t.name]
+
+    def greedy(name: str) -> list[Test]:
+        return [t for t in q3 if t.name == name and t.endpoint == "greedy"]
+
+    n_helps = sum(helps(q3, c.task, c.schedule, c.condition)[0] for c in cells)
+    direct = [t for t in greedy(DIRECT) if t.p_holm < 0.05 and t.difference > 0]
+    own = {(t.world, t.condition, t.schedule): t for t in greedy(OWN)}
+    eq2 = [t for t in greedy(list(CONTRASTS)[1]) if t.p_holm < 0.05]
     lines = [
+        f"- **Q3 in short:** hierarchy helps imitation at {n_helps} of {len(cells)} transfer "
+        f"conditions. Eq. 2 − eq. 1 on the greedy policy is significantly positive at "
+        f"{len(direct)} of them"
+        + (
+            " ("
+            + "; ".join(
+                f"{label(t.world, t.condition)}, {SCHEDULES[t.schedule]}: {t.difference:+.1f}, "
+                f"the options' own effect there {own[t.world, t.condition, t.schedule].difference:+.1f}"
+                for t in direct
+            )
+            + "): compare each with the options' own effect, which needs no mentor"
+            if direct
+            else ""
+        )
+        + f". Eq. 2's own imitation effect on the greedy policy is significant at {len(eq2)} of "
+        f"{len(cells)}.",
         "- **Q3, the inert-mentor mechanism, counted:** imitators whose first goal came at the "
-        f"same step as their no-mentor control's, of {len(cells[0].seeds)} seeds — {equal}."
+        f"same step as their no-mentor control's, of {len(cells[0].seeds)} seeds — {equal}.",
     ]
     if mechanism:
         lines.append(
