@@ -4,8 +4,9 @@ paired tests, every gain split into the options' own effect and imitation's.
     python experiments/hierarchy/where_pays.py [--results experiments/results/hierarchy]
 
 Reads the records of the round's runs (Q1 on a Gymnasium task: ``<results>/q1_<task>_<schedule>/``,
-a ``himit run gymnasium`` run directory's ``config.json`` and ``tasks/<task>.{json,csv}``);
-writes ``<results>/where_pays.md`` and ``<results>/where_pays_tests.csv``. A cell whose records
+a ``himit run gymnasium`` run directory's ``config.json`` and ``tasks/<task>.{json,csv}``; Q2's
+sweeps and MiniGrid cells; Q3's transfer cells ``<results>/q3_<task>_iv<value>_<schedule>/``;
+F's cells); writes ``<results>/where_pays.md`` and ``<results>/where_pays_tests.csv``. A cell whose records
 are absent is left out, and the page says so.
 
 The split (the protocol's "controls"): per seed, the options' own effect is options-only −
@@ -14,7 +15,9 @@ primitives-only; hierarchy's effect on imitation is the difference of the two im
 effects. Endpoints: the greedy policy at the end as an exact % of the optimum; the first goal
 (the sign test on who reached it first, "never" losing to any finite step; for hierarchy's
 effect, the sign of the difference of the two speed-ups, "never" censored at the budget);
-goals in the first quarter of the budget (the windows that end within it).
+goals in the first quarter of the budget (the windows that end within it). Q3 adds, in its
+family, each imitator's imitation effect at initial value 0 − at −1 (the inert-mentor
+mechanism) and its transfer's cost (the moved goal's mentor − its own task's, Q1's cell).
 """
 
 from __future__ import annotations
