@@ -47,7 +47,7 @@ from himit_torch.learner.prioritized_sweeping import BlockPriorityQueue
 from himit_torch.mentor.cloning import InverseModel, clone_policy, inverse_model, relabel
 from himit_torch.mentor.demonstrations import DEMONSTRATIONS_FORMAT_VERSION, Demonstrations
 from himit_torch.mentor.minari import demonstrations_from_minari, demonstrations_to_minari
-from himit_torch.mentor.minigrid import minigrid_mentor
+from himit_torch.mentor.minigrid import demonstrations_in, minigrid_mentor
 from himit_torch.mentor.observation import (
     CoarseDemonstrations,
     observe_at_option_ends,
@@ -199,6 +199,7 @@ __all__ = [
     "organisation_mentor",
     "map_demonstrations",
     "minigrid_mentor",
+    "demonstrations_in",
     "demonstrations_from_minari",
     "demonstrations_to_minari",
     # the stresses on the demonstrations (docs/stresses.md)

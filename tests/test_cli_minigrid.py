@@ -87,8 +87,8 @@ def _task_params():
 
     # 9,210 and 17,344 states: 35-50 s each to solve on 2 cores, left to make test-all; the
     # larger of the others (2-5 s each) to CI
-    large = {"doorkey8x8", "unlockpickup"}
-    medium = {"multiroomn4s5", "doorkey6x6", "unlock"}
+    large = {"doorkey8x8", "doorkey8x8_transfer", "unlockpickup"}
+    medium = {"multiroomn4s5", "doorkey6x6", "doorkey6x6_transfer", "unlock"}
     return [
         pytest.param(name, marks=[pytest.mark.slow, pytest.mark.extended])
         if name in large
@@ -102,7 +102,31 @@ def _task_params():
 def test_every_described_minigrid_task_is_registered_for_himit_run_minigrid():
     from himit_torch.runs.gymnasium import MINIGRID_TASKS
 
-    assert sorted(t.env_id for t in MINIGRID_TASKS.values()) == sorted(ht.MINIGRID_TASKS)
+    assert {t.env_id for t in MINIGRID_TASKS.values()} == set(ht.MINIGRID_TASKS)
+
+
+def test_run_minigrid_transfer_watches_the_mentor_of_the_moved_goal(tmp_path):
+    """A transfer task: the learner is rewarded at MiniGrid's goal (3, 3) of DoorKey 5×5 and
+    watches a mentor demonstrating the layout with its goal at (3, 2), carried into its states:
+    the mentor's path ends on (3, 2), a floor cell of the learner's world, and the optimum is the
+    learner's task's."""
+    import json
+
+    from himit_torch.runs.gymnasium import MINIGRID_TASKS
+
+    argv = ["run", "minigrid", "--quick", "--quiet", "--logdir", str(tmp_path), "--tasks",
+            "doorkey5x5_transfer", "--agents", "imitation", "options"]  # fmt: skip
+    assert main(argv) == 0
+    summary = json.loads((tmp_path / "minigrid" / "tasks" / "doorkey5x5_transfer.json").read_text())
+    world = MINIGRID_TASKS["doorkey5x5_transfer"].world(0.99)
+    assert world.goal_cells == (18,) and world.num_states == summary["num_states"]
+    last = summary["paths"]["mentor"][-1]
+    assert world.state_key(last)[:2] == (3, 2) and not bool(world.terminal_mask[last])
+    assert summary["optimal_value"] == pytest.approx(
+        float(
+            ht.smdp_value_iteration(ht.option_models(world, ht.primitive_options(world))).values[0]
+        )
+    )
 
 
 @pytest.mark.parametrize("name", _task_params())

@@ -3,6 +3,7 @@ and hierarchy's effect on imitation as the difference of the two imitation effec
 hand-made records."""
 
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -168,3 +169,72 @@ def test_q2s_controls_serve_every_observation_and_early_goals_stop_at_the_quarte
         # (60 − 30) − (40 − 20) = 10 on every seed
         assert tests[wp.HIERARCHY, "greedy"].difference == pytest.approx(10.0)
         assert tests[wp.HIERARCHY, "greedy"].condition == cell.condition
+
+
+def _q3_cell(wp, condition, greedy, first_goal, schedule="paper", seeds=(0, 1, 2)):
+    """A Q3 cell of DoorKey 5×5's transfer task: greedy and first goals per learner; the early
+    goals are the greedy values (so that their contrasts are the greedy ones)."""
+    arrays = {a: np.array(v, dtype=float) for a, v in greedy.items()}
+    return wp.Cell("doorkey5x5_transfer", schedule, 1000, "abc", seeds, arrays,
+                   {a: np.array(v) for a, v in first_goal.items()}, arrays, 250,
+                   condition)  # fmt: skip
+
+
+def test_q3s_mechanism_is_the_imitation_effect_at_0_minus_at_minus_1(analysis):
+    """Hand-solved. Greedy: at −1, eq. 2 − options only = 0, 0, 0 and eq. 1 − primitives only
+    = 10, 0, −10; at 0, eq. 2 − options only = 30, 20, 40 (mean 30) and eq. 1's = 10, 0, −10.
+    So eq. 2's effect 0 − −1 is 30, 20, 40 (mean 30, 3–0) and eq. 1's 0, 0, 0. First goals
+    (budget 1000, never = −1): at −1 eq. 2 equals options only on every seed (speed-ups 0); at
+    0 options only 500, never, 300 and eq. 2 100, 200, 300: speed-ups 400, 800 (never counted
+    at 1000), 0; their difference with −1's is 400, 800, 0: mean 400, 2 won, 1 tie."""
+    _, wp = analysis
+    minus = _q3_cell(wp, wp.Q3_VALUES["-1"],
+                     {"imitation": [50, 60, 70], "options": [50, 60, 70],
+                      "imitation_primitives": [30, 20, 10], "primitives": [20, 20, 20]},
+                     {"imitation": [100, -1, 300], "options": [100, -1, 300],
+                      "imitation_primitives": [7, 8, 9], "primitives": [7, 8, 9]})  # fmt: skip
+    zero = _q3_cell(wp, wp.Q3_VALUES["0"],
+                    {"imitation": [80, 80, 110], "options": [50, 60, 70],
+                     "imitation_primitives": [30, 20, 10], "primitives": [20, 20, 20]},
+                    {"imitation": [100, 200, 300], "options": [500, -1, 300],
+                     "imitation_primitives": [7, 8, 9], "primitives": [7, 8, 9]})  # fmt: skip
+    tests = {(t.name.split("'s")[0], t.endpoint): t for t in wp.mechanism_tests([minus, zero])}
+    assert len(tests) == 6 and {t.world for t in tests.values()} == {"doorkey5x5_transfer"}
+    assert tests["eq. 2", "greedy"].difference == pytest.approx(30.0)
+    assert (tests["eq. 2", "greedy"].wins, tests["eq. 2", "greedy"].losses) == (3, 0)
+    assert tests["eq. 1", "greedy"].difference == pytest.approx(0.0)
+    assert tests["eq. 1", "greedy"].p == 1.0 or np.isnan(tests["eq. 1", "greedy"].p)
+    first = tests["eq. 2", "first_goal"]
+    assert first.difference == pytest.approx(400.0) and (first.wins, first.losses) == (2, 0)
+    assert first.p == pytest.approx(0.5)  # the sign test: 2 of 2 non-ties, two-sided
+    # first goals equal to the control's: 3 of 3 at −1, 1 of 3 (seed 2) at 0
+    assert wp.first_goals_equal(minus, wp.EQ2) == 3 and wp.first_goals_equal(zero, wp.EQ2) == 1
+    with pytest.raises(ValueError, match="seeds differ"):
+        wp.mechanism_tests([minus, _q3_cell(wp, wp.Q3_VALUES["0"], {"imitation": [1, 2]},
+                                            {"imitation": [1, 2]}, seeds=(0, 1))])  # fmt: skip
+
+
+def test_q3s_transfer_cost_pairs_each_imitator_with_its_q1_cell(analysis):
+    """Hand-solved: eq. 2 watching the moved goal's mentor 50, 60, 70 against 80, 60, 40 in
+    Q1's cell: −30, 0, +30 (mean 0, 1–1); eq. 1 40, 40, 40 against 10, 20, 30: mean +20 (3–0).
+    Only the initial value −1's cells have a Q1 twin; the 0 cells are left out."""
+    _, wp = analysis
+    q3 = _q3_cell(wp, wp.Q3_VALUES["-1"],
+                  {"imitation": [50, 60, 70], "imitation_primitives": [40, 40, 40]},
+                  {"imitation": [1, 2, 3], "imitation_primitives": [1, 2, 3]})  # fmt: skip
+    q1 = wp.Cell("doorkey5x5", "paper", 1000, "abc", (0, 1, 2),
+                 {"imitation": np.array([80.0, 60, 40]), "imitation_primitives": np.array([10.0, 20, 30])},
+                 {"imitation": np.array([1, 2, 3]), "imitation_primitives": np.array([1, 2, 3])},
+                 {"imitation": np.array([80.0, 60, 40]), "imitation_primitives": np.array([10.0, 20, 30])},
+                 250)  # fmt: skip
+    zero = replace(q3, condition=wp.Q3_VALUES["0"])
+    tests = {
+        (t.name.split(":")[0], t.endpoint): t for t in wp.transfer_cost_tests([q3, zero], [q1])
+    }
+    assert len(tests) == 6
+    assert tests["eq. 2", "greedy"].difference == pytest.approx(0.0)
+    assert (tests["eq. 2", "greedy"].wins, tests["eq. 2", "greedy"].losses) == (1, 1)
+    assert tests["eq. 1", "greedy"].difference == pytest.approx(20.0)
+    assert tests["eq. 1", "first_goal"].p == 1.0  # the same first goals: all ties
+    with pytest.raises(ValueError, match="differ from Q1"):
+        wp.transfer_cost_tests([q3], [replace(q1, budget=2000)])

@@ -2,7 +2,7 @@
 copied into ``experiments/results/hierarchy/``, then ``analyse.py``.
 
     python experiments/hierarchy/run_hierarchy.py
-        [--parts segments trial puzzlebox mentors largest carryover q1 f q2 q2mg]
+        [--parts segments trial puzzlebox mentors largest carryover q1 f q2 q2mg q3]
         [--logdir runs/hierarchy] [--skip-runs]
 
 Each part's wall time is written to ``experiments/results/hierarchy/timing.json``. The part
@@ -10,7 +10,9 @@ Each part's wall time is written to ``experiments/results/hierarchy/timing.json`
 ``himit run gymnasium`` per task and schedule instead of a sweep, each MiniGrid task at the
 budget its rule picks on held-out seeds (``q1_budget_rule.json``); ``f`` (feasibility at N = 1
 and 3 on Q1's cells) runs eq. 2 alone the same way; ``where_pays.py`` writes their page.
-``--tasks`` restricts ``q1`` and ``f`` to some of their tasks, ``--sweeps`` a part to some of
+``q3`` (transfer, amendment "Q3 on MiniGrid") runs the four learners per
+transfer task, initial value and schedule. ``--tasks`` restricts ``q1``, ``f``, ``q2mg`` and
+``q3`` to some of their tasks, ``--sweeps`` a part to some of
 its sweeps; sweeps run in this process (``--no-ray``: Ray's start times out on a loaded machine).
 """
 
@@ -51,6 +53,7 @@ PARTS = {
     "q1": (),  # (himit run gymnasium per task and schedule: run_q1)
     "f": (),  # (the same, eq. 2 alone with feasibility: run_f)
     "q2mg": (),  # (Q2 on MiniGrid's tasks, himit run gymnasium per cell: run_q2_minigrid)
+    "q3": (),  # (transfer on MiniGrid, himit run gymnasium per cell: run_q3)
     "q2": (
         "q2_controls_exp2",
         "q2_ends_exp2",
@@ -73,12 +76,22 @@ HELD_OUT_FIRST, HELD_OUT_SEEDS, RULE_CAP = 5000, 20, 20_000
 BUDGET_RULE = RESULTS / "q1_budget_rule.json"
 #: F's settings: ``mentor_feasibility`` N, eq. 2 alone, with trial (its "trial alone" is Q1's cell).
 F_TRIES = (1, 3)
+#: Q3 (transfer): the learner's task → the registered task whose mentor shows it with the goal
+#: moved; the initial values → their flags (−1: the runner's neutral value).
+Q3_TASKS = {
+    "doorkey5x5": "doorkey5x5_transfer",
+    "doorkey6x6": "doorkey6x6_transfer",
+    "doorkey8x8": "doorkey8x8_transfer",
+}
+Q3_INITIAL_VALUES = {"-1": [], "0": ["--no-neutral-initial-value", "--initial-value", "0"]}
+#: The tasks whose budget the rule picks (Q1's MiniGrid tasks and Q3's learners' tasks).
+RULE_TASKS = (*MINIGRID, *Q3_TASKS)
 
 
 def q1_budget(task: str, logdir: Path, skip_runs: bool) -> int | None:
     """The task's Q1 budget: ``None`` for a task with its own (Taxi's), else the rule's outcome
     on the held-out seeds, recorded in ``q1_budget_rule.json`` (read back when ``skip_runs``)."""
-    if task not in MINIGRID:
+    if task not in RULE_TASKS:
         return None
     record = json.loads(BUDGET_RULE.read_text()) if BUDGET_RULE.exists() else {}
     if skip_runs or task in record:
@@ -210,6 +223,17 @@ def run_q2_minigrid(logdir: Path, skip_runs: bool, tasks=MINIGRID) -> None:
                          skip_runs)  # fmt: skip
 
 
+def run_q3(logdir: Path, skip_runs: bool, tasks=tuple(Q3_TASKS)) -> None:
+    """Q3's cells: per learner's task, initial value and schedule the four learners, trial on,
+    watching the mentor of the task with its goal moved, at the learner's task's budget."""
+    for task in tasks:
+        steps = q1_budget(task, logdir, skip_runs)
+        for value, flags in Q3_INITIAL_VALUES.items():
+            for schedule in Q1_SCHEDULES:
+                gym_cell(f"q3_{task}_iv{value}_{schedule}", Q3_TASKS[task], Q1_AGENTS, schedule,
+                         ["--mentor-trial", *flags], steps, logdir, skip_runs)  # fmt: skip
+
+
 def run(*argv: str) -> None:
     print("$", " ".join(argv), flush=True)
     subprocess.run([sys.executable, *argv], check=True)
@@ -220,8 +244,8 @@ def main() -> None:
     parser.add_argument("--parts", nargs="+", choices=list(PARTS), default=list(PARTS))
     parser.add_argument("--logdir", default="runs/hierarchy")
     parser.add_argument("--skip-runs", action="store_true", help="copy and analyse finished runs")
-    parser.add_argument("--tasks", nargs="+", choices=Q1_TASKS, default=list(Q1_TASKS),
-                        help="q1's and f's tasks")  # fmt: skip
+    parser.add_argument("--tasks", nargs="+", choices=sorted({*Q1_TASKS, *Q3_TASKS}),
+                        help="q1's, f's, q2mg's and q3's tasks (default: each part's all)")  # fmt: skip
     parser.add_argument("--sweeps", nargs="+", help="only these of the parts' sweeps")
     args = parser.parse_args()
     logdir = Path(args.logdir)
@@ -233,11 +257,13 @@ def main() -> None:
         if part == "puzzlebox" and not args.skip_runs:
             run(str(HERE / "puzzle_box_h2.py"), "--logdir", str(logdir))
         if part == "q1":
-            run_q1(logdir, args.skip_runs, args.tasks)
+            run_q1(logdir, args.skip_runs, args.tasks or Q1_TASKS)
         if part == "f":
-            run_f(logdir, args.skip_runs, args.tasks)
+            run_f(logdir, args.skip_runs, args.tasks or Q1_TASKS)
         if part == "q2mg":
-            run_q2_minigrid(logdir, args.skip_runs, args.tasks)
+            run_q2_minigrid(logdir, args.skip_runs, args.tasks or MINIGRID)
+        if part == "q3":
+            run_q3(logdir, args.skip_runs, args.tasks or tuple(Q3_TASKS))
         for name in [n for n in PARTS[part] if args.sweeps is None or n in args.sweeps]:
             if not args.skip_runs:
                 run("-m", "himit_torch.cli", "sweep", str(HERE / f"{name}.toml"),
@@ -247,7 +273,7 @@ def main() -> None:
             for record in RECORDS:
                 shutil.copy(logdir / name / record, target / record)
         if not args.skip_runs:
-            some = part in ("q1", "f", "q2mg") and args.tasks != list(Q1_TASKS)
+            some = part in ("q1", "f", "q2mg", "q3") and args.tasks is not None
             key = f"{part} ({' '.join(args.tasks)})" if some else part
             if args.sweeps:
                 key = f"{part} ({' '.join(n for n in PARTS[part] if n in args.sweeps)})"

@@ -4,8 +4,9 @@ paired tests, every gain split into the options' own effect and imitation's.
     python experiments/hierarchy/where_pays.py [--results experiments/results/hierarchy]
 
 Reads the records of the round's runs (Q1 on a Gymnasium task: ``<results>/q1_<task>_<schedule>/``,
-a ``himit run gymnasium`` run directory's ``config.json`` and ``tasks/<task>.{json,csv}``);
-writes ``<results>/where_pays.md`` and ``<results>/where_pays_tests.csv``. A cell whose records
+a ``himit run gymnasium`` run directory's ``config.json`` and ``tasks/<task>.{json,csv}``; Q2's
+sweeps and MiniGrid cells; Q3's transfer cells ``<results>/q3_<task>_iv<value>_<schedule>/``;
+F's cells); writes ``<results>/where_pays.md`` and ``<results>/where_pays_tests.csv``. A cell whose records
 are absent is left out, and the page says so.
 
 The split (the protocol's "controls"): per seed, the options' own effect is options-only −
@@ -14,7 +15,9 @@ primitives-only; hierarchy's effect on imitation is the difference of the two im
 effects. Endpoints: the greedy policy at the end as an exact % of the optimum; the first goal
 (the sign test on who reached it first, "never" losing to any finite step; for hierarchy's
 effect, the sign of the difference of the two speed-ups, "never" censored at the budget);
-goals in the first quarter of the budget (the windows that end within it).
+goals in the first quarter of the budget (the windows that end within it). Q3 adds, in its
+family, each imitator's imitation effect at initial value 0 − at −1 (the inert-mentor
+mechanism) and its transfer's cost (the moved goal's mentor − its own task's, Q1's cell).
 """
 
 from __future__ import annotations
@@ -62,12 +65,22 @@ Q2_OBSERVATIONS = {
 #: Q2 on MiniGrid: Q1's tasks, the cells' observation names → labels (controls: Q1's cells).
 Q2_MINIGRID = ("doorkey5x5", "doorkey6x6", "unlock")
 Q2_MINIGRID_OBSERVATIONS = {"ends": "option ends", "stride10": "stride 10", "stride20": "stride 20"}
+#: Q3's transfer tasks (``himit run minigrid``'s): the registered task → (the learner's task,
+#: whose Q1 cell is the same task's mentor, or None; its label); its initial values → labels.
+Q3_TASKS = {
+    "doorkey5x5_transfer": ("doorkey5x5", "DoorKey 5×5, mentor's goal (3, 2)"),
+    "doorkey6x6_transfer": ("doorkey6x6", "DoorKey 6×6, mentor's goal (4, 2)"),
+    "doorkey8x8_transfer": ("doorkey8x8", "DoorKey 8×8, mentor's goal (6, 1)"),
+}
+Q3_VALUES = {"-1": "initial value −1", "0": "initial value 0"}
 #: F's tries (``mentor_feasibility``), each against Q1's eq. 2 cell (trial alone).
 F_TRIES = (1, 3)
 #: The per-window columns that make a run's record (a decision that differs changes them).
 RECORD_COLUMNS = ("step", "goals", "episodes", "epsilon", "value_gap", "mentor_term_wins")
 #: The four learners of every cell: eq. 2, its no-mentor control, eq. 1, its no-mentor control.
 EQ2, OPTIONS, EQ1, PRIMITIVES = "imitation", "options", "imitation_primitives", "primitives"
+#: Each imitator's no-mentor control (the same options, no mentor).
+CONTROL = {EQ2: OPTIONS, EQ1: PRIMITIVES}
 AGENT_LABELS = {
     EQ2: "eq. 2",
     OPTIONS: "options only",
@@ -137,8 +150,14 @@ def load_gymnasium_cell(directory: Path, task: str, schedule: str) -> Cell:
 
 
 def label(world: str, condition: str = "") -> str:
-    """A condition's name on the page: the task or world, and Q2's observation."""
-    name = Q1_TASKS[world] if world in Q1_TASKS else Q2_WORLDS[world][0]
+    """A condition's name on the page: the task or world, and Q2's observation or Q3's initial
+    value."""
+    if world in Q1_TASKS:
+        name = Q1_TASKS[world]
+    elif world in Q3_TASKS:
+        name = Q3_TASKS[world][1]
+    else:
+        name = Q2_WORLDS[world][0]
     return f"{name}, {condition}" if condition else name
 
 
@@ -272,30 +291,39 @@ CONTRASTS: dict[str, Contrast] = {
     "eq. 2 − eq. 1": (lambda v: v[EQ2], lambda v: v[EQ1]),
 }
 HIERARCHY = "hierarchy's effect on imitation (eq. 2's − eq. 1's)"
+#: The endings of Q3's two other contrasts' names (after the imitator's label).
+MECHANISM = "imitation effect, initial value 0 − −1"
+COST = "moved goal's mentor − its own task's (Q1)"
 OWN = "options' own effect (options only − primitives only)"
 DIRECT = "eq. 2 − eq. 1"
+
+
+def speed_ups(cell: Cell, agent: str) -> np.ndarray:
+    """Per seed, how many steps sooner ``agent`` reached its first goal than its no-mentor
+    control (:data:`CONTROL`), "never" counted at the budget (so that differences exist)."""
+    censored = {a: np.where(x < 0, cell.budget, x) for a, x in cell.first_goal.items()}
+    return censored[CONTROL[agent]] - censored[agent]
+
+
+def compare_speed_ups(a: np.ndarray, b: np.ndarray) -> tuple[float, float, float, float, int, int]:
+    """Two samples of speed-ups (:func:`speed_ups`) paired by seed: the mean difference with its
+    95 % BCa interval, the sign test's p on the differences, the seeds won and lost by ``a``."""
+    r = paired_comparison(a, b)
+    return (r.difference.estimate, r.difference.low, r.difference.high, r.sign_p, r.wins,
+            r.losses)  # fmt: skip
 
 
 def cell_tests(family: str, cell: Cell) -> list[Test]:
     """The five contrasts × three endpoints of one cell, as unadjusted :class:`Test` rows."""
     out = []
-    # first goal: steps with "never" at the budget, so that differences of differences exist
-    censored = {a: np.where(x < 0, cell.budget, x) for a, x in cell.first_goal.items()}
     for name, (a, b) in CONTRASTS.items():
         for endpoint in ENDPOINTS:
             if endpoint == "first_goal":
                 if name == HIERARCHY:
                     # speed-ups (positive: sooner); their difference's sign, paired by seed
-                    r = paired_comparison(
-                        censored[OPTIONS] - censored[EQ2], censored[PRIMITIVES] - censored[EQ1]
+                    d, lo, hi, p, wins, losses = compare_speed_ups(
+                        speed_ups(cell, EQ2), speed_ups(cell, EQ1)
                     )
-                    d, lo, hi, p = (
-                        r.difference.estimate,
-                        r.difference.low,
-                        r.difference.high,
-                        r.sign_p,
-                    )
-                    wins, losses = r.wins, r.losses
                 else:
                     d, lo, hi, p, wins, losses = compare_values(
                         a(cell.first_goal), b(cell.first_goal), endpoint
@@ -388,7 +416,7 @@ def tests_table(tests: list[Test], title: str, by_task: bool = False) -> list[st
                       "|---|---|---|---|---|---|---|---|"]  # fmt: skip
     for t in tests:
         shown = show_test(t)
-        if t.endpoint == "first_goal" and t.name == HIERARCHY:
+        if t.endpoint == "first_goal" and (t.name == HIERARCHY or MECHANISM in t.name):
             # the mean of the seeds' differences of speed-ups (not a median of first goals)
             shown = shown.replace("median", "mean").replace("sooner", "more speed-up")
             shown = shown.replace("later", "less speed-up")
@@ -452,6 +480,94 @@ def f_tests(trial: Cell, feasibility: Cell, tries: int) -> list[Test]:
             )  # fmt: skip
         )
     return out
+
+
+def load_q3_cells(results: Path) -> tuple[list[Cell], list[str]]:
+    """Q3's cells (``q3_<task>_iv<value>_<schedule>``, those present; their condition the
+    initial value's label) and the cells absent."""
+    cells, missing = [], []
+    for transfer, (task, _) in Q3_TASKS.items():
+        for value, condition in Q3_VALUES.items():
+            for schedule in SCHEDULES:
+                directory = results / f"q3_{task}_iv{value}_{schedule}"
+                if not (directory / "tasks" / f"{transfer}.json").exists():
+                    missing.append(directory.name)
+                    continue
+                cell = load_gymnasium_cell(directory, transfer, schedule)
+                cells.append(replace(cell, condition=condition))
+    return cells, missing
+
+
+def imitation_effect(cell: Cell, agent: str, endpoint: str) -> np.ndarray:
+    """Per seed, the imitator ``agent``'s imitation effect on ``endpoint``: ``agent`` − its
+    no-mentor control; on the first goal, its speed-up (:func:`speed_ups`)."""
+    if endpoint == "first_goal":
+        return speed_ups(cell, agent)
+    values = getattr(cell, endpoint)
+    return values[agent] - values[CONTROL[agent]]
+
+
+def mechanism_tests(cells: list[Cell]) -> list[Test]:
+    """Q3's test of the inert-mentor mechanism, unadjusted: per task × schedule × imitator, its
+    imitation effect at initial value 0 − at −1, paired by seed, on each endpoint (the first
+    goal: the sign test on the difference of the two speed-ups).
+
+    Raises:
+        ValueError: the two initial values' cells hold different seeds."""
+    by = {(c.task, c.condition, c.schedule): c for c in cells}
+    out = []
+    for (task, condition, schedule), zero in by.items():
+        minus = by.get((task, Q3_VALUES["-1"], schedule))
+        if condition != Q3_VALUES["0"] or minus is None:
+            continue
+        if zero.seeds != minus.seeds:
+            raise ValueError(f"mechanism_tests: {task} {schedule}: the cells' seeds differ")
+        for agent in CONTROL:
+            for endpoint in ENDPOINTS:
+                a, b = (
+                    imitation_effect(zero, agent, endpoint),
+                    imitation_effect(minus, agent, endpoint),
+                )
+                if endpoint == "first_goal":
+                    d, lo, hi, p, wins, losses = compare_speed_ups(a, b)
+                else:
+                    d, lo, hi, p, wins, losses = compare_values(a, b, endpoint)
+                out.append(Test("Q3", f"{AGENT_LABELS[agent]}'s {MECHANISM}", task, "",
+                                schedule, "", "", endpoint, d, lo, hi, p, wins,
+                                losses))  # fmt: skip
+    return out
+
+
+def transfer_cost_tests(cells: list[Cell], same_task: list[Cell]) -> list[Test]:
+    """Q3's transfer's cost, unadjusted: per task with a Q1 cell × schedule × imitator, the
+    imitator watching the moved goal's mentor (initial value −1) − the same imitator watching
+    its own task's mentor (Q1's cell), paired by seed, on each endpoint.
+
+    Raises:
+        ValueError: a Q3 cell's seeds or budget differ from its Q1 cell's."""
+    q1 = {(c.task, c.schedule): c for c in same_task}
+    out = []
+    for cell in cells:
+        base = q1.get((Q3_TASKS[cell.task][0], cell.schedule))
+        if cell.condition != Q3_VALUES["-1"] or base is None:
+            continue
+        if cell.seeds != base.seeds or cell.budget != base.budget:
+            raise ValueError(f"transfer_cost_tests: {cell.task}: seeds or budget differ from Q1's")
+        for agent in CONTROL:
+            for endpoint in ENDPOINTS:
+                d, lo, hi, p, wins, losses = compare_values(
+                    getattr(cell, endpoint)[agent], getattr(base, endpoint)[agent], endpoint
+                )
+                out.append(Test("Q3", f"{AGENT_LABELS[agent]}: {COST}", cell.task, "",
+                                cell.schedule, "", "", endpoint, d, lo, hi, p, wins,
+                                losses))  # fmt: skip
+    return out
+
+
+def first_goals_equal(cell: Cell, agent: str) -> int:
+    """The seeds at which the imitator ``agent`` reached its first goal at the same step as its
+    no-mentor control (both never counts as equal): what an inert mentor predicts."""
+    return int((cell.first_goal[agent] == cell.first_goal[CONTROL[agent]]).sum())
 
 
 def figure(panels: list[tuple[str, list[Test], list[str]]], path: Path) -> None:
@@ -565,6 +681,154 @@ def f_section(results: Path, cells: list[Cell]) -> tuple[list[Test], list[str], 
     return tests, rows, missing
 
 
+def q3_answer_lines(q3: list[Test], cells: list[Cell]) -> list[str]:
+    """The answers' lines on Q3 beyond each condition's verdict: the mechanism (first goals equal
+    to the control's; imitation effects at 0 − at −1) and transfer's cost."""
+    if not cells:
+        return []
+
+    def shown(t: Test) -> str:
+        mark = " (significant)" if t.p_holm < 0.05 else ""
+        if t.endpoint == "first_goal":
+            return f"{t.difference:+.0f} steps of speed-up, {t.wins}–{t.losses}{mark}"
+        return f"{t.difference:+.1f}{mark}"
+
+    equal = "; ".join(
+        f"{label(c.task, c.condition)}, {SCHEDULES[c.schedule]}: eq. 2 "
+        f"{first_goals_equal(c, EQ2)}, eq. 1 {first_goals_equal(c, EQ1)}"
+        for c in cells
+    )
+    mechanism = [t for t in q3 if MECHANISM in t.name]
+    cost = [t for t in q3 if COST in t.name]
+
+    def greedy(name: str) -> list[Test]:
+        return [t for t in q3 if t.name == name and t.endpoint == "greedy"]
+
+    n_helps = sum(helps(q3, c.task, c.schedule, c.condition)[0] for c in cells)
+    direct = [t for t in greedy(DIRECT) if t.p_holm < 0.05 and t.difference > 0]
+    own = {(t.world, t.condition, t.schedule): t for t in greedy(OWN)}
+    eq2 = [t for t in greedy(list(CONTRASTS)[1]) if t.p_holm < 0.05]
+    lines = [
+        f"- **Q3 in short:** hierarchy helps imitation at {n_helps} of {len(cells)} transfer "
+        f"conditions. Eq. 2 − eq. 1 on the greedy policy is significantly positive at "
+        f"{len(direct)} of them"
+        + (
+            " ("
+            + "; ".join(
+                f"{label(t.world, t.condition)}, {SCHEDULES[t.schedule]}: {t.difference:+.1f}, "
+                f"the options' own effect there {own[t.world, t.condition, t.schedule].difference:+.1f}"
+                for t in direct
+            )
+            + "): compare each with the options' own effect, which needs no mentor"
+            if direct
+            else ""
+        )
+        + f". Eq. 2's own imitation effect on the greedy policy is significant at {len(eq2)} of "
+        f"{len(cells)}.",
+        "- **Q3, the inert-mentor mechanism, counted:** imitators whose first goal came at the "
+        f"same step as their no-mentor control's, of {len(cells[0].seeds)} seeds — {equal}.",
+    ]
+    if mechanism:
+        lines.append(
+            "- **Q3, the mechanism tested** (each imitator's imitation effect at initial value 0 "
+            "− at −1, paired by seed; greedy policy in points, first goal in steps of speed-up; "
+            "Holm over family Q3): "
+            + "; ".join(
+                f"{label(t.world)}, {SCHEDULES[t.schedule]}, {t.name.split(chr(39))[0]}: "
+                f"greedy {shown(t)}"
+                + "".join(
+                    f", {ENDPOINTS[u.endpoint]} {shown(u)}"
+                    for u in mechanism
+                    if (u.world, u.schedule, u.name) == (t.world, t.schedule, t.name)
+                    and u.endpoint != "greedy"
+                )
+                for t in mechanism
+                if t.endpoint == "greedy"
+            )
+            + f". {sum(t.p_holm < 0.05 for t in mechanism)} of {len(mechanism)} significant."
+        )
+    if cost:
+        lines.append(
+            "- **Q3, transfer's cost** (an imitator watching the moved goal's mentor − the same "
+            "imitator watching its own task's mentor, Q1's cell; initial value −1; greedy "
+            "policy, points): "
+            + "; ".join(
+                f"{label(t.world)}, {SCHEDULES[t.schedule]}, {t.name.split(':')[0]} {shown(t)}"
+                for t in cost
+                if t.endpoint == "greedy"
+            )
+            + f". {sum(t.p_holm < 0.05 for t in cost)} of {len(cost)} contrasts (all endpoints) "
+            "significant."
+        )
+    return lines
+
+
+def q3_section(results: Path, q3: list[Test], cells: list[Cell]) -> list[str]:
+    """Q3's section: the setting, the check of its controls against Q1's, each task × initial
+    value's learners and split, the mechanism's and transfer's cost's tests."""
+    lines = [
+        "## Q3, transfer to a task the mentor never showed",
+        "",
+        "The learner is rewarded on MiniGrid's DoorKey task (its goal in the bottom-right "
+        "corner); its mentor demonstrates the same layout with the goal moved (5×5 to (3, 2) "
+        "and 6×6 to (4, 2): one cell past the door, on the learner's way; 8×8 to (6, 1): one "
+        "cell past the door the other way). The two tasks share the key and the door; the "
+        "mentor never enters a state where the learner is rewarded. Four learners per task, "
+        "initial value and schedule (eq. 2 and eq. 1 with trial; options only and primitives "
+        "only, no mentor), 20 seeds (0–19), each task's Q1 budget by the rule; the initial value "
+        "−1 (the runner's neutral value) or 0 for all four. Run: `python "
+        "experiments/hierarchy/run_hierarchy.py --parts q3`.",
+        "",
+    ]
+    rows = []
+    for cell in cells:
+        task = Q3_TASKS[cell.task][0]
+        q1_dir = results / f"q1_{task}_{cell.schedule}"
+        q3_dir = results / f"q3_{task}_iv-1_{cell.schedule}"
+        if cell.condition != Q3_VALUES["-1"] or not (q1_dir / "tasks").exists():
+            continue
+        base, mine = window_records(q1_dir, task), window_records(q3_dir, cell.task)
+        counts = [runs_changed(base, mine, agent) for agent in (OPTIONS, PRIMITIVES)]
+        rows.append(
+            f"| {label(cell.task)} | {SCHEDULES[cell.schedule]} | "
+            + " | ".join(f"{n - changed} of {n}" for changed, n in counts)
+            + " |"
+        )
+    if rows:
+        lines += [
+            "*Check* (not a test): the no-mentor controls at initial value −1 against Q1's "
+            "controls of the same task and schedule (same world, seeds, budget and settings), "
+            "runs whose per-window record is equal. Where all are, the options' own effect there "
+            "is Q1's pair of runs again (a repeat in the tally).",
+            "",
+            "| task | schedule | options only equal | primitives only equal |",
+            "|---|---|---|---|",
+            *rows,
+            "",
+        ]
+    for world, condition in dict.fromkeys((c.task, c.condition) for c in cells):
+        group = [c for c in cells if (c.task, c.condition) == (world, condition)]
+        name = label(world, condition)
+        lines += agents_table(group, name)
+        lines += tests_table(
+            [t for t in q3 if (t.world, t.condition) == (world, condition)],
+            f"{name}: the split, paired by seed",
+        )
+    mechanism = [t for t in q3 if MECHANISM in t.name]
+    if mechanism:
+        lines += tests_table(
+            mechanism,
+            "Q3, the mechanism: imitation effect at initial value 0 − at −1",
+            by_task=True,
+        )
+    cost = [t for t in q3 if COST in t.name]
+    if cost:
+        lines += tests_table(
+            cost, "Q3, transfer's cost: the moved goal's mentor − the task's own (Q1)", by_task=True
+        )
+    return lines
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--results", default=str(HERE.parent / "results" / "hierarchy"))
@@ -587,15 +851,20 @@ def main() -> None:
     f_raw, f_rows, f_missing = f_section(results, cells)
     missing += f_missing
     f = adjust(f_raw)
-    every = q1 + q2
-    verdicts = [helps(every, c.task, c.schedule, c.condition) for c in cells + q2_cells]
+    q3_cells, q3_missing = load_q3_cells(results)
+    missing += q3_missing
+    q3_split = [t for cell in q3_cells for t in cell_tests("Q3", cell)]
+    q3 = adjust(q3_split + mechanism_tests(q3_cells) + transfer_cost_tests(q3_cells, cells))
+    every = q1 + q2 + q3_split
+    verdicts = [helps(every, c.task, c.schedule, c.condition) for c in cells + q2_cells + q3_cells]
     distinct, repeats = distinct_comparisons([t for t in every if t.name == HIERARCHY])
     n_conditions = len({(t.world, t.condition, t.schedule) for t in distinct})
     n_helps = sum(h for h, _ in verdicts)
     n_worse = sum(w for _, w in verdicts)
     head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
                           text=True, cwd=HERE).stdout.strip()  # fmt: skip
-    commits = ", ".join(sorted({x for c in cells + q2_cells for x in c.commit.split(", ")})) or "–"
+    every_cell = cells + q2_cells + q3_cells
+    commits = ", ".join(sorted({x for c in every_cell for x in c.commit.split(", ")})) or "–"
     lines = [
         "# Where does hierarchy pay? Subgoal tasks, subgoal observation, transfer",
         "",
@@ -607,6 +876,8 @@ def main() -> None:
         "",
         *verdict_lines(q1, cells, "Q1"),
         *verdict_lines(q2, q2_cells, "Q2"),
+        *verdict_lines(q3, q3_cells, "Q3"),
+        *q3_answer_lines(q3, q3_cells),
         f"- **Tally so far:** hierarchy helps imitation in {n_helps} of {n_conditions} distinct "
         f"conditions (each pair of runs counted once; {len(repeats)} repeats), and eq. 2 is "
         f"significantly worse than eq. 1 on the greedy policy in {n_worse}. The protocol's goal "
@@ -621,7 +892,7 @@ def main() -> None:
             )
         ),
     ]
-    helped = [c for c, (h, _) in zip(cells + q2_cells, verdicts) if h]
+    helped = [c for c, (h, _) in zip(every_cell, verdicts) if h]
     if helped:
 
         def effect(c, name):
@@ -666,7 +937,7 @@ def main() -> None:
     hurt = [t for t in every if t.name == HIERARCHY and t.p_holm < 0.05 and t.difference < 0]
     own = {
         (t.world, t.schedule)
-        for t in every
+        for t in q1 + q2
         if t.name == OWN and t.p_holm < 0.05 and t.difference > 0
     }
     n_own = len({(c.task, c.schedule) for c in cells + q2_cells})
@@ -685,7 +956,8 @@ def main() -> None:
         + ".",
         f"- **The options' own effect** (options only − primitives only, no mentor) is "
         f"significantly positive (Holm) on some endpoint at {len(own)} of {n_own} distinct "
-        "task × schedule pairs: where it is, the options pay with or without a mentor.",
+        "task × schedule pairs of Q1 and Q2: where it is, the options pay with or without a "
+        "mentor.",
     ]
     if f:
         significant = [t for t in f if t.p_holm < 0.05]
@@ -698,9 +970,11 @@ def main() -> None:
         + ("; ".join(sorted(set(missing))) + " (records absent); " if missing else "")
         + "Q1 on the puzzle box and on MiniGrid's other tasks (DoorKey 8×8, UnlockPickup, "
         "KeyCorridor, MultiRoom, FourRooms: registered for himit run minigrid, not yet in an "
-        "amendment), F on Q2's conditions (where the mentor's observed moves are several steps), Q3 (transfer), Q4 (the "
-        "fifth skewer): their cells follow in amendments before their runs, as the settings and "
-        "worlds land. "
+        "amendment), F on Q2's conditions (where the mentor's observed moves are several "
+        "steps), Q3's other transfers (options discovered from the mentor's states, multirooms "
+        "with another goal room, the 5-skewer puzzle box after 4-skewer demonstrations, a key "
+        "moved), Q4 (the fifth skewer): their cells follow in amendments before their runs, as "
+        "the settings and worlds land. "
         + (
             "A preset is due by the protocol (eq. 2 with segments and trial, where the mentor is "
             "seen at its subgoals), chosen on held-out seeds 5000–5019 by the presets' rule: not "
@@ -754,6 +1028,8 @@ def main() -> None:
                 [t for t in q2 if (t.world, t.condition) == (world, observation)],
                 f"{name}: the split, paired by seed",
             )
+    if q3_cells:
+        lines += q3_section(results, q3, q3_cells)
     if f:
         lines += [
             "## F, feasibility at N = 1 and N = 3",
@@ -800,6 +1076,8 @@ def main() -> None:
     panels = [("Q1: the split (eq. 2 and eq. 1 with trial)", q1, list(CONTRASTS))]
     if q2:
         panels.append(("Q2: the split (segments and trial on)", q2, list(CONTRASTS)))
+    if q3_split:
+        panels.append(("Q3: the split (transfer, trial on)", q3_split, list(CONTRASTS)))
     if f:
         panels.append(("F: feasibility − trial alone (eq. 2)", f, sorted({t.name for t in f})))
     figure(panels, results / "where_pays.png")
@@ -808,7 +1086,7 @@ def main() -> None:
         writer = csv.writer(out)
         fields = list(Test.__dataclass_fields__)
         writer.writerow(fields)
-        for t in q1 + q2 + f:
+        for t in q1 + q2 + q3 + f:
             writer.writerow([getattr(t, k) for k in fields])
     print(f"wrote {results / 'where_pays.md'}")
 

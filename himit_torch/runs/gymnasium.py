@@ -62,7 +62,7 @@ from himit_torch.learner.agents import AGENTS
 from himit_torch.learner.config import LearnerConfig
 from himit_torch.learner.learner import Learner
 from himit_torch.learner.presets import agent_settings_text
-from himit_torch.mentor.minigrid import minigrid_mentor
+from himit_torch.mentor.minigrid import demonstrations_in, minigrid_mentor
 from himit_torch.mentor.observation import observe_at_option_ends, observe_every
 from himit_torch.mentor.policy import mentor_policy, record_demonstrations, run_mentor
 from himit_torch.mentor.reward import KnownReward
@@ -133,6 +133,10 @@ class GymTask:
     """The world at a discount (``None``: :func:`~himit_torch.from_gymnasium` of the id)."""
     make_mentor: Callable[[TableWorld], Any] | None = None
     """The mentor (``None``: the optimal policy over primitives)."""
+    mentor_world: Callable[[float], TableWorld] | None = None
+    """Transfer: the world whose task the mentor demonstrates, of the learner's layout; its
+    demonstrations are watched as the learner's states
+    (:func:`~himit_torch.mentor.minigrid.demonstrations_in`). ``None``: the learner's world."""
 
     def world(self, gamma: float) -> TableWorld:
         if self.make_world is not None:
@@ -173,19 +177,26 @@ TASKS: dict[str, GymTask] = {
 }
 
 
-def _minigrid_task(env_id: str, about: str, steps: int) -> GymTask:
+def _minigrid_task(
+    env_id: str, about: str, steps: int, mentor_goal: tuple[int, int] | None = None
+) -> GymTask:
     """A MiniGrid task (reset seed 0, no slip): the learner's "go to and face X" skills beside
     the primitives, and the MiniGrid mentor with its own right-handed skills
-    (:func:`~himit_torch.minigrid_mentor`)."""
+    (:func:`~himit_torch.minigrid_mentor`); with ``mentor_goal``, the mentor demonstrates the
+    same layout with its goal moved to that cell (transfer)."""
 
     def world(gamma: float) -> TableWorld:
         return from_minigrid(env_id, gamma=gamma)
+
+    def shown(gamma: float) -> TableWorld:
+        return from_minigrid(env_id, gamma=gamma, goal=mentor_goal)
 
     def skills(w: TableWorld) -> Options:
         options = minigrid_options(w)  # type: ignore[arg-type]
         return options.select([i for i, k in enumerate(options.kinds) if k != "primitive"])
 
-    return GymTask(env_id, {}, skills, about, steps, world, minigrid_mentor)  # type: ignore[arg-type]
+    return GymTask(env_id, {}, skills, about, steps, world, minigrid_mentor,  # type: ignore[arg-type]
+                   shown if mentor_goal is not None else None)  # fmt: skip
 
 
 #: MiniGrid's key-and-door tasks (``himit run minigrid``), each with ``himit run minigrid``'s
@@ -245,6 +256,30 @@ MINIGRID_TASKS: dict[str, GymTask] = {
         "MiniGrid-FourRooms-v0: reach the goal through the gaps between four rooms; options: go "
         "to and face the goal",
         100_000,
+    ),
+    # transfer: the mentor shows the layout with its goal moved (5×5, 6×6: one cell past the
+    # door, on the learner's way; 8×8: one cell past the door the other way, off it), the
+    # learner is rewarded at MiniGrid's goal
+    "doorkey5x5_transfer": _minigrid_task(
+        "MiniGrid-DoorKey-5x5-v0",
+        "MiniGrid-DoorKey-5x5-v0, transfer: the mentor demonstrates the layout with its goal "
+        "moved to (3, 2), the learner is rewarded at MiniGrid's goal (3, 3)",
+        50_000,
+        mentor_goal=(3, 2),
+    ),
+    "doorkey6x6_transfer": _minigrid_task(
+        "MiniGrid-DoorKey-6x6-v0",
+        "MiniGrid-DoorKey-6x6-v0, transfer: the mentor demonstrates the layout with its goal "
+        "moved to (4, 2), the learner is rewarded at MiniGrid's goal (4, 4)",
+        100_000,
+        mentor_goal=(4, 2),
+    ),
+    "doorkey8x8_transfer": _minigrid_task(
+        "MiniGrid-DoorKey-8x8-v0",
+        "MiniGrid-DoorKey-8x8-v0, transfer: the mentor demonstrates the layout with its goal "
+        "moved to (6, 1), the learner is rewarded at MiniGrid's goal (6, 6)",
+        100_000,
+        mentor_goal=(6, 1),
     ),
 }
 TASKS.update(MINIGRID_TASKS)
@@ -443,12 +478,14 @@ class _TaskBatch:
     optimal_rate: float
     optimal_value: float
     greedy: GreedyTracker
+    mentor_world: TableWorld | None = None  # (transfer: the world whose task the mentor shows)
 
 
 def _observed(config: GymExperimentConfig, world: TableWorld, mentor, seed: int):
     """What a run of ``seed`` sees of its mentor's recorded episodes (``config.observation``):
     every ``observation_stride``-th state (1: the demonstrations themselves), or the states
-    where the mentor's options end, from the same episodes' rollout."""
+    where the mentor's options end, from the same episodes' rollout; recorded in the world
+    whose task the mentor shows (``GymTask.mentor_world``)."""
     if config.observation == "option-ends":
         rollout = run_mentor(world, mentor, config.mentor_episodes, seed=seed)
         return observe_at_option_ends(rollout, world)
@@ -462,10 +499,11 @@ def _build_task_batch(config: GymExperimentConfig, task_name: str) -> _TaskBatch
     task = TASKS[task_name]
     world = task.world(config.gamma)
     options = task.options(world)
+    shown = world if task.mentor_world is None else task.mentor_world(config.gamma)
     mentor = (
-        task.make_mentor(world)
+        task.make_mentor(shown)
         if task.make_mentor is not None
-        else mentor_policy(world, primitive_options(world), prefer_extended_within=0.0)
+        else mentor_policy(shown, primitive_options(shown), prefer_extended_within=0.0)
     )
     seeds, agents, run_seeds = batch_runs(config.agents, config.first_seed, config.seeds)
     known = KnownReward(world)
@@ -481,14 +519,19 @@ def _build_task_batch(config: GymExperimentConfig, task_name: str) -> _TaskBatch
         reward=[known if AGENTS[a].uses_demonstrations else None for a in agents],
         device=config.device,
     )
-    watch_demonstrations(learner, {s: _observed(config, world, mentor, s) for s in seeds})
+    observed = {s: _observed(config, shown, mentor, s) for s in seeds}
+    if shown is not world:
+        observed = {s: demonstrations_in(world, d, shown) for s, d in observed.items()}  # type: ignore[arg-type]
+    watch_demonstrations(learner, observed)
     # The optimum over primitives, exact: its goal rate, and V*(μ) for the value gap.
     optimal = optimal_policy_evaluation(world, config.window)
     # Every window: the greedy policies' goal rates and values (the value gap), one evaluation.
     greedy = GreedyTracker(
         PolicyEvaluator(world, options, config.window),
         GreedyReference(
-            optimal, evaluate_option_choice(world, mentor.options, mentor.option, config.window)
+            # (the mentor's rate on the task it shows)
+            optimal,
+            evaluate_option_choice(shown, mentor.options, mentor.option, config.window),
         ),
         config.window,
         config.steps_of(task_name),
@@ -497,6 +540,7 @@ def _build_task_batch(config: GymExperimentConfig, task_name: str) -> _TaskBatch
     return _TaskBatch(
         task_name, task, world, options, mentor, known, learner_config, learner, agents,
         run_seeds, float(optimal.goals_per_window[0]), float(optimal.value_start[0]), greedy,
+        None if shown is world else shown,
     )  # fmt: skip
 
 
@@ -669,7 +713,10 @@ def _minigrid_paths(run: _TaskBatch) -> dict[str, list[int]]:
     (:meth:`~himit_torch.learner.inspect.LearnerViews.greedy_trajectory`, the seed's own draws),
     at most five times the mentor's steps. Reads the finished learner; changes nothing."""
     seed = run.run_seeds[0]
-    mentor = record_demonstrations(run.world, run.mentor, 1, seed=seed).episodes[0]
+    shown = run.mentor_world or run.world
+    recorded = record_demonstrations(shown, run.mentor, 1, seed=seed)
+    seen = recorded if shown is run.world else demonstrations_in(run.world, recorded, shown)  # type: ignore[arg-type]
+    mentor = seen.episodes[0]
     max_steps = 5 * max(len(mentor) - 1, 1)
     paths = {"mentor": [int(s) for s in mentor]}
     for b, (agent, run_seed) in enumerate(zip(run.agents, run.run_seeds)):

@@ -31,6 +31,13 @@ Reward and termination (as the library's other worlds, not MiniGrid's)
     With a discount ``γ < 1`` and a step cost, the optimum is still the shortest way to
     success, as under MiniGrid's reward.
 
+The goal moved (optional)
+    ``goal=(x, y)`` moves the task's one goal square to another empty floor cell after every
+    reset: the same layout (walls, doors, keys, the agent's start) with a task that ends
+    elsewhere, so that a mentor can demonstrate one task and a learner face another that shares
+    its subgoals (transfer; :func:`~himit_torch.mentor.minigrid.demonstrations_in` carries
+    demonstrations between two such worlds).
+
 Slip (optional)
     With probability ``slip`` the chosen action fails and one of the other five is taken, each
     with ``slip / 5`` (the paper's slip, as in :class:`~himit_torch.MultiRooms`). Default 0:
@@ -227,6 +234,8 @@ class MiniGridWorld(TableWorld):
         object_names: the objects a state follows (movables, then doors), e.g. ``("yellow
             key", "yellow door")``.
         goal_cells: the cell index ``y · width + x`` of each goal square.
+        goal: the cell ``(x, y)`` the goal was moved to (``from_minigrid``'s ``goal``), or
+            ``None`` where it is where MiniGrid puts it.
     """
 
     env: Any
@@ -234,10 +243,11 @@ class MiniGridWorld(TableWorld):
     env_kwargs: dict
     seed: int
     slip: float
+    goal: tuple[int, int] | None
 
-    def _init_minigrid(self, env, env_id, env_kwargs, seed, slip, layout, keys) -> None:
+    def _init_minigrid(self, env, env_id, env_kwargs, seed, slip, layout, keys, goal) -> None:
         self.env, self.env_id, self.env_kwargs = env, env_id, dict(env_kwargs)
-        self.seed, self.slip = int(seed), float(slip)
+        self.seed, self.slip, self.goal = int(seed), float(slip), goal
         self._layout = layout
         self._keys = keys
         self._index = {k: i for i, k in enumerate(keys)}
@@ -294,6 +304,39 @@ class MiniGridWorld(TableWorld):
         """The full state of index ``state`` as its tuple (:attr:`state_table`'s row)."""
         return self._keys[int(state)]
 
+    def states_from(self, other: MiniGridWorld, states) -> torch.Tensor:
+        """``[T]`` int64: this world's index of each of ``other``'s ``states``, matched by the
+        full state (:meth:`state_key`) — for two worlds of one layout, e.g. a task and the same
+        task with its goal moved (``from_minigrid``'s ``goal``).
+
+        Raises:
+            TypeError: ``other`` is not a :class:`MiniGridWorld`.
+            ValueError: the worlds' objects differ, or a state of ``other`` is not one of this
+                world's (in this world it lies past a goal, say).
+        """
+        if not isinstance(other, MiniGridWorld):
+            raise TypeError(
+                f"{self.name}.states_from needs a world made by from_minigrid, got "
+                f"{type(other).__name__}"
+            )
+        if other.object_names != self.object_names or other.width != self.width:
+            raise ValueError(
+                f"{self.name}.states_from: {other.name}'s objects {list(other.object_names)} "
+                f"on {other.width}×{other.height} cells are not this world's "
+                f"({list(self.object_names)} on {self.width}×{self.height}): give a world of "
+                "the same layout"
+            )
+        out = []
+        for s in torch.as_tensor(states).reshape(-1).tolist():
+            index = self._index.get(other.state_key(s))
+            if index is None:
+                raise ValueError(
+                    f"{self.name}.states_from: {other.name}'s state {s} "
+                    f"({other.describe_state(s)}) is not reachable in this world"
+                )
+            out.append(index)
+        return torch.tensor(out, dtype=torch.int64)
+
     # ------------------------------------------------------------------ encoder and decoder
     def make_env(self, render_mode: str | None = None):
         """A fresh environment of this task (``gymnasium.make`` with the world's id and kwargs),
@@ -314,6 +357,8 @@ class MiniGridWorld(TableWorld):
         After this, :meth:`state_of` and :meth:`set_state` work on ``env``."""
         env.reset(seed=self.seed)
         raw = env.unwrapped
+        if self.goal is not None:
+            _move_goal(raw, self.goal, self.name)
         layout = _Layout.of(raw)
         key = layout.read(raw)
         if key != self._keys[self.start_state] or len(layout.doors) != len(self._layout.doors):
@@ -393,6 +438,7 @@ def from_minigrid(
     slip: float = 0.0,
     max_states: int = 100_000,
     gamma: float = 0.99,
+    goal: tuple[int, int] | None = None,
     **kwargs,
 ) -> MiniGridWorld:
     """A MiniGrid task for one reset seed as a tabular world (module docstring).
@@ -405,21 +451,31 @@ def from_minigrid(
             taken at random.
         max_states: refuse a task with more reachable states than this.
         gamma: the discount, in ``(0, 1]``.
+        goal: ``(x, y)``: move the task's one goal square there after each reset (an empty
+            floor cell, not the agent's start; module docstring); ``None``: MiniGrid's own.
         **kwargs: keyword arguments of ``gymnasium.make`` (only with an id).
 
     Returns:
         A :class:`MiniGridWorld`: state 0 is the start; ``describe()`` holds the id, kwargs,
-        seed, slip, gamma and a fingerprint of the table.
+        seed, slip, gamma, the moved goal (if any) and a fingerprint of the table.
 
     Raises:
         ValueError: an unknown id or keyword, an environment that is not MiniGrid's, more than
             ``max_states`` reachable states, a stochastic ``step``, a language-goal task, a task
-            whose success cannot be reached with the six actions, or arguments out of range.
+            whose success cannot be reached with the six actions, arguments out of range, or a
+            ``goal`` in a task without exactly one goal square or on a cell that is not empty.
     """
     seed = as_int("from_minigrid: seed", seed, 0, 2**63 - 1)
     slip = as_float("from_minigrid: slip", slip, 0.0, 1.0, high_open=True)
     max_states = as_int("from_minigrid: max_states", max_states, 1, 2**31 - 1)
     gamma = as_float("from_minigrid: gamma", gamma, 0.0, 1.0, low_open=True)
+    if goal is not None:
+        if isinstance(goal, (str, bytes)) or not hasattr(goal, "__len__") or len(goal) != 2:
+            raise ValueError(f"from_minigrid: goal={goal!r}: give a cell (x, y) or None")
+        goal = (
+            as_int("from_minigrid: goal x", goal[0], 0),
+            as_int("from_minigrid: goal y", goal[1], 0),
+        )
     minigrid = _import_minigrid()
     if isinstance(env, str):
         env_id: str | None = env
@@ -445,6 +501,8 @@ def from_minigrid(
         )
     _refuse_kind(raw, label)
     raw.reset(seed=seed)
+    if goal is not None:
+        _move_goal(raw, goal, label)
     layout = _Layout.of(raw)
     keys, successors, success, ended = _enumerate(raw, layout, label, max_states)
     world = _table_world(keys, successors, success, ended, slip, gamma, label)
@@ -461,14 +519,40 @@ def from_minigrid(
         "seed": seed,
         "slip": slip,
         "gamma": gamma,
+        **({"goal": list(goal)} if goal is not None else {}),
         "fingerprint": table_fingerprint(
             world.dynamics_table(), world.terminal_mask, world.start_distribution
         ),
     }
     world._description = description
-    world._init_minigrid(raw, env_id, made_kwargs, seed, slip, layout, keys)
+    world._init_minigrid(raw, env_id, made_kwargs, seed, slip, layout, keys, goal)
     layout.write(raw, keys[0])
     return world
+
+
+def _move_goal(raw, goal: tuple[int, int], label: str) -> None:
+    """Move the reset grid's one goal square to the empty cell ``goal``."""
+    from minigrid.core.world_object import Goal
+
+    grid = raw.grid
+    goals = [i for i, c in enumerate(grid.grid) if c is not None and c.type == "goal"]
+    if len(goals) != 1:
+        raise ValueError(
+            f"from_minigrid({label}): goal={goal} moves the task's one goal square, and this "
+            f"task has {len(goals)}; give goal=None"
+        )
+    x, y = goal
+    if (x, y) == (goals[0] % grid.width, goals[0] // grid.width):
+        return
+    here = grid.get(x, y) if x < grid.width and y < grid.height else "outside the grid"
+    if here is not None or (x, y) == tuple(int(v) for v in raw.agent_pos):
+        what = getattr(here, "type", here) if here is not None else "the agent's start"
+        raise ValueError(
+            f"from_minigrid({label}): goal={goal}: that cell is {what}; give an empty floor "
+            f"cell of the {grid.width}×{grid.height} grid"
+        )
+    grid.grid[goals[0]] = None
+    raw.put_obj(Goal(), x, y)
 
 
 def _make(env_id: str, kwargs: dict):

@@ -40,3 +40,37 @@ def test_mentor_is_optimal_for_its_options_and_reaches_the_goal(doorkey):
 def test_refused():
     with pytest.raises(TypeError, match="from_minigrid"):
         ht.minigrid_mentor(ht.MultiRooms(10, 2))
+
+
+def test_demonstrations_in_another_task_of_the_same_layout(doorkey):
+    moved = ht.from_minigrid("MiniGrid-DoorKey-5x5-v0", goal=(3, 2))
+    mentor = ht.minigrid_mentor(moved)
+    demos = ht.record_demonstrations(moved, mentor, 3, seed=0)
+    seen = ht.demonstrations_in(doorkey, demos, moved)
+    assert isinstance(seen, ht.Demonstrations) and seen.num_episodes == 3
+    for before, after in zip(demos.episodes, seen.episodes):
+        assert [moved.state_key(s) for s in before.tolist()] == [
+            doorkey.state_key(s) for s in after.tolist()
+        ]
+        # the mentor's goal (3, 2) is a floor cell of the learner's task: no goal reached
+        assert not bool(doorkey.terminal_mask[after].any())
+        assert doorkey.state_key(int(after[-1]))[:2] == (3, 2)
+    # coarse demonstrations keep their positions and durations
+    rollout = ht.run_mentor(moved, mentor, 2, seed=1)
+    ends = ht.observe_at_option_ends(rollout, moved)
+    seen_ends = ht.demonstrations_in(doorkey, ends, moved)
+    assert seen_ends.durations().tolist() == ends.durations().tolist()
+    assert [len(e) for e in seen_ends.episodes] == [len(e) for e in ends.episodes]
+    assert doorkey.states_from(moved, ends.episodes[0]).tolist() == seen_ends.episodes[0].tolist()
+
+
+def test_demonstrations_in_refused(doorkey):
+    moved = ht.from_minigrid("MiniGrid-DoorKey-5x5-v0", goal=(3, 2))
+    # MiniGrid's mentor walks through (3, 2) to (3, 3): not a route of the moved task
+    own = ht.record_demonstrations(doorkey, ht.minigrid_mentor(doorkey), 1, seed=0)
+    with pytest.raises(ValueError, match="not reachable"):
+        ht.demonstrations_in(moved, own, doorkey)
+    with pytest.raises(TypeError, match="Demonstrations"):
+        ht.demonstrations_in(doorkey, [[0, 1]], moved)
+    with pytest.raises(TypeError, match="from_minigrid"):
+        ht.demonstrations_in(ht.MultiRooms(8, 2), own, doorkey)

@@ -307,3 +307,66 @@ def test_door_state_follows_the_door(doorkey5):
     assert set(state.tolist()) == {0, 1, 2}
     with pytest.raises(ValueError, match="no door"):
         doorkey5.door_state("the red door")
+
+
+def test_goal_moved_keeps_the_layout_and_ends_the_task_there(doorkey5):
+    # DoorKey 5×5, seed 0 (by hand): wall column x = 2, door (2, 1), key (1, 2), start (1, 3)
+    # facing west, goal (3, 3). Moved to (3, 2): the right room is the column x = 3 entered at
+    # (3, 1), so (3, 3) lies behind the new goal and is never reached.
+    moved = from_minigrid("MiniGrid-DoorKey-5x5-v0", goal=(3, 2))
+    assert moved.goal_cells == (2 * 5 + 3,) and doorkey5.goal_cells == (3 * 5 + 3,)
+    assert moved.object_names == doorkey5.object_names
+    assert moved.state_key(0) == doorkey5.state_key(0)
+    assert moved.describe()["goal"] == [3, 2] and "goal" not in doorkey5.describe()
+    cells = {moved.state_key(s)[:2] for s in range(moved.num_states)}
+    assert (3, 2) in cells and (3, 3) not in cells
+    # the optimum by hand: right (face north), pickup, forward, forward (1, 1), right (face
+    # east), toggle, forward (door), forward (3, 1), right (face south), forward: 10 steps,
+    # the last paying +1
+    plan = ht.smdp_value_iteration(ht.option_models(moved, ht.primitive_options(moved)))
+    steps, s = 0, 0
+    while not bool(moved.terminal_mask[s]):
+        s = int(moved.dynamics_table().successors[s, int(plan.policy[s]), -1])
+        steps += 1
+    assert steps == 10 and moved.state_key(s)[:2] == (3, 2)
+    # the moved world's environment is reset with the goal moved
+    env = moved.make_env()
+    assert moved.state_of(env) == 0 and env.unwrapped.grid.get(3, 2).type == "goal"
+    assert env.unwrapped.grid.get(3, 3) is None
+
+
+@pytest.mark.parametrize(
+    "goal, words",
+    [
+        ((0, 0), "wall"),
+        ((1, 2), "key"),
+        ((1, 3), "agent's start"),
+        ((3, 7), "outside the grid"),
+        ((3,), r"a cell \(x, y\)"),
+        ("ab", r"a cell \(x, y\)"),
+        ((1.5, 2), "whole number"),
+    ],
+)
+def test_goal_moved_refused(goal, words):
+    with pytest.raises(ValueError, match=words):
+        from_minigrid("MiniGrid-DoorKey-5x5-v0", goal=goal)
+
+
+def test_goal_moved_needs_one_goal_square():
+    with pytest.raises(ValueError, match="has 0"):
+        from_minigrid("MiniGrid-Unlock-v0", goal=(1, 1))
+
+
+def test_states_from_matches_full_states(doorkey5):
+    moved = from_minigrid("MiniGrid-DoorKey-5x5-v0", goal=(3, 2))
+    mapped = doorkey5.states_from(moved, torch.arange(moved.num_states))
+    for s, t in zip(range(moved.num_states), mapped.tolist()):
+        assert doorkey5.state_key(t) == moved.state_key(s)
+    # the other way: the agent on (3, 3) exists only in MiniGrid's own layout
+    behind = next(s for s in range(doorkey5.num_states) if doorkey5.state_key(s)[:2] == (3, 3))
+    with pytest.raises(ValueError, match="not reachable"):
+        moved.states_from(doorkey5, [behind])
+    with pytest.raises(ValueError, match="same layout"):
+        doorkey5.states_from(from_minigrid("MiniGrid-DoorKey-6x6-v0"), [0])
+    with pytest.raises(TypeError, match="from_minigrid"):
+        doorkey5.states_from(ht.MultiRooms(8, 2), [0])
