@@ -501,14 +501,8 @@ def discovery_run_command(
     config: DiscoveryConfig, run_dir: str | os.PathLike | None = None
 ) -> str | None:
     """The ``himit run discovery`` command that rebuilds ``config`` exactly, or None where none
-    can (``worlds``, ``warmup``, ``refresh_every``, … have no flags). Its flags are those of
-    ``himit run discovery`` (``--quick``, ``--seeds``, ``--steps``, ``--engine``) that differ
-    from the defaults, applied as it applies them; the configuration they build is compared
-    with ``config`` field by field. ``run_dir`` (``<logdir>/<name>``) adds ``--logdir``."""
-    from himit_torch.runs.rerun import rerun_command
-
-    names = ("seeds", "steps", "engine")
-    return rerun_command("discovery", DiscoveryConfig(), config, run_dir, names, quick=True)
+    can (``worlds``, ``warmup``, ``refresh_every``, … have no flags)."""
+    return ENTRY.run_command(config, run_dir)
 
 
 def _fmt(values, digits: int = 1) -> str:
@@ -674,4 +668,5 @@ ENTRY = StudyEntry(
     ),
     no_redraw="its results.md and figures are written at the end of the run, and himit plot "
     "does not redraw them",
+    rerun_flags=("seeds", "steps", "engine"),
 )

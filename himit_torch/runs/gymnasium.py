@@ -74,7 +74,6 @@ from himit_torch.options.toy_text import cliff_options, frozen_lake_options
 from himit_torch.runs import minigrid
 from himit_torch.runs.config import OBSERVATIONS
 from himit_torch.runs.greedy import CURVE_COLUMNS, GreedyReference, GreedyTracker
-from himit_torch.runs.rerun import rerun_command
 from himit_torch.runs.runner import (
     batch_runs,
     merge_csv,
@@ -369,31 +368,15 @@ class MiniGridExperimentConfig(GymExperimentConfig):
 def gym_run_command(
     config: GymExperimentConfig, run_dir: str | os.PathLike | None = None
 ) -> str | None:
-    """The ``himit run gymnasium`` command that rebuilds ``config`` exactly, or None where none
-    can (its other settings — tasks, agents, window, … — are the script's,
-    ``experiments/gymnasium_worlds.py``). Its flags are those of ``himit run gymnasium``
-    (``--quick``, ``--seeds``, ``--first-seed``, ``--steps``, ``--device``, ``--preset``,
-    ``--tie-break``) that differ from the comparison's defaults, applied as it applies them;
-    the configuration they build is compared with ``config`` field by field. ``run_dir``
-    (``<logdir>/<name>``) adds ``--logdir`` unless it is the default ``runs``. A configuration
-    of MiniGrid's tasks is rebuilt the same way by ``himit run minigrid``, from its defaults."""
-    study, base = _command_of(config)
-    return rerun_command(
-        study,
-        base,
-        config,
-        run_dir,
-        names=("preset", "seeds", "first_seed", "steps", "device", "tie_break"),
-        quick=True,
-    )
+    """The ``himit run gymnasium`` (or, for MiniGrid's tasks, ``himit run minigrid``) command
+    that rebuilds ``config`` exactly, or None where none can (its other settings are the
+    script's, ``experiments/gymnasium_worlds.py``)."""
+    return _entry_of(config).run_command(config, run_dir)
 
 
-def _command_of(config: GymExperimentConfig) -> tuple[str, GymExperimentConfig]:
-    """The ``himit run`` study whose defaults ``config`` starts from: ``minigrid`` where its
-    tasks are MiniGrid's, else ``gymnasium``."""
-    if any(task in MINIGRID_TASKS for task in config.tasks):
-        return "minigrid", MiniGridExperimentConfig()
-    return "gymnasium", GymExperimentConfig()
+def _entry_of(config: GymExperimentConfig) -> StudyEntry:
+    """``minigrid``'s entry where ``config``'s tasks are MiniGrid's, else ``gymnasium``'s."""
+    return MINIGRID_ENTRY if any(task in MINIGRID_TASKS for task in config.tasks) else ENTRY
 
 
 # ================================================================================ evaluation
@@ -972,7 +955,7 @@ def _provenance(run_dir: Path, config: GymExperimentConfig, summaries: list[dict
     commits = list(dict.fromkeys(s.get("commit", "unknown") for s in summaries))
     command = gym_run_command(config, run_dir)
     engines = ", ".join(sorted({f"`{s.get('engine', 'unknown')}`" for s in summaries}))
-    study = _command_of(config)[0]
+    study = _entry_of(config).name
     # (the Gymnasium comparison's committed runs came from the script, with settings no flag has)
     script = " (the same as `python experiments/gymnasium_worlds.py`)" * (study == "gymnasium")
     fallback = (
@@ -1153,6 +1136,9 @@ def _info(args) -> Iterator[str]:
     yield f"  {f'goals per {window} steps':<28}{window * p_goal / length:.1f}"
 
 
+#: The settings a results page's ``himit run gymnasium`` / ``minigrid`` command may give.
+_RERUN_FLAGS = ("preset", "seeds", "first_seed", "steps", "device", "tie_break")
+
 #: The registry entry of ``himit run gymnasium`` (and ``himit info --env``).
 ENTRY = StudyEntry(
     "gymnasium",
@@ -1167,6 +1153,7 @@ ENTRY = StudyEntry(
     ),
     redraw=rewrite_gym_report,
     info=InfoTopic("env", _info_flags, _info, requires=("env_kwargs",)),
+    rerun_flags=_RERUN_FLAGS,
 )
 
 #: The registry entry of ``himit run minigrid`` (and ``himit info --minigrid``): the comparison
@@ -1182,4 +1169,5 @@ MINIGRID_ENTRY = StudyEntry(
     describe=ENTRY.describe,
     redraw=rewrite_gym_report,
     info=minigrid.INFO,
+    rerun_flags=_RERUN_FLAGS,
 )

@@ -250,14 +250,8 @@ def puzzle_box_run_command(
     config: PuzzleBoxConfig, run_dir: str | os.PathLike | None = None
 ) -> str | None:
     """The ``himit run puzzlebox`` command that rebuilds ``config`` exactly, or None where none
-    can (its other settings are the scripts'). Its flags are those of ``himit run puzzlebox``
-    (``--quick``, ``--seeds``, ``--steps``, ``--engine``) that differ from the defaults, applied
-    as it applies them; the configuration they build is compared with ``config`` field by
-    field. ``run_dir`` (``<logdir>/<name>``) adds ``--logdir`` unless it is ``runs``."""
-    from himit_torch.runs.rerun import rerun_command
-
-    names = ("seeds", "steps", "engine")
-    return rerun_command("puzzlebox", PuzzleBoxConfig(), config, run_dir, names, quick=True)
+    can (its other settings are the scripts')."""
+    return ENTRY.run_command(config, run_dir)
 
 
 def recorded_run_command(run_dir: str | os.PathLike) -> str | None:
@@ -948,4 +942,5 @@ ENTRY = StudyEntry(
     redraw=redraw,
     run_flags=("resume",),
     info=InfoTopic("puzzle_box", _info_flags, _info, requires=("pinch_slip",)),
+    rerun_flags=("seeds", "steps", "engine"),
 )
