@@ -20,7 +20,6 @@ worlds out over one pool with the same pieces. A run directory holds::
 
 from __future__ import annotations
 
-import csv
 import json
 import math
 import os
@@ -87,6 +86,7 @@ from himit_torch.runs.study import (
     read_table,
     run_study,
     series_of,
+    write_rows,
 )
 from himit_torch.validation import parse_document, read_text, refuse_unknown_fields
 from himit_torch.viz.tensorboard import TensorBoardLogger
@@ -562,51 +562,44 @@ def mentor_rewards(config: ExperimentConfig, world, agents, run_seeds, demos) ->
     return modules
 
 
+#: The columns of a world's ``curves.csv`` (then the greedy tracker's, where it has one).
+_CURVES = (
+    "world", "agent", "seed", "step", "goals_in_window", "epsilon", "episodes",
+    "mean_episode_steps", "backups", "decisions", "mentor_term_wins",
+)  # fmt: skip
+
+
 def _write_curves(
     path: Path, learner: Learner, size: int, greedy: GreedyTracker | None = None
 ) -> None:
     """The world's ``curves.csv`` rows, one per run and window; with ``greedy``, its
     :data:`~himit_torch.runs.greedy.CURVE_COLUMNS` after the others."""
-    path.parent.mkdir(parents=True, exist_ok=True)
     m = learner.metrics
-    tmp = path.with_suffix(".tmp")
-    with tmp.open("w", newline="") as f:
-        out = csv.writer(f)
-        out.writerow(
-            [
-                "world",
-                "agent",
-                "seed",
-                "step",
-                "goals_in_window",
-                "epsilon",
-                "episodes",
-                "mean_episode_steps",
-                "backups",
-                "decisions",
-                "mentor_term_wins",
-                *(CURVE_COLUMNS if greedy is not None else ()),
-            ]
+    columns = (*_CURVES, *(CURVE_COLUMNS if greedy is not None else ()))
+    rows = [
+        dict(
+            zip(
+                columns,
+                [
+                    size,
+                    learner.agents[b],
+                    learner.seeds[b],
+                    step,
+                    int(m.goals_in_window[i][b]),
+                    f"{float(m.epsilon[i][b]):.5f}",
+                    int(m.episodes[i][b]),
+                    f"{float(m.mean_episode_steps[i][b]):.2f}",
+                    int(m.backups[i][b]),
+                    int(m.decisions[i][b]),
+                    f"{float(m.mentor_term_wins[i][b]):.4f}",
+                    *(greedy.curve_cells(step, b) if greedy is not None else ()),
+                ],
+            )
         )
-        for i, step in enumerate(m.steps):
-            for b in range(learner.batch):
-                out.writerow(
-                    [
-                        size,
-                        learner.agents[b],
-                        learner.seeds[b],
-                        step,
-                        int(m.goals_in_window[i][b]),
-                        f"{float(m.epsilon[i][b]):.5f}",
-                        int(m.episodes[i][b]),
-                        f"{float(m.mean_episode_steps[i][b]):.2f}",
-                        int(m.backups[i][b]),
-                        int(m.decisions[i][b]),
-                        f"{float(m.mentor_term_wins[i][b]):.4f}",
-                        *(greedy.curve_cells(step, b) if greedy is not None else ()),
-                    ]
-                )
-    os.replace(tmp, path)
+        for i, step in enumerate(m.steps)
+        for b in range(learner.batch)
+    ]
+    write_rows(path, columns, rows)
 
 
 #: Added to a seed to make the generator of its second mentor's episodes
@@ -1045,9 +1038,6 @@ def _merge_curves(run_dir: Path, config: ExperimentConfig) -> None:
 #: ``himit run paper``: the paper's three experiments, their worlds in one pool.
 PAPER_EXPERIMENTS = ("exp1", "exp2", "exp3")
 
-#: Window over which the paper counts goals (its Figs. 3 and 4).
-GOALS_WINDOW = 5000
-
 
 def run_command(config: ExperimentConfig, run_dir: str | os.PathLike | None = None) -> str | None:
     """The ``himit run`` command that rebuilds ``config`` exactly (its experiment's flags, else
@@ -1126,7 +1116,7 @@ def _info(args) -> Iterator[str]:
         f"mentor     {mentor_opts.num_options} options ({option_kinds_text(mentor_opts)}; "
         "doorway/corner options travel along the room's walls)"
     )
-    lines, width = optimum_lines(world, learner, mentor_policy(world, mentor_opts), GOALS_WINDOW)
+    lines, width = optimum_lines(world, learner, mentor_policy(world, mentor_opts))
     yield from lines
     for paper in PAPER.values():
         if (paper.get("world"), paper.get("slip")) == ((world.size, world.rooms), world.slip):

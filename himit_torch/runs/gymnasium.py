@@ -41,7 +41,6 @@ Metrics (per window of ``window`` steps):
 
 from __future__ import annotations
 
-import csv
 import json
 import math
 import os
@@ -83,6 +82,7 @@ from himit_torch.runs.runner import (
     watch_demonstrations,
 )
 from himit_torch.runs.study import (
+    INFO_WINDOW,
     InfoTopic,
     RunConfig,
     StudyEntry,
@@ -92,6 +92,7 @@ from himit_torch.runs.study import (
     run_each,
     run_study,
     series_of,
+    write_rows,
 )
 from himit_torch.statistics import bca_interval
 from himit_torch.validation import setting
@@ -256,12 +257,8 @@ def _default_learner() -> LearnerConfig:
 
 @dataclass
 class GymExperimentConfig(RunConfig):
-    """The Gymnasium comparison: tasks, agents, seeds, budget and learner settings.
-
-    Every field is declared with :func:`~himit_torch.validation.setting` (the shared ones once,
-    in :class:`~himit_torch.runs.study.RunSettings`) and checked by
-    :func:`~himit_torch.validation.check_settings` (whole numbers never truncated and at most
-    ``COUNT_MAX``, bools and strings never numbers), as ``ExperimentConfig``'s are."""
+    """The Gymnasium comparison: tasks, agents, seeds, budget and learner
+    settings, each declared with :func:`~himit_torch.validation.setting`."""
 
     name: str = RunConfig.shared("name", "gymnasium")
     tasks: tuple[str, ...] = setting(
@@ -618,7 +615,7 @@ def _write_task_records(
     logger.close()
     (run_dir / "tasks").mkdir(parents=True, exist_ok=True)
     (run_dir / "tasks" / f"{run.name}.json").write_text(json.dumps(summary, indent=1))
-    _write_rows(run_dir / "tasks" / f"{run.name}.csv", log.rows)
+    write_rows(run_dir / "tasks" / f"{run.name}.csv", _COLUMNS, log.rows)
 
 
 def run_task(
@@ -646,11 +643,9 @@ def run_task(
 
 
 def _minigrid_paths(run: _TaskBatch) -> dict[str, list[int]]:
-    """A MiniGrid task's paths for its figure (``figures/paths_<task>.png``, kept in the task's
-    record so that ``himit plot`` redraws it): the mentor's first episode for the first seed
-    and, per agent, that seed's run's greedy trajectory
-    (:meth:`~himit_torch.learner.inspect.LearnerViews.greedy_trajectory`, the seed's own draws),
-    at most five times the mentor's steps. Reads the finished learner; changes nothing."""
+    """A MiniGrid task's paths for ``figures/paths_<task>.png`` (kept in its
+    record for ``himit plot``): the first seed's first mentor episode and, per agent, that seed's
+    greedy trajectory (at most five times the mentor's steps)."""
     seed = run.run_seeds[0]
     mentor = record_demonstrations(run.world, run.mentor, 1, seed=seed).episodes[0]
     max_steps = 5 * max(len(mentor) - 1, 1)
@@ -676,18 +671,10 @@ _COLUMNS = (
 )
 
 
-def _write_rows(path: Path, rows: list[dict]) -> None:
-    with path.open("w", newline="") as f:
-        out = csv.DictWriter(f, fieldnames=_COLUMNS)
-        out.writeheader()
-        for r in rows:
-            out.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
-
-
 class GymnasiumStudy:
-    """The Gymnasium comparison as a :class:`~himit_torch.runs.study.Study`: one batch per task
-    (:func:`run_task`), then ``curves.csv`` (every task's rows); its report the figures and
-    ``results.md``. It does not resume: an unfinished run starts over."""
+    """The Gymnasium comparison as a :class:`~himit_torch.runs.study.Study`: one
+    batch per task (:func:`run_task`), then ``curves.csv``; its report the figures and
+    ``results.md``. It does not resume."""
 
     config_class: ClassVar[type] = GymExperimentConfig
     folders: ClassVar[tuple[str, ...]] = ("tb", "tasks", "figures")
@@ -715,11 +702,8 @@ def run_gym_experiment(
     force: bool = False,
     progress: bool = True,
 ) -> list[dict]:
-    """Run every task of ``config`` into ``run_dir``, then figures and ``results.md``
-    (:class:`GymnasiumStudy` through :func:`~himit_torch.runs.study.run_study`).
-
-    A directory holding a finished run is not overwritten unless ``force``.
-    """
+    """Run every task of ``config`` into ``run_dir``, then figures and
+    ``results.md`` (a finished run is overwritten only with ``force``)."""
     return run_study(GymnasiumStudy(), config, run_dir, resume=None, force=force, progress=progress)
 
 
@@ -768,10 +752,9 @@ _TASK_RECORD_KEYS: dict[str, type | tuple[type, ...]] = {
 
 
 def _check_task_record(where: str, summary: dict, task: str | None = None) -> None:
-    """Refuse a task record that lacks a field the page reads, or holds it as another type;
-    whose per-run lists (each list but ``options``) are not one number (or ``None``) per run
-    of ``agents`` (at least one run); whose optimal goal rate is not > 0; or (``task``) that
-    is another task's."""
+    """Refuse a task record the page cannot read: a field missing or of
+    another type, per-run lists not one number (or ``None``) per run, an optimal rate not > 0, or
+    (``task``) another task's."""
     fix = "; the record is damaged (run the task again, or restore the file)"
     for key, kind in _TASK_RECORD_KEYS.items():
         value = summary.get(key)
@@ -815,9 +798,8 @@ def read_gym_curves(run_dir: str | os.PathLike) -> dict:
     """``{task: {agent: (steps [W], goals [n, W], gaps [n, W])}}`` from ``curves.csv``.
 
     Raises:
-        ValueError: the file is missing or damaged (:func:`~himit_torch.runs.study.read_table`:
-            a column missing, a number that is not one, no rows), or one agent's seeds were
-            recorded at different steps; the message names the file."""
+        ValueError: the file is missing or damaged (:func:`~himit_torch.runs.study.read_table`,
+            :func:`~himit_torch.runs.study.series_of`); the message names the file."""
     path = Path(run_dir) / "curves.csv"
     where = f"curves file {path}"
     fix = "; the record is damaged (run the study again, or restore the file)"
@@ -1126,7 +1108,7 @@ def _info(args) -> Iterator[str]:
     )
     p_goal, length = episode_statistics(world, plan.policy)
     models = smdp_value_iteration(option_models(world, options))
-    window = 5000  # the paper's goals window
+    window = INFO_WINDOW
     yield ""
     yield "optimal (value iteration on the true model, primitives)"
     yield f"  V*(start distribution)      {float(plan.values @ mu):.3f}"

@@ -50,6 +50,7 @@ __all__ = [
     "check_resumed_config",
     "config_differences",
     "read_table",
+    "write_rows",
     "series_of",
     "read_config",
     "read_config_file",
@@ -302,6 +303,19 @@ def read_table(
     return rows
 
 
+def write_rows(path: Path, columns: Sequence[str], rows: Sequence[dict]) -> None:
+    """A run's CSV record at ``path`` (its folder made): ``columns``, then ``rows``, floats
+    to 6 significant digits; written atomically."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp")
+    with tmp.open("w", newline="") as f:
+        out = csv.DictWriter(f, fieldnames=columns)
+        out.writeheader()
+        for r in rows:
+            out.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
+    os.replace(tmp, path)
+
+
 def _is_finite(text: str) -> bool:
     try:
         return math.isfinite(float(text))
@@ -332,7 +346,13 @@ def series_of(
     return steps, [[v for _, v in points] for points in series]
 
 
-def optimum_lines(world: Any, learner: Any, mentor: Any, window: int) -> tuple[list[str], int]:
+#: ``himit info`` counts goals per this many steps, for every world (the paper's window).
+INFO_WINDOW = 5000
+
+
+def optimum_lines(
+    world: Any, learner: Any, mentor: Any, window: int = INFO_WINDOW
+) -> tuple[list[str], int]:
     """``himit info``'s table of optimal trips (primitives, the learner's options,
     the mentor's own policy; each exact), and the width of its first column."""
     from himit_torch.exact.greedy_evaluation import evaluate_option_choice
