@@ -126,8 +126,10 @@ Config = TypeVar("Config", bound="RunConfig")
 
 class RunConfig:
     """The base of every study's configuration (a dataclass of
-    :func:`~himit_torch.validation.setting` fields): the shared settings (:meth:`shared`), their
-    checks (:meth:`check_run_settings`) and the common methods."""
+    :func:`~himit_torch.validation.setting` fields).
+
+    The shared settings come through :meth:`shared`, their checks through
+    :meth:`check_run_settings`; the common methods follow."""
 
     @staticmethod
     def shared(
@@ -485,9 +487,11 @@ def run_each(
 
 # ================================================================================ the protocol
 class Study(Protocol):
-    """A study, what :func:`run_study` needs: ``config_class``, what its run directory
-    holds (``folders``, ``files``: what ``force`` clears), :meth:`run` (its batches and records) and
-    :meth:`report` (figures and ``results.md``)."""
+    """A study: what :func:`run_study` needs to run one into a run directory.
+
+    ``config_class`` is its configuration; ``folders`` and ``files`` what its run directory
+    holds (what ``force`` clears); :meth:`run` runs its batches and writes its records,
+    :meth:`report` its figures and ``results.md``."""
 
     config_class: ClassVar[type]
     folders: ClassVar[tuple[str, ...]]
