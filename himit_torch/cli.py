@@ -643,15 +643,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except ValueError as err:
         _fail(err)
     except (FileNotFoundError, IsADirectoryError, NotADirectoryError) as err:
-        # A path the user gave names nothing usable (missing, a directory for a file, a file
-        # where a folder belongs): their mistake, exit 2 as for any bad argument. The loaders
-        # say so themselves (validation.read_text); this catches the paths that are only opened
-        # or created (--logdir under a file, a run directory removed mid-way).
+        # a path the user gave names nothing usable (e.g. --logdir under a file): exit 2
         _fail(err)
     except OSError as err:
-        # Everything else — permissions, a full disk, a failing device, a lost network mount —
-        # is the machine failing on the right path: exit 1, one line, so scripts can tell a
-        # retry-worthy fault from a command to fix.
+        # the machine failing on the right path (permissions, a full disk): exit 1, so that
+        # scripts can tell a retry-worthy fault from a command to fix
         _fail(err, status=1)
     except KeyboardInterrupt:  # Ctrl-C: one line, the shell's status for SIGINT
         _fail("interrupted", status=130)

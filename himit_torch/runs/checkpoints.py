@@ -93,14 +93,9 @@ _ZIP_MAGIC = b"PK\x03\x04"  # torch.save's archive format: the only payload torc
 
 
 class DamagedCheckpoint(DamagedState):
-    """The file is not a readable checkpoint (missing, empty, cut short, altered, foreign), or its
-    state fails the learner's checks (a value no run writes: a file altered with its checksum
-    recomputed).
-
-    A :class:`~himit_torch.state_checks.DamagedState` whose field is the file: the learner's
-    owners of state, below this layer, raise ``DamagedState`` naming their field, and
-    :meth:`CheckpointGenerations.load` turns it into this, naming the file too. Either way a
-    resume falls back to the previous generation."""
+    """The file is not a readable checkpoint (missing, cut short, altered, foreign), or its
+    state fails the learner's checks; a resume falls back to the previous generation. A
+    :class:`~himit_torch.state_checks.DamagedState` whose field is the file."""
 
     def __init__(self, path: Path, reason: str, step: int | None = None):
         super().__init__(str(path), reason)
@@ -127,9 +122,8 @@ class CheckpointWriteError(OSError):
 
 @dataclass(frozen=True)
 class BatchShape:
-    """Which runs a checkpoint holds: one agent and one seed per run, on a world of
-    ``num_states`` states. Compared before the payload is restored, so a checkpoint copied from
-    another run is refused by name instead of failing deep inside ``load_state_dict``."""
+    """Which runs a checkpoint holds (an agent and a seed per run, on ``num_states``
+    states), compared before the payload is restored."""
 
     agents: tuple[str, ...]
     seeds: tuple[int, ...]
@@ -175,9 +169,8 @@ class Checkpoint:
 
 
 def _digest(header: CheckpointHeader):
-    """The checksum's SHA-256 fed with what it covers before the payload (the header without its
-    own field, then a newline): the payload's bytes, fed after, complete it — at once or in
-    pieces (:func:`_file_is_intact` feeds a file a chunk at a time)."""
+    """The checksum's SHA-256 fed with the header (without its own field) and a newline;
+    the payload's bytes, fed after, complete it."""
     digest = hashlib.sha256(header.to_json(with_checksum=False))
     digest.update(b"\n")
     return digest
@@ -194,9 +187,8 @@ _PLAIN = (bool, int, float, str, type(None))
 
 
 def _check_plain(obj: Any, where: str) -> None:
-    """Refuse anything ``torch.load(weights_only=True)`` would not read back, naming its place
-    (e.g. ``learner.metrics.steps[3]: numpy.int64``), so the mistake shows at the first save and
-    not at the resume it would break."""
+    """Refuse anything ``torch.load(weights_only=True)`` would not read back,
+    naming its place, so the mistake shows at the first save."""
     if isinstance(obj, torch.Tensor):
         if type(obj) not in (torch.Tensor, torch.nn.Parameter):
             raise TypeError(
@@ -235,8 +227,7 @@ def encode(payload: Any, *, step: int, batch: BatchShape, state_layout_version: 
     """The bytes of a checkpoint file holding ``payload`` (see the module docstring).
 
     Raises:
-        TypeError: the payload holds something other than tensors and plain values.
-    """
+        TypeError: the payload holds something other than tensors and plain values."""
     _, head, body = _encode_parts(
         payload, step=step, batch=batch, state_layout_version=state_layout_version
     )
@@ -246,10 +237,8 @@ def encode(payload: Any, *, step: int, batch: BatchShape, state_layout_version: 
 def _encode_parts(
     payload: Any, *, step: int, batch: BatchShape, state_layout_version: int
 ) -> tuple[CheckpointHeader, bytes, bytes]:
-    """:func:`encode`'s file in its two parts, ``(header, head, body)``: the file is ``head +
-    body``, ``head`` the magic and header lines. The writers write the parts one after the
-    other instead of joining them (which would copy the whole payload once more: exp1's 37 MB
-    took ≈ 25 ms a save)."""
+    """:func:`encode`'s file as ``(header, head, body)``, written one after the
+    other rather than joined (a join copies the payload once more)."""
     _check_plain(payload, "payload")
     buffer = io.BytesIO()
     torch.save(_map_tensors(payload, _stored), buffer)
@@ -278,10 +267,8 @@ def _map_tensors(obj: Any, fn) -> Any:
 
 
 def _alone(tensor: torch.Tensor) -> torch.Tensor:
-    """``tensor`` alone in its storage: as it is, or — a view of a larger storage (a slice of a
-    table, as ``Learner.state_dict(copy=False)`` gives) — copied. torch.save writes a tensor's
-    whole storage, which for a slice is the whole table; the copy is what the ``clone()`` of a
-    copying ``state_dict`` wrote."""
+    """``tensor`` alone in its storage (a view of a larger one copied): torch.save writes
+    a tensor's whole storage."""
     size = tensor.numel() * tensor.element_size()
     if tensor.storage_offset() == 0 and tensor.untyped_storage().nbytes() == size:
         return tensor
@@ -359,12 +346,8 @@ def _describe_foreign(data: bytes) -> str:
 
 
 def _parse_header(data: bytes, path: Path) -> tuple[CheckpointHeader, int]:
-    """The header and the offset of the payload.
-
-    Raises:
-        DamagedCheckpoint: no header, a cut or altered one.
-        IncompatibleCheckpoint: a header of another checkpoint format.
-    """
+    """The header and the offset of the payload (:class:`DamagedCheckpoint`,
+    :class:`IncompatibleCheckpoint` as :func:`decode`)."""
     if not data:
         raise DamagedCheckpoint(path, "the file is empty (0 bytes)")
     if not data.startswith(MAGIC):
@@ -450,14 +433,13 @@ def decode(
     expect_batch: BatchShape | None = None,
     expect_layout: int | None = None,
 ) -> Checkpoint:
-    """Verify and read checkpoint bytes; the payload is unpickled only after every check passed,
-    and then with ``weights_only=True``.
+    """Verify and read checkpoint bytes; the payload is unpickled only after every check
+    passed, with ``weights_only=True``.
 
     Raises:
         DamagedCheckpoint: not a checkpoint, cut short, checksum mismatch, or a payload that
             would need code to load.
-        IncompatibleCheckpoint: another file format, state layout or batch (both named).
-    """
+        IncompatibleCheckpoint: another file format, state layout or batch (both named)."""
     path = Path(path)
     header, body = _verified_body(data, path)
     if expect_layout is not None and header.state_layout_version != expect_layout:
@@ -527,15 +509,9 @@ _CHUNK = 1 << 20
 
 
 def _file_is_intact(path: Path) -> bool:
-    """Whether ``path`` is a whole checkpoint whose checksum matches: the checks of
-    :func:`decode` up to the payload (its header, its length, every byte of it against the
-    SHA-256), without unpickling anything — what decides if a newest file may become the
-    previous generation. ``False`` for a missing or unreadable file, a damaged one or one of
-    another format.
-
-    The file is read and hashed a chunk at a time into one reused buffer, not read whole (and
-    its payload then sliced off, a second copy): exp1's 37 MB took 71 ms a save that way,
-    23 ms this way, the hashing itself most of it (profiled runs of ``himit run exp1``)."""
+    """Whether ``path`` is a whole checkpoint whose checksum matches (the checks
+    of :func:`decode` up to the payload, nothing unpickled), hashed a chunk at a time into one
+    buffer (exp1's 37 MB: 23 ms, against 71 ms read whole)."""
     try:
         with path.open("rb") as f:
             head = f.read(len(MAGIC) + _MAX_HEADER)
@@ -646,13 +622,9 @@ class Resumed:
 class CheckpointGenerations:
     """The newest and the previous checkpoint of one batch: ``<name>.pt`` and ``<name>.prev.pt``.
 
-    :meth:`save` writes the new file completely (synced) before anything else is touched; only
-    then does the current newest file — if it verifies — become the previous one (a hard link,
-    renamed into place, so some complete newest file exists at every instant) and the new file is
-    renamed over the newest. A save that fails or is killed at any point leaves at least the two
-    files of before, each complete. A damaged newest file is never promoted: the previous
-    generation stays the last good one.
-    """
+    :meth:`save` writes the new file completely before the current newest — if it verifies —
+    becomes the previous one (a hard link renamed into place) and the new file is renamed over the
+    newest: a save that fails at any point leaves the two files of before, each complete."""
 
     def __init__(self, newest: str | os.PathLike):
         self.newest = Path(newest)
@@ -714,21 +686,16 @@ class CheckpointGenerations:
         expect_layout: int | None = None,
         restore: Callable[[Checkpoint], None] | None = None,
     ) -> Resumed | None:
-        """The newest good generation, with the newer ones that were skipped and why; ``None``
-        when no generation exists at all (nothing was saved yet).
-
-        ``restore(checkpoint)``, if given, is called with each verified generation, newest
-        first, until one restores: a generation whose payload it refuses with
-        :class:`~himit_torch.state_checks.DamagedState` (the learner's checks of its state) is
-        skipped like a damaged file, so that a state no run writes falls back to the previous
-        generation too. (``restore`` must refuse before it changes anything.)
+        """The newest good generation, with the newer ones skipped and
+        why; ``None`` when nothing was saved yet. ``restore(checkpoint)``, if given, is tried on each
+        verified generation, newest first: one it refuses with
+        :class:`~himit_torch.state_checks.DamagedState` (before changing anything) is skipped like a
+        damaged file.
 
         Raises:
-            NoGoodCheckpoint: generations exist but none is good; the message names each file
-                and what is wrong with it.
-            IncompatibleCheckpoint: the newest intact file is for another format, state layout
-                or batch (falling back would not help: the previous one is from the same run).
-        """
+            NoGoodCheckpoint: generations exist but none is good; the message names each file.
+            IncompatibleCheckpoint: the newest intact file is for another format, state layout or
+                batch."""
         if not self.exists():
             return None
         skipped: list[Skipped] = []

@@ -328,10 +328,9 @@ class ExperimentConfig(RunConfig):
                     raise ValueError(f"ExperimentConfig.goal_needs_primitives: {err}") from None
 
     def check_size(self) -> None:
-        """Refuse, before anything runs, a world of this experiment whose world, option tables
-        and batch would not fit in memory (:func:`himit_torch.validation.check_memory`): not
-        hours later when that world's turn comes. Called by :func:`run_experiment` (not on
-        construction, so that defining an experiment never depends on the memory free now)."""
+        """Refuse, before anything runs, a world of this experiment that
+        would not fit in memory (:func:`himit_torch.validation.check_memory`), not hours later when
+        its turn comes."""
         for size in self.sizes:
             check_memory(
                 f"ExperimentConfig: world {size}×{size} with its options and a batch of "
@@ -429,12 +428,9 @@ EXPERIMENTS: dict[str, ExperimentConfig] = {
 
 
 def load_config(path: str | os.PathLike) -> ExperimentConfig:
-    """An :class:`ExperimentConfig` from a JSON file (as saved in a run directory):
-    :func:`~himit_torch.runs.study.read_config_file`, the one reader of every study's.
+    """An :class:`ExperimentConfig` from a JSON file (as saved in a run directory;
+    :func:`~himit_torch.runs.study.read_config_file`).
 
     Raises:
-        ValueError: the file is missing, a directory, not UTF-8 JSON, nested too deep, or holds
-            unknown fields or values the configurations refuse; the message names the file.
-            Other ``OSError`` exceptions (permissions, a failing disk) propagate.
-    """
+        ValueError: the file is missing or not a valid configuration; the message names it."""
     return read_config_file(ExperimentConfig, path)

@@ -79,12 +79,8 @@ DISCOVERY_AGENTS = (
 
 @dataclass
 class DiscoveryConfig(RunConfig):
-    """Settings of the discovery experiment, each declared with
-    :func:`~himit_torch.validation.setting` (the shared ones once, in
-    :class:`~himit_torch.runs.study.RunSettings`) and checked by
-    :func:`~himit_torch.validation.check_settings`; the cross-field rules follow. Its mentor
-    episodes, window and learner settings are each world's experiment's
-    (:data:`~himit_torch.runs.config.EXPERIMENTS`)."""
+    """Settings of the discovery experiment; its mentor episodes, window and
+    learner settings are each world's experiment's (:data:`~himit_torch.runs.config.EXPERIMENTS`)."""
 
     name: str = RunConfig.shared("name", "discovery")
     worlds: tuple[str, ...] = setting(
@@ -435,11 +431,9 @@ class DiscoveryResults(NamedTuple):
 
 
 class DiscoveryStudy:
-    """The discovery experiment as a :class:`~himit_torch.runs.study.Study`: one world after
-    another (``_run_world``), then ``curves.csv``, ``subgoals.csv`` and
-    ``demonstrations_needed.csv``; its report the curves figures and ``results.md``. It does not
-    resume (an unfinished run starts over) and ``--force`` clears nothing (every file is written
-    again)."""
+    """The discovery experiment as a :class:`~himit_torch.runs.study.Study`: one
+    world after another, then its CSV records; its report the curves figures and ``results.md``.
+    It does not resume, and ``--force`` clears nothing (every file is written again)."""
 
     config_class: ClassVar[type] = DiscoveryConfig
     folders: ClassVar[tuple[str, ...]] = ()
@@ -501,14 +495,8 @@ def discovery_run_command(
     config: DiscoveryConfig, run_dir: str | os.PathLike | None = None
 ) -> str | None:
     """The ``himit run discovery`` command that rebuilds ``config`` exactly, or None where none
-    can (``worlds``, ``warmup``, ``refresh_every``, … have no flags). Its flags are those of
-    ``himit run discovery`` (``--quick``, ``--seeds``, ``--steps``, ``--engine``) that differ
-    from the defaults, applied as it applies them; the configuration they build is compared
-    with ``config`` field by field. ``run_dir`` (``<logdir>/<name>``) adds ``--logdir``."""
-    from himit_torch.runs.rerun import rerun_command
-
-    names = ("seeds", "steps", "engine")
-    return rerun_command("discovery", DiscoveryConfig(), config, run_dir, names, quick=True)
+    can (``worlds``, ``warmup``, ``refresh_every``, … have no flags)."""
+    return ENTRY.run_command(config, run_dir)
 
 
 def _fmt(values, digits: int = 1) -> str:
@@ -674,4 +662,5 @@ ENTRY = StudyEntry(
     ),
     no_redraw="its results.md and figures are written at the end of the run, and himit plot "
     "does not redraw them",
+    rerun_flags=("seeds", "steps", "engine"),
 )

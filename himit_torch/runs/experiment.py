@@ -20,7 +20,6 @@ worlds out over one pool with the same pieces. A run directory holds::
 
 from __future__ import annotations
 
-import csv
 import json
 import math
 import os
@@ -63,7 +62,6 @@ from himit_torch.runs.checkpoints import BatchShape
 from himit_torch.runs.config import EXPERIMENTS, ExperimentConfig, load_config
 from himit_torch.runs.greedy import CURVE_COLUMNS, GreedyReference, GreedyTracker
 from himit_torch.runs.pool import run_pool, workers_for
-from himit_torch.runs.rerun import rerun_command
 from himit_torch.runs.runner import (
     Checkpoints,
     Maps,
@@ -88,6 +86,7 @@ from himit_torch.runs.study import (
     read_table,
     run_study,
     series_of,
+    write_rows,
 )
 from himit_torch.validation import parse_document, read_text, refuse_unknown_fields
 from himit_torch.viz.tensorboard import TensorBoardLogger
@@ -174,18 +173,15 @@ class WorldResult:
 
 def optimal_reference(world: MultiRooms, window: int) -> tuple[float, float, PolicyEvaluation]:
     """The optimum a world's runs are measured against
-    (:func:`~himit_torch.exact.optimum.primitive_optimum`): the expected steps of the optimal
-    (primitive) policy from start to goal, ``V*(start)``, and that policy's exact evaluation
-    over windows of ``window`` steps (the reference of the greedy policies' "% of optimum", and
-    the ``optimal_*`` numbers of :class:`WorldResult`)."""
+    (:func:`~himit_torch.exact.optimum.primitive_optimum`): steps start → goal, ``V*(start)`` and
+    its exact evaluation over windows of ``window`` steps."""
     best = primitive_optimum(world, window)
     return best.steps_to_goal, best.value_start, best.evaluation
 
 
 def _hparams(config: ExperimentConfig, size: int, agent: str) -> dict:
-    """The settings that tell a run's group apart in TensorBoard's HParams dashboard: its agent,
-    experiment and world, and every setting that differs from the library's defaults (the seed
-    never: the seeds of one group are what the dashboard aggregates)."""
+    """A run group's settings for TensorBoard's HParams dashboard: agent, experiment,
+    world and every setting off the library's defaults (never the seed, which it aggregates)."""
     hp = {"agent": agent, "experiment": config.name, "world": f"{size}×{size}"}
     skip = {
         "name",
@@ -233,9 +229,7 @@ class _WorldBatch:
 
 @dataclass
 class _Mentoring:
-    """What the mentor leaves a batch: each seed's recorded episodes, what the learner observes
-    of them (and of the second mentor's), the mentor's exact goal rate (``None`` without greedy
-    evaluations) and its exact transitions (``mentor_model="exact"``; else ``None``)."""
+    """What the mentor leaves a batch (the exact parts ``None`` where not asked for)."""
 
     recorded: dict
     demos: dict
@@ -299,10 +293,8 @@ def run_world(
 
 
 def _mentoring(batch: _WorldBatch) -> _Mentoring:
-    """The mentor's part of a batch: its episodes for every seed, what the learner observes of
-    them, and the exact references it leaves. The mentor (its own [O, S] option tables: 0.23 GB
-    on 120×120 with corners) is gone when this returns, before the learner's tables are built,
-    so the two never share the process's peak memory."""
+    """The mentor's part of a batch. The mentor's own option tables are gone when this
+    returns, so they never share the peak memory with the learner's."""
     config, world, seeds = batch.config, batch.world, batch.seeds
     mentor = mentor_policy(
         world,
@@ -344,10 +336,8 @@ def _mentoring(batch: _WorldBatch) -> _Mentoring:
 
 
 def _mentor_episodes(config: ExperimentConfig, world: MultiRooms, mentor, seeds) -> dict:
-    """Each seed's recorded mentor episodes, from that seed's own generator (so the order of the
-    seeds changes nothing), with the stresses on what the mentor shows: noise, a detour,
-    another goal, only the first part of each route (``mentor_coverage``). The stresses change
-    what it shows, not its policy: the "% of mentor" reference stays the undisturbed one."""
+    """Each seed's recorded mentor episodes (that seed's own generator), with the
+    stresses on what the mentor shows; its policy, the "% of mentor" reference, stays undisturbed."""
     if config.mentor_goal != "same":
         recorded = _other_goal(config, world, seeds)
     else:
@@ -422,9 +412,8 @@ def _greedy_tracker(
 def _logger(
     batch: _WorldBatch, learner: Learner, options: Options, true_v: float, resume: bool
 ) -> TensorBoardLogger:
-    """The batch's TensorBoard logger. A resumed run purges what it logged after its last
-    checkpoint (windows up to t were logged before the checkpoint); a fresh one refuses folders
-    that hold another run's events, and logs each run's settings."""
+    """The batch's TensorBoard logger (a resumed run purges what it logged after its last
+    checkpoint; a fresh one logs each run's settings)."""
     config = batch.config
     logger = TensorBoardLogger(
         batch.run_dir / "tb",
@@ -452,9 +441,8 @@ def _run_batch(
     on_window: Callable | None,
     elapsed: float,
 ) -> float:
-    """Run the batch to its last step (:func:`~himit_torch.runs.runner.run_windows`): each
-    window logged and, on their schedule, evaluated greedily, maps drawn and a checkpoint
-    saved. Returns the run's wall seconds."""
+    """Run the batch to its last step (:func:`~himit_torch.runs.runner.run_windows`);
+    returns the run's wall seconds."""
     config, run_seeds = batch.config, batch.run_seeds
     # Maps for the first seed of every agent, half-way (the first window end from there) and
     # at the end: drawn as arrays, a few ms a map (viz.plotting.MapRenderer).
@@ -557,10 +545,9 @@ def _log_hparams(
 
 
 def mentor_rewards(config: ExperimentConfig, world, agents, run_seeds, demos) -> list | None:
-    """The reward modules of a batch for ``config.mentor_reward``: ``None`` for ``known`` (the
-    learner's default, :class:`~himit_torch.KnownReward`), else one module per run — fitted on
-    that run's seed's demonstrations for ``salience`` — and ``None`` for runs that read no
-    demonstrations (neither a mentor term nor a shaping potential)."""
+    """The reward modules of a batch for ``config.mentor_reward``: ``None`` for
+    ``known``, else one per run (fitted on its seed's demonstrations; ``None`` for a run that reads
+    none)."""
     if config.mentor_reward == "known":
         return None
     modules: list = []
@@ -575,51 +562,44 @@ def mentor_rewards(config: ExperimentConfig, world, agents, run_seeds, demos) ->
     return modules
 
 
+#: The columns of a world's ``curves.csv`` (then the greedy tracker's, where it has one).
+_CURVES = (
+    "world", "agent", "seed", "step", "goals_in_window", "epsilon", "episodes",
+    "mean_episode_steps", "backups", "decisions", "mentor_term_wins",
+)  # fmt: skip
+
+
 def _write_curves(
     path: Path, learner: Learner, size: int, greedy: GreedyTracker | None = None
 ) -> None:
     """The world's ``curves.csv`` rows, one per run and window; with ``greedy``, its
     :data:`~himit_torch.runs.greedy.CURVE_COLUMNS` after the others."""
-    path.parent.mkdir(parents=True, exist_ok=True)
     m = learner.metrics
-    tmp = path.with_suffix(".tmp")
-    with tmp.open("w", newline="") as f:
-        out = csv.writer(f)
-        out.writerow(
-            [
-                "world",
-                "agent",
-                "seed",
-                "step",
-                "goals_in_window",
-                "epsilon",
-                "episodes",
-                "mean_episode_steps",
-                "backups",
-                "decisions",
-                "mentor_term_wins",
-                *(CURVE_COLUMNS if greedy is not None else ()),
-            ]
+    columns = (*_CURVES, *(CURVE_COLUMNS if greedy is not None else ()))
+    rows = [
+        dict(
+            zip(
+                columns,
+                [
+                    size,
+                    learner.agents[b],
+                    learner.seeds[b],
+                    step,
+                    int(m.goals_in_window[i][b]),
+                    f"{float(m.epsilon[i][b]):.5f}",
+                    int(m.episodes[i][b]),
+                    f"{float(m.mean_episode_steps[i][b]):.2f}",
+                    int(m.backups[i][b]),
+                    int(m.decisions[i][b]),
+                    f"{float(m.mentor_term_wins[i][b]):.4f}",
+                    *(greedy.curve_cells(step, b) if greedy is not None else ()),
+                ],
+            )
         )
-        for i, step in enumerate(m.steps):
-            for b in range(learner.batch):
-                out.writerow(
-                    [
-                        size,
-                        learner.agents[b],
-                        learner.seeds[b],
-                        step,
-                        int(m.goals_in_window[i][b]),
-                        f"{float(m.epsilon[i][b]):.5f}",
-                        int(m.episodes[i][b]),
-                        f"{float(m.mean_episode_steps[i][b]):.2f}",
-                        int(m.backups[i][b]),
-                        int(m.decisions[i][b]),
-                        f"{float(m.mentor_term_wins[i][b]):.4f}",
-                        *(greedy.curve_cells(step, b) if greedy is not None else ()),
-                    ]
-                )
-    os.replace(tmp, path)
+        for i, step in enumerate(m.steps)
+        for b in range(learner.batch)
+    ]
+    write_rows(path, columns, rows)
 
 
 #: Added to a seed to make the generator of its second mentor's episodes
@@ -628,9 +608,8 @@ SECOND_MENTOR_STREAM = 1 << 40
 
 
 def _second_mentor(config, world, mentor, seeds) -> dict:
-    """Each seed's episodes of the second mentor (``ExperimentConfig.second_mentor``; none:
-    an empty dict): the same mentor erring with ``second_mentor_noise``, or taking the
-    detour of ``mentor_detour``, from its own generator."""
+    """Each seed's episodes of the second mentor (``second_mentor``; none: ``{}``),
+    from its own generator."""
     if config.second_mentor == "none":
         return {}
     detour = (
@@ -655,9 +634,8 @@ def _second_mentor(config, world, mentor, seeds) -> dict:
 
 
 def _other_goal(config, world, seeds) -> dict:
-    """Each seed's episodes of a mentor demonstrating another goal (``ExperimentConfig.
-    mentor_goal``): its walk to the top-right corner cell, in a copy of the world with that
-    goal, shown to the learner in its own world (where the corner is no goal)."""
+    """Each seed's episodes of a mentor walking to the top-right corner
+    (``mentor_goal``), shown in the learner's own world."""
     leg = mentor_detour(
         world, corners=config.corner_options, prefer_extended_within=config.mentor_preference
     )
@@ -712,13 +690,9 @@ def _world_figure(run_dir, config, world, demos, learner, agents, run_seeds, see
 
 # ================================================================================ the study
 class ExperimentStudy:
-    """The paper's experiments as a :class:`~himit_torch.runs.study.Study`: one run directory
-    per experiment, one learner batch per world (:func:`run_world`), the figures and
-    ``results.md`` at the end.
-
-    ``workers``: the processes its worlds run in (:func:`run_experiment`). :meth:`prepare`,
-    :meth:`finished`, :func:`run_world` and :meth:`report` are also the pieces of
-    :func:`run_experiments`, which shares several experiments' worlds out over one pool."""
+    """The paper's experiments as a :class:`~himit_torch.runs.study.Study`: one run
+    directory per experiment, one learner batch per world (:func:`run_world`), ``workers`` processes
+    (:func:`run_experiment`); its pieces also serve :func:`run_experiments`."""
 
     config_class: ClassVar[type] = ExperimentConfig
     folders: ClassVar[tuple[str, ...]] = ("checkpoints", "tb", "worlds", "figures")
@@ -733,9 +707,8 @@ class ExperimentStudy:
         return f"resume with the saved one (--config {Path(run_dir) / 'config.json'})"
 
     def prepare(self, config: ExperimentConfig, run_dir: Path, resume: bool, force: bool) -> None:
-        """Clear (``force``) or check (``resume``) ``run_dir`` and save the configuration
-        (:func:`~himit_torch.runs.study.prepare_run_dir`; the saved one read by
-        :func:`~himit_torch.runs.config.load_config`)."""
+        """Clear (``force``) or check (``resume``) ``run_dir`` and save the
+        configuration (:func:`~himit_torch.runs.study.prepare_run_dir`)."""
         prepare_run_dir(
             run_dir,
             config,
@@ -789,15 +762,9 @@ def run_experiment(
     """Run an experiment into ``run_dir``: every world, then figures and ``results.md``.
 
     ``resume=True`` continues an interrupted run from its checkpoints (the configuration must be
-    the saved one) and ends with exactly the curves an uninterrupted run gives. A directory with a
-    finished run is not overwritten unless ``force``.
-
-    Worlds run in parallel, ``workers`` at a time (default: as many as there are cores, at most
-    one per world): this process runs one at a time and ``workers − 1`` processes it starts the
-    others; the cores are shared out between them, so each world's compiled engine gets
-    ``cores // workers`` threads. Each world is independent of the others, so the results are
-    the same for any ``workers``. ``workers=1`` runs them all in this process.
-    """
+    the saved one) with exactly the curves of an uninterrupted run; a finished run is overwritten
+    only with ``force``. Worlds run ``workers`` at a time (default: one per core, at most one per
+    world), the cores shared out between them; the results are the same for any ``workers``."""
     study = ExperimentStudy(workers)
     return run_study(
         study,
@@ -819,20 +786,13 @@ def run_experiments(
     progress: bool = True,
     workers: int | None = None,
 ) -> list[list[WorldResult]]:
-    """Run several experiments, each into its own run directory, as one pool of worlds.
-
-    The worlds of all ``plans`` (``(config, run_dir)`` pairs) are shared out over ``workers``
-    processes together, the most expensive first (steps × runs × world side), so one
-    experiment's small world fills the time another's large world leaves free; each experiment
-    gets its figures and ``results.md`` as soon as its last world is done. Every world is
-    independent, so each run directory ends exactly as :func:`run_experiment` alone leaves it
-    (``himit run paper``: the paper's three experiments in one command). ``resume``, ``force``
-    and ``workers`` mean what they mean for :func:`run_experiment`; every run directory is
-    checked before any world starts.
+    """Run several experiments (``(config, run_dir)`` plans) as one pool of
+    worlds, the most expensive first; each gets its report as soon as its last world is done and
+    ends exactly as :func:`run_experiment` alone leaves it (``himit run paper``). Every run
+    directory is checked before any world starts.
 
     Returns:
-        Per plan, its worlds' results in the order of its ``config.sizes``.
-    """
+        Per plan, its worlds' results in the order of its ``config.sizes``."""
     dirs = [Path(run_dir) for _, run_dir in plans]
     if len(set(map(os.path.abspath, dirs))) != len(dirs):
         raise ValueError(f"run_experiments: two plans share a run directory ({dirs})")
@@ -864,10 +824,9 @@ def _run_worlds(
     progress: bool,
     report: bool = False,
 ) -> list[list[WorldResult]]:
-    """Run the worlds of ``plans`` that are not ``finished`` (per plan, ``size → result``; each
-    new one added as it ends), ``study.workers`` at a time, the most expensive first.
-    With ``report``, each plan gets its report (:meth:`ExperimentStudy.report`) as soon as its
-    last world is done. Returns per plan its worlds' results in the order of its sizes."""
+    """Run the worlds of ``plans`` not ``finished`` yet (``study.workers`` at a
+    time, the most expensive first; with ``report``, each plan's report when its last world is
+    done); per plan, its worlds' results in the order of its sizes."""
     todo = [
         (i, size)
         for i, (config, _) in enumerate(plans)
@@ -939,10 +898,8 @@ def _world_cost(config: ExperimentConfig, size: int) -> int:
 def _write_report(
     run_dir: Path, config: ExperimentConfig, finished: dict, redraw_worlds: bool = True
 ) -> list[WorldResult]:
-    """The figures and ``results.md`` of finished worlds (``size → WorldResult``), in the
-    order of ``config.sizes``: what a run writes at its end and ``himit plot`` redraws.
-    ``redraw_worlds=False`` (a run's end): each world's own figures only where its process
-    has not drawn them."""
+    """The figures and ``results.md`` of finished worlds (``size → WorldResult``);
+    ``redraw_worlds=False``: a world's own figures only where its process did not draw them."""
     from himit_torch.viz.report import write_figures, write_results
 
     results = [finished[size] for size in config.sizes]
@@ -959,14 +916,11 @@ def _write_report(
 
 def rewrite_report(run_dir: str | os.PathLike) -> None:
     """Redraw the figures and ``results.md`` of a finished run directory from its
-    ``config.json``, ``curves.csv`` and ``worlds/world<N>.json`` (``himit plot``): the page
-    :func:`run_experiment` wrote, from the records alone.
+    records (``himit plot``).
 
     Raises:
-        ValueError: ``config.json`` is missing or invalid, a world has not finished, or a
-            record is damaged (a world's record that is not one, a ``curves.csv`` that is not
-            UTF-8 CSV with the columns a run writes); the message names the file.
-    """
+        ValueError: ``config.json`` is missing or invalid, a world has not finished, or a record
+            is damaged; the message names the file."""
     run_dir = Path(run_dir)
     config = load_config(run_dir / "config.json")
     finished = {}
@@ -1004,12 +958,8 @@ def read_world_result(path: Path, size: int) -> WorldResult:
     """The :class:`WorldResult` a finished world left in ``path`` (``worlds/world<size>.json``).
 
     Raises:
-        ValueError: the file is not UTF-8 JSON, or not a record of world ``size``: not an
-            object, a field missing or unknown, a number or list of another type, an optimum
-            that is not > 0 (what the percentages divide by), no runs, or a per-run
-            list whose length is not the number of runs; the message names the file and the
-            field (rerun the world: ``himit run … --resume`` after deleting the file).
-    """
+        ValueError: the file is not a valid record of world ``size``; the message names the file
+            and the field."""
     where = f"world record {path}"
     data = parse_document(where, read_text(where, path), "json")
     fix = "; delete it and rerun the world (himit run … --resume)"
@@ -1062,14 +1012,11 @@ def read_world_result(path: Path, size: int) -> WorldResult:
 
 
 def check_curves(path: Path) -> None:
-    """Refuse a ``curves.csv`` the report could not read: not UTF-8 CSV (or a field over the
-    csv module's limit), a column it reads missing, a number that is not one, no rows
-    (:func:`~himit_torch.runs.study.read_table`), or an agent's seeds in a world recorded at
-    different steps (:func:`~himit_torch.runs.study.series_of`).
+    """Refuse a ``curves.csv`` the report could not read
+    (:func:`~himit_torch.runs.study.read_table`, :func:`~himit_torch.runs.study.series_of`).
 
     Raises:
-        ValueError: naming the file, and the line and column where one is at fault.
-    """
+        ValueError: naming the file, and the line and column where one is at fault."""
     where = f"curves file {path}"
     fix = "; rerun the experiment (himit run … --force) to write it again"
     rows = read_table(
@@ -1091,22 +1038,14 @@ def _merge_curves(run_dir: Path, config: ExperimentConfig) -> None:
 #: ``himit run paper``: the paper's three experiments, their worlds in one pool.
 PAPER_EXPERIMENTS = ("exp1", "exp2", "exp3")
 
-#: Window over which the paper counts goals (its Figs. 3 and 4).
-GOALS_WINDOW = 5000
-
 
 def run_command(config: ExperimentConfig, run_dir: str | os.PathLike | None = None) -> str | None:
-    """The ``himit run`` command that rebuilds ``config`` exactly
-    (:func:`~himit_torch.runs.rerun.rerun_command` from the experiment's own,
-    :data:`~himit_torch.runs.config.EXPERIMENTS`; where no flags do,
-    ``himit run <name> --config <run_dir>/config.json``), or None where ``config.name`` is not
-    one of them (a sweep's trial, the demo) or ``run_dir`` is not named ``config.name``."""
-    base = EXPERIMENTS.get(config.name)
-    if base is None:
-        return None
-    return rerun_command(
-        config.name, base, config, run_dir, adjust=_moved_checkpoints, config_file=True
-    )
+    """The ``himit run`` command that rebuilds ``config`` exactly (its experiment's flags, else
+    ``--config <run_dir>/config.json``: :meth:`~himit_torch.runs.study.StudyEntry.run_command`),
+    or None where ``config.name`` is no experiment of
+    :data:`~himit_torch.runs.config.EXPERIMENTS` or ``run_dir`` is not named ``config.name``."""
+    entry = next((e for e in ENTRIES if e.name == config.name and e.name in EXPERIMENTS), None)
+    return None if entry is None else entry.run_command(config, run_dir)
 
 
 def _moved_checkpoints(config: ExperimentConfig, given: frozenset[str]) -> ExperimentConfig:
@@ -1152,9 +1091,8 @@ def _info_flags(parser) -> None:
 
 
 def _info(args) -> Iterator[str]:
-    """``himit info``: a MultiRooms world's size, options, and the optimal trip of primitives,
-    the learner's options and the mentor, beside the paper's numbers where it is one of its
-    worlds."""
+    """``himit info``: a MultiRooms world, its options and optimal trips, beside the paper's
+    numbers where it is one of its worlds."""
     world = MultiRooms(size=args.size, rooms=args.rooms, slip=args.slip)
     learner = learner_options(
         world, doorways=not args.no_doorway_options, corners=args.corner_options
@@ -1178,7 +1116,7 @@ def _info(args) -> Iterator[str]:
         f"mentor     {mentor_opts.num_options} options ({option_kinds_text(mentor_opts)}; "
         "doorway/corner options travel along the room's walls)"
     )
-    lines, width = optimum_lines(world, learner, mentor_policy(world, mentor_opts), GOALS_WINDOW)
+    lines, width = optimum_lines(world, learner, mentor_policy(world, mentor_opts))
     yield from lines
     for paper in PAPER.values():
         if (paper.get("world"), paper.get("slip")) == ((world.size, world.rooms), world.slip):
@@ -1202,6 +1140,7 @@ def _entry(name: str) -> StudyEntry:
         adjust=_moved_checkpoints,
         run_flags=("config", "resume", "workers"),
         info=_INFO if name == "exp1" else None,
+        rerun_config_file=True,
     )
 
 

@@ -83,24 +83,17 @@ class GreedyReference:
 
 @dataclass
 class GreedyTracker:
-    """Exact evaluations of a batch's greedy policies at the ends of the windows that reach
-    ``every, 2·every, …`` and at ``steps`` (the end); ``every = 0``: at the end only.
-    ``V^π(start)`` is solved at the end only unless ``values`` (it doubles an evaluation's
-    cost); the goal rate and reach share at every evaluation.
+    """Exact evaluations of a batch's greedy policies at the ends of the windows
+    that reach ``every, 2·every, …`` and at ``steps`` (``every = 0``: at the end only);
+    ``V^π(start)`` at the end only unless ``values`` (it doubles the cost).
 
     Args:
         evaluator: over the learner's options, in its world, with the window of its curves.
         reference: the optimum's and the mentor's rates.
-        every: steps between evaluations, or 0.
-        steps: the run's length.
         logger: where the ``eval/…`` scalars go (``None``: nowhere).
-        values: solve ``V^π(start)`` at every evaluation, not at the end only (for a value gap
-            per window: the Gymnasium comparison).
 
-    ``evaluations`` maps a step to the evaluation under the ``"uniform"`` rule (checkpointed);
-    ``stuck`` is the final policy's evaluation under the ``"stuck"`` rule, set by
-    :meth:`finish` (``None`` before).
-    """
+    ``evaluations``: step → evaluation under the ``"uniform"`` rule (checkpointed); ``stuck``: the
+    final policy under the ``"stuck"`` rule, set by :meth:`finish`."""
 
     evaluator: PolicyEvaluator
     reference: GreedyReference
@@ -118,9 +111,8 @@ class GreedyTracker:
             self.evaluate(learner)
 
     def due(self, step: int, window: int) -> bool:
-        """Whether the schedule evaluates at ``step``, the end of a window of ``window``
-        steps: the window that reaches a multiple of ``every`` (every's own multiples when it
-        is one of the window), and the run's end."""
+        """Whether the schedule evaluates at ``step``, the end of a window of
+        ``window`` steps (the window that reaches a multiple of ``every``, and the run's end)."""
         return (self.every > 0 and step // self.every > (step - window) // self.every) or (
             step == self.steps
         )
@@ -193,22 +185,12 @@ class GreedyTracker:
         }
 
     def load_state_dict(self, state: dict, learner: Learner | None = None) -> None:
-        """Restore the evaluations of a checkpoint (one written before trackers existed holds
-        none: the resumed run then lacks the evaluations before its checkpoint). What is read is
-        checked first (:class:`~himit_torch.state_checks.DamagedState` naming the field), and
-        nothing is kept unless all of it passes:
-
-        - ``steps``: distinct step numbers in increasing order, each in ``1 … steps`` (the run's
-          length) and, given the ``learner`` just restored from the same checkpoint, at most
-          its step ``learner.views.t`` (an evaluation the run never reached is refused); each on the
-          schedule (:meth:`due`: a window's end, in the evaluator's window, that the schedule
-          evaluates at), so an evaluation this tracker would never have made is refused;
-        - per field, one float64 ``[B]`` tensor per step, ``B`` the same throughout and, given
-          ``learner``, its batch;
-        - each value in its range: probabilities and reach shares in
-          ``0 … 1``, goal rates in ``0 … window``, expected steps ``≥ 0`` (``inf``: an episode
-          may never end), values finite or NaN (not solved); never a NaN rate.
-        """
+        """Restore the evaluations of a checkpoint (one from before
+        trackers existed holds none). Everything is checked before anything is kept
+        (:class:`~himit_torch.state_checks.DamagedState` naming the field): distinct increasing steps
+        on the schedule (:meth:`due`), none past ``steps`` or the restored ``learner``'s step; per
+        field one float64 ``[B]`` tensor per step (``B`` the learner's batch); each value in its range
+        (``_RANGES``; never a NaN rate)."""
         state = section(state, "greedy", ("steps", *_FIELDS))
         steps = state["steps"]
         last = self.steps if learner is None else min(self.steps, int(learner.views.t))

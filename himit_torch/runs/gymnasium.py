@@ -41,7 +41,6 @@ Metrics (per window of ``window`` steps):
 
 from __future__ import annotations
 
-import csv
 import json
 import math
 import os
@@ -74,7 +73,6 @@ from himit_torch.options.toy_text import cliff_options, frozen_lake_options
 from himit_torch.runs import minigrid
 from himit_torch.runs.config import OBSERVATIONS
 from himit_torch.runs.greedy import CURVE_COLUMNS, GreedyReference, GreedyTracker
-from himit_torch.runs.rerun import rerun_command
 from himit_torch.runs.runner import (
     batch_runs,
     merge_csv,
@@ -84,6 +82,7 @@ from himit_torch.runs.runner import (
     watch_demonstrations,
 )
 from himit_torch.runs.study import (
+    INFO_WINDOW,
     InfoTopic,
     RunConfig,
     StudyEntry,
@@ -93,6 +92,7 @@ from himit_torch.runs.study import (
     run_each,
     run_study,
     series_of,
+    write_rows,
 )
 from himit_torch.statistics import bca_interval
 from himit_torch.validation import setting
@@ -292,12 +292,8 @@ def _default_learner() -> LearnerConfig:
 
 @dataclass
 class GymExperimentConfig(RunConfig):
-    """The Gymnasium comparison: tasks, agents, seeds, budget and learner settings.
-
-    Every field is declared with :func:`~himit_torch.validation.setting` (the shared ones once,
-    in :class:`~himit_torch.runs.study.RunSettings`) and checked by
-    :func:`~himit_torch.validation.check_settings` (whole numbers never truncated and at most
-    ``COUNT_MAX``, bools and strings never numbers), as ``ExperimentConfig``'s are."""
+    """The Gymnasium comparison: tasks, agents, seeds, budget and learner
+    settings, each declared with :func:`~himit_torch.validation.setting`."""
 
     name: str = RunConfig.shared("name", "gymnasium")
     tasks: tuple[str, ...] = setting(
@@ -404,31 +400,15 @@ class MiniGridExperimentConfig(GymExperimentConfig):
 def gym_run_command(
     config: GymExperimentConfig, run_dir: str | os.PathLike | None = None
 ) -> str | None:
-    """The ``himit run gymnasium`` command that rebuilds ``config`` exactly, or None where none
-    can (its other settings — tasks, agents, window, … — are the script's,
-    ``experiments/gymnasium_worlds.py``). Its flags are those of ``himit run gymnasium``
-    (``--quick``, ``--seeds``, ``--first-seed``, ``--steps``, ``--device``, ``--preset``,
-    ``--tie-break``) that differ from the comparison's defaults, applied as it applies them;
-    the configuration they build is compared with ``config`` field by field. ``run_dir``
-    (``<logdir>/<name>``) adds ``--logdir`` unless it is the default ``runs``. A configuration
-    of MiniGrid's tasks is rebuilt the same way by ``himit run minigrid``, from its defaults."""
-    study, base = _command_of(config)
-    return rerun_command(
-        study,
-        base,
-        config,
-        run_dir,
-        names=("preset", "seeds", "first_seed", "steps", "device", "tie_break"),
-        quick=True,
-    )
+    """The ``himit run gymnasium`` (or, for MiniGrid's tasks, ``himit run minigrid``) command
+    that rebuilds ``config`` exactly, or None where none can (its other settings are the
+    script's, ``experiments/gymnasium_worlds.py``)."""
+    return _entry_of(config).run_command(config, run_dir)
 
 
-def _command_of(config: GymExperimentConfig) -> tuple[str, GymExperimentConfig]:
-    """The ``himit run`` study whose defaults ``config`` starts from: ``minigrid`` where its
-    tasks are MiniGrid's, else ``gymnasium``."""
-    if any(task in MINIGRID_TASKS for task in config.tasks):
-        return "minigrid", MiniGridExperimentConfig()
-    return "gymnasium", GymExperimentConfig()
+def _entry_of(config: GymExperimentConfig) -> StudyEntry:
+    """``minigrid``'s entry where ``config``'s tasks are MiniGrid's, else ``gymnasium``'s."""
+    return MINIGRID_ENTRY if any(task in MINIGRID_TASKS for task in config.tasks) else ENTRY
 
 
 # ================================================================================ evaluation
@@ -679,7 +659,7 @@ def _write_task_records(
     logger.close()
     (run_dir / "tasks").mkdir(parents=True, exist_ok=True)
     (run_dir / "tasks" / f"{run.name}.json").write_text(json.dumps(summary, indent=1))
-    _write_rows(run_dir / "tasks" / f"{run.name}.csv", log.rows)
+    write_rows(run_dir / "tasks" / f"{run.name}.csv", _COLUMNS, log.rows)
 
 
 def run_task(
@@ -707,11 +687,9 @@ def run_task(
 
 
 def _minigrid_paths(run: _TaskBatch) -> dict[str, list[int]]:
-    """A MiniGrid task's paths for its figure (``figures/paths_<task>.png``, kept in the task's
-    record so that ``himit plot`` redraws it): the mentor's first episode for the first seed
-    and, per agent, that seed's run's greedy trajectory
-    (:meth:`~himit_torch.learner.inspect.LearnerViews.greedy_trajectory`, the seed's own draws),
-    at most five times the mentor's steps. Reads the finished learner; changes nothing."""
+    """A MiniGrid task's paths for ``figures/paths_<task>.png`` (kept in its
+    record for ``himit plot``): the first seed's first mentor episode and, per agent, that seed's
+    greedy trajectory (at most five times the mentor's steps)."""
     seed = run.run_seeds[0]
     shown = run.mentor_world or run.world
     recorded = record_demonstrations(shown, run.mentor, 1, seed=seed)
@@ -740,18 +718,10 @@ _COLUMNS = (
 )
 
 
-def _write_rows(path: Path, rows: list[dict]) -> None:
-    with path.open("w", newline="") as f:
-        out = csv.DictWriter(f, fieldnames=_COLUMNS)
-        out.writeheader()
-        for r in rows:
-            out.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
-
-
 class GymnasiumStudy:
-    """The Gymnasium comparison as a :class:`~himit_torch.runs.study.Study`: one batch per task
-    (:func:`run_task`), then ``curves.csv`` (every task's rows); its report the figures and
-    ``results.md``. It does not resume: an unfinished run starts over."""
+    """The Gymnasium comparison as a :class:`~himit_torch.runs.study.Study`: one
+    batch per task (:func:`run_task`), then ``curves.csv``; its report the figures and
+    ``results.md``. It does not resume."""
 
     config_class: ClassVar[type] = GymExperimentConfig
     folders: ClassVar[tuple[str, ...]] = ("tb", "tasks", "figures")
@@ -779,11 +749,8 @@ def run_gym_experiment(
     force: bool = False,
     progress: bool = True,
 ) -> list[dict]:
-    """Run every task of ``config`` into ``run_dir``, then figures and ``results.md``
-    (:class:`GymnasiumStudy` through :func:`~himit_torch.runs.study.run_study`).
-
-    A directory holding a finished run is not overwritten unless ``force``.
-    """
+    """Run every task of ``config`` into ``run_dir``, then figures and
+    ``results.md`` (a finished run is overwritten only with ``force``)."""
     return run_study(GymnasiumStudy(), config, run_dir, resume=None, force=force, progress=progress)
 
 
@@ -832,10 +799,9 @@ _TASK_RECORD_KEYS: dict[str, type | tuple[type, ...]] = {
 
 
 def _check_task_record(where: str, summary: dict, task: str | None = None) -> None:
-    """Refuse a task record that lacks a field the page reads, or holds it as another type;
-    whose per-run lists (each list but ``options``) are not one number (or ``None``) per run
-    of ``agents`` (at least one run); whose optimal goal rate is not > 0; or (``task``) that
-    is another task's."""
+    """Refuse a task record the page cannot read: a field missing or of
+    another type, per-run lists not one number (or ``None``) per run, an optimal rate not > 0, or
+    (``task``) another task's."""
     fix = "; the record is damaged (run the task again, or restore the file)"
     for key, kind in _TASK_RECORD_KEYS.items():
         value = summary.get(key)
@@ -879,9 +845,8 @@ def read_gym_curves(run_dir: str | os.PathLike) -> dict:
     """``{task: {agent: (steps [W], goals [n, W], gaps [n, W])}}`` from ``curves.csv``.
 
     Raises:
-        ValueError: the file is missing or damaged (:func:`~himit_torch.runs.study.read_table`:
-            a column missing, a number that is not one, no rows), or one agent's seeds were
-            recorded at different steps; the message names the file."""
+        ValueError: the file is missing or damaged (:func:`~himit_torch.runs.study.read_table`,
+            :func:`~himit_torch.runs.study.series_of`); the message names the file."""
     path = Path(run_dir) / "curves.csv"
     where = f"curves file {path}"
     fix = "; the record is damaged (run the study again, or restore the file)"
@@ -1019,7 +984,7 @@ def _provenance(run_dir: Path, config: GymExperimentConfig, summaries: list[dict
     commits = list(dict.fromkeys(s.get("commit", "unknown") for s in summaries))
     command = gym_run_command(config, run_dir)
     engines = ", ".join(sorted({f"`{s.get('engine', 'unknown')}`" for s in summaries}))
-    study = _command_of(config)[0]
+    study = _entry_of(config).name
     # (the Gymnasium comparison's committed runs came from the script, with settings no flag has)
     script = " (the same as `python experiments/gymnasium_worlds.py`)" * (study == "gymnasium")
     fallback = (
@@ -1190,7 +1155,7 @@ def _info(args) -> Iterator[str]:
     )
     p_goal, length = episode_statistics(world, plan.policy)
     models = smdp_value_iteration(option_models(world, options))
-    window = 5000  # the paper's goals window
+    window = INFO_WINDOW
     yield ""
     yield "optimal (value iteration on the true model, primitives)"
     yield f"  V*(start distribution)      {float(plan.values @ mu):.3f}"
@@ -1199,6 +1164,9 @@ def _info(args) -> Iterator[str]:
     yield f"  steps per episode           {length:.1f}"
     yield f"  {f'goals per {window} steps':<28}{window * p_goal / length:.1f}"
 
+
+#: The settings a results page's ``himit run gymnasium`` / ``minigrid`` command may give.
+_RERUN_FLAGS = ("preset", "seeds", "first_seed", "steps", "device", "tie_break")
 
 #: The registry entry of ``himit run gymnasium`` (and ``himit info --env``).
 ENTRY = StudyEntry(
@@ -1214,6 +1182,7 @@ ENTRY = StudyEntry(
     ),
     redraw=rewrite_gym_report,
     info=InfoTopic("env", _info_flags, _info, requires=("env_kwargs",)),
+    rerun_flags=_RERUN_FLAGS,
 )
 
 #: The registry entry of ``himit run minigrid`` (and ``himit info --minigrid``): the comparison
@@ -1229,4 +1198,5 @@ MINIGRID_ENTRY = StudyEntry(
     describe=ENTRY.describe,
     redraw=rewrite_gym_report,
     info=minigrid.INFO,
+    rerun_flags=_RERUN_FLAGS,
 )

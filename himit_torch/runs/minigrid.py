@@ -11,9 +11,6 @@ from himit_torch.runs.study import InfoTopic, optimum_lines, option_kinds_text
 
 __all__ = ["INFO"]
 
-#: ``himit info`` reports goals per this many steps, for every world.
-GOALS_WINDOW = 5000
-
 
 def _info_flags(parser) -> None:
     parser.add_argument(
@@ -53,7 +50,7 @@ def _info(args: Any) -> Iterator[str]:
         f"mentor     {mentor_opts.num_options} options ({option_kinds_text(mentor_opts)}; no "
         "left turn, right-handed skills)"
     )
-    yield from optimum_lines(world, learner, minigrid_mentor(world, mentor_opts), GOALS_WINDOW)[0]
+    yield from optimum_lines(world, learner, minigrid_mentor(world, mentor_opts))[0]
 
 
 #: ``himit info --minigrid ID`` (``--gamma`` is the Gymnasium topic's flag, shared).

@@ -36,7 +36,6 @@ plan, its organisation), ``checkpoints/``, ``tb/`` (TensorBoard), ``figures/`` a
 
 from __future__ import annotations
 
-import csv
 import json
 import math
 import os
@@ -77,6 +76,7 @@ from himit_torch.runs.study import (
     run_each,
     run_study,
     series_of,
+    write_rows,
 )
 from himit_torch.validation import (
     check_memory,
@@ -124,10 +124,8 @@ def _default_learner() -> LearnerConfig:
 
 @dataclass
 class PuzzleBoxConfig(RunConfig):
-    """Settings of ``himit run puzzlebox`` (module docstring), each declared with
-    :func:`~himit_torch.validation.setting` (the shared ones once, in
-    :class:`~himit_torch.runs.study.RunSettings`) and checked by
-    :func:`~himit_torch.validation.check_settings`; the cross-field rules follow."""
+    """Settings of ``himit run puzzlebox`` (module docstring); the cross-field
+    rules follow the declared ones."""
 
     name: str = RunConfig.shared("name", "puzzlebox")
     skewers: int = setting(
@@ -216,12 +214,9 @@ class PuzzleBoxConfig(RunConfig):
                 )
 
     def check_size(self) -> None:
-        """Refuse, before anything is recorded or run, a configuration whose batches would not
-        fit in memory (:func:`himit_torch.validation.check_memory`): each box's batch of
-        ``seeds`` runs, counted at its least — every state of the box with one (state, option)
-        row (``Learner``'s constants; the learner's own check, later, counts every row).
-        Called by :func:`run_puzzle_box` (not on construction, so that defining a
-        configuration never depends on the memory free now)."""
+        """Refuse, before anything runs, a configuration whose batches
+        would not fit in memory (each box's batch counted at its least, one row per state;
+        :func:`himit_torch.validation.check_memory`)."""
         for skewers in (self.skewers, self.transfer_skewers):
             states = puzzle_box_size(skewers)
             check_memory(
@@ -250,14 +245,8 @@ def puzzle_box_run_command(
     config: PuzzleBoxConfig, run_dir: str | os.PathLike | None = None
 ) -> str | None:
     """The ``himit run puzzlebox`` command that rebuilds ``config`` exactly, or None where none
-    can (its other settings are the scripts'). Its flags are those of ``himit run puzzlebox``
-    (``--quick``, ``--seeds``, ``--steps``, ``--engine``) that differ from the defaults, applied
-    as it applies them; the configuration they build is compared with ``config`` field by
-    field. ``run_dir`` (``<logdir>/<name>``) adds ``--logdir`` unless it is ``runs``."""
-    from himit_torch.runs.rerun import rerun_command
-
-    names = ("seeds", "steps", "engine")
-    return rerun_command("puzzlebox", PuzzleBoxConfig(), config, run_dir, names, quick=True)
+    can (its other settings are the scripts')."""
+    return ENTRY.run_command(config, run_dir)
 
 
 def recorded_run_command(run_dir: str | os.PathLike) -> str | None:
@@ -284,28 +273,20 @@ def watched_organisation(seed: int, first_seed: int = 0) -> str:
 # ================================================================================ evaluation
 def greedy_values(evaluator: PolicyEvaluator, learner: Learner) -> list[float]:
     """``V^π(start)`` of every run's frozen greedy policy
-    (:meth:`learner.views.greedy_policy <himit_torch.LearnerViews.greedy_policy>`), exact on the true model
-    (:class:`~himit_torch.exact.greedy_evaluation.PolicyEvaluator` over the learner's options).
-
-    The same frozen policy as every other study's greedy endpoint: ties as the learner's
-    ``tie_break`` says (random: each tied option equally often), and a state where the run has
-    tried nothing takes any of its options there uniformly (the ``"uniform"`` rule of
-    :mod:`himit_torch.exact.greedy_evaluation`). Runs before this definition froze ties to the
-    lowest option and took a uniformly random primitive at untried states: their values are not
-    comparable with these."""
+    (:meth:`learner.views.greedy_policy <himit_torch.LearnerViews.greedy_policy>`), exact on the
+    true model: the same frozen policy as every study's greedy endpoint (ties as ``tie_break``
+    says; an untried state: any of its options, uniformly). Runs before this definition are not
+    comparable."""
     return evaluator.evaluate(learner.views.greedy_policy(), values=True).value_start.tolist()
 
 
 def greedy_plan(
     box: PuzzleBox, options: Options, policy: torch.Tensor, focus: int | None = None
 ) -> dict[str, Any]:
-    """What a greedy option policy ``policy [S]`` does from the start when nothing slips
-    (:func:`~himit_torch.options.puzzle_box.intended_rollout`): whether it opens the box, the
-    steps in the order it does them (``"i.j"``: skewer ``i``, step ``j``, 1-based), their
-    organisation (:func:`~himit_torch.worlds.puzzle_box.organisation_of`; ``"incomplete"`` when
-    it does not open the box) and how close they come to each organisation
-    (:func:`~himit_torch.worlds.puzzle_box.organisation_scores`; with ``focus``, also for that
-    skewer alone), the grip it holds at each step, where it gets stuck, and its states."""
+    """What a greedy option policy ``policy [S]`` does from the start when nothing
+    slips (:func:`~himit_torch.options.puzzle_box.intended_rollout`): whether it opens the box, its
+    steps in order (``"i.j"``: skewer ``i``, step ``j``), their organisation and scores (with
+    ``focus``, also for that skewer alone), its grips, where it gets stuck, and its states."""
     states, opened = intended_rollout(box, options, policy)
     advances = box.subgoals(states)
     grips = box.grasps_used(states)
@@ -339,10 +320,9 @@ def greedy_plan(
 # ================================================================================ one batch
 @dataclass
 class PreparedBox:
-    """A box and what every batch on it shares: its learner options, the exact evaluator of
-    greedy policies, ``V*(start)`` and the optimal policy's expected steps to open it. Build one
-    with :meth:`build`; :func:`run_box_batch` runs a condition's batch on it (the building block
-    of :func:`run_puzzle_box`, also for scripts that run their own set of conditions)."""
+    """A box and what every batch on it shares (its learner options, the exact
+    evaluator, ``V*(start)``, the optimal steps to open it); :func:`run_box_batch` runs a
+    condition's batch on it."""
 
     world: PuzzleBox
     options: Options
@@ -354,9 +334,8 @@ class PreparedBox:
     def build(
         cls, skewers: int, slip: float, pinch_slip: float | None, pinch: bool = True
     ) -> PreparedBox:
-        """The box of ``skewers`` skewers with these slips (:class:`~himit_torch.PuzzleBox`),
-        its learner options (:func:`~himit_torch.options.puzzle_box.puzzle_box_options`;
-        ``pinch=False``: without the pinch grip) and its references."""
+        """The box of ``skewers`` skewers with these slips, its learner options
+        (``pinch=False``: without the pinch grip) and its references."""
         world = PuzzleBox(skewers, slip=slip, pinch_slip=pinch_slip)
         options = puzzle_box_options(world, "learner", pinch=pinch)
         # The optimum over primitives: its models once, for its steps and V*(start) (the exact
@@ -384,21 +363,18 @@ def run_box_batch(
     mentor_plans: dict[str, list[int]],
     focus: int | None = None,
 ) -> dict[str, Any]:
-    """One condition's runs on one box: ``agent`` on ``config``'s seeds (its learner, engine and
-    checkpoints) for ``steps`` steps, every seed watching its own ``demos`` (``None``: none).
-    Returns the batch's summary, also in ``run_dir/batches/<tag>.json`` (rows: ``<tag>.csv``).
+    """One condition's runs on one box: ``agent`` on ``config``'s seeds for
+    ``steps`` steps, every seed watching its own ``demos`` (``None``: none), its greedy policies
+    evaluated exactly every ``eval_every`` steps. Returns the batch's summary, also in
+    ``run_dir/batches/<tag>.json`` (rows: ``<tag>.csv``).
 
     Args:
         tag: the batch's name (its files, checkpoint and TensorBoard runs).
         condition: the condition's label in the records.
-        eval_every: steps between the exact evaluations of the greedy policies (and at the end).
         resume: continue from the batch's checkpoint and evaluations in ``run_dir``.
-        progress: print the batch's progress.
-        mentor_plans: organisation → the mentor's states when nothing slips (a run whose greedy
-            plan goes through exactly these copied the mentor's movements); ``{}``: not compared.
-        focus: also score the organisation for skewer ``focus`` alone (0-based; experiment
-            (c)'s new skewer), as :func:`greedy_plan`.
-    """
+        mentor_plans: organisation → the mentor's states when nothing slips; ``{}``: not
+            compared.
+        focus: also score the organisation for skewer ``focus`` alone (:func:`greedy_plan`)."""
     world, seeds = box.world, config.seed_list
     learner, checkpoints, elapsed = _batch_learner(config, box, agent, demos, run_dir, tag, resume)
     evals_path = run_dir / "batches" / f"{tag}.evals.json"
@@ -426,7 +402,7 @@ def run_box_batch(
     for r in runs:  # the states were for the comparison; the subgoals say what a reader needs
         del r["states"]
     rows = _window_rows(config, tag, condition, learner, evals, demos is not None)
-    _write_rows(run_dir / "batches" / f"{tag}.csv", rows)
+    write_rows(run_dir / "batches" / f"{tag}.csv", _COLUMNS, rows)
     write_atomically(run_dir / "batches" / f"{tag}.json", json.dumps(summary, indent=1))
     return summary
 
@@ -504,9 +480,8 @@ def _saved_evaluations(path: Path, runs: int, t: int) -> dict[int, dict[str, lis
 
 
 class _Evaluations:
-    """The ``on_window`` hook of a batch: at every ``eval_every`` steps and at the end, each
-    run's greedy policy evaluated exactly and its plan read (into ``evals``, saved to
-    ``evals_path``), with the scalars logged."""
+    """The ``on_window`` hook of a batch: every ``eval_every`` steps and at the
+    end, each run's greedy policy evaluated and its plan read (saved to ``evals_path``)."""
 
     def __init__(self, box, evals, evals_path, paired, logger, eval_every, steps, focus):
         self.box, self.evals, self.evals_path, self.paired = box, evals, evals_path, paired
@@ -601,17 +576,6 @@ _COLUMNS = (
 )
 
 
-def _write_rows(path: Path, rows: list[dict]) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(".tmp")
-    with tmp.open("w", newline="") as f:
-        out = csv.DictWriter(f, fieldnames=_COLUMNS)
-        out.writeheader()
-        for r in rows:
-            out.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
-    os.replace(tmp, path)
-
-
 def _finite(x: float) -> float | None:
     return x if math.isfinite(x) else None
 
@@ -648,10 +612,9 @@ def _is_number(value: Any) -> bool:
 def read_evaluations(
     path: Path, runs: int, command: str = "--resume"
 ) -> dict[int, dict[str, list]]:
-    """A batch's saved greedy evaluations (``batches/<tag>.evals.json``: step → one list per
-    measure, one entry per run: numbers or ``None``, the organisation a name), read for
-    ``command`` (``--resume``, or ``himit plot``, which also wants at least one); a damaged
-    file is a ``ValueError`` naming it, not a traceback later."""
+    """A batch's saved greedy evaluations (``batches/<tag>.evals.json``), read
+    for ``command`` (``--resume``; ``himit plot`` also wants one); a damaged file is a
+    ``ValueError`` naming it."""
     data = _record(path, command)
     if not isinstance(data, dict) or (command != "--resume" and not data):
         raise ValueError(f"{command}: {path} holds a {type(data).__name__}, not evaluations")
@@ -755,10 +718,9 @@ def _run_variants(config: PuzzleBoxConfig, batch: _Batches, demos: dict, plans: 
 
 
 class PuzzleBoxStudy:
-    """The puzzle box as a :class:`~himit_torch.runs.study.Study`: experiments (a)–(c), one
-    batch per condition (:func:`run_box_batch`; finished batches are read back on resume),
-    then ``curves.csv`` and ``summary.json``; its report the figures and ``results.md``
-    (:mod:`himit_torch.runs.puzzle_box_report`)."""
+    """The puzzle box as a :class:`~himit_torch.runs.study.Study`: experiments
+    (a)–(c), one batch per condition (finished ones read back on resume), then ``curves.csv`` and
+    ``summary.json``; its report the figures and ``results.md``."""
 
     config_class: ClassVar[type] = PuzzleBoxConfig
     folders: ClassVar[tuple[str, ...]] = ("checkpoints", "tb", "batches", "figures")
@@ -832,11 +794,9 @@ def run_puzzle_box(
     force: bool = False,
     progress: bool = True,
 ) -> dict[str, Any]:
-    """Run experiments (a)–(c) of ``config`` into ``run_dir``; then ``curves.csv``,
-    ``summary.json``, figures and ``results.md`` (:class:`PuzzleBoxStudy` through
-    :func:`~himit_torch.runs.study.run_study`). ``resume`` continues an interrupted run (the
-    configuration must be the saved one; finished batches are not rerun); a finished run is
-    not overwritten unless ``force``."""
+    """Run experiments (a)–(c) of ``config`` into ``run_dir``, then its records,
+    figures and ``results.md``. ``resume`` continues an interrupted run (finished batches are not
+    rerun); a finished run is overwritten only with ``force``."""
     return run_study(
         PuzzleBoxStudy(),
         config,
@@ -869,9 +829,8 @@ def redraw(run_dir: Path) -> None:
 
 
 def _check_batch_records(run_dir: Path, summary: dict) -> None:
-    """Before ``himit plot`` draws anything: each batch of ``summary`` has its curves
-    (``batches/<tag>.csv``: one series per run, at the same steps) and its evaluations
-    (:func:`read_evaluations`), else a ``ValueError`` naming the file."""
+    """Before ``himit plot`` draws anything: each batch's curves and
+    evaluations are readable, else a ``ValueError`` naming the file."""
     fix = "; the record is damaged (run the study again, or restore the file)"
     for batch in summary["batches"]:
         tag, runs = batch["batch"], len(batch["runs"])
@@ -948,4 +907,5 @@ ENTRY = StudyEntry(
     redraw=redraw,
     run_flags=("resume",),
     info=InfoTopic("puzzle_box", _info_flags, _info, requires=("pinch_slip",)),
+    rerun_flags=("seeds", "steps", "engine"),
 )

@@ -1,27 +1,14 @@
 """What every study shares: its configuration's common settings (:class:`RunConfig`), the
 :class:`Study` protocol and :func:`run_study`, the run directory's life around a study's batches.
 
-**The settings every study shares** (a run's name, its seeds, budget, mentor episodes, window,
-engine, device, preset and learner) are declared once, with :func:`~himit_torch.validation.setting`,
-in :class:`RunSettings`. A study's configuration extends :class:`RunConfig` and takes each shared
-setting it has with :meth:`RunConfig.shared`: the declaration (type, bounds, doc) is the one
-here, only the default is the study's (the paper's experiments count goals per 5000 steps, the
-Gymnasium comparison per 2000). Each study keeps its fields in its own order, so the
-``config.json`` files and the ``himit run`` commands that runs have saved read as they always
-did; a field a saved file does not name takes its declared default.
-
-**A study** (:class:`Study`) names its configuration class, the files and folders its run
-directory holds, and how it reads a finished run back; :func:`run_study` prepares the run
-directory (refusing a finished run without ``force``, clearing it with ``force``), saves the
-configuration — on ``resume`` only after checking it is the saved one — runs the study's
-batches and writes its report.
-
-**A study's registry entry** (:class:`StudyEntry`) is what the command line knows of it: its
-name and help, its configuration class (the flags of ``himit run NAME`` come from it), the
-configurations it starts from, how it runs, how ``himit plot`` redraws its run directory and
-what ``himit info`` says of its worlds. The entries are listed once, in
-:mod:`himit_torch.runs.studies`.
-"""
+The settings every study shares are declared once, in :class:`RunSettings`; a study's
+configuration extends :class:`RunConfig` and takes each one it has with
+:meth:`RunConfig.shared` (the declaration here, the default its own), keeping its fields in
+its own order so that saved ``config.json`` files and ``himit run`` commands read as they did.
+A study (:class:`Study`) names its configuration class, what its run directory holds, and how
+it runs and reports; :func:`run_study` prepares the run directory, saves the configuration and
+runs it. Its registry entry (:class:`StudyEntry`, listed in :mod:`himit_torch.runs.studies`)
+is what the command line knows of it."""
 
 from __future__ import annotations
 
@@ -40,6 +27,7 @@ from typing import Any, ClassVar, Protocol, TypeVar
 from himit_torch.learner.config import LearnerConfig
 from himit_torch.learner.engines import ENGINES
 from himit_torch.learner.presets import PRESETS, apply_preset, check_preset
+from himit_torch.runs.rerun import rerun_command
 from himit_torch.runs.runner import check_run_dir, clear_run_dir, write_atomically
 from himit_torch.validation import (
     as_device,
@@ -62,6 +50,7 @@ __all__ = [
     "check_resumed_config",
     "config_differences",
     "read_table",
+    "write_rows",
     "series_of",
     "read_config",
     "read_config_file",
@@ -73,9 +62,8 @@ __all__ = [
 
 @dataclass
 class RunSettings:
-    """The settings every study's configuration shares, each declared once. A study's
-    configuration takes them with :meth:`RunConfig.shared` (its own default, this
-    declaration); the defaults here are the paper's experiments'."""
+    """The settings every study's configuration shares, each declared once (the
+    defaults here are the paper's experiments'; a study gives its own with :meth:`RunConfig.shared`)."""
 
     name: str = setting(
         "run", folder=True, doc="The run's name: its run directory's (``<logdir>/<name>``)."
@@ -137,12 +125,11 @@ Config = TypeVar("Config", bound="RunConfig")
 
 
 class RunConfig:
-    """The base of every study's configuration (a dataclass whose fields are declared with
-    :func:`~himit_torch.validation.setting`).
+    """The base of every study's configuration (a dataclass of
+    :func:`~himit_torch.validation.setting` fields).
 
-    The settings all studies share come from :class:`RunSettings` through :meth:`shared`;
-    :meth:`check_run_settings` checks every declared field and the shared cross-field rules (the
-    preset, the device, the learner's window), and the common methods follow."""
+    The shared settings come through :meth:`shared`, their checks through
+    :meth:`check_run_settings`; the common methods follow."""
 
     @staticmethod
     def shared(
@@ -152,10 +139,9 @@ class RunConfig:
         default_factory: Any = dataclasses.MISSING,
         doc: str | None = None,
     ) -> Any:
-        """The shared setting ``name`` of :class:`RunSettings` as a field of a study's
-        configuration: its declaration (type rules, bounds, doc — or ``doc`` where the study
-        says it in its own words), with the study's ``default`` (or ``default_factory``;
-        neither: the shared default)."""
+        """The shared setting ``name`` of :class:`RunSettings` as a field of a
+        study's configuration: its declaration (or ``doc``, in the study's words) with the study's
+        ``default`` or ``default_factory`` (neither: the shared default)."""
         base = _SHARED[name]
         if default is dataclasses.MISSING and default_factory is dataclasses.MISSING:
             default, default_factory = base.default, base.default_factory
@@ -168,10 +154,9 @@ class RunConfig:
         )
 
     def check_run_settings(self) -> None:
-        """Check every declared field (:func:`~himit_torch.validation.check_settings`), then
-        the rules of the shared settings a study has: its learner follows its preset, its
-        device is written well, and the learner settings it derives
-        (:meth:`derived_learner_settings`) are set."""
+        """Check every declared field
+        (:func:`~himit_torch.validation.check_settings`), then the shared rules: the learner follows
+        the preset, the device is written well, the derived learner settings are set."""
         check_settings(self)
         config: Any = self  # a study's dataclass: the shared fields it has
         kind = type(self).__name__
@@ -195,11 +180,10 @@ class RunConfig:
     derived_learner: ClassVar[tuple[str, ...]] = ("window",)
 
     def derived_learner_settings(self) -> dict[str, Any]:
-        """The learner settings that follow from this study's own, by name: one policy for
-        every such setting — **derived and recorded**. The study sets them on its learner
-        (whatever the learner's own value was), ``config.json`` records them, and they are no
-        flags of ``himit run`` (the study's own setting is). Here: the learner's ``window`` is
-        the study's ``window``; a study adds its own (:attr:`derived_learner` names them)."""
+        """The learner settings that follow from this study's own,
+        by name — one policy for all of them: **derived and recorded** (set on the learner, saved in
+        ``config.json``, no flags of their own). Here the learner's ``window`` is the study's; a study
+        adds its own (:attr:`derived_learner` names them)."""
         window = getattr(self, "window", None)
         return {} if window is None else {"window": window}
 
@@ -208,8 +192,7 @@ class RunConfig:
         recorded.
 
         Raises:
-            ValueError: ``name`` is no preset's, or the study has no learner settings (e.g.
-                :class:`~himit_torch.runs.discovery.DiscoveryConfig`)."""
+            ValueError: ``name`` is no preset's, or the study has no learner settings."""
         config: Any = self
         kind = type(self).__name__
         if not hasattr(config, "learner"):
@@ -234,15 +217,14 @@ class RunConfig:
         return json.dumps(asdict(self), indent=2)  # type: ignore[call-overload]
 
     def quick(self: Config) -> Config:
-        """A tiny budget of the same study (``himit run … --quick``, smoke tests); a study
-        without a smaller budget runs as it is."""
+        """A tiny budget of the same study (``himit run … --quick``); by default the
+        study as it is."""
         return self
 
 
 def read_config(cls: type[Config], data: Any, where: str) -> Config:
-    """A ``cls`` from ``data`` (a parsed ``config.json``): unknown fields and values the
-    configuration refuses are a ``ValueError`` naming ``where``; a field ``data`` does not name
-    (saved before the field existed) takes its declared default."""
+    """A ``cls`` from ``data`` (a parsed ``config.json``); unknown fields or refused
+    values are a ``ValueError`` naming ``where``, a field not named takes its default."""
     if not isinstance(data, dict):
         raise ValueError(f"{where} holds a {type(data).__name__}, not a configuration")
     refuse_unknown_fields(data, cls, where)
@@ -255,17 +237,15 @@ def read_config(cls: type[Config], data: Any, where: str) -> Config:
 def read_config_file(
     cls: type[Config], path: str | os.PathLike, where: str | None = None
 ) -> Config:
-    """A ``cls`` from the JSON file ``path`` (a run directory's ``config.json``, or
-    ``--config``): :func:`read_config` of its parsed content. A missing file, a directory, text
-    that is not UTF-8 JSON, unknown fields or refused values are a ``ValueError`` naming
-    ``where`` (default: ``config file <path>``)."""
+    """A ``cls`` from the JSON file ``path`` (:func:`read_config`); an unreadable
+    file is a ``ValueError`` naming ``where`` (default: ``config file <path>``)."""
     where = where or f"config file {path}"
     return read_config(cls, parse_document(where, read_text(where, Path(path)), "json"), where)
 
 
 def read_config_fields(path: str | os.PathLike, where: str) -> set[str]:
-    """The field names of the JSON object in ``path`` (a run directory's ``config.json``);
-    a file that holds no object is a ``ValueError`` naming ``where``."""
+    """The field names of the JSON object in ``path`` (a ``ValueError`` naming
+    ``where`` if it holds none)."""
     data = parse_document(where, read_text(where, Path(path)), "json")
     if not isinstance(data, dict):
         raise ValueError(f"{where} holds a {type(data).__name__}, not a configuration")
@@ -283,15 +263,13 @@ def read_table(
     text: Sequence[str] = (),
     fix: str = "",
 ) -> list[dict[str, str]]:
-    """The rows of a run's CSV record at ``path`` (a ``curves.csv``), refused unless a page
-    can be drawn from them: UTF-8 CSV within the csv module's field limit, the columns
-    ``whole`` (whole numbers), ``numbers`` (finite numbers, or empty) and ``text`` present in
-    its header, every row as long as the header, and at least one row.
+    """The rows of a run's CSV record at ``path``, refused unless a page can be drawn
+    from them: UTF-8 CSV, the columns ``whole`` (whole numbers), ``numbers`` (finite, or empty) and
+    ``text`` present, every row as long as the header, at least one row.
 
     Raises:
-        ValueError: naming ``where`` and, where one is at fault, the line and column; ``fix``
-            (what to do about it) is appended.
-    """
+        ValueError: naming ``where`` and, where one is at fault, the line and column; ``fix`` is
+            appended."""
     reader = csv.reader(io.StringIO(read_text(where, path), newline=""))
     try:
         header = next(reader, [])
@@ -327,6 +305,19 @@ def read_table(
     return rows
 
 
+def write_rows(path: Path, columns: Sequence[str], rows: Sequence[dict]) -> None:
+    """A run's CSV record at ``path`` (its folder made): ``columns``, then ``rows``, floats
+    to 6 significant digits; written atomically."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp")
+    with tmp.open("w", newline="") as f:
+        out = csv.DictWriter(f, fieldnames=columns)
+        out.writeheader()
+        for r in rows:
+            out.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
+    os.replace(tmp, path)
+
+
 def _is_finite(text: str) -> bool:
     try:
         return math.isfinite(float(text))
@@ -337,10 +328,9 @@ def _is_finite(text: str) -> bool:
 def series_of(
     rows: Sequence[dict[str, str]], value: str, where: str, fix: str = ""
 ) -> tuple[list[int], list[list[float]]]:
-    """``(steps, per seed its values at those steps)`` from a run's rows of one batch (each
-    with ``seed``, ``step`` and ``value``, as :func:`read_table` checked them), the seeds in
-    order. Seeds recorded at different steps (a row lost or repeated) are a ``ValueError``
-    naming ``where``: no rectangle of curves can be drawn from them."""
+    """``(steps, per seed its values)`` from one batch's rows (``seed``, ``step``,
+    ``value``), seeds in order; seeds recorded at different steps are a ``ValueError`` naming
+    ``where``."""
     by_seed: dict[int, list[tuple[int, float]]] = {}
     for r in rows:
         by_seed.setdefault(int(r["seed"]), []).append((int(r["step"]), float(r[value] or "nan")))
@@ -358,11 +348,15 @@ def series_of(
     return steps, [[v for _, v in points] for points in series]
 
 
-def optimum_lines(world: Any, learner: Any, mentor: Any, window: int) -> tuple[list[str], int]:
-    """``himit info``'s table of optimal trips: the optimum over primitives, over the learner's
-    options and the mentor's own policy (its options, :class:`~himit_torch.MentorPolicy`),
-    each evaluated exactly (steps start → goal, goals per ``window`` steps); and the width of
-    its first column, for rows a study adds."""
+#: ``himit info`` counts goals per this many steps, for every world (the paper's window).
+INFO_WINDOW = 5000
+
+
+def optimum_lines(
+    world: Any, learner: Any, mentor: Any, window: int = INFO_WINDOW
+) -> tuple[list[str], int]:
+    """``himit info``'s table of optimal trips (primitives, the learner's options,
+    the mentor's own policy; each exact), and the width of its first column."""
     from himit_torch.exact.greedy_evaluation import evaluate_option_choice
     from himit_torch.exact.optimum import option_optimum, primitive_optimum
 
@@ -386,8 +380,7 @@ def optimum_lines(world: Any, learner: Any, mentor: Any, window: int) -> tuple[l
 
 
 def option_kinds_text(options: Any) -> str:
-    """How many options of each kind ``options`` holds, e.g. ``4 primitive, 180 doorway``
-    (``himit info``)."""
+    """How many options of each kind ``options`` holds, e.g. ``4 primitive, 180 doorway``."""
     counts: dict[str, int] = {}
     for kind in options.kinds:
         counts[kind] = counts.get(kind, 0) + 1
@@ -407,10 +400,9 @@ class RunFlags:
 
 @dataclass(frozen=True)
 class InfoTopic:
-    """What ``himit info`` says of a study's worlds: ``flag`` chooses it (``None``: the
-    default topic, when no other is chosen), ``add_flags`` adds its own flags to the parser,
-    ``requires`` names the flags (their ``dest``) that mean nothing without ``flag``, and
-    ``show`` yields the lines it prints (slow exact computations in between)."""
+    """What ``himit info`` says of a study's worlds: chosen by ``flag`` (``None``: the
+    default topic), its flags added by ``add_flags``, ``requires`` the flags that need ``flag``,
+    ``show`` the lines it prints."""
 
     flag: str | None
     add_flags: Callable[[Any], None]
@@ -453,17 +445,37 @@ class StudyEntry:
     """Settings that are not flags."""
     info: InfoTopic | None = None
     """What ``himit info`` says of its worlds."""
+    rerun_flags: tuple[str, ...] | None = None
+    """The settings its results page's ``himit run`` command may give as flags (``None``:
+    every one); with ``rerun_flags``, ``--quick`` is tried too."""
+    rerun_config_file: bool = False
+    """Where no flags rebuild a configuration, ``--config <run_dir>/config.json``."""
 
     def defaults(self) -> Any:
         """The configuration whose values the flags show."""
         return self.flag_defaults() if self.flag_defaults else self.configs()[0]
 
+    def run_command(self, config: Any, run_dir: str | os.PathLike | None = None) -> str | None:
+        """The ``himit run NAME`` command that rebuilds ``config`` exactly from
+        :meth:`defaults`, or None where none can
+        (:func:`~himit_torch.runs.rerun.rerun_command`)."""
+        return rerun_command(
+            self.name,
+            self.defaults(),
+            config,
+            run_dir,
+            self.rerun_flags,
+            quick=self.rerun_flags is not None,
+            adjust=self.adjust,
+            config_file=self.rerun_config_file,
+        )
+
 
 def run_each(
     runner: Callable[..., Any], resume: bool = False
 ) -> Callable[[Sequence[tuple[Any, Path]], RunFlags], None]:
-    """A :attr:`StudyEntry.run` that calls ``runner(config, run_dir, force=…, progress=…)``
-    (and ``resume=…`` where ``resume``) for each plan in turn."""
+    """A :attr:`StudyEntry.run` calling ``runner(config, run_dir, force=…, progress=…)``
+    (and ``resume=…`` where ``resume``) for each plan."""
 
     def run(plans: Sequence[tuple[Any, Path]], flags: RunFlags) -> None:
         extra = {"resume": flags.resume} if resume else {}
@@ -477,11 +489,9 @@ def run_each(
 class Study(Protocol):
     """A study: what :func:`run_study` needs to run one into a run directory.
 
-    ``config_class`` is its configuration (a :class:`RunConfig`); ``folders`` and ``files``
-    what its run directory holds (cleared by ``force``, ``config.json`` always among the
-    files); :meth:`run` runs its batches and writes its records (each batch resuming from its
-    checkpoint on ``resume`` where the study checkpoints); :meth:`report` writes its figures and
-    ``results.md`` from what :meth:`run` returned."""
+    ``config_class`` is its configuration; ``folders`` and ``files`` what its run directory
+    holds (what ``force`` clears); :meth:`run` runs its batches and writes its records,
+    :meth:`report` its figures and ``results.md``."""
 
     config_class: ClassVar[type]
     folders: ClassVar[tuple[str, ...]]
@@ -509,24 +519,17 @@ def run_study(
 ) -> Any:
     """Run ``study`` with ``config`` into ``run_dir`` and write its report.
 
-    The run directory is prepared the same way for every study: a finished run is refused
-    unless ``force`` (which clears the study's ``folders`` and ``files``) or ``resume``; on
-    ``resume`` the saved ``config.json`` is read through the configuration's schema (a field
-    it does not name takes its default) and must equal ``config``, field by field; then
-    ``config.json`` is written and the study runs. ``check`` (e.g. the memory a batch needs)
-    runs before anything is touched.
+    A finished run is refused unless ``force`` (which clears the study's folders and files) or
+    ``resume`` (the saved ``config.json`` must equal ``config``); ``check`` runs before anything is
+    touched.
 
     Args:
-        resume: continue an interrupted run; ``False``: an unfinished run is refused (resume
-            it or start over with ``force``); ``None``: the study cannot resume, an unfinished
-            run starts over (:func:`~himit_torch.runs.runner.check_run_dir`). The study's
-            :meth:`Study.run` is given ``bool(resume)``.
-        resume_hint, load: as :func:`prepare_run_dir` (how a resumed run's saved configuration
-            is read, and what a refusal of a different one suggests).
+        resume: continue an interrupted run; ``False``: an unfinished run is refused; ``None``: the
+            study cannot resume, an unfinished run starts over.
+        resume_hint, load: as :func:`prepare_run_dir`.
 
     Returns:
-        What the study's :meth:`Study.run` returned.
-    """
+        What the study's :meth:`Study.run` returned."""
     run_dir = _check_run_arguments(study, config, run_dir, resume, force, progress)
     if check is not None:
         check()
@@ -547,9 +550,8 @@ def run_study(
 
 
 def config_differences(saved: Any, given: Any) -> list[str]:
-    """The settings where configuration ``given`` departs from ``saved`` (dataclasses of one
-    kind), each as ``name: saved …, given …`` (the learner's as ``learner.<field>``), in the
-    order of the fields; empty when they are equal. What a refused resume names."""
+    """The settings where ``given`` departs from ``saved``, each as
+    ``name: saved …, given …`` (the learner's as ``learner.<field>``); what a refused resume names."""
     return _dict_differences(asdict(saved), asdict(given), "")
 
 
@@ -567,9 +569,8 @@ def _dict_differences(saved: dict, given: dict, prefix: str) -> list[str]:
 def _check_run_arguments(
     study: Study, config: Any, run_dir: Any, resume: Any, force: Any, progress: Any
 ) -> Path:
-    """:func:`run_study`'s arguments checked before anything is touched: ``config`` of the
-    study's configuration class, ``run_dir`` a path, the flags bools (``resume`` also
-    ``None``). Returns ``run_dir`` as a :class:`~pathlib.Path`."""
+    """:func:`run_study`'s arguments checked before anything is touched;
+    ``run_dir`` as a :class:`~pathlib.Path`."""
     kind = getattr(study, "config_class", None)
     if isinstance(kind, type) and not isinstance(config, kind):
         raise TypeError(
@@ -597,10 +598,8 @@ def prepare_run_dir(
     resume_hint: str = "resume with the same flags",
     load: Callable[[Path], Any] | None = None,
 ) -> None:
-    """Clear (``force``: ``folders`` and ``files``) or check (``resume``: the saved
-    ``config.json`` is ``config``) ``run_dir``, and save ``config`` in it. The saved file is
-    read by ``load`` (default: through ``config``'s class, :func:`read_config`); a resumed run
-    whose configuration differs is refused with ``resume_hint``."""
+    """Clear (``force``: ``folders`` and ``files``) or check (``resume``:
+    :func:`check_resumed_config`) ``run_dir``, and save ``config`` in it."""
     if resume and not force:  # (--force starts over: nothing of the old run is kept)
         check_resumed_config(run_dir, config, resume_hint, load)
     if force:
@@ -615,11 +614,9 @@ def check_resumed_config(
     resume_hint: str = "resume with the same flags",
     load: Callable[[Path], Any] | None = None,
 ) -> None:
-    """Refuse to resume ``run_dir`` with ``config`` when its saved ``config.json`` (read by
-    ``load``, default: through ``config``'s class) holds another configuration: a
-    ``ValueError`` naming each differing setting (:func:`config_differences`) and
-    ``resume_hint``. Nothing saved yet: nothing to check. Reads only (a command checks every
-    run directory before it writes to any)."""
+    """Refuse to resume ``run_dir`` with ``config`` when its saved
+    ``config.json`` (read by ``load``, default through ``config``'s class) differs: a ``ValueError``
+    naming each differing setting and ``resume_hint``. Reads only."""
     cfg_path = Path(run_dir) / "config.json"
     if not cfg_path.exists():
         return

@@ -245,9 +245,8 @@ def _check_type(cls, name: str, value: Any, where: str) -> None:
 
 
 def _apply(config: ExperimentConfig, settings: dict) -> ExperimentConfig:
-    """``config`` with the dotted ``settings``, in one step that the dataclasses check: a
-    preset among them first, then the learner settings beside it (so that one departing from
-    the preset is refused, as ``himit run`` refuses it)."""
+    """``config`` with the dotted ``settings`` in one step the dataclasses check: a preset
+    first, then the learner settings beside it (one departing from the preset is refused)."""
     for key, value in settings.items():
         if key.startswith("learner."):
             _check_type(LearnerConfig, key[len("learner.") :], value, "learner")
@@ -290,9 +289,8 @@ def _slug(levels: dict) -> str:
 
 
 def _level(name: str, value: Any) -> Any:
-    """TOML has no null: the string "none" stands for ``None`` where setting ``name`` may be
-    ``None`` (e.g. ``learner.untried_value``); elsewhere it stays the string (a choice such
-    as ``second_mentor = "none"``)."""
+    """TOML has no null: "none" stands for ``None`` where setting ``name`` may be
+    ``None``; elsewhere it stays the string (e.g. ``second_mentor = "none"``)."""
     if not (isinstance(value, str) and value.lower() == "none"):
         return value
     cls, field = (
@@ -305,18 +303,13 @@ def _level(name: str, value: Any) -> Any:
 
 
 def load_spec(path: str | os.PathLike) -> SweepSpec:
-    """Read and check a sweep spec (``.toml`` or ``.json``), building every cell's configuration.
-
-    Each cell's configuration is the base with the ``[set]`` settings and the cell's levels
-    applied in one step: a preset first (from either), then the learner settings; a cell whose
-    learner settings depart from its preset is refused as ``himit run`` refuses it.
+    """Read and check a sweep spec (``.toml`` or ``.json``), building every cell's
+    configuration (the base with the ``[set]`` settings and the cell's levels, a preset first).
 
     Raises:
-        ValueError: the file is missing, a directory, not UTF-8, not valid TOML/JSON or nested
-            too deep, a key or setting is unknown, the name is not a folder name, or a value is
-            refused by the configurations; the message names the file and what is wrong. Other
-            ``OSError`` exceptions (permissions, a failing disk) propagate.
-    """
+        ValueError: the file is missing or unreadable, a key or setting is unknown, the name is
+            not a folder name, or a value is refused by the configurations; the message names
+            the file and what is wrong."""
     path = Path(path)
     where = f"sweep spec {path}"
     data = parse_document(
@@ -408,9 +401,9 @@ def _spec_settings(data: dict, where: str) -> tuple[dict, dict]:
 def _cells(
     where: str, base: ExperimentConfig, fixed: dict, factors: dict, design: str, owned: dict
 ) -> list[Cell]:
-    """The sweep's cells: per combination of the factors' levels (every one, or one factor at
-    a time), the base with the ``[set]`` settings, the levels and the sweep's own settings
-    (``owned``: name, sizes, seeds) applied together (:func:`_apply`)."""
+    """The sweep's cells: per combination of the factors' levels (every one, or one
+    factor at a time), the base with the ``[set]`` settings, the levels and ``owned`` applied
+    together (:func:`_apply`)."""
     if design == "factorial":
         combos = [dict(zip(factors, c)) for c in itertools.product(*factors.values())]
     else:
@@ -446,10 +439,8 @@ def _refused_cell(
     levels: dict,
     err: Exception,
 ) -> ValueError:
-    """The refusal of the cell of ``levels`` (``err``): named as the ``[set]``'s when the
-    ``[set]`` settings are refused whatever the levels (every cell fails, and ``[set]`` alone
-    does), else as the cell's. (``[set]`` alone may fail where every cell is valid: a
-    ``checkpoint_every`` that only the grid's ``window`` levels divide.)"""
+    """The refusal of the cell of ``levels``: the ``[set]``'s where ``[set]`` is
+    refused alone and whatever the levels, else the cell's."""
 
     def refused(settings: dict) -> Exception | None:
         try:
@@ -546,9 +537,9 @@ def _execute_on_ray(
     niceness: int,
     start: float,
 ) -> None:
-    """Run the trials ``todo`` as Ray tasks: on a local Ray of the sweep's own (``workers``
-    CPUs; default: the cores), or on the cluster at ``address`` (or ``RAY_ADDRESS``); the
-    workers at ``niceness``. Ctrl-C or a failed trial cancels the tasks still running."""
+    """Run the trials ``todo`` as Ray tasks (a local Ray of ``workers`` CPUs, or
+    the cluster at ``address``), the workers at ``niceness``; Ctrl-C or a failed trial cancels the
+    tasks still running."""
     cores = os.cpu_count() or 1
     address = address or os.environ.get("RAY_ADDRESS") or None  # Ray's own variable
     where, n = _start_ray(ray, address, workers, niceness, cores)
@@ -592,9 +583,8 @@ def _execute_on_ray(
 def _start_ray(
     ray: Any, address: str | None, workers: int | None, niceness: int, cores: int
 ) -> tuple[str, int]:
-    """Start a local Ray of the sweep's own (``address`` None) or join the cluster at
-    ``address``, its workers at ``niceness``; returns where it runs (for the log) and the
-    tasks it runs at once."""
+    """Start a local Ray or join the cluster at ``address``, its workers at
+    ``niceness``; returns where it runs and the tasks it runs at once."""
     # every worker of this job starts at this niceness (Ray's own job supervisor sets its
     # workers' the same way: RAY_worker_niceness in the runtime_env, ray-project/ray#34727)
     job_env = {"env_vars": {"RAY_worker_niceness": str(niceness)}}
@@ -793,13 +783,11 @@ def _about(spec: SweepSpec) -> dict:
 
 
 def rewrite_summary(out: str | os.PathLike) -> None:
-    """Rewrite a finished sweep's ``summary.csv`` and ``summary.md`` from its ``runs.csv`` and
-    ``sweep.json`` alone (``himit plot``): what :func:`summarize` writes from the trials, without
-    them (a committed sweep keeps only its tables).
+    """Rewrite a finished sweep's ``summary.csv`` and ``summary.md`` from its
+    ``runs.csv`` and ``sweep.json`` alone (``himit plot``).
 
     Raises:
-        ValueError: ``sweep.json`` or ``runs.csv`` is missing or not a sweep's.
-    """
+        ValueError: ``sweep.json`` or ``runs.csv`` is missing or not a sweep's."""
     out = Path(out)
     where = f"sweep record {out / 'sweep.json'}"
     record = parse_document(where, read_text(where, out / "sweep.json"), "json")
