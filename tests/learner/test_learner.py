@@ -288,13 +288,15 @@ def _per_tick_state(learner: Learner, b: int) -> dict[str, torch.Tensor]:
     }
 
 
+# Tick by tick, ≈ 5 s a setting: under -m slow (CI); the fast suite's batch-equals-alone check
+# is test_parity's (the compiled engine, plan_every=3, mean and sampling agents).
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "agents,config",
     [
         (["imitation", "options", "imitation_primitives"], LearnerConfig(window=500)),
         # budgets that differ between runs (plan_every > 1), rounds that do not divide the budget,
         # and confidence-tested and plain imitators side by side
-        # (≈ 7 s each: CI's; the fast suite's batch test in test_parity runs plan_every=3)
         pytest.param(
             ["imitation_confident", "options", "imitation"],
             LearnerConfig(window=500, plan_every=3, sweep_rounds=3),

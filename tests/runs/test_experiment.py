@@ -42,7 +42,8 @@ def read_curves(path: Path) -> list[dict]:
         return list(csv.DictReader(f))
 
 
-@pytest.mark.parametrize("name", ["exp1", "exp2", "exp3"])
+# (exp3, two worlds, ≈ 3 s: CI's)
+@pytest.mark.parametrize("name", ["exp1", "exp2", pytest.param("exp3", marks=pytest.mark.slow)])
 def test_each_experiment_runs_and_writes_its_outputs(name, tmp_path):
     config = tiny(name)
     results = run_experiment(config, tmp_path / name, progress=False)
@@ -226,6 +227,9 @@ def test_run_world_refuses_a_folder_with_another_runs_events(tmp_path):
         run_world(config, 16, tmp_path, resume=False, progress=False)
 
 
+# (three runs, ≈ 4 s: CI's; test_bad_input_cli refuses a finished run without --force, for
+# every study, in the fast suite)
+@pytest.mark.slow
 def test_a_finished_run_is_not_overwritten_without_force(tmp_path):
     config = tiny("exp2", steps=1000)
     run_experiment(config, tmp_path / "r", progress=False)

@@ -228,6 +228,7 @@ def test_long_titles_are_wrapped_inside_the_figure(world, tmp_path):
     assert _inside(fig, ax.title) and _inside(fig, fig._suptitle)
 
 
+@pytest.mark.slow  # (full draws of five figures, ≈ 4 s: CI's)
 def test_fit_titles_places_boxes_as_a_full_draw_would(world, monkeypatch):
     """fit_titles places the axes without drawing the figure (a layout pass and the axes'
     aspects): the titles it wraps, their font sizes and the saved PNG's bytes are those of the
