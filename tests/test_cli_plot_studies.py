@@ -33,6 +33,7 @@ def _one_line_error(done: subprocess.CompletedProcess, *words: str) -> None:
     assert "Traceback" not in done.stderr
 
 
+@pytest.mark.slow  # (a fresh interpreter, ≈ 4 s: CI's; the experiment directory's runs in the fast suite)
 @pytest.mark.skipif(not (RESULTS / "discovery").is_dir(), reason="needs the committed records")
 def test_a_discovery_run_is_named_not_read_as_an_experiment(tmp_path):
     run = tmp_path / "discovery"
