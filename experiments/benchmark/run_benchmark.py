@@ -26,6 +26,7 @@ import shutil
 import subprocess
 import sys
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
@@ -66,13 +67,31 @@ def himit(*argv: str) -> None:
 
 
 def worlds(logdir: Path, seeds: int) -> None:
+    """Every preset's nine worlds: ``himit run paper`` (its six worlds over the cores) and the
+    Gymnasium study, into ``<logdir>/<preset>/``. The Gymnasium studies run one after another
+    *beside* the ``himit run paper`` runs, not after each: a study keeps one core busy (its
+    batches are small and its exact evaluations between windows run on one thread: 1.13 cores
+    asked for, ``benchmarks/bench_core_use.py``), so the other was idle for ≈ 190 s of the
+    benchmark's worlds part. Each run's records are its own either way (seeded, no shared
+    state)."""
+    runs = []
     for preset, agents in CELLS.items():
         common = ["--seeds", str(seeds), "--preset", preset, "--agents", *agents]
         out = str(logdir / preset)
-        himit(
-            "run", "paper", *common, "--tie-break", "random", "--logdir", out, "--quiet", "--force"
-        )
-        run(str(EXPERIMENTS / "gymnasium_worlds.py"), *common, "--logdir", out, "--force")
+        runs.append((common, out))
+
+    def gymnasium_studies() -> None:
+        for common, out in runs:
+            run(str(EXPERIMENTS / "gymnasium_worlds.py"), *common, "--logdir", out, "--force")
+
+    with ThreadPoolExecutor(1) as beside:
+        studies = beside.submit(gymnasium_studies)
+        try:
+            for common, out in runs:
+                himit("run", "paper", *common, "--tie-break", "random", "--logdir", out,
+                      "--quiet", "--force")  # fmt: skip
+        finally:
+            studies.result()  # (a failed study raises here, once the worlds have ended)
 
 
 def collect_worlds(logdir: Path) -> None:
