@@ -25,7 +25,12 @@ parser.add_argument(
     "--agents", nargs="+", default=list(GymExperimentConfig.agents), help="agents of AGENTS"
 )
 parser.add_argument("--steps", type=int, default=None, help="steps per run (default: per task)")
-parser.add_argument("--tasks", default=",".join(TASKS), help=f"some of {','.join(TASKS)}")
+parser.add_argument(
+    "--tasks",
+    # the three above (MiniGrid's tasks, also in TASKS, are the benchmark's own part)
+    default=",".join(GymExperimentConfig.tasks),
+    help=f"some of {','.join(TASKS)} (default {','.join(GymExperimentConfig.tasks)})",
+)
 parser.add_argument(
     "--window",
     type=int,

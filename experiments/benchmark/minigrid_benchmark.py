@@ -160,6 +160,7 @@ def main() -> None:
     parser.add_argument("--no-bco", action="store_true", help="every cell but BCO's")
     parser.add_argument("--calibrate", action="store_true", help="the budgets' held-out look")
     parser.add_argument("--skip-runs", action="store_true", help="copy finished cells only")
+    parser.add_argument("--no-collect", action="store_true", help="run the cells; copy nothing")
     args = parser.parse_args()
     torch.set_num_threads(1)  # tiny tensors: one thread per process is fastest
     logdir = Path(args.logdir)
@@ -173,8 +174,10 @@ def main() -> None:
                 continue
             config = config_of(task, preset, agents, args.seeds, 0, MINIGRID_BUDGETS[task])
             run_cell(config, task, logdir / preset / f"{task}{tag}")
-            collect(logdir, args.tasks, report=False)  # after each cell: a partial run is usable
-    collect(logdir, args.tasks)
+            if not args.no_collect:  # after each cell: a partial run is usable
+                collect(logdir, args.tasks, report=False)
+    if not args.no_collect:
+        collect(logdir, args.tasks)
 
 
 if __name__ == "__main__":

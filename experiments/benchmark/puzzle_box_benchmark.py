@@ -72,6 +72,9 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=20)
     parser.add_argument("--steps", type=int, default=PuzzleBoxConfig.steps)
     parser.add_argument("--skip-runs", action="store_true", help="tabulate finished batches")
+    parser.add_argument(
+        "--print-only", action="store_true", help="print the table; copy nothing into the results"
+    )
     args = parser.parse_args()
     run_dir = Path(args.logdir)
     base = replace(PuzzleBoxConfig(), seeds=args.seeds, steps=args.steps)
@@ -100,7 +103,7 @@ def main() -> None:
             run_box_batch(config, box, tag, tag, agent, watched, base.steps, base.steps,
                           run_dir, False, False, plans)  # fmt: skip
         (run_dir / "commit.txt").write_text(source_commit() + "\n")
-    write(run_dir, base, OUT if args.seeds >= 20 else None)
+    write(run_dir, base, OUT if args.seeds >= 20 and not args.print_only else None)
 
 
 def write(run_dir: Path, base: PuzzleBoxConfig, out: Path | None) -> None:

@@ -5,7 +5,7 @@ imitator's pick on fresh held-out seeds; the stresses; MiniGrid's tasks (amendme
 2026-11-29, ``minigrid_benchmark.py``); then the tables.
 
     python experiments/benchmark/run_benchmark.py [--parts worlds puzzlebox pick stress minigrid]
-        [--logdir runs/benchmark] [--seeds 20] [--skip-runs]
+        [--logdir runs/benchmark] [--seeds 20] [--skip-runs | --timing-only]
 
 Each part's wall time is written to ``experiments/results/benchmark/timing.json`` (and so onto
 the benchmark's page). The records every table is made from are copied into
@@ -13,6 +13,11 @@ the benchmark's page). The records every table is made from are copied into
 ``stress_exp2/``, ``minigrid/``) and ``experiments/results/presets/records/`` (the pick's
 sweeps), then
 ``analyse.py`` and ``../presets/analyse_search.py`` run on them.
+
+``--timing-only`` times the parts and leaves the repository alone: the runs go to
+``--logdir`` as always, each part's wall time to ``<logdir>/timing.json``, and nothing is
+copied into ``experiments/results/`` nor analysed (for measuring the benchmark's time, or a
+slice of it with ``--seeds``, without overwriting the committed records).
 """
 
 import argparse
@@ -21,6 +26,7 @@ import shutil
 import subprocess
 import sys
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
@@ -61,13 +67,31 @@ def himit(*argv: str) -> None:
 
 
 def worlds(logdir: Path, seeds: int) -> None:
+    """Every preset's nine worlds: ``himit run paper`` (its six worlds over the cores) and the
+    Gymnasium study, into ``<logdir>/<preset>/``. The Gymnasium studies run one after another
+    *beside* the ``himit run paper`` runs, not after each: a study keeps one core busy (its
+    batches are small and its exact evaluations between windows run on one thread: 1.13 cores
+    asked for, ``benchmarks/bench_core_use.py``), so the other was idle for ≈ 190 s of the
+    benchmark's worlds part. Each run's records are its own either way (seeded, no shared
+    state)."""
+    runs = []
     for preset, agents in CELLS.items():
         common = ["--seeds", str(seeds), "--preset", preset, "--agents", *agents]
         out = str(logdir / preset)
-        himit(
-            "run", "paper", *common, "--tie-break", "random", "--logdir", out, "--quiet", "--force"
-        )
-        run(str(EXPERIMENTS / "gymnasium_worlds.py"), *common, "--logdir", out, "--force")
+        runs.append((common, out))
+
+    def gymnasium_studies() -> None:
+        for common, out in runs:
+            run(str(EXPERIMENTS / "gymnasium_worlds.py"), *common, "--logdir", out, "--force")
+
+    with ThreadPoolExecutor(1) as beside:
+        studies = beside.submit(gymnasium_studies)
+        try:
+            for common, out in runs:
+                himit("run", "paper", *common, "--tie-break", "random", "--logdir", out,
+                      "--quiet", "--force")  # fmt: skip
+        finally:
+            studies.result()  # (a failed study raises here, once the worlds have ended)
 
 
 def collect_worlds(logdir: Path) -> None:
@@ -96,15 +120,23 @@ def collect_sweep(
         shutil.copy(source / name, target / name)
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--parts", nargs="+", choices=PARTS, default=list(PARTS))
     parser.add_argument("--seeds", type=int, default=20)
     parser.add_argument("--logdir", default="runs/benchmark")
-    parser.add_argument("--skip-runs", action="store_true", help="copy and analyse finished runs")
-    args = parser.parse_args()
+    mode = parser.add_mutually_exclusive_group()
+    mode.add_argument("--skip-runs", action="store_true", help="copy and analyse finished runs")
+    mode.add_argument(
+        "--timing-only",
+        action="store_true",
+        help="run and time the parts into --logdir (timing in <logdir>/timing.json); copy "
+        "nothing into experiments/results/ and analyse nothing",
+    )
+    args = parser.parse_args(argv)
     logdir = Path(args.logdir)
-    timing_path = RESULTS / "timing.json"
+    collect = not args.timing_only
+    timing_path = logdir / "timing.json" if args.timing_only else RESULTS / "timing.json"
     timing = json.loads(timing_path.read_text()) if timing_path.exists() else {}
 
     for part in args.parts:
@@ -112,7 +144,8 @@ def main() -> None:
         if part == "worlds":
             if not args.skip_runs:
                 worlds(logdir, args.seeds)
-            collect_worlds(logdir)
+            if collect:
+                collect_worlds(logdir)
         elif part == "puzzlebox":
             run(
                 str(HERE / "puzzle_box_benchmark.py"),
@@ -121,12 +154,14 @@ def main() -> None:
                 "--logdir",
                 str(logdir / "puzzlebox"),
                 *(["--skip-runs"] if args.skip_runs else []),
+                *([] if collect else ["--print-only"]),
             )
         elif part == "pick":
             if not args.skip_runs:
                 pick(logdir)
-            for name in PICK_SWEEPS:
-                collect_sweep(logdir / "presets" / name, PRESET_RECORDS / name)
+            if collect:
+                for name in PICK_SWEEPS:
+                    collect_sweep(logdir / "presets" / name, PRESET_RECORDS / name)
         elif part == "stress":
             if not args.skip_runs:
                 himit(
@@ -135,11 +170,12 @@ def main() -> None:
                     "--out",
                     str(logdir / "stress_exp2"),
                 )
-            collect_sweep(
-                logdir / "stress_exp2",
-                RESULTS / "stress_exp2",
-                ("runs.csv", "summary.md", "sweep.json"),
-            )
+            if collect:
+                collect_sweep(
+                    logdir / "stress_exp2",
+                    RESULTS / "stress_exp2",
+                    ("runs.csv", "summary.md", "sweep.json"),
+                )
         elif part == "minigrid":  # (resumes: a finished cell is kept)
             run(
                 str(HERE / "minigrid_benchmark.py"),
@@ -148,14 +184,16 @@ def main() -> None:
                 "--logdir",
                 str(logdir / "minigrid"),
                 *(["--skip-runs"] if args.skip_runs else []),
+                *([] if collect else ["--no-collect"]),
             )
         if not args.skip_runs:
             timing[part] = round(time.perf_counter() - started, 1)
             timing_path.parent.mkdir(parents=True, exist_ok=True)
             timing_path.write_text(json.dumps(timing, indent=1, sort_keys=True) + "\n")
 
-    run(str(HERE / "analyse.py"))
-    run(str(EXPERIMENTS / "presets" / "analyse_search.py"))
+    if collect:
+        run(str(HERE / "analyse.py"))
+        run(str(EXPERIMENTS / "presets" / "analyse_search.py"))
 
 
 if __name__ == "__main__":

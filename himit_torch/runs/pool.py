@@ -1,6 +1,8 @@
 """A pool of independent jobs over the cores, for any study (:func:`run_pool`): this process
 and ``workers − 1`` others, each a lane that takes the next job when it ends its last, the
-cores shared out between them. The paper's experiments run their worlds through it.
+cores shared out between them; once a lane finds no job left, the lanes still working take its
+cores (between their batch's windows, :func:`~himit_torch.runs.runner.take_ended_lanes_cores`).
+The paper's experiments run their worlds through it.
 
 A job's result must not depend on the process it runs in (each world of a study is
 independent and seeded): the pool changes how long a run takes, never what it finds.
@@ -20,7 +22,7 @@ from typing import Any
 
 import torch
 
-from himit_torch.runs.runner import freeze_at_exit, share_cores
+from himit_torch.runs.runner import freeze_at_exit, join_lanes, share_cores
 
 __all__ = ["run_pool", "workers_for", "cores_shared"]
 
@@ -31,12 +33,15 @@ def workers_for(jobs: int, workers: int | None) -> int:
     return min(jobs, os.cpu_count() or 1) if workers is None else min(int(workers), jobs)
 
 
-def _pool_process(threads: int) -> None:
+def _pool_process(threads: int, working: Any = None, cores: int = 1) -> None:
     """Set up one of the pool's processes: its share of the cores
-    (:func:`~himit_torch.runs.runner.share_cores`), and an exit that skips the last garbage
-    collections (:func:`~himit_torch.runs.runner.freeze_at_exit`): the run waits for its
-    processes to end, ≈ 1.2 s each without it, ≈ 0.25 s with it."""
+    (:func:`~himit_torch.runs.runner.share_cores`), the count of lanes still working (to take
+    the cores of those that end, :func:`~himit_torch.runs.runner.join_lanes`; ``None``: a
+    process of no pool's count), and an exit
+    that skips the last garbage collections (:func:`~himit_torch.runs.runner.freeze_at_exit`):
+    the run waits for its processes to end, ≈ 1.2 s each without it, ≈ 0.25 s with it."""
     share_cores(threads)
+    join_lanes(working, cores, threads)
     freeze_at_exit()
 
 
@@ -63,8 +68,11 @@ def cores_shared(threads: int) -> Iterator[None]:
 class _Lanes:
     """The jobs left, taken one at a time by every lane, and what the other lanes ended."""
 
-    def __init__(self, task: Callable[..., Any], jobs: Sequence[tuple[Hashable, tuple]]):
+    def __init__(
+        self, task: Callable[..., Any], jobs: Sequence[tuple[Hashable, tuple]], working: Any
+    ):
         self.task = task
+        self.working = working  # the lanes that may still take a job (shared with the processes)
         self.jobs = deque(jobs)
         self.taking = threading.Lock()
         self.ended: queue.Queue = queue.Queue()  # the other lanes' (key, result), or an error
@@ -72,8 +80,14 @@ class _Lanes:
         self.threads: list[threading.Thread] = []
 
     def take(self) -> tuple[Hashable, tuple] | None:
+        """The next job, or ``None``: then the lane that asked has ended, and the lanes still
+        working may take its cores."""
         with self.taking:
-            return self.jobs.popleft() if self.jobs and not self.failed.is_set() else None
+            if self.jobs and not self.failed.is_set():
+                return self.jobs.popleft()
+        with self.working.get_lock():
+            self.working.value -= 1
+        return None
 
     def lane(self, pool: ProcessPoolExecutor, announce: Callable[[Hashable], None]) -> None:
         """One other lane: its jobs, one at a time, each in the pool. It takes its first once
@@ -124,11 +138,14 @@ def run_pool(
     more; the jobs already running end first."""
     cores = os.cpu_count() or 1
     threads = max(1, cores // workers)
-    lanes = _Lanes(task, jobs)
     # "spawn": a forked child of a process whose OpenMP threads already ran can hang.
     context = multiprocessing.get_context("spawn")
+    lanes = _Lanes(task, jobs, context.Value("i", workers))
     pool = ProcessPoolExecutor(
-        workers - 1, mp_context=context, initializer=_pool_process, initargs=(threads,)
+        workers - 1,
+        mp_context=context,
+        initializer=_pool_process,
+        initargs=(threads, lanes.working, cores),
     )
     lanes.threads = [
         threading.Thread(target=lanes.lane, args=(pool, announce), daemon=True)
@@ -139,6 +156,7 @@ def run_pool(
             for t in lanes.threads:
                 t.start()
         with cores_shared(threads):
+            join_lanes(lanes.working, cores, threads)
             while (job := lanes.take()) is not None:
                 key, args = job
                 result = task(*args)
@@ -147,5 +165,6 @@ def run_pool(
                 lanes.collect(done, wait=False)
         lanes.collect(done, wait=True)
     finally:  # a failed job stops the rest instead of letting them run to the end
+        join_lanes(None, cores, threads)
         lanes.failed.set()
         pool.shutdown(wait=True, cancel_futures=True)

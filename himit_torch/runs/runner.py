@@ -15,7 +15,8 @@ batch's runs (:func:`batch_runs`, :func:`run_names`), each seed's demonstrations
 (:func:`watch_demonstrations`), checkpoints with resume (:class:`Checkpoints`), the run
 directory's checks (:func:`check_run_dir`, :func:`clear_run_dir`), the code's commit
 (:func:`source_commit`) and the threads of a world's process among others
-(:func:`share_cores`). What a runner measures and reports stays in its own module.
+(:func:`share_cores`; as one of a pool's lanes, :func:`join_lanes`, it takes the cores of the
+lanes that have ended between its windows). What a runner measures and reports stays in its own module.
 """
 
 from __future__ import annotations
@@ -59,6 +60,8 @@ __all__ = [
     "state_layout_version",
     "write_atomically",
     "share_cores",
+    "join_lanes",
+    "take_ended_lanes_cores",
     "freeze_at_exit",
 ]
 
@@ -114,6 +117,7 @@ def run_windows(
     while learner.views.t < steps:
         chunk = min(window - learner.views.t % window, steps - learner.views.t)
         learner.run(chunk)
+        take_ended_lanes_cores()
         if bar is not None:
             bar.update(chunk)
         while logged < len(learner.metrics.steps):
@@ -367,6 +371,45 @@ def share_cores(threads: int) -> None:
     except ImportError:
         pass
     torch.set_num_threads(1)
+
+
+@dataclass
+class _Lane:
+    """This process as one lane of a pool (:func:`join_lanes`): the lanes still working (a
+    shared ``multiprocessing.Value``), the machine's cores, and the threads it runs on now."""
+
+    working: Any
+    cores: int
+    threads: int
+
+
+_lane: _Lane | None = None
+
+
+def join_lanes(working: Any, cores: int, threads: int) -> None:
+    """Make this process one lane of a pool (:func:`~himit_torch.runs.pool.run_pool`):
+    ``working`` is the count, shared by the pool's processes (a ``multiprocessing.Value``), of
+    its lanes that may still take a job; ``threads`` the compiled engine's threads this lane
+    runs on now (its share, :func:`share_cores`). ``working=None``: no longer a lane."""
+    global _lane
+    _lane = None if working is None else _Lane(working, cores, threads)
+
+
+def take_ended_lanes_cores() -> None:
+    """In a pool's lane (:func:`join_lanes`), between two windows of its batch
+    (:func:`run_windows`): once other lanes have ended (no job was left for them), this lane's
+    compiled engine runs on their cores too, ``cores // lanes still working`` threads. Without
+    it, the last world of a pool ran on one core while the other idled (the tail of every
+    ``himit run paper`` and of each of the benchmark's presets). A batch's runs give the same
+    results on any number of threads (the engine's tests): only the time changes. Nothing
+    outside a pool's lane."""
+    lane = _lane
+    if lane is None:
+        return
+    threads = max(1, lane.cores // max(1, lane.working.value))
+    if threads > lane.threads:
+        share_cores(threads)
+        lane.threads = threads
 
 
 def freeze_at_exit() -> None:

@@ -244,3 +244,22 @@ def test_himit_plot_refuses_damaged_paths_in_a_task_record(paths, words, tmp_pat
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith("himit: error: "), err
     assert "tasks/taxi.json" in err and words in err
+
+
+@pytest.mark.slow
+def test_the_script_runs_the_three_gymnasium_tasks_by_default(tmp_path):
+    """``experiments/gymnasium_worlds.py`` (the benchmark's worlds part runs it per preset)
+    runs Taxi, CliffWalking and FrozenLake, not MiniGrid's tasks, which are in ``TASKS`` too
+    and are the benchmark's own part: with them it ran 12 tasks, ≈ 30× the work."""
+    out = subprocess.run(
+        [sys.executable, str(ROOT / "experiments" / "gymnasium_worlds.py"), "--seeds", "1",
+         "--agents", "primitives", "--steps", "200", "--window", "200", "--logdir", str(tmp_path)],
+        capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert out.returncode == 0, out.stderr[-2000:]
+    config = json.loads((tmp_path / "gymnasium" / "config.json").read_text())
+    assert tuple(config["tasks"]) == GymExperimentConfig().tasks
+    assert config["tasks"] == ["taxi", "cliffwalking", "frozenlake8x8"]
+    assert sorted(p.stem for p in (tmp_path / "gymnasium" / "tasks").glob("*.json")) == sorted(
+        config["tasks"]
+    )

@@ -99,6 +99,32 @@ def test_a_batch_on_two_threads_equals_one_thread_and_each_run_alone(world12, me
     torch.testing.assert_close(runs[2].cache.values[0], alone.cache.values[0], rtol=0, atol=0)
 
 
+@pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="needs two Numba threads")
+def test_a_batch_taking_a_second_thread_mid_run_equals_one_thread_throughout(
+    world12, mentor_demos12
+):
+    """A pool's lane takes the cores of lanes that ended between two windows of its batch
+    (``runs.runner.take_ended_lanes_cores``): the batch goes on from one thread to two."""
+    seeds = [3, 0, 1, 2, 3]
+    before = numba.get_num_threads()
+    try:
+        runs = {}
+        for switch in (False, True):
+            numba.set_num_threads(1)
+            learner = _learner(world12, mentor_demos12, AGENTS, seeds)
+            learner.run(1500)  # (three windows of 500)
+            numba.set_num_threads(2 if switch else 1)
+            learner.run(2500)
+            runs[switch] = learner
+    finally:
+        numba.set_num_threads(before)
+    one, switched = _state(runs[False]), _state(runs[True])
+    assert one.keys() == switched.keys() and len(one) > 20
+    for name in one:
+        torch.testing.assert_close(one[name], switched[name], rtol=0, atol=0, equal_nan=True)
+    assert int(runs[True].run_state.goals.sum()) > 0
+
+
 @pytest.mark.parametrize(
     ("left", "threads", "take"),
     [(40, 1, 20), (41, 1, 21), (40, 2, 10), (3, 2, 1), (4, 2, 1), (5, 2, 2), (1, 4, 1), (0, 2, 1)],
