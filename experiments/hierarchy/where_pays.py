@@ -321,34 +321,14 @@ def cell_tests(family: str, cell: Cell) -> list[Test]:
             if endpoint == "first_goal":
                 if name == HIERARCHY:
                     # speed-ups (positive: sooner); their difference's sign, paired by seed
-                    d, lo, hi, p, wins, losses = compare_speed_ups(
-                        speed_ups(cell, EQ2), speed_ups(cell, EQ1)
-                    )
+                    result = compare_speed_ups(speed_ups(cell, EQ2), speed_ups(cell, EQ1))
                 else:
-                    d, lo, hi, p, wins, losses = compare_values(
-                        a(cell.first_goal), b(cell.first_goal), endpoint
-                    )
+                    result = compare_values(a(cell.first_goal), b(cell.first_goal), endpoint)
             else:
                 values = getattr(cell, endpoint)
-                d, lo, hi, p, wins, losses = compare_values(a(values), b(values), endpoint)
-            out.append(
-                Test(
-                    family,
-                    name,
-                    cell.task,
-                    cell.condition,
-                    cell.schedule,
-                    "",
-                    "",
-                    endpoint,
-                    d,
-                    lo,
-                    hi,
-                    p,
-                    wins,
-                    losses,
-                )  # fmt: skip
-            )
+                result = compare_values(a(values), b(values), endpoint)
+            out.append(Test(family, name, cell.task, cell.condition, cell.schedule, "", "",
+                            endpoint, *result))  # fmt: skip
     return out
 
 
@@ -460,25 +440,8 @@ def f_tests(trial: Cell, feasibility: Cell, tries: int) -> list[Test]:
     out = []
     for endpoint in ENDPOINTS:
         a, b = getattr(feasibility, endpoint)[EQ2], getattr(trial, endpoint)[EQ2]
-        d, lo, hi, p, wins, losses = compare_values(a, b, endpoint)
-        out.append(
-            Test(
-                "F",
-                f"N = {tries} − trial alone",
-                trial.task,
-                "",
-                trial.schedule,
-                "",
-                "",
-                endpoint,
-                d,
-                lo,
-                hi,
-                p,
-                wins,
-                losses,
-            )  # fmt: skip
-        )
+        out.append(Test("F", f"N = {tries} − trial alone", trial.task, "", trial.schedule, "",
+                        "", endpoint, *compare_values(a, b, endpoint)))  # fmt: skip
     return out
 
 
@@ -529,12 +492,11 @@ def mechanism_tests(cells: list[Cell]) -> list[Test]:
                     imitation_effect(minus, agent, endpoint),
                 )
                 if endpoint == "first_goal":
-                    d, lo, hi, p, wins, losses = compare_speed_ups(a, b)
+                    result = compare_speed_ups(a, b)
                 else:
-                    d, lo, hi, p, wins, losses = compare_values(a, b, endpoint)
+                    result = compare_values(a, b, endpoint)
                 out.append(Test("Q3", f"{AGENT_LABELS[agent]}'s {MECHANISM}", task, "",
-                                schedule, "", "", endpoint, d, lo, hi, p, wins,
-                                losses))  # fmt: skip
+                                schedule, "", "", endpoint, *result))  # fmt: skip
     return out
 
 
@@ -555,12 +517,11 @@ def transfer_cost_tests(cells: list[Cell], same_task: list[Cell]) -> list[Test]:
             raise ValueError(f"transfer_cost_tests: {cell.task}: seeds or budget differ from Q1's")
         for agent in CONTROL:
             for endpoint in ENDPOINTS:
-                d, lo, hi, p, wins, losses = compare_values(
+                result = compare_values(
                     getattr(cell, endpoint)[agent], getattr(base, endpoint)[agent], endpoint
                 )
                 out.append(Test("Q3", f"{AGENT_LABELS[agent]}: {COST}", cell.task, "",
-                                cell.schedule, "", "", endpoint, d, lo, hi, p, wins,
-                                losses))  # fmt: skip
+                                cell.schedule, "", "", endpoint, *result))  # fmt: skip
     return out
 
 
