@@ -43,6 +43,16 @@ def curve_rows(path: Path, seeds, last_step: int, agents=None) -> dict:
         }
 
 
+def short_run(tmp_path: Path, committed: ExperimentConfig, seeds, steps: int, **changes):
+    """``committed`` run again for the consecutive ``seeds`` and ``steps`` steps (with
+    ``changes``), in this process: ``(config, path of its curves.csv)``."""
+    config = replace(committed, seeds=len(seeds), first_seed=seeds[0], steps=steps,
+                     checkpoint_every=steps, **changes)  # fmt: skip
+    run_experiment(config, tmp_path / "run", progress=False, workers=1)
+    [curves] = (tmp_path / "run").rglob("curves.csv")
+    return config, curves
+
+
 def committed_rows(sweep: str, cell: str, seeds, last_step: int) -> dict:
     with (RESULTS / sweep / "results.csv").open() as f:
         return {
@@ -84,20 +94,8 @@ CPU_DEPENDENT = [
 )
 def test_a_short_run_reproduces_the_committed_sweep_curves(tmp_path, sweep, cell, steps):
     seeds = (0, 1)
-    config = replace(
-        committed_config(sweep, cell),
-        seeds=len(seeds),
-        first_seed=seeds[0],
-        steps=steps,
-        checkpoint_every=steps,
-    )
-    run_experiment(config, tmp_path / "run", progress=False, workers=1)
-    [curves] = (tmp_path / "run").rglob("curves.csv")
-    with curves.open() as f:
-        ours = {
-            (r["agent"], int(r["seed"]), int(r["step"])): tuple(r[k] for k in COLUMNS)
-            for r in csv.DictReader(f)
-        }
+    config, curves = short_run(tmp_path, committed_config(sweep, cell), seeds, steps)
+    ours = curve_rows(curves, seeds, steps)
     theirs = committed_rows(sweep, cell, seeds, steps)
     assert len(theirs) == len(config.agents) * len(seeds) * (steps // config.window)
     assert ours == theirs
@@ -117,12 +115,8 @@ def test_a_short_run_reproduces_the_committed_claims_curves(tmp_path, run, steps
 
     seeds = (4, 5)
     committed = load_config(RESULTS / run / "config.json")
-    config = replace(
-        committed, seeds=len(seeds), first_seed=seeds[0], steps=steps, checkpoint_every=steps
-    )
+    config, curves = short_run(tmp_path, committed, seeds, steps)
     assert config.preset == committed.preset is not None
-    run_experiment(config, tmp_path / "run", progress=False, workers=1)
-    [curves] = (tmp_path / "run").rglob("curves.csv")
 
     theirs = curve_rows(RESULTS / run / "curves.csv", seeds, steps)
     assert len(theirs) == len(config.agents) * len(seeds) * (steps // config.window)
@@ -138,16 +132,7 @@ def test_a_short_run_reproduces_the_committed_bco_curves(tmp_path):
 
     seeds, steps = (4, 5), 20_000
     committed = load_config(RESULTS / "benchmark" / "paper" / "exp2" / "config.json")
-    config = replace(
-        committed,
-        agents=("bco",),
-        seeds=len(seeds),
-        first_seed=seeds[0],
-        steps=steps,
-        checkpoint_every=steps,
-    )
-    run_experiment(config, tmp_path / "run", progress=False, workers=1)
-    [curves] = (tmp_path / "run").rglob("curves.csv")
+    config, curves = short_run(tmp_path, committed, seeds, steps, agents=("bco",))
 
     theirs = curve_rows(
         RESULTS / "benchmark" / "paper" / "exp2" / "curves.csv", seeds, steps, {"bco"}
