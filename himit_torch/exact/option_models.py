@@ -234,6 +234,8 @@ def _remembered(
         for (k, _), models in zip(missing, _option_models(world, options, [v for _, v in missing])):
             known[k] = models
             reference_cache.store_models(stored[k], models)
+    for k in stored:  # (what is computed from these models alone is kept by their key too)
+        reference_cache.remember_key(known[k], stored[k])
     return [known[k] for k in keys]
 
 

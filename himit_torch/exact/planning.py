@@ -18,6 +18,7 @@ import scipy.sparse.csgraph as csgraph
 import scipy.sparse.linalg as spla
 import torch
 
+from himit_torch.exact import reference_cache
 from himit_torch.exact.option_models import OptionModels, option_durations, option_models
 from himit_torch.options.builders import primitive_options
 
@@ -97,7 +98,34 @@ def smdp_value_iteration(
 
     States with no available option (walls, terminal states) keep ``V = 0``. Returns ``q [M]``
     per model row and the greedy option per state (ties → lowest option index).
+
+    Models kept by content (:mod:`~himit_torch.exact.reference_cache`: those of
+    :func:`~himit_torch.exact.option_models.option_models`) have their result kept there too,
+    the same to the bit: the mentor's policy and the optimum are solved once per world, options
+    and setting, not once per batch and process.
     """
+    models_key = reference_cache.key_of(models)
+    if models_key is None:
+        return _smdp_value_iteration(models, tol, max_iter)
+    key = reference_cache.plan_key(
+        models_key, "smdp_value_iteration", tol=float(tol).hex(), max_iter=int(max_iter)
+    )
+    kept = reference_cache.load_plan(key, models.num_states, models.num_rows, models.num_options)
+    if kept is not None:
+        arrays, iterations = kept
+        return PlanResult(
+            values=torch.from_numpy(arrays["values"]),
+            policy=torch.from_numpy(arrays["policy"]),
+            q=torch.from_numpy(arrays["q"]),
+            iterations=iterations,
+        )
+    plan = _smdp_value_iteration(models, tol, max_iter)
+    reference_cache.store_plan(key, plan.values, plan.policy, plan.q, plan.iterations)
+    return plan
+
+
+def _smdp_value_iteration(models: OptionModels, tol: float, max_iter: int) -> PlanResult:
+    """:func:`smdp_value_iteration`, computed."""
     S = models.num_states
     T = models.transition.to_sparse_coo().coalesce()
     idx = T.indices().numpy()

@@ -21,6 +21,11 @@ are computed again (and stored anew); a damaged entry is never used. Entries are
 atomically (a temporary file, then a rename), so processes sharing the folder read whole
 entries or none.
 
+What is computed from such models alone is kept by their key too: the value iteration that
+gives the mentor's policy and the optimum over primitives (:func:`plan_key`, :func:`store_plan`,
+:func:`load_plan`; ``values``, ``policy`` and ``q`` with the iteration count, checked as a
+models entry is).
+
 Where: the folder ``$HIMIT_EXACT_CACHE``; without it, ``exact`` under ``$XDG_CACHE_HOME/himit_torch``
 (``~/.cache/himit_torch`` where that is unset). ``HIMIT_EXACT_CACHE=off`` turns the disk cache
 off (the models are then computed in every process; within a process they are still shared).
@@ -50,6 +55,11 @@ __all__ = [
     "models_key",
     "load_models",
     "store_models",
+    "remember_key",
+    "key_of",
+    "plan_key",
+    "load_plan",
+    "store_plan",
 ]
 
 #: The environment variable naming the cache's folder (``off``: no disk cache).
@@ -80,8 +90,9 @@ def cache_dir() -> Path | None:
 
 def clear_cache() -> int:
     """Remove every entry of the cache (and what an interrupted write left); the number of
-    files removed. Also forgets the models this process shares by content."""
+    files removed. Also forgets the models and plans this process shares by content."""
     _BY_CONTENT.clear()
+    _PLANS.clear()
     folder = cache_dir()
     if folder is None or not folder.is_dir():
         return 0
@@ -156,9 +167,9 @@ def _keep(key: str, models) -> None:
         _BY_CONTENT.popitem(last=False)
 
 
-def _digest(arrays: dict[str, np.ndarray]) -> str:
+def _digest(arrays: dict[str, np.ndarray], names: tuple[str, ...] = _ARRAYS) -> str:
     digest = hashlib.sha256()
-    for name in _ARRAYS:
+    for name in names:
         a = np.ascontiguousarray(arrays[name])
         digest.update(f"|{name}{a.dtype.str}{a.shape}|".encode())
         digest.update(a.data.cast("B"))
@@ -193,6 +204,12 @@ def store_models(key: str, models) -> None:
         "num_states": int(transition.shape[1]),
         "sha256": _digest(arrays),
     }
+    _write(folder, key, header, arrays)
+
+
+def _write(folder: Path, key: str, header: dict, arrays: dict[str, Any]) -> None:
+    """Write an entry atomically (a temporary file, then a rename); a folder that cannot be
+    written leaves it unwritten."""
     buffer = io.BytesIO()
     np.savez(buffer, header=np.array(json.dumps(header)), **arrays)
     try:
@@ -206,7 +223,7 @@ def store_models(key: str, models) -> None:
             Path(tmp).unlink(missing_ok=True)
             raise
     except OSError:
-        pass  # (a read-only or full disk: the models stay this process's)
+        pass  # (a read-only or full disk: the entry stays this process's)
 
 
 def _read(path: Path, key: str, num_options: int, num_states: int) -> dict | None:
@@ -280,3 +297,129 @@ def load_models(key: str, options, build: Callable[[dict[str, np.ndarray], int, 
     models = build(arrays, int(options.num_options), int(options.num_states))
     _keep(key, models)
     return models
+
+
+# ======================================================================= plans
+# The key each model this process holds was computed or read under, by the models object while
+# it is alive: what a value iteration on those models is cached by (exact.planning).
+_MODEL_KEYS: dict[int, tuple[weakref.ref, str]] = {}
+_PLAN_ARRAYS = ("values", "policy", "q")
+_PLAN_DTYPES = {"values": np.float64, "policy": np.int64, "q": np.float64}
+#: The plans this process has computed or read last, by key (small: ``[S]`` and ``[M]`` arrays).
+_PLANS: OrderedDict[str, tuple[dict, dict[str, np.ndarray]]] = OrderedDict()
+_PLANS_KEPT = 64
+
+
+def remember_key(models, key: str) -> None:
+    """Note that ``models`` are the models kept under ``key`` (:func:`models_key`), so that what
+    is computed from them alone (:func:`plan_key`) can be kept by content too."""
+    try:
+        _MODEL_KEYS[id(models)] = (weakref.ref(models), key)
+        weakref.finalize(models, _MODEL_KEYS.pop, id(models), None)
+    except TypeError:  # (an object that takes no weak reference: not remembered)
+        pass
+
+
+def key_of(models) -> str | None:
+    """The key ``models`` were kept under (:func:`remember_key`), or ``None`` (models made
+    some other way: nothing computed from them is cached)."""
+    known = _MODEL_KEYS.get(id(models))
+    return known[1] if known is not None and known[0]() is models else None
+
+
+def plan_key(models: str, solver: str, **settings: Any) -> str:
+    """The cache's key of what ``solver`` computes from the models kept under the key
+    ``models`` alone, with ``settings`` (e.g. a tolerance)."""
+    described = {"format": _FORMAT, "models": models, "solver": solver, **settings}
+    return hashlib.sha256(json.dumps(described, sort_keys=True).encode()).hexdigest()
+
+
+def store_plan(key: str, values, policy, q, iterations: int) -> None:
+    """Keep a value iteration's result under ``key`` (:func:`plan_key`): ``values [S]``,
+    ``policy [S]`` and ``q [M]`` (tensors or arrays), in this process and on disk where the
+    cache is on."""
+    arrays = {
+        "values": np.asarray(values, dtype=np.float64),
+        "policy": np.asarray(policy, dtype=np.int64),
+        "q": np.asarray(q, dtype=np.float64),
+    }
+    header = {
+        "format": _FORMAT,
+        "key": key,
+        "kind": "plan",
+        "num_states": int(arrays["values"].shape[0]),
+        "num_rows": int(arrays["q"].shape[0]),
+        "iterations": int(iterations),
+        "sha256": _digest(arrays, _PLAN_ARRAYS),
+    }
+    _keep_plan(key, header, arrays)
+    folder = cache_dir()
+    if folder is not None:
+        _write(folder, key, header, arrays)
+
+
+def load_plan(
+    key: str, num_states: int, num_rows: int, num_options: int
+) -> tuple[dict, int] | None:
+    """The arrays (``values``, ``policy``, ``q``: fresh copies) and iteration count kept under
+    ``key`` for models of ``num_states`` states, ``num_rows`` rows and ``num_options`` options,
+    or ``None``: this process's first, then the disk's, checked as a models entry is (its header
+    names ``key``, its shapes, dtypes and SHA-256; every policy entry an option or −1); a
+    damaged entry is removed."""
+    known = _PLANS.get(key)
+    if known is not None:
+        _PLANS.move_to_end(key)
+        header, arrays = known
+        return {k: a.copy() for k, a in arrays.items()}, int(header["iterations"])
+    folder = cache_dir()
+    if folder is None:
+        return None
+    path = _path(folder, key)
+    if not path.is_file():
+        return None
+    found = _read_plan(path, key, num_states, num_rows, num_options)
+    if found is None:
+        path.unlink(missing_ok=True)  # damaged: never trusted, computed again
+        return None
+    header, arrays = found
+    _keep_plan(key, header, arrays)
+    return arrays, int(header["iterations"])
+
+
+def _keep_plan(key: str, header: dict, arrays: dict[str, np.ndarray]) -> None:
+    _PLANS[key] = (header, {k: a.copy() for k, a in arrays.items()})
+    _PLANS.move_to_end(key)
+    while len(_PLANS) > _PLANS_KEPT:
+        _PLANS.popitem(last=False)
+
+
+def _read_plan(path: Path, key: str, num_states: int, num_rows: int, num_options: int):
+    """``(header, arrays)`` of the plan entry at ``path``, or ``None`` where it fails a check."""
+    try:
+        with np.load(io.BytesIO(path.read_bytes()), allow_pickle=False) as entry:
+            if set(entry.files) != {"header", *_PLAN_ARRAYS}:
+                return None
+            header = json.loads(str(entry["header"][()]))
+            arrays = {name: entry[name] for name in _PLAN_ARRAYS}
+    except Exception:  # (whatever a damaged archive raises: zip, NPY or JSON errors)
+        return None
+    shapes = {"values": (num_states,), "policy": (num_states,), "q": (num_rows,)}
+    checks = (
+        isinstance(header, dict)
+        and header.get("format") == _FORMAT
+        and header.get("kind") == "plan"
+        and header.get("key") == key
+        and header.get("num_states") == num_states
+        and header.get("num_rows") == num_rows
+        and type(header.get("iterations")) is int
+        and all(
+            arrays[n].dtype == _PLAN_DTYPES[n] and arrays[n].shape == shapes[n]
+            for n in _PLAN_ARRAYS
+        )
+    )
+    if not checks or header.get("sha256") != _digest(arrays, _PLAN_ARRAYS):
+        return None
+    policy = arrays["policy"]
+    if policy.size and (policy.min() < -1 or policy.max() >= num_options):
+        return None
+    return header, arrays

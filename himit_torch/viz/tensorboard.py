@@ -56,6 +56,24 @@ def tensorboard_command(logdir: str | os.PathLike) -> str:
     return f"{_shell_path(Path(sys.executable))} -m tensorboard.main --logdir {log}"
 
 
+def _png(rgb: np.ndarray):
+    """An ``[H, W, 3]`` uint8 image as TensorBoard's image proto, PNG-encoded at zlib's fastest
+    level: the same pixels as ``torch.utils.tensorboard.summary.make_image`` (which resizes to
+    the same size with Lanczos first, a copy, then encodes at the default level), in ≈ half its
+    time (a map of the 80 × 80 world: 9 against 16 ms; a few more bytes)."""
+    import io
+
+    from PIL import Image
+    from tensorboard.compat.proto.summary_pb2 import Summary
+
+    height, width, channels = rgb.shape
+    encoded = io.BytesIO()
+    Image.fromarray(rgb).save(encoded, format="PNG", compress_level=1)
+    return Summary.Image(
+        height=height, width=width, colorspace=channels, encoded_image_string=encoded.getvalue()
+    )
+
+
 #: What each scalar tag holds; written into the event files as the tag's description.
 SCALAR_DESCRIPTIONS = {
     "charts/goals_in_window": "Goals reached in the window of steps that ends at this step "
@@ -243,11 +261,11 @@ class TensorBoardLogger:
         """Log one ``[H, W, 3]`` uint8 image with its description (:data:`IMAGE_DESCRIPTIONS`)."""
         from tensorboard.compat.proto.summary_pb2 import Summary
         from tensorboard.plugins.image.metadata import create_summary_metadata
-        from torch.utils.tensorboard.summary import image, make_image
+        from torch.utils.tensorboard.summary import image
 
         if isinstance(rgb, np.ndarray) and rgb.dtype == np.uint8 and rgb.ndim == 3:
-            # (what image() encodes for uint8 pixels, without its float32 round trip)
-            summary = Summary(value=[Summary.Value(tag=tag, image=make_image(rgb))])
+            # (the pixels image() encodes for uint8 pixels, without its float32 round trip)
+            summary = Summary(value=[Summary.Value(tag=tag, image=_png(rgb))])
         else:
             summary = image(tag, rgb, dataformats="HWC")
         description = IMAGE_DESCRIPTIONS.get(tag, "")

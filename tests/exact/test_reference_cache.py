@@ -144,3 +144,79 @@ def test_clear_cache_and_off(cache, monkeypatch):
     _fresh_process()
     option_models_and_durations(world, learner_options(world))
     assert not cache.exists() or not list(cache.glob("*.npz"))
+
+
+def _plan_entries(folder) -> list:
+    """The cache's plan entries (value iterations), by their header."""
+    import json
+
+    found = []
+    for path in folder.glob("*.npz"):
+        with np.load(path, allow_pickle=False) as entry:
+            if json.loads(str(entry["header"][()])).get("kind") == "plan":
+                found.append(path)
+    return found
+
+
+def _fresh_process_and_plans() -> None:
+    _fresh_process()
+    reference_cache._PLANS.clear()
+
+
+def _counting_plans(monkeypatch) -> list[int]:
+    """Count the value iterations computed (not read from the cache)."""
+    from himit_torch.exact import planning
+
+    calls: list[int] = []
+    compute = planning._smdp_value_iteration
+
+    def counted(models, tol, max_iter):
+        calls.append(1)
+        return compute(models, tol, max_iter)
+
+    monkeypatch.setattr(planning, "_smdp_value_iteration", counted)
+    return calls
+
+
+def test_a_value_iteration_is_kept_by_its_models_content(cache, monkeypatch):
+    """The mentor's policy's and the optimum's value iteration: a hit is the computation to the
+    bit; another world's or setting's entry is never used; a damaged entry is computed again."""
+    from himit_torch.exact.option_models import option_models
+    from himit_torch.exact.planning import _smdp_value_iteration, smdp_value_iteration
+
+    reference_cache._PLANS.clear()
+    world = MultiRooms(16, 4)
+    want = _smdp_value_iteration(option_models(world, learner_options(world)), 1e-10, 100_000)
+    calls = _counting_plans(monkeypatch)
+    first = smdp_value_iteration(option_models(world, learner_options(world)))
+    assert calls == [1] and len(_plan_entries(cache)) == 1
+    _fresh_process_and_plans()
+    hit = smdp_value_iteration(option_models(MultiRooms(16, 4), learner_options(MultiRooms(16, 4))))
+    assert calls == [1]  # read from disk, in a "new process"
+    for got in (first, hit):
+        assert got.iterations == want.iterations
+        for part in ("values", "policy", "q"):
+            x, y = getattr(got, part), getattr(want, part)
+            assert x.dtype == y.dtype and torch.equal(x, y), part
+    hit.values[0] = 123.0  # (a caller's copy: what is kept does not change)
+    again = smdp_value_iteration(option_models(world, learner_options(world)))
+    assert calls == [1] and torch.equal(again.values, want.values)
+    # another tolerance, another world: computed, never the entry above
+    smdp_value_iteration(option_models(world, learner_options(world)), tol=1e-6)
+    slip = MultiRooms(16, 4, slip=0.2)
+    other = smdp_value_iteration(option_models(slip, learner_options(slip)))
+    assert calls == [1, 1, 1] and not torch.equal(other.values, want.values)
+    # a damaged entry: removed, computed again, the result the computation's
+    for path in _plan_entries(cache):
+        data = bytearray(path.read_bytes())
+        at = bytes(data).index(b"values.npy")
+        data[at + 8 + 128 + 8] ^= 0xFF
+        path.write_bytes(bytes(data))
+    _fresh_process_and_plans()
+    redone = smdp_value_iteration(option_models(world, learner_options(world)))
+    assert calls == [1, 1, 1, 1] and torch.equal(redone.values, want.values)
+    # models made another way (not kept by content) are solved, never looked up
+    _fresh_process_and_plans()
+    plain = om._option_models(world, learner_options(world), [(None, None)])[0]
+    smdp_value_iteration(plain)
+    assert calls == [1, 1, 1, 1, 1]

@@ -110,3 +110,26 @@ def test_maps_need_the_world(tmp_path):
     with pytest.raises(ValueError, match="needs the world"):
         logger.maps(object(), [0], 0, torch.zeros(4))
     logger.close()
+
+
+def test_an_image_is_encoded_with_the_pixels_of_torchs_make_image():
+    """The logger's own PNG encoding (a faster zlib level) keeps make_image's pixels and sizes."""
+    import io
+
+    import numpy as np
+    from PIL import Image
+    from torch.utils.tensorboard.summary import make_image
+
+    from himit_torch.viz.tensorboard import _png
+
+    rng = np.random.default_rng(0)
+    rgb = rng.integers(0, 256, size=(37, 53, 3), dtype=np.uint8)
+    rgb[:10] = 255  # (a flat band, as a map's background)
+    ours, torchs = _png(rgb), make_image(rgb)
+    assert (ours.height, ours.width, ours.colorspace) == (torchs.height, torchs.width, 3)
+
+    def pixels(proto) -> np.ndarray:
+        return np.asarray(Image.open(io.BytesIO(proto.encoded_image_string)))
+
+    np.testing.assert_array_equal(pixels(ours), pixels(torchs))
+    np.testing.assert_array_equal(pixels(ours), rgb)
