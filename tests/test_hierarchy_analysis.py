@@ -238,3 +238,79 @@ def test_q3s_transfer_cost_pairs_each_imitator_with_its_q1_cell(analysis):
     assert tests["eq. 1", "first_goal"].p == 1.0  # the same first goals: all ties
     with pytest.raises(ValueError, match="differ from Q1"):
         wp.transfer_cost_tests([q3], [replace(q1, budget=2000)])
+
+
+def _write_rows(directory, rows):
+    """A tiny sweep record from ``rows`` (dicts with the columns that matter, ``goals`` the
+    goals of a window ending at 75k, inside exp1's quarter; each run also has a window at
+    80k with 100 goals, after it)."""
+    import csv
+    import json
+
+    directory.mkdir(parents=True)
+    extra = [k for k in rows[0] if k not in ("goals",)]
+    with (directory / "runs.csv").open("w", newline="") as f:
+        w = csv.DictWriter(f, extra)
+        w.writeheader()
+        w.writerows({k: r[k] for k in extra} for r in rows)
+    with (directory / "results.csv").open("w", newline="") as f:
+        keys = [k for k in extra if k not in ("greedy_percent_of_optimal", "first_goal_step")]
+        w = csv.DictWriter(f, [*keys, "step", "goals_in_window"])
+        w.writeheader()
+        for r in rows:
+            base = {k: r[k] for k in keys}
+            w.writerow({**base, "step": 75_000, "goals_in_window": r["goals"]})
+            w.writerow({**base, "step": 80_000, "goals_in_window": 100})
+    (directory / "sweep.json").write_text(json.dumps({"commit": ["abcdef123", "abcdef9"]}))
+
+
+def test_q3s_multi_room_sweep_is_split_by_initial_value_and_costed_against_trial_on(
+    analysis, tmp_path
+):
+    """Hand-made records of the multi-room transfer sweep (4 learners, initial values −1 and 0)
+    and of H3's trial sweep (trial on and off). Hand-solved: at −1 under the paper's schedule
+    eq. 2 70 against options only 50, eq. 1 40 against primitives only 30, so hierarchy's
+    effect 20 − 10 = 10; at 0 every value is 5 higher (the same split). Transfer's cost uses
+    the trial-on cell only: eq. 2 70 − 80 = −10 (trial off's 0 is never read)."""
+    _, wp = analysis
+    greedy = {"imitation": 70, "options": 50, "imitation_primitives": 40, "primitives": 30}
+    rows = [
+        {"agent": a, "seed": s, "preset": p, "learner.initial_value": iv,
+         "greedy_percent_of_optimal": g + (5 if iv == "0.0" else 0), "first_goal_step": 1000 + s,
+         "goals": g // 10}
+        for p in ("paper", "explore-goals") for iv in ("-1.0", "0.0")
+        for a, g in greedy.items() for s in (0, 1)
+    ]  # fmt: skip
+    _write_rows(tmp_path / "q3_multirooms_exp1", rows)
+    cells, own, missing = wp.load_q3_sweep_cells(tmp_path)
+    assert missing == ["trial_exp1"] and own == []
+    trial = [
+        {"agent": a, "seed": s, "preset": p, "learner.mentor_trial": t,
+         "greedy_percent_of_optimal": 80 if t == "True" else 0, "first_goal_step": 900,
+         "goals": 3}
+        for p in ("paper", "explore-goals") for t in ("False", "True")
+        for a in ("imitation", "imitation_primitives") for s in (0, 1)
+    ]  # fmt: skip
+    _write_rows(tmp_path / "trial_exp1", trial)
+    cells, own, missing = wp.load_q3_sweep_cells(tmp_path)
+    assert missing == []
+    assert [(c.condition, c.schedule) for c in cells] == [
+        (wp.Q3_VALUES[v], p) for v in ("-1", "0") for p in ("paper", "explore-goals")
+    ]
+    for cell in cells:
+        assert cell.task == "exp1_top_right" and cell.budget == 300_000
+        assert cell.seeds == (0, 1) and cell.commit == "abcdef1, abcdef9"
+        assert cell.goals_q1["imitation"].tolist() == [7, 7]  # (the 80k window is not counted)
+        tests = {(t.name, t.endpoint): t for t in wp.cell_tests("Q3", cell)}
+        assert tests[wp.HIERARCHY, "greedy"].difference == pytest.approx(10.0)
+    assert wp.label("exp1_top_right").startswith("exp1, 80×80")
+    assert [(c.task, c.schedule) for c in own] == [
+        ("trial_exp1_own", "paper"),
+        ("trial_exp1_own", "explore-goals"),
+    ]
+    assert own[0].greedy["imitation"].tolist() == [80, 80]
+    cost = {(t.name.split(":")[0], t.schedule, t.endpoint): t
+            for t in wp.transfer_cost_tests(cells, own)}  # fmt: skip
+    assert len(cost) == 2 * 2 * 3  # only initial value −1's cells: imitator × schedule × endpoint
+    assert cost["eq. 2", "paper", "greedy"].difference == pytest.approx(-10.0)
+    assert cost["eq. 1", "paper", "greedy"].difference == pytest.approx(-40.0)

@@ -2,7 +2,7 @@
 copied into ``experiments/results/hierarchy/``, then ``analyse.py``.
 
     python experiments/hierarchy/run_hierarchy.py
-        [--parts segments trial puzzlebox mentors largest carryover q1 f q2 q2mg q3]
+        [--parts segments trial puzzlebox mentors largest carryover q1 f q2 q2mg q3 q3mr]
         [--logdir runs/hierarchy] [--skip-runs]
 
 Each part's wall time is written to ``experiments/results/hierarchy/timing.json``. The part
@@ -62,6 +62,7 @@ PARTS = {
         "q2_ends_exp1",
         "q2_stride_exp1",
     ),
+    "q3mr": ("q3_multirooms_exp1",),  # (transfer on the multi-room world)
 }
 #: What a sweep's record keeps in the repository: per-run summaries, per-window goals, its spec.
 RECORDS = ("runs.csv", "results.csv", "sweep.json")

@@ -73,6 +73,22 @@ Q3_TASKS = {
     "doorkey8x8_transfer": ("doorkey8x8", "DoorKey 8×8, mentor's goal (6, 1)"),
 }
 Q3_VALUES = {"-1": "initial value −1", "0": "initial value 0"}
+#: Q3 on the multi-room world (amendment "Q3 (transfer) on the multi-room world"): the sweep →
+#: (its cells' task name, label, budget, the sweep whose trial-on imitators watched the
+#: learner's own task: transfer's cost).
+Q3_SWEEPS = {
+    "q3_multirooms_exp1": (
+        "exp1_top_right",
+        "exp1, 80×80, mentor's goal the top-right corner",
+        300_000,
+        "trial_exp1",
+    ),
+}
+#: Each Q3 task's own-task cell's name (its mentor demonstrating the learner's own task).
+Q3_OWN_TASK = {
+    **{transfer: task for transfer, (task, _) in Q3_TASKS.items()},
+    **{task: f"{own}_own" for task, _, _, own in Q3_SWEEPS.values()},
+}
 #: F's tries (``mentor_feasibility``), each against Q1's eq. 2 cell (trial alone).
 F_TRIES = (1, 3)
 #: The per-window columns that make a run's record (a decision that differs changes them).
@@ -156,6 +172,8 @@ def label(world: str, condition: str = "") -> str:
         name = Q1_TASKS[world]
     elif world in Q3_TASKS:
         name = Q3_TASKS[world][1]
+    elif world in {task for task, *_ in Q3_SWEEPS.values()}:
+        (name,) = [name for task, name, *_ in Q3_SWEEPS.values() if task == world]
     else:
         name = Q2_WORLDS[world][0]
     return f"{name}, {condition}" if condition else name
@@ -196,24 +214,31 @@ def sweep_cell(runs: list[dict], windows: list[dict], world: str, schedule: str,
     )
 
 
+def read_sweep(results: Path, name: str, missing: list[str]):
+    """A committed sweep's ``(runs, windows, commits)``: its ``runs.csv`` and ``results.csv``
+    rows and its trials' distinct commits, short; ``None`` (its name added to ``missing``)
+    where its records are absent."""
+    directory = results / name
+    if not (directory / "runs.csv").exists():
+        missing.append(name)
+        return None
+    with (directory / "runs.csv").open() as f:
+        runs = list(csv.DictReader(f))
+    with (directory / "results.csv").open() as f:
+        windows = list(csv.DictReader(f))
+    commit = json.loads((directory / "sweep.json").read_text()).get("commit", "?")
+    # a sweep's record lists its trials' commits: the distinct ones, short
+    commits = commit if isinstance(commit, list) else [commit]
+    return runs, windows, ", ".join(sorted({str(c)[:7] for c in commits}))
+
+
 def load_q2_cells(results: Path) -> tuple[list[Cell], list[str]]:
     """Q2's cells from the committed sweeps (those present), and the sweeps absent."""
-    cells, missing = [], []
+    cells: list[Cell] = []
+    missing: list[str] = []
 
     def read(name: str) -> tuple[list[dict], list[dict], str] | None:
-        directory = results / name
-        if not (directory / "runs.csv").exists():
-            missing.append(name)
-            return None
-        with (directory / "runs.csv").open() as f:
-            runs = list(csv.DictReader(f))
-        with (directory / "results.csv").open() as f:
-            windows = list(csv.DictReader(f))
-        commit = json.loads((directory / "sweep.json").read_text()).get("commit", "?")
-        # a sweep's record lists its trials' commits: the distinct ones, short
-        commits = commit if isinstance(commit, list) else [commit]
-        commit = ", ".join(sorted({str(c)[:7] for c in commits}))
-        return runs, windows, commit
+        return read_sweep(results, name, missing)
 
     for world, (_, budget) in Q2_WORLDS.items():
         controls = read(f"q2_controls_{world}")
@@ -461,6 +486,57 @@ def load_q3_cells(results: Path) -> tuple[list[Cell], list[str]]:
     return cells, missing
 
 
+def load_q3_sweep_cells(results: Path) -> tuple[list[Cell], list[Cell], list[str]]:
+    """Q3's cells from its sweeps (:data:`Q3_SWEEPS`, those present): per initial value and
+    schedule the four learners; the own-task cells their transfer's cost is measured against
+    (the trial-on imitators of the sweep named there, task ``<sweep>_own``); the sweeps absent."""
+    cells, own_cells, missing = [], [], []
+    for name, (task, _, budget, own) in Q3_SWEEPS.items():
+        found = read_sweep(results, name, missing)
+        if found is None:
+            continue
+        runs, windows, commit = found
+        for value, condition in Q3_VALUES.items():
+            for schedule in SCHEDULES:
+
+                def keep(row, value=value, schedule=schedule):
+                    initial = float(row["learner.initial_value"])
+                    return row["preset"] == schedule and initial == float(value)
+
+                cells.append(
+                    sweep_cell(
+                        [r for r in runs if keep(r)],
+                        [r for r in windows if keep(r)],
+                        task,
+                        schedule,
+                        condition,
+                        budget,
+                        commit,
+                    )  # fmt: skip
+                )
+        found = read_sweep(results, own, missing)
+        if found is None:
+            continue
+        runs, windows, commit = found
+        for schedule in SCHEDULES:
+
+            def trial(row, schedule=schedule):
+                return row["preset"] == schedule and row["learner.mentor_trial"] == "True"
+
+            own_cells.append(
+                sweep_cell(
+                    [r for r in runs if trial(r)],
+                    [r for r in windows if trial(r)],
+                    f"{own}_own",
+                    schedule,
+                    "",
+                    budget,
+                    commit,
+                )  # fmt: skip
+            )
+    return cells, own_cells, missing
+
+
 def imitation_effect(cell: Cell, agent: str, endpoint: str) -> np.ndarray:
     """Per seed, the imitator ``agent``'s imitation effect on ``endpoint``: ``agent`` − its
     no-mentor control; on the first goal, its speed-up (:func:`speed_ups`)."""
@@ -510,7 +586,7 @@ def transfer_cost_tests(cells: list[Cell], same_task: list[Cell]) -> list[Test]:
     q1 = {(c.task, c.schedule): c for c in same_task}
     out = []
     for cell in cells:
-        base = q1.get((Q3_TASKS[cell.task][0], cell.schedule))
+        base = q1.get((Q3_OWN_TASK[cell.task], cell.schedule))
         if cell.condition != Q3_VALUES["-1"] or base is None:
             continue
         if cell.seeds != base.seeds or cell.budget != base.budget:
@@ -724,6 +800,67 @@ def q3_answer_lines(q3: list[Test], cells: list[Cell]) -> list[str]:
     return lines
 
 
+#: What a sweep's per-run summary says of a run (the columns compared by Q3's checks).
+SUMMARY_COLUMNS = (
+    "total_goals",
+    "final_window_goals",
+    "late_goals",
+    "first_goal_step",
+    "value_start",
+    "mentor_term_wins",
+    "greedy_percent_of_optimal",
+    "greedy_value_start",
+)
+
+
+def same_runs(results: Path, sweep: str, other: str, agents: tuple[str, ...],
+              keep: Callable[[dict], bool]) -> tuple[int, int]:  # fmt: skip
+    """Of ``sweep``'s runs of ``agents`` that ``keep`` selects, how many have a per-run summary
+    equal to the same agent's, seed's and schedule's in the sweep ``other``, and of how many
+    that ``other`` has (a check that a run does not depend on the sweep it ran in)."""
+    ignored: list[str] = []
+    mine, theirs = read_sweep(results, sweep, ignored), read_sweep(results, other, ignored)
+    if mine is None or theirs is None:
+        return 0, 0
+    by = {(r["agent"], r["seed"], r["preset"]): r for r in theirs[0] if r["agent"] in agents}
+    pairs = [
+        (r, by[r["agent"], r["seed"], r["preset"]])
+        for r in mine[0]
+        if r["agent"] in agents and keep(r) and (r["agent"], r["seed"], r["preset"]) in by
+    ]
+    equal = sum(all(a[c] == b[c] for c in SUMMARY_COLUMNS) for a, b in pairs)
+    return equal, len(pairs)
+
+
+def q3_sweep_paragraphs(results: Path, cells: list[Cell]) -> list[str]:
+    """What Q3's multi-room cells are, and their checks against the earlier runs the amendment
+    names (at initial value −1: the imitators H6b's, the controls Q2's)."""
+    lines = []
+    for sweep, (task, name, budget, own) in Q3_SWEEPS.items():
+        if not any(c.task == task for c in cells):
+            continue
+        minus_one = lambda row: float(row["learner.initial_value"]) == -1.0  # noqa: E731
+        imitators = same_runs(results, sweep, "other_goal_exp1", (EQ2, EQ1), minus_one)
+        controls = same_runs(results, sweep, "q2_controls_exp1", (OPTIONS, PRIMITIVES), minus_one)
+        lines += [
+            f'**{name}** (amendment "Q3 (transfer) on the multi-room world"): the learner is '
+            "rewarded at exp1's goal (the bottom-right corner); its mentor demonstrates its walk "
+            "to the top-right corner cell (`mentor_goal`, H6's setting), which is no goal of the "
+            "learner's. Four learners (eq. 2 and eq. 1 with trial; options only and primitives "
+            f"only, no mentor), 20 seeds (0–19), {budget:,} steps a run, initial value −1 or 0 "
+            f"for all four, both schedules. Transfer's cost is measured against H3's `{own}` "
+            "cell with trial on (the mentor demonstrating the learner's own task). Run: `python "
+            "experiments/hierarchy/run_hierarchy.py --parts q3mr`.",
+            "",
+            "*Check* (not a test), at initial value −1, each run's summary (goals, first goal, "
+            "values, the greedy policy) against the same run in an earlier sweep: the imitators "
+            f"against H6b's `other_goal_exp1`, {imitators[0]} of {imitators[1]} equal; the "
+            f"controls against Q2's `q2_controls_exp1`, {controls[0]} of {controls[1]} equal.",
+            "",
+        ]
+    return lines
+
+
 def q3_section(results: Path, q3: list[Test], cells: list[Cell]) -> list[str]:
     """Q3's section: the setting, the check of its controls against Q1's, each task × initial
     value's learners and split, the mechanism's and transfer's cost's tests."""
@@ -743,6 +880,8 @@ def q3_section(results: Path, q3: list[Test], cells: list[Cell]) -> list[str]:
     ]
     rows = []
     for cell in cells:
+        if cell.task not in Q3_TASKS:
+            continue  # (the multi-room world's cells: checked below)
         task = Q3_TASKS[cell.task][0]
         q1_dir = results / f"q1_{task}_{cell.schedule}"
         q3_dir = results / f"q3_{task}_iv-1_{cell.schedule}"
@@ -767,6 +906,7 @@ def q3_section(results: Path, q3: list[Test], cells: list[Cell]) -> list[str]:
             *rows,
             "",
         ]
+    lines += q3_sweep_paragraphs(results, cells)
     for world, condition in dict.fromkeys((c.task, c.condition) for c in cells):
         group = [c for c in cells if (c.task, c.condition) == (world, condition)]
         name = label(world, condition)
@@ -813,9 +953,13 @@ def main() -> None:
     missing += f_missing
     f = adjust(f_raw)
     q3_cells, q3_missing = load_q3_cells(results)
-    missing += q3_missing
+    q3_sweep_cells, q3_own_cells, q3_sweeps_missing = load_q3_sweep_cells(results)
+    q3_cells += q3_sweep_cells
+    missing += q3_missing + q3_sweeps_missing
     q3_split = [t for cell in q3_cells for t in cell_tests("Q3", cell)]
-    q3 = adjust(q3_split + mechanism_tests(q3_cells) + transfer_cost_tests(q3_cells, cells))
+    q3 = adjust(
+        q3_split + mechanism_tests(q3_cells) + transfer_cost_tests(q3_cells, cells + q3_own_cells)
+    )
     every = q1 + q2 + q3_split
     verdicts = [helps(every, c.task, c.schedule, c.condition) for c in cells + q2_cells + q3_cells]
     distinct, repeats = distinct_comparisons([t for t in every if t.name == HIERARCHY])
