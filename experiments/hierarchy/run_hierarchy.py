@@ -12,8 +12,8 @@ budget its rule picks on held-out seeds (``q1_budget_rule.json``); ``f`` (feasib
 and 3 on Q1's cells) runs eq. 2 alone the same way; ``where_pays.py`` writes their page.
 ``q3`` (transfer, amendment "Q3 on MiniGrid") runs the four learners per
 transfer task, initial value and schedule. ``--tasks`` restricts ``q1``, ``f``, ``q2mg`` and
-``q3`` to some of their tasks, ``--sweeps`` a part to some of
-its sweeps; sweeps run in this process (``--no-ray``: Ray's start times out on a loaded machine).
+``q3`` to some of their tasks, ``--cells`` those parts to some of their cells (by name, e.g.
+``f_unlock_paper_n1``), ``--sweeps`` a part to some of its sweeps; sweeps run in this process (``--no-ray``: Ray's start times out on a loaded machine).
 """
 
 import argparse
@@ -65,9 +65,11 @@ PARTS = {
 }
 #: What a sweep's record keeps in the repository: per-run summaries, per-window goals, its spec.
 RECORDS = ("runs.csv", "results.csv", "sweep.json")
+#: Q1's further MiniGrid tasks (amendment "Q1 on three more MiniGrid tasks").
+Q1_MORE = ("doorkey8x8", "keycorridors3r1", "multiroomn4s5")
 #: Q1's Gymnasium runs (PROTOCOL.md, amendments of 2026-11-29): per task and schedule one
 #: ``himit run gymnasium`` of the four learners, trial on for the imitators, seeds 0–19.
-Q1_TASKS = ("taxi", "doorkey5x5", "doorkey6x6", "unlock")
+Q1_TASKS = ("taxi", "doorkey5x5", "doorkey6x6", "unlock", *Q1_MORE)
 Q1_SCHEDULES = ("paper", "explore-goals")
 Q1_AGENTS = ("imitation", "imitation_primitives", "options", "primitives")
 #: The MiniGrid tasks' budget rule: options only, the paper's schedule, the held-out seeds, one
@@ -85,7 +87,9 @@ Q3_TASKS = {
 }
 Q3_INITIAL_VALUES = {"-1": [], "0": ["--no-neutral-initial-value", "--initial-value", "0"]}
 #: The tasks whose budget the rule picks (Q1's MiniGrid tasks and Q3's learners' tasks).
-RULE_TASKS = (*MINIGRID, *Q3_TASKS)
+RULE_TASKS = (*MINIGRID, *Q3_TASKS, *Q1_MORE)
+#: ``--cells``: the only Gymnasium cells to run and copy (None: every cell of the parts run).
+ONLY_CELLS: set[str] | None = None
 
 
 def q1_budget(task: str, logdir: Path, skip_runs: bool) -> int | None:
@@ -126,7 +130,10 @@ def q1_budget(task: str, logdir: Path, skip_runs: bool) -> int | None:
 def gym_cell(name: str, task: str, agents, schedule: str, extra: list[str], steps: int | None,
              logdir: Path, skip_runs: bool) -> None:  # fmt: skip
     """One ``himit run gymnasium`` cell of 20 seeds (unless ``skip_runs``), then its records (the
-    config, the task's summary and per-window curves) copied into the results."""
+    config, the task's summary and per-window curves) copied into the results; nothing for a
+    cell that ``--cells`` leaves out."""
+    if ONLY_CELLS is not None and name not in ONLY_CELLS:
+        return
     if not skip_runs:
         budget = [] if steps is None else ["--steps", str(steps)]
         run("-m", "himit_torch.cli", "run", "gymnasium", "--tasks", task, "--agents", *agents,
@@ -247,11 +254,13 @@ def main() -> None:
     parser.add_argument("--tasks", nargs="+", choices=sorted({*Q1_TASKS, *Q3_TASKS}),
                         help="q1's, f's, q2mg's and q3's tasks (default: each part's all)")  # fmt: skip
     parser.add_argument("--sweeps", nargs="+", help="only these of the parts' sweeps")
+    parser.add_argument("--cells", nargs="+", help="only these of q1's, f's, q2mg's, q3's cells")
     args = parser.parse_args()
+    global ONLY_CELLS
+    ONLY_CELLS = None if args.cells is None else set(args.cells)
     logdir = Path(args.logdir)
     RESULTS.mkdir(parents=True, exist_ok=True)
     timing_path = RESULTS / "timing.json"
-    timing = json.loads(timing_path.read_text()) if timing_path.exists() else {}
     for part in args.parts:
         started = time.perf_counter()
         if part == "puzzlebox" and not args.skip_runs:
@@ -277,6 +286,10 @@ def main() -> None:
             key = f"{part} ({' '.join(args.tasks)})" if some else part
             if args.sweeps:
                 key = f"{part} ({' '.join(n for n in PARTS[part] if n in args.sweeps)})"
+            if args.cells and part in ("q1", "f", "q2mg", "q3"):
+                key = f"{part} ({' '.join(args.cells)})"
+            # read again just before writing: another part may have run beside this one
+            timing = json.loads(timing_path.read_text()) if timing_path.exists() else {}
             timing[key] = round((time.perf_counter() - started) / 60, 1)
             timing_path.write_text(json.dumps(timing, indent=2) + "\n")
     run(str(HERE / "analyse.py"))

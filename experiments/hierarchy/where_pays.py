@@ -53,6 +53,9 @@ Q1_TASKS = {
     "doorkey5x5": "DoorKey 5×5",
     "doorkey6x6": "DoorKey 6×6",
     "unlock": "Unlock",
+    "doorkey8x8": "DoorKey 8×8",
+    "keycorridors3r1": "KeyCorridor S3R1",
+    "multiroomn4s5": "MultiRoom N4S5",
 }
 #: Q2's worlds (sweep bases) and observations: label → (the imitators' sweep, its stride or
 #: None); the no-mentor controls are ``q2_controls_<world>``, shared by the observations.
