@@ -2,7 +2,7 @@
 copied into ``experiments/results/hierarchy/``, then ``analyse.py``.
 
     python experiments/hierarchy/run_hierarchy.py
-        [--parts segments trial puzzlebox mentors largest carryover q1 f q2 q2mg q3]
+        [--parts segments trial puzzlebox mentors largest carryover q1 f q2 q2mg q3 preset]
         [--logdir runs/hierarchy] [--skip-runs]
 
 Each part's wall time is written to ``experiments/results/hierarchy/timing.json``. The part
@@ -11,7 +11,8 @@ Each part's wall time is written to ``experiments/results/hierarchy/timing.json`
 budget its rule picks on held-out seeds (``q1_budget_rule.json``); ``f`` (feasibility at N = 1
 and 3 on Q1's cells) runs eq. 2 alone the same way; ``where_pays.py`` writes their page.
 ``q3`` (transfer, amendment "Q3 on MiniGrid") runs the four learners per
-transfer task, initial value and schedule. ``--tasks`` restricts ``q1``, ``f``, ``q2mg`` and
+transfer task, initial value and schedule. ``preset`` (amendment "the preset") runs its candidates on held-out seeds and
+``choose_preset.py`` picks one. ``--tasks`` restricts ``q1``, ``f``, ``q2mg`` and
 ``q3`` to some of their tasks, ``--cells`` those parts to some of their cells (by name, e.g.
 ``f_unlock_paper_n1``), ``--sweeps`` a part to some of its sweeps; sweeps run in this process (``--no-ray``: Ray's start times out on a loaded machine).
 """
@@ -54,6 +55,7 @@ PARTS = {
     "f": (),  # (the same, eq. 2 alone with feasibility: run_f)
     "q2mg": (),  # (Q2 on MiniGrid's tasks, himit run gymnasium per cell: run_q2_minigrid)
     "q3": (),  # (transfer on MiniGrid, himit run gymnasium per cell: run_q3)
+    "preset": ("preset_ends_exp2", "preset_stride_exp2", "preset_ends_exp1"),  # (+ run_preset)
     "q2": (
         "q2_controls_exp2",
         "q2_ends_exp2",
@@ -241,6 +243,21 @@ def run_q3(logdir: Path, skip_runs: bool, tasks=tuple(Q3_TASKS)) -> None:
                          ["--mentor-trial", *flags], steps, logdir, skip_runs)  # fmt: skip
 
 
+#: The preset's candidates (amendment "the preset"): eq. 2 with segments and trial under each of
+#: these base presets, on held-out seeds; on Taxi one ``himit run gymnasium`` cell each.
+PRESET_CANDIDATES = ("paper", "explore-goals", "mentor-fade", "recommended")
+
+
+def run_preset(logdir: Path, skip_runs: bool) -> None:
+    """The preset's Taxi cells: eq. 2 alone, segments and trial on, per candidate's base preset,
+    held-out seeds 5000–5019, Taxi's own budget (its exp2 and exp1 cells are the part's sweeps;
+    ``choose_preset.py`` applies the rule)."""
+    for base in PRESET_CANDIDATES:
+        gym_cell(f"preset_taxi_{base}", "taxi", ("imitation",), base,
+                 ["--mentor-segments", "--mentor-trial", "--first-seed", str(HELD_OUT_FIRST)],
+                 None, logdir, skip_runs)  # fmt: skip
+
+
 def run(*argv: str) -> None:
     print("$", " ".join(argv), flush=True)
     subprocess.run([sys.executable, *argv], check=True)
@@ -273,6 +290,8 @@ def main() -> None:
             run_q2_minigrid(logdir, args.skip_runs, args.tasks or MINIGRID)
         if part == "q3":
             run_q3(logdir, args.skip_runs, args.tasks or tuple(Q3_TASKS))
+        if part == "preset":
+            run_preset(logdir, args.skip_runs)
         for name in [n for n in PARTS[part] if args.sweeps is None or n in args.sweeps]:
             if not args.skip_runs:
                 run("-m", "himit_torch.cli", "sweep", str(HERE / f"{name}.toml"),
@@ -294,6 +313,8 @@ def main() -> None:
             timing_path.write_text(json.dumps(timing, indent=2) + "\n")
     run(str(HERE / "analyse.py"))
     run(str(HERE / "where_pays.py"))
+    if "preset" in args.parts:
+        run(str(HERE / "choose_preset.py"))
 
 
 if __name__ == "__main__":
