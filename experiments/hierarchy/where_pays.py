@@ -929,20 +929,45 @@ def main() -> None:
             f"- **F, feasibility:** {len(significant)} of {len(f)} contrasts (N − trial alone) "
             "significant after Holm; what each setting changed is in its section below."
         )
+    choice_path = results / "preset_choice.json"
+    choice = json.loads(choice_path.read_text()) if choice_path.exists() else None
+    if choice is not None:
+        won = choice["candidates"][choice["winner"]]
+        lines.append(
+            f'- **The preset** (amendment "the preset"): of the '
+            f"{len(choice['candidates'])} candidates run on held-out seeds {choice['seeds']} at "
+            f"{len(choice['conditions'])} conditions, `{choice['winner']}` (base preset "
+            f"`{won['base_preset']}`, the segment term and trial) has "
+            + (
+                "the highest minimum"
+                if sum(c["tied_with_best"] for c in choice["candidates"].values()) == 1
+                else "a minimum within 1 point of the best and the most early goals"
+            )
+            + f" of the greedy policy's % of the optimum ({won['minimum']:.1f}, at {won['at']}; "
+            "`preset_choice.md`). "
+            + (
+                f"Registered as the learner preset `{choice['registered_as']}`: the tally above "
+                "holds (≥ 3 conditions, none worse)."
+                if n_helps >= 3 and n_worse == 0
+                else "Not registered: the tally above no longer holds."
+            )
+        )
     lines += [
         "- **Not run yet:** "
         + ("; ".join(sorted(set(missing))) + " (records absent); " if missing else "")
-        + "Q1 on the puzzle box and on MiniGrid's other tasks (DoorKey 8×8, UnlockPickup, "
-        "KeyCorridor, MultiRoom, FourRooms: registered for himit run minigrid, not yet in an "
-        "amendment), F on Q2's conditions (where the mentor's observed moves are several "
+        + "Q1 on the puzzle box and on MiniGrid's UnlockPickup, FourRooms and MultiRoom N2S4 "
+        "(registered for himit run minigrid, left out of the amendment that added three tasks, "
+        "by cost and for having no subgoal or only one: PROTOCOL.md), F on Q2's conditions (where the mentor's observed moves are several "
         "steps), Q3's other transfers (options discovered from the mentor's states, multirooms "
         "with another goal room, the 5-skewer puzzle box after 4-skewer demonstrations, a key "
         "moved), Q4 (the fifth skewer): their cells follow in amendments before their runs, as "
         "the settings and worlds land. "
         + (
-            "A preset is due by the protocol (eq. 2 with segments and trial, where the mentor is "
-            "seen at its subgoals), chosen on held-out seeds 5000–5019 by the presets' rule: not "
-            "run yet."
+            ""
+            if choice is not None
+            else "A preset is due by the protocol (eq. 2 with segments and trial, where the "
+            "mentor is seen at its subgoals), chosen on held-out seeds 5000–5019 by the presets' "
+            "rule: not run yet."
             if n_helps >= 3 and n_worse == 0
             else "No preset: nothing has won at ≥ 3 conditions."
         ),
