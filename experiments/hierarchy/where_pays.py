@@ -627,7 +627,7 @@ def f_section(results: Path, cells: list[Cell]) -> tuple[list[Test], list[str], 
         q1_dir = results / f"q1_{cell.task}_{cell.schedule}"
         check = results / f"f_{cell.task}_{cell.schedule}_trial"
         if not (check / "tasks" / f"{cell.task}.json").exists():
-            missing.append(check.name)
+            missing += [check.name, *(f"f_{cell.task}_{cell.schedule}_n{n}" for n in F_TRIES)]
             continue
         base = window_records(q1_dir, cell.task)
         changed_check, n_check = runs_changed(base, window_records(check, cell.task))
