@@ -2,19 +2,22 @@
 copied into ``experiments/results/hierarchy/``, then ``analyse.py``.
 
     python experiments/hierarchy/run_hierarchy.py
-        [--parts segments trial puzzlebox mentors largest carryover q1 f q2 q2mg q3 preset]
+        [--parts segments trial puzzlebox mentors largest carryover q1 f q2 q2mg q3 preset
+                 subgoal-mentor]
         [--logdir runs/hierarchy] [--skip-runs]
 
-Each part's wall time is written to ``experiments/results/hierarchy/timing.json``. The part
-``q1`` (the amendments of 2026-11-29: Q1 on Gymnasium's Taxi and on MiniGrid's tasks) runs
-``himit run gymnasium`` per task and schedule instead of a sweep, each MiniGrid task at the
-budget its rule picks on held-out seeds (``q1_budget_rule.json``); ``f`` (feasibility at N = 1
-and 3 on Q1's cells) runs eq. 2 alone the same way; ``where_pays.py`` writes their page.
-``q3`` (transfer, amendment "Q3 on MiniGrid") runs the four learners per
-transfer task, initial value and schedule. ``preset`` (amendment "the preset") runs its candidates on held-out seeds and
-``choose_preset.py`` picks one. ``--tasks`` restricts ``q1``, ``f``, ``q2mg`` and
-``q3`` to some of their tasks, ``--cells`` those parts to some of their cells (by name, e.g.
-``f_unlock_paper_n1``), ``--sweeps`` a part to some of its sweeps; sweeps run in this process (``--no-ray``: Ray's start times out on a loaded machine).
+Each part's wall time is written to ``experiments/results/hierarchy/timing.json``. The part ``q1``
+(the amendments of 2026-11-29: Q1 on Gymnasium's Taxi and on MiniGrid's tasks) runs ``himit run
+gymnasium`` per task and schedule instead of a sweep, each MiniGrid task at the budget its rule
+picks on held-out seeds (``q1_budget_rule.json``); ``f`` (feasibility at N = 1 and 3 on Q1's cells)
+runs eq. 2 alone the same way; ``where_pays.py`` writes their page. ``q3`` (transfer, amendment "Q3
+on MiniGrid") runs the four learners per transfer task, initial value and schedule. ``preset``
+(amendment "the preset") runs its candidates on held-out seeds and ``choose_preset.py`` picks one;
+``subgoal-mentor`` runs the chosen preset on seeds 0–19 (its results, the amendment's rule for a
+preset that fades). ``--tasks`` restricts ``q1``, ``f``, ``q2mg`` and ``q3`` to some of their
+tasks, ``--cells`` those parts to some of their cells (by name, e.g. ``f_unlock_paper_n1``),
+``--sweeps`` a part to some of its sweeps; sweeps run in this process (``--no-ray``: Ray's start
+times out on a loaded machine).
 """
 
 import argparse
@@ -56,6 +59,11 @@ PARTS = {
     "q2mg": (),  # (Q2 on MiniGrid's tasks, himit run gymnasium per cell: run_q2_minigrid)
     "q3": (),  # (transfer on MiniGrid, himit run gymnasium per cell: run_q3)
     "preset": ("preset_ends_exp2", "preset_stride_exp2", "preset_ends_exp1"),  # (+ run_preset)
+    "subgoal-mentor": (  # the chosen preset on seeds 0–19 (+ its Taxi cell)
+        "subgoal_mentor_ends_exp2",
+        "subgoal_mentor_stride_exp2",
+        "subgoal_mentor_ends_exp1",
+    ),
     "q2": (
         "q2_controls_exp2",
         "q2_ends_exp2",
@@ -292,6 +300,9 @@ def main() -> None:
             run_q3(logdir, args.skip_runs, args.tasks or tuple(Q3_TASKS))
         if part == "preset":
             run_preset(logdir, args.skip_runs)
+        if part == "subgoal-mentor":
+            gym_cell("subgoal_mentor_taxi", "taxi", ("imitation",), "subgoal-mentor", [], None,
+                     logdir, args.skip_runs)  # fmt: skip
         for name in [n for n in PARTS[part] if args.sweeps is None or n in args.sweeps]:
             if not args.skip_runs:
                 run("-m", "himit_torch.cli", "sweep", str(HERE / f"{name}.toml"),
