@@ -38,6 +38,7 @@ from common import (
     adjust,
     compare_values,
     distinct_comparisons,
+    load_runs,
     show_test,
 )
 
@@ -618,6 +619,71 @@ def verdict_lines(tests: list[Test], cells: list[Cell], question: str) -> list[s
     return lines
 
 
+#: The subgoal-mentor preset's own runs on seeds 0–19 (amendment "the preset": it fades, so its
+#: results are its own runs): condition → (its record, stride or None, the (task, condition) of
+#: the Q1 / Q2 cell shown beside it, paper's ε).
+SUBGOAL_MENTOR = {
+    "exp2, option ends": ("subgoal_mentor_ends_exp2", None, ("exp2", "option ends")),
+    "exp2, stride 10": ("subgoal_mentor_stride_exp2", "10", ("exp2", "stride 10")),
+    "exp2, stride 20": ("subgoal_mentor_stride_exp2", "20", ("exp2", "stride 20")),
+    "exp1, option ends": ("subgoal_mentor_ends_exp1", None, ("exp1", "option ends")),
+    "Taxi, every state": ("subgoal_mentor_taxi", None, ("taxi", "")),
+}
+
+
+def subgoal_mentor_lines(results: Path, cells: list[Cell]) -> list[str]:
+    """The preset's results section: eq. 2 under ``subgoal-mentor`` on seeds 0–19 beside the
+    same condition's committed cell (paper's ε: eq. 2 and eq. 1 with trial, and the segment
+    term on Q2's worlds; options only). Empty where no record is there yet."""
+    rows = []
+    by = {(c.task, c.condition, c.schedule): c for c in cells}
+    for condition, (name, stride, (task, observation)) in SUBGOAL_MENTOR.items():
+        directory = results / name
+        base = by.get((task, observation, "paper"))
+        if base is None:
+            continue
+        if (directory / "runs.csv").exists():
+            runs, windows = (load_runs(directory / f) for f in ("runs.csv", "results.csv"))
+            if stride is not None:
+                runs, windows = ([r for r in rows_ if r["observation_stride"] == stride]
+                                 for rows_ in (runs, windows))  # fmt: skip
+            cell = sweep_cell(runs, windows, task, "paper", observation, base.budget, "")
+        elif (directory / "tasks" / f"{task}.json").exists():
+            cell = load_gymnasium_cell(directory, task, "paper")
+        else:
+            continue
+        if cell.seeds != base.seeds:
+            raise ValueError(f"{name}: its seeds differ from the committed cell's")
+
+        def shown(c: Cell, agent: str) -> str:
+            return (f"{bca_interval(c.greedy[agent]).format(1)} "
+                    f"({bca_interval(c.goals_q1[agent]).estimate:.0f})")  # fmt: skip
+
+        rows.append(f"| {condition} | {shown(cell, EQ2)} | {shown(base, EQ2)} | "
+                    f"{shown(base, EQ1)} | {shown(base, OPTIONS)} |")  # fmt: skip
+    if not rows:
+        return []
+    return [
+        "## The preset `subgoal-mentor` on seeds 0–19",
+        "",
+        "Chosen on held-out seeds 5000–5019 (`preset_choice.md`): the mentor-fade preset "
+        "(`mentor_fade = 20`, the paper's ε) with the segment term and trial. It fades, so its "
+        "results are its own runs on seeds 0–19 (eq. 2 alone), shown beside the committed cell "
+        "of the same condition under the paper's ε (eq. 2 and eq. 1 with trial, with the "
+        "segment term on exp2 and exp1; options only, no mentor). Greedy policy, % of the "
+        "optimum, mean [95 % BCa]; in brackets the goals in the first quarter of the budget. "
+        "A description: the amendment declared no test of the preset against these cells, and "
+        "eq. 1 was not run with fading. Run: `python experiments/hierarchy/run_hierarchy.py "
+        "--parts subgoal-mentor`.",
+        "",
+        "| condition | eq. 2, `subgoal-mentor` | eq. 2, no fading | eq. 1, no fading | "
+        "options only |",
+        "|---|---|---|---|---|",
+        *rows,
+        "",
+    ]
+
+
 def f_section(results: Path, cells: list[Cell]) -> tuple[list[Test], list[str], list[str]]:
     """F's tests (unadjusted), its table of changed runs, and its cells absent."""
     tests: list[Test] = []
@@ -1017,6 +1083,7 @@ def main() -> None:
                 [t for t in q2 if (t.world, t.condition) == (world, observation)],
                 f"{name}: the split, paired by seed",
             )
+    lines += subgoal_mentor_lines(results, cells + q2_cells)
     if q3_cells:
         lines += q3_section(results, q3, q3_cells)
     if f:
