@@ -265,3 +265,27 @@ def test_the_preset_rule_takes_the_highest_minimum_and_breaks_near_ties_by_early
     assert choose_preset.choose(table, tolerance=0.0)[0] == "b"
     with pytest.raises(ValueError, match="conditions differ"):
         choose_preset.choose({"a": {"x": (1.0, 1.0, 20)}, "b": {"y": (1.0, 1.0, 20)}})
+
+
+@pytest.mark.slow
+def test_the_committed_choice_regenerates_and_is_the_registered_preset(analysis):
+    """The preset's choice, read again from the committed records, picks the candidate the
+    record names, and the preset registered under its name is that candidate's settings."""
+    import json
+
+    from himit_torch.learner.presets import PRESETS
+
+    sys.path.insert(0, str(HERE))
+    try:
+        import choose_preset
+    finally:
+        sys.path.remove(str(HERE))
+    results = HERE.parent / "results" / "hierarchy"
+    record = json.loads((results / "preset_choice.json").read_text())
+    winner, scores = choose_preset.choose(choose_preset.read_table(results))
+    assert winner == record["winner"]
+    for candidate, score in scores.items():
+        assert score["minimum"] == pytest.approx(record["candidates"][candidate]["minimum"])
+    base = PRESETS[choose_preset.CANDIDATES[winner]].changes()
+    registered = PRESETS[record["registered_as"]].changes()
+    assert registered == {**base, "mentor_segments": True, "mentor_trial": True}
