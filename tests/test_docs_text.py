@@ -74,10 +74,12 @@ def test_presets_table_is_a_table():
     # a value that differs from the paper's is told apart (bold), with the reason for it
     fade = rows["mentor_fade"]
     cells = [entry.astext() for entry in fade.children]
-    assert cells[1:5] == ["None", "None", "20.0", "20.0"]
+    assert cells[1:6] == ["None", "None", "20.0", "20.0", "20.0"]
     assert fade.children[3].next_node(nodes.strong) is not None
     assert fade.children[1].next_node(nodes.strong) is None
-    assert "mentor-fade, recommended" in cells[5]
+    # the reasons, by the presets that take each value: subgoal-mentor's fading has its own
+    assert "mentor-fade, recommended (20.0)" in cells[-1]
+    assert "subgoal-mentor (20.0)" in cells[-1]
 
 
 def test_layout_table_is_generated_from_the_layers_and_docstrings():
@@ -127,7 +129,7 @@ def test_layout_table_is_generated_from_the_layers_and_docstrings():
 
 
 def test_built_presets_page_has_the_table():
-    """After ``make docs``: the page holds a real table naming the four presets."""
+    """After ``make docs``: the page holds a real table naming the presets."""
     page = DOCS / "_build" / "html" / "presets.html"
     if not page.exists():
         pytest.skip("the docs are not built (make docs)")
@@ -135,5 +137,5 @@ def test_built_presets_page_has_the_table():
     assert "<table" in html
     assert "list-table" not in html
     table = html[html.index("<table") : html.index("</table>")]
-    for name in ("paper", "explore-goals", "mentor-fade", "recommended"):
+    for name in ("paper", "explore-goals", "mentor-fade", "recommended", "subgoal-mentor"):
         assert name in table

@@ -240,6 +240,57 @@ def test_q3s_transfer_cost_pairs_each_imitator_with_its_q1_cell(analysis):
         wp.transfer_cost_tests([q3], [replace(q1, budget=2000)])
 
 
+def test_the_preset_rule_takes_the_highest_minimum_and_breaks_near_ties_by_early_goals(analysis):
+    sys.path.insert(0, str(HERE))
+    try:
+        import choose_preset
+    finally:
+        sys.path.remove(str(HERE))
+    # minima: a 80.0 (at y), b 80.5 (at x), c 70.0: a and b tie within 1 point, a has more
+    # early goals (10 + 30 = 40 against 35), so a wins though b's minimum is higher
+    table = {
+        "a": {"x": (90.0, 10.0, 20), "y": (80.0, 30.0, 20)},
+        "b": {"x": (80.5, 20.0, 20), "y": (95.0, 15.0, 20)},
+        "c": {"x": (70.0, 99.0, 20), "y": (99.0, 99.0, 20)},
+    }
+    winner, scores = choose_preset.choose(table)
+    assert winner == "a"
+    assert (scores["a"]["minimum"], scores["a"]["at"], scores["a"]["early_goals"]) == (
+        80.0,
+        "y",
+        40.0,
+    )
+    assert [c for c, s in scores.items() if s["tied_with_best"]] == ["a", "b"]
+    # with no tolerance the highest minimum alone decides
+    assert choose_preset.choose(table, tolerance=0.0)[0] == "b"
+    with pytest.raises(ValueError, match="conditions differ"):
+        choose_preset.choose({"a": {"x": (1.0, 1.0, 20)}, "b": {"y": (1.0, 1.0, 20)}})
+
+
+@pytest.mark.slow
+def test_the_committed_choice_regenerates_and_is_the_registered_preset(analysis):
+    """The preset's choice, read again from the committed records, picks the candidate the
+    record names, and the preset registered under its name is that candidate's settings."""
+    import json
+
+    from himit_torch.learner.presets import PRESETS
+
+    sys.path.insert(0, str(HERE))
+    try:
+        import choose_preset
+    finally:
+        sys.path.remove(str(HERE))
+    results = HERE.parent / "results" / "hierarchy"
+    record = json.loads((results / "preset_choice.json").read_text())
+    winner, scores = choose_preset.choose(choose_preset.read_table(results))
+    assert winner == record["winner"]
+    for candidate, score in scores.items():
+        assert score["minimum"] == pytest.approx(record["candidates"][candidate]["minimum"])
+    base = PRESETS[choose_preset.CANDIDATES[winner]].changes()
+    registered = PRESETS[record["registered_as"]].changes()
+    assert registered == {**base, "mentor_segments": True, "mentor_trial": True}
+
+
 def _write_rows(directory, rows):
     """A tiny sweep record from ``rows`` (dicts with the columns that matter, ``goals`` the
     goals of a window ending at 75k, inside exp1's quarter; each run also has a window at

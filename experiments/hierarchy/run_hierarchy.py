@@ -2,18 +2,23 @@
 copied into ``experiments/results/hierarchy/``, then ``analyse.py``.
 
     python experiments/hierarchy/run_hierarchy.py
-        [--parts segments trial puzzlebox mentors largest carryover q1 f q2 q2mg q3 q3mr]
+        [--parts segments trial puzzlebox mentors largest carryover q1 f q2 q2mg q3 preset
+                 subgoal-mentor q3mr]
         [--logdir runs/hierarchy] [--skip-runs]
 
-Each part's wall time is written to ``experiments/results/hierarchy/timing.json``. The part
-``q1`` (the amendments of 2026-11-29: Q1 on Gymnasium's Taxi and on MiniGrid's tasks) runs
-``himit run gymnasium`` per task and schedule instead of a sweep, each MiniGrid task at the
-budget its rule picks on held-out seeds (``q1_budget_rule.json``); ``f`` (feasibility at N = 1
-and 3 on Q1's cells) runs eq. 2 alone the same way; ``where_pays.py`` writes their page.
-``q3`` (transfer, amendment "Q3 on MiniGrid") runs the four learners per
-transfer task, initial value and schedule. ``--tasks`` restricts ``q1``, ``f``, ``q2mg`` and
-``q3`` to some of their tasks, ``--sweeps`` a part to some of
-its sweeps; sweeps run in this process (``--no-ray``: Ray's start times out on a loaded machine).
+Each part's wall time is written to ``experiments/results/hierarchy/timing.json``. The part ``q1``
+(the amendments of 2026-11-29: Q1 on Gymnasium's Taxi and on MiniGrid's tasks) runs ``himit run
+gymnasium`` per task and schedule instead of a sweep, each MiniGrid task at the budget its rule
+picks on held-out seeds (``q1_budget_rule.json``); ``f`` (feasibility at N = 1 and 3 on Q1's cells)
+runs eq. 2 alone the same way; ``where_pays.py`` writes their page. ``q3`` (transfer, amendment "Q3
+on MiniGrid") runs the four learners per transfer task, initial value and schedule. ``preset``
+(amendment "the preset") runs its candidates on held-out seeds and ``choose_preset.py`` picks one;
+``subgoal-mentor`` runs the chosen preset on seeds 0–19 (its results, the amendment's rule for a
+preset that fades); ``q3mr`` (amendment "Q3 (transfer) on the multi-room world") is one sweep.
+``--tasks`` restricts ``q1``, ``f``, ``q2mg`` and ``q3`` to some of their
+tasks, ``--cells`` those parts to some of their cells (by name, e.g. ``f_unlock_paper_n1``),
+``--sweeps`` a part to some of its sweeps; sweeps run in this process (``--no-ray``: Ray's start
+times out on a loaded machine).
 """
 
 import argparse
@@ -54,6 +59,12 @@ PARTS = {
     "f": (),  # (the same, eq. 2 alone with feasibility: run_f)
     "q2mg": (),  # (Q2 on MiniGrid's tasks, himit run gymnasium per cell: run_q2_minigrid)
     "q3": (),  # (transfer on MiniGrid, himit run gymnasium per cell: run_q3)
+    "preset": ("preset_ends_exp2", "preset_stride_exp2", "preset_ends_exp1"),  # (+ run_preset)
+    "subgoal-mentor": (  # the chosen preset on seeds 0–19 (+ its Taxi cell)
+        "subgoal_mentor_ends_exp2",
+        "subgoal_mentor_stride_exp2",
+        "subgoal_mentor_ends_exp1",
+    ),
     "q2": (
         "q2_controls_exp2",
         "q2_ends_exp2",
@@ -66,9 +77,11 @@ PARTS = {
 }
 #: What a sweep's record keeps in the repository: per-run summaries, per-window goals, its spec.
 RECORDS = ("runs.csv", "results.csv", "sweep.json")
+#: Q1's further MiniGrid tasks (amendment "Q1 on three more MiniGrid tasks").
+Q1_MORE = ("doorkey8x8", "keycorridors3r1", "multiroomn4s5")
 #: Q1's Gymnasium runs (PROTOCOL.md, amendments of 2026-11-29): per task and schedule one
 #: ``himit run gymnasium`` of the four learners, trial on for the imitators, seeds 0–19.
-Q1_TASKS = ("taxi", "doorkey5x5", "doorkey6x6", "unlock")
+Q1_TASKS = ("taxi", "doorkey5x5", "doorkey6x6", "unlock", *Q1_MORE)
 Q1_SCHEDULES = ("paper", "explore-goals")
 Q1_AGENTS = ("imitation", "imitation_primitives", "options", "primitives")
 #: The MiniGrid tasks' budget rule: options only, the paper's schedule, the held-out seeds, one
@@ -86,7 +99,9 @@ Q3_TASKS = {
 }
 Q3_INITIAL_VALUES = {"-1": [], "0": ["--no-neutral-initial-value", "--initial-value", "0"]}
 #: The tasks whose budget the rule picks (Q1's MiniGrid tasks and Q3's learners' tasks).
-RULE_TASKS = (*MINIGRID, *Q3_TASKS)
+RULE_TASKS = (*MINIGRID, *Q3_TASKS, *Q1_MORE)
+#: ``--cells``: the only Gymnasium cells to run and copy (None: every cell of the parts run).
+ONLY_CELLS: set[str] | None = None
 
 
 def q1_budget(task: str, logdir: Path, skip_runs: bool) -> int | None:
@@ -127,7 +142,10 @@ def q1_budget(task: str, logdir: Path, skip_runs: bool) -> int | None:
 def gym_cell(name: str, task: str, agents, schedule: str, extra: list[str], steps: int | None,
              logdir: Path, skip_runs: bool) -> None:  # fmt: skip
     """One ``himit run gymnasium`` cell of 20 seeds (unless ``skip_runs``), then its records (the
-    config, the task's summary and per-window curves) copied into the results."""
+    config, the task's summary and per-window curves) copied into the results; nothing for a
+    cell that ``--cells`` leaves out."""
+    if ONLY_CELLS is not None and name not in ONLY_CELLS:
+        return
     if not skip_runs:
         budget = [] if steps is None else ["--steps", str(steps)]
         run("-m", "himit_torch.cli", "run", "gymnasium", "--tasks", task, "--agents", *agents,
@@ -235,6 +253,21 @@ def run_q3(logdir: Path, skip_runs: bool, tasks=tuple(Q3_TASKS)) -> None:
                          ["--mentor-trial", *flags], steps, logdir, skip_runs)  # fmt: skip
 
 
+#: The preset's candidates (amendment "the preset"): eq. 2 with segments and trial under each of
+#: these base presets, on held-out seeds; on Taxi one ``himit run gymnasium`` cell each.
+PRESET_CANDIDATES = ("paper", "explore-goals", "mentor-fade", "recommended")
+
+
+def run_preset(logdir: Path, skip_runs: bool) -> None:
+    """The preset's Taxi cells: eq. 2 alone, segments and trial on, per candidate's base preset,
+    held-out seeds 5000–5019, Taxi's own budget (its exp2 and exp1 cells are the part's sweeps;
+    ``choose_preset.py`` applies the rule)."""
+    for base in PRESET_CANDIDATES:
+        gym_cell(f"preset_taxi_{base}", "taxi", ("imitation",), base,
+                 ["--mentor-segments", "--mentor-trial", "--first-seed", str(HELD_OUT_FIRST)],
+                 None, logdir, skip_runs)  # fmt: skip
+
+
 def run(*argv: str) -> None:
     print("$", " ".join(argv), flush=True)
     subprocess.run([sys.executable, *argv], check=True)
@@ -248,11 +281,13 @@ def main() -> None:
     parser.add_argument("--tasks", nargs="+", choices=sorted({*Q1_TASKS, *Q3_TASKS}),
                         help="q1's, f's, q2mg's and q3's tasks (default: each part's all)")  # fmt: skip
     parser.add_argument("--sweeps", nargs="+", help="only these of the parts' sweeps")
+    parser.add_argument("--cells", nargs="+", help="only these of q1's, f's, q2mg's, q3's cells")
     args = parser.parse_args()
+    global ONLY_CELLS
+    ONLY_CELLS = None if args.cells is None else set(args.cells)
     logdir = Path(args.logdir)
     RESULTS.mkdir(parents=True, exist_ok=True)
     timing_path = RESULTS / "timing.json"
-    timing = json.loads(timing_path.read_text()) if timing_path.exists() else {}
     for part in args.parts:
         started = time.perf_counter()
         if part == "puzzlebox" and not args.skip_runs:
@@ -265,6 +300,11 @@ def main() -> None:
             run_q2_minigrid(logdir, args.skip_runs, args.tasks or MINIGRID)
         if part == "q3":
             run_q3(logdir, args.skip_runs, args.tasks or tuple(Q3_TASKS))
+        if part == "preset":
+            run_preset(logdir, args.skip_runs)
+        if part == "subgoal-mentor":
+            gym_cell("subgoal_mentor_taxi", "taxi", ("imitation",), "subgoal-mentor", [], None,
+                     logdir, args.skip_runs)  # fmt: skip
         for name in [n for n in PARTS[part] if args.sweeps is None or n in args.sweeps]:
             if not args.skip_runs:
                 run("-m", "himit_torch.cli", "sweep", str(HERE / f"{name}.toml"),
@@ -278,10 +318,16 @@ def main() -> None:
             key = f"{part} ({' '.join(args.tasks)})" if some else part
             if args.sweeps:
                 key = f"{part} ({' '.join(n for n in PARTS[part] if n in args.sweeps)})"
+            if args.cells and part in ("q1", "f", "q2mg", "q3"):
+                key = f"{part} ({' '.join(args.cells)})"
+            # read again just before writing: another part may have run beside this one
+            timing = json.loads(timing_path.read_text()) if timing_path.exists() else {}
             timing[key] = round((time.perf_counter() - started) / 60, 1)
             timing_path.write_text(json.dumps(timing, indent=2) + "\n")
     run(str(HERE / "analyse.py"))
     run(str(HERE / "where_pays.py"))
+    if "preset" in args.parts:
+        run(str(HERE / "choose_preset.py"))
 
 
 if __name__ == "__main__":

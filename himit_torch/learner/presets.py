@@ -1,7 +1,9 @@
 """Named presets of the learner's settings: ``paper`` (eq. 2 as the paper states it),
 ``recommended`` (the settings the preset search chose for eq. 2 on held-out seeds) and its two
 parts on their own, ``explore-goals`` (an exploration schedule, for every agent) and
-``mentor-fade`` (a setting of the mentor term, for the agents that have one).
+``mentor-fade`` (a setting of the mentor term, for the agents that have one); and
+``subgoal-mentor`` (eq. 2 for a mentor seen only at its subgoals or every k-th state, chosen on
+held-out seeds by the hierarchy study).
 
 A preset is a set of :class:`~himit_torch.learner.config.LearnerConfig` fields with a reason for
 each value: :func:`apply_preset` sets them, :func:`preset_differences` says where a configuration
@@ -168,9 +170,49 @@ RECOMMENDED = _preset(
     **{**dict(PAPER.settings), **_MENTOR_FADE, **_EXPLORE_GOALS},
 )
 
+#: The hierarchy study's preset for a mentor seen only at its subgoals or every k-th state
+#: (experiments/hierarchy/PROTOCOL.md, amendment "the preset"): the mentor-fade preset with the
+#: segment term and trial of untried own options.
+SUBGOAL_MENTOR = _preset(
+    "subgoal-mentor",
+    "Eq. 2 for a mentor seen only where its options end (doorways, the goal: `observation = "
+    "'option-ends'`) or every k-th state: the mentor-fade preset (the paper's ε per decision, "
+    "the mentor term fading, mentor_fade = 20) with the segment term (mentor_segments) and "
+    "trial of untried own options where the mentor leads (mentor_trial). Chosen among four "
+    "candidates (the four presets above, each with both terms) on held-out seeds 5000–5019 at "
+    "the five conditions where the setting won, by the presets' rule "
+    "(experiments/results/hierarchy/preset_choice.md). With every mentor state seen, the "
+    "recommended imitator stays flat eq. 1 (README, 'Which method, when?').",
+    **{
+        **dict(MENTOR_FADE.settings),
+        "mentor_segments": (
+            True,
+            "a mentor seen only at its subgoals or every k-th state moves several steps between "
+            "the states the learner sees; the one-step term scores such a move as one step and "
+            "overrates it (eq. 2 fell to 6 % of optimal at k = 5 on exp2), the segment term "
+            "scores it with its duration's discount and the reward of its steps",
+        ),
+        "mentor_trial": (
+            True,
+            "where the mentor leads, the learner first tries its own options not yet tried "
+            "there, so that the option reaching the mentor's observed successor is found (on "
+            "exp1, where the learner lacks the mentor's skills, trial lifted eq. 2's greedy "
+            "policy from 77 to 101 % of the mentor's rate)",
+        ),
+        "mentor_fade": (
+            20.0,
+            "chosen on held-out seeds: with fading the candidate's worst condition was 47.9 % "
+            "of the optimum (Taxi), without it 31.4 % (exp2 at stride 20, where fading lifted "
+            "eq. 2 from 31 to 98 %); the mentor's evidence counts as 20 own executions, so a "
+            "mentor term read from coarse observations stops leading once the learner's own "
+            "experience is larger",
+        ),
+    },
+)
+
 #: The presets by name.
 PRESETS: Mapping[str, Preset] = MappingProxyType(
-    {p.name: p for p in (PAPER, EXPLORE_GOALS, MENTOR_FADE, RECOMMENDED)}
+    {p.name: p for p in (PAPER, EXPLORE_GOALS, MENTOR_FADE, RECOMMENDED, SUBGOAL_MENTOR)}
 )
 
 
@@ -214,12 +256,13 @@ def check_preset(where: str, learner: LearnerConfig, name: str | None) -> None:
 
 def mentor_term_settings(config_class: type = LearnerConfig) -> tuple[str, ...]:
     """The settings of the mentor term, as the schema declares them (``setting(…,
-    mentor_term=True)``): read only by agents with one (``AgentVariant.mentor``). Those a preset
-    sets come first, in the presets' order (a record has always named them); then the others,
-    in the schema's order."""
+    mentor_term=True)``): read only by agents with one (``AgentVariant.mentor``). Those the paper
+    preset sets (every preset's base) come first, in its order (a record has always named
+    them); then the others, in the schema's order (a later preset may set some of them:
+    ``subgoal-mentor`` the segment term and trial)."""
     declared = [s.name for s in settings_of(config_class) if s.info.mentor_term]
-    pinned = [k for preset in PRESETS.values() for k in preset.settings if k in declared]
-    return (*dict.fromkeys(pinned), *(k for k in declared if k not in pinned))
+    pinned = [k for k in PAPER.settings if k in declared]
+    return (*pinned, *(k for k in declared if k not in pinned))
 
 
 #: The settings of the mentor term (:func:`mentor_term_settings` of ``LearnerConfig``).
@@ -230,8 +273,8 @@ def agent_settings(agent: str, learner: LearnerConfig) -> dict[str, Any]:
     """What agent ``agent`` of a run with settings ``learner`` actually ran with, of the
     settings the presets differ in: the exploration schedule (every agent) and the mentor
     term's settings (``None``: the agent has no mentor term and does not read them). A mentor
-    term's setting that no preset sets is named only where it is not at its default (so that
-    records from before it existed read as they did).
+    term's setting that the paper preset does not set is named only where it is not at its
+    default (so that records from before it existed read as they did).
 
     A preset applies to every agent of a run; this is how a record says which of its settings
     each agent used (``results.md`` of every run)."""
@@ -244,7 +287,7 @@ def agent_settings(agent: str, learner: LearnerConfig) -> dict[str, Any]:
             learner.eps_decay if learner.eps_schedule == "decision" else learner.eps_goals
         ),
     }
-    pinned = {k for preset in PRESETS.values() for k in preset.settings}
+    pinned = set(PAPER.settings)
     config_class: type = type(learner)
     defaults = {s.name: s.default for s in settings_of(config_class)}
     for name in mentor_term_settings(config_class):

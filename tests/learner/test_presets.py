@@ -67,7 +67,8 @@ def test_apply_sets_exactly_the_preset_fields():
 def test_unknown_preset_is_refused_by_name():
     with pytest.raises(
         ValueError,
-        match=r"unknown preset 'fancy'; presets: paper, explore-goals, mentor-fade, recommended",
+        match=r"unknown preset 'fancy'; presets: paper, explore-goals, mentor-fade, recommended, "
+        r"subgoal-mentor",
     ):
         apply_preset(LearnerConfig(), "fancy")
     with pytest.raises(ValueError, match=r"preset='fancy'"):
@@ -190,3 +191,26 @@ def test_the_mentor_term_settings_come_from_their_declarations():
     text = agent_settings_text(["imitation", "options"], toy)
     assert "`imitation`: " in text and "`mentor_toy=3.0`" in text
     assert text.count("mentor_toy") == 1  # not said of options, which does not read it
+
+
+def test_subgoal_mentor_is_mentor_fade_with_the_segment_term_and_trial():
+    """The hierarchy study's choice (experiments/results/hierarchy/preset_choice.json): the
+    mentor-fade preset, both hierarchical mentor terms on; nothing else differs."""
+    fade, subgoal = PRESETS["mentor-fade"].changes(), PRESETS["subgoal-mentor"].changes()
+    assert {k: v for k, v in subgoal.items() if fade.get(k, v) != v or k not in fade} == {
+        "mentor_segments": True,
+        "mentor_trial": True,
+    }
+    assert subgoal["mentor_fade"] == 20.0 and subgoal["eps_schedule"] == "decision"
+    learner = apply_preset(LearnerConfig(), "subgoal-mentor")
+    assert learner.mentor_segments and learner.mentor_trial
+    # a run under it names both terms for the imitators, none for the others; a record under
+    # another preset still names neither (they are at their defaults there)
+    assert agent_settings("imitation", learner)["mentor_segments"] is True
+    assert agent_settings("options", learner)["mentor_trial"] is None
+    assert "mentor_segments" not in agent_settings(
+        "imitation", apply_preset(LearnerConfig(), "paper")
+    )
+    config = EXPERIMENTS["exp2"].with_preset("subgoal-mentor")
+    with pytest.raises(ValueError, match=r"learner\.mentor_trial=False \(the preset: True\)"):
+        dataclasses.replace(config, learner=dataclasses.replace(config.learner, mentor_trial=False))
