@@ -105,6 +105,7 @@ from himit_torch.validation import (
     check_folder_path,
     parse_document,
     read_text,
+    settings_of,
 )
 
 __all__ = ["SweepSpec", "Cell", "Trial", "load_spec", "run_sweep", "summarize", "rewrite_summary"]
@@ -227,36 +228,11 @@ def _check_setting(name: str, where: str) -> None:
         )
 
 
-def _check_type(cls, name: str, value: Any, where: str) -> None:
-    """A setting's value against its field's annotation (``int``, ``float | None``, …), so that a
-    string where a number belongs is named here, not met as a TypeError deep in a run."""
-    annotation = str(next(f.type for f in fields(cls) if f.name == name))
-    kinds = {part.strip().split("[")[0] for part in annotation.split("|")}
-    ok = (
-        (value is None and "None" in kinds)
-        or (isinstance(value, bool) and "bool" in kinds)
-        or (not isinstance(value, bool) and isinstance(value, int) and kinds & {"int", "float"})
-        or (isinstance(value, float) and "float" in kinds)
-        or (isinstance(value, str) and "str" in kinds)
-        or (isinstance(value, (list, tuple)) and "tuple" in kinds)
-    )
-    if not ok:
-        raise ValueError(f"{where}: {name}={value!r} must be of type {annotation}")
-
-
 def _apply(config: ExperimentConfig, settings: dict) -> ExperimentConfig:
     """``config`` with the dotted ``settings`` in one step the dataclasses check: a preset
     first, then the learner settings beside it (one departing from the preset is refused)."""
-    for key, value in settings.items():
-        if key.startswith("learner."):
-            _check_type(LearnerConfig, key[len("learner.") :], value, "learner")
-        else:
-            _check_type(ExperimentConfig, key, value, "setting")
     top = {k: v for k, v in settings.items() if not k.startswith("learner.")}
     learner = {k[len("learner.") :]: v for k, v in settings.items() if k.startswith("learner.")}
-    for key in ("agents", "sizes"):
-        if key in top and isinstance(top[key], list):
-            top[key] = tuple(top[key])
     base_learner = config.learner
     if top.get("preset") is not None:  # the preset first, then the settings beside it
         base_learner = apply_preset(base_learner, top["preset"])
@@ -298,8 +274,7 @@ def _level(name: str, value: Any) -> Any:
         if name.startswith("learner.")
         else (ExperimentConfig, name)
     )
-    annotation = str(next(f.type for f in fields(cls) if f.name == field))
-    return None if "None" in annotation else value
+    return None if next(s for s in settings_of(cls) if s.name == field).optional else value
 
 
 def load_spec(path: str | os.PathLike) -> SweepSpec:
@@ -481,9 +456,7 @@ def run_trial(config_json: str, run_dir: str, resume: bool, threads: int | None 
 
     if threads is not None:
         share_cores(threads)
-    data = json.loads(config_json)
-    data["learner"] = LearnerConfig(**data["learner"])
-    config = ExperimentConfig(**data)
+    config = ExperimentConfig(**json.loads(config_json))  # (its learner's dict checked too)
     [result] = run_experiment(config, run_dir, resume=resume, progress=False, workers=1)
     return {
         "run_dir": run_dir,
