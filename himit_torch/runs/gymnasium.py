@@ -850,15 +850,13 @@ def read_gym_curves(run_dir: str | os.PathLike) -> dict:
 
 def write_gym_figures(run_dir: Path, config: GymExperimentConfig, summaries: list[dict]) -> None:
     """Per task: goals per window and the greedy value gap against steps (mean, 95 % CI band)."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    from himit_torch.viz.plotting import fit_titles, plot_mean_band
+    from himit_torch.viz.plotting import plot_mean_band, save_figure
     from himit_torch.viz.report import AGENT_COLORS
 
     curves = read_gym_curves(run_dir)
     fig_dir = run_dir / "figures"
-    fig_dir.mkdir(parents=True, exist_ok=True)
     for summary in summaries:
         task = summary["task"]
         if task not in curves:
@@ -885,9 +883,7 @@ def write_gym_figures(run_dir: Path, config: GymExperimentConfig, summaries: lis
             ax.grid(alpha=0.3)
             ax.legend(fontsize="small")
         fig.suptitle(f"{summary['about']} — mean and 95 % CI over seeds", fontsize="medium")
-        FigureCanvasAgg(fig)
-        fit_titles(fig)
-        fig.savefig(fig_dir / f"curves_{task}.png", dpi=100)
+        save_figure(fig, fig_dir / f"curves_{task}.png", dpi=100, fit=True)
         if "paths" in summary:
             _write_paths_figure(fig_dir / f"paths_{task}.png", config, summary)
 
@@ -896,9 +892,8 @@ def _write_paths_figure(path: Path, config: GymExperimentConfig, summary: dict) 
     """A MiniGrid task's ``figures/paths_<task>.png``: the task's recorded paths (the mentor's
     first episode, each agent's greedy trajectory for the first seed) over MiniGrid's drawing of
     the start (:func:`~himit_torch.viz.minigrid.plot_minigrid_paths`)."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-
     from himit_torch.viz.minigrid import plot_minigrid_paths
+    from himit_torch.viz.plotting import save_figure
     from himit_torch.viz.report import AGENT_COLORS
 
     world = TASKS[summary["task"]].world(config.gamma)
@@ -928,8 +923,7 @@ def _write_paths_figure(path: Path, config: GymExperimentConfig, summary: dict) 
         colors=colors,
         title=f"{summary.get('env_id', summary['task'])}: seed {config.first_seed}'s paths",
     )
-    FigureCanvasAgg(fig)
-    fig.savefig(path, dpi=100)
+    save_figure(fig, path, dpi=100)
 
 
 def _cell(values, digits: int = 1) -> str:

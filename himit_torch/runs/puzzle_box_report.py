@@ -193,7 +193,6 @@ def write_puzzle_box_figures(run_dir: Path, summary: dict) -> None:
     from himit_torch.viz.report import AGENT_COLORS
 
     fig_dir = run_dir / "figures"
-    fig_dir.mkdir(parents=True, exist_ok=True)
     colors = {
         "imitation": AGENT_COLORS["imitation"],
         "options": AGENT_COLORS["options"],
@@ -214,15 +213,14 @@ def _experiment_figure(
 ) -> None:
     """``figures/<experiment>.png``: the conditions' openings per window, first openings and
     greedy values."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
     from matplotlib.ticker import FuncFormatter
 
     from himit_torch.viz.plotting import (
-        fit_titles,
         plot_first_goals,
         plot_goal_curves,
         plot_mean_band,
+        save_figure,
     )
 
     cfg = summary["config"]
@@ -260,15 +258,14 @@ def _experiment_figure(
         f"{cfg['transfer_skewers']}-skewer box"
     )
     fig.suptitle(f"{what} — {len(first['runs'])} seeds per condition")
-    FigureCanvasAgg(fig)
-    fit_titles(fig)
-    fig.savefig(run_dir / "figures" / f"{experiment}.png", dpi=100)
+    save_figure(fig, run_dir / "figures" / f"{experiment}.png", dpi=100, fit=True)
 
 
 def _organisation_figure(run_dir: Path, fig_dir: Path, summary: dict) -> None:
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
     from matplotlib.ticker import FuncFormatter
+
+    from himit_torch.viz.plotting import save_figure
 
     groups = _organisation_groups(summary, ("speed", "harder_pinch", "no_pinch", "transfer"))
     fig = Figure(figsize=(16, 6.4), layout="constrained")
@@ -306,8 +303,7 @@ def _organisation_figure(run_dir: Path, fig_dir: Path, summary: dict) -> None:
     ax.set_xlim(0, 1)
     ax.legend(ncol=4, loc="lower center", bbox_to_anchor=(0.5, 1.0), fontsize="small")
     ax.grid(axis="x", alpha=0.3)
-    FigureCanvasAgg(fig)
-    fig.savefig(fig_dir / "organisation.png", dpi=100)
+    save_figure(fig, fig_dir / "organisation.png", dpi=100)
 
 
 def _organisation_groups(summary: dict, experiments=("speed", "transfer")) -> dict[str, list[dict]]:
