@@ -308,13 +308,16 @@ def read_table(
     return rows
 
 
-def write_rows(path: Path, columns: Sequence[str], rows: Sequence[dict]) -> None:
+def write_rows(
+    path: Path, columns: Sequence[str], rows: Sequence[dict], newline: str = "\r\n"
+) -> None:
     """A run's CSV record at ``path`` (its folder made): ``columns``, then ``rows``, floats
-    to 6 significant digits; written atomically."""
+    to 6 significant digits, each line ending with ``newline`` (``csv``'s own ``\\r\\n``, or
+    ``\\n``); written atomically."""
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_suffix(".tmp")
     with tmp.open("w", newline="") as f:
-        out = csv.DictWriter(f, fieldnames=columns)
+        out = csv.DictWriter(f, fieldnames=columns, lineterminator=newline)
         out.writeheader()
         for r in rows:
             out.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})

@@ -95,7 +95,7 @@ from himit_torch.learner.config import LearnerConfig
 from himit_torch.learner.presets import apply_preset
 from himit_torch.runs.config import EXPERIMENTS, ExperimentConfig, load_config
 from himit_torch.runs.runner import share_cores, source_commit
-from himit_torch.runs.study import config_differences
+from himit_torch.runs.study import config_differences, write_rows
 from himit_torch.statistics import bca_interval, share_interval, t_interval
 from himit_torch.validation import (
     COUNT_MAX,
@@ -587,15 +587,6 @@ def _read_csv(path: Path) -> list[dict]:
         return list(csv.DictReader(f))
 
 
-def _write_csv(path: Path, header: Sequence[str], rows: list[dict]) -> None:
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    with tmp.open("w", newline="") as f:
-        out = csv.DictWriter(f, fieldnames=list(header), lineterminator="\n")
-        out.writeheader()
-        out.writerows(rows)
-    os.replace(tmp, path)
-
-
 def _show(value: Any) -> str:
     if value is None:
         return "none"
@@ -655,12 +646,14 @@ def summarize(spec: SweepSpec, out: Path) -> dict:
         key=lambda r: (order[r["cell"]], r["world"], agent_order.get(r["agent"], 99), r["seed"])
     )
     head = ["sweep", "cell", *factor_cols]
-    _write_csv(out / "results.csv", head + [k for k in results[0] if k not in head], results)
-    _write_csv(out / "runs.csv", head + [k for k in runs[0] if k not in head], runs)
+    write_rows(
+        out / "results.csv", head + [k for k in results[0] if k not in head], results, newline="\n"
+    )
+    write_rows(out / "runs.csv", head + [k for k in runs[0] if k not in head], runs, newline="\n")
     summary = _summary_rows(
         spec.name, factor_cols, {c.slug: c.config.steps for c in spec.cells}, runs
     )
-    _write_csv(out / "summary.csv", list(summary[0]), summary)
+    write_rows(out / "summary.csv", list(summary[0]), summary, newline="\n")
     provenance = {"commit": sorted(commits), "engine": sorted(engines)}
     _write_summary_md(_about(spec), out, summary, provenance)
     return provenance
@@ -778,7 +771,7 @@ def rewrite_summary(out: str | os.PathLike) -> None:
     if not runs:
         raise ValueError(f"{out / 'runs.csv'} holds no runs")
     summary = _summary_rows(about["name"], factor_cols, steps_of, runs)
-    _write_csv(out / "summary.csv", list(summary[0]), summary)
+    write_rows(out / "summary.csv", list(summary[0]), summary, newline="\n")
     _write_summary_md(about, out, summary, provenance)
 
 
