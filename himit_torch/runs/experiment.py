@@ -342,15 +342,7 @@ def _mentor_episodes(config: ExperimentConfig, world: MultiRooms, mentor, seeds)
     if config.mentor_goal != "same":
         recorded = _other_goal(config, world, seeds)
     else:
-        detour = (
-            mentor_detour(
-                world,
-                corners=config.corner_options,
-                prefer_extended_within=config.mentor_preference,
-            )
-            if config.mentor_detour
-            else None
-        )
+        detour = _detour(config, world) if config.mentor_detour else None
         recorded = {
             s: record_demonstrations(
                 world,
@@ -613,13 +605,7 @@ def _second_mentor(config, world, mentor, seeds) -> dict:
     from its own generator."""
     if config.second_mentor == "none":
         return {}
-    detour = (
-        mentor_detour(
-            world, corners=config.corner_options, prefer_extended_within=config.mentor_preference
-        )
-        if config.second_mentor == "detour"
-        else None
-    )
+    detour = _detour(config, world) if config.second_mentor == "detour" else None
     noise = config.second_mentor_noise if config.second_mentor == "noisy" else 0.0
     return {
         s: record_demonstrations(
@@ -634,12 +620,17 @@ def _second_mentor(config, world, mentor, seeds) -> dict:
     }
 
 
+def _detour(config: ExperimentConfig, world: MultiRooms):
+    """The mentor's walk by the top-right corner (its options and preference as the mentor's)."""
+    return mentor_detour(
+        world, corners=config.corner_options, prefer_extended_within=config.mentor_preference
+    )
+
+
 def _other_goal(config, world, seeds) -> dict:
     """Each seed's episodes of a mentor walking to the top-right corner
     (``mentor_goal``), shown in the learner's own world."""
-    leg = mentor_detour(
-        world, corners=config.corner_options, prefer_extended_within=config.mentor_preference
-    )
+    leg = _detour(config, world)
     return {
         s: Demonstrations(
             record_demonstrations(
