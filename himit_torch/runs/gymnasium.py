@@ -800,8 +800,8 @@ _TASK_RECORD = {
 
 
 def read_task_record(path: Path, task: str | None = None) -> dict:
-    """A task record, refused where its page could not read it (:mod:`~himit_torch.runs.records`;
-    ``task``: or where it is another task's)."""
+    """A task record, refused where its page could not read it
+    (:func:`~himit_torch.runs.study.check_record`; ``task``: or where it is another task's)."""
     where = f"task record {path}"
     fix = "; the record is damaged (run the task again, or restore the file)"
     data = parse_document(where, read_text(where, path), "json")

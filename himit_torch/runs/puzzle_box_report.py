@@ -126,8 +126,8 @@ _NEEDED_BATCHES = {
 
 def read_summary(run_dir: str | Path) -> dict:
     """A finished ``himit run puzzlebox`` directory's ``summary.json``, checked for what its
-    page reads (:mod:`~himit_torch.runs.records`): a damaged file (not JSON, or a field missing
-    or of another type) is a ``ValueError`` naming the file and the field."""
+    page reads (:func:`~himit_torch.runs.study.read_record`): a damaged file (not JSON, or a
+    field missing or of another type) is a ``ValueError`` naming the file and the field."""
     path = Path(run_dir) / "summary.json"
     where = f"summary {path}"
     fix = "; the record is damaged (run the study again, or restore the file)"
