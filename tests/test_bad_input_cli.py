@@ -379,12 +379,21 @@ PLOT_DAMAGE = {
             )
             for v in (0, -3)
         },
-        "steps=0": (_json(_WORLD, lambda r: {**r, "steps": 0}), "steps=0"),
-        "steps=2.5": (_json(_WORLD, lambda r: {**r, "steps": 2.5}), "steps=2.5"),
-        "rooms=0": (_json(_WORLD, lambda r: {**r, "rooms": 0}), "rooms=0"),
+        "steps=0": (
+            _json(_WORLD, lambda r: {**r, "steps": 0}),
+            "'steps' must be a whole number > 0, got 0",
+        ),
+        "steps=2.5": (
+            _json(_WORLD, lambda r: {**r, "steps": 2.5}),
+            "'steps' must be a whole number > 0, got 2.5",
+        ),
+        "rooms=0": (
+            _json(_WORLD, lambda r: {**r, "rooms": 0}),
+            "'rooms' must be a whole number > 0, got 0",
+        ),
         "no runs": (
             _json(_WORLD, lambda r: {**r, **{k: [] for k in r if isinstance(r[k], list)}}),
-            "agents=[]",
+            "'agents' must name one agent per run",
         ),
         "curves without step": (_csv("curves.csv", _drop("step")), "columns ['step']"),
         "curves without agent": (_csv("curves.csv", _drop("agent")), "columns ['agent']"),
@@ -412,11 +421,11 @@ PLOT_DAMAGE = {
         "a lost row": (_csv("curves.csv", lambda rows: rows.pop()), "other steps"),
         "one run's goals short": (
             _json(_TAXI, lambda r: {**r, "total_goals": r["total_goals"][1:]}),
-            "'total_goals' must hold one number per run",
+            "'total_goals' must hold one number or null per run",
         ),
         "goals in words per run": (
             _json(_TAXI, lambda r: {**r, "final_goals": ["a"] * len(r["final_goals"])}),
-            "'final_goals' must hold one number per run",
+            "'final_goals' must hold one number or null per run",
         ),
         "nested per-run lists": (
             _json(_TAXI, lambda r: {**r, "final_value_gap": [[1]] * len(r["agents"])}),
@@ -433,7 +442,10 @@ PLOT_DAMAGE = {
         ),
     },
     "puzzlebox": {
-        "no batches": (_json(_BOX, lambda r: {**r, "batches": []}), "lacks ['speed_imitation'"),
+        "no batches": (
+            _json(_BOX, lambda r: {**r, "batches": []}),
+            "'batches' must be a non-empty list of objects",
+        ),
         "no transfer": (
             _json(_BOX, lambda r: {**r, "batches": r["batches"][:3]}),
             "lacks ['transfer_any'",
@@ -718,7 +730,9 @@ def test_a_refused_demo_or_plot_changes_nothing_on_disk(tmp_path, capsys):
         shutil.copytree(RECORDS["exp2"], run_dir)
         _json(_WORLD, lambda r: {**r, "optimal_steps": 0})(run_dir)
         before = snapshot(tmp_path)
-        assert "optimal_steps=0 is not a number > 0" in _refused(capsys, ["plot", str(run_dir)])
+        assert "'optimal_steps' must be a number > 0, got 0" in _refused(
+            capsys, ["plot", str(run_dir)]
+        )
         assert snapshot(tmp_path) == before
 
 

@@ -386,21 +386,16 @@ def _run_world(config: DiscoveryConfig, exp: str, out: Path, progress: bool) -> 
 
 
 def _subgoal_figure(path: Path, world, subgoals, demos, options, title: str) -> None:
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from himit_torch.viz.plotting import plot_subgoals, save_figure
 
-    from himit_torch.viz.plotting import plot_subgoals
-
-    path.parent.mkdir(parents=True, exist_ok=True)
     fig = plot_subgoals(world, subgoals, demonstrations=demos, options=options, title=title)
-    FigureCanvasAgg(fig)
-    fig.savefig(path, dpi=150)
+    save_figure(fig, path, dpi=150)
 
 
 def _curves_figure(path: Path, result: dict) -> None:
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    from himit_torch.viz.plotting import plot_goal_curves
+    from himit_torch.viz.plotting import plot_goal_curves, save_figure
 
     window = result["window"]
     steps = np.arange(1, result["steps"] // window + 1) * window
@@ -417,9 +412,7 @@ def _curves_figure(path: Path, result: dict) -> None:
         "hand-built options",
         fontsize="medium",
     )
-    FigureCanvasAgg(fig)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path, dpi=120)
 
 
 class DiscoveryResults(NamedTuple):

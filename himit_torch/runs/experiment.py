@@ -21,11 +21,10 @@ worlds out over one pool with the same pieces. A run directory holds::
 from __future__ import annotations
 
 import json
-import math
 import os
 import sys
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import MISSING, asdict, dataclass, field, fields, replace
+from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -76,6 +75,7 @@ from himit_torch.runs.runner import (
     write_atomically,
 )
 from himit_torch.runs.study import (
+    Field,
     InfoTopic,
     RunFlags,
     StudyEntry,
@@ -83,12 +83,13 @@ from himit_torch.runs.study import (
     optimum_lines,
     option_kinds_text,
     prepare_run_dir,
+    read_record,
     read_table,
     run_study,
     series_of,
     write_rows,
 )
-from himit_torch.validation import parse_document, read_text, refuse_unknown_fields
+from himit_torch.validation import refuse_unknown_fields
 from himit_torch.viz.tensorboard import TensorBoardLogger
 from himit_torch.worlds.multirooms import MultiRooms
 
@@ -341,15 +342,7 @@ def _mentor_episodes(config: ExperimentConfig, world: MultiRooms, mentor, seeds)
     if config.mentor_goal != "same":
         recorded = _other_goal(config, world, seeds)
     else:
-        detour = (
-            mentor_detour(
-                world,
-                corners=config.corner_options,
-                prefer_extended_within=config.mentor_preference,
-            )
-            if config.mentor_detour
-            else None
-        )
+        detour = _detour(config, world) if config.mentor_detour else None
         recorded = {
             s: record_demonstrations(
                 world,
@@ -612,13 +605,7 @@ def _second_mentor(config, world, mentor, seeds) -> dict:
     from its own generator."""
     if config.second_mentor == "none":
         return {}
-    detour = (
-        mentor_detour(
-            world, corners=config.corner_options, prefer_extended_within=config.mentor_preference
-        )
-        if config.second_mentor == "detour"
-        else None
-    )
+    detour = _detour(config, world) if config.second_mentor == "detour" else None
     noise = config.second_mentor_noise if config.second_mentor == "noisy" else 0.0
     return {
         s: record_demonstrations(
@@ -633,12 +620,17 @@ def _second_mentor(config, world, mentor, seeds) -> dict:
     }
 
 
+def _detour(config: ExperimentConfig, world: MultiRooms):
+    """The mentor's walk by the top-right corner (its options and preference as the mentor's)."""
+    return mentor_detour(
+        world, corners=config.corner_options, prefer_extended_within=config.mentor_preference
+    )
+
+
 def _other_goal(config, world, seeds) -> dict:
     """Each seed's episodes of a mentor walking to the top-right corner
     (``mentor_goal``), shown in the learner's own world."""
-    leg = mentor_detour(
-        world, corners=config.corner_options, prefer_extended_within=config.mentor_preference
-    )
+    leg = _detour(config, world)
     return {
         s: Demonstrations(
             record_demonstrations(
@@ -936,22 +928,33 @@ def rewrite_report(run_dir: str | os.PathLike) -> None:
     _write_report(run_dir, config, finished)
 
 
-#: The per-run lists of a :class:`WorldResult` (one entry per run); the greedy ones may be
-#: empty (runs without greedy evaluations, or written before they existed).
-_PER_RUN = ("agents", "seeds", "goals", "first_goal_step", "final_window_goals")
-_PER_RUN_NUMBERS = ("value_start", "mentor_term_wins")
-_GREEDY_PER_RUN = tuple(f.name for f in fields(WorldResult) if f.name.startswith("greedy_"))
-_NUMBERS = (
-    "size",
-    "rooms",
-    "optimal_steps",
-    "optimal_goals_per_window",
-    "true_value_start",
-    "wall_seconds",
-    "steps",
-    "mentor_goals_per_window",
-    "mentor_value_start",
-)
+#: What a world's record (``worlds/world<size>.json``, a :class:`WorldResult`) must hold for
+#: its page: the per-run lists one entry per run (the greedy ones may be empty: runs without
+#: greedy evaluations, or written before they existed); the optimum what percentages divide by.
+_WORLD_RECORD = {
+    "size": Field("whole"),
+    "rooms": Field("whole", above=0),
+    "seeds": Field("list", per_run="whole"),
+    "optimal_steps": Field("number", above=0),
+    "optimal_goals_per_window": Field("number", above=0),
+    **{
+        n: Field("list", per_run="whole")
+        for n in ("goals", "first_goal_step", "final_window_goals")
+    },
+    **{n: Field("list", per_run="number") for n in ("value_start", "mentor_term_wins")},
+    "true_value_start": Field("number"),
+    "wall_seconds": Field("number"),
+    "steps": Field("whole", above=0),
+    "engine": Field("text", optional=True),
+    "commit": Field("text", optional=True),
+    **{
+        f.name: Field("list", per_run="number", or_empty=True, optional=True)
+        for f in fields(WorldResult)
+        if f.name.startswith("greedy_")
+    },
+    "mentor_goals_per_window": Field("number", optional=True),
+    "mentor_value_start": Field("number", optional=True),
+}
 
 
 def read_world_result(path: Path, size: int) -> WorldResult:
@@ -961,53 +964,13 @@ def read_world_result(path: Path, size: int) -> WorldResult:
         ValueError: the file is not a valid record of world ``size``; the message names the file
             and the field."""
     where = f"world record {path}"
-    data = parse_document(where, read_text(where, path), "json")
     fix = "; delete it and rerun the world (himit run … --resume)"
-    if not isinstance(data, dict):
-        raise ValueError(f"{where} holds a JSON {type(data).__name__}, not an object{fix}")
+    data = read_record(path, where, _WORLD_RECORD, fix, runs="agents")
     refuse_unknown_fields(data, WorldResult, where)
-    required = [
-        f.name for f in fields(WorldResult) if f.default is MISSING and f.default_factory is MISSING
-    ]
-    missing = [name for name in required if name not in data]
-    if missing:
-        raise ValueError(f"{where}: fields {missing} are missing{fix}")
-
-    def refuse(name: str, what: str) -> ValueError:
-        return ValueError(f"{where}: {name}={data[name]!r:.60} {what}{fix}")
-
-    for name in _NUMBERS:
-        if name in data and (
-            isinstance(data[name], bool) or not isinstance(data[name], (int, float))
-        ):
-            raise refuse(name, "is not a number")
-    for name in ("engine", "commit"):
-        if name in data and not isinstance(data[name], str):
-            raise refuse(name, "is not a string")
     if data["size"] != size:
-        raise refuse("size", f"is not this file's world ({size})")
-    for name in ("rooms", "steps"):
-        if data[name] != int(data[name]) or data[name] < 1:
-            raise refuse(name, "is not a whole number ≥ 1")
-    for name in ("optimal_steps", "optimal_goals_per_window"):  # (what percentages divide by)
-        if not 0 < data[name] < math.inf:
-            raise refuse(name, "is not a number > 0: no world's optimum is")
-    runs = data["agents"]
-    if not isinstance(runs, list) or not runs or not all(isinstance(a, str) for a in runs):
-        raise refuse("agents", "is not a list of agent names, one per run")
-    for name in _PER_RUN[1:] + _PER_RUN_NUMBERS + _GREEDY_PER_RUN:
-        value = data.get(name, [])
-        whole = name in _PER_RUN
-        if (
-            not isinstance(value, list)
-            or len(value) not in ((0, len(runs)) if name in _GREEDY_PER_RUN else (len(runs),))
-            or any(
-                isinstance(v, bool) or not isinstance(v, int if whole else (int, float))
-                for v in value
-            )
-        ):
-            kind = "whole numbers" if whole else "numbers"
-            raise refuse(name, f"is not a list of {len(runs)} {kind} (one per run)")
+        raise ValueError(
+            f"{where}: field 'size' is {data['size']}, not this file's world ({size}){fix}"
+        )
     return WorldResult(**data)
 
 

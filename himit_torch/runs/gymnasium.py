@@ -83,9 +83,11 @@ from himit_torch.runs.runner import (
 )
 from himit_torch.runs.study import (
     INFO_WINDOW,
+    Field,
     InfoTopic,
     RunConfig,
     StudyEntry,
+    check_record,
     option_kinds_text,
     read_config_file,
     read_table,
@@ -95,7 +97,7 @@ from himit_torch.runs.study import (
     write_rows,
 )
 from himit_torch.statistics import bca_interval
-from himit_torch.validation import setting
+from himit_torch.validation import parse_document, read_text, setting
 from himit_torch.viz.results_page import (
     learner_settings_line,
     plot_command,
@@ -758,76 +760,56 @@ def run_gym_experiment(
 def rewrite_gym_report(run_dir: str | os.PathLike) -> None:
     """Redraw the figures and ``results.md`` of a finished ``himit run gymnasium`` directory
     from its ``config.json``, ``curves.csv`` and ``tasks/*.json`` (``himit plot``)."""
-    from himit_torch.validation import parse_document, read_text
-
     run_dir = Path(run_dir)
     config = read_config_file(GymExperimentConfig, run_dir / "config.json")
-    summaries = []
-    for task in config.tasks:
-        path = run_dir / "tasks" / f"{task}.json"
-        where = f"task record {path}"
-        summary = parse_document(where, read_text(where, path), "json")
-        if not isinstance(summary, dict):
-            raise ValueError(f"{where} must hold a JSON object")
-        _check_task_record(where, summary, task)
-        summaries.append(summary)
+    summaries = [
+        read_task_record(run_dir / "tasks" / f"{task}.json", task) for task in config.tasks
+    ]
     read_gym_curves(run_dir)  # (checked before anything is drawn)
     write_gym_figures(run_dir, config, summaries)
     write_gym_results(run_dir, config, summaries)
 
 
-#: What a task record (``tasks/<task>.json``) must hold for its page, with the type of each.
-_TASK_RECORD_KEYS: dict[str, type | tuple[type, ...]] = {
-    "task": str,
-    "about": str,
-    "agents": list,
-    "options": list,
-    "steps": int,
-    "optimal_value": (int, float),
-    "optimal_goals_per_window": (int, float),
-    "initial_value": (int, float),
-    "known_reward": str,
-    "wall_seconds": (int, float),
-    "first_goal_window": list,
-    "total_goals": list,
-    "final_goals": list,
-    "final_value_gap": list,
-    "mentor_term_wins": list,
-    "greedy_percent_of_mentor": list,
-    "greedy_goal_probability": list,
+#: What a task record (``tasks/<task>.json``) must hold for its page; every other list in it
+#: holds one number (or null) per run too.
+_TASK_RECORD = {
+    "task": Field("text"),
+    "about": Field("text"),
+    "agents": Field("list"),
+    "options": Field("list"),
+    "steps": Field("whole"),
+    "optimal_value": Field("number"),
+    "optimal_goals_per_window": Field("number", above=0),
+    "initial_value": Field("number"),
+    "known_reward": Field("text"),
+    "wall_seconds": Field("number"),
+    **{
+        key: Field("list", per_run="number?")
+        for key in (
+            "first_goal_window",
+            "total_goals",
+            "final_goals",
+            "final_value_gap",
+            "mentor_term_wins",
+            "greedy_percent_of_mentor",
+            "greedy_goal_probability",
+        )
+    },
+    "paths": Field("object", optional=True),
 }
 
 
-def _check_task_record(where: str, summary: dict, task: str | None = None) -> None:
-    """Refuse a task record the page cannot read: a field missing or of
-    another type, per-run lists not one number (or ``None``) per run, an optimal rate not > 0, or
-    (``task``) another task's."""
+def read_task_record(path: Path, task: str | None = None) -> dict:
+    """A task record, refused where its page could not read it
+    (:func:`~himit_torch.runs.study.check_record`; ``task``: or where it is another task's)."""
+    where = f"task record {path}"
     fix = "; the record is damaged (run the task again, or restore the file)"
-    for key, kind in _TASK_RECORD_KEYS.items():
-        value = summary.get(key)
-        if not isinstance(value, kind) or isinstance(value, bool):
-            names = kind.__name__ if isinstance(kind, type) else "number"
-            raise ValueError(f"{where}: field {key!r} must be a {names}, got {value!r:.60}{fix}")
-    runs = len(summary["agents"])
-    if not runs or not all(isinstance(a, str) for a in summary["agents"]):
-        raise ValueError(f"{where}: field 'agents' must name one agent per run{fix}")
-    for key, value in summary.items():
-        if key in ("agents", "options") or not isinstance(value, list):
-            continue
-        if len(value) != runs or not all(
-            v is None or (isinstance(v, (int, float)) and not isinstance(v, bool)) for v in value
-        ):
-            raise ValueError(
-                f"{where}: field {key!r} must hold one number per run ({runs}), got "
-                f"{value!r:.60}{fix}"
-            )
-    if not 0 < summary["optimal_goals_per_window"] < math.inf:
-        raise ValueError(
-            f"{where}: field 'optimal_goals_per_window' must be a number > 0, got "
-            f"{summary['optimal_goals_per_window']!r}{fix}"
-        )
-    paths = summary.get("paths", {})
-    if not isinstance(paths, dict) or not all(
+    data = parse_document(where, read_text(where, path), "json")
+    lists = [k for k, v in data.items() if isinstance(v, list)] if isinstance(data, dict) else []
+    schema = {**dict.fromkeys(lists, Field("list", per_run="number?")), **_TASK_RECORD}
+    check_record(data, schema, where, fix, runs="agents")
+    paths = data.get("paths", {})
+    if not all(
         isinstance(v, list)
         and v
         and all(isinstance(x, int) and not isinstance(x, bool) and x >= 0 for x in v)
@@ -837,8 +819,9 @@ def _check_task_record(where: str, summary: dict, task: str | None = None) -> No
             f"{where}: field 'paths' must map each path's name to its states (whole numbers "
             f"≥ 0), got {paths!r:.60}{fix}"
         )
-    if task is not None and summary["task"] != task:
-        raise ValueError(f"{where}: field 'task' is {summary['task']!r:.60}, not {task!r}{fix}")
+    if task is not None and data["task"] != task:
+        raise ValueError(f"{where}: field 'task' is {data['task']!r:.60}, not {task!r}{fix}")
+    return data
 
 
 def read_gym_curves(run_dir: str | os.PathLike) -> dict:
@@ -867,15 +850,13 @@ def read_gym_curves(run_dir: str | os.PathLike) -> dict:
 
 def write_gym_figures(run_dir: Path, config: GymExperimentConfig, summaries: list[dict]) -> None:
     """Per task: goals per window and the greedy value gap against steps (mean, 95 % CI band)."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    from himit_torch.viz.plotting import fit_titles, plot_mean_band
+    from himit_torch.viz.plotting import plot_mean_band, save_figure
     from himit_torch.viz.report import AGENT_COLORS
 
     curves = read_gym_curves(run_dir)
     fig_dir = run_dir / "figures"
-    fig_dir.mkdir(parents=True, exist_ok=True)
     for summary in summaries:
         task = summary["task"]
         if task not in curves:
@@ -902,9 +883,7 @@ def write_gym_figures(run_dir: Path, config: GymExperimentConfig, summaries: lis
             ax.grid(alpha=0.3)
             ax.legend(fontsize="small")
         fig.suptitle(f"{summary['about']} — mean and 95 % CI over seeds", fontsize="medium")
-        FigureCanvasAgg(fig)
-        fit_titles(fig)
-        fig.savefig(fig_dir / f"curves_{task}.png", dpi=100)
+        save_figure(fig, fig_dir / f"curves_{task}.png", dpi=100, fit=True)
         if "paths" in summary:
             _write_paths_figure(fig_dir / f"paths_{task}.png", config, summary)
 
@@ -913,9 +892,8 @@ def _write_paths_figure(path: Path, config: GymExperimentConfig, summary: dict) 
     """A MiniGrid task's ``figures/paths_<task>.png``: the task's recorded paths (the mentor's
     first episode, each agent's greedy trajectory for the first seed) over MiniGrid's drawing of
     the start (:func:`~himit_torch.viz.minigrid.plot_minigrid_paths`)."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-
     from himit_torch.viz.minigrid import plot_minigrid_paths
+    from himit_torch.viz.plotting import save_figure
     from himit_torch.viz.report import AGENT_COLORS
 
     world = TASKS[summary["task"]].world(config.gamma)
@@ -945,8 +923,7 @@ def _write_paths_figure(path: Path, config: GymExperimentConfig, summary: dict) 
         colors=colors,
         title=f"{summary.get('env_id', summary['task'])}: seed {config.first_seed}'s paths",
     )
-    FigureCanvasAgg(fig)
-    fig.savefig(path, dpi=100)
+    save_figure(fig, path, dpi=100)
 
 
 def _cell(values, digits: int = 1) -> str:

@@ -68,10 +68,12 @@ from himit_torch.runs.runner import (
     write_atomically,
 )
 from himit_torch.runs.study import (
+    Field,
     InfoTopic,
     RunConfig,
     StudyEntry,
     option_kinds_text,
+    read_record,
     read_table,
     run_each,
     run_study,
@@ -585,28 +587,22 @@ def _scores(scores: dict[str, float]) -> dict[str, float | None]:
 
 
 #: What each evaluation of a batch's ``*.evals.json`` holds: one value per run.
-_EVALUATION_KEYS = ("value", "organisation", "watched_score", "pinch_steps")
-
-#: What a finished batch's ``batches/<tag>.json`` holds, with its type.
-_BATCH_KEYS = {
-    "batch": str,
-    "skewers": int,
-    "condition": str,
-    "agent": str,
-    "steps": int,
-    "runs": list,
+_EVALUATION = {
+    "value": Field("list", per_run="number?"),
+    "organisation": Field("list", per_run="text"),
+    "watched_score": Field("list", per_run="number?"),
+    "pinch_steps": Field("list", per_run="number?"),
 }
 
-
-def _record(path: Path, command: str = "--resume") -> Any:
-    """A run directory's JSON record at ``path``, parsed; damaged: a ``ValueError`` naming it
-    (and ``command``, what read it)."""
-    where = f"{command}: {path}"
-    return parse_document(where, read_text(where, path), "json")
-
-
-def _is_number(value: Any) -> bool:
-    return value is None or (isinstance(value, (int, float)) and not isinstance(value, bool))
+#: What a finished batch's ``batches/<tag>.json`` holds for ``--resume``.
+_BATCH_RECORD = {
+    "batch": Field("text"),
+    "skewers": Field("whole"),
+    "condition": Field("text"),
+    "agent": Field("text"),
+    "steps": Field("whole"),
+    "runs": Field("list", items={}),  # (one object per run)
+}
 
 
 def read_evaluations(
@@ -615,26 +611,19 @@ def read_evaluations(
     """A batch's saved greedy evaluations (``batches/<tag>.evals.json``), read
     for ``command`` (``--resume``; ``himit plot`` also wants one); a damaged file is a
     ``ValueError`` naming it."""
-    data = _record(path, command)
+    where = f"{command}: {path}"
+    data = parse_document(where, read_text(where, path), "json")
     if not isinstance(data, dict) or (command != "--resume" and not data):
         raise ValueError(f"{command}: {path} holds a {type(data).__name__}, not evaluations")
     out: dict[int, dict[str, list]] = {}
     for key, entry in data.items():
         if not (isinstance(key, str) and key.isdigit() and len(key) <= 12):
             raise ValueError(f"{command}: {path}: {key!r} is not a step; delete the file")
-        if not (
-            isinstance(entry, dict)
-            and all(
-                isinstance(entry.get(k), list)
-                and len(entry[k]) == runs
-                and all(
-                    isinstance(v, str) if k == "organisation" else _is_number(v) for v in entry[k]
-                )
-                for k in _EVALUATION_KEYS
-            )
+        if not isinstance(entry, dict) or any(
+            f.fault(entry.get(k), runs) for k, f in _EVALUATION.items()
         ):
             raise ValueError(
-                f"{command}: {path}: step {key} does not hold {', '.join(_EVALUATION_KEYS)} "
+                f"{where}: step {key} does not hold {', '.join(_EVALUATION)} "
                 f"for each of the batch's {runs} runs; delete the file (the batch resumes "
                 "without its earlier evaluations) or start over with --force"
             )
@@ -645,20 +634,11 @@ def read_evaluations(
 def read_batch(path: Path, tag: str) -> dict[str, Any]:
     """A finished batch's record (``batches/<tag>.json``), read for ``--resume``; a damaged
     file is a ``ValueError`` naming it (delete it and the batch runs again)."""
-    data = _record(path)
-    fix = "delete it to run the batch again, or start over with --force"
-    if not isinstance(data, dict):
-        raise ValueError(f"--resume: {path} holds a {type(data).__name__}, not a batch; {fix}")
-    for key, kind in _BATCH_KEYS.items():
-        value = data.get(key)
-        if not isinstance(value, kind) or (kind is int and isinstance(value, bool)):
-            raise ValueError(
-                f"--resume: {path}: {key!r} must be a {kind.__name__}, got {value!r:.60}; {fix}"
-            )
+    where = f"--resume: {path}"
+    fix = "; delete it to run the batch again, or start over with --force"
+    data = read_record(path, where, _BATCH_RECORD, fix)
     if data["batch"] != tag:
-        raise ValueError(f"--resume: {path} is batch {data['batch']!r:.60}, not {tag!r}; {fix}")
-    if not all(isinstance(r, dict) for r in data["runs"]):
-        raise ValueError(f"--resume: {path}: 'runs' must hold one object per run; {fix}")
+        raise ValueError(f"{where} is batch {data['batch']!r:.60}, not {tag!r}{fix}")
     return data
 
 

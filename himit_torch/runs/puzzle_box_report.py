@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from himit_torch.runs.runner import source_commit
+from himit_torch.runs.study import Field, read_record
 from himit_torch.statistics import holm, paired_comparison, share_interval, t_interval
 from himit_torch.viz.results_page import plot_command, provenance_line, write_results_page
 
@@ -84,96 +85,61 @@ def _batch(summary: dict, tag: str) -> dict:
     return next(b for b in summary["batches"] if b["batch"] == tag)
 
 
-#: What ``summary.json`` must hold for the page, with the type of each.
-_SUMMARY_KEYS = {"config": dict, "commit": str, "mentor_plans": dict, "batches": list}
 #: What its ``config`` must hold for the page.
 _SUMMARY_CONFIG_KEYS = (
     "skewers", "transfer_skewers", "seeds", "steps", "transfer_steps", "mentor_episodes", "slip",
     "window", "learner", "box_steps",
 )  # fmt: skip
-#: What each of its ``batches`` must hold for the page.
-_SUMMARY_BATCH_KEYS = (
-    "batch", "steps", "runs", "engine", "wall_seconds", "num_states", "optimal_steps",
-    "value_star",
-)  # fmt: skip
-
-
-def read_summary(run_dir: str | Path) -> dict:
-    """A finished ``himit run puzzlebox`` directory's ``summary.json``, checked for what its
-    page reads: a damaged file (not JSON, or a field missing or of another type) is a
-    ``ValueError`` naming the file and the field."""
-    from himit_torch.validation import parse_document, read_text
-
-    path = Path(run_dir) / "summary.json"
-    where = f"summary {path}"
-    data = parse_document(where, read_text(where, path), "json")
-    fix = "the record is damaged (run the study again, or restore the file)"
-    if not isinstance(data, dict):
-        raise ValueError(f"{where} holds a {type(data).__name__}, not a summary; {fix}")
-    for key, kind in _SUMMARY_KEYS.items():
-        if not isinstance(data.get(key), kind):
-            raise ValueError(
-                f"{where}: field {key!r} must be a {kind.__name__}, got {data.get(key)!r:.60}; {fix}"
-            )
-    for key in _SUMMARY_CONFIG_KEYS:
-        if key not in data["config"]:
-            raise ValueError(f"{where}: field 'config.{key}' is missing; {fix}")
-    for i, batch in enumerate(data["batches"]):
-        missing = [k for k in _SUMMARY_BATCH_KEYS if not isinstance(batch, dict) or k not in batch]
-        fault = missing[0] if missing else _batch_fault(batch)
-        if fault is not None:
-            field = f"batches[{i}].{fault}"
-            raise ValueError(f"{where}: field {field!r} is missing or damaged; {fix}")
-    tags = {batch["batch"] for batch in data["batches"]}
-    needed = [f"{e}_{c}" for e, cs in _NEEDED_BATCHES.items() for c in cs]
-    if not set(needed) <= tags:
-        raise ValueError(
-            f"{where}: field 'batches' lacks {sorted(set(needed) - tags)} (the page's "
-            f"experiments (a) and (c)); {fix}"
-        )
-    return data
-
-
-#: The batches every page draws: (a)'s and (c)'s conditions.
-_NEEDED_BATCHES = {
-    "speed": ("imitation", "options", "primitives"),
-    "transfer": ("any", "plain", "options"),
-}
 #: What each run of a batch holds for the page.
 _SUMMARY_RUN_KEYS = (
     "seed", "watched", "paired_organisation", "first_opening", "openings",
     "final_window_openings", "greedy_value", "organisation", "opens", "pinch_steps",
     "power_steps", "same_low_level_as_mentor", "stuck_at",
 )  # fmt: skip
+#: What ``summary.json`` must hold for the page: its configuration's settings, and each batch's
+#: name, steps and states ≥ 1, an optimum > 0 (what its rates divide by), numbers where the
+#: page prints them, and at least one run, each an object with every key the page reads.
+_SUMMARY = {
+    "config": Field("object", items=dict.fromkeys(_SUMMARY_CONFIG_KEYS, Field())),
+    "commit": Field("text"),
+    "mentor_plans": Field("object"),
+    "batches": Field(
+        "list",
+        items={
+            "batch": Field("text"),
+            "steps": Field("whole", above=0),
+            "runs": Field("list", items=dict.fromkeys(_SUMMARY_RUN_KEYS, Field())),
+            "engine": Field("text"),
+            "wall_seconds": Field("number", above=-1e-9),
+            "num_states": Field("whole", above=0),
+            "optimal_steps": Field("number", above=0),
+            "value_star": Field("finite"),
+        },
+    ),
+}
+#: The batches every page draws: (a)'s and (c)'s conditions.
+_NEEDED_BATCHES = {
+    "speed": ("imitation", "options", "primitives"),
+    "transfer": ("any", "plain", "options"),
+}
 
 
-def _number(value: Any, low: float = -math.inf, whole: bool = False) -> bool:
-    return (
-        isinstance(value, int if whole else (int, float))
-        and not isinstance(value, bool)
-        and low < value < math.inf
-    )
-
-
-def _batch_fault(batch: dict) -> str | None:
-    """The field of a ``summary.json`` batch the page could not read, or ``None``: a name,
-    steps and states ≥ 1, an optimum > 0 (what its rates divide by), numbers where the page
-    prints them, and at least one run, each an object with every key the page reads."""
-    checks = {
-        "batch": isinstance(batch["batch"], str),
-        "steps": _number(batch["steps"], 0, whole=True),
-        "num_states": _number(batch["num_states"], 0, whole=True),
-        "optimal_steps": _number(batch["optimal_steps"], 0),
-        "value_star": _number(batch["value_star"]),
-        "wall_seconds": _number(batch["wall_seconds"], -1e-9),
-        "engine": isinstance(batch["engine"], str),
-        "runs": isinstance(batch["runs"], list)
-        and len(batch["runs"]) > 0
-        and all(
-            isinstance(r, dict) and all(k in r for k in _SUMMARY_RUN_KEYS) for r in batch["runs"]
-        ),
-    }
-    return next((name for name, ok in checks.items() if not ok), None)
+def read_summary(run_dir: str | Path) -> dict:
+    """A finished ``himit run puzzlebox`` directory's ``summary.json``, checked for what its
+    page reads (:func:`~himit_torch.runs.study.read_record`): a damaged file (not JSON, or a
+    field missing or of another type) is a ``ValueError`` naming the file and the field."""
+    path = Path(run_dir) / "summary.json"
+    where = f"summary {path}"
+    fix = "; the record is damaged (run the study again, or restore the file)"
+    data = read_record(path, where, _SUMMARY, fix)
+    tags = {batch["batch"] for batch in data["batches"]}
+    needed = [f"{e}_{c}" for e, cs in _NEEDED_BATCHES.items() for c in cs]
+    if not set(needed) <= tags:
+        raise ValueError(
+            f"{where}: field 'batches' lacks {sorted(set(needed) - tags)} (the page's "
+            f"experiments (a) and (c)){fix}"
+        )
+    return data
 
 
 def rewrite_puzzle_box_report(run_dir: str | Path, run_command: str | None = None) -> None:
@@ -227,7 +193,6 @@ def write_puzzle_box_figures(run_dir: Path, summary: dict) -> None:
     from himit_torch.viz.report import AGENT_COLORS
 
     fig_dir = run_dir / "figures"
-    fig_dir.mkdir(parents=True, exist_ok=True)
     colors = {
         "imitation": AGENT_COLORS["imitation"],
         "options": AGENT_COLORS["options"],
@@ -248,15 +213,14 @@ def _experiment_figure(
 ) -> None:
     """``figures/<experiment>.png``: the conditions' openings per window, first openings and
     greedy values."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
     from matplotlib.ticker import FuncFormatter
 
     from himit_torch.viz.plotting import (
-        fit_titles,
         plot_first_goals,
         plot_goal_curves,
         plot_mean_band,
+        save_figure,
     )
 
     cfg = summary["config"]
@@ -294,15 +258,14 @@ def _experiment_figure(
         f"{cfg['transfer_skewers']}-skewer box"
     )
     fig.suptitle(f"{what} — {len(first['runs'])} seeds per condition")
-    FigureCanvasAgg(fig)
-    fit_titles(fig)
-    fig.savefig(run_dir / "figures" / f"{experiment}.png", dpi=100)
+    save_figure(fig, run_dir / "figures" / f"{experiment}.png", dpi=100, fit=True)
 
 
 def _organisation_figure(run_dir: Path, fig_dir: Path, summary: dict) -> None:
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
     from matplotlib.ticker import FuncFormatter
+
+    from himit_torch.viz.plotting import save_figure
 
     groups = _organisation_groups(summary, ("speed", "harder_pinch", "no_pinch", "transfer"))
     fig = Figure(figsize=(16, 6.4), layout="constrained")
@@ -340,8 +303,7 @@ def _organisation_figure(run_dir: Path, fig_dir: Path, summary: dict) -> None:
     ax.set_xlim(0, 1)
     ax.legend(ncol=4, loc="lower center", bbox_to_anchor=(0.5, 1.0), fontsize="small")
     ax.grid(axis="x", alpha=0.3)
-    FigureCanvasAgg(fig)
-    fig.savefig(fig_dir / "organisation.png", dpi=100)
+    save_figure(fig, fig_dir / "organisation.png", dpi=100)
 
 
 def _organisation_groups(summary: dict, experiments=("speed", "transfer")) -> dict[str, list[dict]]:

@@ -52,6 +52,9 @@ __all__ = [
     "read_table",
     "write_rows",
     "series_of",
+    "Field",
+    "check_record",
+    "read_record",
     "read_config",
     "read_config_file",
     "read_config_fields",
@@ -305,13 +308,16 @@ def read_table(
     return rows
 
 
-def write_rows(path: Path, columns: Sequence[str], rows: Sequence[dict]) -> None:
+def write_rows(
+    path: Path, columns: Sequence[str], rows: Sequence[dict], newline: str = "\r\n"
+) -> None:
     """A run's CSV record at ``path`` (its folder made): ``columns``, then ``rows``, floats
-    to 6 significant digits; written atomically."""
+    to 6 significant digits, each line ending with ``newline`` (``csv``'s own ``\\r\\n``, or
+    ``\\n``); written atomically."""
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_suffix(".tmp")
     with tmp.open("w", newline="") as f:
-        out = csv.DictWriter(f, fieldnames=columns)
+        out = csv.DictWriter(f, fieldnames=columns, lineterminator=newline)
         out.writeheader()
         for r in rows:
             out.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
@@ -346,6 +352,104 @@ def series_of(
                 f"({len(at)} rows, not {len(steps)}){fix}"
             )
     return steps, [[v for _, v in points] for points in series]
+
+
+# ============================================================================ the JSON records
+def _is_number(v: Any) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+#: The kinds of value a record's field may hold: each one's test and name.
+_KINDS: dict[str, tuple[Callable[[Any], bool], str]] = {
+    "text": (lambda v: isinstance(v, str), "a string"),
+    "whole": (lambda v: _is_number(v) and isinstance(v, int), "a whole number"),
+    "number": (_is_number, "a number"),
+    "finite": (lambda v: _is_number(v) and math.isfinite(v), "a finite number"),
+    "number?": (lambda v: v is None or _is_number(v), "a number or null"),
+    "list": (lambda v: isinstance(v, list), "a list"),
+    "object": (lambda v: isinstance(v, dict), "an object"),
+    "any": (lambda v: True, "anything"),
+}
+
+
+@dataclass(frozen=True)
+class Field:
+    """What one field of a run's JSON record must hold (:func:`check_record`): a value of
+    ``kind`` (a key of ``_KINDS``), a number ``> above`` and finite where ``above`` is given;
+    ``per_run``: a list of one value of that kind per run (``or_empty``: or empty, not measured);
+    ``items``: the fields of an object, or of each object in a non-empty list; ``optional``: it
+    may be absent."""
+
+    kind: str = "any"
+    above: float = -math.inf
+    per_run: str | None = None
+    or_empty: bool = False
+    items: dict[str, Field] | None = None
+    optional: bool = False
+
+    def fault(self, value: Any, runs: int | None) -> str | None:
+        """What the field must do (``be a number > 0``, ``hold one number per run (4)``) where
+        ``value`` does not, else None."""
+        test, kind = _KINDS[self.kind]
+        bounded = math.isfinite(self.above)
+        if not test(value) or (bounded and not self.above < value < math.inf):
+            return f"be {kind}" + (f" > {self.above:g}" if bounded else "")
+        if self.per_run is not None:
+            item_test, item = _KINDS[self.per_run]
+            if len(value) not in ((0, runs) if self.or_empty else (runs,)) or not all(
+                item_test(v) for v in value
+            ):
+                return (
+                    f"hold one {item.split(' ', 1)[1]} per run ({runs})"
+                    + " or none" * self.or_empty
+                )
+        if self.items is not None and self.kind == "list":
+            if not value or not all(isinstance(v, dict) for v in value):
+                return "be a non-empty list of objects"
+        return None
+
+
+def check_record(data: Any, schema: dict[str, Field], where: str, fix: str, runs=None) -> None:
+    """Refuse a run's JSON record ``data`` unless it is an object holding what ``schema``
+    declares: a ``ValueError`` ``<where>: field '<name>' is missing<fix>`` or ``… must <be
+    what>, got <value><fix>`` (``batches[0].steps`` in a list of objects). ``runs``: the length
+    of the ``per_run`` lists, or the name of a field that lists the runs' agents."""
+    if not isinstance(data, dict):
+        raise ValueError(f"{where} holds a JSON {type(data).__name__}, not an object{fix}")
+    if isinstance(runs, str):
+        if runs not in data:
+            raise ValueError(f"{where}: field {runs!r} is missing{fix}")
+        names = data[runs]
+        if not (isinstance(names, list) and names and all(isinstance(n, str) for n in names)):
+            raise ValueError(f"{where}: field {runs!r} must name one agent per run{fix}")
+        runs = len(names)
+    _check_fields(data, schema, where, fix, runs, "")
+
+
+def _check_fields(data: dict, schema, where: str, fix: str, runs, prefix: str) -> None:
+    for name, spec in schema.items():
+        if name not in data:
+            if spec.optional:
+                continue
+            raise ValueError(f"{where}: field {prefix + name!r} is missing{fix}")
+        value, field = data[name], prefix + name
+        what = spec.fault(value, runs)
+        if what is not None:
+            raise ValueError(f"{where}: field {field!r} must {what}, got {value!r:.60}{fix}")
+        if spec.items is not None and isinstance(value, dict):
+            _check_fields(value, spec.items, where, fix, runs, f"{field}.")
+        for i, item in enumerate(
+            value if spec.items is not None and isinstance(value, list) else ()
+        ):
+            _check_fields(item, spec.items, where, fix, runs, f"{field}[{i}].")
+
+
+def read_record(path: Path, where: str, schema: dict[str, Field], fix: str, runs=None) -> Any:
+    """The JSON record at ``path``, parsed and checked (:func:`check_record`); an unreadable
+    file is a ``ValueError`` naming ``where`` too."""
+    data = parse_document(where, read_text(where, path), "json")
+    check_record(data, schema, where, fix, runs)
+    return data
 
 
 #: ``himit info`` counts goals per this many steps, for every world (the paper's window).

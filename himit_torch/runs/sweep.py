@@ -95,7 +95,7 @@ from himit_torch.learner.config import LearnerConfig
 from himit_torch.learner.presets import apply_preset
 from himit_torch.runs.config import EXPERIMENTS, ExperimentConfig, load_config
 from himit_torch.runs.runner import share_cores, source_commit
-from himit_torch.runs.study import config_differences
+from himit_torch.runs.study import config_differences, write_rows
 from himit_torch.statistics import bca_interval, share_interval, t_interval
 from himit_torch.validation import (
     COUNT_MAX,
@@ -105,6 +105,7 @@ from himit_torch.validation import (
     check_folder_path,
     parse_document,
     read_text,
+    settings_of,
 )
 
 __all__ = ["SweepSpec", "Cell", "Trial", "load_spec", "run_sweep", "summarize", "rewrite_summary"]
@@ -227,36 +228,11 @@ def _check_setting(name: str, where: str) -> None:
         )
 
 
-def _check_type(cls, name: str, value: Any, where: str) -> None:
-    """A setting's value against its field's annotation (``int``, ``float | None``, …), so that a
-    string where a number belongs is named here, not met as a TypeError deep in a run."""
-    annotation = str(next(f.type for f in fields(cls) if f.name == name))
-    kinds = {part.strip().split("[")[0] for part in annotation.split("|")}
-    ok = (
-        (value is None and "None" in kinds)
-        or (isinstance(value, bool) and "bool" in kinds)
-        or (not isinstance(value, bool) and isinstance(value, int) and kinds & {"int", "float"})
-        or (isinstance(value, float) and "float" in kinds)
-        or (isinstance(value, str) and "str" in kinds)
-        or (isinstance(value, (list, tuple)) and "tuple" in kinds)
-    )
-    if not ok:
-        raise ValueError(f"{where}: {name}={value!r} must be of type {annotation}")
-
-
 def _apply(config: ExperimentConfig, settings: dict) -> ExperimentConfig:
     """``config`` with the dotted ``settings`` in one step the dataclasses check: a preset
     first, then the learner settings beside it (one departing from the preset is refused)."""
-    for key, value in settings.items():
-        if key.startswith("learner."):
-            _check_type(LearnerConfig, key[len("learner.") :], value, "learner")
-        else:
-            _check_type(ExperimentConfig, key, value, "setting")
     top = {k: v for k, v in settings.items() if not k.startswith("learner.")}
     learner = {k[len("learner.") :]: v for k, v in settings.items() if k.startswith("learner.")}
-    for key in ("agents", "sizes"):
-        if key in top and isinstance(top[key], list):
-            top[key] = tuple(top[key])
     base_learner = config.learner
     if top.get("preset") is not None:  # the preset first, then the settings beside it
         base_learner = apply_preset(base_learner, top["preset"])
@@ -298,8 +274,7 @@ def _level(name: str, value: Any) -> Any:
         if name.startswith("learner.")
         else (ExperimentConfig, name)
     )
-    annotation = str(next(f.type for f in fields(cls) if f.name == field))
-    return None if "None" in annotation else value
+    return None if next(s for s in settings_of(cls) if s.name == field).optional else value
 
 
 def load_spec(path: str | os.PathLike) -> SweepSpec:
@@ -481,9 +456,7 @@ def run_trial(config_json: str, run_dir: str, resume: bool, threads: int | None 
 
     if threads is not None:
         share_cores(threads)
-    data = json.loads(config_json)
-    data["learner"] = LearnerConfig(**data["learner"])
-    config = ExperimentConfig(**data)
+    config = ExperimentConfig(**json.loads(config_json))  # (its learner's dict checked too)
     [result] = run_experiment(config, run_dir, resume=resume, progress=False, workers=1)
     return {
         "run_dir": run_dir,
@@ -614,15 +587,6 @@ def _read_csv(path: Path) -> list[dict]:
         return list(csv.DictReader(f))
 
 
-def _write_csv(path: Path, header: Sequence[str], rows: list[dict]) -> None:
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    with tmp.open("w", newline="") as f:
-        out = csv.DictWriter(f, fieldnames=list(header), lineterminator="\n")
-        out.writeheader()
-        out.writerows(rows)
-    os.replace(tmp, path)
-
-
 def _show(value: Any) -> str:
     if value is None:
         return "none"
@@ -682,12 +646,14 @@ def summarize(spec: SweepSpec, out: Path) -> dict:
         key=lambda r: (order[r["cell"]], r["world"], agent_order.get(r["agent"], 99), r["seed"])
     )
     head = ["sweep", "cell", *factor_cols]
-    _write_csv(out / "results.csv", head + [k for k in results[0] if k not in head], results)
-    _write_csv(out / "runs.csv", head + [k for k in runs[0] if k not in head], runs)
+    write_rows(
+        out / "results.csv", head + [k for k in results[0] if k not in head], results, newline="\n"
+    )
+    write_rows(out / "runs.csv", head + [k for k in runs[0] if k not in head], runs, newline="\n")
     summary = _summary_rows(
         spec.name, factor_cols, {c.slug: c.config.steps for c in spec.cells}, runs
     )
-    _write_csv(out / "summary.csv", list(summary[0]), summary)
+    write_rows(out / "summary.csv", list(summary[0]), summary, newline="\n")
     provenance = {"commit": sorted(commits), "engine": sorted(engines)}
     _write_summary_md(_about(spec), out, summary, provenance)
     return provenance
@@ -805,7 +771,7 @@ def rewrite_summary(out: str | os.PathLike) -> None:
     if not runs:
         raise ValueError(f"{out / 'runs.csv'} holds no runs")
     summary = _summary_rows(about["name"], factor_cols, steps_of, runs)
-    _write_csv(out / "summary.csv", list(summary[0]), summary)
+    write_rows(out / "summary.csv", list(summary[0]), summary, newline="\n")
     _write_summary_md(about, out, summary, provenance)
 
 

@@ -40,6 +40,7 @@ from himit_torch.worlds.multirooms import MultiRooms
 
 __all__ = [
     "fit_titles",
+    "save_figure",
     "plot_world",
     "save_world_figure",
     "plot_state_map",
@@ -336,6 +337,16 @@ def fit_titles(fig: Figure, margin: float = 0.01) -> None:
             _wrap_to_width(text, max(room, 20.0), renderer)
     if laid_out:
         _place_boxes(fig, renderer)
+
+
+def save_figure(fig: Figure, path: str | os.PathLike, dpi: int, fit: bool = False) -> None:
+    """Write ``fig`` to ``path`` (its folder made) at ``dpi`` through the Agg canvas, the way
+    every study's figures are written; ``fit``: :func:`fit_titles` first."""
+    FigureCanvasAgg(fig)
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    if fit:
+        fit_titles(fig)
+    fig.savefig(path, dpi=dpi)
 
 
 def save_world_figure(

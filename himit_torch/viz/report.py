@@ -10,10 +10,14 @@ from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from himit_torch.viz.plotting import CURVE_COLORS, fit_titles, plot_first_goals, plot_goal_curves
+from himit_torch.viz.plotting import (
+    CURVE_COLORS,
+    plot_first_goals,
+    plot_goal_curves,
+    save_figure,
+)
 from himit_torch.viz.results_page import learner_settings_line
 from himit_torch.viz.tensorboard import tensorboard_command
 
@@ -145,10 +149,7 @@ def plot_scaling(results, agents) -> Figure:
 
 
 def _save(fig: Figure, path: Path) -> None:
-    FigureCanvasAgg(fig)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fit_titles(fig)
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110, fit=True)
 
 
 def _world_figure_paths(run_dir: Path, config, size: int) -> tuple[Path, Path]:

@@ -423,17 +423,20 @@ def _set_cell(rows: list, name: str, value: str) -> None:
 #: Damaged records of a finished run, and what ``himit plot``'s refusal must say.
 PLOT_DAMAGE = {
     "a list for a world's record": (_world_record(lambda r: []), "holds a JSON list, not an"),
-    "an empty world record": (_world_record(lambda r: {}), "are missing"),
+    "an empty world record": (_world_record(lambda r: {}), "'agents' is missing"),
     "an unknown field": (_world_record(lambda r: {**r, "bogus": 1}), "unknown fields ['bogus']"),
     "another world's record": (_world_record(lambda r: {**r, "size": 40}), "not this file's"),
-    "goals not a list": (_world_record(lambda r: {**r, "goals": "x"}), "goals='x' is not a list"),
+    "goals not a list": (
+        _world_record(lambda r: {**r, "goals": "x"}),
+        "'goals' must be a list, got 'x'",
+    ),
     "one run's goals short": (
         _world_record(lambda r: {**r, "goals": r["goals"][1:]}),
-        "is not a list of 4 whole numbers",
+        "'goals' must hold one whole number per run (4)",
     ),
     "a text value start": (
         _world_record(lambda r: {**r, "value_start": ["a"] * 4}),
-        "value_start=",
+        "'value_start' must hold one number per run (4)",
     ),
     "a record that is not JSON": (
         lambda d: (d / "worlds" / "world16.json").write_text("{"),

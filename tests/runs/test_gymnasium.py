@@ -195,8 +195,8 @@ _RECORDS = Path(__file__).resolve().parents[2] / "experiments" / "results"
 @pytest.mark.parametrize(
     ("record", "field"),
     [
-        ({}, "task"),
-        ({"task": "taxi"}, "about"),
+        ({}, "agents"),
+        ({"task": "taxi", "agents": ["imitation"]}, "about"),
         ({"task": "taxi", "about": "x", "agents": "imitation"}, "agents"),
         ([], None),
     ],
