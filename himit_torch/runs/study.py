@@ -109,8 +109,9 @@ class RunSettings:
         The named preset the learner settings follow (``himit_torch.learner.presets``):
         ``paper`` (eq. 2 as the paper states it), ``explore-goals`` (the paper's with ε held
         until the 10th goal: an exploration schedule, for every agent), ``mentor-fade`` (the
-        paper's with the mentor term fading: read only by agents with a mentor term) or
-        ``recommended`` (both); ``None``: none claimed. Every agent of a run gets it: compare
+        paper's with the mentor term fading: read only by agents with a mentor term),
+        ``recommended`` (both) or ``subgoal-mentor`` (``mentor-fade`` with the segment term and
+        trial: for a mentor seen only at its subgoals); ``None``: none claimed. Every agent of a run gets it: compare
         methods under one preset. Set by ``with_preset`` / ``himit run --preset``; a
         configuration whose learner departs from its preset's settings is refused. The greedy
         tie rule is not part of a preset (``--tie-break``).""",
