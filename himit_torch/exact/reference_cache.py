@@ -226,17 +226,25 @@ def _write(folder: Path, key: str, header: dict, arrays: dict[str, Any]) -> None
         pass  # (a read-only or full disk: the entry stays this process's)
 
 
+def _open(path: Path, names: tuple[str, ...]) -> tuple[Any, dict[str, np.ndarray]] | None:
+    """An entry's header (parsed JSON) and its arrays ``names``, or ``None`` where the file is
+    not an archive of exactly those (read without pickle)."""
+    try:
+        with np.load(io.BytesIO(path.read_bytes()), allow_pickle=False) as entry:
+            if set(entry.files) != {"header", *names}:
+                return None
+            return json.loads(str(entry["header"][()])), {name: entry[name] for name in names}
+    except Exception:  # (whatever a damaged archive raises: zip, NPY or JSON errors)
+        return None
+
+
 def _read(path: Path, key: str, num_options: int, num_states: int) -> dict | None:
     """The arrays of the entry at ``path``, or ``None`` where it is missing or fails a check
     (module docstring)."""
-    try:
-        with np.load(io.BytesIO(path.read_bytes()), allow_pickle=False) as entry:
-            if set(entry.files) != {"header", *_ARRAYS}:
-                return None
-            header = json.loads(str(entry["header"][()]))
-            arrays = {name: entry[name] for name in _ARRAYS}
-    except Exception:  # (whatever a damaged archive raises: zip, NPY or JSON errors)
+    opened = _open(path, _ARRAYS)
+    if opened is None:
         return None
+    header, arrays = opened
     S, O = num_states, num_options
     M = arrays["row_state"].shape[0] if arrays["row_state"].ndim == 1 else -1
     checks = (
@@ -395,14 +403,10 @@ def _keep_plan(key: str, header: dict, arrays: dict[str, np.ndarray]) -> None:
 
 def _read_plan(path: Path, key: str, num_states: int, num_rows: int, num_options: int):
     """``(header, arrays)`` of the plan entry at ``path``, or ``None`` where it fails a check."""
-    try:
-        with np.load(io.BytesIO(path.read_bytes()), allow_pickle=False) as entry:
-            if set(entry.files) != {"header", *_PLAN_ARRAYS}:
-                return None
-            header = json.loads(str(entry["header"][()]))
-            arrays = {name: entry[name] for name in _PLAN_ARRAYS}
-    except Exception:  # (whatever a damaged archive raises: zip, NPY or JSON errors)
+    opened = _open(path, _PLAN_ARRAYS)
+    if opened is None:
         return None
+    header, arrays = opened
     shapes = {"values": (num_states,), "policy": (num_states,), "q": (num_rows,)}
     checks = (
         isinstance(header, dict)
