@@ -180,6 +180,15 @@ def _path(folder: Path, key: str) -> Path:
     return folder / f"{key}.npz"
 
 
+def _stored_entry(key: str) -> Path | None:
+    """The file of the entry ``key`` where the disk cache is on and holds one, else ``None``."""
+    folder = cache_dir()
+    if folder is None:
+        return None
+    path = _path(folder, key)
+    return path if path.is_file() else None
+
+
 def store_models(key: str, models) -> None:
     """Keep ``models`` (an :class:`~himit_torch.exact.option_models.OptionModels`) under
     ``key``: in this process, and on disk where the cache is on. A folder that cannot be
@@ -284,11 +293,8 @@ def load_models(key: str, options, build: Callable[[dict[str, np.ndarray], int, 
     if known is not None:
         _BY_CONTENT.move_to_end(key)
         return known
-    folder = cache_dir()
-    if folder is None:
-        return None
-    path = _path(folder, key)
-    if not path.is_file():
+    path = _stored_entry(key)
+    if path is None:
         return None
     arrays = _read(path, key, int(options.num_options), int(options.num_states))
     if arrays is not None:
@@ -379,11 +385,8 @@ def load_plan(
         _PLANS.move_to_end(key)
         header, arrays = known
         return {k: a.copy() for k, a in arrays.items()}, int(header["iterations"])
-    folder = cache_dir()
-    if folder is None:
-        return None
-    path = _path(folder, key)
-    if not path.is_file():
+    path = _stored_entry(key)
+    if path is None:
         return None
     found = _read_plan(path, key, num_states, num_rows, num_options)
     if found is None:
