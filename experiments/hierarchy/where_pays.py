@@ -241,13 +241,10 @@ def load_q2_cells(results: Path) -> tuple[list[Cell], list[str]]:
     cells: list[Cell] = []
     missing: list[str] = []
 
-    def read(name: str) -> tuple[list[dict], list[dict], str] | None:
-        return read_sweep(results, name, missing)
-
     for world, (_, budget) in Q2_WORLDS.items():
-        controls = read(f"q2_controls_{world}")
+        controls = read_sweep(results, f"q2_controls_{world}", missing)
         for observation, (sweep, stride) in Q2_OBSERVATIONS.items():
-            imitators = read(f"{sweep}_{world}")
+            imitators = read_sweep(results, f"{sweep}_{world}", missing)
             if controls is None or imitators is None:
                 continue
             for schedule in SCHEDULES:
@@ -1191,10 +1188,11 @@ def main() -> None:
         + ("; ".join(sorted(set(missing))) + " (records absent); " if missing else "")
         + "Q1 on the puzzle box and on MiniGrid's UnlockPickup, FourRooms and MultiRoom N2S4 "
         "(registered for himit run minigrid, left out of the amendment that added three tasks, "
-        "by cost and for having no subgoal or only one: PROTOCOL.md), F on Q2's conditions (where the mentor's observed moves are several "
-        "steps), Q3's other transfers (options discovered from the mentor's states, the "
-        "5-skewer puzzle box after 4-skewer demonstrations, a key moved), Q4 (the fifth skewer): their cells follow in amendments before their runs, as "
-        "the settings and worlds land. "
+        "by cost and for having no subgoal or only one: PROTOCOL.md), F on Q2's conditions "
+        "(where the mentor's observed moves are several steps), Q3's other transfers "
+        "(options discovered from the mentor's states, the 5-skewer puzzle box after 4-skewer "
+        "demonstrations, a key moved), Q4 (the fifth skewer): their cells follow in amendments "
+        "before their runs, as the settings and worlds land. "
         + (
             ""
             if choice is not None

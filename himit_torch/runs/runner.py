@@ -354,7 +354,7 @@ def write_atomically(path: Path, text: str) -> None:
     """Write ``text`` to ``path`` through a temporary file beside it and a rename, so that a
     reader (or a run killed mid-write) never sees a half-written file."""
     tmp = path.with_suffix(path.suffix + ".tmp")
-    tmp.write_text(text)
+    tmp.write_text(text, newline="")  # (the text's own line endings, on every system)
     os.replace(tmp, path)
 
 

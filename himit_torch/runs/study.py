@@ -111,8 +111,8 @@ class RunSettings:
         until the 10th goal: an exploration schedule, for every agent), ``mentor-fade`` (the
         paper's with the mentor term fading: read only by agents with a mentor term),
         ``recommended`` (both) or ``subgoal-mentor`` (``mentor-fade`` with the segment term and
-        trial: for a mentor seen only at its subgoals); ``None``: none claimed. Every agent of a run gets it: compare
-        methods under one preset. Set by ``with_preset`` / ``himit run --preset``; a
+        trial: for a mentor seen only at its subgoals); ``None``: none claimed. Every agent of
+        a run gets it: compare methods under one preset. Set by ``with_preset`` / ``himit run --preset``; a
         configuration whose learner departs from its preset's settings is refused. The greedy
         tie rule is not part of a preset (``--tie-break``).""",
     )
@@ -316,13 +316,12 @@ def write_rows(
     to 6 significant digits, each line ending with ``newline`` (``csv``'s own ``\\r\\n``, or
     ``\\n``); written atomically."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(".tmp")
-    with tmp.open("w", newline="") as f:
-        out = csv.DictWriter(f, fieldnames=columns, lineterminator=newline)
-        out.writeheader()
-        for r in rows:
-            out.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
-    os.replace(tmp, path)
+    text = io.StringIO()
+    out = csv.DictWriter(text, fieldnames=columns, lineterminator=newline)
+    out.writeheader()
+    for r in rows:
+        out.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
+    write_atomically(path, text.getvalue())
 
 
 def _is_finite(text: str) -> bool:
