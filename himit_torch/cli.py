@@ -316,19 +316,9 @@ def study_configs(args: argparse.Namespace) -> list[Any]:
     learner_changes = _given_settings(args, "learner")
     configs = []
     for config in starts:
-        changes = dict(given)
         if args.quick:
             config = config.quick()
-        if "preset" in changes:
-            preset = changes.pop("preset")
-            config = (
-                dataclasses.replace(config, preset=None)
-                if preset is None
-                else config.with_preset(preset)
-            )
-        if learner_changes:
-            changes["learner"] = dataclasses.replace(config.learner, **learner_changes)
-        config = dataclasses.replace(config, **changes)
+        config = config.with_settings(given, learner_changes)
         if study.adjust is not None:
             config = study.adjust(config, frozenset(given))
         if hasattr(config, "device"):

@@ -14,7 +14,7 @@ from __future__ import annotations
 import os
 import shlex
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, fields, replace
+from dataclasses import asdict, fields
 from pathlib import Path
 from typing import Any
 
@@ -96,7 +96,7 @@ def _flags_rebuilding(base: Any, config: Any, names, adjust) -> list[str] | None
         preset = getattr(config, "preset", None)
         if (names is None or "preset" in names) and preset != getattr(base, "preset", None):
             flags += setting_flag("preset", preset)
-            base = replace(base, preset=None) if preset is None else base.with_preset(preset)
+            base = base.with_settings({"preset": preset})
         own = {f.name: getattr(config, f.name) for f in fields(config) if f.name not in _OWNED}
         changes = {n: v for n, v in own.items() if _wanted(n, names) and v != getattr(base, n)}
         learner = {}
@@ -109,8 +109,7 @@ def _flags_rebuilding(base: Any, config: Any, names, adjust) -> list[str] | None
                     )
 
         def rebuilt(given: dict) -> Any:
-            extra = {"learner": replace(base.learner, **learner)} if learner else {}
-            built = replace(base, **given, **extra)
+            built = base.with_settings(given, learner)
             return adjust(built, frozenset(given)) if adjust is not None else built
 
         if not _builds(rebuilt, changes, config):

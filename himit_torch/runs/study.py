@@ -210,6 +210,25 @@ class RunConfig:
             )
         return replace(config, preset=name, learner=apply_preset(config.learner, name))
 
+    def with_settings(
+        self: Config, settings: dict[str, Any], learner: dict[str, Any] | None = None
+    ) -> Config:
+        """This configuration with its own ``settings`` and the ``learner`` settings, in one
+        order for every caller (``himit run``'s flags, a sweep's levels, a rerun command): a
+        ``preset`` among ``settings`` first (:meth:`with_preset`; ``None`` records no preset and
+        leaves the learner as it is), then the learner settings beside it, then the rest.
+
+        Raises:
+            ValueError: a setting the dataclasses refuse, or an unknown preset."""
+        config: Any = self
+        changes = dict(settings)
+        if "preset" in changes:
+            preset = changes.pop("preset")
+            config = replace(config, preset=None) if preset is None else config.with_preset(preset)
+        if learner:
+            changes["learner"] = replace(config.learner, **learner)
+        return replace(config, **changes)
+
     @property
     def seed_list(self) -> list[int]:
         """The seeds: ``first_seed`` … ``first_seed + seeds − 1``."""

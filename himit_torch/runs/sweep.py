@@ -92,7 +92,6 @@ from pathlib import Path
 from typing import Any
 
 from himit_torch.learner.config import LearnerConfig
-from himit_torch.learner.presets import apply_preset
 from himit_torch.runs.config import EXPERIMENTS, ExperimentConfig, load_config
 from himit_torch.runs.runner import share_cores, source_commit
 from himit_torch.runs.study import config_differences, write_rows
@@ -233,11 +232,7 @@ def _apply(config: ExperimentConfig, settings: dict) -> ExperimentConfig:
     first, then the learner settings beside it (one departing from the preset is refused)."""
     top = {k: v for k, v in settings.items() if not k.startswith("learner.")}
     learner = {k[len("learner.") :]: v for k, v in settings.items() if k.startswith("learner.")}
-    base_learner = config.learner
-    if top.get("preset") is not None:  # the preset first, then the settings beside it
-        base_learner = apply_preset(base_learner, top["preset"])
-    new_learner = replace(base_learner, **learner) if learner else base_learner
-    built = replace(config, **top, learner=new_learner)
+    built = config.with_settings(top, learner)
     for key in set(learner) & set(built.derived_learner):
         # derived and recorded: a value the experiment's own settings do not give is refused,
         # not silently replaced

@@ -150,3 +150,20 @@ def test_an_unknown_configuration_is_refused_naming_the_file(tmp_path, capsys):
 def test_a_name_is_registered_once():
     with pytest.raises(ValueError, match="already registered"):
         studies.register(studies.STUDIES["exp1"])
+
+
+def test_with_settings_puts_the_preset_first_and_the_learner_settings_beside_it():
+    from dataclasses import replace
+
+    from himit_torch.learner.presets import apply_preset
+    from himit_torch.runs.config import ExperimentConfig
+
+    base = ExperimentConfig()
+    built = base.with_settings({"preset": "paper", "seeds": 3}, {"mentor_trial": True})
+    expected_learner = replace(apply_preset(base.learner, "paper"), mentor_trial=True)
+    assert (built.preset, built.seeds, built.learner) == ("paper", 3, expected_learner)
+    # a None preset records no preset and leaves the learner as it is
+    cleared = built.with_settings({"preset": None})
+    assert cleared.preset is None and cleared.learner == built.learner
+    with pytest.raises(ValueError, match="unknown preset"):
+        base.with_settings({"preset": "no-such-preset"})
