@@ -129,3 +129,21 @@ def test_loading_needs_all_four_cells_of_a_schedule(q4, tmp_path):
     (tmp_path / "q4_paper_given_options.json").write_text(json.dumps(record))
     cells, _ = q4.load_q4(tmp_path)
     assert list(cells) == ["paper"]
+
+
+@pytest.mark.slow
+def test_a_short_run_reproduces_the_committed_q4_records(q4, tmp_path):
+    """The first windows of seeds 0 and 1 (a skewer-by-skewer and a step-by-step mentor) of the
+    committed eq. 2 with skewer routines, paper's ε, rerun with the code as it is now: the same
+    routines and the same openings per window (learning is causal, so a shorter budget gives
+    the same first windows)."""
+    import q4_fifth_skewer as runner
+
+    record = json.loads((HERE.parent / "results" / "hierarchy" / "q4_paper_relative_eq2.json")
+                        .read_text())  # fmt: skip
+    windows = 3
+    out = runner.run_setting(seeds=2, first_seed=0, steps=windows * record["window"])
+    again = runner.run_cell(*out, "paper", "relative_eq2")
+    for mine, theirs in zip(again["runs"], record["runs"][:2]):
+        assert mine["routines"] == theirs["routines"]
+        assert mine["window_openings"] == theirs["window_openings"][:windows]

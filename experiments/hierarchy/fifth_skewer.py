@@ -86,6 +86,17 @@ def goals_in_quarter(run: dict, steps: int, window: int) -> int:
     return sum(run["window_openings"][: (steps // 4) // window])
 
 
+def by_organisation(record: dict) -> str:
+    """``"x/n · y/m"``: a cell's runs fitting skewer 5 among its skewer-by-skewer seeds and its
+    step-by-step seeds."""
+    runs = record["runs"]
+    parts = []
+    for organisation in ("skewer", "step"):
+        mine = [r for r in runs if r["watched"] == organisation]
+        parts.append(f"{sum(follows_on_skewer_5(r) for r in mine)}/{len(mine)}")
+    return " · ".join(parts)
+
+
 def load_q4(results: Path) -> tuple[dict[str, dict[str, dict]], list[str]]:
     """Per schedule whose four cells are all recorded, cell → record; and the records absent."""
     cells: dict[str, dict[str, dict]] = {}
@@ -197,18 +208,12 @@ def learners_table(schedule: str, cells: dict[str, dict]) -> list[str]:
     for cell, name in CELLS.items():
         record = cells[cell]
         runs = record["runs"]
-        by = {
-            o: sum(follows_on_skewer_5(r) for r in runs if r["watched"] == o)
-            for o in ("skewer", "step")
-        }
-        n = {o: sum(r["watched"] == o for r in runs) for o in ("skewer", "step")}
         survival = first_goal_survival(values["first_opening"][cell], int(record["steps"]))
         median = survival.median.estimate
         first = "never" if not np.isfinite(median) else f"{median / 1000:.1f}k"
         lines.append(
             f"| {name} | {record['runs'][0]['options']}/{record['runs'][1]['options']} "
-            f"| {by['skewer']}/{n['skewer']} · {by['step']}/{n['step']} · "
-            f"{by['skewer'] + by['step']}/{len(runs)} "
+            f"| {by_organisation(record)} · {sum(map(follows_on_skewer_5, runs))}/{len(runs)} "
             f"| {sum(follows_overall(r) for r in runs)}/{len(runs)} "
             f"| {sum(bool(r['opens']) for r in runs)}/{len(runs)} "
             f"| {bca_interval(values['value_gap'][cell]).format(3)} | {first} "
@@ -283,7 +288,9 @@ def answer_lines(tests: list[Test], cells: dict[str, dict[str, dict]]) -> list[s
             )
             + f" Routines without a mentor: {follows[R0]} of {n}; given options without one: "
             f"{follows[G0]} of {n} (eq. 2 with routines against routines only: Holm p = "
-            f"{own.p_holm:.3g})."
+            f"{own.p_holm:.3g}). By the organisation watched, skewer by skewer / step by step: "
+            + ", ".join(f"{CELLS[c]} {by_organisation(group[c])}" for c in CELLS)
+            + "."
         )
     return lines
 

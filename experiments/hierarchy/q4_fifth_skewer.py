@@ -61,8 +61,26 @@ def relative_options(box: PuzzleBox, routines) -> Options:
     return Options.concat([primitive_options(box), skewer_routine_options(box, routines)])
 
 
-def run_cell(config: PuzzleBoxConfig, schedule: str, cell: str, big: PreparedBox, mapped: dict,
-             routines: dict) -> dict:  # fmt: skip
+def run_setting(seeds: int = 20, first_seed: int = 0, steps: int = 300_000):
+    """What every cell shares: the study's configuration with these seeds and steps, the
+    5-skewer box prepared with the given options, each seed's mentor episodes on the 4-skewer
+    box mapped into it, and each seed's routines discovered from them."""
+    config = PuzzleBoxConfig(seeds=seeds, first_seed=first_seed, transfer_steps=steps)
+    small = PuzzleBox(config.skewers, slip=config.slip, pinch_slip=config.pinch_slip)
+    mentors = {org: organisation_mentor(small, org) for org in ORGANISATIONS}
+    demos = {
+        s: record_demonstrations(small, mentors[watched_organisation(s, config.first_seed)],
+                                 config.mentor_episodes, seed=s)
+        for s in config.seed_list
+    }  # fmt: skip
+    routines = {s: discover_skewer_routines(small, d) for s, d in demos.items()}
+    big = PreparedBox.build(config.transfer_skewers, config.slip, config.pinch_slip)
+    mapped = {s: map_demonstrations(d, small, big.world, MAPPING) for s, d in demos.items()}
+    return config, big, mapped, routines
+
+
+def run_cell(config: PuzzleBoxConfig, big: PreparedBox, mapped: dict, routines: dict,
+             schedule: str, cell: str) -> dict:  # fmt: skip
     """One cell's runs: its seeds in batches of equal options (a run does not depend on its
     batch), each for ``config.transfer_steps`` steps; per run its record."""
     agent, kind = CELLS[cell]
@@ -130,23 +148,12 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=PuzzleBoxConfig.transfer_steps)
     parser.add_argument("--out", default=str(RESULTS), help="where the records go")
     args = parser.parse_args()
-    config = PuzzleBoxConfig(seeds=args.seeds, first_seed=args.first_seed,
-                             transfer_steps=args.steps)  # fmt: skip
-    small = PuzzleBox(config.skewers, slip=config.slip, pinch_slip=config.pinch_slip)
-    mentors = {org: organisation_mentor(small, org) for org in ORGANISATIONS}
-    demos = {
-        s: record_demonstrations(small, mentors[watched_organisation(s, config.first_seed)],
-                                 config.mentor_episodes, seed=s)
-        for s in config.seed_list
-    }  # fmt: skip
-    routines = {s: discover_skewer_routines(small, d) for s, d in demos.items()}
-    big = PreparedBox.build(config.transfer_skewers, config.slip, config.pinch_slip)
-    mapped = {s: map_demonstrations(d, small, big.world, MAPPING) for s, d in demos.items()}
+    config, big, mapped, routines = run_setting(args.seeds, args.first_seed, args.steps)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     for schedule in args.schedules:
         for cell in args.cells:
-            record = run_cell(config, schedule, cell, big, mapped, routines)
+            record = run_cell(config, big, mapped, routines, schedule, cell)
             path = out / f"q4_{schedule}_{cell}.json"
             path.write_text(json.dumps(record, indent=1) + "\n")
             print(f"{path.name}: {record['wall_seconds']} s", flush=True)
