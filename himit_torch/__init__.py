@@ -92,6 +92,11 @@ from himit_torch.options.discovery import (
 )
 from himit_torch.options.minigrid import minigrid_options, minigrid_subgoals
 from himit_torch.options.puzzle_box import puzzle_box_options
+from himit_torch.options.skewer_routines import (
+    SkewerRoutine,
+    discover_skewer_routines,
+    skewer_routine_options,
+)
 from himit_torch.options.taxi import taxi_navigation_options
 from himit_torch.viz.tensorboard import TensorBoardLogger
 from himit_torch.worlds.gym_env import ENV_ID, MultiRoomsEnv, register_envs
@@ -231,6 +236,9 @@ __all__ = [
     "discover_subgoals",
     "learned_subgoal_options",
     "one_step_counts",
+    "SkewerRoutine",
+    "discover_skewer_routines",
+    "skewer_routine_options",
     "with_options",
     # logging
     "TensorBoardLogger",

@@ -3,7 +3,7 @@ copied into ``experiments/results/hierarchy/``, then ``analyse.py``.
 
     python experiments/hierarchy/run_hierarchy.py
         [--parts segments trial puzzlebox mentors largest carryover q1 f q2 q2mg q3 preset
-                 subgoal-mentor q3mr]
+                 subgoal-mentor q3mr q4]
         [--logdir runs/hierarchy] [--skip-runs]
 
 Each part's wall time is written to ``experiments/results/hierarchy/timing.json``. The part ``q1``
@@ -74,6 +74,7 @@ PARTS = {
         "q2_stride_exp1",
     ),
     "q3mr": ("q3_multirooms_exp1",),  # (transfer on the multi-room world)
+    "q4": (),  # (the fifth skewer: its own script, q4_fifth_skewer.py)
 }
 #: What a sweep's record keeps in the repository: per-run summaries, per-window goals, its spec.
 RECORDS = ("runs.csv", "results.csv", "sweep.json")
@@ -292,6 +293,8 @@ def main() -> None:
         started = time.perf_counter()
         if part == "puzzlebox" and not args.skip_runs:
             run(str(HERE / "puzzle_box_h2.py"), "--logdir", str(logdir))
+        if part == "q4" and not args.skip_runs:
+            run(str(HERE / "q4_fifth_skewer.py"))  # (its records go straight to the results)
         if part == "q1":
             run_q1(logdir, args.skip_runs, args.tasks or Q1_TASKS)
         if part == "f":

@@ -30,6 +30,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+import fifth_skewer
 import numpy as np
 from common import (
     HERE,
@@ -1026,6 +1027,9 @@ def main() -> None:
     q3 = adjust(
         q3_split + mechanism_tests(q3_cells) + transfer_cost_tests(q3_cells, cells + q3_own_cells)
     )
+    q4_cells, q4_raw, q4_missing = fifth_skewer.family(results)  # Q4: its own module
+    q4 = adjust(q4_raw)
+    missing += q4_missing
     every = q1 + q2 + q3_split
     verdicts = [helps(every, c.task, c.schedule, c.condition) for c in cells + q2_cells + q3_cells]
     distinct, repeats = distinct_comparisons([t for t in every if t.name == HIERARCHY])
@@ -1049,6 +1053,7 @@ def main() -> None:
         *verdict_lines(q2, q2_cells, "Q2"),
         *verdict_lines(q3, q3_cells, "Q3"),
         *q3_answer_lines(q3, q3_cells),
+        *fifth_skewer.answer_lines(q4, q4_cells),
         f"- **Tally so far:** hierarchy helps imitation in {n_helps} of {n_conditions} distinct "
         f"conditions (each pair of runs counted once; {len(repeats)} repeats), and eq. 2 is "
         f"significantly worse than eq. 1 on the greedy policy in {n_worse}. The protocol's goal "
@@ -1191,7 +1196,9 @@ def main() -> None:
         "by cost and for having no subgoal or only one: PROTOCOL.md), F on Q2's conditions "
         "(where the mentor's observed moves are several steps), Q3's other transfers "
         "(options discovered from the mentor's states, the 5-skewer puzzle box after 4-skewer "
-        "demonstrations, a key moved), Q4 (the fifth skewer): their cells follow in amendments "
+        "demonstrations, a key moved)"
+        + ("" if q4_cells else ", Q4 (the fifth skewer)")
+        + ": their cells follow in amendments "
         "before their runs, as the settings and worlds land. "
         + (
             ""
@@ -1251,6 +1258,7 @@ def main() -> None:
     lines += subgoal_mentor_lines(results, cells + q2_cells)
     if q3_cells:
         lines += q3_section(results, q3, q3_cells)
+    lines += fifth_skewer.section_lines(results, q4_cells, q4)
     if f:
         lines += [
             "## F, feasibility at N = 1 and N = 3",
@@ -1307,7 +1315,7 @@ def main() -> None:
         writer = csv.writer(out)
         fields = list(Test.__dataclass_fields__)
         writer.writerow(fields)
-        for t in q1 + q2 + q3 + f:
+        for t in q1 + q2 + q3 + f + q4:
             writer.writerow([getattr(t, k) for k in fields])
     print(f"wrote {results / 'where_pays.md'}")
 
