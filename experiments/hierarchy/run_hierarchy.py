@@ -3,7 +3,7 @@ copied into ``experiments/results/hierarchy/``, then ``analyse.py``.
 
     python experiments/hierarchy/run_hierarchy.py
         [--parts segments trial puzzlebox mentors largest carryover q1 f q2 q2mg q3 preset
-                 subgoal-mentor q3mr]
+                 subgoal-mentor q3mr q1box fbox q3box]
         [--logdir runs/hierarchy] [--skip-runs]
 
 Each part's wall time is written to ``experiments/results/hierarchy/timing.json``. The part ``q1``
@@ -14,7 +14,9 @@ runs eq. 2 alone the same way; ``where_pays.py`` writes their page. ``q3`` (tran
 on MiniGrid") runs the four learners per transfer task, initial value and schedule. ``preset``
 (amendment "the preset") runs its candidates on held-out seeds and ``choose_preset.py`` picks one;
 ``subgoal-mentor`` runs the chosen preset on seeds 0–19 (its results, the amendment's rule for a
-preset that fades); ``q3mr`` (amendment "Q3 (transfer) on the multi-room world") is one sweep.
+preset that fades); ``q3mr`` (amendment "Q3 (transfer) on the multi-room world") is one sweep;
+``q1box``, ``fbox`` and ``q3box`` (amendment "Q1 and Q3 on the puzzle box") run
+``puzzle_box_round.py``.
 ``--tasks`` restricts ``q1``, ``f``, ``q2mg`` and ``q3`` to some of their
 tasks, ``--cells`` those parts to some of their cells (by name, e.g. ``f_unlock_paper_n1``),
 ``--sweeps`` a part to some of its sweeps; sweeps run in this process (``--no-ray``: Ray's start
@@ -74,7 +76,12 @@ PARTS = {
         "q2_stride_exp1",
     ),
     "q3mr": ("q3_multirooms_exp1",),  # (transfer on the multi-room world)
+    "q1box": (),  # (the puzzle box: puzzle_box_round.py)
+    "fbox": (),
+    "q3box": (),
 }
+#: The puzzle box's parts (amendment "Q1 and Q3 on the puzzle box"), run by puzzle_box_round.py.
+BOX_PARTS = ("q1box", "fbox", "q3box")
 #: What a sweep's record keeps in the repository: per-run summaries, per-window goals, its spec.
 RECORDS = ("runs.csv", "results.csv", "sweep.json")
 #: Q1's further MiniGrid tasks (amendment "Q1 on three more MiniGrid tasks").
@@ -292,6 +299,10 @@ def main() -> None:
         started = time.perf_counter()
         if part == "puzzlebox" and not args.skip_runs:
             run(str(HERE / "puzzle_box_h2.py"), "--logdir", str(logdir))
+        if part in BOX_PARTS and not args.skip_runs:
+            cells = ["--cells", *args.cells] if args.cells else []
+            run(str(HERE / "puzzle_box_round.py"), "--parts", part, "--logdir", str(logdir),
+                *cells)  # fmt: skip
         if part == "q1":
             run_q1(logdir, args.skip_runs, args.tasks or Q1_TASKS)
         if part == "f":
@@ -318,7 +329,7 @@ def main() -> None:
             key = f"{part} ({' '.join(args.tasks)})" if some else part
             if args.sweeps:
                 key = f"{part} ({' '.join(n for n in PARTS[part] if n in args.sweeps)})"
-            if args.cells and part in ("q1", "f", "q2mg", "q3"):
+            if args.cells and part in ("q1", "f", "q2mg", "q3", *BOX_PARTS):
                 key = f"{part} ({' '.join(args.cells)})"
             # read again just before writing: another part may have run beside this one
             timing = json.loads(timing_path.read_text()) if timing_path.exists() else {}
