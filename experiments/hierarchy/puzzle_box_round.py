@@ -14,7 +14,7 @@ one per learner, on its boxes, mentors and budgets, under the round's settings.
   episodes mapped in by the ``plain`` mapping; the four learners per initial value and schedule
   (``q3_puzzlebox5_iv<value>_<schedule>``).
 
-Each cell's records (``config.json``; per learner ``batches/<agent>.json``, the runs' first
+Each cell's records (``config.json``, ``commit.txt``: the code's commit; per learner ``batches/<agent>.json``, the runs' first
 openings, openings and final greedy values, and ``batches/<agent>.csv``, openings per window)
 are copied into ``experiments/results/hierarchy/<cell>/``; ``where_pays.py`` reads them.
 """
@@ -34,6 +34,7 @@ from himit_torch.runs.puzzle_box import (
     run_box_batch,
     watched_organisation,
 )
+from himit_torch.runs.runner import source_commit
 from himit_torch.worlds.puzzle_box import ORGANISATIONS
 
 HERE = Path(__file__).resolve().parent
@@ -87,6 +88,7 @@ def run_cell(name: str, config: PuzzleBoxConfig, box: PreparedBox, agents, demos
     target = RESULTS / name / "batches"
     target.mkdir(parents=True, exist_ok=True)
     (RESULTS / name / "config.json").write_text(config.to_json() + "\n")
+    (RESULTS / name / "commit.txt").write_text(source_commit() + "\n")
     for agent in agents:
         watched = demos if agent in IMITATORS else None
         run_box_batch(config, box, agent, agent, agent, watched, steps, steps, run_dir,
