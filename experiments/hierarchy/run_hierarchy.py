@@ -18,8 +18,8 @@ preset that fades); ``q3mr`` (amendment "Q3 (transfer) on the multi-room world")
 ``q1box``, ``fbox`` and ``q3box`` (amendment "Q1 and Q3 on the puzzle box") run
 ``puzzle_box_round.py``.
 ``--tasks`` restricts ``q1``, ``f``, ``q2mg`` and ``q3`` to some of their
-tasks, ``--cells`` those parts to some of their cells (by name, e.g. ``f_unlock_paper_n1``),
-``--sweeps`` a part to some of its sweeps; sweeps run in this process (``--no-ray``: Ray's start
+tasks, ``--cells`` those parts and the box's to some of their cells (by name, e.g.
+``f_unlock_paper_n1``), ``--sweeps`` a part to some of its sweeps; sweeps run in this process (``--no-ray``: Ray's start
 times out on a loaded machine).
 """
 
@@ -288,7 +288,9 @@ def main() -> None:
     parser.add_argument("--tasks", nargs="+", choices=sorted({*Q1_TASKS, *Q3_TASKS}),
                         help="q1's, f's, q2mg's and q3's tasks (default: each part's all)")  # fmt: skip
     parser.add_argument("--sweeps", nargs="+", help="only these of the parts' sweeps")
-    parser.add_argument("--cells", nargs="+", help="only these of q1's, f's, q2mg's, q3's cells")
+    parser.add_argument(
+        "--cells", nargs="+", help="only these cells of q1, f, q2mg, q3 and the box's parts"
+    )
     args = parser.parse_args()
     global ONLY_CELLS
     ONLY_CELLS = None if args.cells is None else set(args.cells)

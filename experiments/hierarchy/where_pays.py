@@ -6,7 +6,9 @@ paired tests, every gain split into the options' own effect and imitation's.
 Reads the records of the round's runs (Q1 on a Gymnasium task: ``<results>/q1_<task>_<schedule>/``,
 a ``himit run gymnasium`` run directory's ``config.json`` and ``tasks/<task>.{json,csv}``; Q2's
 sweeps and MiniGrid cells; Q3's transfer cells ``<results>/q3_<task>_iv<value>_<schedule>/``;
-F's cells); writes ``<results>/where_pays.md`` and ``<results>/where_pays_tests.csv``. A cell whose records
+F's cells; the puzzle box's ``q1_puzzlebox4_<schedule>``, ``f_puzzlebox4_<schedule>_n<N>`` and
+``q3_puzzlebox5_iv<value>_<schedule>``, ``puzzle_box_round.py``'s per-learner batches);
+writes ``<results>/where_pays.md`` and ``<results>/where_pays_tests.csv``. A cell whose records
 are absent is left out, and the page says so.
 
 The split (the protocol's "controls"): per seed, the options' own effect is options-only −
