@@ -365,3 +365,106 @@ def test_q3s_multi_room_sweep_is_split_by_initial_value_and_costed_against_trial
     assert len(cost) == 2 * 2 * 3  # only initial value −1's cells: imitator × schedule × endpoint
     assert cost["eq. 2", "paper", "greedy"].difference == pytest.approx(-10.0)
     assert cost["eq. 1", "paper", "greedy"].difference == pytest.approx(-40.0)
+
+
+def _write_box_cell(directory, agents, greedy_values=(0.5, 0.25), first=(300, -1), window=5000):
+    """A tiny puzzle-box cell as ``puzzle_box_round.py`` writes it: 20,000 steps (the quarter
+    ends at 5,000), V*(start) = 0.5, seeds 0 and 1; openings 3 and 4 in the first window, 10 in
+    each later one."""
+    import csv
+    import json
+
+    (directory / "batches").mkdir(parents=True)
+    (directory / "config.json").write_text(json.dumps({"window": window}))
+    (directory / "commit.txt").write_text("abcdef123456\n")
+    for agent in agents:
+        runs = [{"seed": s, "first_opening": f, "openings": 7, "greedy_value": v}
+                for s, f, v in zip((0, 1), first, greedy_values)]  # fmt: skip
+        record = {"agent": agent, "steps": 20_000, "value_star": 0.5, "runs": runs}
+        (directory / "batches" / f"{agent}.json").write_text(json.dumps(record))
+        with (directory / "batches" / f"{agent}.csv").open("w", newline="") as f:
+            w = csv.writer(f)
+            w.writerow(["batch", "seed", "step", "openings", "epsilon"])
+            for step in (5000, 10_000, 15_000, 20_000):
+                for seed in (0, 1):
+                    w.writerow([agent, seed, step, 3 + seed if step == 5000 else 10, 0.75])
+
+
+def test_a_box_cells_endpoint_1_is_its_greedy_value_minus_the_optimum(analysis, tmp_path):
+    """Hand-solved: greedy values 0.5 and 0.25 against V*(start) = 0.5 give 0 and −0.25; the
+    openings of the first quarter (5,000 of 20,000 steps) are the first window's, 3 and 4; a run
+    that never opened keeps −1."""
+    _, wp = analysis
+    _write_box_cell(tmp_path / "cell", ("imitation", "options"))
+    cell = wp.load_box_cell(tmp_path / "cell", "puzzlebox4", "paper")
+    assert (cell.budget, cell.quarter_steps, cell.seeds, cell.commit) == (
+        20_000,
+        5000,
+        (0, 1),
+        "abcdef1",
+    )
+    assert cell.greedy["imitation"].tolist() == pytest.approx([0.0, -0.25])
+    assert cell.first_goal["options"].tolist() == [300, -1]
+    assert cell.goals_q1["imitation"].tolist() == [3.0, 4.0]
+    assert wp.label("puzzlebox4") == "Puzzle box, 4 skewers"
+    assert wp.box_cell_complete(tmp_path / "cell", ("imitation", "options"))
+    assert not wp.box_cell_complete(tmp_path / "cell")  # eq. 1 and primitives only not run
+    assert wp.endpoint_name("puzzlebox4", "greedy") == wp.BOX_GREEDY
+    assert wp.endpoint_name("taxi", "greedy") == wp.ENDPOINTS["greedy"]
+
+
+def test_a_box_cell_whose_learners_differ_in_seeds_is_refused(analysis, tmp_path):
+    import json
+
+    _, wp = analysis
+    _write_box_cell(tmp_path / "cell", ("imitation", "options"))
+    path = tmp_path / "cell" / "batches" / "options.json"
+    record = json.loads(path.read_text())
+    record["runs"][1]["seed"] = 5
+    path.write_text(json.dumps(record))
+    with pytest.raises(ValueError, match="seeds or budgets differ"):
+        wp.load_box_cell(tmp_path / "cell", "puzzlebox4", "paper")
+
+
+def test_a_box_run_is_changed_where_a_window_or_its_final_greedy_value_differs(analysis, tmp_path):
+    """Three records of eq. 2: the same; seed 1's final greedy value moved; seed 0's first
+    window's openings moved. Each changes exactly the run it touches."""
+    import csv
+
+    _, wp = analysis
+    _write_box_cell(tmp_path / "base", ("imitation",))
+    _write_box_cell(tmp_path / "same", ("imitation",))
+    _write_box_cell(tmp_path / "value", ("imitation",), greedy_values=(0.5, 0.3))
+    _write_box_cell(tmp_path / "window", ("imitation",))
+    path = tmp_path / "window" / "batches" / "imitation.csv"
+    with path.open() as f:
+        rows = list(csv.reader(f))
+    rows[1][3] = "9"  # seed 0, the first window
+    with path.open("w", newline="") as f:
+        csv.writer(f).writerows(rows)
+    base = wp.box_window_records(tmp_path / "base")
+    assert wp.runs_changed(base, wp.box_window_records(tmp_path / "same")) == (0, 2)
+    value = wp.box_window_records(tmp_path / "value")
+    assert wp.runs_changed(base, value) == (1, 2)
+    assert value["imitation", 0] == base["imitation", 0]
+    window = wp.box_window_records(tmp_path / "window")
+    assert wp.runs_changed(base, window) == (1, 2)
+    assert window["imitation", 1] == base["imitation", 1]
+
+
+def test_the_box_cells_are_checked_run_by_run_against_h2s_record(analysis, tmp_path):
+    """H2's `puzzlebox_trial` record holds eq. 2's runs for seeds 0 and 1; the new cell's seed 0
+    equals it, seed 1's openings differ: 1 of 2 equal. Options only has no H2 batch here: left
+    out."""
+    import json
+
+    _, wp = analysis
+    _write_box_cell(tmp_path / "q1_puzzlebox4_paper", ("imitation", "options"))
+    mine = json.loads((tmp_path / "q1_puzzlebox4_paper" / "batches" / "imitation.json").read_text())
+    theirs = [dict(r) for r in mine["runs"]]
+    theirs[1]["openings"] = 8
+    (tmp_path / "puzzlebox_trial").mkdir()
+    summary = {"batches": [{"batch": "speed_imitation", "runs": theirs}]}
+    (tmp_path / "puzzlebox_trial" / "summary.json").write_text(json.dumps(summary))
+    assert wp.box_h2_check(tmp_path, "q1_puzzlebox4_paper") == [("imitation", 1, 2)]
+    assert wp.box_h2_check(tmp_path, "q1_taxi_paper") == []

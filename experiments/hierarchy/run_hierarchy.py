@@ -3,7 +3,7 @@ copied into ``experiments/results/hierarchy/``, then ``analyse.py``.
 
     python experiments/hierarchy/run_hierarchy.py
         [--parts segments trial puzzlebox mentors largest carryover q1 f q2 q2mg q3 preset
-                 subgoal-mentor q3mr q4]
+                 subgoal-mentor q3mr q4 q1box fbox q3box]
         [--logdir runs/hierarchy] [--skip-runs]
 
 Each part's wall time is written to ``experiments/results/hierarchy/timing.json``. The part ``q1``
@@ -14,10 +14,12 @@ runs eq. 2 alone the same way; ``where_pays.py`` writes their page. ``q3`` (tran
 on MiniGrid") runs the four learners per transfer task, initial value and schedule. ``preset``
 (amendment "the preset") runs its candidates on held-out seeds and ``choose_preset.py`` picks one;
 ``subgoal-mentor`` runs the chosen preset on seeds 0–19 (its results, the amendment's rule for a
-preset that fades); ``q3mr`` (amendment "Q3 (transfer) on the multi-room world") is one sweep.
+preset that fades); ``q3mr`` (amendment "Q3 (transfer) on the multi-room world") is one sweep;
+``q1box``, ``fbox`` and ``q3box`` (amendment "Q1 and Q3 on the puzzle box") run
+``puzzle_box_round.py``.
 ``--tasks`` restricts ``q1``, ``f``, ``q2mg`` and ``q3`` to some of their
-tasks, ``--cells`` those parts to some of their cells (by name, e.g. ``f_unlock_paper_n1``),
-``--sweeps`` a part to some of its sweeps; sweeps run in this process (``--no-ray``: Ray's start
+tasks, ``--cells`` those parts and the box's to some of their cells (by name, e.g.
+``f_unlock_paper_n1``), ``--sweeps`` a part to some of its sweeps; sweeps run in this process (``--no-ray``: Ray's start
 times out on a loaded machine).
 """
 
@@ -75,7 +77,12 @@ PARTS = {
     ),
     "q3mr": ("q3_multirooms_exp1",),  # (transfer on the multi-room world)
     "q4": (),  # (the fifth skewer: its own script, q4_fifth_skewer.py)
+    "q1box": (),  # (the puzzle box: puzzle_box_round.py)
+    "fbox": (),
+    "q3box": (),
 }
+#: The puzzle box's parts (amendment "Q1 and Q3 on the puzzle box"), run by puzzle_box_round.py.
+BOX_PARTS = ("q1box", "fbox", "q3box")
 #: What a sweep's record keeps in the repository: per-run summaries, per-window goals, its spec.
 RECORDS = ("runs.csv", "results.csv", "sweep.json")
 #: Q1's further MiniGrid tasks (amendment "Q1 on three more MiniGrid tasks").
@@ -282,7 +289,9 @@ def main() -> None:
     parser.add_argument("--tasks", nargs="+", choices=sorted({*Q1_TASKS, *Q3_TASKS}),
                         help="q1's, f's, q2mg's and q3's tasks (default: each part's all)")  # fmt: skip
     parser.add_argument("--sweeps", nargs="+", help="only these of the parts' sweeps")
-    parser.add_argument("--cells", nargs="+", help="only these of q1's, f's, q2mg's, q3's cells")
+    parser.add_argument(
+        "--cells", nargs="+", help="only these cells of q1, f, q2mg, q3 and the box's parts"
+    )
     args = parser.parse_args()
     global ONLY_CELLS
     ONLY_CELLS = None if args.cells is None else set(args.cells)
@@ -295,6 +304,10 @@ def main() -> None:
             run(str(HERE / "puzzle_box_h2.py"), "--logdir", str(logdir))
         if part == "q4" and not args.skip_runs:
             run(str(HERE / "q4_fifth_skewer.py"))  # (its records go straight to the results)
+        if part in BOX_PARTS and not args.skip_runs:
+            cells = ["--cells", *args.cells] if args.cells else []
+            run(str(HERE / "puzzle_box_round.py"), "--parts", part, "--logdir", str(logdir),
+                *cells)  # fmt: skip
         if part == "q1":
             run_q1(logdir, args.skip_runs, args.tasks or Q1_TASKS)
         if part == "f":
@@ -321,7 +334,7 @@ def main() -> None:
             key = f"{part} ({' '.join(args.tasks)})" if some else part
             if args.sweeps:
                 key = f"{part} ({' '.join(n for n in PARTS[part] if n in args.sweeps)})"
-            if args.cells and part in ("q1", "f", "q2mg", "q3"):
+            if args.cells and part in ("q1", "f", "q2mg", "q3", *BOX_PARTS):
                 key = f"{part} ({' '.join(args.cells)})"
             # read again just before writing: another part may have run beside this one
             timing = json.loads(timing_path.read_text()) if timing_path.exists() else {}
