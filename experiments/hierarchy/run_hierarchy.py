@@ -3,7 +3,7 @@ copied into ``experiments/results/hierarchy/``, then ``analyse.py``.
 
     python experiments/hierarchy/run_hierarchy.py
         [--parts segments trial puzzlebox mentors largest carryover q1 f q2 q2mg q3 preset
-                 subgoal-mentor q3mr fq2]
+                 subgoal-mentor q3mr fq2 q3disc]
         [--logdir runs/hierarchy] [--skip-runs]
 
 Each part's wall time is written to ``experiments/results/hierarchy/timing.json``. The part ``q1``
@@ -15,7 +15,9 @@ on MiniGrid") runs the four learners per transfer task, initial value and schedu
 (amendment "the preset") runs its candidates on held-out seeds and ``choose_preset.py`` picks one;
 ``subgoal-mentor`` runs the chosen preset on seeds 0–19 (its results, the amendment's rule for a
 preset that fades); ``q3mr`` (amendment "Q3 (transfer) on the multi-room world") is one sweep; ``fq2`` (amendment "F
-on Q2's conditions") two sweeps and ``himit run gymnasium`` per MiniGrid cell.
+on Q2's conditions") two sweeps and ``himit run gymnasium`` per MiniGrid cell; ``q3disc``
+(amendment "Q3 on the multi-room world with options discovered from the mentor's states") one
+``himit run discovery`` per schedule and initial value.
 ``--tasks`` restricts ``q1``, ``f``, ``q2mg``, ``q3`` and ``fq2`` to some of their
 tasks, ``--cells`` those parts to some of their cells (by name, e.g. ``f_unlock_paper_n1``),
 ``--sweeps`` a part to some of its sweeps; sweeps run in this process (``--no-ray``: Ray's start
@@ -76,6 +78,7 @@ PARTS = {
     ),
     "q3mr": ("q3_multirooms_exp1",),  # (transfer on the multi-room world)
     "fq2": ("f_q2_ends_exp2", "f_q2_ends_exp1"),  # (+ run_f_q2: its MiniGrid cells)
+    "q3disc": (),  # (himit run discovery per schedule and initial value: run_q3_discovered)
 }
 #: What a sweep's record keeps in the repository: per-run summaries, per-window goals, its spec.
 RECORDS = ("runs.csv", "results.csv", "sweep.json")
@@ -270,6 +273,29 @@ def run_q3(logdir: Path, skip_runs: bool, tasks=tuple(Q3_TASKS)) -> None:
                          ["--mentor-trial", *flags], steps, logdir, skip_runs)  # fmt: skip
 
 
+#: Q3 with discovered options: what each ``himit run discovery`` cell keeps in the results.
+DISCOVERY_RECORDS = ("config.json", "runs.csv", "curves.csv", "subgoals.csv")
+
+
+def run_q3_discovered(logdir: Path, skip_runs: bool) -> None:
+    """Q3's discovered-options cells on exp1, the mentor's goal the top-right corner: per initial
+    value and schedule one ``himit run discovery`` (seeds 0–19, trial on, the study's defaults
+    otherwise), its records copied into the results."""
+    for value in Q3_INITIAL_VALUES:
+        for schedule in Q1_SCHEDULES:
+            name = f"q3_discovered_exp1_iv{value}_{schedule}"
+            if ONLY_CELLS is not None and name not in ONLY_CELLS:
+                continue
+            if not skip_runs:
+                run("-m", "himit_torch.cli", "run", "discovery", "--worlds", "exp1", "--seeds",
+                    "20", "--mentor-goal", "top-right", "--mentor-trial", "--preset", schedule,
+                    f"--initial-value={value}", "--name", name, "--logdir", str(logdir),
+                    "--quiet", "--force")  # fmt: skip
+            (RESULTS / name).mkdir(parents=True, exist_ok=True)
+            for record in DISCOVERY_RECORDS:
+                shutil.copy(logdir / name / record, RESULTS / name / record)
+
+
 #: The preset's candidates (amendment "the preset"): eq. 2 with segments and trial under each of
 #: these base presets, on held-out seeds; on Taxi one ``himit run gymnasium`` cell each.
 PRESET_CANDIDATES = ("paper", "explore-goals", "mentor-fade", "recommended")
@@ -299,7 +325,7 @@ def main() -> None:
                         help="q1's, f's, q2mg's, q3's and fq2's tasks (default: each part's all)")  # fmt: skip
     parser.add_argument("--sweeps", nargs="+", help="only these of the parts' sweeps")
     parser.add_argument(
-        "--cells", nargs="+", help="only these of q1's, f's, q2mg's, q3's, fq2's cells"
+        "--cells", nargs="+", help="only these of q1's, f's, q2mg's, q3's, fq2's, q3disc's cells"
     )
     args = parser.parse_args()
     global ONLY_CELLS
@@ -321,6 +347,8 @@ def main() -> None:
             run_q3(logdir, args.skip_runs, args.tasks or tuple(Q3_TASKS))
         if part == "fq2":
             run_f_q2(logdir, args.skip_runs, args.tasks or MINIGRID)
+        if part == "q3disc":
+            run_q3_discovered(logdir, args.skip_runs)
         if part == "preset":
             run_preset(logdir, args.skip_runs)
         if part == "subgoal-mentor":
@@ -339,7 +367,7 @@ def main() -> None:
             key = f"{part} ({' '.join(args.tasks)})" if some else part
             if args.sweeps:
                 key = f"{part} ({' '.join(n for n in PARTS[part] if n in args.sweeps)})"
-            if args.cells and part in ("q1", "f", "q2mg", "q3", "fq2"):
+            if args.cells and part in ("q1", "f", "q2mg", "q3", "fq2", "q3disc"):
                 key = f"{part} ({' '.join(args.cells)})"
             # read again just before writing: another part may have run beside this one
             timing = json.loads(timing_path.read_text()) if timing_path.exists() else {}
