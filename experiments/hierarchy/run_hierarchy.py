@@ -274,7 +274,7 @@ def run_q3(logdir: Path, skip_runs: bool, tasks=tuple(Q3_TASKS)) -> None:
 
 
 #: Q3 with discovered options: what each ``himit run discovery`` cell keeps in the results.
-DISCOVERY_RECORDS = ("config.json", "runs.csv", "curves.csv", "subgoals.csv")
+DISCOVERY_RECORDS = ("config.json", "runs.csv", "curves.csv", "subgoals.csv", "results.md")
 
 
 def run_q3_discovered(logdir: Path, skip_runs: bool) -> None:
