@@ -1523,7 +1523,8 @@ def main() -> None:
                 "primitive makes the mentor's move in a deterministic world, its tries always "
                 "reach it, so on these tasks the test cannot drop a term, and no decision "
                 "changes. Feasibility has work to do only where the mentor's observed moves are "
-                "ones no own option makes (coarse observation, Q2; missing skills, H3/H6).",
+                "ones no own option makes (missing skills, H3/H6; at Q2's option ends the "
+                "learner's own options end where the mentor's do: below).",
                 "",
             ]
         if all(" | 0 of " in row for row in f_rows):
