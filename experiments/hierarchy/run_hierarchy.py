@@ -3,7 +3,7 @@ copied into ``experiments/results/hierarchy/``, then ``analyse.py``.
 
     python experiments/hierarchy/run_hierarchy.py
         [--parts segments trial puzzlebox mentors largest carryover q1 f q2 q2mg q3 preset
-                 subgoal-mentor q3mr fq2 q3disc]
+                 subgoal-mentor q3mr fq2 q3disc fq2s]
         [--logdir runs/hierarchy] [--skip-runs]
 
 Each part's wall time is written to ``experiments/results/hierarchy/timing.json``. The part ``q1``
@@ -17,7 +17,8 @@ on MiniGrid") runs the four learners per transfer task, initial value and schedu
 preset that fades); ``q3mr`` (amendment "Q3 (transfer) on the multi-room world") is one sweep; ``fq2`` (amendment "F
 on Q2's conditions") two sweeps and ``himit run gymnasium`` per MiniGrid cell; ``q3disc``
 (amendment "Q3 on the multi-room world with options discovered from the mentor's states") one
-``himit run discovery`` per schedule and initial value.
+``himit run discovery`` per schedule and initial value; ``fq2s`` (amendment "F at Q2's strides 10
+and 20") as ``fq2`` at the strides.
 ``--tasks`` restricts ``q1``, ``f``, ``q2mg``, ``q3`` and ``fq2`` to some of their
 tasks, ``--cells`` those parts to some of their cells (by name, e.g. ``f_unlock_paper_n1``),
 ``--sweeps`` a part to some of its sweeps; sweeps run in this process (``--no-ray``: Ray's start
@@ -79,6 +80,7 @@ PARTS = {
     "q3mr": ("q3_multirooms_exp1",),  # (transfer on the multi-room world)
     "fq2": ("f_q2_ends_exp2", "f_q2_ends_exp1"),  # (+ run_f_q2: its MiniGrid cells)
     "q3disc": (),  # (himit run discovery per schedule and initial value: run_q3_discovered)
+    "fq2s": ("f_q2_stride_exp2", "f_q2_stride_exp1"),  # (+ run_f_q2: its MiniGrid cells)
 }
 #: What a sweep's record keeps in the repository: per-run summaries, per-window goals, its spec.
 RECORDS = ("runs.csv", "results.csv", "sweep.json")
@@ -95,9 +97,6 @@ HELD_OUT_FIRST, HELD_OUT_SEEDS, RULE_CAP = 5000, 20, 20_000
 BUDGET_RULE = RESULTS / "q1_budget_rule.json"
 #: F's settings: ``mentor_feasibility`` N, eq. 2 alone, with trial (its "trial alone" is Q1's cell).
 F_TRIES = (1, 3)
-#: F on Q2's MiniGrid conditions (amendment "F on Q2's conditions"): eq. 2 alone at the option
-#: ends, segments and trial on, with feasibility at N tries (trial alone: Q2's committed cell).
-F_Q2_FLAGS = ["--mentor-segments", "--mentor-trial", *["--observation", "option-ends"]]
 #: Q3 (transfer): the learner's task → the registered task whose mentor shows it with the goal
 #: moved; the initial values → their flags (−1: the runner's neutral value).
 Q3_TASKS = {
@@ -229,16 +228,19 @@ def run_f(logdir: Path, skip_runs: bool, tasks=Q1_TASKS) -> None:
                          skip_runs)  # fmt: skip
 
 
-def run_f_q2(logdir: Path, skip_runs: bool, tasks=MINIGRID) -> None:
-    """F's cells on Q2's MiniGrid conditions: eq. 2 at the option ends, segments and trial on,
-    feasibility at N tries, per task and schedule, at the task's Q1 budget."""
+def run_f_q2(logdir: Path, skip_runs: bool, tasks=MINIGRID, observations=("ends",)) -> None:
+    """F's cells on Q2's MiniGrid conditions: eq. 2 at each of ``observations``
+    (:data:`Q2_OBSERVATIONS`), segments and trial on, feasibility at N tries, per task and
+    schedule, at the task's Q1 budget."""
     for task in [t for t in tasks if t in MINIGRID]:
         steps = q1_budget(task, logdir, skip_runs)
-        for schedule in Q1_SCHEDULES:
-            for tries in F_TRIES:
-                gym_cell(f"f_q2_{task}_ends_{schedule}_n{tries}", task, ("imitation",), schedule,
-                         [*F_Q2_FLAGS, "--mentor-feasibility", str(tries)], steps, logdir,
-                         skip_runs)  # fmt: skip
+        for observation in observations:
+            for schedule in Q1_SCHEDULES:
+                for tries in F_TRIES:
+                    gym_cell(f"f_q2_{task}_{observation}_{schedule}_n{tries}", task,
+                             ("imitation",), schedule,
+                             ["--mentor-segments", "--mentor-trial", *Q2_OBSERVATIONS[observation],
+                              "--mentor-feasibility", str(tries)], steps, logdir, skip_runs)  # fmt: skip
 
 
 #: Q2 on MiniGrid: observation → its flags (the controls are Q1's cells).
@@ -347,6 +349,8 @@ def main() -> None:
             run_q3(logdir, args.skip_runs, args.tasks or tuple(Q3_TASKS))
         if part == "fq2":
             run_f_q2(logdir, args.skip_runs, args.tasks or MINIGRID)
+        if part == "fq2s":
+            run_f_q2(logdir, args.skip_runs, args.tasks or MINIGRID, ("stride10", "stride20"))
         if part == "q3disc":
             run_q3_discovered(logdir, args.skip_runs)
         if part == "preset":
@@ -363,11 +367,11 @@ def main() -> None:
             for record in RECORDS:
                 shutil.copy(logdir / name / record, target / record)
         if not args.skip_runs:
-            some = part in ("q1", "f", "q2mg", "q3", "fq2") and args.tasks is not None
+            some = part in ("q1", "f", "q2mg", "q3", "fq2", "fq2s") and args.tasks is not None
             key = f"{part} ({' '.join(args.tasks)})" if some else part
             if args.sweeps:
                 key = f"{part} ({' '.join(n for n in PARTS[part] if n in args.sweeps)})"
-            if args.cells and part in ("q1", "f", "q2mg", "q3", "fq2", "q3disc"):
+            if args.cells and part in ("q1", "f", "q2mg", "q3", "fq2", "q3disc", "fq2s"):
                 key = f"{part} ({' '.join(args.cells)})"
             # read again just before writing: another part may have run beside this one
             timing = json.loads(timing_path.read_text()) if timing_path.exists() else {}
