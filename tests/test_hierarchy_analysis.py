@@ -459,7 +459,7 @@ def test_f_on_q2_compares_each_n_with_q2s_eq2_cell_and_counts_changed_runs(analy
     """exp2 at the option ends (budget 200k: the quarter ends at 50k). Trial alone (Q2's cell):
     eq. 2 greedy 80 and 90, goals 5 and 7 in the 50k window. N = 1: seed 1's 50k window has 8
     goals (changed; greedy 92): 1 of 2 runs changed, goals +0.5, greedy +1.0; N = 3: the same
-    records (0 of 2). The MiniGrid cells absent are named."""
+    records (0 of 2). The records absent (a stride's sweeps, MiniGrid's cells) are named."""
     import csv
     import json
 
@@ -488,8 +488,9 @@ def test_f_on_q2_compares_each_n_with_q2s_eq2_cell_and_counts_changed_runs(analy
     trial = wp.Cell("exp2", "paper", 200_000, "fedcba9", (0, 1),
                     {wp.EQ2: np.array([80.0, 90.0])}, {wp.EQ2: np.array([1000, 1000])},
                     {wp.EQ2: np.array([5.0, 7.0])}, 50_000, "option ends")  # fmt: skip
-    stride = replace(trial, condition="stride 10")  # (not an option-ends cell: no F on it)
+    stride = replace(trial, condition="stride 10")  # (its records absent: named, no row)
     tests, rows, missing = wp.f_q2_section(tmp_path, [trial, stride])
+    assert missing == ["f_q2_stride_exp2", "q2_stride_exp2"]
     assert rows == [
         "| exp2, 40×40, option ends | ε per decision (paper) | N = 1 | 1 of 2 |",
         "| exp2, 40×40, option ends | ε per decision (paper) | N = 3 | 0 of 2 |",
@@ -499,7 +500,25 @@ def test_f_on_q2_compares_each_n_with_q2s_eq2_cell_and_counts_changed_runs(analy
     assert by["N = 1 − trial alone", "goals_q1"].difference == pytest.approx(0.5)
     assert by["N = 3 − trial alone", "greedy"].difference == pytest.approx(0.0)
     assert {t.condition for t in tests} == {"option ends"}
+    # at a stride only that stride's rows count: stride 10 unchanged at N = 1 (greedy 80, 90),
+    # stride 20's rows (greedy 0, other goals) never read; N = 3 at stride 10 changes seed 0
+    write("q2_stride_exp2", [("imitation", s, "paper", k, g, q) for s, g, q in ((0, 80, 5),
+                             (1, 90, 7)) for k in (10, 20)], extra=("observation_stride",))  # fmt: skip
+    write("f_q2_stride_exp2", [("imitation", s, "paper", k, n, 0 if k == 20 else g, 9 if
+                                (k, n, s) == (10, 3, 0) else q)
+                               for s, g, q in ((0, 80, 5), (1, 90, 7)) for k in (10, 20)
+                               for n in (1, 3)],
+          extra=("observation_stride", "learner.mentor_feasibility"))  # fmt: skip
+    tests, rows, missing = wp.f_q2_section(tmp_path, [stride])
+    assert missing == [] and rows == [
+        "| exp2, 40×40, stride 10 | ε per decision (paper) | N = 1 | 0 of 2 |",
+        "| exp2, 40×40, stride 10 | ε per decision (paper) | N = 3 | 1 of 2 |",
+    ]
+    by = {(t.name, t.endpoint): t for t in tests}
+    assert by["N = 1 − trial alone", "greedy"].difference == pytest.approx(0.0)
+    assert by["N = 3 − trial alone", "goals_q1"].difference == pytest.approx(2.0)  # (9 − 5) / 2
     doorkey = replace(trial, task="doorkey5x5")
-    assert wp.f_q2_section(tmp_path, [doorkey])[2] == [
-        f"f_q2_doorkey5x5_ends_paper_n{n}" for n in (1, 3)
+    assert wp.f_q2_section(tmp_path, [doorkey, replace(doorkey, condition="stride 20")])[2] == [
+        *(f"f_q2_doorkey5x5_ends_paper_n{n}" for n in (1, 3)),
+        *(f"f_q2_doorkey5x5_stride20_paper_n{n}" for n in (1, 3)),
     ]
