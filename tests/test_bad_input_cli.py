@@ -107,13 +107,6 @@ for _cls in CONFIG_CLASSES:
             lambda c, k=_cls, n=_name: _config(k).with_preset(n),
             f"{_cls.__name__}.with_preset",
         )
-for _name in PRESETS:
-    case(
-        "DiscoveryConfig.with_preset",
-        _name,
-        lambda c, n=_name: DiscoveryConfig().with_preset(n),
-        "DiscoveryConfig has no learner settings",
-    )
 
 
 @good("study configs")
@@ -121,9 +114,8 @@ def _(c):
     for cls in ONE_MENTOR:
         assert cls(learner=LearnerConfig(mentors=1)).learner.mentors == 1
     for cls in CONFIG_CLASSES:
-        if cls is not DiscoveryConfig:
-            for name in PRESETS:
-                assert _config(cls).with_preset(name).preset == name
+        for name in PRESETS:
+            assert _config(cls).with_preset(name).preset == name
     # the paper's experiments derive their mentors from second_mentor
     assert ExperimentConfig(second_mentor="noisy").learner.mentors == 2
 

@@ -82,7 +82,7 @@ def test_puzzlebox_takes_its_own_settings():
     "argv, flag",
     [
         (["gymnasium", "--sizes", "8"], "--sizes"),
-        (["discovery", "--mentor-fade", "20"], "--mentor-fade"),
+        (["discovery", "--observation-stride", "2"], "--observation-stride"),
         (["puzzlebox", "--workers", "2"], "--workers"),
         (["puzzlebox", "--tasks=taxi"], "--tasks"),
         (["paper", "--name", "x"], "--name"),

@@ -468,3 +468,160 @@ def test_the_box_cells_are_checked_run_by_run_against_h2s_record(analysis, tmp_p
     (tmp_path / "puzzlebox_trial" / "summary.json").write_text(json.dumps(summary))
     assert wp.box_h2_check(tmp_path, "q1_puzzlebox4_paper") == [("imitation", 1, 2)]
     assert wp.box_h2_check(tmp_path, "q1_taxi_paper") == []
+
+
+def _write_discovery(directory, greedy, commit="1234567abcdef"):
+    """A tiny ``himit run discovery`` record: runs.csv (the six learners, seeds 0 and 1),
+    curves.csv (a window ending at 75k, inside exp1's quarter, with greedy // 10 goals, and one
+    at 80k with 100, after it) and the page's commit line."""
+    import csv
+
+    directory.mkdir(parents=True)
+    agents = {**greedy, "doorway_options": 99, "doorway_imitation": 99}
+    with (directory / "runs.csv").open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["world", "agent", "seed", "first_goal_step", "total_goals",
+                    "greedy_percent_of_optimal", "discovered_options"])  # fmt: skip
+        for agent, g in agents.items():
+            for seed in (0, 1):
+                w.writerow(["exp1", agent, seed, 1000 + seed, g // 10 + 100, f"{g:.4f}",
+                            3 if agent.startswith("discovered") else ""])  # fmt: skip
+    with (directory / "curves.csv").open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["world", "agent", "seed", "step", "goals_in_window"])
+        for agent, g in agents.items():
+            for seed in (0, 1):
+                w.writerow(["exp1", agent, seed, 75_000, g // 10])
+                w.writerow(["exp1", agent, seed, 80_000, 100])
+    (directory / "results.md").write_text(f"Runs recorded at commit `{commit}` (the code)\n")
+
+
+def test_q3s_discovered_options_take_eq2s_and_options_onlys_places(analysis, tmp_path):
+    """Hand-made discovery records (initial values −1 and 0, both schedules). Hand-solved: the
+    discovered imitator 70 against discovered options only 50 (imitation effect +20), eq. 1 40
+    against primitives only 30 (+10), so hierarchy's effect +10 and the discovered options' own
+    effect 50 − 30 = +20; the hand-built doorway runs (99) are read by no contrast; goals in the
+    first quarter are the 75k window's only (7 for the discovered imitator). The mechanism is
+    the discovered imitator's only: its effect at 0 (+25, the record at 0 has it 5 higher)
+    − at −1 (+20) = +5."""
+    _, wp = analysis
+    greedy = {"discovered_imitation": 70, "discovered_options": 50,
+              "imitation_primitives": 40, "primitives": 30}  # fmt: skip
+    for value in ("-1", "0"):
+        for schedule in ("paper", "explore-goals"):
+            shown = {**greedy, "discovered_imitation": 75} if value == "0" else greedy
+            _write_discovery(tmp_path / f"q3_discovered_exp1_iv{value}_{schedule}", shown)
+    cells, missing = wp.load_q3_discovered_cells(tmp_path)
+    assert missing == [] and len(cells) == 4
+    task = "exp1_top_right_discovered"
+    for cell in cells:
+        assert (cell.task, cell.budget, cell.commit, cell.seeds) == (task, 300_000, "1234567",
+                                                                      (0, 1))  # fmt: skip
+        assert set(cell.greedy) == {"imitation", "options", "imitation_primitives", "primitives"}
+        assert cell.goals_q1["imitation"].tolist() in ([7, 7], [7.0, 7.0])
+        tests = {(t.name, t.endpoint): t for t in wp.cell_tests("Q3", cell)}
+        assert tests[wp.OWN, "greedy"].difference == pytest.approx(20.0)
+        if cell.condition == wp.Q3_VALUES["-1"]:
+            assert tests[wp.HIERARCHY, "greedy"].difference == pytest.approx(10.0)
+    assert wp.label(task) == "exp1, 80×80, mentor's goal the top-right corner, discovered options"
+    mechanism = wp.mechanism_tests(cells)
+    by = {(t.name, t.schedule, t.endpoint): t for t in mechanism}
+    assert by["eq. 2's " + wp.MECHANISM, "paper", "greedy"].difference == pytest.approx(5.0)
+    assert by["eq. 1's " + wp.MECHANISM, "paper", "greedy"].difference == pytest.approx(0.0)
+    assert wp.transfer_cost_tests(cells, []) == []  # (no own-task cell for discovered options)
+    (tmp_path / "q3_discovered_exp1_iv0_paper" / "runs.csv").unlink()
+    assert wp.load_q3_discovered_cells(tmp_path)[1] == ["q3_discovered_exp1_iv0_paper"]
+
+
+def test_a_discovery_records_primitives_runs_are_checked_against_the_committed_sweep(
+    analysis, tmp_path
+):
+    """The committed sweep's eq. 1 runs at −1 under the paper's schedule: seed 0 as the
+    discovery record has it (first goal 1000, 107 goals, 40 %), seed 1 with other total goals
+    (so 1 of 2 equal); the sweep's initial-value-0 rows and other schedule are not compared."""
+    _, wp = analysis
+    _write_discovery(tmp_path / "d", {"discovered_imitation": 70, "discovered_options": 50,
+                                      "imitation_primitives": 40, "primitives": 30})  # fmt: skip
+    rows = [
+        {"agent": a, "seed": s, "preset": p, "learner.initial_value": iv,
+         "first_goal_step": 1000 + s, "total_goals": 104 if (a, s) == ("primitives", 1) else
+         {"imitation_primitives": 104, "primitives": 103}[a], "greedy_percent_of_optimal":
+         {"imitation_primitives": "40.0", "primitives": "30.00001"}[a], "goals": 1}
+        for p in ("paper", "explore-goals") for iv in ("-1.0", "0.0")
+        for a in ("imitation_primitives", "primitives") for s in (0, 1)
+    ]  # fmt: skip
+    _write_rows(tmp_path / "sweep", rows)
+    assert wp.summaries_equal(tmp_path, "d", "sweep", ("imitation_primitives",), "-1",
+                              "paper") == (2, 2)  # fmt: skip
+    # primitives: seed 0's greedy 30.00001 rounds to 30.0000 (equal), seed 1's goals differ
+    assert wp.summaries_equal(tmp_path, "d", "sweep", ("primitives",), "-1", "paper") == (1, 2)
+    assert wp.summaries_equal(tmp_path, "d", "absent", ("primitives",), "-1", "paper") == (0, 0)
+
+
+def test_f_on_q2_compares_each_n_with_q2s_eq2_cell_and_counts_changed_runs(analysis, tmp_path):
+    """exp2 at the option ends (budget 200k: the quarter ends at 50k). Trial alone (Q2's cell):
+    eq. 2 greedy 80 and 90, goals 5 and 7 in the 50k window. N = 1: seed 1's 50k window has 8
+    goals (changed; greedy 92): 1 of 2 runs changed, goals +0.5, greedy +1.0; N = 3: the same
+    records (0 of 2). The records absent (a stride's sweeps, MiniGrid's cells) are named."""
+    import csv
+    import json
+
+    _, wp = analysis
+
+    def write(name, rows, extra=()):
+        directory = tmp_path / name
+        directory.mkdir()
+        head = ["agent", "seed", "preset", *extra]
+        with (directory / "runs.csv").open("w", newline="") as f:
+            w = csv.writer(f)
+            w.writerow([*head, "greedy_percent_of_optimal", "first_goal_step"])
+            for r in rows:
+                w.writerow([*r[: len(head)], r[-2], 1000])
+        with (directory / "results.csv").open("w", newline="") as f:
+            w = csv.writer(f)
+            w.writerow([*head, *wp.SWEEP_RECORD_COLUMNS])
+            for r in rows:
+                w.writerow([*r[: len(head)], 50_000, r[-1], "0.1", 3, 10, 20, "0.5"])
+        (directory / "sweep.json").write_text(json.dumps({"commit": "fedcba987"}))
+
+    write("q2_ends_exp2", [("imitation", 0, "paper", 80, 5), ("imitation", 1, "paper", 90, 7)])
+    write("f_q2_ends_exp2", [("imitation", 0, "paper", 1, 80, 5), ("imitation", 1, "paper", 1, 92, 8),
+                             ("imitation", 0, "paper", 3, 80, 5), ("imitation", 1, "paper", 3, 90, 7)],
+          extra=("learner.mentor_feasibility",))  # fmt: skip
+    trial = wp.Cell("exp2", "paper", 200_000, "fedcba9", (0, 1),
+                    {wp.EQ2: np.array([80.0, 90.0])}, {wp.EQ2: np.array([1000, 1000])},
+                    {wp.EQ2: np.array([5.0, 7.0])}, 50_000, "option ends")  # fmt: skip
+    stride = replace(trial, condition="stride 10")  # (its records absent: named, no row)
+    tests, rows, missing = wp.f_q2_section(tmp_path, [trial, stride])
+    assert missing == ["f_q2_stride_exp2", "q2_stride_exp2"]
+    assert rows == [
+        "| exp2, 40×40, option ends | ε per decision (paper) | N = 1 | 1 of 2 |",
+        "| exp2, 40×40, option ends | ε per decision (paper) | N = 3 | 0 of 2 |",
+    ]
+    by = {(t.name, t.endpoint): t for t in tests}
+    assert by["N = 1 − trial alone", "greedy"].difference == pytest.approx(1.0)
+    assert by["N = 1 − trial alone", "goals_q1"].difference == pytest.approx(0.5)
+    assert by["N = 3 − trial alone", "greedy"].difference == pytest.approx(0.0)
+    assert {t.condition for t in tests} == {"option ends"}
+    # at a stride only that stride's rows count: stride 10 unchanged at N = 1 (greedy 80, 90),
+    # stride 20's rows (greedy 0, other goals) never read; N = 3 at stride 10 changes seed 0
+    write("q2_stride_exp2", [("imitation", s, "paper", k, g, q) for s, g, q in ((0, 80, 5),
+                             (1, 90, 7)) for k in (10, 20)], extra=("observation_stride",))  # fmt: skip
+    write("f_q2_stride_exp2", [("imitation", s, "paper", k, n, 0 if k == 20 else g, 9 if
+                                (k, n, s) == (10, 3, 0) else q)
+                               for s, g, q in ((0, 80, 5), (1, 90, 7)) for k in (10, 20)
+                               for n in (1, 3)],
+          extra=("observation_stride", "learner.mentor_feasibility"))  # fmt: skip
+    tests, rows, missing = wp.f_q2_section(tmp_path, [stride])
+    assert missing == [] and rows == [
+        "| exp2, 40×40, stride 10 | ε per decision (paper) | N = 1 | 0 of 2 |",
+        "| exp2, 40×40, stride 10 | ε per decision (paper) | N = 3 | 1 of 2 |",
+    ]
+    by = {(t.name, t.endpoint): t for t in tests}
+    assert by["N = 1 − trial alone", "greedy"].difference == pytest.approx(0.0)
+    assert by["N = 3 − trial alone", "goals_q1"].difference == pytest.approx(2.0)  # (9 − 5) / 2
+    doorkey = replace(trial, task="doorkey5x5")
+    assert wp.f_q2_section(tmp_path, [doorkey, replace(doorkey, condition="stride 20")])[2] == [
+        *(f"f_q2_doorkey5x5_ends_paper_n{n}" for n in (1, 3)),
+        *(f"f_q2_doorkey5x5_stride20_paper_n{n}" for n in (1, 3)),
+    ]

@@ -3,7 +3,7 @@ copied into ``experiments/results/hierarchy/``, then ``analyse.py``.
 
     python experiments/hierarchy/run_hierarchy.py
         [--parts segments trial puzzlebox mentors largest carryover q1 f q2 q2mg q3 preset
-                 subgoal-mentor q3mr q4 q1box fbox q3box]
+                 subgoal-mentor q3mr q4 q1box fbox q3box fq2 q3disc fq2s]
         [--logdir runs/hierarchy] [--skip-runs]
 
 Each part's wall time is written to ``experiments/results/hierarchy/timing.json``. The part ``q1``
@@ -14,10 +14,14 @@ runs eq. 2 alone the same way; ``where_pays.py`` writes their page. ``q3`` (tran
 on MiniGrid") runs the four learners per transfer task, initial value and schedule. ``preset``
 (amendment "the preset") runs its candidates on held-out seeds and ``choose_preset.py`` picks one;
 ``subgoal-mentor`` runs the chosen preset on seeds 0–19 (its results, the amendment's rule for a
-preset that fades); ``q3mr`` (amendment "Q3 (transfer) on the multi-room world") is one sweep;
-``q1box``, ``fbox`` and ``q3box`` (amendment "Q1 and Q3 on the puzzle box") run
-``puzzle_box_round.py``.
-``--tasks`` restricts ``q1``, ``f``, ``q2mg`` and ``q3`` to some of their
+preset that fades); ``q3mr`` (amendment "Q3 (transfer) on the multi-room world") is one sweep; ``fq2`` (amendment "F
+on Q2's conditions") two sweeps and ``himit run gymnasium`` per MiniGrid cell; ``q3disc``
+(amendment "Q3 on the multi-room world with options discovered from the mentor's states") one
+``himit run discovery`` per schedule and initial value; ``fq2s`` (amendment "F at Q2's strides 10
+and 20") as ``fq2`` at the strides; ``q1box``, ``fbox`` and ``q3box`` (amendment "Q1 and Q3 on
+the puzzle box") run ``puzzle_box_round.py``; ``q4`` (amendment "Q4 (the fifth skewer)") runs
+``q4_fifth_skewer.py``.
+``--tasks`` restricts ``q1``, ``f``, ``q2mg``, ``q3`` and ``fq2`` to some of their
 tasks, ``--cells`` those parts and the box's to some of their cells (by name, e.g.
 ``f_unlock_paper_n1``), ``--sweeps`` a part to some of its sweeps; sweeps run in this process (``--no-ray``: Ray's start
 times out on a loaded machine).
@@ -80,6 +84,9 @@ PARTS = {
     "q1box": (),  # (the puzzle box: puzzle_box_round.py)
     "fbox": (),
     "q3box": (),
+    "fq2": ("f_q2_ends_exp2", "f_q2_ends_exp1"),  # (+ run_f_q2: its MiniGrid cells)
+    "q3disc": (),  # (himit run discovery per schedule and initial value: run_q3_discovered)
+    "fq2s": ("f_q2_stride_exp2", "f_q2_stride_exp1"),  # (+ run_f_q2: its MiniGrid cells)
 }
 #: The puzzle box's parts (amendment "Q1 and Q3 on the puzzle box"), run by puzzle_box_round.py.
 BOX_PARTS = ("q1box", "fbox", "q3box")
@@ -229,6 +236,21 @@ def run_f(logdir: Path, skip_runs: bool, tasks=Q1_TASKS) -> None:
                          skip_runs)  # fmt: skip
 
 
+def run_f_q2(logdir: Path, skip_runs: bool, tasks=MINIGRID, observations=("ends",)) -> None:
+    """F's cells on Q2's MiniGrid conditions: eq. 2 at each of ``observations``
+    (:data:`Q2_OBSERVATIONS`), segments and trial on, feasibility at N tries, per task and
+    schedule, at the task's Q1 budget."""
+    for task in [t for t in tasks if t in MINIGRID]:
+        steps = q1_budget(task, logdir, skip_runs)
+        for observation in observations:
+            for schedule in Q1_SCHEDULES:
+                for tries in F_TRIES:
+                    gym_cell(f"f_q2_{task}_{observation}_{schedule}_n{tries}", task,
+                             ("imitation",), schedule,
+                             ["--mentor-segments", "--mentor-trial", *Q2_OBSERVATIONS[observation],
+                              "--mentor-feasibility", str(tries)], steps, logdir, skip_runs)  # fmt: skip
+
+
 #: Q2 on MiniGrid: observation → its flags (the controls are Q1's cells).
 Q2_OBSERVATIONS = {
     "ends": ["--observation", "option-ends"],
@@ -261,6 +283,29 @@ def run_q3(logdir: Path, skip_runs: bool, tasks=tuple(Q3_TASKS)) -> None:
                          ["--mentor-trial", *flags], steps, logdir, skip_runs)  # fmt: skip
 
 
+#: Q3 with discovered options: what each ``himit run discovery`` cell keeps in the results.
+DISCOVERY_RECORDS = ("config.json", "runs.csv", "curves.csv", "subgoals.csv", "results.md")
+
+
+def run_q3_discovered(logdir: Path, skip_runs: bool) -> None:
+    """Q3's discovered-options cells on exp1, the mentor's goal the top-right corner: per initial
+    value and schedule one ``himit run discovery`` (seeds 0–19, trial on, the study's defaults
+    otherwise), its records copied into the results."""
+    for value in Q3_INITIAL_VALUES:
+        for schedule in Q1_SCHEDULES:
+            name = f"q3_discovered_exp1_iv{value}_{schedule}"
+            if ONLY_CELLS is not None and name not in ONLY_CELLS:
+                continue
+            if not skip_runs:
+                run("-m", "himit_torch.cli", "run", "discovery", "--worlds", "exp1", "--seeds",
+                    "20", "--mentor-goal", "top-right", "--mentor-trial", "--preset", schedule,
+                    f"--initial-value={value}", "--name", name, "--logdir", str(logdir),
+                    "--quiet", "--force")  # fmt: skip
+            (RESULTS / name).mkdir(parents=True, exist_ok=True)
+            for record in DISCOVERY_RECORDS:
+                shutil.copy(logdir / name / record, RESULTS / name / record)
+
+
 #: The preset's candidates (amendment "the preset"): eq. 2 with segments and trial under each of
 #: these base presets, on held-out seeds; on Taxi one ``himit run gymnasium`` cell each.
 PRESET_CANDIDATES = ("paper", "explore-goals", "mentor-fade", "recommended")
@@ -287,10 +332,12 @@ def main() -> None:
     parser.add_argument("--logdir", default="runs/hierarchy")
     parser.add_argument("--skip-runs", action="store_true", help="copy and analyse finished runs")
     parser.add_argument("--tasks", nargs="+", choices=sorted({*Q1_TASKS, *Q3_TASKS}),
-                        help="q1's, f's, q2mg's and q3's tasks (default: each part's all)")  # fmt: skip
+                        help="q1's, f's, q2mg's, q3's and fq2's tasks (default: each part's all)")  # fmt: skip
     parser.add_argument("--sweeps", nargs="+", help="only these of the parts' sweeps")
     parser.add_argument(
-        "--cells", nargs="+", help="only these cells of q1, f, q2mg, q3 and the box's parts"
+        "--cells",
+        nargs="+",
+        help="only these cells of q1, f, q2mg, q3, fq2, q3disc and the box's parts",
     )
     args = parser.parse_args()
     global ONLY_CELLS
@@ -316,6 +363,12 @@ def main() -> None:
             run_q2_minigrid(logdir, args.skip_runs, args.tasks or MINIGRID)
         if part == "q3":
             run_q3(logdir, args.skip_runs, args.tasks or tuple(Q3_TASKS))
+        if part == "fq2":
+            run_f_q2(logdir, args.skip_runs, args.tasks or MINIGRID)
+        if part == "fq2s":
+            run_f_q2(logdir, args.skip_runs, args.tasks or MINIGRID, ("stride10", "stride20"))
+        if part == "q3disc":
+            run_q3_discovered(logdir, args.skip_runs)
         if part == "preset":
             run_preset(logdir, args.skip_runs)
         if part == "subgoal-mentor":
@@ -330,11 +383,20 @@ def main() -> None:
             for record in RECORDS:
                 shutil.copy(logdir / name / record, target / record)
         if not args.skip_runs:
-            some = part in ("q1", "f", "q2mg", "q3") and args.tasks is not None
+            some = part in ("q1", "f", "q2mg", "q3", "fq2", "fq2s") and args.tasks is not None
             key = f"{part} ({' '.join(args.tasks)})" if some else part
             if args.sweeps:
                 key = f"{part} ({' '.join(n for n in PARTS[part] if n in args.sweeps)})"
-            if args.cells and part in ("q1", "f", "q2mg", "q3", *BOX_PARTS):
+            if args.cells and part in (
+                "q1",
+                "f",
+                "q2mg",
+                "q3",
+                "fq2",
+                "q3disc",
+                "fq2s",
+                *BOX_PARTS,
+            ):
                 key = f"{part} ({' '.join(args.cells)})"
             # read again just before writing: another part may have run beside this one
             timing = json.loads(timing_path.read_text()) if timing_path.exists() else {}

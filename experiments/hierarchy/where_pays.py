@@ -27,6 +27,7 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import re
 import subprocess
 from collections.abc import Callable
 from dataclasses import dataclass, replace
@@ -90,6 +91,24 @@ Q3_SWEEPS = {
         300_000,
         "trial_exp1",
     ),
+}
+#: Q3 with options discovered from the mentor's states (amendment "Q3 on the multi-room world with
+#: options discovered from the mentor's states"): the cells' task name → (label, budget, each
+#: ``himit run discovery`` record's name before ``_iv<value>_<schedule>``). The discovered learners
+#: take the places of eq. 2 and options only; eq. 1 and primitives only are the same study's runs.
+Q3_DISCOVERED = {
+    "exp1_top_right_discovered": (
+        "exp1, 80×80, mentor's goal the top-right corner, discovered options",
+        300_000,
+        "q3_discovered_exp1",
+    ),
+}
+#: A discovery record's learners → the places they take in a cell.
+DISCOVERED_AGENTS = {
+    "discovered_imitation": "imitation",
+    "discovered_options": "options",
+    "imitation_primitives": "imitation_primitives",
+    "primitives": "primitives",
 }
 #: Each Q3 task's own-task cell's name (its mentor demonstrating the learner's own task).
 Q3_OWN_TASK = {
@@ -288,6 +307,8 @@ def label(world: str, condition: str = "") -> str:
         name = Q3_TASKS[world][1]
     elif world in {task for task, *_ in Q3_SWEEPS.values()}:
         (name,) = [name for task, name, *_ in Q3_SWEEPS.values() if task == world]
+    elif world in Q3_DISCOVERED:
+        name = Q3_DISCOVERED[world][0]
     else:
         name = Q2_WORLDS[world][0]
     return f"{name}, {condition}" if condition else name
@@ -489,7 +510,16 @@ def helps(tests: list[Test], task: str, schedule: str, condition: str = "") -> t
     return better and not worse, worse
 
 
-def agents_table(cells: list[Cell], label: str) -> list[str]:
+#: The learners' names in a discovered-options cell's table (:data:`DISCOVERED_AGENTS`).
+DISCOVERED_LABELS = {
+    EQ2: "eq. 2, discovered options",
+    OPTIONS: "discovered options only",
+    EQ1: "eq. 1",
+    PRIMITIVES: "primitives only",
+}
+
+
+def agents_table(cells: list[Cell], label: str, names: dict[str, str] = AGENT_LABELS) -> list[str]:
     box = cells[0].task in BOX_TASKS
     lines = [
         f"### {label}: the four learners",
@@ -503,7 +533,7 @@ def agents_table(cells: list[Cell], label: str) -> list[str]:
         "|---|---|---|---|---|",
     ]
     for cell in cells:
-        for agent, name in AGENT_LABELS.items():
+        for agent, name in names.items():
             greedy = bca_interval(cell.greedy[agent]).format(digits(cell.task))
             goals = bca_interval(cell.goals_q1[agent]).format(0)
             s = first_goal_survival(cell.first_goal[agent], cell.budget)
@@ -540,7 +570,7 @@ def tests_table(tests: list[Test], title: str, by_task: bool = False) -> list[st
             # the mean of the seeds' differences of speed-ups (not a median of first goals)
             shown = shown.replace("median", "mean").replace("sooner", "more speed-up")
             shown = shown.replace("later", "less speed-up")
-        task = f" {label(t.world)} |" if by_task else ""
+        task = f" {label(t.world, t.condition)} |" if by_task else ""
         lines.append(
             f"| {t.name} |{task} {SCHEDULES[t.schedule]} | {endpoint_name(t.world, t.endpoint)} "
             f"| {shown} |"
@@ -581,8 +611,8 @@ def f_tests(trial: Cell, feasibility: Cell, tries: int) -> list[Test]:
     out = []
     for endpoint in ENDPOINTS:
         a, b = getattr(feasibility, endpoint)[EQ2], getattr(trial, endpoint)[EQ2]
-        out.append(Test("F", f"N = {tries} − trial alone", trial.task, "", trial.schedule, "",
-                        "", endpoint, *compare_values(a, b, endpoint)))  # fmt: skip
+        out.append(Test("F", f"N = {tries} − trial alone", trial.task, trial.condition,
+                        trial.schedule, "", "", endpoint, *compare_values(a, b, endpoint)))  # fmt: skip
     return out
 
 
@@ -677,6 +707,72 @@ def load_q3_sweep_cells(results: Path) -> tuple[list[Cell], list[Cell], list[str
                 )  # fmt: skip
             )
     return cells, own_cells, missing
+
+
+def discovery_commit(directory: Path) -> str:
+    """The commit a ``himit run discovery`` record's page names ("Runs recorded at commit …"),
+    short; ``?`` where it names none."""
+    page = directory / "results.md"
+    text = page.read_text() if page.exists() else ""
+    found = re.search(r"Runs recorded at commit `([0-9a-f]+)", text)
+    return found.group(1)[:7] if found else "?"
+
+
+def discovered_cell(directory: Path, task: str, schedule: str, condition: str,
+                    budget: int) -> Cell:  # fmt: skip
+    """A Q3 cell from a ``himit run discovery`` record (``runs.csv``, ``curves.csv``): its
+    discovered learners in the places of eq. 2 and options only (:data:`DISCOVERED_AGENTS`),
+    its primitives-only runs in eq. 1's and primitives only's."""
+
+    def renamed(rows):
+        return [{**r, "agent": DISCOVERED_AGENTS[r["agent"]]} for r in rows
+                if r["agent"] in DISCOVERED_AGENTS]  # fmt: skip
+
+    runs, windows = (renamed(load_runs(directory / f)) for f in ("runs.csv", "curves.csv"))
+    return sweep_cell(runs, windows, task, schedule, condition, budget,
+                      discovery_commit(directory))  # fmt: skip
+
+
+def load_q3_discovered_cells(results: Path) -> tuple[list[Cell], list[str]]:
+    """Q3's discovered-options cells (:data:`Q3_DISCOVERED`, those present) and those absent."""
+    cells, missing = [], []
+    for task, (_, budget, prefix) in Q3_DISCOVERED.items():
+        for value, condition in Q3_VALUES.items():
+            for schedule in SCHEDULES:
+                directory = results / f"{prefix}_iv{value}_{schedule}"
+                if not (directory / "runs.csv").exists():
+                    missing.append(directory.name)
+                    continue
+                cells.append(discovered_cell(directory, task, schedule, condition, budget))
+    return cells, missing
+
+
+def summaries_equal(results: Path, name: str, sweep: str, agents: tuple[str, ...],
+                    value: str, schedule: str) -> tuple[int, int]:  # fmt: skip
+    """Of a discovery record's runs of ``agents`` (its primitives-only learners), how many have
+    the same first goal, total goals and greedy policy's % of the optimum (to 4 decimals) as the
+    same agent's and seed's run at ``value`` and ``schedule`` in the committed ``sweep``, and of
+    how many the sweep holds (a check that a run does not depend on the study it ran in)."""
+    ignored: list[str] = []
+    theirs = read_sweep(results, sweep, ignored)
+    mine = results / name / "runs.csv"
+    if theirs is None or not mine.exists():
+        return 0, 0
+    by = {
+        (r["agent"], int(r["seed"])): r
+        for r in theirs[0]
+        if r["preset"] == schedule and float(r["learner.initial_value"]) == float(value)
+    }
+    pairs = [(r, by[r["agent"], int(r["seed"])]) for r in load_runs(mine)
+             if r["agent"] in agents and (r["agent"], int(r["seed"])) in by]  # fmt: skip
+    equal = sum(
+        int(a["first_goal_step"]) == int(float(b["first_goal_step"]))
+        and int(a["total_goals"]) == int(float(b["total_goals"]))
+        and round(float(a["greedy_percent_of_optimal"]), 4)
+        == round(float(b["greedy_percent_of_optimal"]), 4)
+        for a, b in pairs
+    )
+    return equal, len(pairs)
 
 
 def imitation_effect(cell: Cell, agent: str, endpoint: str) -> np.ndarray:
@@ -931,6 +1027,116 @@ def f_section(results: Path, cells: list[Cell]) -> tuple[list[Test], list[str], 
     return tests, rows, missing
 
 
+#: F on Q2's conditions (amendments "F on Q2's conditions", "F at Q2's strides 10 and 20"): on
+#: Q2's sweep worlds eq. 2 with feasibility is the sweep ``f_<imitators' sweep>_<world>`` (trial
+#: alone: Q2's ``<imitators' sweep>_<world>``, :data:`Q2_OBSERVATIONS`); on MiniGrid the cells
+#: ``f_q2_<task>_<observation>_<schedule>_n<N>`` (trial alone: ``q2_<task>_<observation>_<schedule>``).
+F_Q2_MINIGRID = {label: short for short, label in Q2_MINIGRID_OBSERVATIONS.items()}
+#: The per-window columns of a sweep's ``results.csv`` that make a run's record.
+SWEEP_RECORD_COLUMNS = ("step", "goals_in_window", "epsilon", "episodes", "backups", "decisions",
+                        "mentor_term_wins")  # fmt: skip
+
+
+def sweep_window_records(rows: list[dict]) -> dict[tuple[str, int], tuple]:
+    """Each run's per-window record (:data:`SWEEP_RECORD_COLUMNS`, as written) by (agent, seed),
+    from a sweep's ``results.csv`` rows of one cell."""
+    out: dict[tuple[str, int], list] = {}
+    for row in rows:
+        out.setdefault((row["agent"], int(row["seed"])), []).append(
+            tuple(row[c] for c in SWEEP_RECORD_COLUMNS)
+        )
+    return {k: tuple(v) for k, v in out.items()}
+
+
+#: Why feasibility changed what it did at Q2's conditions: a reading of its mechanism, written
+#: after the runs (not a test), shown under F's table of Q2's cells.
+F_Q2_WHY = [
+    "*Why* (a reading of the mechanism, not a test): the test drops the mentor term at a state "
+    "only once every own option has been tried there N times without reaching the observed "
+    "successor. At the option ends each observed move is one of the mentor's options, several "
+    "primitive steps that no primitive makes, but on the rooms the learner's doorway (and "
+    "corner) options end where the mentor's do, and they slip (10 % of moves): at N = 1 one "
+    "missed try of each own option at a state drops the term, which happened in a few runs; at "
+    "N = 3 it never did. On MiniGrid's tasks, which do not slip, no run changed at either N: "
+    "either an own option reaches the observed state, or not every own option was tried there "
+    "N times within the 10k steps; these runs do not tell the two apart. At a stride each "
+    "observed move joins states up to 10 or 20 steps apart, where no primitive and, but by "
+    "chance, no own option ends, so the mentor term leads eq. 2 toward moves it cannot make; "
+    "the test drops those terms, and nearly every run changes (fewer on MiniGrid at stride 10, "
+    "whose short episodes put more of the observed states one option apart). That is where "
+    "feasibility pays, the stronger the sparser the observation: the segment term already "
+    "scores a stride's move by its duration, but does not tell eq. 2 that its own options "
+    "cannot make it.",
+]
+
+
+def f_q2_description(cells: list[Cell], f: list[Test]) -> list[str]:
+    """Table rows: per Q2 condition × schedule with F's cells, the greedy policy's mean % of the
+    optimum for eq. 2 with trial alone, with feasibility N = 1 and 3 (trial alone's mean + F's
+    paired mean difference, the same seeds), eq. 1 and options only (Q2's cell): a description
+    beside F's tests, no test of its own."""
+    rows = []
+    for cell in cells:
+        by = {t.name: t.difference for t in f if (t.world, t.condition, t.schedule, t.endpoint)
+              == (cell.task, cell.condition, cell.schedule, "greedy")}  # fmt: skip
+        if not by:
+            continue
+        trial = float(np.mean(cell.greedy[EQ2]))
+        with_n = [f"{trial + by[f'N = {n} − trial alone']:.1f}" for n in F_TRIES]
+        rows.append(
+            f"| {label(cell.task, cell.condition)} | {SCHEDULES[cell.schedule]} | {trial:.1f} | "
+            + " | ".join(with_n)
+            + f" | {np.mean(cell.greedy[EQ1]):.1f} | {np.mean(cell.greedy[OPTIONS]):.1f} |"
+        )
+    return rows
+
+
+def f_q2_section(results: Path, cells: list[Cell]) -> tuple[list[Test], list[str], list[str]]:
+    """F's tests on Q2's conditions (unadjusted), their table rows of changed runs, and the
+    records absent."""
+    tests: list[Test] = []
+    rows: list[str] = []
+    missing: list[str] = []
+    for cell in cells:
+        for tries in F_TRIES:
+            if cell.task in Q2_WORLDS:
+                prefix, stride = Q2_OBSERVATIONS[cell.condition]
+                found = read_sweep(results, f"f_{prefix}_{cell.task}", missing)
+                trial = read_sweep(results, f"{prefix}_{cell.task}", missing)
+                if found is None or trial is None:
+                    break
+
+                def keep(row, tries=None, stride=stride, schedule=cell.schedule):
+                    n = row.get("learner.mentor_feasibility", "")
+                    return (row["preset"] == schedule and row["agent"] == EQ2
+                            and (tries is None or n == str(tries))
+                            and (stride is None or row["observation_stride"] == stride))  # fmt: skip
+
+                runs, windows = ([r for r in rows_ if keep(r, tries)] for rows_ in found[:2])
+                feasible = sweep_cell(runs, windows, cell.task, cell.schedule, cell.condition,
+                                      cell.budget, found[2])  # fmt: skip
+                base = [r for r in trial[1] if keep(r)]
+                changed, n = runs_changed(sweep_window_records(base),
+                                          sweep_window_records(windows))  # fmt: skip
+            else:
+                short = F_Q2_MINIGRID[cell.condition]
+                name = f"f_q2_{cell.task}_{short}_{cell.schedule}_n{tries}"
+                directory = results / name
+                if not (directory / "tasks" / f"{cell.task}.json").exists():
+                    missing.append(name)
+                    continue
+                feasible = load_gymnasium_cell(directory, cell.task, cell.schedule)
+                trial_dir = results / f"q2_{cell.task}_{short}_{cell.schedule}"
+                changed, n = runs_changed(window_records(trial_dir, cell.task),
+                                          window_records(directory, cell.task))  # fmt: skip
+            tests += f_tests(cell, feasible, tries)
+            rows.append(
+                f"| {label(cell.task, cell.condition)} | {SCHEDULES[cell.schedule]} | "
+                f"N = {tries} | {changed} of {n} |"
+            )
+    return tests, rows, sorted(set(missing))
+
+
 def q3_answer_lines(q3: list[Test], cells: list[Cell]) -> list[str]:
     """The answers' lines on Q3 beyond each condition's verdict: the mechanism (first goals equal
     to the control's; imitation effects at 0 − at −1) and transfer's cost."""
@@ -1148,6 +1354,63 @@ def box_q3_paragraphs(results: Path, cells: list[Cell]) -> list[str]:
     ]
 
 
+def q3_discovered_paragraphs(results: Path, cells: list[Cell]) -> list[str]:
+    """What Q3's discovered-options cells are, the subgoals and options found, and the check of
+    their primitives-only runs against the committed multi-room cells'."""
+    lines = []
+    for task, (name, budget, prefix) in Q3_DISCOVERED.items():
+        mine = [c for c in cells if c.task == task]
+        if not mine:
+            continue
+        checks, found, options = [], [], []
+        for c in mine:
+            value = next(v for v, text in Q3_VALUES.items() if text == c.condition)
+            record = f"{prefix}_iv{value}_{c.schedule}"
+            eq1 = summaries_equal(results, record, "q3_multirooms_exp1", (EQ1,), value, c.schedule)
+            prims = summaries_equal(results, record, "q3_multirooms_exp1", (PRIMITIVES,), value,
+                                    c.schedule)  # fmt: skip
+            checks.append(
+                f"{c.condition}, {SCHEDULES[c.schedule]}: eq. 1 {eq1[0]} of {eq1[1]}, "
+                f"primitives only {prims[0]} of {prims[1]}"
+            )
+            found += load_runs(results / record / "subgoals.csv")
+            options += [int(r["discovered_options"]) for r in load_runs(results / record /
+                        "runs.csv") if r["discovered_options"]]  # fmt: skip
+        per_seed = {int(r["seed"]): r for r in found}  # (the same episodes in every cell)
+        precision = [float(r["precision"]) for r in per_seed.values()]
+        recall = [float(r["recall_visited"]) for r in per_seed.values()]
+        subgoals = [int(r["found"]) for r in per_seed.values()]
+        lines += [
+            f'**{name}** (amendment "Q3 on the multi-room world with options discovered from the '
+            "mentor's states\"): the multi-room transfer above, its eq. 2 and options-only "
+            "control given options discovered from each seed's demonstrations of the mentor's "
+            "walk to the top-right corner (`himit run discovery --mentor-goal top-right`): each "
+            "is its seed's primitives-only run (eq. 1's, primitives only's) up to the warm-up "
+            "(20,000 steps), then the same run continued with the primitives and options to the "
+            "subgoals found, built once from the run's own one-step counts. Trial on for the "
+            f"imitators, 20 seeds (0–19), {budget:,} steps a run, initial value −1 or 0 for all "
+            "four, both schedules. Run: `python experiments/hierarchy/run_hierarchy.py --parts "
+            "q3disc`.",
+            "",
+            f"Subgoals found per seed: {np.mean(subgoals):.1f} (of {min(subgoals)}–"
+            f"{max(subgoals)}), precision {np.mean(precision):.2f} and recall "
+            f"{np.mean(recall):.2f} against the doorways the mentor passed (means over the 20 "
+            f"seeds); options built per run at the warm-up: {np.mean(options):.1f} "
+            f"({min(options)}–{max(options)}; an option is built where its subgoal lies within "
+            "2 × 7 expected steps of some state in the run's own model).",
+            "",
+            "*Check* (not a test): each of the study's primitives-only runs against the same "
+            "seed's run in the committed multi-room cells (`q3_multirooms_exp1`: the same world, "
+            "mentor's goal, schedule, initial value, trial, seeds and budget), runs whose first "
+            "goal, total goals and greedy policy's % of the optimum are equal — "
+            + "; ".join(checks)
+            + ". Where all are, eq. 1's imitation effect in these cells is the committed cells' "
+            "pair of runs again.",
+            "",
+        ]
+    return lines
+
+
 def q3_section(results: Path, q3: list[Test], cells: list[Cell]) -> list[str]:
     """Q3's section: the setting, the check of its controls against Q1's, each task × initial
     value's learners and split, the mechanism's and transfer's cost's tests."""
@@ -1195,10 +1458,13 @@ def q3_section(results: Path, q3: list[Test], cells: list[Cell]) -> list[str]:
         ]
     lines += q3_sweep_paragraphs(results, cells)
     lines += box_q3_paragraphs(results, cells)
+    lines += q3_discovered_paragraphs(results, cells)
     for world, condition in dict.fromkeys((c.task, c.condition) for c in cells):
         group = [c for c in cells if (c.task, c.condition) == (world, condition)]
         name = label(world, condition)
-        lines += agents_table(group, name)
+        lines += agents_table(
+            group, name, DISCOVERED_LABELS if world in Q3_DISCOVERED else AGENT_LABELS
+        )
         lines += tests_table(
             [t for t in q3 if (t.world, t.condition) == (world, condition)],
             f"{name}: the split, paired by seed",
@@ -1244,16 +1510,20 @@ def main() -> None:
     missing += q2_missing
     q2 = adjust([t for cell in q2_cells for t in cell_tests("Q2", cell)])
     f_raw, f_rows, f_missing = f_section(results, cells)
-    missing += f_missing
-    f = adjust(f_raw)
+    f_q2_raw, f_q2_rows, f_q2_missing = f_q2_section(results, q2_cells)
+    missing += f_missing + f_q2_missing
+    f = adjust(f_raw + f_q2_raw)
     q3_cells, q3_missing = load_q3_cells(results)
     q3_sweep_cells, q3_own_cells, q3_sweeps_missing = load_q3_sweep_cells(results)
-    q3_cells += q3_sweep_cells
-    missing += q3_missing + q3_sweeps_missing
+    q3_discovered_cells, q3_discovered_missing = load_q3_discovered_cells(results)
+    q3_cells += q3_sweep_cells + q3_discovered_cells
+    missing += q3_missing + q3_sweeps_missing + q3_discovered_missing
     q3_split = [t for cell in q3_cells for t in cell_tests("Q3", cell)]
-    q3 = adjust(
-        q3_split + mechanism_tests(q3_cells) + transfer_cost_tests(q3_cells, cells + q3_own_cells)
-    )
+    # the discovered options' mechanism for their imitator only: eq. 1's runs there are the
+    # study's primitives-only runs (checked against the committed cells' on the page)
+    mechanism = [t for t in mechanism_tests(q3_cells)
+                 if t.world not in Q3_DISCOVERED or t.name.startswith(AGENT_LABELS[EQ2])]  # fmt: skip
+    q3 = adjust(q3_split + mechanism + transfer_cost_tests(q3_cells, cells + q3_own_cells))
     q4_cells, q4_raw, q4_missing = fifth_skewer.family(results)  # Q4: its own module
     q4 = adjust(q4_raw)
     missing += q4_missing
@@ -1366,9 +1636,35 @@ def main() -> None:
     ]
     if f:
         significant = [t for t in f if t.p_holm < 0.05]
+        counts = [re.search(r"\| (\d+) of (\d+) \|", row) for row in f_rows + f_q2_rows]
+        changed = [(int(m.group(1)), int(m.group(2))) for m in counts if m]
+        q2_changed = changed[len(f_rows) :]
+        where: dict[tuple[str, str], list[float]] = {}
+        for t in significant:
+            where.setdefault((t.world, t.condition), []).append(t.difference)
         lines.append(
             f"- **F, feasibility:** {len(significant)} of {len(f)} contrasts (N − trial alone) "
-            "significant after Holm; what each setting changed is in its section below."
+            "significant after Holm"
+            + (
+                f", {sum(t.difference > 0 for t in significant)} of them in feasibility's favour: "
+                + "; ".join(
+                    f"{label(w, c)} ({len(d)}, {min(d):+.1f} to {max(d):+.1f})"
+                    for (w, c), d in where.items()
+                )
+                + " (contrasts, and their differences: points of the greedy policy or early goals)"
+                if significant
+                else ""
+            )
+            + f". Runs changed from trial alone's: {sum(c for c, _ in changed[: len(f_rows)])} "
+            f"of {sum(n for _, n in changed[: len(f_rows)])} on Q1's conditions"
+            + (
+                f", {sum(c for c, _ in q2_changed)} of {sum(n for _, n in q2_changed)} on Q2's "
+                f"conditions ({sum(c > 0 for c, _ in q2_changed)} of {len(q2_changed)} cells "
+                "with any change)"
+                if q2_changed
+                else ""
+            )
+            + "; each cell in F's section below."
         )
     choice_path = results / "preset_choice.json"
     choice = json.loads(choice_path.read_text()) if choice_path.exists() else None
@@ -1422,9 +1718,9 @@ def main() -> None:
         + ("; ".join(sorted(set(missing))) + " (records absent); " if missing else "")
         + "Q1 on MiniGrid's UnlockPickup, FourRooms and MultiRoom N2S4 "
         "(registered for himit run minigrid, left out of the amendment that added three tasks, "
-        "by cost and for having no subgoal or only one: PROTOCOL.md), F on Q2's conditions "
-        "(where the mentor's observed moves are several steps), Q3's other transfers "
-        "(options discovered from the mentor's states, a key moved)"
+        "by cost and for having no subgoal or only one: PROTOCOL.md), F on Q3's conditions, "
+        "Q3's other transfers (options discovered from the mentor's states on MiniGrid's tasks "
+        "and the puzzle box, a key moved)"
         + ("" if q4_cells else ", Q4 (the fifth skewer)")
         + ": their cells follow in amendments before their runs, as the settings and worlds "
         "land. Declared out by cost in the puzzle box's amendment: F on Q3's puzzle-box cells, "
@@ -1521,7 +1817,8 @@ def main() -> None:
                 "primitive makes the mentor's move in a deterministic world, its tries always "
                 "reach it, so on these tasks the test cannot drop a term, and no decision "
                 "changes. Feasibility has work to do only where the mentor's observed moves are "
-                "ones no own option makes (coarse observation, Q2; missing skills, H3/H6).",
+                "ones no own option makes (missing skills, H3/H6; at Q2's option ends the "
+                "learner's own options end where the mentor's do: below).",
                 "",
             ]
         if any(BOX_TASKS[BOX_Q1] in row for row in f_rows):
@@ -1540,6 +1837,39 @@ def main() -> None:
                 "No run changed: each of F's comparisons so far is a run against itself, the "
                 "same pair of runs, so by the protocol's counting F has no distinct comparison "
                 "on these tasks (its tests, below, are all ties).",
+                "",
+            ]
+        if f_q2_rows:
+            lines += [
+                "### F on Q2's conditions: the mentor seen at its option ends or every 10th / "
+                "20th state",
+                "",
+                'Amendments "F on Q2\'s conditions" and "F at Q2\'s strides 10 and 20": eq. 2 '
+                "watching the mentor only where its options end, or every 10th or 20th state, "
+                "the segment term and trial on, with `mentor_feasibility` N, against Q2's "
+                "committed eq. 2 cell of the same world, observation and schedule (trial alone; "
+                "not run again in a batch of its own: the checks above and Q3's found no run "
+                "that depends on its batch). 20 seeds, each world's Q2 budget. *Changed*: the "
+                "runs whose per-window record differs from trial alone's (MiniGrid: goals, "
+                "episodes, ε, value gap, mentor-term wins; exp2 and exp1: goals, ε, episodes, "
+                "backups, decisions, mentor-term wins). Run: `python "
+                "experiments/hierarchy/run_hierarchy.py --parts fq2 fq2s`.",
+                "",
+                "| world, observation | schedule | feasibility | runs changed |",
+                "|---|---|---|---|",
+                *f_q2_rows,
+                "",
+                *F_Q2_WHY,
+                "",
+                "*Beside Q2's learners* (a description, no test was declared for it): the greedy "
+                "policy's mean % of the optimum of eq. 2 with trial alone and with feasibility "
+                "(trial alone's mean + F's paired difference), and of Q2's eq. 1 (segments and "
+                "trial, no feasibility: not run with it) and options only (no mentor).",
+                "",
+                "| world, observation | schedule | eq. 2, trial alone | eq. 2, N = 1 | eq. 2, "
+                "N = 3 | eq. 1 | options only |",
+                "|---|---|---|---|---|---|---|",
+                *f_q2_description(q2_cells, f),
                 "",
             ]
         lines += tests_table(f, "F: feasibility − trial alone, paired by seed", by_task=True)

@@ -38,9 +38,6 @@ MENTOR_MODELS = ("learned", "exact")
 #: ``ExperimentConfig.layout``: every doorway open (the paper's), or a maze of rooms.
 LAYOUTS = ("open", "maze")
 
-#: ``ExperimentConfig.mentor_goal``: the learner's goal, or the top-right corner cell.
-MENTOR_GOALS = ("same", "top-right")
-
 #: ``ExperimentConfig.second_mentor``: none, or a second demonstration set watched alongside the
 #: first by a mentor that errs (``noisy``) or takes a needless detour (``detour``).
 SECOND_MENTORS = ("none", "noisy", "detour")
@@ -164,15 +161,7 @@ class ExperimentConfig(RunConfig):
         episode keeps its first ``⌈coverage · T⌉`` states (at least two): 0.5 shows the first
         half of each route, and nothing of the rest.""",
     )
-    mentor_goal: str = setting(
-        "same",
-        choices=MENTOR_GOALS,
-        doc="""
-        What the mentor demonstrates (default ``same``: the learner's task). ``top-right``: its
-        walk to the top-right corner cell ``(0, N − 1)`` (the detour's waypoint, on no
-        shortest path to the learner's goal), ending there: a mentor demonstrating another goal
-        than the learner's.""",
-    )
+    mentor_goal: str = RunConfig.shared("mentor_goal")
     second_mentor: str = setting(
         "none",
         choices=SECOND_MENTORS,

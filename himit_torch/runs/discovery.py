@@ -20,7 +20,16 @@ Per world and seed (each seed records its own mentor episodes, as in the other e
   their models; changed ones start empty). The subgoals are not searched again: they come from
   the demonstrations, which do not change.
 
-Goals are counted over the whole run. Results: ``config.json``, ``curves.csv``, ``subgoals.csv``
+The mentor demonstrates the learner's task, or (``mentor_goal = "top-right"``) its walk to
+another goal, as in the experiments (:func:`~himit_torch.runs.mentoring.recorded_mentor_episodes`):
+then the subgoals come from those demonstrations, and the learner is still rewarded at its own
+goal. The learners' settings are ``learner`` (by default the paper's experiments'), under
+``preset`` where one is named.
+
+Goals are counted over the whole run; at its end each run's frozen greedy policy is evaluated
+exactly (over its own options at that time; as % of the optimum's goal rate, as the experiments'
+summaries). Results: ``config.json``, ``curves.csv``, ``runs.csv`` (per run: first goal, total
+goals, the greedy policy's % of the optimum, discovered options), ``subgoals.csv``
 (per seed: the subgoals found, precision/recall against the world's doorways, time),
 ``demonstrations_needed.csv`` (precision/recall against the number of mentor episodes),
 ``results.md`` and ``figures/``.
@@ -38,11 +47,13 @@ from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
 
+from himit_torch.exact.greedy_evaluation import PolicyEvaluator
+from himit_torch.exact.optimum import primitive_optimum
 from himit_torch.learner.config import LearnerConfig
 from himit_torch.learner.learner import Learner
 from himit_torch.learner.option_refresh import with_options
 from himit_torch.mentor.demonstrations import Demonstrations
-from himit_torch.mentor.policy import mentor_policy, record_demonstrations
+from himit_torch.mentor.policy import mentor_policy
 from himit_torch.options.builders import doorway_options, mentor_options, primitive_options
 from himit_torch.options.bundle import Options
 from himit_torch.options.discovery import (
@@ -51,6 +62,7 @@ from himit_torch.options.discovery import (
     one_step_counts,
 )
 from himit_torch.runs.config import EXPERIMENTS
+from himit_torch.runs.mentoring import recorded_mentor_episodes
 from himit_torch.runs.runner import run_windows, source_commit, watch_demonstrations
 from himit_torch.runs.study import RunConfig, StudyEntry, run_each, run_study
 from himit_torch.statistics import paired_comparison, t_interval
@@ -77,17 +89,31 @@ DISCOVERY_AGENTS = (
 )
 
 
+#: The columns of ``runs.csv``, one row per run: its first goal (−1: never), goals over the run,
+#: its greedy policy's % of the optimum at the end, and the options discovered for it at the
+#: warm-up (empty for a run that has none built).
+RUN_COLUMNS = (
+    "world",
+    "agent",
+    "seed",
+    "first_goal_step",
+    "total_goals",
+    "greedy_percent_of_optimal",
+    "discovered_options",
+)
+
+
 @dataclass
 class DiscoveryConfig(RunConfig):
-    """Settings of the discovery experiment; its mentor episodes, window and
-    learner settings are each world's experiment's (:data:`~himit_torch.runs.config.EXPERIMENTS`)."""
+    """Settings of the discovery experiment; its mentor, mentor episodes and window are each
+    world's experiment's (:data:`~himit_torch.runs.config.EXPERIMENTS`), its learner settings
+    ``learner`` (by default theirs)."""
 
     name: str = RunConfig.shared("name", "discovery")
     worlds: tuple[str, ...] = setting(
         ("exp2", "exp1"),
         choices=("exp1", "exp2"),
-        doc="Whose worlds (and steps, mentor episodes, learner settings) to use: ``exp1``, "
-        "``exp2``.",
+        doc="Whose worlds (and steps, mentor episodes, mentor) to use: ``exp1``, ``exp2``.",
     )
     seeds: int = RunConfig.shared("seeds", 10, doc="Runs per agent and world.")
     first_seed: int = RunConfig.shared("first_seed", 0)
@@ -121,6 +147,14 @@ class DiscoveryConfig(RunConfig):
         doc="Mentor episode counts at which subgoal precision/recall is measured.",
     )
     engine: str = RunConfig.shared("engine", "auto")
+    mentor_goal: str = RunConfig.shared("mentor_goal")
+    preset: str | None = RunConfig.shared("preset", None)
+    learner: LearnerConfig = RunConfig.shared(
+        "learner",
+        default_factory=lambda: EXPERIMENTS["exp1"].learner,
+        doc="Learner settings (``LearnerConfig``; default: the paper's experiments' own, which "
+        "exp1 and exp2 share).",
+    )
 
     def __post_init__(self):
         self.check_run_settings()
@@ -189,10 +223,14 @@ class _World:
     first_goal: dict[str, dict[int, int]] = field(
         default_factory=lambda: {a: {} for a in DISCOVERY_AGENTS}
     )
+    greedy: dict[str, dict[int, float]] = field(
+        default_factory=lambda: {a: {} for a in DISCOVERY_AGENTS}
+    )
     build_seconds: list[float] = field(default_factory=list)
     option_counts: dict[tuple[str, int], int] = field(default_factory=dict)
     refreshes: list[int] = field(default_factory=list)
     wall: dict[str, float] = field(default_factory=dict)
+    _optimal: float | None = None
 
     def batch(self, lcfg: LearnerConfig, engine: str, options: Options, agents, run_seeds):
         """A learner batch on the world, every seed watching its own episodes."""
@@ -201,11 +239,29 @@ class _World:
         return learner
 
     def record(self, learner: Learner, names: list[str], run_seeds: list[int]) -> None:
-        """Each run's goals per window and first goal, under its name."""
-        g = _window_goals(learner)
+        """Each run's goals per window, first goal and greedy policy's % of the optimum, under
+        its name."""
+        g, greedy = _window_goals(learner), self.greedy_percent(learner)
         for b, (a, s) in enumerate(zip(names, run_seeds)):
             self.goals[a][s] = g[b]
             self.first_goal[a][s] = int(learner.views.first_goal_step[b])
+            self.greedy[a][s] = greedy[b]
+
+    def greedy_percent(self, learner: Learner) -> list[float]:
+        """Each run's frozen greedy policy now (over the learner's options, untried states
+        uniform), evaluated exactly, as % of the optimum's goals per window."""
+        evaluation = PolicyEvaluator(self.world, learner.options, self.base.window).evaluate(
+            learner.views.greedy_policy(), values=False
+        )
+        return evaluation.percent_of(self.optimal_goals_per_window).tolist()
+
+    @property
+    def optimal_goals_per_window(self) -> float:
+        """The optimum's goals per window (the reference of :meth:`greedy_percent`)."""
+        if self._optimal is None:
+            best = primitive_optimum(self.world, self.base.window)
+            self._optimal = float(best.evaluation.goals_per_window[0])
+        return self._optimal
 
 
 def _find_subgoals(config: DiscoveryConfig, w: _World) -> tuple[list[dict], list[dict]]:
@@ -236,8 +292,11 @@ def _find_subgoals(config: DiscoveryConfig, w: _World) -> tuple[list[dict], list
         )
     needed_rows = []
     for n in config.demonstrations_needed:
+        recorded = recorded_mentor_episodes(
+            replace(w.base, mentor_episodes=n), w.world, w.mentor, w.seeds
+        )
         for s in w.seeds:
-            d = record_demonstrations(w.world, w.mentor, n, seed=s)
+            d = recorded[s]
             t0 = time.perf_counter()
             pr = discover_subgoals(d, separation=w.separation).precision_recall(w.world.doorways)
             needed_rows.append(
@@ -303,14 +362,13 @@ def _run_discovered(config: DiscoveryConfig, w: _World, phase1: Learner, out: Pa
                     learner = with_options(learner, _discovered(config, w, learner, 0, s))
                     n_swaps += 1
             w.refreshes.append(n_swaps)
-            w.goals[variant][s] = _window_goals(learner)[0]
-            w.first_goal[variant][s] = int(learner.views.first_goal_step[0])
+            w.record(learner, [variant], [s])
 
 
 def _run_learners(config: DiscoveryConfig, w: _World, out: Path) -> str:
     """The primitives runs (whose warm-up the discovered runs continue), the discovered-options
     runs and the hand-built doorway options; returns the engine's name."""
-    steps, lcfg, seeds, prims = config.steps_of(w.exp), w.base.learner, w.seeds, w.prims
+    steps, lcfg, seeds, prims = config.steps_of(w.exp), config.learner, w.seeds, w.prims
     agents = ["primitives"] * len(seeds) + ["imitation_primitives"] * len(seeds)
     run_seeds = seeds + seeds
     t0 = time.perf_counter()
@@ -340,21 +398,28 @@ def _run_learners(config: DiscoveryConfig, w: _World, out: Path) -> str:
     return learner.engine.name
 
 
-def _run_world(config: DiscoveryConfig, exp: str, out: Path, progress: bool) -> dict:
-    """One world: its subgoals, every learner's runs and the subgoal figure; its results."""
-    base = EXPERIMENTS[exp]
-    size = base.sizes[0]
-    world = base.world(size)
+def _world_setting(config: DiscoveryConfig, exp: str, progress: bool) -> _World:
+    """Experiment ``exp``'s world, its mentor and each seed's recorded episodes (of the
+    learner's task, or with ``config.mentor_goal`` another goal's, as the experiments record
+    them)."""
+    base = replace(EXPERIMENTS[exp], mentor_goal=config.mentor_goal)
+    world = base.world(base.sizes[0])
     seeds = list(range(config.first_seed, config.first_seed + config.seeds))
     mentor = mentor_policy(
         world, mentor_options(world, corners=base.corner_options), base.mentor_preference
     )
-    demos = {s: record_demonstrations(world, mentor, base.mentor_episodes, seed=s) for s in seeds}
+    demos = recorded_mentor_episodes(base, world, mentor, seeds)
     log = (lambda *a: print(f"discovery {exp}:", *a, flush=True)) if progress else (lambda *a: None)
-    w = _World(
+    return _World(
         exp, base, world, mentor, seeds, demos, config.separation(exp), log,
         primitive_options(world),
     )  # fmt: skip
+
+
+def _run_world(config: DiscoveryConfig, exp: str, out: Path, progress: bool) -> dict:
+    """One world: its subgoals, every learner's runs and the subgoal figure; its results."""
+    w = _world_setting(config, exp, progress)
+    world, seeds, demos, size, base = w.world, w.seeds, w.demos, w.base.sizes[0], w.base
     subgoal_rows, needed_rows = _find_subgoals(config, w)
     engine = _run_learners(config, w, out)
     _subgoal_figure(
@@ -373,6 +438,7 @@ def _run_world(config: DiscoveryConfig, exp: str, out: Path, progress: bool) -> 
         "window": base.window,
         "goals": w.goals,
         "first_goal": w.first_goal,
+        "greedy": w.greedy,
         "subgoals": subgoal_rows,
         "needed": needed_rows,
         "build_seconds": w.build_seconds,
@@ -447,6 +513,15 @@ class DiscoveryStudy:
                     for s in r["seeds"]:
                         for i, g in enumerate(r["goals"][a][s]):
                             w.writerow([r["world"], a, s, (i + 1) * r["window"], int(g)])
+        with (out / "runs.csv").open("w", newline="") as f:
+            w = csv.writer(f)
+            w.writerow(RUN_COLUMNS)
+            for r in results:
+                for a in DISCOVERY_AGENTS:
+                    for s in r["seeds"]:
+                        w.writerow([r["world"], a, s, r["first_goal"][a][s],
+                                    int(r["goals"][a][s].sum()), f"{r['greedy'][a][s]:.4f}",
+                                    r["option_counts"].get((a, s), "")])  # fmt: skip
         for name, key in (("subgoals.csv", "subgoals"), ("demonstrations_needed.csv", "needed")):
             rows = [row for r in results for row in r[key]]
             with (out / name).open("w", newline="") as f:
@@ -488,7 +563,9 @@ def discovery_run_command(
     config: DiscoveryConfig, run_dir: str | os.PathLike | None = None
 ) -> str | None:
     """The ``himit run discovery`` command that rebuilds ``config`` exactly, or None where none
-    can (``worlds``, ``warmup``, ``refresh_every``, … have no flags)."""
+    can (its page's command gives only ``seeds``, ``steps``, ``engine``, ``worlds``,
+    ``mentor_goal``, ``preset`` and the learner's ``initial_value`` and ``mentor_trial``; not
+    ``warmup``, ``refresh_every``, …)."""
     return ENTRY.run_command(config, run_dir)
 
 
@@ -548,8 +625,17 @@ def _what_runs(config: DiscoveryConfig) -> list[str]:
             else f"rebuilt from its latest counts every {config.refresh_every:,} steps "
             "(unchanged options keep their models, changed ones start empty)"
         )
-        + ". Goals count over the whole run. Each world uses its experiment's steps, mentor episodes "
-        "and learner settings; each seed its own mentor episodes.",
+        + ". Goals count over the whole run; the greedy policy is each run's at its end, "
+        "evaluated exactly over its own options. Each world uses its experiment's steps, mentor "
+        "and mentor episodes"
+        + (
+            ""
+            if config.mentor_goal == "same"
+            else f" (the mentor demonstrating its walk to the {config.mentor_goal} corner, not "
+            "the learner's goal; the subgoals are found in those demonstrations)"
+        )
+        + "; each seed its own mentor episodes; the learner settings are `learner` in "
+        "`config.json`.",
         "",
     ]
 
@@ -601,14 +687,19 @@ def _learning_section(r: dict) -> list[str]:
     tot = {a: [int(r["goals"][a][s].sum()) for s in seeds] for a in DISCOVERY_AGENTS}
     last = {a: [int(r["goals"][a][s][-1]) for s in seeds] for a in DISCOVERY_AGENTS}
     reached = {a: sum(1 for s in seeds if r["first_goal"][a][s] >= 0) for a in DISCOVERY_AGENTS}
+    greedy = {a: [r["greedy"][a][s] for s in seeds] for a in DISCOVERY_AGENTS}
     lines = [
         "### Learning",
         "",
-        "| agent | total goals | goals in last window | runs that reached the goal |",
-        "|---|---|---|---|",
+        "| agent | total goals | goals in last window | runs that reached the goal | greedy "
+        "policy at the end, % of optimum |",
+        "|---|---|---|---|---|",
     ]
     for a in DISCOVERY_AGENTS:
-        lines.append(f"| {a} | {_fmt(tot[a])} | {_fmt(last[a])} | {reached[a]}/{len(seeds)} |")
+        lines.append(
+            f"| {a} | {_fmt(tot[a])} | {_fmt(last[a])} | {reached[a]}/{len(seeds)} | "
+            f"{_fmt(greedy[a])} |"
+        )
     hand, disc, prim = (
         np.mean(tot["doorway_imitation"]),
         np.mean(tot["discovered_imitation"]),
@@ -655,5 +746,8 @@ ENTRY = StudyEntry(
     ),
     no_redraw="its results.md and figures are written at the end of the run, and himit plot "
     "does not redraw them",
-    rerun_flags=("seeds", "steps", "engine"),
+    rerun_flags=(
+        *("seeds", "steps", "engine", "worlds", "mentor_goal", "preset"),
+        *("initial_value", "mentor_trial"),  # (the learner's)
+    ),
 )

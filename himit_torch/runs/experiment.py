@@ -43,13 +43,11 @@ from himit_torch.learner.presets import agent_settings_text
 from himit_torch.mentor.demonstrations import Demonstrations
 from himit_torch.mentor.observation import (
     CoarseDemonstrations,
-    first_part,
     observe_at_option_ends,
     observe_every,
 )
 from himit_torch.mentor.policy import (
     exact_mentor_transitions,
-    mentor_detour,
     mentor_policy,
     record_demonstrations,
     run_mentor,
@@ -60,6 +58,7 @@ from himit_torch.options.bundle import Options
 from himit_torch.runs.checkpoints import BatchShape
 from himit_torch.runs.config import EXPERIMENTS, ExperimentConfig, load_config
 from himit_torch.runs.greedy import CURVE_COLUMNS, GreedyReference, GreedyTracker
+from himit_torch.runs.mentoring import mentor_detour_of, recorded_mentor_episodes
 from himit_torch.runs.pool import run_pool, workers_for
 from himit_torch.runs.runner import (
     Checkpoints,
@@ -304,7 +303,7 @@ def _mentoring(batch: _WorldBatch) -> _Mentoring:
         # the paper's worlds keep their mentor; a maze or a moved goal may trap it in a cycle
         break_cycles=config.layout != "open" or config.goal_needs_primitives,
     )
-    recorded = _mentor_episodes(config, world, mentor, seeds)
+    recorded = recorded_mentor_episodes(config, world, mentor, seeds)
     # what the learner observes of them (config.observation_stride; stride 1: the same objects;
     # or where the mentor's options end: its episodes again, the same as recorded, from the
     # rollout that says where each option began)
@@ -334,30 +333,6 @@ def _mentoring(batch: _WorldBatch) -> _Mentoring:
         else None
     )
     return _Mentoring(recorded, demos, second, mentor_eval, exact)
-
-
-def _mentor_episodes(config: ExperimentConfig, world: MultiRooms, mentor, seeds) -> dict:
-    """Each seed's recorded mentor episodes (that seed's own generator), with the
-    stresses on what the mentor shows; its policy, the "% of mentor" reference, stays undisturbed."""
-    if config.mentor_goal != "same":
-        recorded = _other_goal(config, world, seeds)
-    else:
-        detour = _detour(config, world) if config.mentor_detour else None
-        recorded = {
-            s: record_demonstrations(
-                world,
-                mentor,
-                config.mentor_episodes,
-                seed=s,
-                noise=config.mentor_noise,
-                detour=detour,
-            )
-            for s in seeds
-        }
-        del detour
-    if config.mentor_coverage < 1:  # only the first part of each route (mentor_coverage)
-        recorded = {s: first_part(d, config.mentor_coverage) for s, d in recorded.items()}
-    return recorded
 
 
 def _learner(batch: _WorldBatch, mentoring: _Mentoring) -> tuple[Learner, Options]:
@@ -605,7 +580,7 @@ def _second_mentor(config, world, mentor, seeds) -> dict:
     from its own generator."""
     if config.second_mentor == "none":
         return {}
-    detour = _detour(config, world) if config.second_mentor == "detour" else None
+    detour = mentor_detour_of(config, world) if config.second_mentor == "detour" else None
     noise = config.second_mentor_noise if config.second_mentor == "noisy" else 0.0
     return {
         s: record_demonstrations(
@@ -615,32 +590,6 @@ def _second_mentor(config, world, mentor, seeds) -> dict:
             seed=s + SECOND_MENTOR_STREAM,
             noise=noise,
             detour=detour,
-        )
-        for s in seeds
-    }
-
-
-def _detour(config: ExperimentConfig, world: MultiRooms):
-    """The mentor's walk by the top-right corner (its options and preference as the mentor's)."""
-    return mentor_detour(
-        world, corners=config.corner_options, prefer_extended_within=config.mentor_preference
-    )
-
-
-def _other_goal(config, world, seeds) -> dict:
-    """Each seed's episodes of a mentor walking to the top-right corner
-    (``mentor_goal``), shown in the learner's own world."""
-    leg = _detour(config, world)
-    return {
-        s: Demonstrations(
-            record_demonstrations(
-                leg.first_leg,
-                leg.to_waypoint,
-                config.mentor_episodes,
-                seed=s,
-                noise=config.mentor_noise,
-            ).episodes,
-            world,
         )
         for s in seeds
     }

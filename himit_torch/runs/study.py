@@ -63,6 +63,10 @@ __all__ = [
 ]
 
 
+#: ``mentor_goal``: the learner's goal, or the top-right corner cell (a multi-room world's).
+MENTOR_GOALS = ("same", "top-right")
+
+
 @dataclass
 class RunSettings:
     """The settings every study's configuration shares, each declared once (the
@@ -119,6 +123,15 @@ class RunSettings:
     learner: LearnerConfig = setting(
         default_factory=LearnerConfig,
         doc="Learner settings (``LearnerConfig``; a dict of its fields is accepted).",
+    )
+    mentor_goal: str = setting(
+        "same",
+        choices=MENTOR_GOALS,
+        doc="""
+        What the mentor demonstrates (default ``same``: the learner's task). ``top-right``: its
+        walk to the top-right corner cell ``(0, N − 1)`` (the detour's waypoint, on no
+        shortest path to the learner's goal), ending there: a mentor demonstrating another goal
+        than the learner's.""",
     )
 
 

@@ -40,6 +40,22 @@ def test_himit_run_discovery_quick(tmp_path, capsys):
     assert len(rows) == len(DISCOVERY_AGENTS) * 2 * 2  # 2 seeds × 2 windows of 5000
     assert {r["agent"] for r in rows} == set(DISCOVERY_AGENTS)
     assert (run / "figures" / "subgoals_exp2.png").exists() and (run / "subgoals.csv").exists()
+    # runs.csv: one row per run, its goals those of its curve, its greedy policy a percentage,
+    # discovered options counted for the discovered runs only
+    with (run / "runs.csv").open() as f:
+        runs = list(csv.DictReader(f))
+    assert len(runs) == len(DISCOVERY_AGENTS) * 2
+    for r in runs:
+        curve = [
+            int(c["goals_in_window"])
+            for c in rows
+            if (c["agent"], c["seed"]) == (r["agent"], r["seed"])
+        ]
+        assert int(r["total_goals"]) == sum(curve)
+        assert (int(r["first_goal_step"]) >= 0) == (sum(curve) > 0)
+        assert 0.0 <= float(r["greedy_percent_of_optimal"]) <= 100.0 + 1e-6
+        assert (r["discovered_options"] != "") == r["agent"].startswith("discovered")
+    assert "% of optimum |" in text
     capsys.readouterr()
     with pytest.raises(SystemExit):
         main(["run", "discovery", "--quick", "--mentor-reward", "none", "--logdir", str(tmp_path)])
@@ -77,3 +93,39 @@ def test_discovered_runs_continue_the_primitives_runs_and_refresh(tmp_path):
     assert "rebuilt from its latest counts every 5,000 steps" in text
     # refresh_every is no flag of himit run discovery (and "d" no run directory it writes)
     assert "the runs: the settings in `config.json` (not all of them flags" in text
+
+
+def test_a_moved_goals_mentor_shows_its_walk_and_the_subgoals_come_from_it():
+    """``mentor_goal = "top-right"``: on exp2's 40×40 world (rooms of 4, start (0, 0), the
+    learner's goal (39, 39)) the mentor walks to the top-right corner cell (0, 39). Its shortest
+    way runs along the top row of rooms (rows 0–3), so each episode starts at (0, 0), ends at
+    (0, 39), never enters the learner's goal, and every subgoal found is a state of the
+    demonstrations in rows 0–3 (most of them doorways) — where the learner's own task's mentor ends at
+    (39, 39) and leaves the top row."""
+    from himit_torch.runs.discovery import DiscoveryConfig, _find_subgoals, _world_setting
+
+    moved = DiscoveryConfig(worlds=("exp2",), seeds=2, mentor_goal="top-right",
+                            demonstrations_needed=(2,))  # fmt: skip
+    w = _world_setting(moved, "exp2", progress=False)
+    world = w.world
+    assert world.coords(world.start_state) == (0, 0)
+    assert world.coords(world.goal_state) == (39, 39)
+    doorways = set(world.doorways.tolist())
+    _find_subgoals(moved, w)
+    for seed in (0, 1):
+        episodes = w.demos[seed].episodes
+        assert len(episodes) == 20
+        for episode in episodes:
+            cells = [world.coords(int(s)) for s in episode]
+            assert cells[0] == (0, 0) and cells[-1] == (0, 39)
+            assert world.goal_state not in episode.tolist()
+        visited = {int(s) for e in episodes for s in e}
+        found = [int(s) for s in w.found[seed].states]
+        assert found, "no subgoal found in the moved goal's demonstrations"
+        assert set(found) <= visited and set(found) & doorways
+        assert all(world.coords(s)[0] <= 3 for s in found)
+    same = _world_setting(DiscoveryConfig(worlds=("exp2",), seeds=1), "exp2", progress=False)
+    assert all(
+        world.coords(int(e[-1])) == (39, 39) and max(world.coords(int(s))[0] for s in e) == 39
+        for e in same.demos[0].episodes
+    )
