@@ -77,6 +77,7 @@ def test_a_step_by_step_mentor_yields_one_routine_per_step(mentor_box):
     assert routines == (SkewerRoutine(0, 1, 2), SkewerRoutine(1, 2, 2))
 
 
+@pytest.mark.slow  # (3 s: two mentors planned on the 4-skewer box; hand-made episodes above)
 def test_the_organisation_mentors_recorded_episodes():
     """On the study's box (4 skewers of 4 steps), each seed's recorded episodes give the
     organisation's routines: 4 segments an episode per routine, slips and undos included."""
