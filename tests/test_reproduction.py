@@ -139,3 +139,34 @@ def test_a_short_run_reproduces_the_committed_bco_curves(tmp_path):
     )
     assert len(theirs) == len(seeds) * (steps // config.window)
     assert curve_rows(curves, seeds, steps, {"bco"}) == theirs
+
+
+@pytest.mark.slow
+def test_a_short_run_reproduces_the_committed_discovery_curves(tmp_path):
+    """``himit run discovery``'s committed run (experiments/results/discovery/, 10 seeds, the
+    study's defaults): exp2's seeds 0 and 1 for 30,000 steps (the 20,000-step warm-up, then the
+    discovered options swapped in), every learner's goals per window equal the committed curves."""
+    from himit_torch.cli import main
+    from himit_torch.runs.discovery import DiscoveryConfig
+
+    committed = RESULTS / "discovery"
+    recorded = json.loads((committed / "config.json").read_text())
+    defaults = DiscoveryConfig()
+    for name in ("warmup", "refresh_every", "max_steps_factor", "first_seed", "engine"):
+        assert getattr(defaults, name) == recorded[name], name  # the defaults are its settings
+    steps, seeds = 30_000, ("0", "1")
+    main(["run", "discovery", "--worlds", "exp2", "--seeds", "2", "--steps", str(steps),
+          "--logdir", str(tmp_path), "--quiet"])  # fmt: skip
+
+    def rows(path: Path) -> dict:
+        with path.open() as f:
+            return {
+                (r["agent"], r["seed"], int(r["step"])): r["goals_in_window"]
+                for r in csv.DictReader(f)
+                if r["world"] == "exp2" and r["seed"] in seeds and int(r["step"]) <= steps
+            }
+
+    [curves] = tmp_path.rglob("curves.csv")
+    theirs = rows(committed / "curves.csv")
+    assert len(theirs) == 6 * len(seeds) * (steps // 5_000)  # six learners, windows of 5,000
+    assert rows(curves) == theirs
