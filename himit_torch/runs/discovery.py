@@ -64,7 +64,7 @@ from himit_torch.options.discovery import (
 from himit_torch.runs.config import EXPERIMENTS
 from himit_torch.runs.mentoring import recorded_mentor_episodes
 from himit_torch.runs.runner import run_windows, source_commit, watch_demonstrations
-from himit_torch.runs.study import RunConfig, StudyEntry, run_each, run_study
+from himit_torch.runs.study import RunConfig, StudyEntry, run_each, run_study, write_rows
 from himit_torch.statistics import paired_comparison, t_interval
 from himit_torch.validation import setting
 from himit_torch.viz.results_page import provenance_line, write_results_page
@@ -505,23 +505,18 @@ class DiscoveryStudy:
         t0 = time.perf_counter()
         results = [_run_world(config, w, out, progress) for w in config.worlds]
         total = time.perf_counter() - t0
-        with (out / "curves.csv").open("w", newline="") as f:
-            w = csv.writer(f)
-            w.writerow(["world", "agent", "seed", "step", "goals_in_window"])
-            for r in results:
-                for a in DISCOVERY_AGENTS:
-                    for s in r["seeds"]:
-                        for i, g in enumerate(r["goals"][a][s]):
-                            w.writerow([r["world"], a, s, (i + 1) * r["window"], int(g)])
-        with (out / "runs.csv").open("w", newline="") as f:
-            w = csv.writer(f)
-            w.writerow(RUN_COLUMNS)
-            for r in results:
-                for a in DISCOVERY_AGENTS:
-                    for s in r["seeds"]:
-                        w.writerow([r["world"], a, s, r["first_goal"][a][s],
-                                    int(r["goals"][a][s].sum()), f"{r['greedy'][a][s]:.4f}",
-                                    r["option_counts"].get((a, s), "")])  # fmt: skip
+        runs = [(r, a, s) for r in results for a in DISCOVERY_AGENTS for s in r["seeds"]]
+        write_rows(out / "curves.csv", ("world", "agent", "seed", "step", "goals_in_window"), [
+            dict(world=r["world"], agent=a, seed=s, step=(i + 1) * r["window"],
+                 goals_in_window=int(g))
+            for r, a, s in runs for i, g in enumerate(r["goals"][a][s])
+        ])  # fmt: skip
+        write_rows(out / "runs.csv", RUN_COLUMNS, [
+            dict(zip(RUN_COLUMNS, (r["world"], a, s, r["first_goal"][a][s],
+                                   int(r["goals"][a][s].sum()), f"{r['greedy'][a][s]:.4f}",
+                                   r["option_counts"].get((a, s), ""))))
+            for r, a, s in runs
+        ])  # fmt: skip
         for name, key in (("subgoals.csv", "subgoals"), ("demonstrations_needed.csv", "needed")):
             rows = [row for r in results for row in r[key]]
             with (out / name).open("w", newline="") as f:
