@@ -26,16 +26,14 @@ import shutil
 from dataclasses import replace
 from pathlib import Path
 
-from himit_torch.mentor.policy import record_demonstrations
-from himit_torch.mentor.puzzle_box import map_demonstrations, organisation_mentor
+from himit_torch.mentor.puzzle_box import map_demonstrations
 from himit_torch.runs.puzzle_box import (
     PreparedBox,
     PuzzleBoxConfig,
     run_box_batch,
-    watched_organisation,
+    watched_episodes,
 )
 from himit_torch.runs.runner import source_commit
-from himit_torch.worlds.puzzle_box import ORGANISATIONS
 
 HERE = Path(__file__).resolve().parent
 RESULTS = HERE.parent / "results" / "hierarchy"
@@ -65,19 +63,6 @@ def cell_config(schedule: str, **learner) -> PuzzleBoxConfig:
         checkpoint_every=base.transfer_steps,
         learner=replace(base.learner, mentor_trial=True, **learner),
     )
-
-
-def episodes(config: PuzzleBoxConfig, box: PreparedBox) -> dict:
-    """Each seed's mentor episodes on ``box``: the organisation mentor its seed watches (skewer
-    by skewer for even seeds, step by step for odd), as the study records them."""
-    mentors = {org: organisation_mentor(box.world, org) for org in ORGANISATIONS}
-    return {
-        s: record_demonstrations(
-            box.world, mentors[watched_organisation(s, config.first_seed)],
-            config.mentor_episodes, seed=s,
-        )
-        for s in config.seed_list
-    }  # fmt: skip
 
 
 def run_cell(name: str, config: PuzzleBoxConfig, box: PreparedBox, agents, demos: dict,
@@ -112,7 +97,7 @@ def main() -> None:
 
     base = cell_config("paper")
     small = PreparedBox.build(base.skewers, base.slip, base.pinch_slip)
-    demos = episodes(base, small)
+    demos = watched_episodes(base, small.world)
     if "q1box" in args.parts or "fbox" in args.parts:
         for schedule in SCHEDULES:
             config = cell_config(schedule)

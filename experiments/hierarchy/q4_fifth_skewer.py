@@ -26,8 +26,7 @@ from pathlib import Path
 from himit_torch.exact.greedy_evaluation import PolicyEvaluator
 from himit_torch.learner.learner import Learner
 from himit_torch.learner.presets import apply_preset
-from himit_torch.mentor.policy import record_demonstrations
-from himit_torch.mentor.puzzle_box import map_demonstrations, organisation_mentor
+from himit_torch.mentor.puzzle_box import map_demonstrations
 from himit_torch.options.builders import primitive_options
 from himit_torch.options.bundle import Options
 from himit_torch.options.skewer_routines import discover_skewer_routines, skewer_routine_options
@@ -36,10 +35,11 @@ from himit_torch.runs.puzzle_box import (
     PuzzleBoxConfig,
     greedy_plan,
     greedy_values,
+    watched_episodes,
     watched_organisation,
 )
 from himit_torch.runs.runner import run_windows, source_commit, watch_demonstrations
-from himit_torch.worlds.puzzle_box import ORGANISATIONS, PuzzleBox
+from himit_torch.worlds.puzzle_box import PuzzleBox
 
 HERE = Path(__file__).resolve().parent
 RESULTS = HERE.parent / "results" / "hierarchy"
@@ -67,12 +67,7 @@ def run_setting(seeds: int = 20, first_seed: int = 0, steps: int = 300_000):
     box mapped into it, and each seed's routines discovered from them."""
     config = PuzzleBoxConfig(seeds=seeds, first_seed=first_seed, transfer_steps=steps)
     small = PuzzleBox(config.skewers, slip=config.slip, pinch_slip=config.pinch_slip)
-    mentors = {org: organisation_mentor(small, org) for org in ORGANISATIONS}
-    demos = {
-        s: record_demonstrations(small, mentors[watched_organisation(s, config.first_seed)],
-                                 config.mentor_episodes, seed=s)
-        for s in config.seed_list
-    }  # fmt: skip
+    demos = watched_episodes(config, small)
     routines = {s: discover_skewer_routines(small, d) for s, d in demos.items()}
     big = PreparedBox.build(config.transfer_skewers, config.slip, config.pinch_slip)
     mapped = {s: map_demonstrations(d, small, big.world, MAPPING) for s, d in demos.items()}

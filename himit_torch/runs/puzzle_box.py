@@ -100,6 +100,7 @@ __all__ = [
     "SPEED_CONDITIONS",
     "TRANSFER_CONDITIONS",
     "watched_organisation",
+    "watched_episodes",
     "greedy_values",
     "greedy_plan",
     "run_puzzle_box",
@@ -669,8 +670,12 @@ class _Batches:
         )  # fmt: skip
 
 
-def _episodes(config: PuzzleBoxConfig, box: PuzzleBox, mentors: dict) -> dict:
-    """Each seed's mentor episodes on ``box``, from the mentor of the organisation it watches."""
+def watched_episodes(config: PuzzleBoxConfig, box: PuzzleBox, mentors: dict | None = None) -> dict:
+    """Each seed's mentor episodes on ``box`` (``{seed: Demonstrations}``), from the mentor of
+    the organisation it watches (:func:`watched_organisation`): ``mentors`` by organisation, or
+    :func:`~himit_torch.mentor.puzzle_box.organisation_mentor`'s on ``box`` where None."""
+    if mentors is None:
+        mentors = {org: organisation_mentor(box, org) for org in ORGANISATIONS}
     return {
         s: record_demonstrations(
             box, mentors[watched_organisation(s, config.first_seed)], config.mentor_episodes, seed=s
@@ -686,7 +691,7 @@ def _run_variants(config: PuzzleBoxConfig, batch: _Batches, demos: dict, plans: 
             # the same mentors on a box where their pinch fails more often: their episodes again
             box = PreparedBox.build(config.skewers, config.slip, config.harder_pinch)
             mentors_v = {org: organisation_mentor(box.world, org) for org in ORGANISATIONS}
-            demos_v = _episodes(config, box.world, mentors_v)
+            demos_v = watched_episodes(config, box.world, mentors_v)
         else:  # the same box and episodes, a learner without the pinch
             box = PreparedBox.build(config.skewers, config.slip, config.pinch_slip, pinch=False)
             demos_v = demos
@@ -712,7 +717,7 @@ class PuzzleBoxStudy:
         """Every batch of (a)–(c), then ``curves.csv`` and ``summary.json``; the summary."""
         small = PuzzleBox(config.skewers, slip=config.slip, pinch_slip=config.pinch_slip)
         mentors = {org: organisation_mentor(small, org) for org in ORGANISATIONS}
-        demos = _episodes(config, small, mentors)
+        demos = watched_episodes(config, small, mentors)
         batch = _Batches(config, run_dir, resume, progress)
         # each mentor's own plan (its states when nothing slips): a greedy plan through exactly
         # these states copies the mentor's movements, not only its subgoals
