@@ -104,7 +104,7 @@ STEPS = [
     (experiment, "mentor_options", "mentor's options", "set-up"),
     (experiment, "learner_options", "learner's options", "set-up"),
     (experiment, "mentor_policy", "mentor's exact policy", "exact"),
-    (experiment, "_mentor_episodes", "mentor's episodes", "set-up"),
+    (experiment, "recorded_mentor_episodes", "mentor's episodes", "set-up"),
     (experiment, "_second_mentor", "mentor's episodes", "set-up"),
     (experiment, "evaluate_option_choice", "mentor's exact evaluation", "exact"),
     (experiment, "exact_mentor_transitions", "mentor's exact transitions", "exact"),
