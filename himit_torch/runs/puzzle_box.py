@@ -41,13 +41,14 @@ import math
 import os
 from collections.abc import Iterator
 from dataclasses import asdict, dataclass, field, replace
+from functools import cached_property
 from pathlib import Path
 from typing import Any, ClassVar
 
 import torch
 
 from himit_torch.exact.greedy_evaluation import PolicyEvaluator, evaluate_option_choice
-from himit_torch.exact.optimum import primitive_optimum
+from himit_torch.exact.optimum import PrimitiveOptimum, primitive_optimum
 from himit_torch.exact.option_models import option_durations
 from himit_torch.exact.planning import expected_steps, optimal_baseline
 from himit_torch.learner.config import LearnerConfig
@@ -323,32 +324,44 @@ def greedy_plan(
 # ================================================================================ one batch
 @dataclass
 class PreparedBox:
-    """A box and what every batch on it shares (its learner options, the exact
-    evaluator, ``V*(start)``, the optimal steps to open it); :func:`run_box_batch` runs a
-    condition's batch on it."""
+    """A box and what every batch on it shares: its learner options and, computed when first
+    asked for and then kept, its exact references (the evaluator, ``V*(start)``, the optimal
+    steps to open it; the exact models of the 5-skewer box take ≈ 15 s, which a batch with
+    options of its own never needs); :func:`run_box_batch` runs a condition's batch on it."""
 
     world: PuzzleBox
     options: Options
-    evaluator: PolicyEvaluator
-    value_star: float
-    steps_star: float
 
     @classmethod
     def build(
         cls, skewers: int, slip: float, pinch_slip: float | None, pinch: bool = True
     ) -> PreparedBox:
-        """The box of ``skewers`` skewers with these slips, its learner options
-        (``pinch=False``: without the pinch grip) and its references."""
+        """The box of ``skewers`` skewers with these slips and its learner options
+        (``pinch=False``: without the pinch grip)."""
         world = PuzzleBox(skewers, slip=slip, pinch_slip=pinch_slip)
-        options = puzzle_box_options(world, "learner", pinch=pinch)
+        return cls(world, puzzle_box_options(world, "learner", pinch=pinch))
+
+    @cached_property
+    def evaluator(self) -> PolicyEvaluator:
+        """The exact evaluator of policies over the learner options (the box's values only:
+        its window, for goal rates, is unused)."""
+        return PolicyEvaluator(self.world, self.options, window=1)
+
+    @cached_property
+    def _optimum(self) -> PrimitiveOptimum:
         # The optimum over primitives: its models once, for its steps and V*(start) (the exact
         # value of its policy, so that an optimal greedy policy's gap is 0 to round-off).
-        best = primitive_optimum(world, window=1)
-        # The box's values only: the evaluator's window (goal rates) is unused.
-        evaluator = PolicyEvaluator(world, options, window=1)
-        return cls(
-            world, options, evaluator, float(best.evaluation.value_start[0]), best.steps_to_goal
-        )
+        return primitive_optimum(self.world, window=1)
+
+    @property
+    def value_star(self) -> float:
+        """``V*(start)``: the optimum over primitives."""
+        return float(self._optimum.evaluation.value_start[0])
+
+    @property
+    def steps_star(self) -> float:
+        """The optimal expected steps to open the box."""
+        return self._optimum.steps_to_goal
 
 
 def run_box_batch(
