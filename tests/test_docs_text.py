@@ -139,3 +139,45 @@ def test_built_presets_page_has_the_table():
     table = html[html.index("<table") : html.index("</table>")]
     for name in ("paper", "explore-goals", "mentor-fade", "recommended", "subgoal-mentor"):
         assert name in table
+
+
+def test_source_pages_draw_furos_navigation_tree_once_per_depth(monkeypatch):
+    """The ≈ 90 ``_modules/…`` source pages share their navigation tree (one per depth of the
+    page, its links being relative) within a build; every other page draws its own."""
+    pytest.importorskip("sphinx")
+    import types
+
+    calls: list[str] = []
+
+    def draw(context):
+        calls.append(context["pagename"])
+        return f"tree seen from {context['pagename'].count('/')} folders down"
+
+    furo = types.ModuleType("furo")
+    furo._compute_navigation_tree = draw  # type: ignore[attr-defined]
+    monkeypatch.setitem(sys.modules, "furo", furo)
+    sys.path.insert(0, str(DOCS / "_ext"))
+    try:
+        from himit_docs import _navigation_of_source_pages_drawn_once
+    finally:
+        sys.path.remove(str(DOCS / "_ext"))
+    hooks: list = []
+    app = types.SimpleNamespace(connect=lambda event, hook: hooks.append((event, hook)))
+
+    _navigation_of_source_pages_drawn_once(app)
+    tree = furo._compute_navigation_tree  # type: ignore[attr-defined]
+    pages = ["concepts", "concepts", "_modules/himit_torch/cli", "_modules/himit_torch/rng"]
+    pages += ["_modules/himit_torch/runs/pool", "_modules/himit_torch/runs/sweep"]
+    trees = [tree({"pagename": p}) for p in pages]
+    # one draw per depth of the source pages
+    assert calls == ["concepts", "concepts", "_modules/himit_torch/cli", pages[4]]
+    assert trees == [f"tree seen from {p.count('/')} folders down" for p in pages]
+    # a new build draws them again; a second set-up wraps furo's own function, not the wrapper
+    [(event, clear)] = hooks
+    assert event == "builder-inited"
+    clear(app)
+    calls.clear()
+    tree({"pagename": "_modules/himit_torch/rng"})
+    assert calls == ["_modules/himit_torch/rng"]
+    _navigation_of_source_pages_drawn_once(app)
+    assert furo._himit_draw_navigation is draw  # type: ignore[attr-defined]
