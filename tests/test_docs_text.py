@@ -161,10 +161,7 @@ def test_source_pages_draw_furos_navigation_tree_once_per_depth(monkeypatch):
         from himit_docs import _navigation_of_source_pages_drawn_once
     finally:
         sys.path.remove(str(DOCS / "_ext"))
-    hooks: list = []
-    app = types.SimpleNamespace(connect=lambda event, hook: hooks.append((event, hook)))
-
-    _navigation_of_source_pages_drawn_once(app)
+    _navigation_of_source_pages_drawn_once()
     tree = furo._compute_navigation_tree  # type: ignore[attr-defined]
     pages = ["concepts", "concepts", "_modules/himit_torch/cli", "_modules/himit_torch/rng"]
     pages += ["_modules/himit_torch/runs/pool", "_modules/himit_torch/runs/sweep"]
@@ -172,12 +169,10 @@ def test_source_pages_draw_furos_navigation_tree_once_per_depth(monkeypatch):
     # one draw per depth of the source pages
     assert calls == ["concepts", "concepts", "_modules/himit_torch/cli", pages[4]]
     assert trees == [f"tree seen from {p.count('/')} folders down" for p in pages]
-    # a new build draws them again; a second set-up wraps furo's own function, not the wrapper
-    [(event, clear)] = hooks
-    assert event == "builder-inited"
-    clear(app)
-    calls.clear()
-    tree({"pagename": "_modules/himit_torch/rng"})
-    assert calls == ["_modules/himit_torch/rng"]
-    _navigation_of_source_pages_drawn_once(app)
+    # a second set-up (a new build in this process) wraps furo's own function, with its own
+    # store: it draws the source pages' trees again
+    _navigation_of_source_pages_drawn_once()
     assert furo._himit_draw_navigation is draw  # type: ignore[attr-defined]
+    calls.clear()
+    furo._compute_navigation_tree({"pagename": "_modules/himit_torch/rng"})  # type: ignore[attr-defined]
+    assert calls == ["_modules/himit_torch/rng"]

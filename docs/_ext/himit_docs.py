@@ -808,11 +808,11 @@ def _attribute_docstring_as_text(self: GoogleDocstring) -> list[str]:
     return self._format_field("", "", self.__class__(lines, self._config).lines())
 
 
-def _navigation_of_source_pages_drawn_once(app: Sphinx) -> None:
+def _navigation_of_source_pages_drawn_once() -> None:
     """Furo draws the whole navigation tree for every page, ≈ 0.5 s a page here; the ≈ 90
     source pages of ``sphinx.ext.viewcode`` (``_modules/…``) are in no toctree, so theirs
     differ only by the depth of the page's relative links: each depth's is drawn once per build
-    (the same bytes). Furo is pinned (pyproject.toml); without its private
+    (the same bytes; each build's set-up starts an empty store). Furo is pinned (pyproject.toml); without its private
     ``_compute_navigation_tree`` every page draws its own, as before."""
     import furo
 
@@ -832,7 +832,6 @@ def _navigation_of_source_pages_drawn_once(app: Sphinx) -> None:
 
     furo._himit_draw_navigation = draw  # (a second build in this process wraps the original)
     furo._compute_navigation_tree = navigation_tree
-    app.connect("builder-inited", lambda app: drawn.clear())
 
 
 def setup(app: Sphinx) -> dict[str, Any]:
@@ -849,5 +848,5 @@ def setup(app: Sphinx) -> dict[str, Any]:
     app.connect("autodoc-process-docstring", warn_undocumented)
     app.connect("autodoc-process-docstring", document_settings)
     app.connect("missing-reference", resolve_exported)
-    _navigation_of_source_pages_drawn_once(app)
+    _navigation_of_source_pages_drawn_once()
     return {"version": "1", "parallel_read_safe": True, "parallel_write_safe": True}
