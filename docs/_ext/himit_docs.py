@@ -812,8 +812,9 @@ def _navigation_of_source_pages_drawn_once() -> None:
     """Furo draws the whole navigation tree for every page, ≈ 0.5 s a page here; the ≈ 90
     source pages of ``sphinx.ext.viewcode`` (``_modules/…``) are in no toctree, so theirs
     differ only by the depth of the page's relative links: each depth's is drawn once per build
-    (the same bytes; each build's set-up starts an empty store). Furo is pinned (pyproject.toml); without its private
-    ``_compute_navigation_tree`` every page draws its own, as before."""
+    (the same bytes; each build's set-up starts an empty store). Furo is pinned
+    (pyproject.toml); without its private ``_compute_navigation_tree`` every page draws its
+    own, as before."""
     import furo
 
     draw = getattr(furo, "_himit_draw_navigation", getattr(furo, "_compute_navigation_tree", None))

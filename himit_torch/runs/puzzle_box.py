@@ -348,20 +348,16 @@ class PreparedBox:
         return PolicyEvaluator(self.world, self.options, window=1)
 
     @cached_property
-    def _optimum(self) -> PrimitiveOptimum:
-        # The optimum over primitives: its models once, for its steps and V*(start) (the exact
-        # value of its policy, so that an optimal greedy policy's gap is 0 to round-off).
+    def optimum(self) -> PrimitiveOptimum:
+        """The optimum over primitives: its expected steps to open the box, and its policy's
+        exact value (:attr:`value_star`)."""
         return primitive_optimum(self.world, window=1)
 
     @property
     def value_star(self) -> float:
-        """``V*(start)``: the optimum over primitives."""
-        return float(self._optimum.evaluation.value_start[0])
-
-    @property
-    def steps_star(self) -> float:
-        """The optimal expected steps to open the box."""
-        return self._optimum.steps_to_goal
+        """``V*(start)``: the exact value of the optimal policy, so that an optimal greedy
+        policy's gap is 0 to round-off."""
+        return float(self.optimum.evaluation.value_start[0])
 
 
 def run_box_batch(
@@ -481,7 +477,7 @@ def _batch_summary(box, tag, condition, agent, learner, wall, runs) -> dict[str,
         "agent": agent,
         "steps": learner.views.t,
         "value_star": box.value_star,
-        "optimal_steps": box.steps_star,
+        "optimal_steps": box.optimum.steps_to_goal,
         "engine": learner.engine.name,
         "wall_seconds": wall,
         "runs": runs,
