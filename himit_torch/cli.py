@@ -97,9 +97,9 @@ def _fail(message: str | Exception, status: int = 2) -> NoReturn:
     raise SystemExit(status)
 
 
-def _int_at_least(minimum: int) -> Callable[[str], int]:
-    """An argparse type: a whole number ≥ ``minimum`` and ≤ :data:`COUNT_MAX` (a count a tick
-    can honour)."""
+def _int_in_range(minimum: int, maximum: int = COUNT_MAX) -> Callable[[str], int]:
+    """An argparse type: a whole number from ``minimum`` to ``maximum``, and ≤ :data:`COUNT_MAX`
+    (a count a tick can honour)."""
 
     def parse(text: str) -> int:
         try:
@@ -108,28 +108,16 @@ def _int_at_least(minimum: int) -> Callable[[str], int]:
             raise argparse.ArgumentTypeError(f"invalid whole number: {text!r}") from None
         if value < minimum:
             raise argparse.ArgumentTypeError(f"must be ≥ {minimum}, got {value}")
-        if value > COUNT_MAX:
-            raise argparse.ArgumentTypeError(f"must be ≤ {COUNT_MAX}, got {value}")
+        for bound in (COUNT_MAX, maximum):
+            if value > bound:
+                raise argparse.ArgumentTypeError(f"must be ≤ {bound}, got {value}")
         return value
 
     return parse
 
 
-def _int_in_range(minimum: int, maximum: int) -> Callable[[str], int]:
-    """An argparse type: a whole number from ``minimum`` to ``maximum``."""
-    at_least = _int_at_least(minimum)
-
-    def parse(text: str) -> int:
-        value = at_least(text)
-        if value > maximum:
-            raise argparse.ArgumentTypeError(f"must be ≤ {maximum}, got {value}")
-        return value
-
-    return parse
-
-
-_positive_int = _int_at_least(1)
-_nonnegative_int = _int_at_least(0)
+_positive_int = _int_in_range(1)
+_nonnegative_int = _int_in_range(0)
 
 
 # ------------------------------------------------------------------- flags from the settings
@@ -335,16 +323,11 @@ class _StudyParser(_Parser):
         parsed, extras = super().parse_known_args(args, namespace)
         flags = [a.split("=", 1)[0] for a in extras if a.startswith("-")]
         if flags:
-            self.error(
-                f"takes no {', '.join(flags)} (not a flag of this study; its flags: "
+            _fail(
+                f"{self.prog} takes no {', '.join(flags)} (not a flag of this study; its flags: "
                 f"{self.prog} --help)"
             )
         return parsed, extras
-
-    def error(self, message: str):
-        if message.startswith("takes no"):
-            _fail(f"{self.prog} {message}")
-        super().error(message)
 
 
 def _add_study(sub: argparse.ArgumentParser, study: StudyEntry) -> None:
@@ -527,19 +510,8 @@ def _add_sweep(sub: argparse.ArgumentParser) -> None:
 def cmd_bench(args: argparse.Namespace) -> int:
     from himit_torch.runs.bench import benchmark
 
-    result = benchmark(
-        size=args.size,
-        rooms=args.rooms,
-        corner_options=args.corner_options,
-        batch=args.batch,
-        steps=args.steps,
-        agent=args.agent,
-        device=args.device,
-        plan_every=args.plan_every,
-        warmup=args.warmup,
-        engine=args.engine,
-    )
-    print(result.line())
+    settings = {name: value for name, value in vars(args).items() if name != "command"}
+    print(benchmark(**settings).line())
     return 0
 
 
@@ -630,10 +602,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     torch.set_num_threads(int(threads))
     try:
         return COMMANDS[args.command][0](args)
-    except ValueError as err:
-        _fail(err)
-    except (FileNotFoundError, IsADirectoryError, NotADirectoryError) as err:
-        # a path the user gave names nothing usable (e.g. --logdir under a file): exit 2
+    except (ValueError, FileNotFoundError, IsADirectoryError, NotADirectoryError) as err:
+        # a user mistake, or a path the user gave names nothing usable (e.g. --logdir under a
+        # file): exit 2
         _fail(err)
     except OSError as err:
         # the machine failing on the right path (permissions, a full disk): exit 1, so that

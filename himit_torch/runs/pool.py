@@ -34,12 +34,10 @@ def workers_for(jobs: int, workers: int | None) -> int:
 
 
 def _pool_process(threads: int, working: Any = None, cores: int = 1) -> None:
-    """Set up one of the pool's processes: its share of the cores
-    (:func:`~himit_torch.runs.runner.share_cores`), the count of lanes still working (to take
-    the cores of those that end, :func:`~himit_torch.runs.runner.join_lanes`; ``None``: a
-    process of no pool's count), and an exit
-    that skips the last garbage collections (:func:`~himit_torch.runs.runner.freeze_at_exit`):
-    the run waits for its processes to end, ≈ 1.2 s each without it, ≈ 0.25 s with it."""
+    """Set up one of the pool's processes: its share of the cores, the count of lanes still
+    working (``None``: a process of no pool's count) and an exit that skips the last garbage
+    collections: the run waits for its processes to end, ≈ 1.2 s each without it, ≈ 0.25 s
+    with it."""
     share_cores(threads)
     join_lanes(working, cores, threads)
     freeze_at_exit()

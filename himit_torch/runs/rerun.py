@@ -99,14 +99,13 @@ def _flags_rebuilding(base: Any, config: Any, names, adjust) -> list[str] | None
             base = base.with_settings({"preset": preset})
         own = {f.name: getattr(config, f.name) for f in fields(config) if f.name not in _OWNED}
         changes = {n: v for n, v in own.items() if _wanted(n, names) and v != getattr(base, n)}
-        learner = {}
-        if hasattr(config, "learner"):
-            for f in fields(config.learner):
-                value = getattr(config.learner, f.name)
-                if f.name not in config.derived_learner and _wanted(f.name, names):
-                    learner.update(
-                        {f.name: value} if value != getattr(base.learner, f.name) else {}
-                    )
+        learner = {
+            f.name: getattr(config.learner, f.name)
+            for f in (fields(config.learner) if hasattr(config, "learner") else ())
+            if f.name not in config.derived_learner
+            and _wanted(f.name, names)
+            and getattr(config.learner, f.name) != getattr(base.learner, f.name)
+        }
 
         def rebuilt(given: dict) -> Any:
             built = base.with_settings(given, learner)

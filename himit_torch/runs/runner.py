@@ -11,12 +11,10 @@ experiment (:mod:`himit_torch.runs.discovery`) share, read top to bottom::
         save a checkpoint                         (checkpoints; the logger is flushed first)
 
 Around it, what every runner needs to set a batch up and keep its run directory honest: the
-batch's runs (:func:`batch_runs`, :func:`run_names`), each seed's demonstrations
-(:func:`watch_demonstrations`), checkpoints with resume (:class:`Checkpoints`), the run
-directory's checks (:func:`check_run_dir`, :func:`clear_run_dir`), the code's commit
-(:func:`source_commit`) and the threads of a world's process among others
-(:func:`share_cores`; as one of a pool's lanes, :func:`join_lanes`, it takes the cores of the
-lanes that have ended between its windows). What a runner measures and reports stays in its own module.
+batch's runs, each seed's demonstrations, checkpoints with resume, the run directory's checks,
+the code's commit and the threads of a world's process among others (as one of a pool's lanes,
+it takes the cores of the lanes that have ended between its windows). What a runner measures
+and reports stays in its own module.
 """
 
 from __future__ import annotations
@@ -138,9 +136,9 @@ def run_windows(
 
 # ========================================================================= checkpoints
 def state_layout_version() -> int:
-    """The learner's state layout version (1 for learners from before it was declared): stored in
-    every checkpoint so that a checkpoint of another layout is refused by name."""
-    return int(getattr(Learner, "STATE_LAYOUT_VERSION", 1))
+    """The learner's state layout version: stored in every checkpoint so that a checkpoint of
+    another layout is refused by name."""
+    return Learner.STATE_LAYOUT_VERSION
 
 
 @dataclass
@@ -311,8 +309,6 @@ def check_run_dir(run_dir: Path, *, force: bool, resume: bool | None = None) -> 
 def clear_run_dir(run_dir: Path, folders: Sequence[str], files: Sequence[str] = ()) -> None:
     """Remove what an earlier run left in ``run_dir`` (``--force``): its ``folders`` and
     ``files``."""
-    if not run_dir.exists():
-        return
     for sub in folders:
         shutil.rmtree(run_dir / sub, ignore_errors=True)
     for f in files:
@@ -398,11 +394,10 @@ def join_lanes(working: Any, cores: int, threads: int) -> None:
 def take_ended_lanes_cores() -> None:
     """In a pool's lane (:func:`join_lanes`), between two windows of its batch
     (:func:`run_windows`): once other lanes have ended (no job was left for them), this lane's
-    compiled engine runs on their cores too, ``cores // lanes still working`` threads. Without
-    it, the last world of a pool ran on one core while the other idled (the tail of every
-    ``himit run paper`` and of each of the benchmark's presets). A batch's runs give the same
-    results on any number of threads (the engine's tests): only the time changes. Nothing
-    outside a pool's lane."""
+    compiled engine runs on their cores too, ``cores // lanes still working`` threads, so that
+    the pool's last world does not run on one core while the others idle. Only the time
+    changes: a batch's runs give the same results on any number of threads. Nothing outside a
+    pool's lane."""
     lane = _lane
     if lane is None:
         return
@@ -414,13 +409,11 @@ def take_ended_lanes_cores() -> None:
 
 def freeze_at_exit() -> None:
     """At this process's exit, leave the objects still alive out of the interpreter's last
-    garbage collections (``gc.freeze`` at exit).
+    garbage collections (``gc.freeze`` at exit), registered once per process.
 
     Those collections walk every object a run leaves behind (torch's, matplotlib's,
     TensorBoard's): ≈ 1 s at the end of a ``himit run``, and as long for each world process
-    of ``himit run paper``, which the run waits for. Nothing of ours waits on them: files and
-    writers are closed where they are used, and ``weakref.finalize`` callbacks run at exit anyway
-    (cycles the freeze keeps are freed with the process). Registered once per process (a test
-    session calling it many times freezes once, at its own exit)."""
+    of ``himit run paper``. Nothing of ours waits on them: files and writers are closed where
+    they are used, and ``weakref.finalize`` callbacks run at exit anyway."""
     atexit.unregister(gc.freeze)  # (removes an earlier registration, if any)
     atexit.register(gc.freeze)

@@ -1,14 +1,11 @@
 """What every study shares: its configuration's common settings (:class:`RunConfig`), the
-:class:`Study` protocol and :func:`run_study`, the run directory's life around a study's batches.
+:class:`Study` protocol and :func:`run_study`, the run directory's life around a study's batches,
+its records' readers and writers, and its registry entry (:class:`StudyEntry`, listed in
+:mod:`himit_torch.runs.studies`): what the command line knows of it.
 
-The settings every study shares are declared once, in :class:`RunSettings`; a study's
-configuration extends :class:`RunConfig` and takes each one it has with
-:meth:`RunConfig.shared` (the declaration here, the default its own), keeping its fields in
-its own order so that saved ``config.json`` files and ``himit run`` commands read as they did.
-A study (:class:`Study`) names its configuration class, what its run directory holds, and how
-it runs and reports; :func:`run_study` prepares the run directory, saves the configuration and
-runs it. Its registry entry (:class:`StudyEntry`, listed in :mod:`himit_torch.runs.studies`)
-is what the command line knows of it."""
+A study's configuration takes each shared setting it has with :meth:`RunConfig.shared` (the
+declaration in :class:`RunSettings`, the default its own), keeping its fields in its own order
+so that saved ``config.json`` files and ``himit run`` commands read as they did."""
 
 from __future__ import annotations
 
@@ -19,6 +16,7 @@ import json
 import math
 import os
 import re
+from collections import Counter
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
@@ -61,10 +59,6 @@ __all__ = [
     "run_each",
     "option_kinds_text",
 ]
-
-
-#: ``mentor_goal``: the learner's goal, or the top-right corner cell (a multi-room world's).
-MENTOR_GOALS = ("same", "top-right")
 
 
 @dataclass
@@ -126,7 +120,7 @@ class RunSettings:
     )
     mentor_goal: str = setting(
         "same",
-        choices=MENTOR_GOALS,
+        choices=("same", "top-right"),
         doc="""
         What the mentor demonstrates (default ``same``: the learner's task). ``top-right``: its
         walk to the top-right corner cell ``(0, N − 1)`` (the detour's waypoint, on no
@@ -143,10 +137,7 @@ Config = TypeVar("Config", bound="RunConfig")
 
 class RunConfig:
     """The base of every study's configuration (a dataclass of
-    :func:`~himit_torch.validation.setting` fields).
-
-    The shared settings come through :meth:`shared`, their checks through
-    :meth:`check_run_settings`; the common methods follow."""
+    :func:`~himit_torch.validation.setting` fields)."""
 
     @staticmethod
     def shared(
@@ -197,10 +188,9 @@ class RunConfig:
     derived_learner: ClassVar[tuple[str, ...]] = ("window",)
 
     def derived_learner_settings(self) -> dict[str, Any]:
-        """The learner settings that follow from this study's own,
-        by name — one policy for all of them: **derived and recorded** (set on the learner, saved in
-        ``config.json``, no flags of their own). Here the learner's ``window`` is the study's; a study
-        adds its own (:attr:`derived_learner` names them)."""
+        """The learner settings that follow from this study's own, by name: **derived and
+        recorded** (set on the learner, saved in ``config.json``, no flags of their own). Here
+        the learner's ``window``; a study adds its own (:attr:`derived_learner` names them)."""
         window = getattr(self, "window", None)
         return {} if window is None else {"window": window}
 
@@ -517,10 +507,7 @@ def optimum_lines(
 
 def option_kinds_text(options: Any) -> str:
     """How many options of each kind ``options`` holds, e.g. ``4 primitive, 180 doorway``."""
-    counts: dict[str, int] = {}
-    for kind in options.kinds:
-        counts[kind] = counts.get(kind, 0) + 1
-    return ", ".join(f"{n} {kind}" for kind, n in counts.items())
+    return ", ".join(f"{n} {kind}" for kind, n in Counter(options.kinds).items())
 
 
 # ============================================================================ the registry entry
@@ -626,8 +613,7 @@ class Study(Protocol):
     """A study: what :func:`run_study` needs to run one into a run directory.
 
     ``config_class`` is its configuration; ``folders`` and ``files`` what its run directory
-    holds (what ``force`` clears); :meth:`run` runs its batches and writes its records,
-    :meth:`report` its figures and ``results.md``."""
+    holds (what ``force`` clears)."""
 
     config_class: ClassVar[type]
     folders: ClassVar[tuple[str, ...]]
@@ -635,11 +621,9 @@ class Study(Protocol):
 
     def run(self, config: Any, run_dir: Path, resume: bool, progress: bool) -> Any:
         """Run every batch of ``config`` into ``run_dir``; return what :meth:`report` reads."""
-        ...
 
     def report(self, config: Any, run_dir: Path, results: Any) -> None:
         """Write the figures and ``results.md`` of a finished run."""
-        ...
 
 
 def run_study(
@@ -666,7 +650,21 @@ def run_study(
 
     Returns:
         What the study's :meth:`Study.run` returned."""
-    run_dir = _check_run_arguments(study, config, run_dir, resume, force, progress)
+    kind = getattr(study, "config_class", None)
+    if isinstance(kind, type) and not isinstance(config, kind):
+        raise TypeError(
+            f"run_study: config={config!r:.60} must be of type {kind.__name__} (the study's "
+            "configuration)"
+        )
+    if not isinstance(run_dir, (str, os.PathLike)):
+        raise TypeError(f"run_study: run_dir={run_dir!r:.60} must be a path (str or Path)")
+    for name, value in (("resume", resume), ("force", force), ("progress", progress)):
+        if not isinstance(value, bool) and not (name == "resume" and value is None):
+            raise TypeError(
+                f"run_study: {name}={value!r:.60} must be True or False"
+                + (" (or None)" if name == "resume" else "")
+            )
+    run_dir = Path(run_dir)
     if check is not None:
         check()
     check_run_dir(run_dir, force=force, resume=resume)
@@ -702,28 +700,6 @@ def _dict_differences(saved: dict, given: dict, prefix: str) -> list[str]:
     return differences
 
 
-def _check_run_arguments(
-    study: Study, config: Any, run_dir: Any, resume: Any, force: Any, progress: Any
-) -> Path:
-    """:func:`run_study`'s arguments checked before anything is touched;
-    ``run_dir`` as a :class:`~pathlib.Path`."""
-    kind = getattr(study, "config_class", None)
-    if isinstance(kind, type) and not isinstance(config, kind):
-        raise TypeError(
-            f"run_study: config={config!r:.60} must be of type {kind.__name__} (the study's "
-            "configuration)"
-        )
-    if not isinstance(run_dir, (str, os.PathLike)):
-        raise TypeError(f"run_study: run_dir={run_dir!r:.60} must be a path (str or Path)")
-    for name, value in (("resume", resume), ("force", force), ("progress", progress)):
-        if not isinstance(value, bool) and not (name == "resume" and value is None):
-            raise TypeError(
-                f"run_study: {name}={value!r:.60} must be True or False"
-                + (" (or None)" if name == "resume" else "")
-            )
-    return Path(run_dir)
-
-
 def prepare_run_dir(
     run_dir: Path,
     config: Any,
@@ -739,7 +715,7 @@ def prepare_run_dir(
     if resume and not force:  # (--force starts over: nothing of the old run is kept)
         check_resumed_config(run_dir, config, resume_hint, load)
     if force:
-        clear_run_dir(run_dir, tuple(folders), tuple(files))
+        clear_run_dir(run_dir, folders, files)
     run_dir.mkdir(parents=True, exist_ok=True)
     write_atomically(run_dir / "config.json", config.to_json())
 
@@ -756,10 +732,8 @@ def check_resumed_config(
     cfg_path = Path(run_dir) / "config.json"
     if not cfg_path.exists():
         return
-    if load is None:
-        saved = read_config_file(type(config), cfg_path, f"--resume: {cfg_path}")
-    else:
-        saved = load(cfg_path)
+    where = f"--resume: {cfg_path}"
+    saved = load(cfg_path) if load else read_config_file(type(config), cfg_path, where)
     differences = config_differences(saved, config)
     if differences:
         raise ValueError(
