@@ -26,9 +26,7 @@ Metrics (per window of ``window`` steps):
   (:meth:`PolicyEvaluation.value_gap <himit_torch.PolicyEvaluation.value_gap>`). 0 = optimal.
   ``π`` is the same frozen greedy policy as the columns below (ties as configured; a state where
   the run has tried nothing: uniformly any of its options there, the ``"uniform"`` rule of
-  :mod:`himit_torch.exact.greedy_evaluation`). Before, this column froze a different policy —
-  ties to the lowest option, untried states a uniformly random primitive — so its numbers from
-  earlier runs are not comparable.
+  :mod:`himit_torch.exact.greedy_evaluation`).
 * ``greedy_goals_per_window``, ``greedy_pct_optimal``, ``greedy_pct_mentor``,
   ``greedy_reach_share`` — the run's greedy policy frozen as it acts (ε = 0, ties as configured,
   untried states: any enabled option), evaluated exactly (:mod:`himit_torch.runs.greedy`): its
@@ -179,110 +177,94 @@ TASKS: dict[str, GymTask] = {
 }
 
 
+def _minigrid_skills(world: TableWorld) -> Options:
+    """The learner's "go to and face X" skills of a MiniGrid world, without its primitives."""
+    options = minigrid_options(world)  # type: ignore[arg-type]
+    return options.select([i for i, k in enumerate(options.kinds) if k != "primitive"])
+
+
 def _minigrid_task(
-    env_id: str, about: str, steps: int, mentor_goal: tuple[int, int] | None = None
+    env_id: str, about: str, steps: int = 100_000, mentor_goal: tuple[int, int] | None = None
 ) -> GymTask:
-    """A MiniGrid task (reset seed 0, no slip): the learner's "go to and face X" skills beside
-    the primitives, and the MiniGrid mentor with its own right-handed skills
-    (:func:`~himit_torch.minigrid_mentor`); with ``mentor_goal``, the mentor demonstrates the
-    same layout with its goal moved to that cell (transfer)."""
+    """A MiniGrid task (reset seed 0, no slip): the learner's skills beside the primitives, and
+    the MiniGrid mentor with its own right-handed skills (:func:`~himit_torch.minigrid_mentor`);
+    with ``mentor_goal``, the mentor demonstrates the same layout with its goal moved to that
+    cell (transfer)."""
+    return GymTask(
+        env_id,
+        {},
+        _minigrid_skills,
+        f"{env_id}{', transfer' * (mentor_goal is not None)}: {about}",
+        steps,
+        make_world=lambda gamma: from_minigrid(env_id, gamma=gamma),
+        make_mentor=minigrid_mentor,  # type: ignore[arg-type]
+        mentor_world=(
+            None
+            if mentor_goal is None
+            else lambda gamma: from_minigrid(env_id, gamma=gamma, goal=mentor_goal)
+        ),
+    )
 
-    def world(gamma: float) -> TableWorld:
-        return from_minigrid(env_id, gamma=gamma)
 
-    def shown(gamma: float) -> TableWorld:
-        return from_minigrid(env_id, gamma=gamma, goal=mentor_goal)
+def _transfer_task(
+    env_id: str, steps: int, mentor_goal: tuple[int, int], goal: tuple[int, int]
+) -> GymTask:
+    """A DoorKey task whose mentor shows the layout with its goal moved to ``mentor_goal``; the
+    learner is rewarded at MiniGrid's ``goal``."""
+    return _minigrid_task(
+        env_id,
+        f"the mentor demonstrates the layout with its goal moved to {mentor_goal}, the learner "
+        f"is rewarded at MiniGrid's goal {goal}",
+        steps,
+        mentor_goal,
+    )
 
-    def skills(w: TableWorld) -> Options:
-        options = minigrid_options(w)  # type: ignore[arg-type]
-        return options.select([i for i, k in enumerate(options.kinds) if k != "primitive"])
 
-    return GymTask(env_id, {}, skills, about, steps, world, minigrid_mentor,  # type: ignore[arg-type]
-                   shown if mentor_goal is not None else None)  # fmt: skip
-
+_DOORKEY = (
+    "get the key, open the door, reach the goal; options: go to and face the key, the door, the "
+    "goal"
+)
 
 #: MiniGrid's key-and-door tasks (``himit run minigrid``), each with ``himit run minigrid``'s
 #: default budget; the benchmark fixed its own for seven of them on held-out seeds
 #: (``experiments/benchmark/minigrid_benchmark.py``'s ``MINIGRID_BUDGETS``).
 MINIGRID_TASKS: dict[str, GymTask] = {
-    "doorkey5x5": _minigrid_task(
-        "MiniGrid-DoorKey-5x5-v0",
-        "MiniGrid-DoorKey-5x5-v0: get the key, open the door, reach the goal; options: go to and "
-        "face the key, the door, the goal",
-        50_000,
-    ),
-    "doorkey6x6": _minigrid_task(
-        "MiniGrid-DoorKey-6x6-v0",
-        "MiniGrid-DoorKey-6x6-v0: get the key, open the door, reach the goal; options: go to and "
-        "face the key, the door, the goal",
-        100_000,
-    ),
+    "doorkey5x5": _minigrid_task("MiniGrid-DoorKey-5x5-v0", _DOORKEY, 50_000),
+    "doorkey6x6": _minigrid_task("MiniGrid-DoorKey-6x6-v0", _DOORKEY),
     "unlock": _minigrid_task(
         "MiniGrid-Unlock-v0",
-        "MiniGrid-Unlock-v0: get the key and open the door; options: go to and face the key, the "
-        "door",
-        100_000,
+        "get the key and open the door; options: go to and face the key, the door",
     ),
-    "doorkey8x8": _minigrid_task(
-        "MiniGrid-DoorKey-8x8-v0",
-        "MiniGrid-DoorKey-8x8-v0: get the key, open the door, reach the goal; options: go to and "
-        "face the key, the door, the goal",
-        100_000,
-    ),
+    "doorkey8x8": _minigrid_task("MiniGrid-DoorKey-8x8-v0", _DOORKEY),
     "unlockpickup": _minigrid_task(
         "MiniGrid-UnlockPickup-v0",
-        "MiniGrid-UnlockPickup-v0: get the key, open the door, pick up the box behind it; "
-        "options: go to and face the box, the key, the door",
-        100_000,
+        "get the key, open the door, pick up the box behind it; options: go to and face the box, "
+        "the key, the door",
     ),
     "keycorridors3r1": _minigrid_task(
         "MiniGrid-KeyCorridorS3R1-v0",
-        "MiniGrid-KeyCorridorS3R1-v0: get the key, open the locked door, pick up the ball; "
-        "options: go to and face the key, the ball, either door",
-        100_000,
+        "get the key, open the locked door, pick up the ball; options: go to and face the key, "
+        "the ball, either door",
     ),
     "multiroomn2s4": _minigrid_task(
         "MiniGrid-MultiRoom-N2-S4-v0",
-        "MiniGrid-MultiRoom-N2-S4-v0: open the door to the next room, reach the goal; options: "
-        "go to and face the door, the goal",
-        100_000,
+        "open the door to the next room, reach the goal; options: go to and face the door, the "
+        "goal",
     ),
     "multiroomn4s5": _minigrid_task(
         "MiniGrid-MultiRoom-N4-S5-v1",
-        "MiniGrid-MultiRoom-N4-S5-v1: open three doors in turn, reach the goal; options: go to "
-        "and face each door, the goal",
-        100_000,
+        "open three doors in turn, reach the goal; options: go to and face each door, the goal",
     ),
     "fourrooms": _minigrid_task(
         "MiniGrid-FourRooms-v0",
-        "MiniGrid-FourRooms-v0: reach the goal through the gaps between four rooms; options: go "
-        "to and face the goal",
-        100_000,
+        "reach the goal through the gaps between four rooms; options: go to and face the goal",
     ),
     # transfer: the mentor shows the layout with its goal moved (5×5, 6×6: one cell past the
     # door, on the learner's way; 8×8: one cell past the door the other way, off it), the
     # learner is rewarded at MiniGrid's goal
-    "doorkey5x5_transfer": _minigrid_task(
-        "MiniGrid-DoorKey-5x5-v0",
-        "MiniGrid-DoorKey-5x5-v0, transfer: the mentor demonstrates the layout with its goal "
-        "moved to (3, 2), the learner is rewarded at MiniGrid's goal (3, 3)",
-        50_000,
-        mentor_goal=(3, 2),
-    ),
-    "doorkey6x6_transfer": _minigrid_task(
-        "MiniGrid-DoorKey-6x6-v0",
-        "MiniGrid-DoorKey-6x6-v0, transfer: the mentor demonstrates the layout with its goal "
-        "moved to (4, 2), the learner is rewarded at MiniGrid's goal (4, 4)",
-        100_000,
-        mentor_goal=(4, 2),
-    ),
-    "doorkey8x8_transfer": _minigrid_task(
-        "MiniGrid-DoorKey-8x8-v0",
-        "MiniGrid-DoorKey-8x8-v0, transfer: the mentor demonstrates the layout with its goal "
-        "moved to (6, 1), the learner is rewarded at MiniGrid's goal (6, 6)",
-        100_000,
-        mentor_goal=(6, 1),
-    ),
+    "doorkey5x5_transfer": _transfer_task("MiniGrid-DoorKey-5x5-v0", 50_000, (3, 2), (3, 3)),
+    "doorkey6x6_transfer": _transfer_task("MiniGrid-DoorKey-6x6-v0", 100_000, (4, 2), (4, 4)),
+    "doorkey8x8_transfer": _transfer_task("MiniGrid-DoorKey-8x8-v0", 100_000, (6, 1), (6, 6)),
 }
 TASKS.update(MINIGRID_TASKS)
 
@@ -453,14 +435,13 @@ class _TaskBatch:
     options: Options
     mentor: Any
     known: KnownReward
-    learner_config: LearnerConfig
     learner: Learner
     agents: list[str]
     run_seeds: list[int]
-    optimal_rate: float
     optimal_value: float
     greedy: GreedyTracker
-    mentor_world: TableWorld | None = None  # (transfer: the world whose task the mentor shows)
+    shown: TableWorld
+    """The world whose task the mentor shows (transfer; else ``world``)."""
 
 
 def _observed(config: GymExperimentConfig, world: TableWorld, mentor, seed: int):
@@ -520,9 +501,8 @@ def _build_task_batch(config: GymExperimentConfig, task_name: str) -> _TaskBatch
         values=True,
     )
     return _TaskBatch(
-        task_name, task, world, options, mentor, known, learner_config, learner, agents,
-        run_seeds, float(optimal.goals_per_window[0]), float(optimal.value_start[0]), greedy,
-        None if shown is world else shown,
+        task_name, task, world, options, mentor, known, learner, agents, run_seeds,
+        float(optimal.value_start[0]), greedy, shown,
     )  # fmt: skip
 
 
@@ -543,10 +523,7 @@ class _WindowLog:
         reached = learner.views.visit_counts()[:, self.goal].sum(1).cpu()
         goals, self.reached = reached - self.reached, reached
         m = learner.metrics
-        greedy(learner, index)  # every window is on its schedule (every = window)
-        evaluation = greedy.evaluations.get(learner.views.t)
-        if evaluation is None:
-            evaluation = greedy.evaluate(learner)
+        evaluation = greedy.evaluations.get(learner.views.t) or greedy.evaluate(learner)
         gap = evaluation.value_gap(run.optimal_value).tolist()
         coverage = learner.views.model_coverage().cpu()
         for b in range(learner.batch):
@@ -581,7 +558,7 @@ def _task_summary(
 ) -> dict:
     """The task's record (``tasks/<task>.json``) from its finished batch and window rows."""
     learner, world, greedy, rows = run.learner, run.world, run.greedy, log.rows
-    last = [r for r in rows if r["step"] == learner.views.t] if rows else []
+    last = [r for r in rows if r["step"] == learner.views.t]
     final = greedy.finish(learner)
     stuck = greedy.stuck
     assert stuck is not None  # finish evaluated it
@@ -606,7 +583,7 @@ def _task_summary(
         "agents": run.agents,
         "seeds": run.run_seeds,
         "optimal_value": run.optimal_value,
-        "optimal_goals_per_window": run.optimal_rate,
+        "optimal_goals_per_window": greedy.reference.optimal_goals_per_window,
         "total_goals": [int(x) for x in log.reached.tolist()],
         "first_goal_window": first_goal_windows,
         # Each run's first goal (−1: never). Exact where every terminal state is a goal (the
@@ -630,38 +607,10 @@ def _task_summary(
         "greedy_goal_probability": final.goal_probability.tolist(),
         "wall_seconds": wall,
         "steps": learner.views.t,
-        "initial_value": run.learner_config.initial_value,
+        "initial_value": learner.config.initial_value,
         "ambiguous_reward_pairs": run.known.ambiguous_pairs,
         "known_reward": run.known.note,
     }
-
-
-def _write_task_records(
-    run_dir: Path, run: _TaskBatch, log: _WindowLog, logger: TensorBoardLogger, summary: dict
-) -> None:
-    """The task's hyperparameters in TensorBoard, then ``tasks/<task>.json`` and
-    ``tasks/<task>.csv``."""
-    # Settings without the seed, so that a task's seeds of one agent form one HParams group; the
-    # metrics at step 0, where SummaryWriter.add_hparams put them.
-    hp = {k: v for k, v in asdict(run.learner_config).items() if v is not None}
-    last = [r for r in log.rows if r["step"] == run.learner.views.t] if log.rows else []
-    logger.hparams(
-        [dict(hp, task=run.name, agent=a) for a in run.agents],
-        [
-            {
-                "hparam/total_goals": float(summary["total_goals"][b]),
-                "hparam/final_value_gap": float(summary["final_value_gap"][b])
-                if last
-                else float("nan"),
-            }
-            for b in range(run.learner.batch)
-        ],
-        0,
-    )
-    logger.close()
-    (run_dir / "tasks").mkdir(parents=True, exist_ok=True)
-    (run_dir / "tasks" / f"{run.name}.json").write_text(json.dumps(summary, indent=1))
-    write_rows(run_dir / "tasks" / f"{run.name}.csv", _COLUMNS, log.rows)
 
 
 def run_task(
@@ -684,7 +633,22 @@ def run_task(
     summary = _task_summary(config, run, log, wall)
     if isinstance(run.world, MiniGridWorld):
         summary["paths"] = _minigrid_paths(run)
-    _write_task_records(run_dir, run, log, logger, summary)
+    # Settings without the seed, so that a task's seeds of one agent form one HParams group; the
+    # metrics at step 0, where SummaryWriter.add_hparams put them.
+    hp = {k: v for k, v in asdict(run.learner.config).items() if v is not None}
+    gaps = summary["final_value_gap"] or [math.nan] * run.learner.batch
+    logger.hparams(
+        [dict(hp, task=task_name, agent=a) for a in run.agents],
+        [
+            {"hparam/total_goals": float(total), "hparam/final_value_gap": float(gap)}
+            for total, gap in zip(summary["total_goals"], gaps)
+        ],
+        0,
+    )
+    logger.close()
+    (run_dir / "tasks").mkdir(parents=True, exist_ok=True)
+    (run_dir / "tasks" / f"{task_name}.json").write_text(json.dumps(summary, indent=1))
+    write_rows(run_dir / "tasks" / f"{task_name}.csv", _COLUMNS, log.rows)
     return summary
 
 
@@ -693,9 +657,9 @@ def _minigrid_paths(run: _TaskBatch) -> dict[str, list[int]]:
     record for ``himit plot``): the first seed's first mentor episode and, per agent, that seed's
     greedy trajectory (at most five times the mentor's steps)."""
     seed = run.run_seeds[0]
-    shown = run.mentor_world or run.world
-    recorded = record_demonstrations(shown, run.mentor, 1, seed=seed)
-    seen = recorded if shown is run.world else demonstrations_in(run.world, recorded, shown)  # type: ignore[arg-type]
+    seen = record_demonstrations(run.shown, run.mentor, 1, seed=seed)
+    if run.shown is not run.world:
+        seen = demonstrations_in(run.world, seen, run.shown)  # type: ignore[arg-type]
     mentor = seen.episodes[0]
     max_steps = 5 * max(len(mentor) - 1, 1)
     paths = {"mentor": [int(s) for s in mentor]}
@@ -766,8 +730,7 @@ def rewrite_gym_report(run_dir: str | os.PathLike) -> None:
         read_task_record(run_dir / "tasks" / f"{task}.json", task) for task in config.tasks
     ]
     read_gym_curves(run_dir)  # (checked before anything is drawn)
-    write_gym_figures(run_dir, config, summaries)
-    write_gym_results(run_dir, config, summaries)
+    GymnasiumStudy().report(config, run_dir, summaries)
 
 
 #: What a task record (``tasks/<task>.json``) must hold for its page; every other list in it
