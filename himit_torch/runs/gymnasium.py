@@ -44,6 +44,7 @@ import math
 import os
 from collections.abc import Callable, Iterator
 from dataclasses import asdict, dataclass, replace
+from functools import partial
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -269,11 +270,6 @@ MINIGRID_TASKS: dict[str, GymTask] = {
 TASKS.update(MINIGRID_TASKS)
 
 
-def _default_learner() -> LearnerConfig:
-    """The paper experiments' learner (plan every 4 ticks, one round), windows of 2000 steps."""
-    return LearnerConfig(plan_every=4, sweep_rounds=1, window=2000)
-
-
 @dataclass
 class GymExperimentConfig(RunConfig):
     """The Gymnasium comparison: tasks, agents, seeds, budget and learner
@@ -339,7 +335,9 @@ class GymExperimentConfig(RunConfig):
         the last of each mentor episode (``himit_torch.mentor.observation``).""",
     )
     device: str = RunConfig.shared("device", "cpu")
-    learner: LearnerConfig = RunConfig.shared("learner", default_factory=_default_learner)
+    learner: LearnerConfig = RunConfig.shared(  # the paper experiments' learner
+        "learner", default_factory=partial(LearnerConfig, plan_every=4, sweep_rounds=1, window=2000)
+    )
     preset: str | None = RunConfig.shared("preset", None)
 
     def __post_init__(self):
@@ -522,8 +520,8 @@ class _WindowLog:
         run, greedy = self.run, self.run.greedy
         reached = learner.views.visit_counts()[:, self.goal].sum(1).cpu()
         goals, self.reached = reached - self.reached, reached
-        m = learner.metrics
-        evaluation = greedy.evaluations.get(learner.views.t) or greedy.evaluate(learner)
+        m, t = learner.metrics, learner.views.t
+        evaluation = greedy.evaluations[t] if t in greedy.evaluations else greedy.evaluate(learner)
         gap = evaluation.value_gap(run.optimal_value).tolist()
         coverage = learner.views.model_coverage().cpu()
         for b in range(learner.batch):
@@ -531,13 +529,13 @@ class _WindowLog:
                 "task": run.name,
                 "agent": run.agents[b],
                 "seed": run.run_seeds[b],
-                "step": learner.views.t,
+                "step": t,
                 "goals": int(goals[b]),
                 "episodes": int(m.goals_in_window[index][b]),
                 "epsilon": float(m.epsilon[index][b]),
                 "value_gap": gap[b],
                 "mentor_term_wins": float(m.mentor_term_wins[index][b]),
-                **dict(zip(CURVE_COLUMNS, greedy.curve_cells(learner.views.t, b))),
+                **dict(zip(CURVE_COLUMNS, greedy.curve_cells(t, b))),
             }
             self.rows.append(row)
             scalars = {
@@ -550,7 +548,7 @@ class _WindowLog:
             }
             if math.isfinite(row["mentor_term_wins"]):
                 scalars["mentor/term_wins"] = row["mentor_term_wins"]
-            self.logger.scalars(b, scalars, learner.views.t)
+            self.logger.scalars(b, scalars, t)
 
 
 def _task_summary(
@@ -797,18 +795,16 @@ def read_gym_curves(run_dir: str | os.PathLike) -> dict:
     where = f"curves file {path}"
     fix = "; the record is damaged (run the study again, or restore the file)"
     rows = read_table(path, where, ("seed", "step"), ("goals", "value_gap"), ("task", "agent"), fix)
-    acc: dict = {}
+    curves: dict = {}
     for r in rows:
-        acc.setdefault(r["task"], {}).setdefault(r["agent"], []).append(r)
-    out: dict = {}
-    for task, agents in acc.items():
-        out[task] = {}
+        curves.setdefault(r["task"], {}).setdefault(r["agent"], []).append(r)
+    for task, agents in curves.items():
         for agent, agent_rows in agents.items():
             at = f"{where} ({task}, {agent})"
             steps, goals = series_of(agent_rows, "goals", at, fix)
             _, gaps = series_of(agent_rows, "value_gap", at, fix)
-            out[task][agent] = (np.array(steps), np.array(goals), np.array(gaps))
-    return out
+            agents[agent] = (np.array(steps), np.array(goals), np.array(gaps))
+    return curves
 
 
 def write_gym_figures(run_dir: Path, config: GymExperimentConfig, summaries: list[dict]) -> None:
@@ -831,13 +827,8 @@ def write_gym_figures(run_dir: Path, config: GymExperimentConfig, summaries: lis
             for ax, data in ((ax_goals, goals), (ax_gap, gaps)):
                 label = f"{agent} (n={data.shape[0]})"
                 plot_mean_band(ax, steps, data, color=color, label=label)
-        ax_goals.axhline(
-            summary["optimal_goals_per_window"],
-            color="0.3",
-            ls="--",
-            lw=1,
-            label=f"optimal ≈ {summary['optimal_goals_per_window']:.1f}",
-        )
+        optimal = summary["optimal_goals_per_window"]
+        ax_goals.axhline(optimal, color="0.3", ls="--", lw=1, label=f"optimal ≈ {optimal:.1f}")
         ax_goals.set_ylabel(f"goals per {config.window} steps")
         ax_gap.set_ylabel("V*(μ) − V^greedy(μ)  (exact; 0 = optimal)")
         ax_gap.set_yscale("symlog", linthresh=0.1)
@@ -1095,14 +1086,13 @@ def _info(args) -> Iterator[str]:
     )
     p_goal, length = episode_statistics(world, plan.policy)
     models = smdp_value_iteration(option_models(world, options))
-    window = INFO_WINDOW
     yield ""
     yield "optimal (value iteration on the true model, primitives)"
     yield f"  V*(start distribution)      {float(plan.values @ mu):.3f}"
     yield f"  with the learner's options  {float(models.values @ mu):.3f}"
     yield f"  P(goal) per episode         {p_goal:.3f}"
     yield f"  steps per episode           {length:.1f}"
-    yield f"  {f'goals per {window} steps':<28}{window * p_goal / length:.1f}"
+    yield f"  {f'goals per {INFO_WINDOW} steps':<28}{INFO_WINDOW * p_goal / length:.1f}"
 
 
 #: The settings a results page's ``himit run gymnasium`` / ``minigrid`` command may give.

@@ -22,22 +22,20 @@ def _info_flags(parser) -> None:
 
 
 def _info(args: Any) -> Iterator[str]:
-    """``himit info --minigrid ID``: a MiniGrid task (seed 0, MiniGrid's determinism) as a world,
-    its options and mentor, solved exactly."""
+    """``himit info --minigrid ID`` (reset seed 0, MiniGrid's determinism), solved exactly."""
     from himit_torch.mentor.minigrid import minigrid_mentor
     from himit_torch.options.minigrid import minigrid_options
     from himit_torch.worlds.minigrid import from_minigrid
 
     world = from_minigrid(args.minigrid, gamma=args.gamma)
-    terminal = int(world.terminal_mask.sum())
     yield (
         f"world      {world.name}, reset seed {world.seed}, {world.width}×{world.height} cells, "
         f"no slip (MiniGrid's own step), gamma {world.gamma}, reward −0.01 a step and +1 at "
         "success"
     )
     yield (
-        f"states     {world.num_states:,} reachable ({terminal} entered at success); objects: "
-        f"{', '.join(world.object_names) or 'none'}"
+        f"states     {world.num_states:,} reachable ({int(world.terminal_mask.sum())} entered at "
+        f"success); objects: {', '.join(world.object_names) or 'none'}"
     )
     yield f"actions    {world.num_actions}: {', '.join(world.action_names)}"
     learner, mentor_opts = minigrid_options(world), minigrid_options(world, "mentor")
