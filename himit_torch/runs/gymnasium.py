@@ -657,7 +657,7 @@ def _minigrid_paths(run: _TaskBatch) -> dict[str, list[int]]:
     seed = run.run_seeds[0]
     seen = record_demonstrations(run.shown, run.mentor, 1, seed=seed)
     if run.shown is not run.world:
-        seen = demonstrations_in(run.world, seen, run.shown)  # type: ignore[arg-type]
+        seen = demonstrations_in(run.world, seen, run.shown)  # type: ignore[arg-type, assignment]
     mentor = seen.episodes[0]
     max_steps = 5 * max(len(mentor) - 1, 1)
     paths = {"mentor": [int(s) for s in mentor]}
