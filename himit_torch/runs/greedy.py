@@ -1,23 +1,21 @@
 """Every run's frozen greedy policy, evaluated exactly while a batch learns.
 
-A :class:`GreedyTracker` is a window hook of :func:`~himit_torch.runs.runner.run_windows`: every
-``every`` steps (and at the run's end, :meth:`GreedyTracker.finish`) it freezes each run's greedy
-policy (:meth:`learner.views.greedy_policy <himit_torch.LearnerViews.greedy_policy>`: ε = 0 over its own
+A :class:`GreedyTracker`, a window hook of :func:`~himit_torch.runs.runner.run_windows`, freezes
+each run's greedy policy every ``every`` steps and at the run's end
+(:meth:`learner.views.greedy_policy <himit_torch.LearnerViews.greedy_policy>`: ε = 0 over its own
 options, ties as configured) and evaluates it on the world's true model
 (:class:`~himit_torch.exact.greedy_evaluation.PolicyEvaluator`: goals per window, the share of
 start states from which it is sure to reach the goal, and at the end ``V^π(start)``), as a
 percentage of the optimum's and of the mentor's own goal rate (both evaluated the same way).
 The evaluations go to TensorBoard (``eval/…``), to ``curves.csv`` (:data:`CURVE_COLUMNS`, empty
-at the windows between evaluations) and, at the end, to the run's summary. They are part of a
-checkpoint (:meth:`GreedyTracker.state_dict`), so a resumed run reports what an uninterrupted
-one does.
+between evaluations), to the run's summary, and into checkpoints, so a resumed run reports what
+an uninterrupted one does.
 
-States where a run has tried none of its options follow the ``"uniform"`` rule throughout (as
-the learner acts: any option available there;
-:data:`~himit_torch.exact.greedy_evaluation.UNTRIED_RULES`). At the end the final policy is
-evaluated once more under ``"stuck"`` (such states never left: :attr:`GreedyTracker.stuck`),
-so that a summary can say how much of a greedy policy's goal rate rests on chance moves where
-the run knows nothing.
+States where a run has tried none of its options follow the ``"uniform"`` rule (as the learner
+acts: any option available there; :data:`~himit_torch.exact.greedy_evaluation.UNTRIED_RULES`).
+The final policy is also evaluated under ``"stuck"`` (such states never left:
+:attr:`GreedyTracker.stuck`), so a summary can say how much of its goal rate rests on chance
+moves where the run knows nothing.
 """
 
 from __future__ import annotations
@@ -42,14 +40,6 @@ CURVE_COLUMNS = (
     "greedy_reach_share",
 )
 
-_FIELDS = (
-    "value_start",
-    "goal_probability",
-    "steps_per_episode",
-    "goals_per_window",
-    "reach_share",
-)
-
 #: Round-off an exact evaluation's solve may leave beyond a range's bounds.
 _ROUND_OFF = 1e-6
 _LARGEST = float(torch.finfo(torch.float64).max)
@@ -62,6 +52,7 @@ _RANGES = {
     "goals_per_window": (-_ROUND_OFF, 1 + _ROUND_OFF, "goals per window, at most one a step"),
     "reach_share": (-_ROUND_OFF, 1 + _ROUND_OFF, "a share of the start states"),
 }
+_FIELDS = tuple(_RANGES)  # a checkpoint's fields
 
 
 @dataclass(frozen=True)
@@ -138,7 +129,17 @@ class GreedyTracker:
         )
         self.evaluations[step] = result
         if self.logger is not None:
-            self._log(result, step)
+            columns = {
+                "eval/greedy_goals_per_window": result.goals_per_window,
+                "eval/greedy_percent_of_optimal": self.percent_of_optimal(result),
+                "eval/greedy_percent_of_mentor": self.percent_of_mentor(result),
+                "eval/greedy_reach_share": result.reach_share,
+                "eval/greedy_value_start": result.value_start,
+            }
+            lists = {tag: values.tolist() for tag, values in columns.items()}
+            for b in range(len(result)):
+                finite = {tag: v[b] for tag, v in lists.items() if math.isfinite(v[b])}
+                self.logger.scalars(b, finite, step)
         return result
 
     def percent_of_optimal(self, result: PolicyEvaluation) -> torch.Tensor:
@@ -146,23 +147,6 @@ class GreedyTracker:
 
     def percent_of_mentor(self, result: PolicyEvaluation) -> torch.Tensor:
         return result.percent_of(self.reference.mentor_goals_per_window)
-
-    def _log(self, result: PolicyEvaluation, step: int) -> None:
-        assert self.logger is not None
-        rate, share = result.goals_per_window.tolist(), result.reach_share.tolist()
-        pct_opt = self.percent_of_optimal(result).tolist()
-        pct_mentor = self.percent_of_mentor(result).tolist()
-        value = result.value_start.tolist()
-        for b in range(len(result)):
-            scalars = {
-                "eval/greedy_goals_per_window": rate[b],
-                "eval/greedy_percent_of_optimal": pct_opt[b],
-                "eval/greedy_percent_of_mentor": pct_mentor[b],
-                "eval/greedy_reach_share": share[b],
-            }
-            if math.isfinite(value[b]):
-                scalars["eval/greedy_value_start"] = value[b]
-            self.logger.scalars(b, {k: v for k, v in scalars.items() if math.isfinite(v)}, step)
 
     def curve_cells(self, step: int, run: int) -> list[str]:
         """The :data:`CURVE_COLUMNS` cells of ``run`` at the window ending at ``step``."""
@@ -214,11 +198,10 @@ class GreedyTracker:
                 f"{window} steps, and the end, {self.steps})",
             )
         batch = None if learner is None else int(learner.batch)
-        for f in _FIELDS:
+        for f, (low, high, meaning) in _RANGES.items():
             values = state[f]
             if type(values) is not list or len(values) != len(steps):
                 raise DamagedState(f"greedy.{f}", f"is not a list of {len(steps)} tensors")
-            low, high, meaning = _RANGES[f]
             high = high * window if f == "goals_per_window" else high
             for i, value in enumerate(values):
                 where = f"greedy.{f}[{i}]"
