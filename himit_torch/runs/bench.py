@@ -86,22 +86,6 @@ def _learner(
     )
 
 
-def _timed_run(learner: Learner, steps: int, device: str) -> tuple[float, float]:
-    """``(seconds, peak memory in MiB)`` of ``steps`` ticks of ``learner``."""
-    cuda = device.startswith("cuda")
-    if cuda:
-        torch.cuda.synchronize()
-        torch.cuda.reset_peak_memory_stats()
-    start = time.perf_counter()
-    learner.run(steps)
-    if cuda:
-        torch.cuda.synchronize()
-    seconds = time.perf_counter() - start
-    if cuda:
-        return seconds, torch.cuda.max_memory_allocated() / 2**20
-    return seconds, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-
-
 def benchmark(
     size: int = 40,
     rooms: int = 10,
@@ -134,7 +118,19 @@ def benchmark(
     first = time.perf_counter() - first
     learner.run(max(0, warmup - 1))
     decisions0 = int(learner.views.decisions.sum())
-    seconds, peak = _timed_run(learner, steps, device)
+    cuda = device.startswith("cuda")
+    if cuda:
+        torch.cuda.synchronize()
+        torch.cuda.reset_peak_memory_stats()
+    start = time.perf_counter()
+    learner.run(steps)
+    if cuda:
+        torch.cuda.synchronize()
+    seconds = time.perf_counter() - start
+    if cuda:
+        peak = torch.cuda.max_memory_allocated() / 2**20
+    else:
+        peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     return BenchResult(
         size,
         rooms,

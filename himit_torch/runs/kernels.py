@@ -1,12 +1,10 @@
 """Compiling the compiled engine's kernels ahead of a run: in a parent process while the world
 processes it starts set up, so that they load the kernels from Numba's disk cache instead of
-each compiling them.
-
-(The engine needs none of this: each kernel's first call in a process holds the cache's lock,
+each compiling them. (Not needed: each kernel's first call in a process holds the cache's lock,
 so processes that start together compile once anyway. This only moves the compiling earlier.)
 
-``python -m himit_torch.runs.kernels`` does it once for an environment (``make install`` runs it):
-it fills the cache the kernels use by default, so that the first run afterwards only loads them.
+``python -m himit_torch.runs.kernels`` does it once for an environment (``make install`` runs it),
+filling the cache the kernels use by default, so that the first run afterwards only loads them.
 On the way it builds options and a mentor, and so compiles the set-up's own compiled functions
 too (``himit_torch.options.target_paths``, ``himit_torch.exact.option_chains``).
 """
@@ -31,32 +29,29 @@ _prepared = False
 _guard = threading.Lock()
 
 
-def _run_tiny_learner() -> None:
-    """Call every kernel once, with the argument types every learner passes: a few hundred ticks
-    of an imitator, a posterior-sampling imitator and a ``bco`` run (whose refit at the start
-    compiles :mod:`~himit_torch.learner.cloned_refit`) on an 8×8 world, to a window's end."""
-    world = MultiRooms(8, 2)
-    demonstrations = record_demonstrations(
-        world, mentor_policy(world, mentor_options(world)), 1, seed=0
-    )
-    learner = Learner(
-        world,
-        learner_options(world),
-        ["imitation", "imitation_psrl", "bco"],
-        [0, 0, 0],
-        LearnerConfig(window=200),
-        demonstrations=demonstrations,
-        engine="numba",
-    )
-    learner.run(200)
-
-
 def _prepare_locked() -> None:
+    """Call every kernel once in this process, with the argument types every learner passes: a
+    few hundred ticks of an imitator, a posterior-sampling imitator and a ``bco`` run (whose
+    refit at the start compiles :mod:`~himit_torch.learner.cloned_refit`) on an 8×8 world, to a
+    window's end."""
     global _prepared
     with _guard:
-        if not _prepared:
-            _run_tiny_learner()
-            _prepared = True
+        if _prepared:
+            return
+        world = MultiRooms(8, 2)
+        demonstrations = record_demonstrations(
+            world, mentor_policy(world, mentor_options(world)), 1, seed=0
+        )
+        Learner(
+            world,
+            learner_options(world),
+            ["imitation", "imitation_psrl", "bco"],
+            [0, 0, 0],
+            LearnerConfig(window=200),
+            demonstrations=demonstrations,
+            engine="numba",
+        ).run(200)
+        _prepared = True
 
 
 def prepare_kernels() -> float:

@@ -1,26 +1,21 @@
 """Joining a running Ray cluster: its token authentication, settled before Ray's own connect.
 
-Ray (≥ 2.52) can demand a token on every request a cluster serves: ``RAY_AUTH_MODE=token``, "set
-via the environment and … configured consistently on every node", and the token looked up, "highest
-to lowest precedence", in ``RAY_AUTH_TOKEN``, then the file named by ``RAY_AUTH_TOKEN_PATH`` ("if
-the file cannot be read or is empty, Ray treats this as a fatal misconfiguration"), then the default
-file ``~/.ray/auth_token``; ``ray get-auth-token`` prints a node's token
+Ray (≥ 2.52) can demand a token on every request (``RAY_AUTH_MODE=token``, "configured
+consistently on every node"). The token is looked up, "highest to lowest precedence", in
+``RAY_AUTH_TOKEN``, the file named by ``RAY_AUTH_TOKEN_PATH`` (unreadable or empty: "a fatal
+misconfiguration"), then ``~/.ray/auth_token``; ``ray get-auth-token`` prints a node's token
 (https://docs.ray.io/en/latest/ray-security/token-auth.html,
 https://docs.ray.io/en/master/ray-core/internals/token-authentication.html). Since Ray 2.59
-``ray start --head`` turns token authentication on by itself whenever a token already exists (any
-local ``ray.init()`` writes one to ``~/.ray/auth_token``; ray-project/ray#64755, cherry-picked into
-2.59 as #66248). But a driver that joins with an explicit address does not (Ray 2.60,
-``ray/_private/worker.py``: "Only a local cluster found automatically auto-enables auth; an explicit
-address (argument or RAY_ADDRESS) never does"), so ``ray.init(address="host:port")`` sends no token
-and then retries for about 20 s, logging ``InvalidAuthToken`` every second, before "Failed to
-connect to Ray cluster".
+``ray start --head`` turns token authentication on whenever a token exists (any local
+``ray.init()`` writes one; ray-project/ray#64755, in 2.59 as #66248), but a driver joining an
+explicit address does not (Ray 2.60, ``ray/_private/worker.py``: "an explicit address (argument or
+RAY_ADDRESS) never does"): ``ray.init(address="host:port")`` sends no token, then retries for
+about 20 s, logging ``InvalidAuthToken`` every second, before "Failed to connect to Ray cluster".
 
-Hence :func:`prepare_to_join` asks the cluster first: one ``GetClusterId`` request to its GCS
-without a token, answered at once. If the cluster refuses it as unauthenticated, the token is
-looked up the way Ray documents (above), checked with a second request, and
-``RAY_AUTH_MODE=token`` set for this process, so that Ray itself loads and sends it. Where there
-is no token, or the cluster refuses it, or nothing answers, it raises at once with one line saying
-what to set.
+Hence :func:`prepare_to_join` first sends the cluster's GCS one ``GetClusterId`` request without a
+token. If it is refused as unauthenticated, the token is looked up as Ray does, checked with a
+second request, and ``RAY_AUTH_MODE=token`` set for this process, so that Ray itself sends it.
+No token, a refused one or no answer raise at once, with one line saying what to set.
 """
 
 from __future__ import annotations
@@ -103,11 +98,6 @@ def _ask(address: str, token: str | None) -> str:
     return "ok"
 
 
-def _host_port(address: str) -> bool:
-    host, _, port = address.rpartition(":")
-    return bool(host) and port.isdigit() and "://" not in address
-
-
 def prepare_to_join(address: str) -> str:
     """Settle token authentication before ``ray.init(address=address)``; returns a few words
     for the log ("no token asked", "token from ~/.ray/auth_token").
@@ -121,7 +111,8 @@ def prepare_to_join(address: str) -> str:
             or ``RAY_AUTH_MODE`` says otherwise; the message says what to set.
         ConnectionError: no Ray cluster answers at ``address`` within :data:`PROBE_SECONDS`.
     """
-    if not _host_port(address):
+    host, _, port = address.rpartition(":")
+    if not host or not port.isdigit() or "://" in address:
         return "address resolved by Ray"
     mode = os.environ.get("RAY_AUTH_MODE", "").strip().lower()
     found = find_token()
