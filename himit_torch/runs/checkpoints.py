@@ -23,9 +23,9 @@ written as a sparse COO tensor of its nonzero *bit patterns* (``-0.0`` and every
 for bit) and read back dense, exactly as written. Format 1 files (all dense) still read.
 
 :class:`CheckpointGenerations` keeps the newest and the previous checkpoint of one batch
-(``world40.pt``, ``world40.prev.pt``), so a damaged newest file costs one checkpoint interval, not
-the run. Every file is written to a temporary name, synced and renamed over the old one: a save
-that fails or is killed part-way leaves both generations as they were.
+(``world40.pt``, ``world40.prev.pt``): a damaged newest file costs one checkpoint interval, and a
+save that fails or is killed part-way leaves both as they were (files are written to a temporary
+name, synced and renamed).
 """
 
 from __future__ import annotations
@@ -650,11 +650,10 @@ class CheckpointGenerations:
         expect_layout: int | None = None,
         restore: Callable[[Checkpoint], None] | None = None,
     ) -> Resumed | None:
-        """The newest good generation, with the newer ones skipped and
-        why; ``None`` when nothing was saved yet. ``restore(checkpoint)``, if given, is tried on each
-        verified generation, newest first: one it refuses with
-        :class:`~himit_torch.state_checks.DamagedState` (before changing anything) is skipped like a
-        damaged file.
+        """The newest good generation, with the newer ones skipped and why; ``None`` when nothing
+        was saved yet. ``restore(checkpoint)``, if given, is tried on each verified generation,
+        newest first: one it refuses with :class:`~himit_torch.state_checks.DamagedState` (before
+        changing anything) is skipped like a damaged file.
 
         Raises:
             NoGoodCheckpoint: generations exist but none is good; the message names each file.
@@ -666,19 +665,13 @@ class CheckpointGenerations:
         for path in self.paths:
             try:
                 found = read_checkpoint(path, map_location, expect_batch, expect_layout)
-                try:
-                    if restore is not None:
-                        restore(found)
-                except DamagedCheckpoint:
-                    raise
-                except DamagedState as err:  # the learner's refusal: the file's damage
-                    raise DamagedCheckpoint(
-                        path,
-                        f"its state is not one himit_torch writes ({err}); it was not restored",
-                        found.header.step,
-                    ) from None
+                if restore is not None:
+                    restore(found)
             except DamagedCheckpoint as err:
                 skipped.append(Skipped(path, err.reason, err.step))
-                continue
-            return Resumed(found, skipped)
+            except DamagedState as err:  # restore refused the state: the file is as damaged
+                reason = f"its state is not one himit_torch writes ({err}); it was not restored"
+                skipped.append(Skipped(path, reason, found.header.step))
+            else:
+                return Resumed(found, skipped)
         raise NoGoodCheckpoint(skipped)
