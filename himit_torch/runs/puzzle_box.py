@@ -81,12 +81,7 @@ from himit_torch.runs.study import (
     series_of,
     write_rows,
 )
-from himit_torch.validation import (
-    check_memory,
-    parse_document,
-    read_text,
-    setting,
-)
+from himit_torch.validation import check_memory, parse_document, read_text, setting
 from himit_torch.viz.tensorboard import TensorBoardLogger
 from himit_torch.worlds.puzzle_box import (
     ORGANISATIONS,
@@ -201,9 +196,6 @@ class PuzzleBoxConfig(RunConfig):
     preset: str | None = RunConfig.shared("preset", None)
 
     def __post_init__(self):
-        # Each field by the library's input rules (himit_torch.validation): whole numbers never
-        # truncated and at most COUNT_MAX, bools and strings never numbers, probabilities
-        # finite; then the cross-field rules.
         self.check_run_settings()
         if not self.skewers <= self.transfer_skewers:
             raise ValueError(
@@ -258,9 +250,7 @@ def recorded_run_command(run_dir: str | os.PathLike) -> str | None:
     ``summary.json`` records (None where it no longer builds one: an older record)."""
     from himit_torch.runs.puzzle_box_report import read_summary
 
-    run_dir = Path(run_dir)
-    recorded = dict(read_summary(run_dir)["config"])
-    recorded.pop("box_steps", None)
+    recorded = {k: v for k, v in read_summary(run_dir)["config"].items() if k != "box_steps"}
     try:
         config = PuzzleBoxConfig(**recorded)
     except (TypeError, ValueError):
@@ -387,7 +377,7 @@ def run_box_batch(
         mentor_plans: organisation → the mentor's states when nothing slips; ``{}``: not
             compared.
         focus: also score the organisation for skewer ``focus`` alone (:func:`greedy_plan`)."""
-    world, seeds = box.world, config.seed_list
+    seeds = config.seed_list
     learner, checkpoints, elapsed = _batch_learner(config, box, agent, demos, run_dir, tag, resume)
     evals_path = run_dir / "batches" / f"{tag}.evals.json"
     evals = _saved_evaluations(evals_path, len(seeds), learner.views.t) if resume else {}
@@ -410,9 +400,7 @@ def run_box_batch(
     )
     runs = _final_runs(config, box, learner, evals, demos, mentor_plans, focus)
     summary = _batch_summary(box, tag, condition, agent, learner, wall, runs)
-    _close_logger(logger, condition, world.skewers, runs, learner.views.t)
-    for r in runs:  # the states were for the comparison; the subgoals say what a reader needs
-        del r["states"]
+    _close_logger(logger, condition, box.world.skewers, runs, learner.views.t)
     rows = _window_rows(config, tag, condition, learner, evals, demos is not None)
     write_rows(run_dir / "batches" / f"{tag}.csv", _COLUMNS, rows)
     write_atomically(run_dir / "batches" / f"{tag}.json", json.dumps(summary, indent=1))
@@ -534,6 +522,7 @@ def _final_runs(config, box, learner, evals, demos, mentor_plans, focus) -> list
     runs = []
     for b, seed in enumerate(config.seed_list):
         plan = greedy_plan(box.world, box.options, greedy[b], focus)
+        states = plan.pop("states")  # for the comparison: the subgoals say what a reader needs
         watched = watched_organisation(seed, config.first_seed)
         reference = mentor_plans.get(watched)
         runs.append(
@@ -546,7 +535,7 @@ def _final_runs(config, box, learner, evals, demos, mentor_plans, focus) -> list
                 "final_window_openings": int(learner.metrics.goals_in_window[-1][b]),
                 "greedy_value": evals[max(evals)]["value"][b] if evals else None,
                 "mentor_term_wins": _finite(float(learner.views.mentor_win_share()[b])),
-                "same_low_level_as_mentor": reference is not None and plan["states"] == reference,
+                "same_low_level_as_mentor": reference is not None and states == reference,
                 **plan,
             }
         )
@@ -699,8 +688,7 @@ def _run_variants(config: PuzzleBoxConfig, batch: _Batches, demos: dict, plans: 
         if variant == "harder_pinch":
             # the same mentors on a box where their pinch fails more often: their episodes again
             box = PreparedBox.build(config.skewers, config.slip, config.harder_pinch)
-            mentors_v = {org: organisation_mentor(box.world, org) for org in ORGANISATIONS}
-            demos_v = watched_episodes(config, box.world, mentors_v)
+            demos_v = watched_episodes(config, box.world)
         else:  # the same box and episodes, a learner without the pinch
             box = PreparedBox.build(config.skewers, config.slip, config.pinch_slip, pinch=False)
             demos_v = demos
@@ -708,7 +696,6 @@ def _run_variants(config: PuzzleBoxConfig, batch: _Batches, demos: dict, plans: 
             watched = demos_v if condition == "imitation" else None
             batch(box, f"{variant}_{condition}", condition, condition, watched, config.steps,
                   config.eval_every, plans)  # fmt: skip
-        del box
 
 
 class PuzzleBoxStudy:
@@ -752,7 +739,16 @@ class PuzzleBoxStudy:
             )
             batch(big, f"transfer_{condition}", condition, agent, watched, config.transfer_steps,
                   3 * config.eval_every, {}, focus=config.skewers)  # fmt: skip
-        return _write_summary(config, run_dir, small, plans, batch.done)
+        parts = [run_dir / "batches" / f"{b['batch']}.csv" for b in batch.done]
+        merge_csv(parts, run_dir / "curves.csv", newline="\n")
+        summary = {
+            "config": {**asdict(config), "box_steps": small.steps},
+            "commit": source_commit(),
+            "mentor_plans": {org: mentors_subgoals(small, plans[org]) for org in ORGANISATIONS},
+            "batches": batch.done,
+        }
+        write_atomically(run_dir / "summary.json", json.dumps(summary, indent=1))
+        return summary
 
     def report(self, config: PuzzleBoxConfig, run_dir: Path, summary: dict[str, Any]) -> None:
         """The figures and ``results.md``."""
@@ -763,22 +759,6 @@ class PuzzleBoxStudy:
 
         write_puzzle_box_figures(run_dir, summary)
         write_puzzle_box_results(run_dir, summary, puzzle_box_run_command(config, run_dir))
-
-
-def _write_summary(
-    config: PuzzleBoxConfig, run_dir: Path, small: PuzzleBox, plans: dict, batches: list[dict]
-) -> dict[str, Any]:
-    """``curves.csv`` (every batch's rows) and ``summary.json``; the summary."""
-    parts = [run_dir / "batches" / f"{b['batch']}.csv" for b in batches]
-    merge_csv(parts, run_dir / "curves.csv", newline="\n")
-    summary = {
-        "config": {**asdict(config), "box_steps": small.steps},
-        "commit": source_commit(),
-        "mentor_plans": {org: mentors_subgoals(small, plans[org]) for org in ORGANISATIONS},
-        "batches": batches,
-    }
-    write_atomically(run_dir / "summary.json", json.dumps(summary, indent=1))
-    return summary
 
 
 def run_puzzle_box(
@@ -798,7 +778,7 @@ def run_puzzle_box(
         resume=resume,
         force=force,
         progress=progress,
-        check=lambda: config.check_size(),
+        check=config.check_size,
     )
 
 

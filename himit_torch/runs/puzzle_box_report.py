@@ -16,6 +16,7 @@ Statistics (every interval says what it is):
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 from typing import Any
@@ -23,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from himit_torch.runs.runner import source_commit
-from himit_torch.runs.study import Field, read_record
+from himit_torch.runs.study import Field, read_record, read_table, series_of
 from himit_torch.statistics import holm, paired_comparison, share_interval, t_interval
 from himit_torch.viz.results_page import plot_command, provenance_line, write_results_page
 
@@ -79,6 +80,11 @@ def _paired(a, b) -> tuple[float, float, float] | None:
         return None
     c = paired_comparison([x for x, _ in pairs], [y for _, y in pairs], interval="t")
     return c.difference.estimate, c.difference.half_width, c.wilcoxon_p
+
+
+def _diff_text(diff, pairs: str = "") -> str:
+    """A :func:`_paired` result as ``mean ± half-width<pairs>, p = …`` ("–" for None)."""
+    return "–" if diff is None else f"{diff[0]:+.2f} ± {diff[1]:.2f}{pairs}, p = {diff[2]:.2g}"
 
 
 def _batch(summary: dict, tag: str) -> dict:
@@ -155,8 +161,6 @@ def rewrite_puzzle_box_report(run_dir: str | Path, run_command: str | None = Non
 # ================================================================================ figures
 def _curves(run_dir: Path, tag: str) -> tuple[np.ndarray, np.ndarray]:
     """``(steps [W], openings [n, W])`` of batch ``tag`` from ``batches/<tag>.csv``."""
-    from himit_torch.runs.study import read_table, series_of
-
     path = run_dir / "batches" / f"{tag}.csv"
     where = f"curves file {path}"
     steps, series = series_of(
@@ -172,40 +176,21 @@ def _thousands_label(x, _pos=None) -> str:
 def _evals(run_dir: Path, tag: str, key: str = "value") -> tuple[np.ndarray, np.ndarray]:
     """``(steps [E], values [n, E])`` of the greedy policies' evaluations of batch ``tag``
     (``key``: ``value``, ``organisation`` or ``pinch_steps``)."""
-    import json
-
     path = run_dir / "batches" / f"{tag}.evals.json"
     evals = {int(k): v for k, v in json.loads(path.read_text()).items()}
     steps = np.array(sorted(evals))
     return steps, np.array([evals[s][key] for s in steps]).T
 
 
-def _follows_over_time(run_dir: Path, summary: dict, tag: str) -> tuple[np.ndarray, np.ndarray]:
-    """``(steps [E], follows [n, E])``: whether each run's greedy plan followed the organisation
-    its seed watched (or would have), at each evaluation."""
-    steps, orgs = _evals(run_dir, tag, "organisation")
-    paired = [r["paired_organisation"] for r in _batch(summary, tag)["runs"]]
-    return steps, orgs == np.array(paired)[:, None]
-
-
 def write_puzzle_box_figures(run_dir: Path, summary: dict) -> None:
     """``figures/speed.png``, ``figures/organisation.png``, ``figures/transfer.png``."""
     from himit_torch.viz.report import AGENT_COLORS
 
-    fig_dir = run_dir / "figures"
-    colors = {
-        "imitation": AGENT_COLORS["imitation"],
-        "options": AGENT_COLORS["options"],
-        "primitives": AGENT_COLORS["primitives"],
-        "plain": AGENT_COLORS["imitation_confident"],
-        "any": AGENT_COLORS["imitation"],
-    }
-    for experiment, conditions in (
-        ("speed", ("imitation", "options", "primitives")),
-        ("transfer", ("any", "plain", "options")),
-    ):
+    colors = {**AGENT_COLORS, "plain": AGENT_COLORS["imitation_confident"]}
+    colors["any"] = AGENT_COLORS["imitation"]
+    for experiment, conditions in _NEEDED_BATCHES.items():
         _experiment_figure(run_dir, summary, experiment, conditions, colors)
-    _organisation_figure(run_dir, fig_dir, summary)
+    _organisation_figure(run_dir, summary)
 
 
 def _experiment_figure(
@@ -261,7 +246,7 @@ def _experiment_figure(
     save_figure(fig, run_dir / "figures" / f"{experiment}.png", dpi=100, fit=True)
 
 
-def _organisation_figure(run_dir: Path, fig_dir: Path, summary: dict) -> None:
+def _organisation_figure(run_dir: Path, summary: dict) -> None:
     from matplotlib.figure import Figure
     from matplotlib.ticker import FuncFormatter
 
@@ -273,7 +258,10 @@ def _organisation_figure(run_dir: Path, fig_dir: Path, summary: dict) -> None:
     for tag, label, color, ls in _TIME_LINES:
         if not any(b["batch"] == tag for b in summary["batches"]):
             continue
-        steps, follows = _follows_over_time(run_dir, summary, tag)
+        # whether each run's plan followed the organisation its seed watched (or would have)
+        steps, orgs = _evals(run_dir, tag, "organisation")
+        paired = [r["paired_organisation"] for r in _batch(summary, tag)["runs"]]
+        follows = orgs == np.array(paired)[:, None]
         n = follows.shape[0]
         cis = [share_interval(int(f.sum()), n) for f in follows.T]
         share = np.array([(ci.estimate, ci.low, ci.high) for ci in cis])
@@ -303,7 +291,7 @@ def _organisation_figure(run_dir: Path, fig_dir: Path, summary: dict) -> None:
     ax.set_xlim(0, 1)
     ax.legend(ncol=4, loc="lower center", bbox_to_anchor=(0.5, 1.0), fontsize="small")
     ax.grid(axis="x", alpha=0.3)
-    save_figure(fig, fig_dir / "organisation.png", dpi=100)
+    save_figure(fig, run_dir / "figures" / "organisation.png", dpi=100)
 
 
 def _organisation_groups(summary: dict, experiments=("speed", "transfer")) -> dict[str, list[dict]]:
@@ -446,7 +434,7 @@ def _speed_rows(batches: dict[str, dict], reference: str) -> tuple[list[str], di
         if c == reference:
             continue
         for what, get in (
-            ("first opening", lambda rs, st: _firsts(rs, st)),
+            ("first opening", _firsts),
             ("openings, last window", lambda rs, st: [r["final_window_openings"] for r in rs]),
             ("greedy value", lambda rs, st: [r["greedy_value"] or math.nan for r in rs]),
         ):
@@ -554,23 +542,15 @@ def _organisation_rows(summary: dict) -> tuple[list[str], dict[str, Any]]:
         both = sum(math.isfinite(x) and math.isfinite(y) for x, y in zip(mine, theirs))
         diff = _paired(mine, theirs)
         tests.append(diff[2] if diff else 1.0)
-        rows.append((about, a, len(imit), b, len(others), fisher, mine, theirs, diff, both))
+        rows.append(
+            f"| {about} | {_share(a, len(imit))} | {_share(b, len(others))} | {fisher:.2g} | "
+            f"{_cell(mine, 2)} | {_cell(theirs, 2)} | {_diff_text(diff, f' (n={both})')} |"
+        )
         facts[prefix] = {"follows": (a, len(imit)), "others": (b, len(others)), "fisher": fisher}
     adjusted = holm(tests) if tests else []
-    lines = []
-    for (about, a, n, b, m, fisher, mine, theirs, diff, pairs), q in zip(rows, adjusted):
-        d = (
-            "–"
-            if diff is None
-            else f"{diff[0]:+.2f} ± {diff[1]:.2f} (n={pairs}), p = {diff[2]:.2g}"
-        )
-        lines.append(
-            f"| {about} | {_share(a, n)} | {_share(b, m)} | {fisher:.2g} | "
-            f"{_cell(mine, 2)} | {_cell(theirs, 2)} | {d} | {q:.2g} |"
-        )
-    for prefix, q in zip([p for p, _ in _DESIGNS if p in facts], adjusted):
+    for prefix, q in zip(facts, adjusted):
         facts[prefix]["holm"] = q
-    return lines, facts
+    return [f"{row} {q:.2g} |" for row, q in zip(rows, adjusted)], facts
 
 
 def _organisation_counts(summary: dict) -> list[str]:
@@ -740,15 +720,11 @@ def _assimilation_rows(transfer: dict[str, dict]) -> tuple[list[str], dict[Any, 
             pairs = sum(math.isfinite(x) and math.isfinite(y) for x, y in zip(new, base))
             diff = _paired(new, base)
             facts[(mapping, org)] = {"strict": (follows, len(idx)), "new": new, "diff": diff}
-            d = (
-                "–"
-                if diff is None
-                else f"{diff[0]:+.2f} ± {diff[1]:.2f} (n={pairs}), p = {diff[2]:.2g}"
-            )
             counts = " / ".join(str(sum(runs[i]["organisation"] == o for i in idx)) for o in _ORDER)
             lines.append(
                 f"| {mapping} | {org} | {len(idx)} | {counts} | {_share(follows, len(idx))} | "
-                f"{_cell(overall, 2)} | {_cell(new, 2)} | {_cell(base, 2)} | {d} |"
+                f"{_cell(overall, 2)} | {_cell(new, 2)} | {_cell(base, 2)} | "
+                f"{_diff_text(diff, f' (n={pairs})')} |"
             )
     return lines, facts
 
@@ -877,14 +853,11 @@ def _assimilation_finding(cfg: dict, transfer: dict) -> str:
         v = [x for x in facts["new"] if math.isfinite(x)]
         return f"{np.mean(v):.2f}" if v else "–"
 
-    def diff_text(d):
-        return "–" if d is None else f"{d[0]:+.2f} ± {d[1]:.2f}, p = {d[2]:.2g}"
-
     return (
         f"| 3. At test they assimilated a new (fifth) skewer into the rule they had inferred | "
         f"strict, *any* mapping: {_share(strict_any, n_any)}; skewer {K}'s step-by-step score "
         f"after watching step by step: *plain* {mean_new(step_plain)} (paired difference to "
-        f"the options runs {diff_text(d_plain)}), *any* {mean_new(step_any)} (paired "
-        f"difference {diff_text(d_any)}) | "
+        f"the options runs {_diff_text(d_plain)}), *any* {mean_new(step_any)} (paired "
+        f"difference {_diff_text(d_any)}) | "
         f"{_verdict(ok3, partly3)} | (c) |"
     )
