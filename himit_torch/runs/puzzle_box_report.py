@@ -481,8 +481,7 @@ _DESIGNS = (
 
 
 def _score(run: dict, organisation: str, key: str = "scores") -> float:
-    scores = run.get(key) or {}
-    value = scores.get(organisation)
+    value = (run.get(key) or {}).get(organisation)
     return math.nan if value is None else float(value)
 
 
