@@ -778,7 +778,7 @@ def run_puzzle_box(
         resume=resume,
         force=force,
         progress=progress,
-        check=config.check_size,
+        check=lambda: config.check_size(),
     )
 
 
