@@ -250,7 +250,7 @@ def recorded_run_command(run_dir: str | os.PathLike) -> str | None:
     ``summary.json`` records (None where it no longer builds one: an older record)."""
     from himit_torch.runs.puzzle_box_report import read_summary
 
-    recorded = {k: v for k, v in read_summary(run_dir)["config"].items() if k != "box_steps"}
+    recorded = {k: v for k, v in read_summary(Path(run_dir))["config"].items() if k != "box_steps"}
     try:
         config = PuzzleBoxConfig(**recorded)
     except (TypeError, ValueError):
