@@ -56,28 +56,25 @@ rerun ends with exactly the tables of an uninterrupted one. At the end the sweep
   (``scipy.stats.binomtest``);
 * ``sweep.json`` — the spec as resolved (cells, trials), the commit and engines that ran.
 
-**Where the trials run: Ray core, not Ray Tune.** With Ray importable, trials are Ray tasks
-(a local Ray of the sweep's own; ``address=`` or ``RAY_ADDRESS`` joins a cluster, sending the
-token a cluster with token authentication wants: :mod:`himit_torch.runs.ray_cluster`, and
-``docs/cluster.md`` for a cluster's commands), one CPU each, the finished ones collected as they
-end. Ctrl-C (``KeyboardInterrupt``) cancels the tasks still running (``ray.cancel(force=True)``:
-their workers end at once rather than run their batch out) and returns within seconds; a rerun
-resumes them from their checkpoints. Without Ray they run one after another in this process
-(the sweep says so in one line). Measured on the 2-core development machine (Python 3.11,
-``pip install ray==2.60.0``): Ray core adds 250 MB to the environment and installs in 9 s;
-``import ray`` takes 0.5–0.7 s. Ray Tune adds pandas, pyarrow, pydantic and tensorboardX on top:
-another 265 MB (the environment's Ray share more than doubles) and ``import ray.tune`` 1.3–1.5 s.
-What Tune brings — search algorithms, early-stopping schedulers (ASHA, PBT), its own trial
-checkpointing and result store — is not what these studies need: the grid is fixed, every seed
-of every cell must run to the end (stopping poor trials early would hide failing seeds, the very
-thing experiment 2 is about), and checkpoints and the result table are already the run
-directories'. Ray core's tasks give the distribution; hence the ``sweep`` extra installs ``ray``
-alone.
+**Where the trials run: Ray core, not Ray Tune.** With Ray importable, trials are Ray tasks, one
+CPU each, collected as they end (a local Ray of the sweep's own; ``address=`` or ``RAY_ADDRESS``
+joins a cluster, sending the token it wants: :mod:`himit_torch.runs.ray_cluster`; a cluster's
+commands: ``docs/cluster.md``). Ctrl-C cancels the tasks still running (``ray.cancel(force=True)``:
+their workers end at once) and returns within seconds; a rerun resumes them from their
+checkpoints. Without Ray they run one after another in this process. Measured with Ray 2.60 on
+Python 3.11: Ray core adds 250 MB to the environment and ``import ray`` 0.5–0.7 s; Ray Tune
+another 265 MB (pandas, pyarrow, pydantic, tensorboardX) and 1.3–1.5 s to import, for search
+algorithms, early-stopping schedulers and a result store that a fixed grid does not use: every
+seed of every cell must run to the end (stopping poor trials early would hide failing seeds, the
+very thing experiment 2 is about), and the run directories already hold the checkpoints and the
+tables. Hence the ``sweep`` extra installs ``ray`` alone.
 """
 
 from __future__ import annotations
 
 import csv
+import functools
+import importlib
 import itertools
 import json
 import math
@@ -211,7 +208,7 @@ def _check_setting(name: str, where: str) -> None:
     experiment = {f.name for f in fields(ExperimentConfig)} - _OWNED - {"learner"}
     learner = {f.name for f in fields(LearnerConfig)}
     if name.startswith("learner."):
-        if name[len("learner.") :] not in learner:
+        if name.removeprefix("learner.") not in learner:
             raise ValueError(
                 f"{where}: unknown setting {name!r}; learner settings: "
                 f"{sorted('learner.' + n for n in learner)}"
@@ -247,15 +244,7 @@ def _apply(config: ExperimentConfig, settings: dict) -> ExperimentConfig:
 def _slug(levels: dict) -> str:
     if not levels:
         return "baseline"
-    parts = []
-    for name, value in levels.items():
-        short = name[len("learner.") :] if name.startswith("learner.") else name
-        text = (
-            "none"
-            if value is None
-            else (",".join(map(str, value)) if isinstance(value, (list, tuple)) else str(value))
-        )
-        parts.append(f"{short}={text}")
+    parts = [f"{name.removeprefix('learner.')}={_show(value)}" for name, value in levels.items()]
     return re.sub(r"[^A-Za-z0-9_.,=+-]", "_", "__".join(parts))
 
 
@@ -264,11 +253,8 @@ def _level(name: str, value: Any) -> Any:
     ``None``; elsewhere it stays the string (e.g. ``second_mentor = "none"``)."""
     if not (isinstance(value, str) and value.lower() == "none"):
         return value
-    cls, field = (
-        (LearnerConfig, name[len("learner.") :])
-        if name.startswith("learner.")
-        else (ExperimentConfig, name)
-    )
+    cls = LearnerConfig if name.startswith("learner.") else ExperimentConfig
+    field = name.removeprefix("learner.")
     return None if next(s for s in settings_of(cls) if s.name == field).optional else value
 
 
@@ -333,9 +319,7 @@ def _spec_base(data: dict, path: Path, where: str) -> tuple[str, ExperimentConfi
         raise ValueError(f"{where}: base must be exp1, exp2, exp3 or a config.json path")
     if base_name in EXPERIMENTS:
         return base_name, EXPERIMENTS[base_name]
-    config_path = (
-        (path.parent / base_name) if not Path(base_name).is_absolute() else Path(base_name)
-    )
+    config_path = path.parent / base_name  # (an absolute base_name stays itself)
     if not config_path.exists():
         raise ValueError(
             f"{where}: base={base_name!r} is neither one of {sorted(EXPERIMENTS)} "
@@ -381,7 +365,15 @@ def _cells(
         combos = [baseline] + [
             {**baseline, n: v} for n, levels in factors.items() for v in levels[1:]
         ]
-    cells, slugs = [], set()
+
+    def refused(levels: dict) -> Exception | None:
+        try:
+            _apply(base, {**fixed, **levels, **owned})
+        except (ValueError, TypeError) as error:
+            return error
+        return None
+
+    cells: list[Cell] = []
     for i, levels in enumerate(combos):
         shown = (
             {n: v for n, v in levels.items() if v != factors[n][0]}
@@ -391,38 +383,16 @@ def _cells(
         try:
             config = _apply(base, {**fixed, **levels, **owned})
         except (ValueError, TypeError) as err:
-            raise _refused_cell(where, base, fixed, combos, owned, levels, err) from None
+            # the [set]'s refusal where [set] is refused alone and whatever the levels
+            alone = refused({})
+            if alone is not None and all(refused(c) for c in combos):
+                raise ValueError(f"{where} [set]: {alone}") from None
+            raise ValueError(f"{where}: cell {_slug(levels)}: {err}") from None
         slug = _slug(shown)
-        if slug in slugs:
+        if any(c.slug == slug for c in cells):
             raise ValueError(f"{where}: two cells are the same ({slug}); a factor repeats a level")
-        slugs.add(slug)
         cells.append(Cell(i, slug, levels, config))
     return cells
-
-
-def _refused_cell(
-    where: str,
-    base: ExperimentConfig,
-    fixed: dict,
-    combos: list[dict],
-    owned: dict,
-    levels: dict,
-    err: Exception,
-) -> ValueError:
-    """The refusal of the cell of ``levels``: the ``[set]``'s where ``[set]`` is
-    refused alone and whatever the levels, else the cell's."""
-
-    def refused(settings: dict) -> Exception | None:
-        try:
-            _apply(base, settings)
-        except (ValueError, TypeError) as error:
-            return error
-        return None
-
-    alone = refused({**fixed, **owned})
-    if alone is not None and all(refused({**fixed, **c, **owned}) for c in combos):
-        return ValueError(f"{where} [set]: {alone}")
-    return ValueError(f"{where}: cell {_slug(levels)}: {err}")
 
 
 # ============================================================================= the trials
@@ -444,21 +414,14 @@ def _trial_state(trial: Trial) -> str:
     return "done" if finished else "started"
 
 
-def run_trial(config_json: str, run_dir: str, resume: bool, threads: int | None = None) -> dict:
-    """Run (or resume) one trial; what a Ray task or the in-process loop calls. Returns the
-    engine, commit and wall seconds of its world."""
+def run_trial(config_json: str, run_dir: str, resume: bool, threads: int | None = None) -> None:
+    """Run (or resume) one trial; what a Ray task or the in-process loop calls."""
     from himit_torch.runs.experiment import run_experiment
 
     if threads is not None:
         share_cores(threads)
     config = ExperimentConfig(**json.loads(config_json))  # (its learner's dict checked too)
-    [result] = run_experiment(config, run_dir, resume=resume, progress=False, workers=1)
-    return {
-        "run_dir": run_dir,
-        "engine": result.engine,
-        "commit": result.commit,
-        "wall_seconds": result.wall_seconds,
-    }
+    run_experiment(config, run_dir, resume=resume, progress=False, workers=1)
 
 
 def _execute(
@@ -470,14 +433,10 @@ def _execute(
     niceness: int = WORKER_NICENESS,
 ) -> None:
     """Run the unfinished trials: Ray tasks when Ray is importable (and wanted), else here."""
-    ray: Any = None
-    if use_ray:
-        try:
-            import ray as _ray
-
-            ray = _ray
-        except ImportError:
-            ray = None
+    try:
+        ray: Any = importlib.import_module("ray") if use_ray else None
+    except ImportError:
+        ray = None
     if not todo:
         return
     start = time.perf_counter()
@@ -593,9 +552,7 @@ def _show(value: Any) -> str:
 #: The measures that are counts (skewed, bounded below): summarised with a BCa bootstrap
 #: interval, which stays in the possible range where a t-interval can go below zero.
 _COUNT_MEASURES = ("total_goals", "final_window_goals", "late_goals", "first_goal_step")
-
-
-_MEASURES = ("total_goals", "final_window_goals", "late_goals", "first_goal_step", "value_start")
+_MEASURES = (*_COUNT_MEASURES, "value_start")
 #: The frozen greedy policies at the end (exact, ``himit_torch.runs.greedy``): blank in
 #: ``runs.csv`` for trials run without them (``greedy_every = None``, or older trials).
 _GREEDY_MEASURES = (
@@ -628,18 +585,13 @@ def summarize(spec: SweepSpec, out: Path) -> dict:
         runs.extend(_run_rows(trial, settings, world, curves))
     order = {c.slug: c.index for c in spec.cells}
     agent_order = {a: i for i, a in enumerate(spec.cells[0].config.agents)}
-    results.sort(
-        key=lambda r: (
-            order[r["cell"]],
-            int(r["world"]),
-            agent_order.get(r["agent"], 99),
-            int(r["seed"]),
-            int(r["step"]),
-        )
-    )
-    runs.sort(
-        key=lambda r: (order[r["cell"]], r["world"], agent_order.get(r["agent"], 99), r["seed"])
-    )
+
+    def key(r: dict) -> tuple:  # results.csv's rows (text) by step too, runs.csv's (numbers)
+        where = (order[r["cell"]], int(r["world"]), agent_order.get(r["agent"], 99))
+        return (*where, int(r["seed"]), int(r.get("step", 0)))
+
+    results.sort(key=key)
+    runs.sort(key=key)
     head = ["sweep", "cell", *factor_cols]
     write_rows(
         out / "results.csv", head + [k for k in results[0] if k not in head], results, newline="\n"
@@ -661,31 +613,29 @@ def _run_rows(trial: Trial, settings: dict, world: dict, curves: list[dict]) -> 
     per_run: dict = {}
     for row in curves:
         per_run.setdefault((row["agent"], int(row["seed"])), []).append(int(row["goals_in_window"]))
-    rows = []
-    for b, (agent, seed) in enumerate(zip(world["agents"], world["seeds"])):
-        rows.append(
-            {
-                **settings,
-                "world": trial.size,
-                "agent": agent,
-                "seed": seed,
-                "total_goals": world["goals"][b],
-                "final_window_goals": world["final_window_goals"][b],
-                "late_goals": sum(per_run[(agent, seed)][-late_windows:]),
-                "first_goal_step": world["first_goal_step"][b],
-                "value_start": f"{world['value_start'][b]:.6f}",
-                "true_value_start": f"{world['true_value_start']:.6f}",
-                "mentor_term_wins": f"{world['mentor_term_wins'][b]:.4f}",
-                "optimal_goals_per_window": f"{world['optimal_goals_per_window']:.3f}",
-                **{m: f"{world[m][b]:.6g}" if world.get(m) else "" for m in _GREEDY_MEASURES},
-                "mentor_goals_per_window": (
-                    f"{world['mentor_goals_per_window']:.3f}"
-                    if world.get("greedy_goals_per_window")
-                    else ""
-                ),
-            }
-        )
-    return rows
+    return [
+        {
+            **settings,
+            "world": trial.size,
+            "agent": agent,
+            "seed": seed,
+            "total_goals": world["goals"][b],
+            "final_window_goals": world["final_window_goals"][b],
+            "late_goals": sum(per_run[(agent, seed)][-late_windows:]),
+            "first_goal_step": world["first_goal_step"][b],
+            "value_start": f"{world['value_start'][b]:.6f}",
+            "true_value_start": f"{world['true_value_start']:.6f}",
+            "mentor_term_wins": f"{world['mentor_term_wins'][b]:.4f}",
+            "optimal_goals_per_window": f"{world['optimal_goals_per_window']:.3f}",
+            **{m: f"{world[m][b]:.6g}" if world.get(m) else "" for m in _GREEDY_MEASURES},
+            "mentor_goals_per_window": (
+                f"{world['mentor_goals_per_window']:.3f}"
+                if world.get("greedy_goals_per_window")
+                else ""
+            ),
+        }
+        for b, (agent, seed) in enumerate(zip(world["agents"], world["seeds"]))
+    ]
 
 
 def _summary_rows(
@@ -717,30 +667,21 @@ def _summary_rows(
                 cells = tuple(f"{x:.4g}" for x in (interval.estimate, interval.low, interval.high))
             row.update({f"{m}_mean": cells[0], f"{m}_ci_low": cells[1], f"{m}_ci_high": cells[2]})
         failed = sum(int(r["first_goal_step"]) < 0 for r in rs)
+        row["failed"] = failed
         share = share_interval(failed, len(rs))
-        row.update(
-            {
-                "failed": failed,
-                "failed_share": f"{share.estimate:.3f}",
-                "failed_ci_low": f"{share.low:.3f}",
-                "failed_ci_high": f"{share.high:.3f}",
-            }
-        )
+        for key, x in (("share", share.estimate), ("ci_low", share.low), ("ci_high", share.high)):
+            row[f"failed_{key}"] = f"{x:.3f}"
         summary.append(row)
     return summary
 
 
+#: What ``summary.md`` says of the spec, but its file (the keys ``sweep.json`` records too).
+_ABOUT = ("name", "base", "design", "seeds", "first_seed", "worlds")
+
+
 def _about(spec: SweepSpec) -> dict:
-    """What ``summary.md`` says of the spec (the keys ``sweep.json`` records too)."""
-    return {
-        "name": spec.name,
-        "base": spec.base,
-        "design": spec.design,
-        "seeds": spec.seeds,
-        "first_seed": spec.first_seed,
-        "worlds": list(spec.worlds),
-        "spec": spec.source,
-    }
+    about = {key: getattr(spec, key) for key in _ABOUT}
+    return {**about, "worlds": list(spec.worlds), "spec": spec.source}
 
 
 def rewrite_summary(out: str | os.PathLike) -> None:
@@ -756,9 +697,7 @@ def rewrite_summary(out: str | os.PathLike) -> None:
         steps_of = {c["cell"]: int(c["config"]["steps"]) for c in record["cells"]}
         factor_cols = list(record["factors"])
         provenance = {"commit": list(record["commit"]), "engine": list(record["engine"])}
-        about = {
-            key: record[key] for key in ("name", "base", "design", "seeds", "first_seed", "worlds")
-        }
+        about = {key: record[key] for key in _ABOUT}
     except (KeyError, TypeError) as err:
         raise ValueError(f"{where} is not a sweep's record ({err!r} missing)") from None
     about["spec"] = record.get("spec")
@@ -867,10 +806,7 @@ def run_sweep(
     if not isinstance(spec, SweepSpec):
         spec = load_spec(spec)
     if log is None:
-
-        def log(line):
-            print(line, file=sys.stderr, flush=True)
-
+        log = functools.partial(print, file=sys.stderr, flush=True)
     if worker_niceness is not None:
         spec = replace(spec, worker_niceness=as_int("worker_niceness", worker_niceness, 0, 19))
     out = check_folder_path("the sweep's folder", out)
