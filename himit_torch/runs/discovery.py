@@ -38,6 +38,7 @@ goals, the greedy policy's % of the optimum, discovered options), ``subgoals.csv
 from __future__ import annotations
 
 import csv
+import functools
 import os
 import time
 from collections.abc import Callable
@@ -197,9 +198,8 @@ class DiscoveryConfig(RunConfig):
         )
 
 
-def _window_goals(learner: Learner) -> np.ndarray:
-    """``[B, W]`` goals per window so far."""
-    return np.asarray([[int(g) for g in row] for row in learner.metrics.goals_in_window]).T
+def _per_agent() -> dict:
+    return {a: {} for a in DISCOVERY_AGENTS}
 
 
 @dataclass
@@ -217,20 +217,13 @@ class _World:
     log: Callable[..., None]
     prims: Options
     found: dict[int, Any] = field(default_factory=dict)
-    goals: dict[str, dict[int, np.ndarray]] = field(
-        default_factory=lambda: {a: {} for a in DISCOVERY_AGENTS}
-    )
-    first_goal: dict[str, dict[int, int]] = field(
-        default_factory=lambda: {a: {} for a in DISCOVERY_AGENTS}
-    )
-    greedy: dict[str, dict[int, float]] = field(
-        default_factory=lambda: {a: {} for a in DISCOVERY_AGENTS}
-    )
+    goals: dict[str, dict[int, np.ndarray]] = field(default_factory=_per_agent)
+    first_goal: dict[str, dict[int, int]] = field(default_factory=_per_agent)
+    greedy: dict[str, dict[int, float]] = field(default_factory=_per_agent)
     build_seconds: list[float] = field(default_factory=list)
     option_counts: dict[tuple[str, int], int] = field(default_factory=dict)
     refreshes: list[int] = field(default_factory=list)
     wall: dict[str, float] = field(default_factory=dict)
-    _optimal: float | None = None
 
     def batch(self, lcfg: LearnerConfig, engine: str, options: Options, agents, run_seeds):
         """A learner batch on the world, every seed watching its own episodes."""
@@ -240,28 +233,22 @@ class _World:
 
     def record(self, learner: Learner, names: list[str], run_seeds: list[int]) -> None:
         """Each run's goals per window, first goal and greedy policy's % of the optimum, under
-        its name."""
-        g, greedy = _window_goals(learner), self.greedy_percent(learner)
-        for b, (a, s) in enumerate(zip(names, run_seeds)):
-            self.goals[a][s] = g[b]
-            self.first_goal[a][s] = int(learner.views.first_goal_step[b])
-            self.greedy[a][s] = greedy[b]
-
-    def greedy_percent(self, learner: Learner) -> list[float]:
-        """Each run's frozen greedy policy now (over the learner's options, untried states
-        uniform), evaluated exactly, as % of the optimum's goals per window."""
+        its name: its frozen greedy policy now (over the learner's options, untried states
+        uniform), evaluated exactly."""
+        goals = np.asarray([[int(g) for g in row] for row in learner.metrics.goals_in_window]).T
         evaluation = PolicyEvaluator(self.world, learner.options, self.base.window).evaluate(
             learner.views.greedy_policy(), values=False
         )
-        return evaluation.percent_of(self.optimal_goals_per_window).tolist()
+        greedy = evaluation.percent_of(self.optimal_goals_per_window).tolist()
+        for b, (a, s) in enumerate(zip(names, run_seeds)):
+            self.goals[a][s] = goals[b]
+            self.first_goal[a][s] = int(learner.views.first_goal_step[b])
+            self.greedy[a][s] = greedy[b]
 
-    @property
+    @functools.cached_property
     def optimal_goals_per_window(self) -> float:
-        """The optimum's goals per window (the reference of :meth:`greedy_percent`)."""
-        if self._optimal is None:
-            best = primitive_optimum(self.world, self.base.window)
-            self._optimal = float(best.evaluation.goals_per_window[0])
-        return self._optimal
+        """The optimum's goals per window (the reference of the greedy policies' %)."""
+        return float(primitive_optimum(self.world, self.base.window).evaluation.goals_per_window[0])
 
 
 def _find_subgoals(config: DiscoveryConfig, w: _World) -> tuple[list[dict], list[dict]]:
@@ -354,10 +341,8 @@ def _run_discovered(config: DiscoveryConfig, w: _World, phase1: Learner, out: Pa
             learner = with_options(phase1, opts, runs=[run], agents=[agent])
             n_swaps = 0
             while learner.views.t < steps:
-                stop = steps
-                if config.refresh_every is not None:
-                    stop = min(stop, learner.views.t + config.refresh_every)
-                run_windows(learner, stop)
+                # to the end, or to the next rebuild where there are rebuilds
+                run_windows(learner, min(steps, learner.views.t + (config.refresh_every or steps)))
                 if learner.views.t < steps:
                     learner = with_options(learner, _discovered(config, w, learner, 0, s))
                     n_swaps += 1
@@ -532,24 +517,13 @@ class DiscoveryStudy:
         _write_results(out, config, finished.results, finished.total)
 
 
-def _check_steps(config: DiscoveryConfig) -> None:
-    if config.steps is not None and config.steps <= config.warmup:
-        raise ValueError(f"steps={config.steps} must exceed the warm-up ({config.warmup})")
-
-
 def run_discovery(
     config: DiscoveryConfig, run_dir: str | os.PathLike, force: bool = False, progress: bool = True
 ) -> list[dict]:
     """Run the discovery experiment into ``run_dir`` (see the module docstring;
     :class:`DiscoveryStudy` through :func:`~himit_torch.runs.study.run_study`)."""
     finished = run_study(
-        DiscoveryStudy(),
-        config,
-        run_dir,
-        resume=None,
-        force=force,
-        progress=progress,
-        check=lambda: _check_steps(config),
+        DiscoveryStudy(), config, run_dir, resume=None, force=force, progress=progress
     )
     return finished.results
 
@@ -666,7 +640,7 @@ def _subgoals_section(config: DiscoveryConfig, r: dict) -> list[str]:
             f"| {n} | {_fmt([x['precision'] for x in rows], 2)} | "
             f"{_fmt([x['recall'] for x in rows], 2)} |"
         )
-    n_opts = [v for (variant, _), v in r["option_counts"].items()]
+    n_opts = list(r["option_counts"].values())
     return lines + [
         "",
         f"Options built at the warm-up per run: {_fmt(n_opts)} (min {min(n_opts)}); "
@@ -696,9 +670,8 @@ def _learning_section(r: dict) -> list[str]:
             f"{_fmt(greedy[a])} |"
         )
     hand, disc, prim = (
-        np.mean(tot["doorway_imitation"]),
-        np.mean(tot["discovered_imitation"]),
-        np.mean(tot["imitation_primitives"]),
+        np.mean(tot[a])
+        for a in ("doorway_imitation", "discovered_imitation", "imitation_primitives")
     )
     ratio = disc / hand if hand else float("nan")
     r["ratio"] = ratio

@@ -430,7 +430,7 @@ def _execute(
     use_ray: bool,
     workers: int | None,
     log,
-    niceness: int = WORKER_NICENESS,
+    niceness: int,
 ) -> None:
     """Run the unfinished trials: Ray tasks when Ray is importable (and wanted), else here."""
     try:
