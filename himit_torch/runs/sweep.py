@@ -600,9 +600,8 @@ def summarize(spec: SweepSpec, out: Path) -> dict:
     summary = _summary_rows(
         spec.name, factor_cols, {c.slug: c.config.steps for c in spec.cells}, runs
     )
-    write_rows(out / "summary.csv", list(summary[0]), summary, newline="\n")
     provenance = {"commit": sorted(commits), "engine": sorted(engines)}
-    _write_summary_md(_about(spec), out, summary, provenance)
+    _write_summary(_about(spec), out, summary, provenance)
     return provenance
 
 
@@ -705,8 +704,7 @@ def rewrite_summary(out: str | os.PathLike) -> None:
     if not runs:
         raise ValueError(f"{out / 'runs.csv'} holds no runs")
     summary = _summary_rows(about["name"], factor_cols, steps_of, runs)
-    write_rows(out / "summary.csv", list(summary[0]), summary, newline="\n")
-    _write_summary_md(about, out, summary, provenance)
+    _write_summary(about, out, summary, provenance)
 
 
 def sweep_command(about: dict, out: str | os.PathLike) -> str | None:
@@ -720,7 +718,8 @@ def sweep_command(about: dict, out: str | os.PathLike) -> str | None:
     return " ".join(words)
 
 
-def _write_summary_md(about: dict, out: Path, summary: list[dict], provenance: dict) -> None:
+def _write_summary(about: dict, out: Path, summary: list[dict], provenance: dict) -> None:
+    write_rows(out / "summary.csv", list(summary[0]), summary, newline="\n")
     command = sweep_command(about, out)
     commits = provenance["commit"]
     lines = [
