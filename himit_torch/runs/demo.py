@@ -45,12 +45,11 @@ def _demonstrations(out: Path, episodes: int, seed: int) -> Iterator[str]:
     rollout = run_mentor(world, mentor, episodes, seed=seed)
     demos = Demonstrations(list(rollout.states), world.describe())
     lengths = demos.episode_lengths.double()
-    counts = rollout.decision_counts()
     yield (
         f"mentor    {options.num_options} options; {episodes} episodes, "
         f"{lengths.mean():.1f} steps on average (min {int(lengths.min())}, max "
         f"{int(lengths.max())}); decisions: "
-        + ", ".join(f"{n} {k}" for k, n in sorted(counts.items()))
+        + ", ".join(f"{n} {k}" for k, n in sorted(rollout.decision_counts().items()))
     )
     npz = demos.save(out / "demonstrations.npz")
     png = save_world_figure(
@@ -88,10 +87,9 @@ def _learning(
     results = run_experiment(config, out / "learning", force=True, progress=progress)
     r = results[0]
     for agent in config.agents:
-        idx = [b for b, a in enumerate(r.agents) if a == agent]
         yield (
             f"  {agent:<12} goals in the last {config.window} steps: "
-            + ", ".join(str(r.final_window_goals[b]) for b in idx)
+            + ", ".join(str(g) for a, g in zip(r.agents, r.final_window_goals) if a == agent)
             + f"   (optimal ≈ {r.optimal_goals_per_window:.1f})"
         )
     yield (

@@ -183,34 +183,26 @@ def _hparams(config: ExperimentConfig, size: int, agent: str) -> dict:
     """A run group's settings for TensorBoard's HParams dashboard: agent, experiment,
     world and every setting off the library's defaults (never the seed, which it aggregates)."""
     hp = {"agent": agent, "experiment": config.name, "world": f"{size}×{size}"}
-    skip = {
-        "name",
-        "sizes",
-        "agents",
-        "seeds",
-        "first_seed",
-        "device",
-        "checkpoint_every",
-        "greedy_every",
-        "learner",
-    }
-    default = ExperimentConfig()
-    hp.update(
-        {
-            f.name: getattr(config, f.name)
-            for f in fields(config)
-            if f.name not in skip and getattr(config, f.name) != getattr(default, f.name)
-        }
-    )
-    default_learner = LearnerConfig(window=config.window)
-    hp.update(
-        {
-            f.name: getattr(config.learner, f.name)
-            for f in fields(config.learner)
-            if getattr(config.learner, f.name) != getattr(default_learner, f.name)
-        }
-    )
+    for settings, default in (
+        (config, ExperimentConfig()),
+        (config.learner, LearnerConfig(window=config.window)),
+    ):
+        hp.update(
+            {
+                f.name: getattr(settings, f.name)
+                for f in fields(settings)
+                if f.name not in _NOT_HPARAMS
+                and getattr(settings, f.name) != getattr(default, f.name)
+            }
+        )
     return hp
+
+
+#: The experiment's settings left out of its hparams: the seeds TensorBoard aggregates, the
+#: learner's own (listed one by one), and what does not change a run's course.
+_NOT_HPARAMS = frozenset(
+    "name sizes agents seeds first_seed device checkpoint_every greedy_every learner".split()
+)
 
 
 @dataclass
@@ -266,27 +258,15 @@ def run_world(
     wall = _run_batch(
         batch, learner, logger, greedy, checkpoints, mentoring.demos, progress, on_window, elapsed
     )
-    final = None if greedy is None else greedy.finish(learner)
     result = _world_result(batch, learner, optimal_steps, true_v, wall)
-    if greedy is not None and final is not None:
-        _add_greedy_results(result, greedy, final)
+    if greedy is not None:
+        _add_greedy_results(result, greedy, greedy.finish(learner))
     _log_hparams(batch, logger, learner, result)
     logger.close()
     _write_curves(run_dir / "worlds" / f"curves{size}.csv", learner, size, greedy)
-    # The world's figures are drawn here, as it ends, not with the report after the last
-    # world (where they were ≈ 3 s of `himit run paper`'s tail); the record comes last, so a
-    # world with a record has its figures.
-    _world_figure(
-        run_dir,
-        config,
-        batch.world,
-        mentoring.recorded[seeds[0]],
-        learner,
-        agents,
-        run_seeds,
-        seeds[0],
-        size,
-    )
+    # The world's figures are drawn as it ends, not with the report; the record comes last, so
+    # a world with a record has its figures.
+    _world_figure(batch, mentoring.recorded[seeds[0]], learner)
     _world_curve_figures(run_dir, config, result)
     write_atomically(run_dir / "worlds" / f"world{size}.json", json.dumps(asdict(result), indent=1))
     return result
@@ -605,19 +585,25 @@ def _world_curve_figures(run_dir: Path, config: ExperimentConfig, result: WorldR
         write_world_figures(run_dir, config, result, curves)
 
 
-def _world_figure(run_dir, config, world, demos, learner, agents, run_seeds, seed, size):
+def _world_figure(batch: _WorldBatch, demos: Demonstrations, learner: Learner) -> None:
+    """Fig. 2: the first seed's demonstrations (``demos``) and its imitator's greedy path."""
     from himit_torch.viz.plotting import save_world_figure
 
-    fig_dir = run_dir / "figures"
+    seed, size, world = batch.seeds[0], batch.size, batch.world
+    fig_dir = batch.run_dir / "figures"
     fig_dir.mkdir(parents=True, exist_ok=True)
     imitator = next(
-        (b for b, a in enumerate(agents) if run_seeds[b] == seed and a.startswith("imitation")),
+        (
+            b
+            for b, a in enumerate(batch.agents)
+            if batch.run_seeds[b] == seed and a.startswith("imitation")
+        ),
         None,
     )
     learned = None
     if imitator is not None:
         learned = learner.views.greedy_trajectory(
-            imitator, max_steps=20 * size * size // config.room_size, seed=seed
+            imitator, max_steps=20 * size * size // batch.config.room_size, seed=seed
         )
     save_world_figure(
         fig_dir / f"fig2_world{size}.png",
@@ -665,12 +651,8 @@ class ExperimentStudy:
     def finished(config: ExperimentConfig, run_dir: Path, resume: bool) -> dict[int, WorldResult]:
         """The worlds a resumed run already finished (``size → WorldResult``; none unless
         ``resume``)."""
-        finished = {}
-        for size in config.sizes:
-            done = run_dir / "worlds" / f"world{size}.json"
-            if resume and done.exists():
-                finished[size] = read_world_result(done, size)
-        return finished
+        records = {size: run_dir / "worlds" / f"world{size}.json" for size in config.sizes}
+        return {s: read_world_result(p, s) for s, p in records.items() if resume and p.exists()}
 
     def run(
         self, config: ExperimentConfig, run_dir: Path, resume: bool, progress: bool
@@ -688,7 +670,10 @@ class ExperimentStudy:
     ) -> None:
         """The finished experiment's ``curves.csv`` (its worlds' merged), figures (those across
         worlds; a world's own only where its process did not draw them) and ``results.md``."""
-        _merge_curves(run_dir, config)
+        merge_csv(
+            [run_dir / "worlds" / f"curves{size}.csv" for size in config.sizes],
+            run_dir / "curves.csv",
+        )
         _write_report(run_dir, config, {r.size: r for r in results}, redraw_worlds=False)
 
 
@@ -714,7 +699,7 @@ def run_experiment(
         resume=bool(resume),
         force=force,
         progress=progress,
-        check=lambda: config.check_size(),
+        check=config.check_size,
         resume_hint=study.resume_hint(run_dir) if isinstance(run_dir, (str, os.PathLike)) else "",
         load=load_config,
     )
@@ -734,27 +719,21 @@ def run_experiments(
 
     Returns:
         Per plan, its worlds' results in the order of its ``config.sizes``."""
-    dirs = [Path(run_dir) for _, run_dir in plans]
+    paths = [(config, Path(run_dir)) for config, run_dir in plans]
+    dirs = [run_dir for _, run_dir in paths]
     if len(set(map(os.path.abspath, dirs))) != len(dirs):
         raise ValueError(f"run_experiments: two plans share a run directory ({dirs})")
     study = ExperimentStudy(workers)
-    for (config, _), run_dir in zip(plans, dirs, strict=True):  # all checked before any changes
+    for config, run_dir in paths:  # all checked before any changes
         config.check_size()
         check_run_dir(run_dir, force=force, resume=bool(resume))
         if resume and not force:
             check_resumed_config(run_dir, config, study.resume_hint(run_dir), load_config)
     finished = []
-    for (config, _), run_dir in zip(plans, dirs, strict=True):
+    for config, run_dir in paths:
         study.prepare(config, run_dir, resume, force)
         finished.append(study.finished(config, run_dir, resume))
-    return _run_worlds(
-        study,
-        [(config, run_dir) for (config, _), run_dir in zip(plans, dirs, strict=True)],
-        finished,
-        resume,
-        progress,
-        report=True,
-    )
+    return _run_worlds(study, paths, finished, resume, progress, report=True)
 
 
 def _run_worlds(
@@ -780,29 +759,25 @@ def _run_worlds(
     results: list[list[WorldResult] | None] = [None] * len(plans)
     workers_used = workers_for(len(todo), study.workers)
 
-    def plan_done(i: int) -> None:
+    def report_if_done(i: int) -> None:
         config, run_dir = plans[i]
-        results[i] = done = [finished[i][size] for size in config.sizes]
-        if report:
-            study.report(config, run_dir, done)
+        if all(size in finished[i] for size in config.sizes):
+            results[i] = done = [finished[i][size] for size in config.sizes]
+            if report:
+                study.report(config, run_dir, done)
 
     def announce(job: Any) -> None:
-        if progress and workers_used > 1:
-            print(
-                f"{plans[job[0]][0].name}: world {job[1]}×{job[1]} done",
-                file=sys.stderr,
-                flush=True,
-            )
+        if progress:
+            name = plans[job[0]][0].name
+            print(f"{name}: world {job[1]}×{job[1]} done", file=sys.stderr, flush=True)
 
     def world_done(job: Any, result: WorldResult) -> None:
         i, size = job
         finished[i][size] = result
-        if all(s in finished[i] for s in plans[i][0].sizes):
-            plan_done(i)
+        report_if_done(i)
 
-    for i, (config, _) in enumerate(plans):  # nothing left to run (a resumed, finished run)
-        if all(s in finished[i] for s in config.sizes):
-            plan_done(i)
+    for i in range(len(plans)):  # nothing left to run (a resumed, finished run)
+        report_if_done(i)
     if workers_used > 1:
         jobs = [((i, size), (plans[i][0], size, plans[i][1], resume, False)) for i, size in todo]
         prepared = _kernels_prepared_here([plans[i][0] for i, _ in todo])
@@ -838,7 +813,7 @@ def _world_cost(config: ExperimentConfig, size: int) -> int:
 
 def _write_report(
     run_dir: Path, config: ExperimentConfig, finished: dict, redraw_worlds: bool = True
-) -> list[WorldResult]:
+) -> None:
     """The figures and ``results.md`` of finished worlds (``size → WorldResult``);
     ``redraw_worlds=False``: a world's own figures only where its process did not draw them."""
     from himit_torch.viz.report import write_figures, write_results
@@ -852,7 +827,6 @@ def _write_report(
         agent_settings_text(config.agents, config.learner),
         run_command(config, run_dir),
     )
-    return results
 
 
 def rewrite_report(run_dir: str | os.PathLike) -> None:
@@ -939,11 +913,6 @@ def check_curves(path: Path) -> None:
         curves.setdefault((row["world"], row["agent"]), []).append(row)
     for (world, agent), rows_of in curves.items():  # each a rectangle: seeds × the same steps
         series_of(rows_of, "goals_in_window", f"{where} (world {world}, {agent})", fix)
-
-
-def _merge_curves(run_dir: Path, config: ExperimentConfig) -> None:
-    parts = [run_dir / "worlds" / f"curves{size}.csv" for size in config.sizes]
-    merge_csv(parts, run_dir / "curves.csv")
 
 
 # ================================================================ the command line's entries

@@ -20,8 +20,21 @@ def recorded_mentor_episodes(config: ExperimentConfig, world: MultiRooms, mentor
     Demonstrations}``, with the stresses on what the mentor shows (``mentor_goal``, its noise,
     detour and coverage); its policy, the "% of mentor" reference, stays undisturbed. ``mentor``
     is the experiment's mentor in ``world`` (a moved goal's mentor is built here)."""
-    if config.mentor_goal != "same":
-        recorded = _other_goal(config, world, seeds)
+    if config.mentor_goal != "same":  # walking to the top-right corner, in the learner's world
+        leg = mentor_detour_of(config, world)
+        recorded = {
+            s: Demonstrations(
+                record_demonstrations(
+                    leg.first_leg,
+                    leg.to_waypoint,
+                    config.mentor_episodes,
+                    seed=s,
+                    noise=config.mentor_noise,
+                ).episodes,
+                world,
+            )
+            for s in seeds
+        }
     else:
         detour = mentor_detour_of(config, world) if config.mentor_detour else None
         recorded = {
@@ -35,7 +48,6 @@ def recorded_mentor_episodes(config: ExperimentConfig, world: MultiRooms, mentor
             )
             for s in seeds
         }
-        del detour
     if config.mentor_coverage < 1:  # only the first part of each route (mentor_coverage)
         recorded = {s: first_part(d, config.mentor_coverage) for s, d in recorded.items()}
     return recorded
@@ -46,22 +58,3 @@ def mentor_detour_of(config: ExperimentConfig, world: MultiRooms):
     return mentor_detour(
         world, corners=config.corner_options, prefer_extended_within=config.mentor_preference
     )
-
-
-def _other_goal(config, world, seeds) -> dict:
-    """Each seed's episodes of a mentor walking to the top-right corner
-    (``mentor_goal``), shown in the learner's own world."""
-    leg = mentor_detour_of(config, world)
-    return {
-        s: Demonstrations(
-            record_demonstrations(
-                leg.first_leg,
-                leg.to_waypoint,
-                config.mentor_episodes,
-                seed=s,
-                noise=config.mentor_noise,
-            ).episodes,
-            world,
-        )
-        for s in seeds
-    }
