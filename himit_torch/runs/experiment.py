@@ -348,12 +348,11 @@ def _greedy_tracker(
     """The tracker of the runs' frozen greedy policies (``None`` with ``greedy_every=None``)."""
     if mentor_eval is None:
         return None
-    config = batch.config
     return GreedyTracker(
-        PolicyEvaluator(batch.world, options, config.window),
+        PolicyEvaluator(batch.world, options, batch.config.window),
         GreedyReference(optimal_eval, mentor_eval),
-        config.greedy_every or 0,
-        config.steps,
+        batch.config.greedy_every or 0,
+        batch.config.steps,
     )
 
 
@@ -517,9 +516,7 @@ _CURVES = (
 )  # fmt: skip
 
 
-def _write_curves(
-    path: Path, learner: Learner, size: int, greedy: GreedyTracker | None = None
-) -> None:
+def _write_curves(path: Path, learner: Learner, size: int, greedy: GreedyTracker | None) -> None:
     """The world's ``curves.csv`` rows, one per run and window; with ``greedy``, its
     :data:`~himit_torch.runs.greedy.CURVE_COLUMNS` after the others."""
     m = learner.metrics
@@ -592,14 +589,8 @@ def _world_figure(batch: _WorldBatch, demos: Demonstrations, learner: Learner) -
     seed, size, world = batch.seeds[0], batch.size, batch.world
     fig_dir = batch.run_dir / "figures"
     fig_dir.mkdir(parents=True, exist_ok=True)
-    imitator = next(
-        (
-            b
-            for b, a in enumerate(batch.agents)
-            if batch.run_seeds[b] == seed and a.startswith("imitation")
-        ),
-        None,
-    )
+    runs = enumerate(zip(batch.agents, batch.run_seeds))
+    imitator = next((b for b, (a, s) in runs if s == seed and a.startswith("imitation")), None)
     learned = None
     if imitator is not None:
         learned = learner.views.greedy_trajectory(
@@ -792,15 +783,13 @@ def _run_worlds(
 
 def _kernels_prepared_here(configs: Sequence[ExperimentConfig]):
     """:func:`~himit_torch.runs.kernels.kernels_prepared_here` when some world will run
-    on the compiled engine, else nothing."""
-    from contextlib import nullcontext
-
+    on the compiled engine, else ``None`` (:func:`~himit_torch.runs.pool.run_pool`: nothing)."""
     from himit_torch.learner.engines import numba_available
 
     compiled = any(c.engine != "torch" and c.device == "cpu" for c in configs)
     if not (compiled and numba_available()):
-        return nullcontext()
-    from himit_torch.runs.kernels import kernels_prepared_here
+        return None
+    from himit_torch.runs.kernels import kernels_prepared_here  # (imports Numba)
 
     return kernels_prepared_here()
 
