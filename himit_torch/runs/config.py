@@ -259,8 +259,7 @@ class ExperimentConfig(RunConfig):
     derived_learner: ClassVar[tuple[str, ...]] = ("window", "mentors")
 
     def derived_learner_settings(self) -> dict[str, Any]:
-        """:meth:`RunConfig.derived_learner_settings`, and ``mentors``: the demonstration sets
-        the experiment shows (2 with a ``second_mentor``, else 1)."""
+        """:meth:`RunConfig.derived_learner_settings`, and ``mentors`` (above)."""
         derived = super().derived_learner_settings()
         return {**derived, "mentors": 1 + (self.second_mentor != "none")}
 
@@ -310,9 +309,8 @@ class ExperimentConfig(RunConfig):
                     raise ValueError(f"ExperimentConfig.goal_needs_primitives: {err}") from None
 
     def check_size(self) -> None:
-        """Refuse, before anything runs, a world of this experiment that
-        would not fit in memory (:func:`himit_torch.validation.check_memory`), not hours later when
-        its turn comes."""
+        """Refuse, before anything runs, a world of this experiment that would not fit in memory
+        (:func:`himit_torch.validation.check_memory`), not hours later when its turn comes."""
         for size in self.sizes:
             check_memory(
                 f"ExperimentConfig: world {size}×{size} with its options and a batch of "

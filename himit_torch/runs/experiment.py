@@ -745,7 +745,7 @@ def _run_worlds(
         if size not in finished[i]
     ]
     # the most expensive worlds first (a longest-first schedule); stable, so one experiment's
-    # worlds of equal cost keep the order of its sizes, largest first as before
+    # worlds of equal cost keep the order of its sizes
     todo.sort(key=lambda job: _world_cost(plans[job[0]][0], job[1]), reverse=True)
     results: list[list[WorldResult] | None] = [None] * len(plans)
     workers_used = workers_for(len(todo), study.workers)
@@ -936,13 +936,7 @@ def _describe(config: ExperimentConfig, run_dir: Path) -> str:
 
 
 def _run_plans(plans: Sequence[tuple[ExperimentConfig, Path]], flags: RunFlags) -> None:
-    run_experiments(
-        plans,
-        resume=flags.resume,
-        force=flags.force,
-        progress=flags.progress,
-        workers=flags.workers,
-    )
+    run_experiments(plans, **asdict(flags))
 
 
 def _info_flags(parser) -> None:
