@@ -690,7 +690,7 @@ def run_experiment(
         resume=bool(resume),
         force=force,
         progress=progress,
-        check=config.check_size,
+        check=lambda: config.check_size(),  # (after run_study has checked config's type)
         resume_hint=study.resume_hint(run_dir) if isinstance(run_dir, (str, os.PathLike)) else "",
         load=load_config,
     )
