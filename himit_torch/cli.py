@@ -108,7 +108,7 @@ def _int_in_range(minimum: int, maximum: int = COUNT_MAX) -> Callable[[str], int
             raise argparse.ArgumentTypeError(f"invalid whole number: {text!r}") from None
         if value < minimum:
             raise argparse.ArgumentTypeError(f"must be ≥ {minimum}, got {value}")
-        for bound in (COUNT_MAX, maximum):
+        for bound in (COUNT_MAX, maximum):  # COUNT_MAX first: its message wins when both fail
             if value > bound:
                 raise argparse.ArgumentTypeError(f"must be ≤ {bound}, got {value}")
         return value

@@ -1,7 +1,8 @@
 """Checkpoint files: a format that never runs code when read, and two generations of it.
 
-Run directories are copied between machines and shared, so opening one must never run code (a
-plain ``torch.load`` unpickles arbitrary objects). A checkpoint is one file of three parts::
+Run directories are copied between machines and shared, so opening one must never run code: a
+plain ``torch.load`` unpickles arbitrary objects, and a pickle's ``__reduce__`` can call anything.
+A checkpoint is one file of three parts::
 
     himit_torch checkpoint\\n        magic line: anything else is refused before a byte is unpickled
     {"format_version": 1, …}\\n     header: one line of JSON (step, batch shape, state layout,
@@ -665,10 +666,12 @@ class CheckpointGenerations:
         for path in self.paths:
             try:
                 found = read_checkpoint(path, map_location, expect_batch, expect_layout)
-                if restore is not None:
-                    restore(found)
             except DamagedCheckpoint as err:
                 skipped.append(Skipped(path, err.reason, err.step))
+                continue
+            try:
+                if restore is not None:
+                    restore(found)
             except DamagedState as err:  # restore refused the state: the file is as damaged
                 reason = f"its state is not one himit_torch writes ({err}); it was not restored"
                 skipped.append(Skipped(path, reason, found.header.step))

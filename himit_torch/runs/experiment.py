@@ -183,23 +183,22 @@ def _hparams(config: ExperimentConfig, size: int, agent: str) -> dict:
     """A run group's settings for TensorBoard's HParams dashboard: agent, experiment,
     world and every setting off the library's defaults (never the seed, which it aggregates)."""
     hp = {"agent": agent, "experiment": config.name, "world": f"{size}×{size}"}
-    for settings, default in (
-        (config, ExperimentConfig()),
-        (config.learner, LearnerConfig(window=config.window)),
+    for settings, default, left_out in (
+        (config, ExperimentConfig(), _NOT_HPARAMS),
+        (config.learner, LearnerConfig(window=config.window), frozenset()),
     ):
         hp.update(
             {
                 f.name: getattr(settings, f.name)
                 for f in fields(settings)
-                if f.name not in _NOT_HPARAMS
-                and getattr(settings, f.name) != getattr(default, f.name)
+                if f.name not in left_out and getattr(settings, f.name) != getattr(default, f.name)
             }
         )
     return hp
 
 
 #: The experiment's settings left out of its hparams: the seeds TensorBoard aggregates, the
-#: learner's own (listed one by one), and what does not change a run's course.
+#: learner's settings (listed one by one beside them), and what does not change a run's course.
 _NOT_HPARAMS = frozenset(
     "name sizes agents seeds first_seed device checkpoint_every greedy_every learner".split()
 )
@@ -710,21 +709,21 @@ def run_experiments(
 
     Returns:
         Per plan, its worlds' results in the order of its ``config.sizes``."""
-    paths = [(config, Path(run_dir)) for config, run_dir in plans]
-    dirs = [run_dir for _, run_dir in paths]
+    planned = [(config, Path(run_dir)) for config, run_dir in plans]
+    dirs = [run_dir for _, run_dir in planned]
     if len(set(map(os.path.abspath, dirs))) != len(dirs):
         raise ValueError(f"run_experiments: two plans share a run directory ({dirs})")
     study = ExperimentStudy(workers)
-    for config, run_dir in paths:  # all checked before any changes
+    for config, run_dir in planned:  # all checked before any changes
         config.check_size()
         check_run_dir(run_dir, force=force, resume=bool(resume))
         if resume and not force:
             check_resumed_config(run_dir, config, study.resume_hint(run_dir), load_config)
     finished = []
-    for config, run_dir in paths:
+    for config, run_dir in planned:
         study.prepare(config, run_dir, resume, force)
         finished.append(study.finished(config, run_dir, resume))
-    return _run_worlds(study, paths, finished, resume, progress, report=True)
+    return _run_worlds(study, planned, finished, resume, progress, report=True)
 
 
 def _run_worlds(

@@ -129,14 +129,14 @@ class GreedyTracker:
         )
         self.evaluations[step] = result
         if self.logger is not None:
-            columns = {
+            tags = {
                 "eval/greedy_goals_per_window": result.goals_per_window,
                 "eval/greedy_percent_of_optimal": self.percent_of_optimal(result),
                 "eval/greedy_percent_of_mentor": self.percent_of_mentor(result),
                 "eval/greedy_reach_share": result.reach_share,
                 "eval/greedy_value_start": result.value_start,
             }
-            lists = {tag: values.tolist() for tag, values in columns.items()}
+            lists = {tag: values.tolist() for tag, values in tags.items()}
             for b in range(len(result)):
                 finite = {tag: v[b] for tag, v in lists.items() if math.isfinite(v[b])}
                 self.logger.scalars(b, finite, step)

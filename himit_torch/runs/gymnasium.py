@@ -191,11 +191,12 @@ def _minigrid_task(
     the MiniGrid mentor with its own right-handed skills (:func:`~himit_torch.minigrid_mentor`);
     with ``mentor_goal``, the mentor demonstrates the same layout with its goal moved to that
     cell (transfer)."""
+    name = env_id if mentor_goal is None else f"{env_id}, transfer"
     return GymTask(
         env_id,
         {},
         _minigrid_skills,
-        f"{env_id}{', transfer' * (mentor_goal is not None)}: {about}",
+        f"{name}: {about}",
         steps,
         make_world=lambda gamma: from_minigrid(env_id, gamma=gamma),
         make_mentor=minigrid_mentor,  # type: ignore[arg-type]
@@ -211,7 +212,8 @@ def _transfer_task(
     env_id: str, steps: int, mentor_goal: tuple[int, int], goal: tuple[int, int]
 ) -> GymTask:
     """A DoorKey task whose mentor shows the layout with its goal moved to ``mentor_goal``; the
-    learner is rewarded at MiniGrid's ``goal``."""
+    learner is rewarded at MiniGrid's own goal, which ``goal`` names for the task's description
+    only (it is not checked against the layout)."""
     return _minigrid_task(
         env_id,
         f"the mentor demonstrates the layout with its goal moved to {mentor_goal}, the learner "

@@ -541,7 +541,7 @@ def _organisation_rows(summary: dict) -> tuple[list[str], dict[str, Any]]:
         both = sum(math.isfinite(x) and math.isfinite(y) for x, y in zip(mine, theirs))
         diff = _paired(mine, theirs)
         tests.append(diff[2] if diff else 1.0)
-        rows.append(
+        rows.append(  # its last cell, the Holm-adjusted p, is added once every design is in
             f"| {about} | {_share(a, len(imit))} | {_share(b, len(others))} | {fisher:.2g} | "
             f"{_cell(mine, 2)} | {_cell(theirs, 2)} | {_diff_text(diff, f' (n={both})')} |"
         )

@@ -11,10 +11,12 @@ experiment (:mod:`himit_torch.runs.discovery`) share, read top to bottom::
         save a checkpoint                         (checkpoints; the logger is flushed first)
 
 Around it, what every runner needs to set a batch up and keep its run directory honest: the
-batch's runs, each seed's demonstrations, checkpoints with resume, the run directory's checks,
-the code's commit and the threads of a world's process among others (as one of a pool's lanes,
-it takes the cores of the lanes that have ended between its windows). What a runner measures
-and reports stays in its own module.
+batch's runs (:func:`batch_runs`, :func:`run_names`), each seed's demonstrations
+(:func:`watch_demonstrations`), checkpoints with resume (:class:`Checkpoints`), the run
+directory's checks (:func:`check_run_dir`, :func:`clear_run_dir`), the code's commit
+(:func:`source_commit`) and the threads of a world's process among others (:func:`share_cores`;
+as one of a pool's lanes, :func:`join_lanes`, it takes the cores of the lanes that have ended
+between its windows). What a runner measures and reports stays in its own module.
 """
 
 from __future__ import annotations
@@ -309,6 +311,8 @@ def check_run_dir(run_dir: Path, *, force: bool, resume: bool | None = None) -> 
 def clear_run_dir(run_dir: Path, folders: Sequence[str], files: Sequence[str] = ()) -> None:
     """Remove what an earlier run left in ``run_dir`` (``--force``): its ``folders`` and
     ``files``."""
+    if not run_dir.exists():
+        return
     for sub in folders:
         shutil.rmtree(run_dir / sub, ignore_errors=True)
     for f in files:

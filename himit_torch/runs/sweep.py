@@ -366,9 +366,9 @@ def _cells(
             {**baseline, n: v} for n, levels in factors.items() for v in levels[1:]
         ]
 
-    def refused(levels: dict) -> Exception | None:
+    def refused(cell_levels: dict) -> Exception | None:
         try:
-            _apply(base, {**fixed, **levels, **owned})
+            _apply(base, {**fixed, **cell_levels, **owned})
         except (ValueError, TypeError) as error:
             return error
         return None
