@@ -672,6 +672,8 @@ class CheckpointGenerations:
             try:
                 if restore is not None:
                     restore(found)
+            except DamagedCheckpoint as err:  # (a restore that judges the file itself)
+                skipped.append(Skipped(path, err.reason, err.step))
             except DamagedState as err:  # restore refused the state: the file is as damaged
                 reason = f"its state is not one himit_torch writes ({err}); it was not restored"
                 skipped.append(Skipped(path, reason, found.header.step))

@@ -1,7 +1,8 @@
 """Compiling the compiled engine's kernels ahead of a run: in a parent process while the world
 processes it starts set up, so that they load the kernels from Numba's disk cache instead of
-each compiling them. (Not needed: each kernel's first call in a process holds the cache's lock,
-so processes that start together compile once anyway. This only moves the compiling earlier.)
+each compiling them. (The engine needs none of this: each kernel's first call in a process
+holds the cache's lock, so processes that start together compile once anyway. This only moves
+the compiling earlier.)
 
 ``python -m himit_torch.runs.kernels`` does it once for an environment (``make install`` runs it),
 filling the cache the kernels use by default, so that the first run afterwards only loads them.

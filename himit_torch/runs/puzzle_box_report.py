@@ -186,8 +186,11 @@ def write_puzzle_box_figures(run_dir: Path, summary: dict) -> None:
     """``figures/speed.png``, ``figures/organisation.png``, ``figures/transfer.png``."""
     from himit_torch.viz.report import AGENT_COLORS
 
-    colors = {**AGENT_COLORS, "plain": AGENT_COLORS["imitation_confident"]}
-    colors["any"] = AGENT_COLORS["imitation"]
+    colors = {
+        **AGENT_COLORS,
+        "plain": AGENT_COLORS["imitation_confident"],
+        "any": AGENT_COLORS["imitation"],
+    }
     for experiment, conditions in _NEEDED_BATCHES.items():
         _experiment_figure(run_dir, summary, experiment, conditions, colors)
     _organisation_figure(run_dir, summary)

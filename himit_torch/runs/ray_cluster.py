@@ -1,16 +1,18 @@
 """Joining a running Ray cluster: its token authentication, settled before Ray's own connect.
 
 Ray (≥ 2.52) can demand a token on every request (``RAY_AUTH_MODE=token``, "set via the
-environment and … configured consistently on every node"). The token is looked up, "highest to lowest precedence", in
-``RAY_AUTH_TOKEN``, the file named by ``RAY_AUTH_TOKEN_PATH`` (unreadable or empty: "a fatal
-misconfiguration"), then ``~/.ray/auth_token``; ``ray get-auth-token`` prints a node's token
+environment and … configured consistently on every node"). The token is looked up, "highest to
+lowest precedence", in ``RAY_AUTH_TOKEN``, the file named by ``RAY_AUTH_TOKEN_PATH``
+(unreadable or empty: "a fatal misconfiguration"), then ``~/.ray/auth_token``;
+``ray get-auth-token`` prints a node's token
 (https://docs.ray.io/en/latest/ray-security/token-auth.html,
 https://docs.ray.io/en/master/ray-core/internals/token-authentication.html). Since Ray 2.59
 ``ray start --head`` turns token authentication on whenever a token exists (any local
 ``ray.init()`` writes one; ray-project/ray#64755, in 2.59 as #66248), but a driver joining an
-explicit address does not (Ray 2.60, ``ray/_private/worker.py``: "Only a local cluster found automatically auto-enables
-auth; an explicit address (argument or RAY_ADDRESS) never does"): ``ray.init(address="host:port")`` sends no token, then retries for
-about 20 s, logging ``InvalidAuthToken`` every second, before "Failed to connect to Ray cluster".
+explicit address does not (Ray 2.60, ``ray/_private/worker.py``: "Only a local cluster found
+automatically auto-enables auth; an explicit address (argument or RAY_ADDRESS) never does"):
+``ray.init(address="host:port")`` sends no token, then retries for about 20 s, logging
+``InvalidAuthToken`` every second, before "Failed to connect to Ray cluster".
 
 Hence :func:`prepare_to_join` first sends the cluster's GCS one ``GetClusterId`` request without a
 token. If it is refused as unauthenticated, the token is looked up as Ray does, checked with a

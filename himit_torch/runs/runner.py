@@ -418,6 +418,7 @@ def freeze_at_exit() -> None:
     Those collections walk every object a run leaves behind (torch's, matplotlib's,
     TensorBoard's): ≈ 1 s at the end of a ``himit run``, and as long for each world process
     of ``himit run paper``. Nothing of ours waits on them: files and writers are closed where
-    they are used, and ``weakref.finalize`` callbacks run at exit anyway."""
+    they are used, and ``weakref.finalize`` callbacks run at exit anyway (cycles the freeze
+    keeps are freed with the process)."""
     atexit.unregister(gc.freeze)  # (removes an earlier registration, if any)
     atexit.register(gc.freeze)

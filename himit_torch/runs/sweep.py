@@ -674,7 +674,7 @@ def _summary_rows(
     return summary
 
 
-#: What ``summary.md`` says of the spec, but its file (the keys ``sweep.json`` records too).
+#: What ``summary.md`` says of the spec besides its file: the keys ``sweep.json`` records too.
 _ABOUT = ("name", "base", "design", "seeds", "first_seed", "worlds")
 
 

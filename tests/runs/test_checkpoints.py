@@ -34,6 +34,7 @@ from himit_torch.runs.checkpoints import (
 )
 from himit_torch.runs.config import EXPERIMENTS
 from himit_torch.runs.experiment import run_experiment
+from himit_torch.state_checks import DamagedState
 
 
 @pytest.fixture
@@ -500,6 +501,35 @@ def test_a_damaged_newest_falls_back_and_is_never_promoted(tmp_path):
     save(gens, 20)  # the resumed run saves again: the damaged file must not become "previous"
     assert [read_header(p).step for p in gens.paths] == [20, 10]
     assert gens.load().step == 20
+
+
+@pytest.mark.parametrize("refusal", ["state", "file"])
+def test_a_newest_whose_restore_is_refused_is_skipped_with_its_reason(tmp_path, refusal):
+    """``restore`` refusing the newest generation's state (DamagedState) or the file itself
+    (DamagedCheckpoint, a DamagedState too): the previous one is restored, the newest skipped
+    with the refusal's own reason and step."""
+    gens = CheckpointGenerations(tmp_path / "w.pt")
+    save(gens, 10)
+    save(gens, 20)
+    restored = []
+
+    def restore(found):
+        if found.header.step == 20:
+            if refusal == "state":
+                raise DamagedState("learner.row", "holds a row it never built")
+            raise DamagedCheckpoint(found.path, "judged damaged by its reader", 19)
+        restored.append(found.header.step)
+
+    resumed = gens.load(restore=restore)
+    assert resumed.step == 10 and restored == [10]
+    [skipped] = resumed.skipped
+    assert skipped.path == gens.newest
+    if refusal == "state":
+        assert skipped.step == 20
+        assert "not one himit_torch writes" in skipped.reason
+        assert "holds a row it never built" in skipped.reason
+    else:
+        assert (skipped.step, skipped.reason) == (19, "judged damaged by its reader")
 
 
 def test_a_newest_altered_in_place_is_never_promoted(tmp_path):
